@@ -1,0 +1,97 @@
+"""Exceptions raised by packbot.
+
+Every error packbot raises on purpose derives from :class:`PackbotError`. Each subclass carries
+the offending data as attributes, and its message says what was wrong and how to fix it (for a
+bad name, the list of valid names).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Sequence
+from pathlib import Path
+from typing import Any
+
+
+class PackbotError(Exception):
+    """Base class of every error packbot raises on purpose."""
+
+
+class ModelError(PackbotError):
+    """The robot description (URDF, meshes, parameter table) is missing or inconsistent."""
+
+
+class ResourceNotFound(ModelError):
+    """A data file shipped with packbot (URDF, mesh, scenario) could not be located.
+
+    Attributes:
+        path: The path that was looked for.
+    """
+
+    def __init__(self, path: Path | str, hint: str = "") -> None:
+        self.path = Path(path)
+        msg = f"packbot data file not found: {self.path}"
+        if hint:
+            msg += f". {hint}"
+        super().__init__(msg)
+
+
+class UnknownNameError(PackbotError, KeyError):
+    """A name (joint, link, pose, obstacle, ...) is not one of the valid choices.
+
+    Attributes:
+        kind: What was being named ("joint", "pose", ...).
+        name: The name that was given.
+        valid: The valid names.
+    """
+
+    def __init__(self, kind: str, name: object, valid: Iterable[str]) -> None:
+        self.kind = kind
+        self.name = name
+        self.valid = sorted(valid)
+        super().__init__(
+            f"unknown {kind} {name!r}; valid {kind} names are: {', '.join(self.valid)}"
+        )
+
+    def __str__(self) -> str:  # KeyError would quote the message
+        return str(self.args[0])
+
+
+class ConfigurationError(PackbotError, ValueError):
+    """A setting, argument or array has an invalid value.
+
+    Attributes:
+        field: Name of the offending field or argument.
+        value: The value that was given.
+        expected: What a valid value looks like (a range, the valid choices, a shape).
+    """
+
+    def __init__(self, field: str, value: Any, expected: str | Sequence[str]) -> None:
+        self.field = field
+        self.value = value
+        if isinstance(expected, str):
+            self.expected = expected
+        else:
+            self.expected = "one of " + ", ".join(repr(x) for x in expected)
+        super().__init__(f"invalid {field}={value!r}: expected {self.expected}")
+
+
+class ConvexityError(ModelError):
+    """A collision mesh is not convex, or is empty or degenerate.
+
+    Attributes:
+        name: Name of the geometry piece.
+        volume: Volume enclosed by the mesh [m^3] (None if it has none).
+        hull_volume: Volume of its convex hull [m^3] (None if it has none).
+    """
+
+    def __init__(
+        self,
+        name: str,
+        reason: str,
+        volume: float | None = None,
+        hull_volume: float | None = None,
+    ) -> None:
+        self.name = name
+        self.volume = volume
+        self.hull_volume = hull_volume
+        super().__init__(f"collision piece {name!r}: {reason}")

@@ -1,0 +1,236 @@
+"""Load the PackBot EOD model: :func:`load_robot` returns a :class:`Robot`.
+
+The Pinocchio models come from ``urdf/packbot_eod.urdf``; actuator data (gear ratios, rotor
+inertias, friction) from the parameter table :mod:`packbot.params`. The armature
+``gear_ratio^2 * rotor_inertia`` is written into ``model.armature``, which Pinocchio's ABA and
+CRBA add to the joint-space mass matrix. Collision meshes are replaced by their convex hulls
+(``coal.Convex``), so that Coal's GJK/EPA returns signed distances (negative when penetrating).
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import pinocchio as pin
+from numpy.typing import NDArray
+
+from packbot import params as P
+from packbot.errors import ConfigurationError, ConvexityError, ResourceNotFound, UnknownNameError
+from packbot.resources import data_dir
+from packbot.urdfgen import URDF_NAME
+
+__all__ = ["JointParams", "Robot", "load_robot"]
+
+log = logging.getLogger(__name__)
+
+#: Relative tolerance between a collision mesh's volume and its convex hull's.
+CONVEXITY_RTOL = 1e-6
+
+
+@dataclass(frozen=True)
+class JointParams:
+    """Per-joint actuator and limit data, as arrays in the model's velocity order (shape (nv,)).
+
+    Attributes:
+        names: Joint names, model order.
+        lower: Lower position limits [rad].
+        upper: Upper position limits [rad].
+        velocity: Velocity limits [rad/s].
+        effort: Effort limits [N*m].
+        gear_ratio: Gear ratios [-].
+        rotor_inertia: Rotor inertias [kg*m^2].
+        armature: Reflected rotor inertias ``gear_ratio^2 * rotor_inertia`` [kg*m^2].
+        viscous: Viscous friction coefficients [N*m*s/rad].
+        coulomb: Coulomb friction torques [N*m].
+        table: The full parameter table (dotted name -> :class:`packbot.params.Param`).
+    """
+
+    names: tuple[str, ...]
+    lower: NDArray[np.float64]
+    upper: NDArray[np.float64]
+    velocity: NDArray[np.float64]
+    effort: NDArray[np.float64]
+    gear_ratio: NDArray[np.float64]
+    rotor_inertia: NDArray[np.float64]
+    armature: NDArray[np.float64]
+    viscous: NDArray[np.float64]
+    coulomb: NDArray[np.float64]
+    table: Mapping[str, P.Param] = field(repr=False)
+
+    def index(self, joint: str) -> int:
+        """Index of a joint in these arrays (and in q and v).
+
+        Raises:
+            UnknownNameError: No joint of that name.
+        """
+        try:
+            return self.names.index(joint)
+        except ValueError:
+            raise UnknownNameError("joint", joint, self.names) from None
+
+
+@dataclass
+class Robot:
+    """The PackBot EOD arm on its chassis.
+
+    Attributes:
+        model: Pinocchio kinematic/dynamic model (fixed base ``base_link``; nq = nv = 8).
+        collision_model: Pinocchio geometry model; every piece a ``coal.Convex``.
+        visual_model: Pinocchio geometry model for display.
+        poses: Named poses, name -> q (shape (nq,)) [rad].
+        params: Joint limits and actuator data (see :class:`JointParams`).
+        urdf_path: The URDF this robot was loaded from.
+    """
+
+    model: pin.Model
+    collision_model: pin.GeometryModel
+    visual_model: pin.GeometryModel
+    poses: dict[str, NDArray[np.float64]]
+    params: JointParams
+    urdf_path: Path
+
+    @property
+    def joint_names(self) -> tuple[str, ...]:
+        """Names of the actuated joints, in q order."""
+        return self.params.names
+
+    @property
+    def nq(self) -> int:
+        """Number of configuration coordinates."""
+        return int(self.model.nq)
+
+    def pose(self, name: str) -> NDArray[np.float64]:
+        """A copy of a named pose's q [rad].
+
+        Raises:
+            UnknownNameError: No pose of that name; lists the valid ones.
+        """
+        if name not in self.poses:
+            raise UnknownNameError("pose", name, self.poses)
+        return self.poses[name].copy()
+
+    def q_from(self, values: Mapping[str, float], base: str | None = None) -> NDArray[np.float64]:
+        """Build q [rad] from joint values by name, the others from pose ``base`` (or zero).
+
+        Raises:
+            UnknownNameError: A joint name that the model does not have.
+        """
+        q = self.pose(base) if base is not None else np.zeros(self.nq)
+        for name, val in values.items():
+            q[self.params.index(name)] = float(val)
+        return q
+
+    def check_within_limits(self, q: NDArray[np.float64], field_name: str = "q") -> None:
+        """Raise :class:`ConfigurationError` naming the joints of q outside their limits."""
+        q = np.asarray(q, dtype=float)
+        if q.shape != (self.nq,):
+            raise ConfigurationError(field_name, q.shape, f"shape ({self.nq},)")
+        bad = [
+            f"{n}={v:.4f} not in [{lo:.4f}, {hi:.4f}]"
+            for n, v, lo, hi in zip(
+                self.params.names, q, self.params.lower, self.params.upper, strict=True
+            )
+            if not lo <= v <= hi
+        ]
+        if bad:
+            raise ConfigurationError(field_name, "; ".join(bad), "joint angles within limits [rad]")
+
+
+def _joint_params(model: pin.Model) -> JointParams:
+    specs = {j.name: j for j in P.JOINTS}
+    names = tuple(model.names[1:])
+    if set(names) != set(specs):
+        raise ResourceNotFound("urdf", f"URDF joints {names} differ from the parameter table")
+    # Model order may differ from the table's: map through names.
+    ordered = [specs[n] for n in names]
+    arr = lambda f: np.array([f(j) for j in ordered], dtype=float)  # noqa: E731
+    ratio = arr(lambda j: j.gear_ratio)
+    rotor = arr(lambda j: j.rotor_inertia)
+    for n in names:
+        idx = model.joints[model.getJointId(n)].idx_v
+        if idx != names.index(n):  # pragma: no cover - revolute chains keep this true
+            raise ResourceNotFound("urdf", "joint order differs from velocity order")
+    return JointParams(
+        names=names,
+        lower=np.array(model.lowerPositionLimit, dtype=float),
+        upper=np.array(model.upperPositionLimit, dtype=float),
+        velocity=np.array(model.velocityLimit, dtype=float),
+        effort=np.array(model.effortLimit, dtype=float),
+        gear_ratio=ratio,
+        rotor_inertia=rotor,
+        armature=ratio**2 * rotor,
+        viscous=arr(lambda j: j.viscous),
+        coulomb=arr(lambda j: j.coulomb),
+        table=dict(P.TABLE),
+    )
+
+
+def _convexify(geom_model: pin.GeometryModel) -> None:
+    """Replace every mesh by its convex hull, checking that the mesh was convex."""
+    for go in geom_model.geometryObjects:
+        mesh = go.geometry
+        if not hasattr(mesh, "buildConvexHull"):
+            continue
+        pts = np.asarray(mesh.vertices(), dtype=float)
+        if len(pts) < 4:
+            raise ConvexityError(go.name, f"mesh has {len(pts)} vertices, needs >= 4")
+        spread = np.linalg.svd(pts - pts.mean(axis=0), compute_uv=False)
+        if spread[2] <= 1e-9 * max(spread[0], 1e-300):  # flat or collinear: Qhull would crash
+            raise ConvexityError(go.name, "degenerate mesh: its vertices span no volume")
+        vol = float(mesh.computeVolume())
+        mesh.buildConvexHull(True, "Qt")
+        hull = mesh.convex
+        hull_vol = float(hull.computeVolume())
+        if hull_vol <= 0.0:
+            raise ConvexityError(go.name, "degenerate mesh: its hull has no volume", vol, hull_vol)
+        if abs(hull_vol - vol) > CONVEXITY_RTOL * hull_vol:
+            raise ConvexityError(
+                go.name,
+                f"mesh is not convex: volume {vol:.6g} m^3 differs from its hull's {hull_vol:.6g} "
+                f"m^3 by {100 * (hull_vol - vol) / hull_vol:.3g} %; split it into convex pieces",
+                vol,
+                hull_vol,
+            )
+        go.geometry = hull
+
+
+def load_robot(urdf: str | Path | None = None) -> Robot:
+    """Load the PackBot EOD model.
+
+    Args:
+        urdf: A URDF file to load instead of the shipped ``urdf/packbot_eod.urdf``. Mesh URIs
+            ``package://packbot/...`` resolve to that file's directory.
+
+    Returns:
+        The robot, with armature set from the parameter table and convex collision pieces.
+
+    Raises:
+        ResourceNotFound: The URDF or one of its meshes is missing.
+        ConvexityError: A collision mesh is not convex, or is degenerate.
+    """
+    path = Path(urdf) if urdf is not None else data_dir("urdf") / URDF_NAME
+    if not path.is_file():
+        raise ResourceNotFound(path)
+    text = path.read_text()
+    pkg = str(path.resolve().parent)
+    text = text.replace("package://packbot/", f"file://{pkg}/")
+    model = pin.buildModelFromXML(text)
+    try:
+        collision = pin.buildGeomFromUrdfString(model, text, pin.GeometryType.COLLISION)
+        visual = pin.buildGeomFromUrdfString(model, text, pin.GeometryType.VISUAL)
+    except ValueError as exc:  # pinocchio raises ValueError for a missing mesh
+        raise ResourceNotFound(path, str(exc)) from exc
+    _convexify(collision)
+    params = _joint_params(model)
+    model.armature = params.armature.copy()
+    model.gravity.linear = np.array([0.0, 0.0, -P.GRAVITY])
+    poses = {name: np.zeros(model.nq) for name in P.POSES}
+    for name, values in P.POSES.items():
+        for joint, val in values.items():
+            poses[name][params.index(joint)] = val
+    log.debug("loaded %s: nq=%d, %d collision pieces", path, model.nq, collision.ngeoms)
+    return Robot(model, collision, visual, poses, params, path)
