@@ -76,6 +76,20 @@ def _cmd_generate_model(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_generate_srdf(args: argparse.Namespace) -> int:
+    from packbot.model import load_robot
+    from packbot.resources import repo_root
+    from packbot.srdfgen import write_srdf
+
+    root = Path(args.root) if args.root else repo_root()
+    if root is None:
+        print("error: not in a source checkout; pass --root DIR", file=sys.stderr)
+        return 2
+    path = write_srdf(load_robot(), root, samples=args.samples, clearance=args.clearance)
+    print(f"wrote {path}")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser with every subcommand."""
     parser = argparse.ArgumentParser(
@@ -97,6 +111,15 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--check", action="store_true", help="only report files that are out of date")
     p.add_argument("--root", default=None, help="repository root (default: this checkout)")
     p.set_defaults(func=_cmd_generate_model)
+
+    p = sub.add_parser(
+        "generate-srdf",
+        help="sample the joint space and write urdf/packbot_eod.srdf (link pairs not to test)",
+    )
+    p.add_argument("--samples", type=int, default=20000, help="random configurations (20000)")
+    p.add_argument("--clearance", type=float, default=0.05, help="'never' below this [m] (0.05)")
+    p.add_argument("--root", default=None, help="repository root (default: this checkout)")
+    p.set_defaults(func=_cmd_generate_srdf)
     return parser
 
 

@@ -198,6 +198,18 @@ def _convexify(geom_model: pin.GeometryModel) -> None:
         go.geometry = hull
 
 
+def _name_pieces(geom_model: pin.GeometryModel, model: pin.Model) -> None:
+    """Name each piece ``link/part`` after the parameter table (Pinocchio names them link_k)."""
+    parts = {link.name: [p.name for p in link.parts if p.collision] for link in P.LINKS}
+    count: dict[str, int] = {}
+    for go in geom_model.geometryObjects:
+        link = str(model.frames[go.parentFrame].name)
+        k = count.get(link, 0)
+        count[link] = k + 1
+        names = parts.get(link, [])
+        go.name = f"{link}/{names[k]}" if k < len(names) else f"{link}/{k}"
+
+
 def load_robot(urdf: str | Path | None = None) -> Robot:
     """Load the PackBot EOD model.
 
@@ -224,6 +236,8 @@ def load_robot(urdf: str | Path | None = None) -> Robot:
         visual = pin.buildGeomFromUrdfString(model, text, pin.GeometryType.VISUAL)
     except ValueError as exc:  # pinocchio raises ValueError for a missing mesh
         raise ResourceNotFound(path, str(exc)) from exc
+    _name_pieces(collision, model)
+    _name_pieces(visual, model)
     _convexify(collision)
     params = _joint_params(model)
     model.armature = params.armature.copy()

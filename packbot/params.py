@@ -126,7 +126,7 @@ WRIST_X = _p("link3.wrist_start", 0.56, "m", "est", "elbow2 axis to gripper wris
 ROLL_X = _p("link3.roll_joint", 0.68, "m", "est", "elbow2 axis to gripper roll joint along link 3")
 TILT_X = _p("link3.tilt_axis_x", 0.62, "m", "est", "camera tilt axis, along link 3")
 TILT_Y = _p(
-    "link3.tilt_axis_up", 0.09, "m", "est", "camera tilt axis, above the link 3 centre line"
+    "link3.tilt_axis_up", 0.16, "m", "est", "camera tilt axis, above the link 3 centre line"
 )
 CAM_UP = _p(
     "camera.height", 0.10, "m", "est", "optical centre above the tilt axis, along the pan axis"
@@ -479,7 +479,13 @@ LINKS: tuple[LinkSpec, ...] = (
                 _cyl(0.04, ROLL_X - WRIST_X),
                 "x",
             ),
-            Part("camera_wrist", "box", M_CWRIST, (TILT_X - 0.02, 0.055, 0.0), (0.10, 0.05, 0.06)),
+            Part(
+                "camera_wrist",
+                "box",
+                M_CWRIST,
+                (TILT_X - 0.02, TILT_Y / 2 + 0.01, 0.0),
+                (0.10, TILT_Y - 0.02, 0.06),
+            ),
         ),
         (0.65, 0.58, 0.26, 1.0),
     ),
@@ -514,8 +520,8 @@ LINKS: tuple[LinkSpec, ...] = (
 #: Named poses from the real robot's presets [rad], in ARM_JOINTS order.
 #: drive: arm folded over the chassis, link 3 upright carrying the head (the report's Fig. 6).
 POSES: dict[str, dict[str, float]] = {
-    "drive": {"shoulder": 0.05, "elbow1": 2.95, "elbow2": -1.22, "camera_tilt": -1.6},
-    "stow": {"shoulder": 0.05, "elbow1": 3.0, "elbow2": -2.85, "camera_tilt": 0.3},
+    "drive": {"shoulder": 0.05, "elbow1": 2.85, "elbow2": -1.12, "camera_tilt": -1.6},
+    "stow": {"shoulder": 0.05, "elbow1": 2.85, "elbow2": -2.8, "camera_tilt": 0.0},
     "stand": {"shoulder": 1.2, "elbow1": -0.7, "elbow2": -0.4, "camera_tilt": -0.1},
     "high": {"shoulder": 1.45, "elbow1": -0.1, "elbow2": 0.05, "camera_tilt": -1.4},
     "low": {"shoulder": 0.35, "elbow1": -0.9, "elbow2": 0.3, "camera_tilt": -0.5},
