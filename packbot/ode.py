@@ -1,0 +1,611 @@
+"""Adaptive Dormand-Prince 5(4) integrator core of the event-driven simulator.
+
+:class:`RK45Stepper` takes one accepted step at a time of the explicit embedded Runge-Kutta
+pair of Dormand and Prince (the method of MATLAB's ``ode45`` and scipy's ``RK45``): the
+5th-order solution is propagated (local extrapolation), the embedded 4th-order one estimates
+the local error, and the last stage is the first stage of the next step (FSAL), so that an
+accepted step costs 6 right-hand-side calls. The error control is the standard one of
+Hairer, Norsett and Wanner, *Solving Ordinary Differential Equations I*, 2nd ed., sec. II.4::
+
+    err = || (y5 - y4) / (atol + rtol * max(|y0|, |y1|)) ||_rms
+    h_new = h * min(fac_max, max(0.2, 0.9 * err**(-1/5)))
+
+with ``fac_max = 5`` for the first step after a (re)start, 10 once a step has been accepted,
+and 1 (no growth) for the step accepted right after a rejection.
+
+Every accepted step is returned as a :class:`DenseSegment`, which evaluates the 4th-order
+continuous extension of the method (Shampine 1986; the same polynomial as Hairer's DOPRI5
+``CONTD5`` and scipy's ``RK45`` dense output) anywhere in the step. The simulator uses it to
+evaluate event functions and :func:`locate_root` to find the instant an event function
+changes sign, then restarts the stepper there with :meth:`RK45Stepper.restrict` or
+:meth:`RK45Stepper.reset`.
+
+Why not ``scipy.integrate.RK45``: its per-step and per-construction Python overhead (hundreds
+of microseconds) dominates a right-hand side that costs a few microseconds, and the simulator
+restarts after every contact event. This module keeps the per-step overhead to a few dozen
+numpy calls on preallocated arrays (see ``benchmarks/ode.py``).
+
+Units: times and step sizes are in the units of the right-hand side's time argument
+(seconds in packbot); ``atol`` is in the units of ``y``.
+"""
+
+from __future__ import annotations
+
+import itertools
+import logging
+import math
+from collections.abc import Callable
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+from scipy.optimize import brentq
+
+from packbot.errors import ConfigurationError, PackbotError
+
+__all__ = [
+    "DenseSegment",
+    "RK45Stepper",
+    "StepSizeUnderflow",
+    "locate_root",
+]
+
+log = logging.getLogger(__name__)
+
+FloatArray = NDArray[np.float64]
+#: Signature of a right-hand side: ``rhs(t, y) -> dy/dt`` with ``y`` and the result of shape (n,).
+RHS = Callable[[float, FloatArray], ArrayLike]
+
+# --- Dormand-Prince 5(4) tableau ----------------------------------------------------------------
+# Stage times c_i (stage 7 is at t + h: it is f(t + h, y1), the FSAL stage).
+_C = (0.0, 1 / 5, 3 / 10, 4 / 5, 8 / 9, 1.0, 1.0)
+# Stage coefficients a_ij; row 6 is the 5th-order weights b_j (y1 = y0 + h * sum_j b_j k_j).
+_A = np.array(
+    [
+        [0, 0, 0, 0, 0, 0, 0],
+        [1 / 5, 0, 0, 0, 0, 0, 0],
+        [3 / 40, 9 / 40, 0, 0, 0, 0, 0],
+        [44 / 45, -56 / 15, 32 / 9, 0, 0, 0, 0],
+        [19372 / 6561, -25360 / 2187, 64448 / 6561, -212 / 729, 0, 0, 0],
+        [9017 / 3168, -355 / 33, 46732 / 5247, 49 / 176, -5103 / 18656, 0, 0],
+        [35 / 384, 0, 500 / 1113, 125 / 192, -2187 / 6784, 11 / 84, 0],
+    ],
+    dtype=np.float64,
+)
+# Error weights e_j = b_j - b*_j (5th minus embedded 4th order): y5 - y4 = h * sum_j e_j k_j.
+_E = np.array(
+    [-71 / 57600, 0, 71 / 16695, -71 / 1920, 17253 / 339200, -22 / 525, 1 / 40],
+    dtype=np.float64,
+)
+# Continuous extension: y(t0 + theta*h) = y0 + h * sum_j k_j * sum_m P[j, m] * theta**(m + 1).
+_P = np.array(
+    [
+        [
+            1,
+            -8048581381 / 2820520608,
+            8663915743 / 2820520608,
+            -12715105075 / 11282082432,
+        ],
+        [0, 0, 0, 0],
+        [
+            0,
+            131558114200 / 32700410799,
+            -68118460800 / 10900136933,
+            87487479700 / 32700410799,
+        ],
+        [
+            0,
+            -1754552775 / 470086768,
+            14199869525 / 1410260304,
+            -10690763975 / 1880347072,
+        ],
+        [
+            0,
+            127303824393 / 49829197408,
+            -318862633887 / 49829197408,
+            701980252875 / 199316789632,
+        ],
+        [0, -282668133 / 205662961, 2019193451 / 616988883, -1453857185 / 822651844],
+        [0, 40617522 / 29380423, -110615467 / 29380423, 69997945 / 29380423],
+    ],
+    dtype=np.float64,
+)
+
+# The stepper keeps the step's data in one array Z of shape (8, n): Z[0] = y0, Z[1 + i] = k_i.
+# Row s of _A8 holds the coefficients of stage s's argument on Z: [1, a_s0, ..., a_s6] (after
+# multiplying the a's by h), so each stage argument is one small dot product.
+_A8 = np.zeros((7, 8))
+_A8[:, 1:] = _A
+# Dense output on Z: y(t0 + theta*h) = [1, h*theta, h*theta^2, h*theta^3, h*theta^4] @ (_P8T @ Z).
+_P8T = np.zeros((5, 8))
+_P8T[0, 0] = 1.0
+_P8T[1:, 1:] = _P.T
+
+#: Safety factor of the step-size controller [-].
+SAFETY = 0.9
+#: Smallest step-size factor after a rejection [-].
+MIN_FACTOR = 0.2
+#: Largest step-size growth on the first step after a (re)start [-].
+MAX_FACTOR_FIRST = 5.0
+#: Largest step-size growth once a step has been accepted since the last (re)start [-].
+MAX_FACTOR = 10.0
+#: Exponent of the error in the step-size factor: -1 / (order of the error estimator + 1).
+ERROR_EXPONENT = -1.0 / 5.0
+#: A step that would end within this fraction of itself before ``t_end`` is stretched onto it.
+STRETCH = 0.01
+
+
+class StepSizeUnderflow(PackbotError):
+    """The step size needed for the requested accuracy fell below the stepper's ``h_min``.
+
+    Usually the solution has a singularity or a discontinuity near ``t`` (a contact force that
+    switches on inside a step, a division by a vanishing quantity in the right-hand side), or
+    the problem is stiff there.
+
+    Attributes:
+        t: Time of the last accepted step, where the stepper is stuck [s].
+        h: The rejected step size that fell below ``h_min`` [s].
+        h_min: The smallest step size allowed [s] (at least 10 ulps of ``t``).
+    """
+
+    def __init__(self, t: float, h: float, h_min: float) -> None:
+        self.t = t
+        self.h = h
+        self.h_min = h_min
+        super().__init__(
+            f"step size underflow at t={t!r}: the error control asked for h={h:.3g} < "
+            f"h_min={h_min:.3g}. The right-hand side probably has a singularity or a "
+            "discontinuity near this time (make a discontinuity an event and restart there), "
+            "or the problem is stiff; check the model, loosen rtol/atol, or lower h_min"
+        )
+
+
+class DenseSegment:
+    """One accepted step [t0, t1]: y(t) for t in [t0, t1] by the continuous extension.
+
+    The interpolant is the 4th-order continuous extension of Dormand-Prince 5(4) (a quartic in
+    ``theta = (t - t0) / h``) that matches y and dy/dt = f(t, y) at both ends, so that the
+    interpolants of successive steps join with continuous first derivatives. Evaluation outside
+    [t0, t1] extrapolates without warning and is inaccurate.
+
+    Attributes:
+        t0: Start time of the step [s].
+        t1: End time of the step [s].
+        h: Step size ``t1 - t0`` [s].
+        y0: State at ``t0``, shape (n,) (do not modify).
+        y1: State at ``t1``, shape (n,) (do not modify).
+    """
+
+    __slots__ = ("_Q", "_Z", "h", "t0", "t1", "y0", "y1")
+
+    def __init__(
+        self, t0: float, t1: float, h: float, y0: FloatArray, y1: FloatArray, Z: FloatArray
+    ) -> None:
+        """Wrap the data of a step; called by :meth:`RK45Stepper.step`.
+
+        Args:
+            t0: Start time [s].
+            t1: End time [s].
+            h: Step size ``t1 - t0`` [s].
+            y0: State at ``t0``, shape (n,).
+            y1: State at ``t1``, shape (n,).
+            Z: The step's stage array, shape (8, n): ``[y0, k_0, ..., k_6]``.
+        """
+        self.t0 = t0
+        self.t1 = t1
+        self.h = h
+        self.y0 = y0
+        self.y1 = y1
+        self._Z = Z
+        self._Q: FloatArray | None = None
+
+    def _coefficients(self) -> FloatArray:
+        """Polynomial coefficients of the interpolant, shape (5, n), computed on first use."""
+        Q = self._Q
+        if Q is None:
+            Q = self._Q = np.dot(_P8T, self._Z)
+        return Q
+
+    def __call__(self, t: float) -> FloatArray:
+        """Evaluate the interpolant.
+
+        Args:
+            t: Time [s] in [t0, t1].
+
+        Returns:
+            y(t), a new array of shape (n,). Exactly ``y0`` at ``t0`` and ``y1`` at ``t1``.
+        """
+        if t == self.t1:
+            return self.y1.copy()
+        if t == self.t0:
+            return self.y0.copy()
+        Q = self._Q
+        if Q is None:
+            Q = self._coefficients()
+        h = self.h
+        th = (t - self.t0) / h
+        x = h * th
+        x2 = x * th
+        x3 = x2 * th
+        return np.dot(np.array((1.0, x, x2, x3, x3 * th)), Q)
+
+    def derivative(self, t: float) -> FloatArray:
+        """Time derivative of the interpolant (a cubic, 3rd-order accurate).
+
+        Args:
+            t: Time [s] in [t0, t1].
+
+        Returns:
+            dy/dt at ``t``, a new array of shape (n,) [units of y per s].
+        """
+        Q = self._Q
+        if Q is None:
+            Q = self._coefficients()
+        th = (t - self.t0) / self.h
+        th2 = th * th
+        return np.dot(np.array((0.0, 1.0, 2.0 * th, 3.0 * th2, 4.0 * th2 * th)), Q)
+
+    def sample(self, ts: ArrayLike) -> FloatArray:
+        """Evaluate the interpolant at many times at once.
+
+        Args:
+            ts: Times [s] in [t0, t1], shape (m,).
+
+        Returns:
+            Array of shape (m, n): row i is y(ts[i]).
+        """
+        th = (np.asarray(ts, dtype=np.float64).reshape(-1) - self.t0) / self.h
+        V = np.empty((th.size, 5))
+        V[:, 0] = 1.0
+        V[:, 1] = self.h * th
+        for m in range(2, 5):
+            V[:, m] = V[:, m - 1] * th
+        return V @ self._coefficients()
+
+    def __repr__(self) -> str:
+        return f"DenseSegment(t0={self.t0!r}, t1={self.t1!r}, n={self.y0.shape[0]})"
+
+
+class RK45Stepper:
+    """Dormand-Prince 5(4) stepper with error control, FSAL and dense output; forward in time.
+
+    Usage::
+
+        stepper = RK45Stepper(rhs, rtol=1e-8, atol=1e-10)
+        stepper.reset(0.0, y0)
+        while stepper.t < t_final:
+            seg = stepper.step(t_final)  # one accepted step [seg.t0, seg.t1]
+            ...                          # look for events in seg; maybe stepper.restrict(...)
+
+    The stepper holds no reference to ``t_end`` between calls, so successive calls may use
+    different end times (the next output time, the next scheduled event).
+
+    Attributes:
+        t: Current time [s].
+        y: Current state, shape (n,) (a fresh array after every step; do not modify).
+        f: ``rhs(t, y)`` at the current state, shape (n,).
+        h: Size of the next step to try [s].
+        rtol: Relative tolerance [-].
+        atol: Absolute tolerance, scalar or shape (n,) [units of y].
+        h_max: Largest step size [s] (up to 1 % more for a step stretched onto ``t_end``).
+        h_min: Smallest step size [s]; below it :meth:`step` raises :class:`StepSizeUnderflow`.
+        n_steps: Accepted steps, cumulative over resets.
+        n_rejected: Rejected step attempts, cumulative over resets.
+        n_rhs: Right-hand-side calls, cumulative over resets.
+    """
+
+    def __init__(
+        self,
+        rhs: RHS,
+        *,
+        rtol: float,
+        atol: float | ArrayLike,
+        h_max: float = np.inf,
+        h_min: float = 1e-12,
+    ) -> None:
+        """Create a stepper; call :meth:`reset` to give it an initial state.
+
+        Args:
+            rhs: Right-hand side ``rhs(t, y) -> dy/dt``: a float [s] and an array of shape (n,)
+                to an array-like of shape (n,). It must not keep or modify ``y``.
+            rtol: Relative tolerance [-], > 0 (in practice >= 1e-13).
+            atol: Absolute tolerance [units of y], >= 0, a scalar or one per component; it must
+                be > 0 for a component that can be exactly 0.
+            h_max: Largest step size [s], > 0.
+            h_min: Smallest step size [s], >= 0.
+
+        Raises:
+            ConfigurationError: A tolerance or step bound is out of range.
+        """
+        if not (rtol > 0.0 and math.isfinite(rtol)):
+            raise ConfigurationError("rtol", rtol, "a finite number > 0 (e.g. 1e-6)")
+        atol_arr = np.array(atol, dtype=np.float64)
+        if atol_arr.ndim > 1 or not np.all(atol_arr >= 0.0) or not np.all(np.isfinite(atol_arr)):
+            raise ConfigurationError(
+                "atol", atol, "a finite number >= 0, or an array of them of shape (n,)"
+            )
+        if not h_max > 0.0:
+            raise ConfigurationError("h_max", h_max, "a step size > 0 [s] (np.inf for no bound)")
+        if not (0.0 <= h_min < h_max):
+            raise ConfigurationError("h_min", h_min, f"a step size in [0, h_max={h_max!r}) [s]")
+        self._rhs = rhs
+        self.rtol = float(rtol)
+        self.atol: float | FloatArray = float(atol_arr) if atol_arr.ndim == 0 else atol_arr
+        self.h_max = float(h_max)
+        self.h_min = float(h_min)
+        self.n_steps = 0
+        self.n_rejected = 0
+        self.n_rhs = 0
+        self.t = math.nan
+        self.h = math.nan
+        self.y: FloatArray = np.empty(0)
+        self.f: FloatArray = np.empty(0)
+        self._n = 0
+        self._inv_n = 0.0
+        self._ay: FloatArray = np.empty(0)  # |y|, reused by the error norm of the next step
+        self._max_factor = MAX_FACTOR_FIRST
+        # Stage-coefficient buffer Ah = [1, h * a_s] and its per-stage row views.
+        self._Ah = np.empty((7, 8))
+        self._rows = [self._Ah[s, : s + 1] for s in range(7)]
+
+    def reset(self, t: float, y: ArrayLike, h: float | None = None) -> None:
+        """Restart at (t, y): forget the FSAL stage and choose the next step size.
+
+        Costs 1 right-hand-side call if ``h`` is given, else 2 (Hairer's initial step
+        selection, "Solving ODEs I", sec. II.4). The counters keep accumulating.
+
+        Args:
+            t: Time [s].
+            y: State, shape (n,); copied. The dimension may change between resets.
+            h: Next step size [s], > 0, or None to choose one (capped at ``h_max``).
+
+        Raises:
+            ConfigurationError: ``y`` is not a finite 1-d array, ``atol`` does not match its
+                length, or ``h`` is not > 0.
+        """
+        y = np.array(y, dtype=np.float64)  # a private copy
+        n = y.shape[0] if y.ndim == 1 else -1
+        if n < 1 or not np.all(np.isfinite(y)):
+            raise ConfigurationError("y", y, "a finite 1-d array with at least one element")
+        atol = self.atol
+        if not isinstance(atol, float) and atol.shape != (n,):
+            raise ConfigurationError("atol", atol, f"a scalar or an array of shape ({n},)")
+        if h is not None and not h > 0.0:
+            raise ConfigurationError("h", h, "a step size > 0 [s], or None to choose one")
+        t = float(t)
+        f = np.array(self._rhs(t, y), dtype=np.float64)
+        self.n_rhs += 1
+        if f.shape != (n,):
+            raise ConfigurationError("rhs(t, y)", f.shape, f"an array of shape ({n},)")
+        self.t = t
+        self.y = y
+        self.f = f
+        self._n = n
+        self._inv_n = 1.0 / n
+        ay = np.abs(y)
+        self._ay = ay
+        self._max_factor = MAX_FACTOR_FIRST
+        if h is None:
+            h = self._initial_step(t, y, f, ay)
+        self.h = min(float(h), self.h_max)
+
+    def restrict(self, t_new: float, y_new: ArrayLike) -> None:
+        """Accept a truncated step: continue from (t_new, y_new), keeping the current h as a hint.
+
+        For an event located at ``t_new`` inside the last segment; ``y_new`` is the state there,
+        possibly changed by the event (an impact). Same as ``reset(t_new, y_new, h=self.h)``.
+
+        Args:
+            t_new: Time [s].
+            y_new: State, shape (n,); copied.
+        """
+        self.reset(t_new, y_new, self.h)
+
+    def _initial_step(self, t: float, y: FloatArray, f: FloatArray, ay: FloatArray) -> float:
+        """Hairer's initial step size for an order-4 error estimator (1 right-hand-side call)."""
+        inv_sc = 1.0 / (self.atol + self.rtol * ay)
+        v = y * inv_sc
+        d0 = math.sqrt(float(np.dot(v, v)) * self._inv_n)
+        v = f * inv_sc
+        d1 = math.sqrt(float(np.dot(v, v)) * self._inv_n)
+        h0 = 1e-6 if d0 < 1e-5 or d1 < 1e-5 else 0.01 * d0 / d1
+        h0 = min(h0, self.h_max)
+        f1 = np.asarray(self._rhs(t + h0, y + h0 * f), dtype=np.float64)
+        self.n_rhs += 1
+        v = (f1 - f) * inv_sc
+        d2 = math.sqrt(float(np.dot(v, v)) * self._inv_n) / h0
+        d = max(d1, d2)
+        h1 = max(1e-6, h0 * 1e-3) if d <= 1e-15 else (0.01 / d) ** 0.2
+        h = min(100.0 * h0, h1)
+        if not math.isfinite(h):  # the probe rhs call returned inf/nan: start cautiously
+            h = h0
+        return h
+
+    def step(self, t_end: float) -> DenseSegment:
+        """Take one accepted step, never beyond ``t_end``.
+
+        The step tried is the current ``h`` (capped at ``h_max``), shortened to land exactly on
+        ``t_end`` when it would pass it (or stretched by at most 1 % onto ``t_end`` to avoid a
+        sliver step, as Hairer's DOPRI5 does: so a step landing on ``t_end`` may exceed ``h_max``
+        by up to 1 %). A rejected attempt is retried with a smaller step.
+
+        Args:
+            t_end: Time [s] not to step beyond, > ``t``.
+
+        Returns:
+            The accepted step; afterwards ``self.t == segment.t1`` and ``self.y is segment.y1``.
+
+        Raises:
+            StepSizeUnderflow: The error control asked for a step below ``h_min``; the state
+                stays at the last accepted step.
+            ConfigurationError: ``t_end <= t``, or :meth:`reset` was never called.
+        """
+        t = self.t
+        if not t_end > t:
+            if t != t:
+                raise ConfigurationError("t", t, "a state: call reset(t, y) before step()")
+            raise ConfigurationError("t_end", t_end, f"a time > the current time t={t!r}")
+        rhs = self._rhs
+        y = self.y
+        h = self.h
+        if h > self.h_max:
+            h = self.h_max
+        Ah = self._Ah
+        r1, r2, r3, r4, r5, r6 = self._rows[1:]
+        c1, c2, c3, c4, c5 = _C[1:6]
+        Z = np.empty((8, self._n))
+        Z[0] = y
+        Z[1] = self.f
+        K = Z[1:]
+        rtol = self.rtol
+        atol = self.atol
+        ay0 = self._ay
+        rejected = False
+        while True:
+            t_new = t + h
+            h_wanted = -1.0
+            if t_new + STRETCH * h >= t_end:
+                h_wanted = h
+                t_new = t_end
+                h = t_end - t
+            np.multiply(_A8, h, out=Ah)
+            Ah[:, 0] = 1.0
+            Z[2] = rhs(t + c1 * h, np.dot(r1, Z[:2]))
+            Z[3] = rhs(t + c2 * h, np.dot(r2, Z[:3]))
+            Z[4] = rhs(t + c3 * h, np.dot(r3, Z[:4]))
+            Z[5] = rhs(t + c4 * h, np.dot(r4, Z[:5]))
+            Z[6] = rhs(t + c5 * h, np.dot(r5, Z[:6]))
+            y_new = np.dot(r6, Z[:7])
+            Z[7] = rhs(t_new, y_new)
+            self.n_rhs += 6
+            # Scaled RMS norm of the error estimate h * sum_j e_j k_j.
+            ev = np.dot(_E, K)
+            ay1 = np.abs(y_new)
+            sc = np.maximum(ay0, ay1)
+            sc *= rtol
+            sc += atol
+            ev /= sc
+            err = h * math.sqrt(float(np.dot(ev, ev)) * self._inv_n)
+            if err < 1.0:
+                break
+            # Rejected (also when err is nan: the rhs returned inf/nan).
+            self.n_rejected += 1
+            rejected = True
+            fac = SAFETY * err**ERROR_EXPONENT
+            if not fac > MIN_FACTOR:
+                fac = MIN_FACTOR
+            h *= fac
+            h_floor = max(self.h_min, 10.0 * math.ulp(t))
+            if h < h_floor:
+                self.h = h
+                raise StepSizeUnderflow(t, h, h_floor)
+        # Accepted.
+        if err == 0.0:
+            fac = self._max_factor
+        else:
+            fac = SAFETY * err**ERROR_EXPONENT
+            if fac > self._max_factor:
+                fac = self._max_factor
+        if rejected:
+            if fac > 1.0:
+                fac = 1.0
+        elif h_wanted > h:
+            # The step was shortened to land on t_end: the controller's proposal still holds.
+            h_next = h * fac
+            h = h_wanted if h_wanted > h_next else h_next
+            fac = 1.0
+        self.h = h * fac
+        self._max_factor = MAX_FACTOR
+        self.n_steps += 1
+        seg = DenseSegment(t, t_new, t_new - t, y, y_new, Z)
+        self.t = t_new
+        self.y = y_new
+        self.f = Z[7]
+        self._ay = ay1
+        return seg
+
+    def __repr__(self) -> str:
+        return (
+            f"RK45Stepper(t={self.t!r}, h={self.h!r}, n={self._n}, rtol={self.rtol!r}, "
+            f"steps={self.n_steps}, rejected={self.n_rejected}, rhs={self.n_rhs})"
+        )
+
+
+def locate_root(
+    g: Callable[[float], float],
+    t0: float,
+    t1: float,
+    g0: float,
+    g1: float,
+    *,
+    xtol: float = 1e-10,
+) -> float:
+    """Locate a sign change of a continuous scalar function on a bracket, from the event side.
+
+    ``g`` goes from positive at ``t0`` to non-positive at ``t1`` (typically an event function
+    evaluated on a :class:`DenseSegment`). Returns the right end ``tb`` of a final bracket
+    ``[ta, tb]`` with ``g(ta) > 0 >= g(tb)`` and ``tb - ta <= xtol`` (plus rounding), found by
+    :func:`scipy.optimize.brentq`; so ``g(tb) <= 0``: the caller restarts at or just after the
+    crossing, on the event side. An exact zero counts as the event side. If ``g`` has several
+    sign changes in [t0, t1], one of the crossings from > 0 to <= 0 is returned, not
+    necessarily the earliest.
+
+    Args:
+        g: Continuous scalar function of time.
+        t0: Left end of the bracket [s].
+        t1: Right end of the bracket [s], > ``t0``.
+        g0: ``g(t0)``, > 0.
+        g1: ``g(t1)``, <= 0.
+        xtol: Width of the final bracket [s], > 0.
+
+    Returns:
+        A time ``tb`` in (t0, t1] with ``g(tb) <= 0`` and ``g > 0`` within ``xtol`` before it [s].
+
+    Raises:
+        ConfigurationError: The arguments do not bracket a sign change.
+    """
+    if not t1 > t0:
+        raise ConfigurationError("t1", t1, f"a time > t0={t0!r}")
+    if not (g0 > 0.0 >= g1):
+        raise ConfigurationError(
+            "(g0, g1)", (g0, g1), "g0 > 0 >= g1: a sign change of the event function on [t0, t1]"
+        )
+    if not xtol > 0.0:
+        raise ConfigurationError("xtol", xtol, "a time tolerance > 0 [s]")
+    ts: list[float] = [t0, t1]  # every point where g was evaluated, and its value
+    gs: list[float] = [g0, g1]
+
+    def g_rec(t: float) -> float:
+        if t == t0:
+            return g0
+        if t == t1:
+            v = g1
+        else:
+            v = float(g(t))
+            ts.append(t)
+            gs.append(v)
+        # brentq returns at once on an exact zero; a tiny negative value keeps it bracketing.
+        return v if v != 0.0 else -1e-300
+
+    rtol = 4.0 * float(np.finfo(np.float64).eps)
+    r = float(brentq(g_rec, t0, t1, xtol=xtol, rtol=rtol))
+    # brentq returns one end of its final bracket, [ta, tb] with g(ta) > 0 >= g(tb): a bracket
+    # that starts with its positive end on the left keeps it there, and no point evaluated
+    # earlier lies inside it. So it is the pair of neighbouring evaluated points with a falling
+    # sign change that contains r.
+    order = sorted(range(len(ts)), key=ts.__getitem__)
+    best = math.inf
+    ta, tb = t0, t1
+    for i, j in itertools.pairwise(order):
+        if gs[i] > 0.0 >= gs[j]:
+            dist = max(ts[i] - r, r - ts[j], 0.0)
+            if dist < best:
+                best, ta, tb = dist, ts[i], ts[j]
+    if best > 0.0 or tb - ta > 1.000001 * (xtol + rtol * abs(tb)):  # pragma: no cover
+        log.warning(
+            "locate_root: final bracket [%r, %r] of width %g does not meet xtol=%g",
+            ta,
+            tb,
+            tb - ta,
+            xtol,
+        )
+    return tb
