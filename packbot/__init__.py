@@ -1,26 +1,49 @@
 """packbot: event-driven simulation of the iRobot PackBot EOD manipulator."""
 
+from packbot.collision import CollisionWorld, Contact, ContactPatch, PairInfo
+from packbot.config import SimConfig
+from packbot.environment import FLOOR, Environment, Obstacle
 from packbot.errors import (
     ConfigurationError,
+    ControllerError,
     ConvexityError,
+    InitialCollisionError,
     ModelError,
     PackbotError,
     ResourceNotFound,
+    SimulationError,
     UnknownNameError,
 )
+from packbot.integrator import simulate
 from packbot.model import JointParams, Robot, load_robot
+from packbot.result import Diagnostics, Event, SimResult
 
 __version__ = "0.1.0"
 
 __all__ = [
+    "FLOOR",
+    "CollisionWorld",
     "ConfigurationError",
+    "Contact",
+    "ContactPatch",
+    "ControllerError",
     "ConvexityError",
+    "Diagnostics",
+    "Environment",
+    "Event",
+    "InitialCollisionError",
     "JointParams",
     "ModelError",
+    "Obstacle",
     "PackbotError",
+    "PairInfo",
     "ResourceNotFound",
     "Robot",
+    "SimConfig",
+    "SimResult",
+    "SimulationError",
     "UnknownNameError",
     "__version__",
     "load_robot",
+    "simulate",
 ]

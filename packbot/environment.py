@@ -22,6 +22,9 @@ __all__ = ["FLOOR", "OBSTACLE_KINDS", "Environment", "Obstacle"]
 ObstacleKind = Literal["box", "halfspace", "convex"]
 #: The valid obstacle kinds.
 OBSTACLE_KINDS: tuple[str, ...] = ("box", "halfspace", "convex")
+#: A convex obstacle thinner than this fraction of its size (or of its distance from its frame's
+#: origin) is degenerate.
+FLATNESS_RTOL = 1e-6
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -69,12 +72,31 @@ class Obstacle:
             if not math.isfinite(self.offset):
                 raise ConfigurationError(f"obstacle {self.name!r}: offset", self.offset, "finite")
         if self.kind == "convex":
-            pts = np.asarray(self.points, dtype=float)
+            try:
+                pts = np.asarray(self.points, dtype=float)
+            except (TypeError, ValueError):  # ragged or not numbers
+                raise ConfigurationError(
+                    f"obstacle {self.name!r}: points", self.points, "(N, 3) numbers [m]"
+                ) from None
+            if pts.size and not np.all(np.isfinite(pts)):
+                raise ConfigurationError(
+                    f"obstacle {self.name!r}: points", self.points, "finite coordinates [m]"
+                )
             if pts.ndim != 2 or pts.shape[1] != 3 or len(pts) < 4:
                 raise ConvexityError(self.name, f"needs >= 4 points (N, 3), got shape {pts.shape}")
-            spread = np.linalg.svd(pts - pts.mean(axis=0), compute_uv=False)
-            if spread[2] <= 1e-9 * spread[0]:
-                raise ConvexityError(self.name, "degenerate: its points span no volume")
+            # Thickness along the least principal axis against the size (and the distance from
+            # the frame origin, which sets Qhull's roundoff): Qhull crashes the process on
+            # nearly flat input (thickness 1e-8 of the size), so reject it well before that.
+            centred = pts - pts.mean(axis=0)
+            axes = np.linalg.svd(centred, full_matrices=False)[2]
+            extent = np.ptp(centred @ axes.T, axis=0)
+            scale = max(float(extent[0]), float(np.abs(pts).max()))
+            if not extent[2] > FLATNESS_RTOL * scale:
+                raise ConvexityError(
+                    self.name,
+                    f"degenerate: its points span no volume (thickness {extent[2]:.3g} m over "
+                    f"an extent of {extent[0]:.3g} m); give >= 4 points not in one plane",
+                )
 
     def placement(self) -> pin.SE3:
         """Pose of the obstacle frame in the world (identity for a halfspace)."""

@@ -95,3 +95,47 @@ class ConvexityError(ModelError):
         self.volume = volume
         self.hull_volume = hull_volume
         super().__init__(f"collision piece {name!r}: {reason}")
+
+
+class InitialCollisionError(ConfigurationError):
+    """The initial configuration has penetrating pairs.
+
+    Attributes:
+        pairs: ``(link1/piece1, link2/piece2, distance [m])`` of each penetrating pair.
+    """
+
+    def __init__(self, pairs: Sequence[tuple[str, str, float]]) -> None:
+        self.pairs = list(pairs)
+        desc = "; ".join(f"{a} - {b}: {d * 1000:.2f} mm" for a, b, d in self.pairs)
+        PackbotError.__init__(
+            self,
+            f"invalid q0: the initial state is in collision ({desc}); start from a "
+            "configuration where every signed distance is >= 0",
+        )
+        self.field, self.value, self.expected = "q0", desc, "a collision-free configuration"
+
+
+class SimulationError(PackbotError):
+    """A simulation could not continue.
+
+    Attributes:
+        t: Simulated time at which it stopped [s].
+        result: The result up to that time (a :class:`packbot.SimResult`), if any.
+    """
+
+    def __init__(self, message: str, t: float, result: Any = None) -> None:
+        self.t = t
+        self.result = result
+        super().__init__(f"simulation stopped at t = {t:.9g} s: {message}")
+
+
+class ControllerError(SimulationError):
+    """The controller raised, or returned torques of the wrong shape or not finite.
+
+    Attributes:
+        joint: The offending joint's name, if one is to blame.
+    """
+
+    def __init__(self, message: str, t: float, joint: str | None = None) -> None:
+        self.joint = joint
+        super().__init__(f"controller: {message}", t)

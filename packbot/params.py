@@ -308,12 +308,12 @@ DH_COMMON: tuple[DHRow, ...] = (
 CHAINS: dict[str, tuple[DHRow, ...]] = {
     "gripper": (
         *DH_COMMON,
-        DHRow("elbow2", PI / 2, -OFF2, 0.0, PI / 2),
+        DHRow("elbow2", PI / 2, 0.0, 0.0, PI / 2),
         DHRow("gripper_roll", 0.0, L3, 0.0, 0.0),
     ),
     "camera": (
         *DH_COMMON,
-        DHRow("elbow2", _phi, -OFF2, _h, 0.0),
+        DHRow("elbow2", _phi, 0.0, _h, 0.0),
         DHRow("camera_tilt", -_phi, 0.0, 0.0, -PI / 2),
         DHRow("camera_pan", 0.0, CAM_UP, CAM_FWD, 0.0),
     ),
@@ -327,7 +327,7 @@ JOINTS: tuple[JointSpec, ...] = (
     _joint("turret", "base_link", "turret_link", (-3.05, 3.05), 1.0, 60.0, 200, 3.3e-6, 0.8, 1.5),
     _joint("shoulder", "turret_link", "link1", (-1.3, 2.1), 0.8, None, 160, 3.3e-6, 0.8, 1.5),
     _joint("elbow1", "link1", "link2", (-2.6, 3.05), 1.0, None, 160, 1.1e-6, 0.5, 1.0, OFF2),
-    _joint("elbow2", "link2", "link3", (-2.9, 2.9), 1.2, None, 120, 1.1e-6, 0.4, 0.8, -OFF2),
+    _joint("elbow2", "link2", "link3", (-2.9, 2.9), 1.2, None, 120, 1.1e-6, 0.4, 0.8),
     _joint("camera_tilt", "link3", "camera_tilt_link", (-2.2, 2.2), 1.5, 6.0, 100, 3e-7, 0.05, 0.2),
     _joint(
         "camera_pan", "camera_tilt_link", "camera_head", (-2.9, 2.9), 1.5, 4.0, 100, 3e-7, 0.05, 0.2

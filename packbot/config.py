@@ -1,0 +1,128 @@
+"""Simulation settings: :class:`SimConfig`, the one place for them (scenario files load into it)."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, fields
+from typing import Literal, get_args
+
+from packbot.errors import ConfigurationError
+
+__all__ = ["CLAMP_RULES", "CONTACT_MODES", "RESET_RULES", "SimConfig"]
+
+ContactMode = Literal["joint_clamp", "normal", "none"]
+ClampRule = Literal["velocity", "jacobian"]
+ResetRule = Literal["zero", "momentum"]
+
+#: Valid values of :attr:`SimConfig.contact_mode`.
+CONTACT_MODES: tuple[str, ...] = get_args(ContactMode)
+#: Valid values of :attr:`SimConfig.clamp_rule`.
+CLAMP_RULES: tuple[str, ...] = get_args(ClampRule)
+#: Valid values of :attr:`SimConfig.reset_rule`.
+RESET_RULES: tuple[str, ...] = get_args(ResetRule)
+
+
+@dataclass(kw_only=True)
+class SimConfig:
+    """Settings of :func:`packbot.simulate`.
+
+    Attributes:
+        contact_mode: ``"joint_clamp"`` (the 2010 report's law: stop and clamp the joints between
+            the colliding bodies), ``"normal"`` (contact-normal constraints; not available yet),
+            or ``"none"`` (no collisions; joint limit stops still act if ``joint_limits``).
+        restitution: Coefficient of restitution e in [0, 1] (0: perfectly inelastic).
+        contact_tolerance: Contact tolerance [m]: a contact event fires when a pair's signed
+            distance falls to +tol; the simulation keeps every distance >= -tol.
+        proximity_tolerance: An active contact is released when its pair separates beyond this
+            distance [m] (the report's proximity tolerance); must exceed contact_tolerance.
+        rtol: Relative tolerance of the adaptive integrator [-].
+        atol: Absolute tolerance of the adaptive integrator [rad, rad/s].
+        sample_dt: Sampling interval of the result [s] (dense output).
+        gravity: Gravity vector in the world frame [m/s^2] (tilt it for a robot on a slope).
+        clamp_rule: Direction in which a clamped joint may not accelerate: ``"velocity"`` (the
+            report's, the default: the joint's velocity at impact) or ``"jacobian"`` (the sign
+            of the joint's own contribution to closing the gap, J_n,i).
+        reset_rule: Impact velocity reset: ``"zero"`` (the report's, the default:
+            v_i <- -e v_i on the relevant joints; can add energy on a coupled arm) or
+            ``"momentum"`` (an impulse stops the relevant joints; the others keep their
+            generalized momentum).
+        relevant_threshold: Joint i is relevant to a contact if |J_n,i| > threshold * ||J_n||.
+        joint_limits: Whether joint position limits act as hard stops (impact + clamp).
+        locked_joints: Joints held rigid at their initial angle for the whole run (the model is
+            reduced with ``pin.buildReducedModel``); results stay in full coordinates.
+        margin: Query margin of the collision world [m] (pairs farther apart are pruned).
+        max_step: Largest integration step [s].
+        rest_speed: Joint speed [rad/s] below which the arm counts as at rest.
+        max_events: Stop with an error after this many events (a runaway guard).
+    """
+
+    contact_mode: ContactMode = "joint_clamp"
+    restitution: float = 0.0
+    contact_tolerance: float = 1e-3
+    proximity_tolerance: float = 5e-3
+    rtol: float = 1e-6
+    atol: float = 1e-8
+    sample_dt: float = 0.01
+    gravity: tuple[float, float, float] = (0.0, 0.0, -9.81)
+    clamp_rule: ClampRule = "velocity"
+    reset_rule: ResetRule = "zero"
+    relevant_threshold: float = 1e-6
+    joint_limits: bool = True
+    locked_joints: tuple[str, ...] = ()
+    margin: float = 0.05
+    max_step: float = 0.05
+    rest_speed: float = 1e-3
+    max_events: int = 20000
+
+    def validate(self) -> None:
+        """Check every field; raise :class:`ConfigurationError` naming the first bad one."""
+        choices = {
+            "contact_mode": CONTACT_MODES,
+            "clamp_rule": CLAMP_RULES,
+            "reset_rule": RESET_RULES,
+        }
+        for name, valid in choices.items():
+            if getattr(self, name) not in valid:
+                raise ConfigurationError(name, getattr(self, name), valid)
+        positive = (
+            "contact_tolerance",
+            "proximity_tolerance",
+            "rtol",
+            "atol",
+            "sample_dt",
+            "margin",
+            "max_step",
+            "rest_speed",
+            "relevant_threshold",
+        )
+        for name in positive:
+            v = getattr(self, name)
+            if not isinstance(v, (int, float)) or not math.isfinite(v) or v <= 0:
+                raise ConfigurationError(name, v, "a finite positive number")
+        if not 0.0 <= self.restitution <= 1.0:
+            raise ConfigurationError("restitution", self.restitution, "a number in [0, 1]")
+        if self.proximity_tolerance <= self.contact_tolerance:
+            raise ConfigurationError(
+                "proximity_tolerance",
+                self.proximity_tolerance,
+                f"a distance greater than contact_tolerance={self.contact_tolerance} [m]",
+            )
+        if self.margin <= self.proximity_tolerance:
+            raise ConfigurationError(
+                "margin", self.margin, "a distance greater than proximity_tolerance [m]"
+            )
+        if len(self.gravity) != 3 or not all(math.isfinite(g) for g in self.gravity):
+            raise ConfigurationError("gravity", self.gravity, "3 finite numbers [m/s^2]")
+        if not isinstance(self.max_events, int) or self.max_events < 1:
+            raise ConfigurationError("max_events", self.max_events, "a positive integer")
+        if self.contact_mode == "normal":
+            raise ConfigurationError(
+                "contact_mode",
+                self.contact_mode,
+                "'joint_clamp' or 'none': the contact-normal mode is not implemented yet",
+            )
+
+    @classmethod
+    def field_names(cls) -> tuple[str, ...]:
+        """Names of all settings."""
+        return tuple(f.name for f in fields(cls))

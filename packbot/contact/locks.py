@@ -1,0 +1,140 @@
+"""Unilateral joint locks: the clamps of the report's law and of joint-limit stops.
+
+A clamp on joint j with direction s_j = +1 or -1 forbids the joint to accelerate in direction
+s_j ("toward the contact"): s_j a_j <= 0. A clamped joint is either
+
+- *engaged*: locked, a_j = 0, held by a constraint torque lambda_j that must push away from the
+  contact, s_j lambda_j <= 0; or
+- *free*: it moves with the dynamics and does not accelerate toward the contact, s_j a_j <= 0.
+
+A joint clamped in both directions (two contacts) is locked bilaterally. The accelerations obey
+M a = tau - h + S^T lambda with S the rows of the engaged joints, so the lock torques act through
+the whole arm (unlike zeroing one acceleration after the fact). Which clamped joints are engaged
+is the solution of a small linear complementarity problem (unique: its matrix (M^-1)_CC is
+positive definite), solved at every restart; inside an integration step the engaged set is
+fixed, and the step's end checks the two sign conditions, whose change is an event.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable
+from itertools import combinations
+
+import numpy as np
+from numpy.typing import NDArray
+
+__all__ = ["ACCEL_BAND", "TORQUE_BAND", "JointLocks"]
+
+#: Hysteresis of the sign conditions: a free clamped joint engages only once it accelerates
+#: toward its contact by more than ACCEL_BAND [rad/s^2]; an engaged lock lets go only once its
+#: torque would pull by more than TORQUE_BAND [N*m]. Without a band, a joint whose acceleration
+#: is exactly zero (the turret under gravity) would switch at every numerical whisper.
+ACCEL_BAND = 1e-6
+TORQUE_BAND = 1e-6
+
+FloatArray = NDArray[np.float64]
+
+
+class JointLocks:
+    """The clamps in force and which of them are engaged.
+
+    Attributes:
+        signs: Joint index -> set of forbidden acceleration directions (+1, -1).
+        engaged: Joint indices currently locked (a_j = 0).
+    """
+
+    def __init__(self) -> None:
+        self.signs: dict[int, set[int]] = {}
+        self.engaged: tuple[int, ...] = ()
+        self._idx = np.zeros(0, dtype=int)
+
+    def set_clamps(self, clamps: Iterable[tuple[int, int]]) -> None:
+        """Replace the clamps by (joint, sign) pairs (the union over active contacts)."""
+        signs: dict[int, set[int]] = {}
+        for j, s in clamps:
+            signs.setdefault(int(j), set()).add(int(s))
+        self.signs = signs
+        self.engaged = tuple(j for j in self.engaged if j in signs)
+        self._idx = np.array(self.engaged, dtype=int)
+
+    def accelerations(self, a_free: FloatArray, minv: FloatArray | None) -> FloatArray:
+        """Accelerations with the engaged joints locked, from the unconstrained ones.
+
+        Args:
+            a_free: Accelerations of the unconstrained arm [rad/s^2].
+            minv: M^-1 (needed only when some joint is engaged).
+        """
+        if not self.engaged:
+            return a_free
+        a, _ = self._solve(a_free, minv, self._idx)
+        return a
+
+    @staticmethod
+    def _solve(
+        a_free: FloatArray, minv: FloatArray | None, idx: NDArray[np.intp]
+    ) -> tuple[FloatArray, FloatArray]:
+        if len(idx) == 0 or minv is None:
+            return a_free, np.zeros(0)
+        W = minv[np.ix_(idx, idx)]
+        lam: FloatArray = np.linalg.solve(W, -a_free[idx])
+        return a_free + minv[:, idx] @ lam, lam
+
+    def conditions(self, a_free: FloatArray, minv: FloatArray | None) -> dict[int, float]:
+        """Sign conditions g_j >= 0 of every one-sided clamp, with the engaged set fixed.
+
+        Engaged joint: g = -s lambda (its lock must push away); free clamped joint: g = -s a (it
+        must not accelerate toward the contact). A g below zero is a mode change (an event).
+        """
+        a, lam = self._solve(a_free, minv, self._idx)
+        out: dict[int, float] = {}
+        pos = {j: k for k, j in enumerate(self.engaged)}
+        for j, signs in self.signs.items():
+            if len(signs) != 1:
+                continue  # bilateral: always engaged
+            (s,) = signs
+            out[j] = -s * lam[pos[j]] + TORQUE_BAND if j in pos else -s * a[j] + ACCEL_BAND
+        return out
+
+    def solve_engaged(
+        self, a_free: FloatArray, minv: FloatArray, flip: int | None = None, eps: float = 1e-12
+    ) -> tuple[int, ...]:
+        """Find and set the engaged set (the complementarity problem), by enumeration.
+
+        Args:
+            a_free: Unconstrained accelerations [rad/s^2].
+            minv: M^-1.
+            flip: A joint whose mode an event just changed: among consistent sets, prefer the
+                one that toggles it (resolves ties at the exact switching instant).
+            eps: Tolerance of the sign conditions (scaled by the acceleration magnitude).
+        """
+        bilateral = [j for j, s in self.signs.items() if len(s) == 2]
+        one_sided = sorted(j for j, s in self.signs.items() if len(s) == 1)
+        tol_a = 0.5 * ACCEL_BAND + eps * float(np.abs(a_free).max(initial=0.0))
+        tol_t = 0.5 * TORQUE_BAND
+        candidates: list[tuple[int, ...]] = []
+        for k in range(len(one_sided) + 1):
+            for subset in combinations(one_sided, k):
+                eng = tuple(sorted((*bilateral, *subset)))
+                a, lam = self._solve(a_free, minv, np.array(eng, dtype=int))
+                pos = {j: i for i, j in enumerate(eng)}
+                ok = True
+                for j in one_sided:
+                    (s,) = self.signs[j]
+                    g = -s * lam[pos[j]] + tol_t if j in pos else -s * a[j] + tol_a
+                    if g < 0.0:
+                        ok = False
+                        break
+                if ok:
+                    candidates.append(eng)
+        if not candidates:  # cannot happen for a positive definite M; be safe: lock them all
+            candidates = [tuple(sorted(self.signs))]
+        choice = candidates[0]
+        if flip is not None:
+            was = flip in self.engaged
+            for eng in candidates:
+                if (flip in eng) != was:
+                    choice = eng
+                    break
+        self.engaged = choice
+        self._idx = np.array(choice, dtype=int)
+        return choice

@@ -1,0 +1,142 @@
+"""What a simulation returns: :class:`SimResult`, its event log and diagnostics."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Literal
+
+import numpy as np
+from numpy.typing import NDArray
+
+from packbot.config import SimConfig
+
+__all__ = ["EVENT_KINDS", "Diagnostics", "Event", "SimResult"]
+
+EventKind = Literal[
+    "impact", "limit", "release", "secondary_intersection", "engage", "disengage", "end"
+]
+#: The kinds of event the simulator logs.
+EVENT_KINDS: tuple[str, ...] = (
+    "impact",  # a pair's signed distance fell to the contact tolerance: impact law applied
+    "limit",  # a joint reached a position limit: the same impact law and clamp
+    "release",  # an active contact or limit stop let go (separated, or its clamp would pull)
+    "secondary_intersection",  # an active, clamped pair penetrated anyway (report's self-diagnosis)
+    "engage",  # a clamped joint started to accelerate toward its contact: its lock engaged
+    "disengage",  # a locked joint's constraint torque would pull: its lock let go
+)
+
+
+@dataclass(frozen=True)
+class Event:
+    """One entry of the event log.
+
+    Attributes:
+        t: Time [s].
+        kind: One of :data:`EVENT_KINDS`.
+        link1: Body 1 (distal) of the pair, or the joint name for a limit.
+        link2: Body 2 (proximal, chassis or obstacle), or ``"upper"``/``"lower"`` for a limit.
+        piece1: Convex piece on body 1 ("" for a limit).
+        piece2: Convex piece on body 2 ("" for a limit).
+        distance: Signed distance of the pair at the event [m] (limit: distance to the stop
+            [rad]).
+        relevant_joints: Joints the law acted on (impact: the relevant joints).
+        v_before: Joint velocities before [rad/s], full coordinates, shape (nv,).
+        v_after: Joint velocities after [rad/s], shape (nv,).
+        energy_before: Total mechanical energy before [J].
+        energy_after: Total mechanical energy after [J].
+    """
+
+    t: float
+    kind: str
+    link1: str = ""
+    link2: str = ""
+    piece1: str = ""
+    piece2: str = ""
+    distance: float = float("nan")
+    relevant_joints: tuple[str, ...] = ()
+    v_before: NDArray[np.float64] = field(default_factory=lambda: np.zeros(0))
+    v_after: NDArray[np.float64] = field(default_factory=lambda: np.zeros(0))
+    energy_before: float = float("nan")
+    energy_after: float = float("nan")
+
+    @property
+    def energy_change(self) -> float:
+        """Energy after minus before [J] (positive: the event added energy)."""
+        return self.energy_after - self.energy_before
+
+
+@dataclass
+class Diagnostics:
+    """Work done and invariants seen by a run.
+
+    Attributes:
+        steps: Accepted integration steps.
+        rejected_steps: Rejected integration steps.
+        rhs_calls: Right-hand-side evaluations.
+        sweeps: Collision sweeps (one per accepted step, plus root finding).
+        distance_queries: Single-pair distance evaluations during event location.
+        restarts: Integrator restarts (after events).
+        wall_time: Wall-clock time of the run [s].
+        min_distance: Smallest signed distance seen at any accepted step or sample [m].
+        min_distance_pair: Links of that pair, ``"link1/piece1 - link2/piece2"``.
+    """
+
+    steps: int = 0
+    rejected_steps: int = 0
+    rhs_calls: int = 0
+    sweeps: int = 0
+    distance_queries: int = 0
+    restarts: int = 0
+    wall_time: float = 0.0
+    min_distance: float = float("inf")
+    min_distance_pair: str = ""
+
+
+@dataclass
+class SimResult:
+    """The outcome of :func:`packbot.simulate`.
+
+    Attributes:
+        t: Sample times [s], shape (N,): every ``sample_dt`` from the dense output, plus the
+            instants just before and just after every event (equal times, pre first).
+        q: Joint positions [rad], shape (N, nq), full model coordinates.
+        v: Joint velocities [rad/s], shape (N, nv).
+        tau: Applied joint torques [N*m], shape (N, nv).
+        energy: Total mechanical energy (kinetic incl. armature + potential) [J], shape (N,).
+        events: The event log, in time order.
+        rest_time: First time after which every joint speed stays below
+            ``config.rest_speed`` to the end [s], or None.
+        joint_names: Names of the columns of q, v, tau.
+        config: The settings of the run.
+        diagnostics: Work done and invariants seen.
+    """
+
+    t: NDArray[np.float64]
+    q: NDArray[np.float64]
+    v: NDArray[np.float64]
+    tau: NDArray[np.float64]
+    energy: NDArray[np.float64]
+    events: list[Event]
+    rest_time: float | None
+    joint_names: tuple[str, ...]
+    config: SimConfig
+    diagnostics: Diagnostics
+
+    def events_of(self, *kinds: str) -> list[Event]:
+        """The events of the given kinds."""
+        return [e for e in self.events if e.kind in kinds]
+
+    def joint(self, name: str) -> int:
+        """Column index of a joint."""
+        return self.joint_names.index(name)
+
+
+def rest_time(t: NDArray[np.float64], v: NDArray[np.float64], speed: float) -> float | None:
+    """First time after which every joint speed stays below ``speed`` [rad/s] to the end."""
+    moving = np.flatnonzero(np.abs(v).max(axis=1) >= speed)
+    if len(moving) == 0:
+        return float(t[0])
+    last = moving[-1]
+    if last == len(t) - 1:
+        return None
+    return float(t[last + 1])

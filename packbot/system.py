@@ -1,0 +1,156 @@
+"""The dynamic system a simulation integrates: the (possibly reduced) Pinocchio model.
+
+Joints listed in :attr:`SimConfig.locked_joints` are removed with ``pin.buildReducedModel``,
+which merges the bodies on either side of a locked joint exactly (inertia and collision pieces
+placed at the locked angle). The simulator integrates the reduced coordinates; everything it
+returns is mapped back to the full model's coordinates (locked joints constant, zero speed).
+
+Energy: kinetic 0.5 v^T M(q) v with M including the armature (reflected rotor inertia), plus
+the potential energy of gravity [J].
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pinocchio as pin
+from numpy.typing import NDArray
+
+from packbot.collision import CollisionWorld
+from packbot.config import SimConfig
+from packbot.environment import Environment
+from packbot.model import JointParams, Robot
+
+__all__ = ["System"]
+
+FloatArray = NDArray[np.float64]
+
+
+def _skew(r: FloatArray) -> FloatArray:
+    return np.array([[0.0, -r[2], r[1]], [r[2], 0.0, -r[0]], [-r[1], r[0], 0.0]])
+
+
+class System:
+    """The model being integrated and the maps between its coordinates and the full model's.
+
+    Args:
+        robot: The full robot.
+        q0: Initial configuration, full coordinates [rad] (locked joints stay there).
+        config: Simulation settings (gravity, locked joints, contact mode, margin).
+        environment: Static obstacles (None: the floor).
+
+    Attributes:
+        robot: The (reduced) robot the simulation integrates.
+        full: The full robot.
+        model: Its Pinocchio model, gravity and armature set.
+        data: Its Pinocchio data.
+        free: Indices of the integrated joints in the full coordinates.
+        q_locked: Full configuration supplying the locked joints [rad].
+        world: The collision world, or None when ``contact_mode == "none"``.
+        lower: Lower limits of the integrated joints [rad].
+        upper: Upper limits of the integrated joints [rad].
+        names: Names of the integrated joints.
+    """
+
+    def __init__(
+        self,
+        robot: Robot,
+        q0: FloatArray,
+        config: SimConfig,
+        environment: Environment | None,
+    ) -> None:
+        self.full = robot
+        self.q_locked = np.array(q0, dtype=float)
+        locked = [robot.params.index(n) for n in config.locked_joints]
+        self.free = np.array([i for i in range(robot.nq) if i not in locked], dtype=int)
+        self.robot = robot if not locked else _reduced(robot, locked, self.q_locked)
+        self.model = self.robot.model.copy()
+        self.model.gravity.linear = np.asarray(config.gravity, dtype=float)
+        self.data = self.model.createData()
+        self.names = self.robot.params.names
+        self.lower = self.robot.params.lower
+        self.upper = self.robot.params.upper
+        self.nv = int(self.model.nv)
+        self.world: CollisionWorld | None = None
+        if config.contact_mode != "none":
+            self.world = CollisionWorld(self.robot, environment, margin=config.margin)
+
+    # --------------------------------------------------------------- coordinates
+    def reduce(self, x_full: FloatArray) -> FloatArray:
+        """Full-model vector (q, v or tau) -> the integrated joints' entries."""
+        return np.asarray(x_full, dtype=float)[self.free]
+
+    def q_full(self, q: FloatArray) -> FloatArray:
+        """Integrated configuration -> full configuration [rad]."""
+        out = self.q_locked.copy()
+        out[self.free] = q
+        return out
+
+    def v_full(self, v: FloatArray) -> FloatArray:
+        """Integrated velocity -> full velocity [rad/s] (locked joints at zero)."""
+        out = np.zeros(self.full.nq)
+        out[self.free] = v
+        return out
+
+    # --------------------------------------------------------------- dynamics
+    def aba(self, q: FloatArray, v: FloatArray, tau: FloatArray) -> FloatArray:
+        """Joint accelerations of the unconstrained arm [rad/s^2] (armature included)."""
+        return pin.aba(self.model, self.data, q, v, tau)
+
+    def minv(self, q: FloatArray) -> FloatArray:
+        """Inverse joint-space mass matrix M(q)^-1 (symmetric, armature included)."""
+        Mi = pin.computeMinverse(self.model, self.data, q)
+        return np.triu(Mi) + np.triu(Mi, 1).T
+
+    def mass_matrix(self, q: FloatArray) -> FloatArray:
+        """Joint-space mass matrix M(q) [kg m^2] (armature included)."""
+        M = pin.crba(self.model, self.data, q)
+        return np.triu(M) + np.triu(M, 1).T
+
+    def energy(self, q: FloatArray, v: FloatArray) -> float:
+        """Kinetic (with armature) plus gravitational potential energy [J]."""
+        kinetic = 0.5 * float(v @ self.mass_matrix(q) @ v)
+        return kinetic + float(pin.computePotentialEnergy(self.model, self.data, q))
+
+    def point_jacobian(self, q: FloatArray, joint: int, point: FloatArray) -> FloatArray:
+        """3 x nv Jacobian of the velocity of a world point fixed to a joint's body.
+
+        Args:
+            q: Configuration [rad].
+            joint: Pinocchio joint index of the body (0: the fixed chassis or world).
+            point: The point, world frame [m].
+
+        Returns:
+            J with v_point = J v, world-frame axes [m/rad].
+        """
+        if joint == 0:
+            return np.zeros((3, self.nv))
+        pin.computeJointJacobians(self.model, self.data, q)
+        J = pin.getJointJacobian(self.model, self.data, joint, pin.LOCAL_WORLD_ALIGNED)
+        r = np.asarray(point) - self.data.oMi[joint].translation
+        return J[:3] - _skew(r) @ J[3:]
+
+
+def _reduced(robot: Robot, locked: list[int], q_ref: FloatArray) -> Robot:
+    """The robot with the given joints (indices into q) locked at q_ref."""
+    ids = [robot.model.getJointId(robot.params.names[i]) for i in locked]
+    model, (coll, vis) = pin.buildReducedModel(
+        robot.model, [robot.collision_model, robot.visual_model], ids, q_ref
+    )
+    keep = [i for i in range(robot.nq) if i not in locked]
+    p = robot.params
+    params = JointParams(
+        names=tuple(p.names[i] for i in keep),
+        lower=p.lower[keep],
+        upper=p.upper[keep],
+        velocity=p.velocity[keep],
+        effort=p.effort[keep],
+        gear_ratio=p.gear_ratio[keep],
+        rotor_inertia=p.rotor_inertia[keep],
+        armature=p.armature[keep],
+        viscous=p.viscous[keep],
+        coulomb=p.coulomb[keep],
+        table=p.table,
+    )
+    model.armature = params.armature.copy()
+    poses = {name: q[keep] for name, q in robot.poses.items()}
+    return Robot(model, coll, vis, poses, params, robot.urdf_path)
