@@ -321,7 +321,7 @@ class CollisionWorld:
         J = len(groups)
         n = max((len(gr) for gr in groups), default=1)
         # A[j] columns: slot s -> [c; 1; -h; 0] (gives lo), slot n + s -> [-c; -1; -h; 0] (-hi)
-        # with K[j] = [H_j | |R_j| 0] (4 x 8): K @ [c; 1; -h; 0] = R c + t - |R| h.
+        # with K[j] = [H_j | |H_j|] (4 x 8): K @ [c; 1; -h; 0] = R c + t - |R| h (row 3 unused).
         A = np.zeros((max(J, 1), 8, 2 * n))
         base = max(J, 1) * 4 * 2 * n
         F = np.zeros(base + 6 * G)
@@ -340,15 +340,14 @@ class CollisionWorld:
                 lo_idx[g] = i * 8 * n + axes * 2 * n + s
                 nhi_idx[g] = i * 8 * n + axes * 2 * n + n + s
         self._A = A
-        self._K = np.zeros((max(J, 1), 4, 8))
         self._F = F
         self._F_moving = F[:base].reshape(max(J, 1), 4, 2 * n)
         self._oMi_moving = [self._oMi[j] for j in self._moving_joints]
         self._lo_idx, self._nhi_idx = lo_idx, nhi_idx
         g1 = np.array([p.geom1 for p in self.pairs], dtype=np.intp)
         g2 = np.array([p.geom2 for p in self.pairs], dtype=np.intp)
-        self._Ia = np.vstack([lo_idx[g1].T, lo_idx[g2].T]) if len(g1) else np.zeros((6, 0), int)
-        self._Ib = np.vstack([nhi_idx[g2].T, nhi_idx[g1].T]) if len(g1) else np.zeros((6, 0), int)
+        # rows 0-5: [lo1; lo2], rows 6-11: [-hi2; -hi1]; the pair's gaps are their sum
+        self._I = np.vstack([lo_idx[g1].T, lo_idx[g2].T, nhi_idx[g2].T, nhi_idx[g1].T])
         # Activation map of pin.GeometryData.setActiveCollisionPairs (upper triangle).
         self._active = np.zeros((G, G), dtype=bool)
         self._pair_flat = np.minimum(g1, g2) * G + np.maximum(g1, g2)
@@ -357,11 +356,9 @@ class CollisionWorld:
 
     def _update_boxes(self) -> None:
         """World boxes of the moving pieces, from their joints' placements (one matmul)."""
-        if self._moving_joints:
-            K = self._K
-            K[:, :, :4] = [M.homogeneous for M in self._oMi_moving]
-            np.abs(K[:, :3, :3], out=K[:, :3, 4:7])
-            np.matmul(K, self._A, out=self._F_moving)
+        if self._moving_joints:  # (numpy is much faster on contiguous operands here)
+            H = np.array([M.homogeneous for M in self._oMi_moving])
+            np.matmul(np.concatenate((H, np.abs(H)), axis=2), self._A, out=self._F_moving)
         self._boxes_valid = True
 
     def world_boxes(
@@ -392,9 +389,9 @@ class CollisionWorld:
         """Per pair, the largest axis gap between the two world boxes [m] (negative: overlap)."""
         if not self._boxes_valid:
             self._update_boxes()
-        F = self._F
-        gap = F.take(self._Ia)
-        gap += F.take(self._Ib)
+        t = self._F.take(self._I)
+        gap = t[:6]
+        gap += t[6:]
         out: NDArray[np.float64] = np.maximum.reduce(gap, axis=0)
         return out
 
@@ -422,11 +419,11 @@ class CollisionWorld:
             self.robot.model, self._data, self.geom_model, self.geom_data, q
         )
         self._update_boxes()
-        F = self._F
-        gap = F.take(self._Ia)
-        gap += F.take(self._Ib)
+        t = self._F.take(self._I)
+        gap = t[:6]
+        gap += t[6:]
         ok = np.maximum.reduce(gap, axis=0) <= m
-        cand = np.flatnonzero(ok)
+        cand = ok.nonzero()[0]
         n_all, n = self._n_pairs, len(cand)
         counts = SweepCounts(n_all, n_all - n, n)
         if n == 0:

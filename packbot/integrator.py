@@ -479,6 +479,8 @@ class _Run:
 
     def step_limit(self) -> float:
         """Largest step keeping every point's motion within half the query margin [s]."""
+        if self.sys.world is None:
+            return self.cfg.max_step
         speed = REACH_BOUND * float(np.abs(self.y[self.n :]).sum())
         return min(self.cfg.max_step, 0.5 * self.cfg.margin / max(speed, 1e-9))
 

@@ -179,7 +179,7 @@ def _convexify(geom_model: pin.GeometryModel) -> None:
         if len(pts) < 4:
             raise ConvexityError(go.name, f"mesh has {len(pts)} vertices, needs >= 4")
         spread = np.linalg.svd(pts - pts.mean(axis=0), compute_uv=False)
-        if spread[2] <= 1e-9 * max(spread[0], 1e-300):  # flat or collinear: Qhull would crash
+        if spread[2] <= 1e-6 * max(spread[0], 1e-300):  # (nearly) flat: Qhull would crash
             raise ConvexityError(go.name, "degenerate mesh: its vertices span no volume")
         vol = float(mesh.computeVolume())
         mesh.buildConvexHull(True, "Qt")

@@ -126,6 +126,7 @@ class System:
             return np.zeros((3, self.nv))
         pin.computeJointJacobians(self.model, self.data, q)
         J = pin.getJointJacobian(self.model, self.data, joint, pin.LOCAL_WORLD_ALIGNED)
+        J = np.asarray(J).reshape(6, self.nv)  # pin returns a flat 6-vector when nv == 1
         r = np.asarray(point) - self.data.oMi[joint].translation
         return J[:3] - _skew(r) @ J[3:]
 

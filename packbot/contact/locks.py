@@ -76,7 +76,7 @@ class JointLocks:
         if len(idx) == 0 or minv is None:
             return a_free, np.zeros(0)
         W = minv[np.ix_(idx, idx)]
-        lam: FloatArray = np.linalg.solve(W, -a_free[idx])
+        lam = np.asarray(np.linalg.solve(W, -a_free[idx]), dtype=np.float64)
         return a_free + minv[:, idx] @ lam, lam
 
     def conditions(self, a_free: FloatArray, minv: FloatArray | None) -> dict[int, float]:
