@@ -90,6 +90,125 @@ def _cmd_generate_srdf(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_collapse(args: argparse.Namespace) -> int:
+    import csv
+    import math
+    import time
+
+    import numpy as np
+
+    from packbot.collision import CollisionWorld
+    from packbot.config import SimConfig
+    from packbot.errors import SimulationError
+    from packbot.integrator import simulate
+    from packbot.model import load_robot
+    from packbot.plots import plot_distance, plot_energy, plot_joints, sample_distances
+
+    duration = float(args.duration)
+    if not (math.isfinite(duration) and duration > 0):
+        print(
+            f"error: invalid --duration {args.duration}: expected a finite positive time [s]",
+            file=sys.stderr,
+        )
+        return 2
+    out = Path(args.out)
+    if out.exists() and not out.is_dir():
+        print(f"error: --out {out} exists and is not a directory", file=sys.stderr)
+        return 2
+    out.mkdir(parents=True, exist_ok=True)
+    wall0 = time.perf_counter()
+    robot = load_robot()
+    # The joints the report's model had as solid parts (unlocked, with zero torque and no
+    # friction yet, they would swing forever).
+    locked = ("camera_tilt", "camera_pan", "gripper_roll", "gripper_jaw")
+    cfg = SimConfig(contact_mode=args.mode, locked_joints=locked)
+    try:
+        res = simulate(robot, robot.pose("drive"), np.zeros(robot.nq), duration, config=cfg)
+    except SimulationError as exc:
+        print(f"error: the simulation failed: {exc}", file=sys.stderr)
+        return 1
+    world = CollisionWorld(robot)
+    dist = sample_distances(res, world)
+    plot_joints(res, path=out / "collapse_joints")
+    plot_distance(res, world, path=out / "collapse_distance", distances=dist)
+    plot_energy(res, path=out / "collapse_energy")
+    np.savez(
+        out / "collapse.npz",
+        t=res.t,
+        q=res.q,
+        v=res.v,
+        tau=res.tau,
+        energy=res.energy,
+        joint_names=np.array(res.joint_names),
+    )
+    with (out / "collapse_events.csv").open("w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(
+            [
+                "time_s",
+                "kind",
+                "link1",
+                "link2",
+                "piece1",
+                "piece2",
+                "distance_m_or_rad",
+                "relevant_joints",
+                "energy_before_J",
+                "energy_after_J",
+                "energy_change_J",
+            ]
+        )
+        for e in res.events:
+            w.writerow(
+                [
+                    f"{e.t:.10f}",
+                    e.kind,
+                    e.link1,
+                    e.link2,
+                    e.piece1,
+                    e.piece2,
+                    f"{e.distance:.6g}",
+                    " ".join(e.relevant_joints),
+                    f"{e.energy_before:.6f}",
+                    f"{e.energy_after:.6f}",
+                    f"{e.energy_change:.6f}",
+                ]
+            )
+    d = res.diagnostics
+    final = "  ".join(
+        f"{n}={res.q[-1, res.joint(n)]:+.4f}" for n in ("turret", "shoulder", "elbow1", "elbow2")
+    )
+    kinds: dict[str, int] = {}
+    for e in res.events:
+        kinds[e.kind] = kinds.get(e.kind, 0) + 1
+    rest = (
+        f"not at rest (some joint speed >= {cfg.rest_speed:g} rad/s at the end)"
+        if res.rest_time is None
+        else f"{res.rest_time:.4f} s (all joint speeds < {cfg.rest_speed:g} rad/s after it)"
+    )
+    k = int(np.argmin(dist))
+    rtf = duration / d.wall_time if d.wall_time > 0 else math.inf
+    print(f"collapse from the drive pose, zero torque, contact_mode={args.mode}, {duration:g} s")
+    print(f"  rest time:        {rest}")
+    print(f"  final angles:     {final} [rad]")
+    print(
+        f"  events:           {len(res.events)}"
+        + (" (" + ", ".join(f"{n} {k_}" for k_, n in kinds.items()) + ")" if kinds else "")
+    )
+    kept = f", {d.min_distance:.3e} m over the kept states" if math.isfinite(d.min_distance) else ""
+    print(f"  min distance:     {dist[k]:.3e} m at t = {res.t[k]:.3f} s (samples){kept}")
+    print(f"  energy:           {res.energy[0]:.3f} J -> {res.energy[-1]:.3f} J")
+    print(
+        f"  wall time:        {d.wall_time:.3f} s simulation ({rtf:.0f}x real time), "
+        f"{time.perf_counter() - wall0:.2f} s in all"
+    )
+    print(
+        f"  wrote:            {out}/collapse_{{joints,distance,energy}}.{{png,svg}}, "
+        "collapse.npz, collapse_events.csv"
+    )
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser with every subcommand."""
     parser = argparse.ArgumentParser(
@@ -120,6 +239,20 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--clearance", type=float, default=0.05, help="'never' below this [m] (0.05)")
     p.add_argument("--root", default=None, help="repository root (default: this checkout)")
     p.set_defaults(func=_cmd_generate_srdf)
+
+    p = sub.add_parser(
+        "collapse",
+        help="the report's collapse: zero torque from the drive pose; plots, data, event log",
+    )
+    p.add_argument("--out", default="out/collapse", help="output directory (./out/collapse)")
+    p.add_argument(
+        "--mode",
+        choices=("joint_clamp", "none"),
+        default="joint_clamp",
+        help="contact mode: the report's law, or no collisions (joint_clamp)",
+    )
+    p.add_argument("--duration", type=float, default=5.0, help="simulated time [s] (5)")
+    p.set_defaults(func=_cmd_collapse)
     return parser
 
 

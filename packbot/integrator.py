@@ -385,16 +385,20 @@ class _Run:
             _, j, side = key
             lim = self.sys.upper[j] if side > 0 else self.sys.lower[j]
             if side * (lim - y[j]) > 1e-6 and j not in self.locks.engaged:
-                act = self.active.pop(key)
-                del act
+                self.active.pop(key)
+                energy = self.energy(y[:n], y[n:])
                 self.events.append(
                     Event(
                         self.t,
                         "release",
                         self.sys.names[j],
                         "upper" if side > 0 else "lower",
+                        distance=float(side * (lim - y[j])),
+                        relevant_joints=(self.sys.names[j],),
                         v_before=self.sys.v_full(y[n:]),
                         v_after=self.sys.v_full(y[n:]),
+                        energy_before=energy,
+                        energy_after=energy,
                     )
                 )
                 self.locks.set_clamps(cl for a in self.active.values() for cl in a.clamps)

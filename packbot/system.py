@@ -70,6 +70,7 @@ class System:
         self.lower = self.robot.params.lower
         self.upper = self.robot.params.upper
         self.nv = int(self.model.nv)
+        self._lower = np.tril_indices(self.nv, -1)
         self.world: CollisionWorld | None = None
         if config.contact_mode != "none":
             self.world = CollisionWorld(self.robot, environment, margin=config.margin)
@@ -98,13 +99,17 @@ class System:
 
     def minv(self, q: FloatArray) -> FloatArray:
         """Inverse joint-space mass matrix M(q)^-1 (symmetric, armature included)."""
-        Mi = pin.computeMinverse(self.model, self.data, q)
-        return np.triu(Mi) + np.triu(Mi, 1).T
+        return self._symmetric(pin.computeMinverse(self.model, self.data, q))
 
     def mass_matrix(self, q: FloatArray) -> FloatArray:
         """Joint-space mass matrix M(q) [kg m^2] (armature included)."""
-        M = pin.crba(self.model, self.data, q)
-        return np.triu(M) + np.triu(M, 1).T
+        return self._symmetric(pin.crba(self.model, self.data, q))
+
+    def _symmetric(self, upper: FloatArray) -> FloatArray:
+        """Fill the strict lower triangle from the upper one (Pinocchio fills the upper)."""
+        out = np.array(upper, dtype=float)
+        out[self._lower] = out.T[self._lower]
+        return out
 
     def energy(self, q: FloatArray, v: FloatArray) -> float:
         """Kinetic (with armature) plus gravitational potential energy [J]."""

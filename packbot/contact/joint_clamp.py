@@ -17,7 +17,8 @@ Velocity reset, on the relevant joints R (e = restitution):
 Clamp directions (the direction in which a clamped joint may not accelerate):
 
 - ``"velocity"`` (the report's): ``s_i = sign(v_i)`` at impact (the direction it was moving);
-  wrong for a joint whose motion was overwhelmed by another's;
+  wrong for a joint whose motion was overwhelmed by another's; a joint that was not moving
+  (``|v_i| <= STILL_SPEED``) takes the Jacobian sign;
 - ``"jacobian"``: ``s_i = -sign(J_n,i)``, the direction in which the joint's own motion closes
   the gap.
 """
@@ -27,7 +28,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["clamp_directions", "impact_reset", "relevant_joints"]
+__all__ = ["STILL_SPEED", "clamp_directions", "impact_reset", "relevant_joints"]
 
 FloatArray = NDArray[np.float64]
 
@@ -64,6 +65,11 @@ def impact_reset(
     return v + minv[:, relevant] @ P
 
 
+#: Below this joint speed [rad/s] the ``"velocity"`` rule has no direction to read (a joint
+#: stopped by an earlier impact carries only rounding residue, ~1e-16): the Jacobian sign is used.
+STILL_SPEED = 1e-9
+
+
 def clamp_directions(
     v_before: FloatArray, Jn: FloatArray, relevant: NDArray[np.intp], rule: str
 ) -> list[tuple[int, int]]:
@@ -71,7 +77,7 @@ def clamp_directions(
     out = []
     for i in relevant:
         s = -np.sign(Jn[i])
-        if rule == "velocity" and v_before[i] != 0.0:
+        if rule == "velocity" and abs(v_before[i]) > STILL_SPEED:
             s = np.sign(v_before[i])
         out.append((int(i), int(s) if s != 0 else 1))
     return out

@@ -45,8 +45,7 @@ class JointLocks:
 
     def __init__(self) -> None:
         self.signs: dict[int, set[int]] = {}
-        self.engaged: tuple[int, ...] = ()
-        self._idx = np.zeros(0, dtype=int)
+        self._set_engaged(())
 
     def set_clamps(self, clamps: Iterable[tuple[int, int]]) -> None:
         """Replace the clamps by (joint, sign) pairs (the union over active contacts)."""
@@ -54,20 +53,30 @@ class JointLocks:
         for j, s in clamps:
             signs.setdefault(int(j), set()).add(int(s))
         self.signs = signs
-        self.engaged = tuple(j for j in self.engaged if j in signs)
-        self._idx = np.array(self.engaged, dtype=int)
+        self._set_engaged(tuple(j for j in self.engaged if j in signs))
+
+    def _set_engaged(self, engaged: tuple[int, ...]) -> None:
+        self.engaged = engaged
+        self._idx = np.array(engaged, dtype=int)
+        self._grid = np.ix_(self._idx, self._idx)
 
     def accelerations(self, a_free: FloatArray, minv: FloatArray | None) -> FloatArray:
         """Accelerations with the engaged joints locked, from the unconstrained ones.
+
+        This is the right-hand side's hot path: the engaged set's index grid is cached.
 
         Args:
             a_free: Accelerations of the unconstrained arm [rad/s^2].
             minv: M^-1 (needed only when some joint is engaged).
         """
-        if not self.engaged:
+        if not self.engaged or minv is None:
             return a_free
-        a, _ = self._solve(a_free, minv, self._idx)
-        return a
+        idx = self._idx
+        if len(idx) == 1:
+            j = int(idx[0])
+            return a_free - minv[:, j] * (a_free[j] / minv[j, j])
+        lam = np.linalg.solve(minv[self._grid], -a_free[idx])
+        return np.asarray(a_free + minv[:, idx] @ lam, dtype=np.float64)
 
     @staticmethod
     def _solve(
@@ -135,6 +144,5 @@ class JointLocks:
                 if (flip in eng) != was:
                     choice = eng
                     break
-        self.engaged = choice
-        self._idx = np.array(choice, dtype=int)
+        self._set_engaged(choice)
         return choice
