@@ -116,7 +116,9 @@ class _Run:
         )
         self.t = 0.0
         self.y = np.concatenate([self.sys.reduce(q0), self.sys.reduce(v0)])
-        self.last_d: dict[int, float] = {}
+        self.last_d: dict[int, float] = {}  # pair -> distance at the last kept state [m]
+        self.pending_d: dict[int, float] = {}  # the same at the end of the step being checked
+        self.pending_min: tuple[float, int] = (math.inf, -1)
 
     # ------------------------------------------------------------------ dynamics
     def torque(self, t: float, q: FloatArray, v: FloatArray) -> FloatArray:

@@ -200,6 +200,46 @@ def test_samples_and_event_points(collapse):
     assert np.all(res.q[:, wrist] == res.q[0, wrist])
 
 
+def test_overwhelmed_joint_is_self_diagnosed_and_fixed_by_the_jacobian_rule(robot):
+    """The report's caveat: a joint moving *away* from the contact, overwhelmed by another.
+
+    The gripper lands on a tilted ramp while the turret turns slowly away from it; a torque then
+    pushes the turret back toward the ramp. The ``velocity`` rule clamps the turret in the wrong
+    direction, the finger is driven into the ramp, and the simulator says so (a
+    ``secondary_intersection``, then the law again). The ``jacobian`` rule clamps it right.
+    """
+    ramp = packbot.Obstacle(
+        name="ramp", kind="box", size=(0.6, 0.8, 0.5), xyz=(1.3, 0.0, 0.2), rpy=(-0.5, 0.0, 0.0)
+    )
+    env = packbot.Environment().with_obstacles(ramp)
+    locked = tuple(n for n in robot.joint_names if n not in ("turret", "shoulder"))
+    v0 = np.zeros(8)
+    v0[0], v0[1] = 0.15, -0.3
+
+    def push_back(t, q, v):
+        tau = np.zeros(8)
+        tau[0] = -3.0 if t > 0.2 else 0.0
+        return tau
+
+    runs = {}
+    for rule in ("velocity", "jacobian"):
+        cfg = packbot.SimConfig(locked_joints=locked, clamp_rule=rule)
+        runs[rule] = packbot.simulate(
+            robot, robot.pose("stand"), v0, 1.0, environment=env, controller=push_back, config=cfg
+        )
+    for res in runs.values():
+        first = res.events[0]
+        assert first.kind == "impact" and first.link2 == "ramp"
+        assert "turret" in first.relevant_joints and first.v_before[0] > 0  # moving away
+    secondary = runs["velocity"].events_of("secondary_intersection")
+    assert secondary, "the wrong clamp went unnoticed"
+    tol = runs["velocity"].config.contact_tolerance
+    assert all(-tol <= e.distance <= 0.0 for e in secondary)
+    assert runs["velocity"].diagnostics.min_distance >= -tol
+    assert not runs["jacobian"].events_of("secondary_intersection")
+    assert runs["jacobian"].diagnostics.min_distance > 0.0
+
+
 # ------------------------------------------------------------------ reset rules
 @pytest.mark.parametrize("clamp", ["velocity", "jacobian"])
 @pytest.mark.parametrize("e", [0.0, 0.3])
