@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, fields
+from dataclasses import dataclass
 from typing import Literal, get_args
 
 from packbot.errors import ConfigurationError
@@ -121,8 +121,3 @@ class SimConfig:
                 self.contact_mode,
                 "'joint_clamp' or 'none': the contact-normal mode is not implemented yet",
             )
-
-    @classmethod
-    def field_names(cls) -> tuple[str, ...]:
-        """Names of all settings."""
-        return tuple(f.name for f in fields(cls))

@@ -10,7 +10,6 @@ collision model uses.
 from __future__ import annotations
 
 import struct
-from pathlib import Path
 
 import coal
 import numpy as np
@@ -26,7 +25,6 @@ __all__ = [
     "hull_triangles",
     "part_inertia",
     "part_vertices",
-    "read_stl",
     "solid_mass_properties",
     "stl_bytes",
 ]
@@ -103,16 +101,6 @@ def stl_bytes(triangles: NDArray[np.float64], header: str = "packbot") -> bytes:
     rec["v"] = tris
     head = header.encode("ascii")[:80].ljust(80, b" ")
     return head + struct.pack("<I", len(tris)) + rec.tobytes()
-
-
-def read_stl(path: Path) -> NDArray[np.float64]:
-    """Triangles (T, 3, 3) of a binary STL file [m] (as float64)."""
-    data = Path(path).read_bytes()
-    (count,) = struct.unpack_from("<I", data, 80)
-    rec = np.frombuffer(
-        data, dtype=[("n", "<f4", 3), ("v", "<f4", (3, 3)), ("attr", "<u2")], count=count, offset=84
-    )
-    return rec["v"].astype(np.float64)
 
 
 def _coal_hull(points: NDArray[np.float64]) -> coal.ConvexBase:

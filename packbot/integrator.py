@@ -64,12 +64,13 @@ REACH_BOUND = 2.2
 
 @dataclass
 class _Active:
-    """An active contact: a pair (or a limit stop) and the clamps it imposes."""
+    """An active contact: a pair (None for a limit stop) and the clamps it imposes.
 
-    kind: str  # "pair" or "limit"
+    Its key in ``_Run.active`` is ``("pair", index)`` or ``("limit", joint, side)`` with side +1
+    for the upper stop and -1 for the lower one.
+    """
+
     pair: PairInfo | None
-    joint: int
-    side: int  # limit: +1 upper, -1 lower
     clamps: list[tuple[int, int]]
 
 
@@ -182,19 +183,18 @@ class _Run:
         """Event functions that changed sign over the step (evaluated at its end)."""
         cfg, n, out = self.cfg, self.n, []
         q1 = y1[:n]
-        if cfg.joint_limits:
-            for j in range(n):
-                for side, lim in ((1, self.sys.upper[j]), (-1, self.sys.lower[j])):
-                    if ("limit", j, side) in self.active:
-                        continue
-                    g1 = side * (lim - q1[j])
-                    if g1 <= 0.0:
-                        g0 = side * (lim - seg.y0[j])
+        if cfg.joint_limits:  # numpy screen first: a limit crossing is rare
+            upper, lower = self.sys.upper, self.sys.lower
+            for j in np.flatnonzero((q1 >= upper) | (q1 <= lower)).tolist():
+                side, lim = (1, upper[j]) if q1[j] >= upper[j] else (-1, lower[j])
+                if ("limit", j, side) in self.active:
+                    continue
 
-                        def g(t: float, j: int = j, side: int = side, lim: float = lim) -> float:
-                            return float(side * (lim - seg(t)[j]))
+                def g(t: float, j: int = j, side: int = side, lim: float = lim) -> float:
+                    return float(side * (lim - seg(t)[j]))
 
-                        out.append(_Crossing("limit", ("limit", j, side), g, g0, g1))
+                g0 = side * (lim - seg.y0[j])
+                out.append(_Crossing("limit", ("limit", j, side), g, g0, side * (lim - q1[j])))
         world = self.sys.world
         if world is not None:
             sw = world.sweep(q1)
@@ -315,7 +315,7 @@ class _Run:
         if key in self.active:  # secondary intersection: add the new clamps
             old = self.active[key].clamps
             clamps = sorted(set(old) | set(clamps))
-        self.active[key] = _Active("pair", c.pair, -1, 0, clamps)
+        self.active[key] = _Active(c.pair, clamps)
         v_new, acted = v, rel
         if float(Jn @ v) < 0.0 and len(rel):  # approaching: apply the reset
             v_new, acted = self.reset(q, v, rel)
@@ -356,7 +356,7 @@ class _Run:
         return v_new, acted
 
     def limit(self, t: float, q: FloatArray, v: FloatArray, j: int, side: int) -> FloatArray:
-        self.active[("limit", j, side)] = _Active("limit", None, j, side, [(j, side)])
+        self.active[("limit", j, side)] = _Active(None, [(j, side)])
         v_new, acted = v, np.array([j])
         if side * v[j] > 0.0:
             v_new, acted = self.reset(q, v, np.array([j]))
