@@ -1,0 +1,130 @@
+"""The controller interface: a sampled-data controller with state, fed by measurements.
+
+A real arm controller runs at a fixed rate on encoder readings and holds its torque command
+between ticks. :class:`Controller` models that: the simulator calls :meth:`Controller.step` at
+t = 0, dt, 2 dt, ... (each tick is a time event of the integrator, so the held torque is constant
+inside an integration step and the right-hand side stays smooth), passing the true state; the
+controller sees it through its :class:`Sensor` (quantisation, seeded noise) and returns the
+commanded joint torque, held until the next tick (zero-order hold). The command then passes
+through the failure and actuator models (effort limits, friction) before it acts.
+
+A plain function ``tau(t, q, v)`` is also accepted by :func:`packbot.simulate`: it is treated as
+a continuous-time controller evaluated at every right-hand side (it must be a smooth, stateless
+function of its arguments).
+"""
+
+from __future__ import annotations
+
+import math
+from abc import ABC, abstractmethod
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
+
+import numpy as np
+from numpy.typing import NDArray
+
+from packbot.errors import ConfigurationError
+
+if TYPE_CHECKING:
+    from packbot.failures import Failure
+    from packbot.model import Robot
+
+__all__ = ["Controller", "Sensor"]
+
+FloatArray = NDArray[np.float64]
+
+
+@dataclass(kw_only=True)
+class Sensor:
+    """What the controller measures: joint encoders (and velocities derived from them).
+
+    Attributes:
+        resolution: Encoder quantum [rad] (0: exact positions). Positions are rounded to it.
+        noise_q: Standard deviation of white position noise [rad] (0: none).
+        noise_v: Standard deviation of white velocity noise [rad/s] (0: none).
+        seed: Seed of the noise generator (a run is reproducible).
+    """
+
+    resolution: float = 0.0
+    noise_q: float = 0.0
+    noise_v: float = 0.0
+    seed: int = 0
+    _rng: np.random.Generator = field(init=False, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        self.validate()
+        self.reset()
+
+    def validate(self) -> None:
+        """Raise :class:`ConfigurationError` naming the first bad field."""
+        for name in ("resolution", "noise_q", "noise_v"):
+            x = getattr(self, name)
+            if not isinstance(x, (int, float)) or not math.isfinite(x) or x < 0:
+                raise ConfigurationError(f"sensor.{name}", x, "a finite number >= 0")
+
+    def reset(self) -> None:
+        """Restart the noise sequence from the seed."""
+        self._rng = np.random.default_rng(self.seed)
+
+    def measure(self, q: FloatArray, v: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """Measured (q [rad], v [rad/s]) from the true state."""
+        qm = np.array(q, dtype=float)
+        vm = np.array(v, dtype=float)
+        if self.noise_q > 0:
+            qm += self.noise_q * self._rng.standard_normal(qm.shape)
+        if self.noise_v > 0:
+            vm += self.noise_v * self._rng.standard_normal(vm.shape)
+        if self.resolution > 0:
+            qm = self.resolution * np.round(qm / self.resolution)
+        return qm, vm
+
+
+class Controller(ABC):
+    """Base class of sampled-data controllers.
+
+    Subclasses implement :meth:`compute` (and :meth:`on_reset` / :meth:`on_failure` if they keep
+    state). All vectors are in the full model's coordinates, shape (nv,).
+
+    Args:
+        dt: Control period [s] (default 1 ms).
+        sensor: The measurement model (default: exact).
+    """
+
+    def __init__(self, *, dt: float = 1e-3, sensor: Sensor | None = None) -> None:
+        if not isinstance(dt, (int, float)) or not math.isfinite(dt) or dt <= 0:
+            raise ConfigurationError("controller.dt", dt, "a finite positive period [s]")
+        self.dt = float(dt)
+        self.sensor = sensor if sensor is not None else Sensor()
+        self.robot: Robot | None = None
+
+    def reset(self, robot: Robot, t0: float, q0: FloatArray, v0: FloatArray) -> None:
+        """Called once by the simulator before the first tick.
+
+        Args:
+            robot: The (full, healthy) robot model the controller is designed for.
+            t0: Start time [s].
+            q0: Initial configuration [rad].
+            v0: Initial velocity [rad/s].
+        """
+        self.robot = robot
+        self.sensor.reset()
+        self.on_reset(robot, t0, q0, v0)
+
+    def step(self, t: float, q: FloatArray, v: FloatArray) -> FloatArray:
+        """One control tick: measure the true state, compute the command [N*m], shape (nv,)."""
+        qm, vm = self.sensor.measure(q, v)
+        return np.asarray(self.compute(t, qm, vm), dtype=float)
+
+    def on_reset(self, robot: Robot, t0: float, q0: FloatArray, v0: FloatArray) -> None:  # noqa: B027
+        """Hook for subclasses: set up state (default: nothing)."""
+
+    def on_failure(self, failure: Failure, t: float) -> None:  # noqa: B027
+        """Hook: the scenario tells the controller that a joint failed (default: ignore).
+
+        Called by the simulator at the failure's injection time when the scenario says the
+        controller is informed (``simulate(..., inform_controller=True)``).
+        """
+
+    @abstractmethod
+    def compute(self, t: float, q: FloatArray, v: FloatArray) -> FloatArray:
+        """The torque command [N*m], shape (nv,), from measured q [rad] and v [rad/s] at t [s]."""

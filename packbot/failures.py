@@ -1,0 +1,102 @@
+"""Joint failures: what a failed joint does, from t = 0 or injected at a time during a run.
+
+A :class:`Failure` names a joint, a kind and an injection time ``t`` [s]. The simulator applies it
+in the torque path (:mod:`packbot.actuators`) or, for a frozen joint, by merging the two bodies
+with ``pin.buildReducedModel`` (see docs/failures.md):
+
+- ``"loose"``: the motor is cut: zero motor torque whatever the command; the joint's friction and
+  reflected rotor inertia stay.
+- ``"frozen"``: the joint locks at its angle at time ``t``. Freezing a moving joint is an impact:
+  an impulse stops the joint while the rest of the arm keeps its generalized momentum.
+- ``"weak"``: the effort limit is scaled by ``scale`` in (0, 1] (a degraded motor, low battery).
+- ``"stuck"``: the driver applies the constant torque ``torque`` [N*m] whatever the command
+  (a runaway joint: ``torque`` = +/- the effort limit).
+- ``"brake"``: the joint's brake holds it until the torque needed to hold exceeds ``threshold``
+  [N*m] (default: the joint's effort limit), then the joint slips with the brake's kinetic torque
+  ``threshold`` opposing the motion; it holds again when the slip speed returns to zero and the
+  holding torque is within the threshold.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Literal, get_args
+
+from packbot.errors import ConfigurationError, UnknownNameError
+
+__all__ = ["FAILURE_KINDS", "Failure", "FailureKind", "validate_failures"]
+
+FailureKind = Literal["loose", "frozen", "weak", "stuck", "brake"]
+#: The valid values of :attr:`Failure.kind`.
+FAILURE_KINDS: tuple[str, ...] = get_args(FailureKind)
+
+
+@dataclass(frozen=True, kw_only=True)
+class Failure:
+    """A joint failure.
+
+    Attributes:
+        joint: The failed joint's name (one of ``robot.params.names``).
+        kind: One of :data:`FAILURE_KINDS`.
+        t: Injection time [s] (0: failed from the start).
+        scale: ``"weak"`` only: effort-limit multiplier in (0, 1] [-].
+        torque: ``"stuck"`` only: the constant joint torque the driver applies [N*m].
+        threshold: ``"brake"`` only: holding (and slipping) torque of the brake [N*m]; None: the
+            joint's effort limit.
+    """
+
+    joint: str
+    kind: FailureKind
+    t: float = 0.0
+    scale: float = 0.5
+    torque: float = 0.0
+    threshold: float | None = None
+
+    def validate(self, joint_names: Sequence[str]) -> None:
+        """Raise a :class:`~packbot.errors.PackbotError` naming the first bad field.
+
+        Args:
+            joint_names: The valid joint names.
+        """
+        if self.joint not in joint_names:
+            raise UnknownNameError("joint", self.joint, joint_names)
+        if self.kind not in FAILURE_KINDS:
+            raise ConfigurationError("failure.kind", self.kind, FAILURE_KINDS)
+        if not _finite(self.t) or self.t < 0:
+            raise ConfigurationError("failure.t", self.t, "a finite time >= 0 [s]")
+        if self.kind == "weak" and not (_finite(self.scale) and 0 < self.scale <= 1):
+            raise ConfigurationError("failure.scale", self.scale, "a number in (0, 1]")
+        if self.kind == "stuck" and not _finite(self.torque):
+            raise ConfigurationError("failure.torque", self.torque, "a finite torque [N*m]")
+        if (
+            self.kind == "brake"
+            and self.threshold is not None
+            and not (_finite(self.threshold) and self.threshold > 0)
+        ):
+            raise ConfigurationError(
+                "failure.threshold", self.threshold, "a finite positive torque [N*m], or None"
+            )
+
+
+def validate_failures(failures: Sequence[Failure], joint_names: Sequence[str]) -> None:
+    """Validate a list of failures: each one, and at most one failure per joint.
+
+    Raises:
+        ConfigurationError: A bad field, or two failures of one joint.
+    """
+    seen: set[str] = set()
+    for f in failures:
+        if not isinstance(f, Failure):
+            raise ConfigurationError("failures", f, "a list of packbot.Failure")
+        f.validate(joint_names)
+        if f.joint in seen:
+            raise ConfigurationError(
+                "failures", f.joint, "at most one failure per joint (this joint has two)"
+            )
+        seen.add(f.joint)
+
+
+def _finite(x: object) -> bool:
+    return isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x)
