@@ -14,13 +14,16 @@ from packbot.errors import (
     SimulationError,
     UnknownNameError,
 )
+from packbot.failures import FAILURE_KINDS, Failure
 from packbot.integrator import simulate
 from packbot.model import JointParams, Robot, load_robot
+from packbot.payload import Payload
 from packbot.result import Diagnostics, Event, SimResult
 
 __version__ = "0.1.0"
 
 __all__ = [
+    "FAILURE_KINDS",
     "FLOOR",
     "CollisionWorld",
     "ConfigurationError",
@@ -31,12 +34,14 @@ __all__ = [
     "Diagnostics",
     "Environment",
     "Event",
+    "Failure",
     "InitialCollisionError",
     "JointParams",
     "ModelError",
     "Obstacle",
     "PackbotError",
     "PairInfo",
+    "Payload",
     "ResourceNotFound",
     "Robot",
     "SimConfig",

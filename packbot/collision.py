@@ -255,11 +255,12 @@ class CollisionWorld:
     def _is_static(self, body: int) -> bool:
         return body <= 0
 
-    def _adjacent(self, b1: int, b2: int) -> bool:
-        parents = self.robot.model.parents
-        return (b1 > 0 and parents[b1] == max(b2, 0) and b2 >= 0) or (
-            b2 > 0 and parents[b2] == max(b1, 0) and b1 >= 0
-        )
+    def _adjacent(self, g1: int, g2: int) -> bool:
+        """Pieces on links joined by one joint of the healthy arm (see Robot.adjacent_links)."""
+        if self._body_of_geom[g1] < 0 or self._body_of_geom[g2] < 0:
+            return False  # obstacles
+        link1, link2 = self._link_of_geom[g1], self._link_of_geom[g2]
+        return frozenset((link1, link2)) in self.robot.adjacent_links
 
     def _candidate_geom_pairs(self) -> list[tuple[int, int]]:
         """Geometry pairs on different, non-adjacent bodies, not both static; distal first."""
@@ -271,7 +272,7 @@ class CollisionWorld:
                 b_i, b_j = int(bodies[i]), int(bodies[j])
                 if b_i == b_j or (self._is_static(b_i) and self._is_static(b_j)):
                     continue
-                if self._adjacent(b_i, b_j):
+                if self._adjacent(i, j):
                     continue
                 # piece 1 on the more distal body; static bodies (<= 0) always second
                 out.append((i, j) if b_i > b_j else (j, i))

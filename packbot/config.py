@@ -54,6 +54,12 @@ class SimConfig:
         max_step: Largest integration step [s].
         rest_speed: Joint speed [rad/s] below which the arm counts as at rest.
         max_events: Stop with an error after this many events (a runaway guard).
+        joint_friction: Apply the joints' viscous and Coulomb friction from ``robot.params``
+            (Coulomb with stick/slip events; see :mod:`packbot.actuators`). Off by default: the
+            report's model had none, and the values are estimates.
+        effort_saturation: Clip commanded torques to the joints' effort limits [N*m].
+        motor_lag: Time constant T of a first-order lag between the (saturated) command and the
+            motor torque [s]; 0: no lag.
     """
 
     contact_mode: ContactMode = "joint_clamp"
@@ -73,6 +79,9 @@ class SimConfig:
     max_step: float = 0.05
     rest_speed: float = 1e-3
     max_events: int = 20000
+    joint_friction: bool = False
+    effort_saturation: bool = True
+    motor_lag: float = 0.0
 
     def validate(self) -> None:
         """Check every field; raise :class:`ConfigurationError` naming the first bad one."""
@@ -113,6 +122,12 @@ class SimConfig:
             )
         if len(self.gravity) != 3 or not all(math.isfinite(g) for g in self.gravity):
             raise ConfigurationError("gravity", self.gravity, "3 finite numbers [m/s^2]")
+        for name in ("joint_friction", "effort_saturation", "joint_limits"):
+            if not isinstance(getattr(self, name), bool):
+                raise ConfigurationError(name, getattr(self, name), "true or false")
+        lag = self.motor_lag
+        if not isinstance(lag, (int, float)) or not math.isfinite(lag) or lag < 0:
+            raise ConfigurationError("motor_lag", lag, "a finite time >= 0 [s] (0: no lag)")
         if not isinstance(self.max_events, int) or self.max_events < 1:
             raise ConfigurationError("max_events", self.max_events, "a positive integer")
         if self.contact_mode == "normal":

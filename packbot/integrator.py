@@ -13,7 +13,16 @@ there, the event is handled, and the stepper restarts with a fresh step. Event f
   report's "secondary intersection", self-diagnosed: logged, and the impact law is applied again
   with the current geometry);
 - ``engage`` / ``disengage``: a clamped joint's sign condition changes (it starts to accelerate
-  toward its contact, or its lock torque would pull); see :mod:`packbot.contact.locks`.
+  toward its contact, or its lock torque would pull); see :mod:`packbot.contact.locks`;
+- ``slip`` / ``stick``: a joint held by static friction or a brake needs more than its holding
+  torque (it slips), or a sliding joint's speed crosses zero (it sticks if the holding torque is
+  within the bound); see :mod:`packbot.actuators`.
+
+Scheduled events cut the steps at their times: failure injections (``failure``, and ``freeze``
+for the impulse that stops a freezing joint), payload ``pick`` / ``drop``, and the ticks of a
+sampled-data :class:`~packbot.control.Controller` (not logged). A frozen joint or a payload change
+starts a new *phase*: the integrated model is rebuilt (``pin.buildReducedModel``, the payload's
+inertia added) and the contacts are found again; the result stays in full coordinates.
 
 Inside a step the set of engaged locks is fixed, so the right-hand side is smooth and the steps
 stay long. A step never moves any point of the arm by more than half the query margin (a bound
@@ -26,16 +35,18 @@ from __future__ import annotations
 import logging
 import math
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
+from packbot.actuators import TorquePath
 from packbot.collision import PairInfo
 from packbot.config import SimConfig
 from packbot.contact import JointLocks, clamp_directions, impact_reset, relevant_joints
+from packbot.control.base import Controller
 from packbot.environment import Environment
 from packbot.errors import (
     ConfigurationError,
@@ -43,18 +54,23 @@ from packbot.errors import (
     InitialCollisionError,
     SimulationError,
 )
+from packbot.failures import Failure, validate_failures
 from packbot.model import Robot
 from packbot.ode import DenseSegment, RK45Stepper, StepSizeUnderflow, locate_root
+from packbot.payload import Payload
 from packbot.result import Diagnostics, Event, SimResult, rest_time
 from packbot.system import System
 
-__all__ = ["EVENT_XTOL", "Controller", "simulate"]
+__all__ = ["EVENT_XTOL", "TorqueFunction", "simulate"]
 
 log = logging.getLogger(__name__)
 
 FloatArray = NDArray[np.float64]
-#: A controller: joint torques [N*m] (shape (nv,), full coordinates) from t [s], q [rad], v [rad/s].
-Controller = Callable[[float, FloatArray, FloatArray], Any]
+#: A continuous-time controller: joint torques [N*m] (shape (nv,), full coordinates) from
+#: t [s], q [rad], v [rad/s]; a smooth, stateless function.
+TorqueFunction = Callable[[float, FloatArray, FloatArray], Any]
+#: Joint speed below which a joint with Coulomb friction counts as stopped (it may stick) [rad/s].
+STICK_SPEED = 1e-9
 
 #: Time resolution of event location [s].
 EVENT_XTOL = 1e-10
@@ -86,7 +102,11 @@ class _Crossing:
 
 
 class _Run:
-    """One simulation run: the state of the event loop."""
+    """One simulation run: the state of the event loop.
+
+    The state vector is y = (q, v) of the integrated joints, followed by the motor torques
+    tau_m when ``config.motor_lag > 0``.
+    """
 
     def __init__(
         self,
@@ -94,67 +114,137 @@ class _Run:
         q0: FloatArray,
         v0: FloatArray,
         duration: float,
-        controller: Controller | None,
+        controller: Controller | TorqueFunction | None,
         environment: Environment | None,
         config: SimConfig,
+        failures: Sequence[Failure] = (),
+        payload: Payload | None = None,
+        inform_controller: bool = False,
+        progress: Callable[[float], None] | None = None,
     ) -> None:
         self.cfg = config
         self.duration = duration
-        self.sys = System(robot, q0, config, environment)
-        self.controller = controller
-        self.n = self.sys.nv
-        self.locks = JointLocks()
-        self.active: dict[tuple[Any, ...], _Active] = {}
+        self.robot = robot
+        self.environment = environment
+        self.ctrl_obj = controller if isinstance(controller, Controller) else None
+        self.ctrl_fn = None if isinstance(controller, Controller) else controller
+        self.inform = inform_controller
+        self.progress = progress
+        self.payload = payload
+        self.payload_on = False
+        self.failures_in: list[Failure] = []
+        self.frozen: list[str] = []
+        self.lag = config.motor_lag > 0.0
+        nv_full = robot.nq
+        self.tau_hold_full = np.zeros(nv_full)  # the held command of a sampled-data controller
+        # Scheduled actions, (time, order, what): failures first, then the payload, then ticks.
+        self.schedule: list[tuple[float, int, Any]] = [(f.t, 0, f) for f in failures]
+        if payload is not None:
+            self.schedule.append((payload.t_pick, 1, "pick"))
+            if payload.t_drop is not None:
+                self.schedule.append((payload.t_drop, 1, "drop"))
+        self.schedule.sort(key=lambda x: (x[0], x[1]))
+        self.next_tick = 0.0 if self.ctrl_obj is not None else math.inf
+        self.ticks = 0
         self.events: list[Event] = []
         self.diag = Diagnostics()
+        self.samples: list[tuple[FloatArray, ...]] = []
         self.samples_t: list[float] = []
-        self.samples_y: list[FloatArray] = []
         self.next_sample = 0
-        self.q_full0 = np.asarray(q0, dtype=float)
-        self.tau_zero = np.zeros(self.n)
         self.stepper = RK45Stepper(
             self.rhs, rtol=config.rtol, atol=config.atol, h_max=config.max_step
         )
         self.t = 0.0
-        self.y = np.concatenate([self.sys.reduce(q0), self.sys.reduce(v0)])
+        tau_m0 = np.zeros(nv_full)
+        self.build_phase(np.asarray(q0, dtype=float), np.asarray(v0, dtype=float), tau_m0)
+
+    # ------------------------------------------------------------------ phases
+    def build_phase(self, qf: FloatArray, vf: FloatArray, tau_mf: FloatArray) -> None:
+        """(Re)build the integrated system from a full-coordinate state; contacts are cleared."""
+        cfg = self.cfg
+        locked = tuple(cfg.locked_joints) + tuple(self.frozen)
+        payload = self.payload if self.payload_on else None
+        self.sys = System(self.robot, qf, cfg, self.environment, locked=locked, payload=payload)
+        self.n = self.sys.nv
+        self.path = TorquePath.build(self.robot.params, self.sys.free, cfg, self.failures_in)
+        self.locks = JointLocks()
+        self.active: dict[tuple[Any, ...], _Active] = {}
+        self.fdir = np.zeros(self.n)  # sliding direction of each joint with Coulomb friction
+        self.tau_zero = np.zeros(self.n)
+        self.tau_hold = self.sys.reduce(self.tau_hold_full)
+        parts = [self.sys.reduce(qf), self.sys.reduce(vf)]
+        if self.lag:
+            parts.append(self.sys.reduce(tau_mf))
+        self.y = np.concatenate(parts)
         self.last_d: dict[int, float] = {}  # pair -> distance at the last kept state [m]
         self.pending_d: dict[int, float] = {}  # the same at the end of the step being checked
         self.pending_min: tuple[float, int] = (math.inf, -1)
 
+    def full_state(self, y: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """(q, v, tau_m) in full coordinates from an integrated state."""
+        n = self.n
+        qf, vf = self.sys.q_full(y[:n]), self.sys.v_full(y[n : 2 * n])
+        tau_m = np.zeros(self.robot.nq)
+        if self.lag:
+            tau_m[self.sys.free] = y[2 * n :]
+        return qf, vf, tau_m
+
     # ------------------------------------------------------------------ dynamics
-    def torque(self, t: float, q: FloatArray, v: FloatArray) -> FloatArray:
-        """Controller torque on the integrated joints [N*m]."""
-        if self.controller is None:
-            return self.tau_zero
-        qf, vf = self.sys.q_full(q), self.sys.v_full(v)
-        try:
-            tau = np.asarray(self.controller(t, qf, vf), dtype=float)
-        except Exception as exc:
-            raise ControllerError(f"raised {type(exc).__name__}: {exc}", t) from exc
-        nq = self.sys.full.nq
+    def command(self, t: float, q: FloatArray, v: FloatArray) -> FloatArray:
+        """Commanded torque on the integrated joints [N*m]."""
+        if self.ctrl_fn is not None:
+            qf, vf = self.sys.q_full(q), self.sys.v_full(v)
+            try:
+                tau = np.asarray(self.ctrl_fn(t, qf, vf), dtype=float)
+            except Exception as exc:
+                raise ControllerError(f"raised {type(exc).__name__}: {exc}", t) from exc
+            return self.check_torque(tau, t)[self.sys.free]
+        if self.ctrl_obj is not None:
+            return self.tau_hold
+        return self.tau_zero
+
+    def check_torque(self, tau: FloatArray, t: float) -> FloatArray:
+        nq = self.robot.nq
         if tau.shape != (nq,):
             raise ControllerError(f"returned shape {tau.shape}, expected ({nq},)", t)
         if not np.all(np.isfinite(tau)):
-            bad = self.sys.full.joint_names[int(np.flatnonzero(~np.isfinite(tau))[0])]
+            bad = self.robot.joint_names[int(np.flatnonzero(~np.isfinite(tau))[0])]
             raise ControllerError(f"returned a non-finite torque for joint {bad!r}", t, bad)
-        return tau[self.sys.free]
+        return tau
 
-    def free_accel(self, t: float, q: FloatArray, v: FloatArray) -> FloatArray:
-        return self.sys.aba(q, v, self.torque(t, q, v))
+    def torques(
+        self, t: float, y: FloatArray
+    ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
+        """(command, motor target, applied motor torque, friction) [N*m] at (t, y)."""
+        n = self.n
+        q, v = y[:n], y[n : 2 * n]
+        cmd = self.command(t, q, v)
+        path = self.path
+        if cmd is self.tau_zero and not self.lag and path.passive:  # the collapse: fast path
+            return cmd, cmd, cmd, path.friction(v, self.fdir) if path.rubs else cmd
+        target = self.path.target(cmd)
+        tau_m = y[2 * n :] if self.lag else target
+        return cmd, target, self.path.applied(tau_m), self.path.friction(v, self.fdir)
+
+    def free_accel(self, t: float, y: FloatArray) -> FloatArray:
+        n = self.n
+        _, _, applied, friction = self.torques(t, y)
+        return self.sys.aba(y[:n], y[n : 2 * n], applied + friction)
 
     def rhs(self, t: float, y: FloatArray) -> FloatArray:
         n = self.n
-        q, v = y[:n], y[n:]
-        a = self.free_accel(t, q, v)
-        if self.locks.engaged:
+        q, v = y[:n], y[n : 2 * n]
+        _, target, applied, friction = self.torques(t, y)
+        a = self.sys.aba(q, v, applied + friction)
+        if len(self.locks.locked):
             a = self.locks.accelerations(a, self.sys.minv(q))
+        if self.lag:
+            return np.concatenate([v, a, (target - y[2 * n :]) / self.cfg.motor_lag])
         return np.concatenate([v, a])
 
-    def lock_conditions(self, t: float, y: FloatArray) -> dict[int, float]:
-        n = self.n
-        q, v = y[:n], y[n:]
-        a = self.free_accel(t, q, v)
-        minv = self.sys.minv(q) if self.locks.engaged else None
+    def lock_conditions(self, t: float, y: FloatArray) -> dict[tuple[str, int], float]:
+        a = self.free_accel(t, y)
+        minv = self.sys.minv(y[: self.n]) if len(self.locks.locked) else None
         return self.locks.conditions(a, minv)
 
     # ------------------------------------------------------------------ recording
@@ -164,13 +254,29 @@ class _Run:
             ts = self.next_sample * dt
             if ts > t_end + 1e-12 or ts > self.duration + 1e-12:
                 break
-            self.samples_t.append(ts)
-            self.samples_y.append(seg(min(max(ts, seg.t0), seg.t1)))
+            self.record_point(ts, seg(min(max(ts, seg.t0), seg.t1)))
             self.next_sample += 1
 
     def record_point(self, t: float, y: FloatArray) -> None:
+        """Keep a sample: full q, v, the torques and the energy at (t, y)."""
+        n = self.n
+        q, v = y[:n], y[n : 2 * n]
+        cmd, _, applied, friction = self.torques(t, y)
+        if len(self.locks.held):
+            a_free = self.sys.aba(q, v, applied + friction)
+            _, lam = self.locks.torques(a_free, self.sys.minv(q))
+            for j in self.locks.held:
+                friction[j] = lam[j]
+        qf, vf, _ = self.full_state(y)
+        full = self.robot.nq
+        cmd_f, app_f, fr_f = np.zeros(full), np.zeros(full), np.zeros(full)
+        eff = np.array(self.robot.params.effort, dtype=float)
+        free = self.sys.free
+        cmd_f[free], app_f[free], fr_f[free], eff[free] = cmd, applied, friction, self.path.effort
+        if self.ctrl_obj is not None:
+            cmd_f = self.tau_hold_full.copy()
         self.samples_t.append(t)
-        self.samples_y.append(y.copy())
+        self.samples.append((qf, vf, cmd_f, app_f, fr_f, eff, np.array([self.energy(q, v)])))
 
     # ------------------------------------------------------------------ events
     def distance(self, pair: int, y: FloatArray) -> float:
@@ -230,18 +336,30 @@ class _Run:
                         )
                     )
             self.pending_d = d_now
-        if any(len(s) == 1 for s in self.locks.signs.values()):
+        if self.locks.held or any(len(s) == 1 for s in self.locks.signs.values()):
             cond1 = self.lock_conditions(seg.t1, y1)
-            bad = [j for j, g in cond1.items() if g < 0.0]
+            bad = [k for k, g in cond1.items() if g < 0.0]
             if bad:
                 cond0 = self.lock_conditions(seg.t0, seg.y0)
-                for j in bad:
+                for k in bad:
 
-                    def gl(t: float, j: int = j) -> float:
-                        return self.lock_conditions(t, seg(t))[j]
+                    def gl(t: float, k: tuple[str, int] = k) -> float:
+                        return self.lock_conditions(t, seg(t))[k]
 
-                    kind = "disengage" if j in self.locks.engaged else "engage"
-                    out.append(_Crossing(kind, ("lock", j), gl, cond0.get(j, 1.0), cond1[j]))
+                    kind, j = k
+                    if kind == "hold":
+                        kind = "slip"
+                    else:
+                        kind = "disengage" if j in self.locks.engaged else "engage"
+                    out.append(_Crossing(kind, ("lock", j), gl, cond0.get(k, 1.0), cond1[k]))
+        sliding = np.flatnonzero(self.fdir * y1[n : 2 * n] < 0.0)
+        for j in sliding.tolist():
+
+            def gs(t: float, j: int = j) -> float:
+                return float(self.fdir[j] * seg(t)[n + j])
+
+            g0 = float(self.fdir[j] * seg.y0[n + j])
+            out.append(_Crossing("stick", ("stick", j), gs, g0, float(self.fdir[j] * y1[n + j])))
         return out
 
     def _pair_crossing(
@@ -279,8 +397,9 @@ class _Run:
     def handle(self, t: float, y: FloatArray, crossings: list[_Crossing]) -> FloatArray:
         """Apply the events at time t to state y; returns the post-event state."""
         n = self.n
-        q, v = y[:n], y[n:].copy()
+        q, v = y[:n], y[n : 2 * n].copy()
         flip: int | None = None
+        stick: list[int] = []
         for c in sorted(crossings, key=lambda c: c.kind != "release"):
             if c.kind in ("impact", "secondary_intersection"):
                 v = self.impact(t, q, v, c.key[1], c.kind)
@@ -292,14 +411,100 @@ class _Run:
                     self.log_event(
                         t, "release", q, v, v, act.pair, d=self.distance(act.pair.index, y)
                     )
+            elif c.kind == "slip":
+                j = c.key[1]
+                lam = self.hold_torque(t, self.with_v(y, v), j)
+                self.locks.set_held({k: b for k, b in self.locks.held.items() if k != j})
+                self.fdir[j] = -math.copysign(1.0, lam)
+                self.log_event(t, "slip", q, v, v, None, joints=(self.sys.names[j],), joint=j)
+            elif c.kind == "stick":
+                j = c.key[1]
+                v[j] = 0.0
+                self.fdir[j] = 0.0
+                stick.append(j)
             else:  # engage / disengage
                 flip = c.key[1]
-                self.log_event(t, c.kind, q, v, v, None, joints=(self.sys.names[flip],))
+                self.log_event(t, c.kind, q, v, v, None, joints=(self.sys.names[flip],), joint=flip)
+        y_new = self.with_v(y, v)
+        self.settle_modes(t, y_new, flip=flip, candidates=stick, log_stick=True)
+        return y_new
+
+    def with_v(self, y: FloatArray, v: FloatArray) -> FloatArray:
+        """The state y with its velocities replaced."""
+        out = y.copy()
+        out[self.n : 2 * self.n] = v
+        return out
+
+    def hold_torque(self, t: float, y: FloatArray, j: int) -> float:
+        """The torque [N*m] joint j's lock needs at (t, y) with the current locked set (and j)."""
+        n = self.n
+        a_free = self.free_accel(t, y)
+        held = dict(self.locks.held)
+        if j not in held:
+            self.locks.set_held({**held, j: 0.0})
+        _, lam = self.locks.torques(a_free, self.sys.minv(y[:n]))
+        self.locks.set_held(held)
+        return lam[j]
+
+    def settle_modes(
+        self,
+        t: float,
+        y: FloatArray,
+        *,
+        flip: int | None = None,
+        candidates: Sequence[int] = (),
+        log_stick: bool = False,
+    ) -> None:
+        """Set the clamps, the engaged locks and the friction holds consistent at (t, y).
+
+        Args:
+            t: Time [s].
+            y: State (its velocities already reset).
+            flip: A clamped joint whose mode an event just changed (see JointLocks).
+            candidates: Joints with Coulomb friction that just stopped: they stick if the
+                holding torque is within their bound, else they slide on in the direction of
+                the net torque.
+            log_stick: Log a ``stick`` event for each candidate that sticks.
+        """
+        n = self.n
+        q, v = y[:n], y[n : 2 * n]
         self.locks.set_clamps(cl for a in self.active.values() for cl in a.clamps)
+        bound = self.path.coulomb
+        held = {j: b for j, b in self.locks.held.items() if bound[j] > 0}
+        self.locks.set_held(held)
+        for j in np.flatnonzero(bound > 0).tolist():  # directions of the sliding joints
+            if j not in held and j not in candidates:
+                if abs(v[j]) > STICK_SPEED:
+                    self.fdir[j] = math.copysign(1.0, v[j])
+                elif self.fdir[j] == 0.0:
+                    candidates = [*candidates, j]
+        if not (self.locks.signs or self.locks.held or candidates):
+            return
+        minv = self.sys.minv(q)
         if self.locks.signs:
-            a_free = self.free_accel(t, q, v)
-            self.locks.solve_engaged(a_free, self.sys.minv(q), flip=flip)
-        return np.concatenate([q, v])
+            self.locks.solve_engaged(self.free_accel(t, y), minv, flip=flip)
+        if candidates:
+            for j in candidates:
+                self.fdir[j] = 0.0
+            trial = {**self.locks.held, **{j: float(bound[j]) for j in candidates}}
+            self.locks.set_held(trial)
+            _, lam = self.locks.torques(self.free_accel(t, y), minv)
+            keep = dict(self.locks.held)
+            for j in candidates:
+                signs = self.locks.signs.get(j, set())
+                pushes = len(signs) == 1 and -next(iter(signs)) * lam[j] >= 0.0
+                if abs(lam[j]) <= bound[j] or pushes:
+                    if log_stick:
+                        self.log_event(
+                            t, "stick", q, v, v, None, joints=(self.sys.names[j],), joint=j
+                        )
+                else:
+                    keep.pop(j)
+                    self.fdir[j] = -math.copysign(1.0, lam[j])
+                    self.log_event(t, "slip", q, v, v, None, joints=(self.sys.names[j],), joint=j)
+            self.locks.set_held(keep)
+            if self.locks.signs:
+                self.locks.solve_engaged(self.free_accel(t, y), minv, flip=flip)
 
     def impact(self, t: float, q: FloatArray, v: FloatArray, p_idx: int, kind: str) -> FloatArray:
         world = self.sys.world
@@ -388,7 +593,7 @@ class _Run:
             lim = self.sys.upper[j] if side > 0 else self.sys.lower[j]
             if side * (lim - y[j]) > 1e-6 and j not in self.locks.engaged:
                 self.active.pop(key)
-                energy = self.energy(y[:n], y[n:])
+                energy = self.energy(y[:n], y[n : 2 * n])
                 self.events.append(
                     Event(
                         self.t,
@@ -397,8 +602,8 @@ class _Run:
                         "upper" if side > 0 else "lower",
                         distance=float(side * (lim - y[j])),
                         relevant_joints=(self.sys.names[j],),
-                        v_before=self.sys.v_full(y[n:]),
-                        v_after=self.sys.v_full(y[n:]),
+                        v_before=self.sys.v_full(y[n : 2 * n]),
+                        v_after=self.sys.v_full(y[n : 2 * n]),
                         energy_before=energy,
                         energy_after=energy,
                     )
@@ -426,6 +631,7 @@ class _Run:
         pair: PairInfo | None,
         d: float = math.nan,
         joints: tuple[str, ...] = (),
+        joint: int | None = None,
     ) -> None:
         e0 = self.energy(q, v0)
         e1 = e0 if v1 is v0 else self.energy(q, v1)
@@ -433,7 +639,7 @@ class _Run:
             Event(
                 t,
                 kind,
-                pair.link1 if pair else "",
+                pair.link1 if pair else (self.sys.names[joint] if joint is not None else ""),
                 pair.link2 if pair else "",
                 pair.piece1 if pair else "",
                 pair.piece2 if pair else "",
@@ -453,8 +659,13 @@ class _Run:
             )
 
     # ------------------------------------------------------------------ loop
-    def start(self) -> None:
-        """Initial contacts (pairs within the contact tolerance) and limits at t = 0."""
+    def initial_contacts(self, t: float, check: bool) -> None:
+        """Contacts (pairs within the contact tolerance) and limit stops at (t, self.y).
+
+        Args:
+            t: Time [s].
+            check: Raise :class:`InitialCollisionError` if a pair penetrates (run start).
+        """
         world, cfg, n = self.sys.world, self.cfg, self.n
         crossings: list[_Crossing] = []
         if world is not None:
@@ -464,7 +675,7 @@ class _Run:
             bad = [
                 (world.pairs[p], d) for p, d in zip(sw.pairs, sw.distances, strict=True) if d < 0
             ]
-            if bad:
+            if bad and check:
                 raise InitialCollisionError([(p.piece1, p.piece2, d) for p, d in bad])
             self.last_d = dict(zip(sw.pairs.tolist(), sw.distances.tolist(), strict=True))
             for p, d in self.last_d.items():
@@ -478,23 +689,164 @@ class _Run:
                             _Crossing("limit", ("limit", j, side), lambda t: 0.0, 0.0, 0.0)
                         )
         if crossings:
-            self.y = self.handle(0.0, self.y, crossings)
+            self.y = self.handle(t, self.y, crossings)
+        else:
+            self.settle_modes(t, self.y)
+
+    def start(self) -> None:
+        """Contacts and limits at t = 0, then the actions scheduled at t = 0."""
+        self.initial_contacts(0.0, check=True)
+        if self.ctrl_obj is not None:
+            qf, vf, _ = self.full_state(self.y)
+            self.ctrl_obj.reset(self.robot, 0.0, qf.copy(), vf.copy())
+        if self.next_scheduled() <= 0.0:
+            self.run_scheduled(0.0, record=False)
         self.record_point(0.0, self.y)
         self.next_sample = 1
         self.stepper.reset(0.0, self.y)
+
+    def next_scheduled(self) -> float:
+        """Time of the next scheduled action (failure, payload, control tick) [s]."""
+        t_next = self.schedule[0][0] if self.schedule else math.inf
+        return min(t_next, self.next_tick)
+
+    def run_scheduled(self, t: float, record: bool = True) -> None:
+        """Apply every action scheduled at t (within 1e-12 s): failures, payload, a tick.
+
+        Args:
+            t: Time [s].
+            record: Keep samples of the states before and after a failure or payload change.
+        """
+        changed = False
+        while self.schedule and self.schedule[0][0] <= t + 1e-12:
+            _, _, what = self.schedule.pop(0)
+            if not changed and record:
+                self.record_point(t, self.y)  # the state before, for the plots
+            changed = True
+            if isinstance(what, Failure):
+                self.inject(t, what)
+            else:
+                self.payload_change(t, what)
+        if self.next_tick <= t + 1e-12:
+            assert self.ctrl_obj is not None
+            qf, vf, _ = self.full_state(self.y)
+            try:
+                tau = np.asarray(self.ctrl_obj.step(t, qf.copy(), vf.copy()), dtype=float)
+            except ControllerError:
+                raise
+            except Exception as exc:
+                raise ControllerError(f"raised {type(exc).__name__}: {exc}", t) from exc
+            self.tau_hold_full = self.check_torque(tau, t).copy()
+            self.tau_hold = self.sys.reduce(self.tau_hold_full)
+            self.ticks += 1
+            self.next_tick = self.ticks * self.ctrl_obj.dt
+        if changed and record:
+            self.record_point(t, self.y)
+
+    def inject(self, t: float, failure: Failure) -> None:
+        """A joint fails at t: log it; a frozen joint is stopped by an impulse and merged."""
+        qf, vf, _ = self.full_state(self.y)
+        self.failures_in.append(failure)
+        if self.inform and self.ctrl_obj is not None:
+            self.ctrl_obj.on_failure(failure, t)
+        e = self.energy(self.y[: self.n], self.y[self.n : 2 * self.n])
+        self.events.append(
+            Event(
+                t,
+                "failure",
+                failure.joint,
+                failure.kind,
+                v_before=vf,
+                v_after=vf,
+                energy_before=e,
+                energy_after=e,
+            )
+        )
+        if failure.kind != "frozen":
+            self.path = TorquePath.build(
+                self.robot.params, self.sys.free, self.cfg, self.failures_in
+            )
+            self.settle_modes(t, self.y)
+            return
+        # Freezing: the impulse that stops joint j, with the engaged and held locks kept still
+        # (their velocities are zero and stay zero); the arm keeps its generalized momentum
+        # (M dv = S^T p, p the joint impulses [N*m*s]).
+        n = self.n
+        j = int(np.flatnonzero(self.sys.free == self.robot.params.index(failure.joint))[0])
+        q, v = self.y[:n], self.y[n : 2 * n].copy()
+        idx = np.array(sorted({j, *self.locks.locked}), dtype=int)
+        minv = self.sys.minv(q)
+        p = np.linalg.solve(minv[np.ix_(idx, idx)], v[idx])
+        v_new = v - minv[:, idx] @ p
+        v_new[idx] = 0.0
+        e1 = self.energy(q, v_new)
+        self.events.append(
+            Event(
+                t,
+                "freeze",
+                failure.joint,
+                "",
+                distance=float(qf[self.sys.free[j]]),
+                relevant_joints=tuple(self.sys.names[i] for i in idx),
+                v_before=vf,
+                v_after=self.sys.v_full(v_new),
+                energy_before=e,
+                energy_after=e1,
+            )
+        )
+        self.frozen.append(failure.joint)
+        self.rebuild(t, self.with_v(self.y, v_new))
+
+    def payload_change(self, t: float, what: str) -> None:
+        """Pick up (an inelastic impact: generalized momentum kept) or drop the payload."""
+        n = self.n
+        q, v = self.y[:n], self.y[n : 2 * n]
+        e0 = self.energy(q, v)
+        vf0 = self.sys.v_full(v)
+        momentum = self.sys.mass_matrix(q) @ v
+        self.payload_on = what == "pick"
+        self.rebuild(t, self.y)
+        q, v = self.y[:n], self.y[n : 2 * n]
+        if what == "pick":
+            v = np.asarray(np.linalg.solve(self.sys.mass_matrix(q), momentum), dtype=np.float64)
+            self.y = self.with_v(self.y, v)
+            self.settle_modes(t, self.y)
+        self.events.append(
+            Event(
+                t,
+                what,
+                self.payload.frame if self.payload else "",
+                "",
+                v_before=vf0,
+                v_after=self.sys.v_full(v),
+                energy_before=e0,
+                energy_after=self.energy(q, v),
+            )
+        )
+
+    def rebuild(self, t: float, y: FloatArray) -> None:
+        """A new phase from state y at t: model rebuilt, contacts found again."""
+        qf, vf, tau_mf = self.full_state(y)
+        self.build_phase(qf, vf, tau_mf)
+        self.initial_contacts(t, check=False)
 
     def step_limit(self) -> float:
         """Largest step keeping every point's motion within half the query margin [s]."""
         if self.sys.world is None:
             return self.cfg.max_step
-        speed = REACH_BOUND * float(np.abs(self.y[self.n :]).sum())
+        speed = REACH_BOUND * float(np.abs(self.y[self.n : 2 * self.n]).sum())
         return min(self.cfg.max_step, 0.5 * self.cfg.margin / max(speed, 1e-9))
 
     def run(self) -> None:
         self.start()
         while self.t < self.duration - 1e-12:
             self.stepper.h_max = self.step_limit()
-            seg = self.stepper.step(self.duration)
+            t_sched = self.next_scheduled()
+            if t_sched <= self.t + 1e-12:  # an event landed on a scheduled time
+                self.run_scheduled(self.t)
+                self.stepper.reset(self.t, self.y, h=max(self.stepper.h, 1e-6))
+                continue
+            seg = self.stepper.step(min(self.duration, t_sched))
             y1 = seg.y1
             crossings = self.crossings(seg, y1)
             if not crossings:
@@ -504,6 +856,11 @@ class _Run:
                     self.last_d = self.pending_d
                     self.note_min(*self.pending_min)
                 self.release_limits(self.y)
+                if self.t >= t_sched - 1e-12 and self.t < self.duration - 1e-12:
+                    self.run_scheduled(self.t)
+                    self.stepper.reset(self.t, self.y, h=max(self.stepper.h, 1e-6))
+                if self.progress is not None:
+                    self.progress(self.t)
                 continue
             t_star, at = self.locate(seg, crossings)
             y_star = seg(t_star)
@@ -519,20 +876,13 @@ class _Run:
                 self.note_min(sw.min_distance, sw.min_pair)
             self.diag.restarts += 1
             self.stepper.reset(t_star, y_new, h=max(self.stepper.h, 1e-6))
+            if self.progress is not None:
+                self.progress(self.t)
 
     def result(self) -> SimResult:
-        n = self.n
         t = np.array(self.samples_t)
-        Y = np.array(self.samples_y).reshape(len(t), 2 * n)
-        q = np.array([self.sys.q_full(y[:n]) for y in Y])
-        v = np.array([self.sys.v_full(y[n:]) for y in Y])
-        nv = self.sys.full.nq
-        tau = np.zeros((len(t), nv))
-        energy = np.zeros(len(t))
-        for k in range(len(t)):
-            qk, vk = Y[k, :n], Y[k, n:]
-            tau[k, self.sys.free] = self.torque(float(t[k]), qk, vk)
-            energy[k] = self.energy(qk, vk)
+        cols = [np.array([s[k] for s in self.samples]) for k in range(7)]
+        q, v, tau_cmd, tau, tau_fr, effort, energy = cols
         self.diag.steps = self.stepper.n_steps
         self.diag.rejected_steps = self.stepper.n_rejected
         self.diag.rhs_calls = self.stepper.n_rhs
@@ -541,19 +891,49 @@ class _Run:
             q=q,
             v=v,
             tau=tau,
-            energy=energy,
+            energy=energy[:, 0],
             events=self.events,
             rest_time=rest_time(t, v, self.cfg.rest_speed),
-            joint_names=self.sys.full.joint_names,
+            joint_names=self.robot.joint_names,
             config=self.cfg,
             diagnostics=self.diag,
+            tau_cmd=tau_cmd,
+            tau_friction=tau_fr,
+            effort=effort,
+            failures=tuple(self.failures_in),
+            control_ticks=self.ticks,
         )
 
 
 def _check_inputs(
-    robot: Robot, q0: Any, v0: Any, duration: Any, config: SimConfig
+    robot: Robot,
+    q0: Any,
+    v0: Any,
+    duration: Any,
+    config: SimConfig,
+    failures: Sequence[Failure],
+    payload: Payload | None,
+    controller: Any,
 ) -> tuple[FloatArray, FloatArray]:
     config.validate()
+    if isinstance(failures, Failure):
+        raise ConfigurationError("failures", failures, "a list of packbot.Failure")
+    validate_failures(list(failures), robot.joint_names)
+    for f in failures:
+        if f.joint in config.locked_joints:
+            raise ConfigurationError(
+                "failures", f.joint, "a joint that is not in config.locked_joints"
+            )
+    if payload is not None:
+        if not isinstance(payload, Payload):
+            raise ConfigurationError("payload", payload, "a packbot.Payload or None")
+        payload.validate()
+    if controller is not None and not (isinstance(controller, Controller) or callable(controller)):
+        raise ConfigurationError(
+            "controller",
+            controller,
+            "None, a packbot.control.Controller or a function tau(t, q, v)",
+        )
     nq = robot.nq
     q = np.asarray(q0, dtype=float)
     v = np.asarray(v0, dtype=float)
@@ -581,9 +961,13 @@ def simulate(
     v0: Any,
     duration: float,
     *,
-    controller: Controller | None = None,
+    controller: Controller | TorqueFunction | None = None,
     environment: Environment | None = None,
     config: SimConfig | None = None,
+    failures: Sequence[Failure] = (),
+    payload: Payload | None = None,
+    inform_controller: bool = False,
+    progress: Callable[[float], None] | None = None,
 ) -> SimResult:
     """Simulate the arm from (q0, v0) for ``duration`` seconds with exact contact events.
 
@@ -592,10 +976,19 @@ def simulate(
         q0: Initial joint positions [rad], shape (nq,), within the limits, collision free.
         v0: Initial joint velocities [rad/s], shape (nq,).
         duration: Simulated time [s].
-        controller: Torque function ``tau(t, q, v)`` [N*m] (or an object with that call), in
-            full coordinates; None means zero torque (a total collapse).
+        controller: None (zero command: a total collapse), a sampled-data
+            :class:`~packbot.control.Controller` (ticks every ``controller.dt``, zero-order
+            hold), or a smooth, stateless torque function ``tau(t, q, v)`` [N*m] evaluated at
+            every right-hand side. Full coordinates. The command passes through the failure
+            and actuator models (:mod:`packbot.actuators`).
         environment: Static obstacles; None means the floor alone.
         config: Settings; None means ``SimConfig()``.
+        failures: Joint failures (:class:`~packbot.failures.Failure`), each injected at its
+            time ``t`` (at most one per joint, none on a joint in ``config.locked_joints``).
+        payload: A payload held in the gripper from ``payload.t_pick`` to ``payload.t_drop``.
+        inform_controller: Call ``controller.on_failure(failure, t)`` at each injection (the
+            scenario tells the controller; otherwise it must detect the failure itself).
+        progress: Called with the simulated time [s] after every accepted step.
 
     Returns:
         The sampled trajectory, the event log and diagnostics.
@@ -609,9 +1002,21 @@ def simulate(
             holds the trajectory up to then.
     """
     cfg = SimConfig() if config is None else config
-    q, v = _check_inputs(robot, q0, v0, duration, cfg)
+    q, v = _check_inputs(robot, q0, v0, duration, cfg, failures, payload, controller)
     wall = time.perf_counter()
-    run = _Run(robot, q, v, float(duration), controller, environment, cfg)
+    run = _Run(
+        robot,
+        q,
+        v,
+        float(duration),
+        controller,
+        environment,
+        cfg,
+        failures=tuple(failures),
+        payload=payload,
+        inform_controller=inform_controller,
+        progress=progress,
+    )
     try:
         run.run()
     except StepSizeUnderflow as exc:

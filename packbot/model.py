@@ -23,7 +23,7 @@ from packbot.errors import ConfigurationError, ConvexityError, ResourceNotFound,
 from packbot.resources import data_dir
 from packbot.urdfgen import URDF_NAME
 
-__all__ = ["JointParams", "Robot", "load_robot"]
+__all__ = ["JointParams", "Robot", "link_adjacency", "load_robot"]
 
 log = logging.getLogger(__name__)
 
@@ -84,6 +84,10 @@ class Robot:
         poses: Named poses, name -> q (shape (nq,)) [rad].
         params: Joint limits and actuator data (see :class:`JointParams`).
         urdf_path: The URDF this robot was loaded from.
+        adjacent_links: Pairs of links joined by one joint of the *healthy* arm (or on one
+            body): their pieces touch by design and are never tested. Kept unchanged when joints
+            are locked (a reduced model merges bodies, but two links that were not neighbours
+            stay testable).
     """
 
     model: pin.Model
@@ -92,6 +96,11 @@ class Robot:
     poses: dict[str, NDArray[np.float64]]
     params: JointParams
     urdf_path: Path
+    adjacent_links: frozenset[frozenset[str]] = frozenset()
+
+    def __post_init__(self) -> None:
+        if not self.adjacent_links:
+            self.adjacent_links = link_adjacency(self.model)
 
     @property
     def joint_names(self) -> tuple[str, ...]:
@@ -248,3 +257,20 @@ def load_robot(urdf: str | Path | None = None) -> Robot:
             poses[name][params.index(joint)] = val
     log.debug("loaded %s: nq=%d, %d collision pieces", path, model.nq, collision.ngeoms)
     return Robot(model, collision, visual, poses, params, path)
+
+
+def link_adjacency(model: pin.Model) -> frozenset[frozenset[str]]:
+    """Pairs of links (BODY frames) on one joint's body or on a joint and its parent joint.
+
+    Args:
+        model: A Pinocchio model (the healthy arm's, so that locking joints later does not make
+            distant links "adjacent").
+    """
+    bodies = [(str(f.name), int(f.parentJoint)) for f in model.frames if f.type == pin.BODY]
+    parents = model.parents
+    out = set()
+    for i, (n1, j1) in enumerate(bodies):
+        for n2, j2 in bodies[i + 1 :]:
+            if j1 == j2 or parents[j1] == j2 or parents[j2] == j1:
+                out.add(frozenset((n1, n2)))
+    return frozenset(out)

@@ -9,11 +9,23 @@ import numpy as np
 from numpy.typing import NDArray
 
 from packbot.config import SimConfig
+from packbot.failures import Failure
 
 __all__ = ["EVENT_KINDS", "Diagnostics", "Event", "SimResult"]
 
 EventKind = Literal[
-    "impact", "limit", "release", "secondary_intersection", "engage", "disengage", "end"
+    "impact",
+    "limit",
+    "release",
+    "secondary_intersection",
+    "engage",
+    "disengage",
+    "slip",
+    "stick",
+    "failure",
+    "freeze",
+    "pick",
+    "drop",
 ]
 #: The kinds of event the simulator logs.
 EVENT_KINDS: tuple[str, ...] = (
@@ -23,6 +35,12 @@ EVENT_KINDS: tuple[str, ...] = (
     "secondary_intersection",  # an active, clamped pair penetrated anyway (report's self-diagnosis)
     "engage",  # a clamped joint started to accelerate toward its contact: its lock engaged
     "disengage",  # a locked joint's constraint torque would pull: its lock let go
+    "slip",  # a joint held by static friction or a brake needed more than its holding torque
+    "stick",  # a sliding joint with Coulomb friction stopped and its holding torque suffices
+    "failure",  # a joint failure was injected (link1: joint, link2: kind)
+    "freeze",  # the impulse that stops a freezing joint (link1: joint; distance: its angle)
+    "pick",  # the payload was picked up (generalized momentum kept)
+    "drop",  # the payload was dropped
 )
 
 
@@ -101,7 +119,8 @@ class SimResult:
             instants just before and just after every event (equal times, pre first).
         q: Joint positions [rad], shape (N, nq), full model coordinates.
         v: Joint velocities [rad/s], shape (N, nv).
-        tau: Applied joint torques [N*m], shape (N, nv).
+        tau: Applied motor torques [N*m], shape (N, nv): the command after the failures,
+            saturation and motor lag (friction not included).
         energy: Total mechanical energy (kinetic incl. armature + potential) [J], shape (N,).
         events: The event log, in time order.
         rest_time: First time after which every joint speed stays below
@@ -109,6 +128,13 @@ class SimResult:
         joint_names: Names of the columns of q, v, tau.
         config: The settings of the run.
         diagnostics: Work done and invariants seen.
+        tau_cmd: Commanded torques [N*m], shape (N, nv) (a sampled-data controller's held
+            command).
+        tau_friction: Joint friction torques [N*m], shape (N, nv) (viscous + Coulomb; for a
+            joint held by static friction or a brake, the holding torque).
+        effort: Effective effort limits [N*m], shape (N, nv) (a weak joint's scaled).
+        failures: The failures injected during the run.
+        control_ticks: Number of ticks of a sampled-data controller.
     """
 
     t: NDArray[np.float64]
@@ -121,6 +147,11 @@ class SimResult:
     joint_names: tuple[str, ...]
     config: SimConfig
     diagnostics: Diagnostics
+    tau_cmd: NDArray[np.float64]
+    tau_friction: NDArray[np.float64]
+    effort: NDArray[np.float64]
+    failures: tuple[Failure, ...] = ()
+    control_ticks: int = 0
 
     def events_of(self, *kinds: str) -> list[Event]:
         """The events of the given kinds."""

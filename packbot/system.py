@@ -11,6 +11,8 @@ the potential energy of gravity [J].
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import numpy as np
 import pinocchio as pin
 from numpy.typing import NDArray
@@ -18,9 +20,11 @@ from numpy.typing import NDArray
 from packbot.collision import CollisionWorld
 from packbot.config import SimConfig
 from packbot.environment import Environment
+from packbot.errors import UnknownNameError
 from packbot.model import JointParams, Robot
+from packbot.payload import Payload
 
-__all__ = ["System"]
+__all__ = ["System", "with_payload"]
 
 FloatArray = NDArray[np.float64]
 
@@ -37,6 +41,8 @@ class System:
         q0: Initial configuration, full coordinates [rad] (locked joints stay there).
         config: Simulation settings (gravity, locked joints, contact mode, margin).
         environment: Static obstacles (None: the floor).
+        locked: Joints to lock (default: ``config.locked_joints``); frozen joints join them.
+        payload: A payload held in the gripper (its inertia added to the carrying body).
 
     Attributes:
         robot: The (reduced) robot the simulation integrates.
@@ -57,12 +63,17 @@ class System:
         q0: FloatArray,
         config: SimConfig,
         environment: Environment | None,
+        *,
+        locked: Sequence[str] | None = None,
+        payload: Payload | None = None,
     ) -> None:
         self.full = robot
         self.q_locked = np.array(q0, dtype=float)
-        locked = [robot.params.index(n) for n in config.locked_joints]
-        self.free = np.array([i for i in range(robot.nq) if i not in locked], dtype=int)
-        self.robot = robot if not locked else _reduced(robot, locked, self.q_locked)
+        names = config.locked_joints if locked is None else locked
+        idx = [robot.params.index(n) for n in names]
+        self.free = np.array([i for i in range(robot.nq) if i not in idx], dtype=int)
+        base = robot if payload is None else with_payload(robot, payload)
+        self.robot = base if not idx else _reduced(base, idx, self.q_locked)
         self.model = self.robot.model.copy()
         self.model.gravity.linear = np.asarray(config.gravity, dtype=float)
         self.data = self.model.createData()
@@ -159,4 +170,30 @@ def _reduced(robot: Robot, locked: list[int], q_ref: FloatArray) -> Robot:
     )
     model.armature = params.armature.copy()
     poses = {name: q[keep] for name, q in robot.poses.items()}
-    return Robot(model, coll, vis, poses, params, robot.urdf_path)
+    return Robot(model, coll, vis, poses, params, robot.urdf_path, robot.adjacent_links)
+
+
+def with_payload(robot: Robot, payload: Payload) -> Robot:
+    """The robot with the payload's spatial inertia added to the body carrying its frame.
+
+    Raises:
+        UnknownNameError: The payload's frame is not a frame of the model.
+    """
+    model = robot.model.copy()
+    if not model.existFrame(payload.frame):
+        names = [str(f.name) for f in model.frames]
+        raise UnknownNameError("frame", payload.frame, names)
+    frame = model.frames[model.getFrameId(payload.frame)]
+    inertia = pin.Inertia(
+        float(payload.mass), np.asarray(payload.com, dtype=float), payload.inertia_matrix()
+    )
+    model.appendBodyToJoint(frame.parentJoint, inertia, frame.placement)
+    return Robot(
+        model,
+        robot.collision_model,
+        robot.visual_model,
+        robot.poses,
+        robot.params,
+        robot.urdf_path,
+        robot.adjacent_links,
+    )

@@ -430,7 +430,7 @@ def test_controller_object_with_call(robot):
 
 def test_step_size_underflow_stops_with_the_result_attached(robot):
     """A torque that blows up in finite time (at t = 0.5 s) cannot be integrated past it."""
-    cfg = packbot.SimConfig(contact_mode="none", joint_limits=False)
+    cfg = packbot.SimConfig(contact_mode="none", joint_limits=False, effort_saturation=False)
 
     def blowup(t, q, v):
         tau = np.zeros(8)

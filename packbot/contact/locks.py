@@ -13,6 +13,12 @@ the whole arm (unlike zeroing one acceleration after the fact). Which clamped jo
 is the solution of a small linear complementarity problem (unique: its matrix (M^-1)_CC is
 positive definite), solved at every restart; inside an integration step the engaged set is
 fixed, and the step's end checks the two sign conditions, whose change is an event.
+
+*Held* joints are locked by a bounded torque instead: static joint friction or a brake
+(:mod:`packbot.actuators`). A held joint j has a_j = 0 while its holding torque stays within its
+bound, |lambda_j| <= F_j; it slips when the holding torque would exceed the bound (an event). A
+held joint that is also clamped by a contact slips only if the contact cannot supply the torque
+(the contact may push, -s lambda >= 0, whatever the bound).
 """
 
 from __future__ import annotations
@@ -40,12 +46,25 @@ class JointLocks:
 
     Attributes:
         signs: Joint index -> set of forbidden acceleration directions (+1, -1).
-        engaged: Joint indices currently locked (a_j = 0).
+        engaged: Joint indices currently locked by their clamps (a_j = 0).
+        held: Joint index -> holding-torque bound F_j [N*m] of the joints held by friction or a
+            brake (a_j = 0 while |lambda_j| <= F_j).
     """
 
     def __init__(self) -> None:
         self.signs: dict[int, set[int]] = {}
+        self.held: dict[int, float] = {}
         self._set_engaged(())
+
+    @property
+    def locked(self) -> tuple[int, ...]:
+        """Every joint with a_j = 0 in the current mode (engaged or held), sorted."""
+        return tuple(int(j) for j in self._idx)
+
+    def set_held(self, held: dict[int, float]) -> None:
+        """Replace the held joints (joint -> bound [N*m])."""
+        self.held = {int(j): float(f) for j, f in held.items()}
+        self._set_engaged(self.engaged)
 
     def set_clamps(self, clamps: Iterable[tuple[int, int]]) -> None:
         """Replace the clamps by (joint, sign) pairs (the union over active contacts)."""
@@ -57,7 +76,7 @@ class JointLocks:
 
     def _set_engaged(self, engaged: tuple[int, ...]) -> None:
         self.engaged = engaged
-        self._idx = np.array(engaged, dtype=int)
+        self._idx = np.array(sorted(set(engaged) | set(self.held)), dtype=int)
         self._grid = np.ix_(self._idx, self._idx)
 
     def accelerations(self, a_free: FloatArray, minv: FloatArray | None) -> FloatArray:
@@ -69,7 +88,7 @@ class JointLocks:
             a_free: Accelerations of the unconstrained arm [rad/s^2].
             minv: M^-1 (needed only when some joint is engaged).
         """
-        if not self.engaged or minv is None:
+        if len(self._idx) == 0 or minv is None:
             return a_free
         idx = self._idx
         if len(idx) == 1:
@@ -88,21 +107,42 @@ class JointLocks:
         lam = np.asarray(np.linalg.solve(W, -a_free[idx]), dtype=np.float64)
         return a_free + minv[:, idx] @ lam, lam
 
-    def conditions(self, a_free: FloatArray, minv: FloatArray | None) -> dict[int, float]:
-        """Sign conditions g_j >= 0 of every one-sided clamp, with the engaged set fixed.
+    def conditions(
+        self, a_free: FloatArray, minv: FloatArray | None
+    ) -> dict[tuple[str, int], float]:
+        """Conditions g >= 0 of the current mode, with the locked set fixed.
 
-        Engaged joint: g = -s lambda (its lock must push away); free clamped joint: g = -s a (it
-        must not accelerate toward the contact). A g below zero is a mode change (an event).
+        Keys ``("clamp", j)``: engaged joint: g = -s lambda (its lock must push away); free
+        clamped joint: g = -s a (it must not accelerate toward the contact). Keys
+        ``("hold", j)``: g = F_j - |lambda_j| (or the contact pushes). A g below zero is a mode
+        change (an event).
         """
         a, lam = self._solve(a_free, minv, self._idx)
-        out: dict[int, float] = {}
-        pos = {j: k for k, j in enumerate(self.engaged)}
+        out: dict[tuple[str, int], float] = {}
+        pos = {int(j): k for k, j in enumerate(self._idx)}
+        for j, bound in self.held.items():
+            lj = lam[pos[j]]
+            g = bound + TORQUE_BAND - abs(lj)
+            signs = self.signs.get(j, set())
+            if len(signs) == 1:
+                (s,) = signs
+                g = max(g, -s * lj + TORQUE_BAND)
+            out[("hold", j)] = g if len(signs) != 2 else 1.0
         for j, signs in self.signs.items():
-            if len(signs) != 1:
-                continue  # bilateral: always engaged
+            if len(signs) != 1 or j in self.held:
+                continue  # bilateral: always engaged; held: its hold condition covers it
             (s,) = signs
-            out[j] = -s * lam[pos[j]] + TORQUE_BAND if j in pos else -s * a[j] + ACCEL_BAND
+            out[("clamp", j)] = (
+                -s * lam[pos[j]] + TORQUE_BAND if j in pos else -s * a[j] + ACCEL_BAND
+            )
         return out
+
+    def torques(
+        self, a_free: FloatArray, minv: FloatArray | None
+    ) -> tuple[FloatArray, dict[int, float]]:
+        """Accelerations [rad/s^2] and the lock torques lambda_j [N*m] of the locked joints."""
+        a, lam = self._solve(a_free, minv, self._idx)
+        return a, {int(j): float(x) for j, x in zip(self._idx, lam, strict=True)}
 
     def solve_engaged(
         self, a_free: FloatArray, minv: FloatArray, flip: int | None = None, eps: float = 1e-12
@@ -117,7 +157,8 @@ class JointLocks:
             eps: Tolerance of the sign conditions (scaled by the acceleration magnitude).
         """
         bilateral = [j for j, s in self.signs.items() if len(s) == 2]
-        one_sided = sorted(j for j, s in self.signs.items() if len(s) == 1)
+        one_sided = sorted(j for j, s in self.signs.items() if len(s) == 1 and j not in self.held)
+        bilateral = sorted(set(bilateral) | set(self.held))
         tol_a = 0.5 * ACCEL_BAND + eps * float(np.abs(a_free).max(initial=0.0))
         tol_t = 0.5 * TORQUE_BAND
         candidates: list[tuple[int, ...]] = []
@@ -136,7 +177,7 @@ class JointLocks:
                 if ok:
                     candidates.append(eng)
         if not candidates:  # cannot happen for a positive definite M; be safe: lock them all
-            candidates = [tuple(sorted(self.signs))]
+            candidates = [tuple(sorted(set(self.signs) | set(self.held)))]
         choice = candidates[0]
         if flip is not None:
             was = flip in self.engaged
@@ -144,5 +185,6 @@ class JointLocks:
                 if (flip in eng) != was:
                     choice = eng
                     break
-        self._set_engaged(choice)
-        return choice
+        engaged = tuple(j for j in choice if j in self.signs)
+        self._set_engaged(engaged)
+        return engaged
