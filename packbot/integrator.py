@@ -257,6 +257,13 @@ class _Run:
             self.record_point(ts, seg(min(max(ts, seg.t0), seg.t1)))
             self.next_sample += 1
 
+    def record_due(self, t: float, y: FloatArray) -> None:
+        """Keep the regular samples due at t (within 1e-12 s) from the state y at t."""
+        dt = self.cfg.sample_dt
+        while self.next_sample * dt <= min(t, self.duration) + 1e-12:
+            self.record_point(self.next_sample * dt, y)
+            self.next_sample += 1
+
     def record_point(self, t: float, y: FloatArray) -> None:
         """Keep a sample: full q, v, the torques and the energy at (t, y)."""
         n = self.n
@@ -850,14 +857,18 @@ class _Run:
             y1 = seg.y1
             crossings = self.crossings(seg, y1)
             if not crossings:
-                self.record(seg, seg.t1)
+                on_schedule = seg.t1 >= t_sched - 1e-12 and seg.t1 < self.duration - 1e-12
+                # A sample on a scheduled time shows the state after the action (a new held
+                # command applies from its tick on).
+                self.record(seg, seg.t1 - 1e-11 if on_schedule else seg.t1)
                 self.t, self.y = seg.t1, y1
                 if self.sys.world is not None:
                     self.last_d = self.pending_d
                     self.note_min(*self.pending_min)
                 self.release_limits(self.y)
-                if self.t >= t_sched - 1e-12 and self.t < self.duration - 1e-12:
+                if on_schedule:
                     self.run_scheduled(self.t)
+                    self.record_due(self.t, self.y)
                     self.stepper.reset(self.t, self.y, h=max(self.stepper.h, 1e-6))
                 if self.progress is not None:
                     self.progress(self.t)
