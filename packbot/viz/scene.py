@@ -1,0 +1,267 @@
+"""The scene drawn in a meshcat visualizer: the robot, its environment and its contacts.
+
+The robot's visual geometry (the URDF's STL meshes and colours) and its convex collision pieces
+(hidden unless asked for) go through Pinocchio's ``MeshcatVisualizer``; the environment is the
+floor as a slab under ``z = 0``, boxes and convex obstacles. :meth:`_Scene.animation` turns a
+result into one meshcat animation clip, with a red marker at each touching pair's witness points
+and the touching pieces turned red while a contact is active.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import meshcat
+import meshcat.geometry as mg
+import numpy as np
+import pinocchio as pin
+from meshcat.animation import Animation
+from numpy.typing import NDArray
+from pinocchio.visualize import MeshcatVisualizer
+from scipy.spatial import ConvexHull
+
+from packbot.collision import CollisionWorld
+from packbot.environment import Environment, Obstacle
+from packbot.errors import UnknownNameError
+from packbot.model import Robot
+from packbot.result import SimResult
+from packbot.viz.contacts import ContactSpan, _merge, contact_spans
+from packbot.viz.keyframes import FPS, _keyframes
+
+__all__ = [
+    "CAMERA_OFFSET",
+    "CAMERA_TARGET",
+    "COLLISION_RGBA",
+    "CONTACT_COLOR",
+    "FLOOR_COLOR",
+    "MARKER_RADIUS",
+    "OBSTACLE_COLOR",
+    "SLAB_GAP",
+    "SLAB_HALF",
+    "SLAB_THICKNESS",
+]
+
+log = logging.getLogger(__name__)
+
+#: Colour of contact markers and of touching pieces (RGB in [0, 1]).
+CONTACT_COLOR = (0.9, 0.05, 0.05)
+#: Colour of collision pieces when shown (RGBA).
+COLLISION_RGBA = (0.3, 0.6, 0.95, 0.85)
+#: Colour of obstacles (RGB); the floor is neutral grey.
+OBSTACLE_COLOR = (0.45, 0.55, 0.75)
+FLOOR_COLOR = (0.78, 0.78, 0.78)
+#: Half extent of the slab drawn for a halfspace [m], and its thickness [m].
+SLAB_HALF = 3.0
+SLAB_THICKNESS = 0.02
+#: Gap between a halfspace's surface and the slab's top [m] (keeps meshcat's grid visible).
+SLAB_GAP = 0.002
+#: Contact marker radius [m].
+MARKER_RADIUS = 0.025
+#: Camera: the point it orbits, in the world [m] (the scene is shifted to put it at meshcat's
+#: origin), and the camera's offset from it [m].
+CAMERA_TARGET = (0.0, 0.0, 0.5)
+CAMERA_OFFSET = (1.05, -1.3, 0.5)
+
+_ROOT = "packbot"  # meshcat node of the robot: /meshcat/packbot/{visuals,collisions}
+_ENV = "environment"
+_CONTACTS = "contacts"
+# Colours change this long [s] before and after an active span (a colour track interpolates).
+_EDGE = 1e-4
+
+
+def _hex(rgb: Sequence[float]) -> int:
+    r, g, b = (min(255, max(0, round(255 * float(c)))) for c in rgb[:3])
+    return (r << 16) | (g << 8) | b
+
+
+def _slab(ob: Obstacle) -> tuple[mg.Geometry, NDArray[np.float64]]:
+    """A thin box under a halfspace's surface, and its pose (4x4) in the world."""
+    n = np.asarray(ob.normal, dtype=float)
+    nn = float(np.linalg.norm(n))
+    n = n / nn
+    centre = n * (ob.offset / nn - SLAB_GAP - SLAB_THICKNESS / 2)
+    R = pin.Quaternion.FromTwoVectors(np.array([0.0, 0.0, 1.0]), n).toRotationMatrix()
+    return mg.Box([2 * SLAB_HALF, 2 * SLAB_HALF, SLAB_THICKNESS]), pin.SE3(R, centre).homogeneous
+
+
+def _obstacle_geometry(ob: Obstacle) -> tuple[mg.Geometry, NDArray[np.float64]]:
+    """The meshcat geometry of an obstacle and its pose (4x4) in the world."""
+    if ob.kind == "halfspace":
+        return _slab(ob)
+    M = ob.placement().homogeneous
+    if ob.kind == "box":
+        return mg.Box(list(ob.size)), M
+    pts = np.asarray(ob.points, dtype=float)
+    hull = ConvexHull(pts)
+    # Orient every face outward (Qhull's simplices have no consistent winding).
+    faces = hull.simplices.copy()
+    centre = pts[hull.vertices].mean(axis=0)
+    for k, f in enumerate(faces):
+        a, b, c = pts[f]
+        if np.dot(np.cross(b - a, c - a), a - centre) < 0:
+            faces[k] = f[[0, 2, 1]]
+    return mg.TriangularMeshGeometry(pts, faces), M
+
+
+def _obstacle_color(ob: Obstacle) -> tuple[float, float, float]:
+    return FLOOR_COLOR if ob.kind == "halfspace" else OBSTACLE_COLOR
+
+
+@dataclass
+class _Scene:
+    """The robot, its environment and where each piece is drawn in a meshcat visualizer."""
+
+    robot: Robot
+    environment: Environment
+    viewer: meshcat.Visualizer
+    pviz: MeshcatVisualizer
+
+    @classmethod
+    def load(
+        cls,
+        robot: Robot,
+        viewer: meshcat.Visualizer,
+        environment: Environment | None,
+        collision: bool,
+    ) -> _Scene:
+        env = Environment() if environment is None else environment
+        env.validate()
+        pviz = MeshcatVisualizer(robot.model, robot.collision_model, robot.visual_model)
+        pviz.initViewer(viewer=viewer)
+        pviz.loadViewerModel(rootNodeName=_ROOT, collision_color=list(COLLISION_RGBA))
+        pviz.displayCollisions(collision)
+        pviz.displayVisuals(not collision)
+        for ob in env.obstacles:
+            geom, M = _obstacle_geometry(ob)
+            node = viewer[f"{_ENV}/{ob.name}"]
+            node.set_object(geom, mg.MeshPhongMaterial(color=_hex(_obstacle_color(ob))))
+            node.set_transform(M)
+        # The floor slab replaces meshcat's grid; the world axes would hide in the chassis.
+        viewer["/Grid"].set_property("visible", False)
+        viewer["/Axes"].set_property("visible", False)
+        # The camera orbits the world origin: shift the scene so that CAMERA_TARGET is there.
+        # The camera node is y-up: (x, y, z) there is (x, z, -y) in the world.
+        viewer.set_transform(pin.SE3(np.eye(3), -np.asarray(CAMERA_TARGET)).homogeneous)
+        x, y, z = CAMERA_OFFSET
+        viewer["/Cameras/default/rotated/<object>"].set_property("position", [x, z, -y])
+        return cls(robot, env, viewer, pviz)
+
+    def geometry_nodes(self) -> list[tuple[pin.GeometryModel, pin.GeometryData, str]]:
+        """(model, data, meshcat group) of the visual and the collision geometry."""
+        return [
+            (self.pviz.visual_model, self.pviz.visual_data, self.pviz.viewerVisualGroupName),
+            (
+                self.pviz.collision_model,
+                self.pviz.collision_data,
+                self.pviz.viewerCollisionGroupName,
+            ),
+        ]
+
+    def piece_nodes(self, piece: str) -> list[tuple[str, tuple[float, float, float]]]:
+        """Mesh nodes (visual and collision) drawing a moving robot piece, with their colours.
+
+        None for the chassis and obstacles (large and static: the marker suffices).
+        """
+        out: list[tuple[str, tuple[float, float, float]]] = []
+        for gm, _, group in self.geometry_nodes():
+            if gm.existGeometryName(piece):
+                go = gm.geometryObjects[gm.getGeometryId(piece)]
+                if go.parentJoint == 0:
+                    continue
+                c = COLLISION_RGBA if group.endswith("collisions") else go.meshColor
+                out.append((f"{group}/{piece}/<object>", (float(c[0]), float(c[1]), float(c[2]))))
+        return out
+
+    def place(self, q: NDArray[np.float64]) -> None:
+        """Place every visual and collision node at configuration q [rad]."""
+        pin.forwardKinematics(self.robot.model, self.pviz.data, q)
+        for gm, gd, group in self.geometry_nodes():
+            pin.updateGeometryPlacements(self.robot.model, self.pviz.data, gm, gd)
+            for k, go in enumerate(gm.geometryObjects):
+                self.viewer[f"{group}/{go.name}"].set_transform(gd.oMg[k].homogeneous)
+
+    def animation(self, result: SimResult, speed: float) -> Animation:
+        """The result as a meshcat animation clip (time scaled by 1/speed)."""
+        t_keys, q_keys = _keyframes(result, FPS)
+        anim = Animation(default_framerate=FPS * speed)
+        frames = (t_keys - t_keys[0]) * FPS
+        model, data = self.robot.model, self.pviz.data
+        geoms = self.geometry_nodes()
+        for frame, q in zip(frames, q_keys, strict=True):
+            pin.forwardKinematics(model, data, q)
+            with anim.at_frame(self.viewer, float(frame)) as fv:
+                for gm, gd, group in geoms:
+                    pin.updateGeometryPlacements(model, data, gm, gd)
+                    for k, go in enumerate(gm.geometryObjects):
+                        if go.parentJoint > 0:  # the chassis pieces stay where place() put them
+                            node = fv[f"{group}/{go.name}"]
+                            M = gd.oMg[k]
+                            # meshcat's set_transform, with Pinocchio's faster quaternion
+                            node.set_property("position", "vector3", M.translation.tolist())
+                            xyzw = pin.Quaternion(M.rotation).coeffs().tolist()
+                            node.set_property("quaternion", "quaternion", xyzw)
+        self._animate_contacts(anim, result, t_keys, q_keys)
+        return anim
+
+    def _animate_contacts(
+        self,
+        anim: Animation,
+        result: SimResult,
+        t_keys: NDArray[np.float64],
+        q_keys: NDArray[np.float64],
+    ) -> None:
+        spans = contact_spans(result)
+        if not spans:
+            return
+        world = CollisionWorld(self.robot, self.environment)
+        t0 = float(t_keys[0])
+        by_pair: dict[tuple[str, str, str, str], list[ContactSpan]] = {}
+        for s in spans:
+            by_pair.setdefault(s.key, []).append(s)
+        by_piece: dict[str, list[ContactSpan]] = {}
+        for k, (key, pair_spans) in enumerate(by_pair.items()):
+            for piece in (key[2], key[3]):
+                by_piece.setdefault(piece, []).extend(pair_spans)
+            try:
+                index = world.pair_index(key[0], key[1], key[2], key[3])[0]
+            except (UnknownNameError, IndexError):
+                log.warning("contact %s is not a pair of this environment: no marker", key)
+                continue
+            node = f"{_CONTACTS}/{k}"
+            # Drawn through the bodies around it (no depth test; transparent: drawn last).
+            marker = mg.MeshPhongMaterial(
+                color=_hex(CONTACT_COLOR), opacity=0.9, transparent=True, depthTest=False
+            )
+            self.viewer[node].set_object(mg.Sphere(MARKER_RADIUS), marker)
+            self.viewer[node].set_property("visible", False)
+            active = np.zeros(len(t_keys), dtype=bool)
+            for s in pair_spans:
+                active |= (t_keys >= s.start) & (t_keys <= s.end)
+            for t, q in zip(t_keys[active], q_keys[active], strict=True):
+                c = world.pair_contact(q, index)
+                M = np.eye(4)
+                M[:3, 3] = (c.p1 + c.p2) / 2
+                anim.at_frame(self.viewer, (t - t0) * FPS)[node].set_transform(M)
+            vis = anim.at_frame(self.viewer, 0.0)[node]
+            vis.set_property("visible", "boolean", False)
+            for s in _merge(pair_spans):
+                anim.at_frame(self.viewer, (s.start - t0) * FPS)[node].set_property(
+                    "visible", "boolean", True
+                )
+                if s.end < float(t_keys[-1]):
+                    anim.at_frame(self.viewer, (s.end - t0) * FPS + _EDGE)[node].set_property(
+                        "visible", "boolean", False
+                    )
+        for piece, piece_spans in by_piece.items():
+            for path, rgb in self.piece_nodes(piece):
+                track = [(0.0, rgb)]
+                for s in _merge(piece_spans):
+                    a, b = (s.start - t0) * FPS, (s.end - t0) * FPS
+                    track += [(max(a - _EDGE, 0.0), rgb), (a, CONTACT_COLOR)]
+                    track += [(b, CONTACT_COLOR), (b + _EDGE, rgb)]
+                for frame, colour in track:
+                    anim.at_frame(self.viewer, frame)[path].set_property(
+                        "material.color", "color", list(colour)
+                    )
