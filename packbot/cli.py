@@ -1,6 +1,7 @@
 """The ``packbot`` command line: subcommands, each importing what it needs when it runs.
 
-Exit codes: 0 success, 1 failure of the task itself, 2 bad input (a message, no traceback).
+Exit codes: 0 success, 1 failure of the task itself (a simulation that could not continue: the
+message says what and when), 2 bad input (a message, no traceback).
 """
 
 from __future__ import annotations
@@ -10,6 +11,11 @@ import logging
 import sys
 from collections.abc import Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from packbot.result import SimResult
+    from packbot.scenario import Scenario
 
 __all__ = ["main"]
 
@@ -90,90 +96,39 @@ def _cmd_generate_srdf(args: argparse.Namespace) -> int:
     return 0
 
 
-def _cmd_collapse(args: argparse.Namespace) -> int:
-    import csv
+class _Progress:
+    """A progress bar in simulated time on stderr (only drawn on a terminal)."""
+
+    def __init__(self, duration: float, label: str) -> None:
+        self.duration = duration
+        self.label = label
+        self.last = -1.0
+
+    def __call__(self, t: float) -> None:
+        import time
+
+        now = time.monotonic()
+        if now - self.last < 0.1 and t < self.duration:
+            return
+        self.last = now
+        frac = min(max(t / self.duration, 0.0), 1.0)
+        n = int(30 * frac)
+        sys.stderr.write(
+            f"\r{self.label} [{'#' * n}{'.' * (30 - n)}] {t:7.3f} / {self.duration:g} s"
+        )
+        sys.stderr.flush()
+
+    def close(self) -> None:
+        sys.stderr.write("\n")
+        sys.stderr.flush()
+
+
+def _summary(res: SimResult, scenario: Scenario, duration: float, dist: Any) -> list[str]:
     import math
-    import time
 
     import numpy as np
 
-    from packbot.collision import CollisionWorld
-    from packbot.config import SimConfig
-    from packbot.errors import SimulationError
-    from packbot.integrator import simulate
-    from packbot.model import load_robot
-    from packbot.plots import plot_distance, plot_energy, plot_joints, sample_distances
-
-    duration = float(args.duration)
-    if not (math.isfinite(duration) and duration > 0):
-        print(
-            f"error: invalid --duration {args.duration}: expected a finite positive time [s]",
-            file=sys.stderr,
-        )
-        return 2
-    out = Path(args.out)
-    if out.exists() and not out.is_dir():
-        print(f"error: --out {out} exists and is not a directory", file=sys.stderr)
-        return 2
-    out.mkdir(parents=True, exist_ok=True)
-    wall0 = time.perf_counter()
-    robot = load_robot()
-    # The joints the report's model had as solid parts (unlocked, with zero torque and no
-    # friction yet, they would swing forever).
-    locked = ("camera_tilt", "camera_pan", "gripper_roll", "gripper_jaw")
-    cfg = SimConfig(contact_mode=args.mode, locked_joints=locked)
-    try:
-        res = simulate(robot, robot.pose("drive"), np.zeros(robot.nq), duration, config=cfg)
-    except SimulationError as exc:
-        print(f"error: the simulation failed: {exc}", file=sys.stderr)
-        return 1
-    world = CollisionWorld(robot)
-    dist = sample_distances(res, world)
-    plot_joints(res, path=out / "collapse_joints")
-    plot_distance(res, world, path=out / "collapse_distance", distances=dist)
-    plot_energy(res, path=out / "collapse_energy")
-    np.savez(
-        out / "collapse.npz",
-        t=res.t,
-        q=res.q,
-        v=res.v,
-        tau=res.tau,
-        energy=res.energy,
-        joint_names=np.array(res.joint_names),
-    )
-    with (out / "collapse_events.csv").open("w", newline="") as fh:
-        w = csv.writer(fh)
-        w.writerow(
-            [
-                "time_s",
-                "kind",
-                "link1",
-                "link2",
-                "piece1",
-                "piece2",
-                "distance_m_or_rad",
-                "relevant_joints",
-                "energy_before_J",
-                "energy_after_J",
-                "energy_change_J",
-            ]
-        )
-        for e in res.events:
-            w.writerow(
-                [
-                    f"{e.t:.10f}",
-                    e.kind,
-                    e.link1,
-                    e.link2,
-                    e.piece1,
-                    e.piece2,
-                    f"{e.distance:.6g}",
-                    " ".join(e.relevant_joints),
-                    f"{e.energy_before:.6f}",
-                    f"{e.energy_after:.6f}",
-                    f"{e.energy_change:.6f}",
-                ]
-            )
+    cfg = res.config
     d = res.diagnostics
     final = "  ".join(
         f"{n}={res.q[-1, res.joint(n)]:+.4f}" for n in ("turret", "shoulder", "elbow1", "elbow2")
@@ -186,27 +141,234 @@ def _cmd_collapse(args: argparse.Namespace) -> int:
         if res.rest_time is None
         else f"{res.rest_time:.4f} s (all joint speeds < {cfg.rest_speed:g} rad/s after it)"
     )
-    k = int(np.argmin(dist))
     rtf = duration / d.wall_time if d.wall_time > 0 else math.inf
-    print(f"collapse from the drive pose, zero torque, contact_mode={args.mode}, {duration:g} s")
-    print(f"  rest time:        {rest}")
-    print(f"  final angles:     {final} [rad]")
-    print(
+    lines = [
+        f"{scenario.name}: {scenario.description}" if scenario.description else scenario.name,
+        f"  contact_mode={cfg.contact_mode}, controller={scenario.controller}, "
+        f"{len(scenario.failures)} failure(s), {duration:g} s",
+        f"  rest time:        {rest}",
+        f"  final angles:     {final} [rad]",
         f"  events:           {len(res.events)}"
-        + (" (" + ", ".join(f"{n} {k_}" for k_, n in kinds.items()) + ")" if kinds else "")
+        + (" (" + ", ".join(f"{n} {k}" for k, n in kinds.items()) + ")" if kinds else ""),
+    ]
+    kept = (
+        f"{d.min_distance:.3e} m over the kept states ({d.min_distance_pair})"
+        if math.isfinite(d.min_distance)
+        else ""
     )
-    kept = f", {d.min_distance:.3e} m over the kept states" if math.isfinite(d.min_distance) else ""
-    print(f"  min distance:     {dist[k]:.3e} m at t = {res.t[k]:.3f} s (samples){kept}")
-    print(f"  energy:           {res.energy[0]:.3f} J -> {res.energy[-1]:.3f} J")
+    if dist is not None:
+        k = int(np.argmin(dist))
+        sampled = f"{dist[k]:.3e} m at t = {res.t[k]:.3f} s (samples)"
+        lines.append(f"  min distance:     {sampled}" + (f", {kept}" if kept else ""))
+    elif kept:
+        lines.append(f"  min distance:     {kept}")
+    lines.append(f"  energy:           {res.energy[0]:.3f} J -> {res.energy[-1]:.3f} J")
+    lines.append(f"  wall time:        {d.wall_time:.3f} s simulation ({rtf:.0f}x real time)")
+    return lines
+
+
+def _out_dir(out: str) -> Path | None:
+    path = Path(out)
+    if path.exists() and not path.is_dir():
+        print(f"error: --out {path} exists and is not a directory", file=sys.stderr)
+        return None
+    path.mkdir(parents=True, exist_ok=True)
+    return path
+
+
+def _duration(value: float | None) -> bool:
+    import math
+
+    if value is None or (math.isfinite(value) and value > 0):
+        return True
     print(
-        f"  wall time:        {d.wall_time:.3f} s simulation ({rtf:.0f}x real time), "
-        f"{time.perf_counter() - wall0:.2f} s in all"
+        f"error: invalid --duration {value}: expected a finite positive time [s]", file=sys.stderr
     )
-    print(
-        f"  wrote:            {out}/collapse_{{joints,distance,energy}}.{{png,svg}}, "
-        "collapse.npz, collapse_events.csv"
-    )
+    return False
+
+
+def _run(
+    scenario_name: str,
+    out_arg: str | None,
+    duration_arg: float | None,
+    *,
+    plot: bool,
+    html: bool,
+    view: bool,
+) -> int:
+    import time
+
+    from packbot.errors import ConfigurationError, SimulationError
+    from packbot.model import load_robot
+    from packbot.scenario import load_scenario, run_scenario, save_run, write_outputs
+
+    if not _duration(duration_arg):
+        return 2
+    wall0 = time.perf_counter()
+    try:
+        scenario = load_scenario(scenario_name)
+    except ConfigurationError as exc:
+        print(f"error: scenario {scenario_name}: {exc}", file=sys.stderr)
+        return 2
+    out = _out_dir(out_arg if out_arg is not None else f"out/{scenario.name}")
+    if out is None:
+        return 2
+    robot = load_robot()
+    scenario.validate(robot)
+    duration = scenario.duration if duration_arg is None else float(duration_arg)
+    bar = _Progress(duration, scenario.name) if sys.stderr.isatty() else None
+    try:
+        res = run_scenario(scenario, robot, duration=duration, progress=bar)
+    except SimulationError as exc:
+        if bar is not None:
+            bar.close()
+        print(f"error: the simulation of {scenario.name} failed: {exc}", file=sys.stderr)
+        if exc.result is not None:
+            partial = save_run(exc.result, scenario, out, f"{scenario.name}_partial")
+            print(f"  the trajectory up to then: {partial['trajectory']}", file=sys.stderr)
+        return 1
+    if bar is not None:
+        bar.close()
+    paths: dict[str, Any] = dict(save_run(res, scenario, out))
+    paths |= write_outputs(res, scenario, robot, out, plots=plot)
+    dist = paths.pop("min_distance", None)
+    if html or scenario.outputs.html:
+        from packbot.viz import write_html
+
+        paths["html"] = write_html(
+            robot, res, out / f"{scenario.name}.html", environment=scenario.environment
+        )
+    print("\n".join(_summary(res, scenario, duration, dist)))
+    print(f"  wrote ({time.perf_counter() - wall0:.2f} s in all):")
+    for p in paths.values():
+        print(f"    {p}")
+    if view:
+        from packbot.viz import start_viewer
+
+        viewer = start_viewer(robot, environment=scenario.environment)
+        viewer.play(res)  # once: the page replays it (Open Controls > Animations)
+        print(f"viewer at {viewer.url} (Ctrl-C to quit)")
+        try:
+            while True:
+                time.sleep(1.0)
+        except KeyboardInterrupt:
+            pass
+        finally:
+            viewer.close()
     return 0
+
+
+def _cmd_run(args: argparse.Namespace) -> int:
+    return _run(
+        args.scenario, args.out, args.duration, plot=args.plot, html=args.html, view=args.view
+    )
+
+
+def _cmd_collapse(args: argparse.Namespace) -> int:
+    name = "collapse" if args.mode == "joint_clamp" else "collapse_no_collisions"
+    return _run(name, args.out, args.duration, plot=True, html=True, view=False)
+
+
+def _cmd_list(args: argparse.Namespace) -> int:
+    import numpy as np
+
+    from packbot.params import POSES
+    from packbot.resources import data_dir
+    from packbot.scenario import list_scenarios, load_scenario
+
+    print(f"scenarios ({data_dir('sims')}; run one with `packbot run NAME`):")
+    for name in list_scenarios():
+        try:
+            desc = load_scenario(name).description
+        except Exception as exc:  # list the others even if one is broken
+            desc = f"(invalid: {exc})"
+        print(f"  {name:<26} {desc}")
+    print("")
+    print("poses (`packbot show POSE`; joints not named are 0) [rad]:")
+    for name, values in POSES.items():
+        text = ", ".join(f"{j}={np.round(v, 3):g}" for j, v in values.items())
+        print(f"  {name:<8} {text}")
+    return 0
+
+
+def _cmd_show(args: argparse.Namespace) -> int:
+    import time
+
+    from packbot.model import load_robot
+    from packbot.viz import start_viewer
+
+    robot = load_robot()
+    q = robot.pose(args.pose)
+    viewer = start_viewer(robot, port=args.port)
+    viewer.display(q)
+    print(f"pose {args.pose!r} at {viewer.url} (Ctrl-C to quit)")
+    try:
+        while True:
+            time.sleep(1.0)
+    except KeyboardInterrupt:
+        pass
+    return 0
+
+
+def _cmd_batch(args: argparse.Namespace) -> int:
+    from packbot.batch import ProgressBar, run_batch
+    from packbot.matrix import load_matrix
+
+    matrix = load_matrix(args.matrix)
+    bar = None if args.no_progress else ProgressBar()
+    try:
+        report = run_batch(
+            matrix,
+            args.out,
+            workers=args.workers,
+            scheduler=args.scheduler,
+            timeout=args.timeout,
+            progress=bar,
+        )
+    except KeyboardInterrupt:
+        print(
+            "\ninterrupted: the finished runs are kept; rerun the same command to finish",
+            file=sys.stderr,
+        )
+        return 130
+    print(f"matrix {matrix.name}: {report.describe()}")
+    return 1 if report.failed else 0
+
+
+def _cmd_regress(args: argparse.Namespace) -> int:
+    from pathlib import Path
+
+    from packbot.batch import ProgressBar
+    from packbot.matrix import load_matrix
+    from packbot.regress import default_golden_dir, golden_matrices, run_regression
+
+    golden = Path(args.golden) if args.golden else default_golden_dir()
+    names = [args.matrix] if args.matrix else golden_matrices(golden)
+    if not names:
+        print(f"error: no golden results in {golden} (create them with --update)", file=sys.stderr)
+        return 2
+    drift = False
+    for name in names:
+        matrix = load_matrix(name)
+        out = None
+        if args.out:
+            out = Path(args.out) / matrix.name if len(names) > 1 else Path(args.out)
+        try:
+            result = run_regression(
+                matrix,
+                golden,
+                out_dir=out,
+                update=args.update,
+                workers=args.workers,
+                scheduler=args.scheduler,
+                progress=None if args.no_progress else ProgressBar(),
+            )
+        except KeyboardInterrupt:
+            print("\ninterrupted", file=sys.stderr)
+            return 130
+        print(result.text())
+        drift = drift or (bool(result.drifts) and not args.update)
+    return 1 if drift else 0
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -241,8 +403,30 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=_cmd_generate_srdf)
 
     p = sub.add_parser(
+        "run",
+        help="run a scenario (a name in sims/ or a TOML file): trajectory, event log, plots",
+    )
+    p.add_argument(
+        "scenario", metavar="SCENARIO", help="scenario name (see `packbot list`) or path"
+    )
+    p.add_argument("--out", default=None, help="output directory (./out/<scenario name>)")
+    p.add_argument("--plot", action="store_true", help="write the scenario's plots (PNG, SVG)")
+    p.add_argument("--html", action="store_true", help="write the browser animation")
+    p.add_argument("--view", action="store_true", help="play the result in a live viewer")
+    p.add_argument("--duration", type=float, default=None, help="simulated time [s] instead")
+    p.set_defaults(func=_cmd_run)
+
+    p = sub.add_parser("list", help="list the shipped scenarios and the named poses")
+    p.set_defaults(func=_cmd_list)
+
+    p = sub.add_parser("show", help="show a named pose in a live viewer (meshcat)")
+    p.add_argument("pose", nargs="?", default="drive", help="pose name (drive)")
+    p.add_argument("--port", type=int, default=None, help="viewer port (any free one)")
+    p.set_defaults(func=_cmd_show)
+
+    p = sub.add_parser(
         "collapse",
-        help="the report's collapse: zero torque from the drive pose; plots, data, event log",
+        help="the report's collapse with its plots (the same as `packbot run collapse --plot`)",
     )
     p.add_argument("--out", default="out/collapse", help="output directory (./out/collapse)")
     p.add_argument(
@@ -251,8 +435,38 @@ def build_parser() -> argparse.ArgumentParser:
         default="joint_clamp",
         help="contact mode: the report's law, or no collisions (joint_clamp)",
     )
-    p.add_argument("--duration", type=float, default=5.0, help="simulated time [s] (5)")
+    p.add_argument("--duration", type=float, default=None, help="simulated time [s] (5)")
     p.set_defaults(func=_cmd_collapse)
+    p = sub.add_parser(
+        "batch",
+        help="run a scenario matrix (sims/matrices/) in parallel; rerun to resume",
+    )
+    p.add_argument("matrix", metavar="MATRIX", help="matrix name (sims/matrices/) or TOML file")
+    p.add_argument("--out", required=True, help="output directory (resumed if it exists)")
+    p.add_argument("--workers", type=int, default=None, help="processes (CPUs; 0: this one)")
+    p.add_argument("--scheduler", default=None, help="Dask scheduler tcp://host:port, or 'local'")
+    p.add_argument("--timeout", type=float, default=None, help="wall-time limit per run [s]")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.set_defaults(func=_cmd_batch)
+
+    p = sub.add_parser(
+        "regress",
+        help="run matrices and compare with golden results; exit 1 on drift",
+    )
+    p.add_argument(
+        "matrix",
+        metavar="MATRIX",
+        nargs="?",
+        default=None,
+        help="matrix name or file (default: every matrix with golden results)",
+    )
+    p.add_argument("--golden", default=None, help="golden results folder (sims/golden)")
+    p.add_argument("--out", default=None, help="keep the batch output here (default: temporary)")
+    p.add_argument("--update", action="store_true", help="rewrite the golden files (on purpose)")
+    p.add_argument("--workers", type=int, default=None, help="processes (CPUs; 0: this one)")
+    p.add_argument("--scheduler", default=None, help="Dask scheduler tcp://host:port, or 'local'")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.set_defaults(func=_cmd_regress)
     return parser
 
 

@@ -46,6 +46,7 @@ from packbot.actuators import TorquePath
 from packbot.collision import PairInfo
 from packbot.config import SimConfig
 from packbot.contact import JointLocks, clamp_directions, impact_reset, relevant_joints
+from packbot.contact.locks import TORQUE_BAND
 from packbot.control.base import Controller
 from packbot.environment import Environment
 from packbot.errors import (
@@ -359,7 +360,7 @@ class _Run:
                     else:
                         kind = "disengage" if j in self.locks.engaged else "engage"
                     out.append(_Crossing(kind, ("lock", j), gl, cond0.get(k, 1.0), cond1[k]))
-        sliding = np.flatnonzero(self.fdir * y1[n : 2 * n] < 0.0)
+        sliding = np.flatnonzero(self.fdir * y1[n : 2 * n] < -STICK_SPEED)
         for j in sliding.tolist():
 
             def gs(t: float, j: int = j) -> float:
@@ -499,8 +500,9 @@ class _Run:
             keep = dict(self.locks.held)
             for j in candidates:
                 signs = self.locks.signs.get(j, set())
-                pushes = len(signs) == 1 and -next(iter(signs)) * lam[j] >= 0.0
-                if abs(lam[j]) <= bound[j] or pushes:
+                # a contact clamp may supply the torque: both ways (bilateral), or pushing
+                pushes = len(signs) == 2 or (len(signs) == 1 and -next(iter(signs)) * lam[j] >= 0)
+                if abs(lam[j]) <= bound[j] + 0.5 * TORQUE_BAND or pushes:
                     if log_stick:
                         self.log_event(
                             t, "stick", q, v, v, None, joints=(self.sys.names[j],), joint=j

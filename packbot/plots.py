@@ -9,7 +9,11 @@ and ``out/collapse_joints.svg`` (see ``formats``).
   velocities [rad/s] against time [s];
 - :func:`plot_distance`: the smallest signed distance over the tested pairs [m] against time,
   with the contact tolerance band;
-- :func:`plot_energy`: total mechanical energy [J] against time, with the jumps of the events.
+- :func:`plot_energy`: total mechanical energy [J] against time, with the jumps of the events;
+- :func:`plot_torques`: applied (and commanded) joint torques [N*m] with their effort limits;
+- :func:`plot_tracking`: joint positions against a controller's reference, and the error [rad];
+- :func:`plot_occlusion`: whether the camera's view of target points is blocked, and by what
+  (:func:`sample_occlusion`).
 
 Events are vertical lines coloured by kind; the rest time is a dashed black line.
 """
@@ -38,14 +42,27 @@ __all__ = [
     "plot_distance",
     "plot_energy",
     "plot_joints",
+    "plot_occlusion",
+    "plot_torques",
+    "plot_tracking",
     "sample_distances",
+    "sample_occlusion",
 ]
 
 #: The arm's pitch joints: the report's "planar" joints.
 PLANAR_JOINTS: tuple[str, ...] = ("shoulder", "elbow1", "elbow2")
 #: Event kinds marked by default (lock engage/disengage are left out: they are mode changes
 #: without a velocity jump).
-MARKED_EVENTS: tuple[str, ...] = ("impact", "limit", "release", "secondary_intersection")
+MARKED_EVENTS: tuple[str, ...] = (
+    "impact",
+    "limit",
+    "release",
+    "secondary_intersection",
+    "failure",
+    "freeze",
+    "pick",
+    "drop",
+)
 #: Line colour of each event kind.
 EVENT_COLORS: dict[str, str] = {
     "impact": "tab:red",
@@ -54,6 +71,12 @@ EVENT_COLORS: dict[str, str] = {
     "secondary_intersection": "tab:orange",
     "engage": "tab:gray",
     "disengage": "tab:brown",
+    "failure": "black",
+    "freeze": "tab:cyan",
+    "pick": "tab:olive",
+    "drop": "tab:pink",
+    "stick": "tab:gray",
+    "slip": "tab:brown",
 }
 _JOINT_COLORS = ("tab:blue", "tab:orange", "tab:green", "tab:red", "tab:purple", "tab:brown")
 _FORMATS = ("png", "svg")
@@ -151,11 +174,7 @@ def plot_joints(
     Raises:
         UnknownNameError: A joint name that the result does not have.
     """
-    idx = []
-    for name in joints:
-        if name not in result.joint_names:
-            raise UnknownNameError("joint", name, result.joint_names)
-        idx.append(result.joint(name))
+    idx = _joint_columns(result, joints)
     fig, (ax_q, ax_v) = _new_figure(6.5, 2)
     for k, (name, j) in enumerate(zip(joints, idx, strict=True)):
         color = _JOINT_COLORS[k % len(_JOINT_COLORS)]
@@ -349,5 +368,242 @@ def plot_energy(
     ax.set_xlim(float(result.t[0]), float(result.t[-1]))
     ax.grid(True, alpha=0.3)
     _event_legend(ax, drawn, result)
+    _save(fig, path, formats, dpi)
+    return fig
+
+
+def _joint_columns(result: SimResult, joints: Sequence[str]) -> list[int]:
+    idx = []
+    for name in joints:
+        if name not in result.joint_names:
+            raise UnknownNameError("joint", name, result.joint_names)
+        idx.append(result.joint(name))
+    return idx
+
+
+def plot_torques(
+    result: SimResult,
+    joints: Sequence[str] = PLANAR_JOINTS,
+    path: str | Path | None = None,
+    *,
+    effort: NDArray[np.float64] | Sequence[float] | None = None,
+    event_kinds: Iterable[str] = MARKED_EVENTS,
+    formats: Sequence[str] = _FORMATS,
+    dpi: int = 120,
+) -> Figure:
+    """Applied joint torques [N*m] against time [s], one axis per joint, with their limits.
+
+    The applied torque (``result.tau``) is solid; the commanded one (``result.tau_cmd``, when
+    the result has it) dashed; the effort limits +/- (``result.effort`` per sample when the
+    result has it, else the constant ``effort``) are grey bands' edges.
+
+    Args:
+        result: A simulation result.
+        joints: Joint names to plot.
+        path: Where to save, without suffix; None saves nothing.
+        effort: Constant effort limits [N*m], shape (nv,) (e.g. ``robot.params.effort``), used
+            when the result has no per-sample ``effort``; None: no limit lines.
+        event_kinds: Event kinds to mark.
+        formats: File formats written when ``path`` is given ("png", "svg").
+        dpi: Resolution of the PNG [dots per inch].
+
+    Returns:
+        The figure.
+
+    Raises:
+        UnknownNameError: A joint name that the result does not have.
+    """
+    idx = _joint_columns(result, joints)
+    fig, axes = _new_figure(1.0 + 2.0 * len(idx), len(idx))
+    tau_cmd = getattr(result, "tau_cmd", None)
+    limits = getattr(result, "effort", None)
+    if limits is None and effort is not None:
+        limits = np.broadcast_to(np.asarray(effort, dtype=float), result.tau.shape)
+    drawn: list[tuple[str, str]] = []
+    for k, (ax, name, j) in enumerate(zip(axes, joints, idx, strict=True)):
+        color = _JOINT_COLORS[k % len(_JOINT_COLORS)]
+        if limits is not None:
+            lim = np.asarray(limits)[:, j]
+            ax.plot(result.t, lim, color="tab:gray", lw=1.0, ls="-.", label="effort limit")
+            ax.plot(result.t, -lim, color="tab:gray", lw=1.0, ls="-.")
+        if tau_cmd is not None:
+            ax.plot(
+                result.t, np.asarray(tau_cmd)[:, j], color=color, lw=1.0, ls="--", label="commanded"
+            )
+        ax.plot(result.t, result.tau[:, j], color=color, lw=1.5, label="applied")
+        found = _mark_events(ax, result, event_kinds, label=k == 0)
+        drawn = drawn or found
+        ax.set_ylabel(f"{name} [N*m]")
+        ax.grid(True, alpha=0.3)
+        ax.set_xlim(float(result.t[0]), float(result.t[-1]))
+    axes[-1].set_xlabel("time [s]")
+    axes[0].set_title(f"Joint torques\n({_title(result)})")
+    _event_legend(axes[0], drawn, result)
+    _save(fig, path, formats, dpi)
+    return fig
+
+
+def plot_tracking(
+    result: SimResult,
+    q_ref: NDArray[np.float64],
+    joints: Sequence[str] = PLANAR_JOINTS,
+    path: str | Path | None = None,
+    *,
+    event_kinds: Iterable[str] = MARKED_EVENTS,
+    formats: Sequence[str] = _FORMATS,
+    dpi: int = 120,
+) -> Figure:
+    """Joint positions against their reference [rad], and the tracking error q - q_ref [rad].
+
+    Args:
+        result: A simulation result.
+        q_ref: The reference joint positions at the result's samples [rad], shape (N, nq).
+        joints: Joint names to plot.
+        path: Where to save, without suffix; None saves nothing.
+        event_kinds: Event kinds to mark.
+        formats: File formats written when ``path`` is given ("png", "svg").
+        dpi: Resolution of the PNG [dots per inch].
+
+    Returns:
+        The figure.
+
+    Raises:
+        UnknownNameError: A joint name that the result does not have.
+        ConfigurationError: ``q_ref`` not of the shape of ``result.q``.
+    """
+    idx = _joint_columns(result, joints)
+    ref = np.asarray(q_ref, dtype=float)
+    if ref.shape != result.q.shape:
+        raise ConfigurationError("q_ref", ref.shape, f"shape {result.q.shape} (as result.q)")
+    fig, (ax_q, ax_e) = _new_figure(6.5, 2)
+    for k, (name, j) in enumerate(zip(joints, idx, strict=True)):
+        color = _JOINT_COLORS[k % len(_JOINT_COLORS)]
+        ax_q.plot(result.t, result.q[:, j], color=color, lw=1.5, label=name)
+        ax_q.plot(result.t, ref[:, j], color=color, lw=1.0, ls="--")
+        ax_e.plot(result.t, result.q[:, j] - ref[:, j], color=color, lw=1.5, label=name)
+    ax_q.plot([], [], color="black", lw=1.0, ls="--", label="reference")
+    drawn = _mark_events(ax_q, result, event_kinds, label=True)
+    _mark_events(ax_e, result, event_kinds, label=False)
+    ax_e.axhline(0.0, color="black", lw=0.6)
+    ax_q.set_ylabel("joint position [rad]")
+    ax_e.set_ylabel("error q - q_ref [rad]")
+    ax_e.set_xlabel("time [s]")
+    ax_q.set_title(f"Tracking\n({_title(result)})")
+    for ax in (ax_q, ax_e):
+        ax.grid(True, alpha=0.3)
+        ax.set_xlim(float(result.t[0]), float(result.t[-1]))
+    _event_legend(ax_q, drawn, result)
+    ax_e.legend(loc="best", fontsize="small", framealpha=0.85)
+    _save(fig, path, formats, dpi)
+    return fig
+
+
+def sample_occlusion(
+    result: SimResult,
+    world: CollisionWorld,
+    targets: Sequence[Sequence[float]],
+    *,
+    frame: str = "camera_optical",
+    radius: float = 0.0,
+    ignore: tuple[str, ...] = ("camera_head",),
+) -> list[list[str | None]]:
+    """What blocks the view from ``frame`` to each target at every sample.
+
+    Args:
+        result: A simulation result (full coordinates).
+        world: A collision world of the full robot and the run's environment.
+        targets: World points [m], each (x, y, z).
+        frame: The eye frame.
+        radius: Corridor radius [m] (see :meth:`CollisionWorld.line_of_sight`).
+        ignore: Links not tested.
+
+    Returns:
+        One list per target, one entry per sample: the blocking link or obstacle nearest the
+        eye, or None when the view is clear.
+    """
+    pts = [np.asarray(p, dtype=float) for p in targets]
+    return [
+        [world.line_of_sight(q, p, frame=frame, radius=radius, ignore=ignore) for q in result.q]
+        for p in pts
+    ]
+
+
+def _runs(values: Sequence[str | None]) -> list[tuple[int, int, str]]:
+    """(start, end, value) of the runs of equal, non-None values (end exclusive)."""
+    out: list[tuple[int, int, str]] = []
+    start = 0
+    for i in range(1, len(values) + 1):
+        if i == len(values) or values[i] != values[start]:
+            v = values[start]
+            if v is not None:
+                out.append((start, i, v))
+            start = i
+    return out
+
+
+def plot_occlusion(
+    result: SimResult,
+    blocked: Sequence[Sequence[str | None]],
+    targets: Sequence[Sequence[float]],
+    path: str | Path | None = None,
+    *,
+    event_kinds: Iterable[str] = MARKED_EVENTS,
+    formats: Sequence[str] = _FORMATS,
+    dpi: int = 120,
+) -> Figure:
+    """The camera's view of each target against time: one row per target, a bar where blocked.
+
+    Bars are coloured by the blocking link or obstacle; the fraction of the time the view is
+    clear is given per target.
+
+    Args:
+        result: A simulation result.
+        blocked: :func:`sample_occlusion`'s output: per target, per sample, the blocker or None.
+        targets: The target points [m] (for the labels).
+        path: Where to save, without suffix; None saves nothing.
+        event_kinds: Event kinds to mark.
+        formats: File formats written when ``path`` is given ("png", "svg").
+        dpi: Resolution of the PNG [dots per inch].
+
+    Returns:
+        The figure.
+    """
+    if len(blocked) != len(targets):
+        raise ConfigurationError("blocked", len(blocked), f"{len(targets)} rows (one per target)")
+    t = np.asarray(result.t, dtype=float)
+    fig, (ax,) = _new_figure(max(3.0, 1.8 + 0.6 * len(targets)))
+    colors: dict[str, str] = {}
+    palette = ("tab:red", "tab:orange", "tab:purple", "tab:brown", "tab:pink", "tab:olive")
+    # each sample stands for the time until the next one
+    edges = np.append(t, t[-1] + (t[-1] - t[-2] if len(t) > 1 else 1.0))
+    labels = []
+    for k, (row, target) in enumerate(zip(blocked, targets, strict=True)):
+        if len(row) != len(t):
+            raise ConfigurationError(f"blocked[{k}]", len(row), f"{len(t)} samples")
+        ax.broken_barh([(t[0], edges[-1] - t[0])], (k - 0.35, 0.7), color="tab:green", alpha=0.25)
+        for i0, i1, name in _runs(list(row)):
+            color = colors.setdefault(name, palette[len(colors) % len(palette)])
+            ax.broken_barh([(t[i0], edges[i1] - t[i0])], (k - 0.35, 0.7), color=color)
+        clear = float(np.mean([b is None for b in row])) if len(row) else 0.0
+        xyz = ", ".join(f"{c:g}" for c in target)
+        labels.append(f"({xyz}) m\nclear {100 * clear:.0f}%")
+    drawn = _mark_events(ax, result, event_kinds, label=True)
+    handles = [Line2D([], [], color="tab:green", alpha=0.4, lw=6, label="clear view")]
+    handles += [Line2D([], [], color=c, lw=6, label=f"blocked by {n}") for n, c in colors.items()]
+    for kind, color in drawn:
+        handles.append(Line2D([], [], color=color, lw=1.2, label=kind))
+    ax.legend(
+        handles=handles,
+        loc="upper left",
+        bbox_to_anchor=(1.01, 1.0),
+        fontsize="small",
+        framealpha=0.85,
+    )
+    ax.set_yticks(range(len(targets)), labels)
+    ax.set_ylim(len(targets) - 0.4, -0.6)  # the first target on top
+    ax.set_xlim(float(t[0]), float(t[-1]))
+    ax.set_xlabel("time [s]")
+    ax.set_title(f"Camera view of the targets\n({_title(result)})")
+    ax.grid(True, axis="x", alpha=0.3)
     _save(fig, path, formats, dpi)
     return fig

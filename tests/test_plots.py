@@ -1,6 +1,4 @@
-"""Plots of a simulation result and the ``packbot collapse`` command."""
-
-import csv
+"""Plots of a simulation result (the command line is tested in test_cli.py)."""
 
 import numpy as np
 import pytest
@@ -9,8 +7,16 @@ from matplotlib.figure import Figure
 from matplotlib.image import imread
 
 import packbot
-from packbot.cli import main
-from packbot.plots import plot_distance, plot_energy, plot_joints, sample_distances
+from packbot.plots import (
+    plot_distance,
+    plot_energy,
+    plot_joints,
+    plot_occlusion,
+    plot_torques,
+    plot_tracking,
+    sample_distances,
+    sample_occlusion,
+)
 
 WRIST = ("camera_tilt", "camera_pan", "gripper_roll", "gripper_jaw")
 
@@ -87,48 +93,37 @@ def test_bad_format_is_refused(short_collapse, tmp_path):
         plot_energy(short_collapse, path=tmp_path / "energy", formats=("pdf",))
 
 
-def test_cli_collapse_writes_its_files(tmp_path, capsys):
-    out = tmp_path / "collapse"
-    assert main(["collapse", "--out", str(out), "--duration", "1"]) == 0
-    for stem in ("joints", "distance", "energy"):
-        assert_not_blank(out / f"collapse_{stem}.png")
-        assert (out / f"collapse_{stem}.svg").is_file()
-    data = np.load(out / "collapse.npz")
-    assert set(data.files) == {"t", "q", "v", "tau", "energy", "joint_names"}
-    assert data["q"].shape == (len(data["t"]), 8) == data["v"].shape
-    assert data["t"][-1] == pytest.approx(1.0)
-    assert list(data["joint_names"])[:4] == ["turret", "shoulder", "elbow1", "elbow2"]
-    with (out / "collapse_events.csv").open() as fh:
-        rows = list(csv.DictReader(fh))
-    assert rows and rows[0]["kind"] == "impact"
-    assert {"time_s", "relevant_joints", "energy_before_J", "energy_after_J"} <= set(rows[0])
-    text = capsys.readouterr().out
-    for word in ("rest time", "final angles", "events", "min distance", "real time"):
-        assert word in text
+def test_plot_torques_shows_torques_and_limits(short_collapse, robot, tmp_path):
+    fig = plot_torques(short_collapse, path=tmp_path / "torques", effort=robot.params.effort)
+    assert len(fig.axes) == 3
+    assert_not_blank(tmp_path / "torques.png")
+    ax = fig.axes[0]
+    limit = next(ln for ln in ax.get_lines() if ln.get_label() == "effort limit")
+    assert limit.get_ydata()[0] == robot.params.effort[robot.params.index("shoulder")]
+    applied = next(ln for ln in ax.get_lines() if ln.get_label() == "applied")
+    np.testing.assert_array_equal(applied.get_ydata(), short_collapse.tau[:, 1])
 
 
-def test_cli_collapse_without_contact(tmp_path):
-    out = tmp_path / "none"
-    assert main(["collapse", "--out", str(out), "--mode", "none", "--duration", "0.5"]) == 0
-    assert (out / "collapse_distance.png").is_file()
+def test_plot_tracking_draws_the_error(short_collapse, tmp_path):
+    q_ref = np.repeat(short_collapse.q[:1], len(short_collapse.t), axis=0)  # hold the start
+    fig = plot_tracking(short_collapse, q_ref, ("shoulder", "elbow1"), path=tmp_path / "tr")
+    assert_not_blank(tmp_path / "tr.png")
+    err = fig.axes[1].get_lines()[0].get_ydata()
+    np.testing.assert_allclose(err, short_collapse.q[:, 1] - short_collapse.q[0, 1])
+    with pytest.raises(packbot.ConfigurationError, match="q_ref"):
+        plot_tracking(short_collapse, q_ref[:, :3])
 
 
-def test_cli_collapse_bad_mode_names_the_choices(tmp_path, capsys):
-    with pytest.raises(SystemExit) as exc:
-        main(["collapse", "--out", str(tmp_path), "--mode", "bogus"])
-    assert exc.value.code == 2
-    err = capsys.readouterr().err
-    assert "bogus" in err and "joint_clamp" in err and "none" in err
-
-
-@pytest.mark.parametrize("duration", ["0", "-1", "nan", "inf"])
-def test_cli_collapse_bad_duration(tmp_path, capsys, duration):
-    assert main(["collapse", "--out", str(tmp_path), "--duration", duration]) == 2
-    assert "--duration" in capsys.readouterr().err
-
-
-def test_cli_collapse_out_is_a_file(tmp_path, capsys):
-    f = tmp_path / "file"
-    f.write_text("x")
-    assert main(["collapse", "--out", str(f), "--duration", "1"]) == 2
-    assert "not a directory" in capsys.readouterr().err
+def test_sample_and_plot_occlusion(short_collapse, world, tmp_path):
+    targets = [(2.0, 0.0, 0.0), (0.0, 0.0, -0.5)]
+    blocked = sample_occlusion(short_collapse, world, targets)
+    assert [len(b) for b in blocked] == [len(short_collapse.t)] * 2
+    assert None not in blocked[1]  # a point under the floor is never seen
+    k = len(short_collapse.t) // 2
+    assert blocked[0][k] == world.line_of_sight(short_collapse.q[k], np.array(targets[0]))
+    fig = plot_occlusion(short_collapse, blocked, targets, path=tmp_path / "occ")
+    assert_not_blank(tmp_path / "occ.png")
+    labels = [t.get_text() for t in fig.axes[0].get_legend().get_texts()]
+    assert f"blocked by {blocked[1][0]}" in labels
+    with pytest.raises(packbot.ConfigurationError, match="blocked"):
+        plot_occlusion(short_collapse, blocked[:1], targets)
