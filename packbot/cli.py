@@ -336,8 +336,6 @@ def _cmd_batch(args: argparse.Namespace) -> int:
 
 
 def _cmd_regress(args: argparse.Namespace) -> int:
-    from pathlib import Path
-
     from packbot.batch import ProgressBar
     from packbot.matrix import load_matrix
     from packbot.regress import default_golden_dir, golden_matrices, run_regression

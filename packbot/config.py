@@ -45,7 +45,8 @@ class SimConfig:
         reset_rule: Impact velocity reset: ``"zero"`` (the report's, the default:
             v_i <- -e v_i on the relevant joints; can add energy on a coupled arm) or
             ``"momentum"`` (an impulse stops the relevant joints; the others keep their
-            generalized momentum).
+            generalized momentum). It applies to link contacts; a joint-limit stop always uses
+            the momentum law on its joint (a hard stop never adds energy).
         relevant_threshold: Joint i is relevant to a contact if |J_n,i| > threshold * ||J_n||.
         joint_limits: Whether joint position limits act as hard stops (impact + clamp).
         locked_joints: Joints held rigid at their initial angle for the whole run (the model is

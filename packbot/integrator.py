@@ -546,7 +546,7 @@ class _Run:
         return v_new
 
     def reset(
-        self, q: FloatArray, v: FloatArray, rel: NDArray[np.intp]
+        self, q: FloatArray, v: FloatArray, rel: NDArray[np.intp], rule: str | None = None
     ) -> tuple[FloatArray, NDArray[np.intp]]:
         """Apply the reset rule on ``rel``, widened where it would push a clamped joint.
 
@@ -557,11 +557,12 @@ class _Run:
             The new velocities and the joints acted on.
         """
         cfg = self.cfg
-        minv = self.sys.minv(q) if cfg.reset_rule == "momentum" else None
+        rule = cfg.reset_rule if rule is None else rule
+        minv = self.sys.minv(q) if rule == "momentum" else None
         acted = np.array(sorted(set(rel.tolist())), dtype=np.intp)
         clamps = [cl for a in self.active.values() for cl in a.clamps]
         for _ in range(self.n + 1):
-            v_new = impact_reset(v, acted, cfg.restitution, cfg.reset_rule, minv)
+            v_new = impact_reset(v, acted, cfg.restitution, rule, minv)
             tiny = 1e-12 * (1.0 + float(np.abs(v).max()))
             more = {j for j, s in clamps if s * v_new[j] > tiny and j not in set(acted.tolist())}
             if not more:
@@ -573,7 +574,10 @@ class _Run:
         self.active[("limit", j, side)] = _Active(None, [(j, side)])
         v_new, acted = v, np.array([j])
         if side * v[j] > 0.0:
-            v_new, acted = self.reset(q, v, np.array([j]))
+            # A limit stop is a hard stop on this joint alone: a joint-space impulse on it (the
+            # "momentum" law, never adding energy for e <= 1), whatever reset_rule says (the
+            # report's "zero" rule is its law for link collisions; on a stop it can add energy).
+            v_new, acted = self.reset(q, v, np.array([j]), rule="momentum")
         lim = self.sys.upper[j] if side > 0 else self.sys.lower[j]
         ev_before, ev_after = self.energy(q, v), self.energy(q, v_new)
         self.events.append(

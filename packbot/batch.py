@@ -1,0 +1,870 @@
+"""Batch runs of a scenario matrix: in this process, on a local process pool or on Dask.
+
+:func:`run_batch` runs a matrix's runs (:mod:`packbot.matrix`) and writes, under its output
+directory::
+
+    matrix.toml                 the matrix file's text
+    runs/<id>.json              one record per finished run (:class:`RunRecord`)
+    trajectories/<id>.npz       each run's trajectory and event log (packbot.scenario.save_run)
+    trajectories/<id>_events.csv
+    summary.csv                 one row per run (and summary.parquet with pyarrow)
+
+Nothing finished is lost: each run's files, then its record, are written atomically (temporary
+file, then rename) by this process as soon as the run finishes; the record comes last, so a run
+counts as finished only when all its files are there. Rerunning skips the runs whose record says
+``"ok"`` for the same resolved scenario (same :attr:`Run.digest`) and redoes the missing, failed
+or stale ones. A run that raises, diverges (non-finite state) or exceeds its wall-time limit is
+recorded as ``"failed"`` with its message and the batch goes on. Ctrl-C stops the workers and
+loses only the runs in flight; a worker process that dies (killed, crashed) breaks the pool: its
+runs in flight are run again, one at a time, and a run that kills its worker again is recorded
+as failed.
+
+Determinism: every run builds its own robot, solver and collision objects (nothing is shared
+between runs), and the worker processes run with one BLAS/OpenMP thread (the variables are set
+before the workers start, so before they import numpy); the same run gives bit-identical records
+in this process, a local worker or a Dask worker.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import logging
+import math
+import multiprocessing
+import os
+import signal
+import sys
+import tempfile
+import time
+import traceback
+from collections import deque
+from collections.abc import Callable, Iterator, Mapping, Sequence
+from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
+from concurrent.futures.process import BrokenProcessPool
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, TextIO
+
+from packbot.errors import ConfigurationError, PackbotError, SimulationError
+from packbot.matrix import Matrix, Run
+
+if TYPE_CHECKING:
+    from packbot.result import SimResult
+
+__all__ = [
+    "RECORD_FORMAT",
+    "RUN_STATUSES",
+    "SINGLE_THREAD_ENV",
+    "BatchReport",
+    "ProgressBar",
+    "RunFiles",
+    "RunRecord",
+    "Runner",
+    "atomic_write",
+    "csv_text",
+    "execute",
+    "read_records",
+    "run_batch",
+    "scenario_runner",
+    "summarize",
+    "summary_rows",
+    "write_summary",
+]
+
+log = logging.getLogger(__name__)
+
+#: Format tag of a run record.
+RECORD_FORMAT = "packbot-batch-run/1"
+#: The statuses of a run record.
+RUN_STATUSES: tuple[str, ...] = ("ok", "failed")
+#: Environment of the worker processes: one thread for BLAS and OpenMP (determinism, and no
+#: oversubscription of the cores the pool already fills).
+SINGLE_THREAD_ENV: Mapping[str, str] = {
+    "OMP_NUM_THREADS": "1",
+    "OPENBLAS_NUM_THREADS": "1",
+    "MKL_NUM_THREADS": "1",
+    "VECLIB_MAXIMUM_THREADS": "1",
+    "NUMEXPR_NUM_THREADS": "1",
+}
+
+#: A run's output files: role -> (file name, contents).
+RunFiles = dict[str, tuple[str, bytes]]
+#: A run function: ``runner(run, progress) -> (quantities, files)``. ``progress`` must be called
+#: with the simulated time [s] now and then (it raises when the wall-time limit is exceeded);
+#: ``quantities`` are :class:`RunRecord` fields (see :func:`summarize`). Must be picklable (a
+#: module-level function) to run on workers.
+Runner = Callable[[Run, Callable[[float], None]], tuple[dict[str, Any], RunFiles]]
+
+_FLOAT_FIELDS = ("rest_time", "min_distance", "energy_change", "t_end", "wall_time")
+
+
+@dataclass(kw_only=True)
+class RunRecord:
+    """What a run produced: one JSON file per run, ``runs/<id>.json``.
+
+    Attributes:
+        id: The run's id (:attr:`packbot.matrix.Run.id`).
+        index: Its position in the matrix.
+        params: Its parameters, dotted name -> value.
+        digest: Digest of its resolved scenario (:attr:`packbot.matrix.Run.digest`).
+        status: ``"ok"`` or ``"failed"``.
+        error: The failure's message (``"ExceptionType: message"``), "" if ok.
+        traceback: The traceback of an unexpected (non-packbot) exception, else "".
+        joint_names: Names of the columns of ``final_q``.
+        final_q: Joint positions at the end [rad], full coordinates.
+        rest_time: Rest time [s] (:attr:`packbot.SimResult.rest_time`), None if not at rest.
+        n_impacts: Number of ``"impact"`` events.
+        n_limits: Number of ``"limit"`` events.
+        n_events: Number of events of every kind.
+        event_times: Time of each event [s].
+        event_kinds: Kind of each event.
+        min_distance: Smallest signed distance seen [m] (inf: no pair within the margin).
+        energy_change: Final minus initial mechanical energy [J].
+        t_end: Last simulated time [s].
+        wall_time: Wall-clock time of the run, scenario building and saving included [s].
+        worker: Where it ran: ``"main"``, ``"local:<pid>"`` or ``"dask:<address>"``.
+        files: Role -> path of the run's files, relative to the output directory.
+    """
+
+    id: str
+    index: int
+    params: dict[str, Any]
+    digest: str
+    status: str
+    error: str = ""
+    traceback: str = ""
+    joint_names: tuple[str, ...] = ()
+    final_q: tuple[float, ...] = ()
+    rest_time: float | None = None
+    n_impacts: int = 0
+    n_limits: int = 0
+    n_events: int = 0
+    event_times: tuple[float, ...] = ()
+    event_kinds: tuple[str, ...] = ()
+    min_distance: float = math.nan
+    energy_change: float = math.nan
+    t_end: float = math.nan
+    wall_time: float = 0.0
+    worker: str = ""
+    files: dict[str, str] = field(default_factory=dict)
+
+    def validate(self) -> None:
+        """Raise :class:`ConfigurationError` naming the first inconsistent field."""
+        if self.status not in RUN_STATUSES:
+            raise ConfigurationError("status", self.status, RUN_STATUSES)
+        if len(self.final_q) != len(self.joint_names):
+            raise ConfigurationError(
+                "final_q", self.final_q, f"{len(self.joint_names)} values (one per joint name)"
+            )
+        if len(self.event_times) != len(self.event_kinds):
+            raise ConfigurationError(
+                "event_times", self.event_times, "one time per entry of event_kinds"
+            )
+
+    def quantities(self) -> dict[str, Any]:
+        """The deterministic part: what must be identical whenever and wherever the run is made.
+
+        Everything but the wall time, the worker, the file paths and the traceback.
+        """
+        out = self.to_json()
+        for key in ("format", "wall_time", "worker", "files", "traceback", "index"):
+            out.pop(key, None)
+        return out
+
+    def to_json(self) -> dict[str, Any]:
+        """The record as a JSON-ready dict (non-finite floats as ``"inf"``, ``"nan"``)."""
+        return {
+            "format": RECORD_FORMAT,
+            "id": self.id,
+            "index": self.index,
+            "params": self.params,
+            "digest": self.digest,
+            "status": self.status,
+            "error": self.error,
+            "traceback": self.traceback,
+            "joint_names": list(self.joint_names),
+            "final_q": [_enc(x) for x in self.final_q],
+            "rest_time": None if self.rest_time is None else _enc(self.rest_time),
+            "n_impacts": self.n_impacts,
+            "n_limits": self.n_limits,
+            "n_events": self.n_events,
+            "event_times": [_enc(x) for x in self.event_times],
+            "event_kinds": list(self.event_kinds),
+            "min_distance": _enc(self.min_distance),
+            "energy_change": _enc(self.energy_change),
+            "t_end": _enc(self.t_end),
+            "wall_time": _enc(self.wall_time),
+            "worker": self.worker,
+            "files": dict(self.files),
+        }
+
+    @classmethod
+    def from_json(cls, data: Mapping[str, Any]) -> RunRecord:
+        """Read a record written by :meth:`to_json`.
+
+        Raises:
+            ConfigurationError: Not a run record, or a missing or bad field.
+        """
+        if data.get("format") != RECORD_FORMAT:
+            raise ConfigurationError("format", data.get("format"), repr(RECORD_FORMAT))
+        try:
+            record = cls(
+                id=str(data["id"]),
+                index=int(data["index"]),
+                params=dict(data["params"]),
+                digest=str(data["digest"]),
+                status=str(data["status"]),
+                error=str(data.get("error", "")),
+                traceback=str(data.get("traceback", "")),
+                joint_names=tuple(data.get("joint_names", ())),
+                final_q=tuple(_dec(x) for x in data.get("final_q", ())),
+                rest_time=None if data.get("rest_time") is None else _dec(data["rest_time"]),
+                n_impacts=int(data.get("n_impacts", 0)),
+                n_limits=int(data.get("n_limits", 0)),
+                n_events=int(data.get("n_events", 0)),
+                event_times=tuple(_dec(x) for x in data.get("event_times", ())),
+                event_kinds=tuple(data.get("event_kinds", ())),
+                min_distance=_dec(data.get("min_distance", "nan")),
+                energy_change=_dec(data.get("energy_change", "nan")),
+                t_end=_dec(data.get("t_end", "nan")),
+                wall_time=_dec(data.get("wall_time", 0.0)),
+                worker=str(data.get("worker", "")),
+                files=dict(data.get("files", {})),
+            )
+        except (KeyError, TypeError, ValueError) as exc:
+            raise ConfigurationError(
+                "record", dict(data).get("id"), f"a run record ({exc})"
+            ) from exc
+        record.validate()
+        return record
+
+
+@dataclass(kw_only=True)
+class BatchReport:
+    """What :func:`run_batch` did.
+
+    Attributes:
+        out_dir: The output directory.
+        runs: The matrix's runs.
+        records: The records of the runs that have one, by id (this batch's and earlier ones').
+        executed: Ids of the runs made by this call.
+        skipped: Ids of the runs already finished by an earlier call.
+        summary: The summary files written.
+    """
+
+    out_dir: Path
+    runs: list[Run]
+    records: dict[str, RunRecord]
+    executed: list[str] = field(default_factory=list)
+    skipped: list[str] = field(default_factory=list)
+    summary: list[Path] = field(default_factory=list)
+
+    @property
+    def failed(self) -> list[str]:
+        """Ids of the runs recorded as failed."""
+        return [r.id for r in self.runs if r.id in self.records and not self._ok(r.id)]
+
+    @property
+    def missing(self) -> list[str]:
+        """Ids of the runs without a record (not run yet)."""
+        return [r.id for r in self.runs if r.id not in self.records]
+
+    def _ok(self, rid: str) -> bool:
+        return self.records[rid].status == "ok"
+
+    def describe(self) -> str:
+        """A few lines for the command line: counts, failures and where the summary is."""
+        ok = sum(self.records[r.id].status == "ok" for r in self.runs if r.id in self.records)
+        lines = [
+            f"{len(self.runs)} runs: {ok} ok, {len(self.failed)} failed, "
+            f"{len(self.missing)} missing ({len(self.executed)} run now, "
+            f"{len(self.skipped)} finished before)"
+        ]
+        for rid in self.failed:
+            lines.append(f"  failed {rid}: {self.records[rid].error}")
+        if self.summary:
+            lines.append("summary: " + ", ".join(str(p) for p in self.summary))
+        return "\n".join(lines)
+
+
+class ProgressBar:
+    """A text progress bar counting finished runs: ``progress(done, failed, total)``.
+
+    On a terminal it redraws one line; otherwise it prints a line every 5 % of the runs.
+
+    Args:
+        stream: Where to write (default: standard error).
+        width: Bar width [characters].
+    """
+
+    def __init__(self, stream: TextIO | None = None, width: int = 30) -> None:
+        self.stream = sys.stderr if stream is None else stream
+        self.width = width
+        self.tty = bool(getattr(self.stream, "isatty", lambda: False)())
+        self._t0 = time.perf_counter()
+        self._first: int | None = None
+        self._last_line = -1
+
+    def __call__(self, done: int, failed: int, total: int) -> None:
+        """Show ``done`` of ``total`` runs finished, ``failed`` of them failed."""
+        if self._first is None:
+            self._first, self._t0 = done, time.perf_counter()
+        elapsed = time.perf_counter() - self._t0
+        new = done - self._first
+        rate = new / elapsed * 60.0 if elapsed > 0 and new > 0 else 0.0
+        eta = f", ETA {(total - done) / rate * 60.0:.0f} s" if rate > 0 and done < total else ""
+        frac = done / total if total else 1.0
+        fill = round(frac * self.width)
+        text = (
+            f"[{'#' * fill}{'.' * (self.width - fill)}] {done}/{total} runs"
+            f"{f' ({failed} failed)' if failed else ''}, {rate:.0f} runs/min{eta}"
+        )
+        if self.tty:
+            self.stream.write("\r" + text + ("\n" if done >= total else ""))
+        else:
+            step = max(1, total // 20)
+            if done >= total or done // step != self._last_line:
+                self._last_line = done // step
+                self.stream.write(text + "\n")
+        self.stream.flush()
+
+
+# ---------------------------------------------------------------------------------- running
+def summarize(result: SimResult) -> dict[str, Any]:
+    """The summary quantities of a result, as :class:`RunRecord` fields."""
+    events = result.events
+    return {
+        "joint_names": tuple(result.joint_names),
+        "final_q": tuple(float(x) for x in result.q[-1]),
+        "rest_time": None if result.rest_time is None else float(result.rest_time),
+        "n_impacts": sum(e.kind == "impact" for e in events),
+        "n_limits": sum(e.kind == "limit" for e in events),
+        "n_events": len(events),
+        "event_times": tuple(float(e.t) for e in events),
+        "event_kinds": tuple(e.kind for e in events),
+        "min_distance": float(result.diagnostics.min_distance),
+        "energy_change": float(result.energy[-1] - result.energy[0]),
+        "t_end": float(result.t[-1]),
+    }
+
+
+def scenario_runner(run: Run, progress: Callable[[float], None]) -> tuple[dict[str, Any], RunFiles]:
+    """The default :data:`Runner`: build the run's scenario, simulate it, save its trajectory.
+
+    Everything is built fresh (robot, controller, collision world): no state is shared between
+    runs. The trajectory is written by :func:`packbot.scenario.save_run` (the format of
+    ``packbot run``) into a temporary directory and returned as bytes, so that the process
+    collecting the results (maybe on another machine) writes it.
+    """
+    from packbot.scenario import run_scenario, save_run, scenario_from_dict
+
+    scenario = scenario_from_dict(run.scenario, name=run.id, source_text=run.source_text)
+    result = run_scenario(scenario, progress=progress)
+    quantities = summarize(result)
+    with tempfile.TemporaryDirectory(prefix="packbot-run-") as tmp:
+        paths = save_run(result, scenario, tmp, stem=run.id)
+        files = {role: (p.name, p.read_bytes()) for role, p in paths.items()}
+    return quantities, files
+
+
+def execute(
+    run: Run,
+    runner: Runner = scenario_runner,
+    timeout: float | None = None,
+    worker: str = "main",
+) -> tuple[RunRecord, RunFiles]:
+    """Make one run and catch its failure: never raises for a failed run.
+
+    Args:
+        run: The run.
+        runner: The run function.
+        timeout: Wall-time limit of the run [s] (checked at each integration step), or None.
+        worker: Label of where it runs (stored in the record; ``"local"``/``"dask"`` get the
+            process id / worker address appended).
+
+    Returns:
+        The record (status ``"ok"``, or ``"failed"`` with the message) and the files to write.
+    """
+    if worker == "local":
+        worker = f"local:{os.getpid()}"
+    t0 = time.perf_counter()
+
+    def progress(t: float) -> None:
+        if timeout is not None and time.perf_counter() - t0 > timeout:
+            raise SimulationError(f"wall-time limit of {timeout:g} s exceeded", t)
+
+    base: dict[str, Any] = {
+        "id": run.id,
+        "index": run.index,
+        "params": run.params,
+        "digest": run.digest,
+    }
+    try:
+        quantities, files = runner(run, progress)
+        record = RunRecord(**base, status="ok", **quantities)
+        record.joint_names = tuple(str(j) for j in record.joint_names)
+        record.final_q = tuple(float(x) for x in record.final_q)
+        record.event_times = tuple(float(x) for x in record.event_times)
+        record.event_kinds = tuple(str(k) for k in record.event_kinds)
+        record.validate()
+        finite = [*record.final_q, record.energy_change]
+        if not all(math.isfinite(x) for x in finite):
+            raise SimulationError("diverged: non-finite final state or energy", record.t_end)
+    except Exception as exc:  # a failed run is recorded, and the batch goes on
+        log.debug("run %s failed", run.id, exc_info=True)
+        tb = "" if isinstance(exc, PackbotError) else traceback.format_exc()
+        record = RunRecord(**base, status="failed", error=f"{type(exc).__name__}: {exc}")
+        record.traceback = tb
+        files = {}
+    record.wall_time = time.perf_counter() - t0
+    record.worker = worker
+    return record, files
+
+
+def run_batch(
+    matrix: Matrix,
+    out_dir: str | Path,
+    *,
+    runs: Sequence[Run] | None = None,
+    workers: int | None = None,
+    scheduler: Any = None,
+    runner: Runner = scenario_runner,
+    timeout: float | None = None,
+    progress: Callable[[int, int, int], None] | None = None,
+) -> BatchReport:
+    """Run a matrix's missing, failed or stale runs; write their records and the summary.
+
+    Args:
+        matrix: The matrix.
+        out_dir: Output directory (created; an existing one is resumed).
+        runs: Its runs (default: ``matrix.runs()``).
+        workers: Local worker processes (default: the number of CPUs); 0 runs them one after
+            the other in this process. With a Dask scheduler: the workers of ``"local"``.
+        scheduler: None (local processes), the address of a Dask scheduler
+            (``"tcp://host:port"``), ``"local"`` (a Dask ``LocalCluster`` on 127.0.0.1, for the
+            dashboard) or a ``distributed.Client``.
+        runner: The run function (default: :func:`scenario_runner`).
+        timeout: Wall-time limit per run [s], or None.
+        progress: Called as ``progress(done, failed, total)`` at the start and after each run.
+
+    Returns:
+        The report; failed runs are in the records, not raised.
+
+    Raises:
+        KeyboardInterrupt: On Ctrl-C, after the workers are stopped and the summary written;
+            the finished runs are kept.
+        ConfigurationError: A bad argument (names it), or dask.distributed missing.
+    """
+    if workers is not None and (not isinstance(workers, int) or workers < 0):
+        raise ConfigurationError("workers", workers, "an integer >= 0")
+    if timeout is not None and not (math.isfinite(timeout) and timeout > 0):
+        raise ConfigurationError("timeout", timeout, "a finite positive time [s], or None")
+    out = Path(out_dir)
+    if out.exists() and not out.is_dir():
+        raise ConfigurationError("out_dir", str(out), "a directory (this is a file)")
+    for sub in ("runs", "trajectories"):
+        (out / sub).mkdir(parents=True, exist_ok=True)
+        for stale in (out / sub).glob(".*.tmp"):  # left by a killed batch
+            stale.unlink(missing_ok=True)
+    if matrix.source_text:
+        atomic_write(out / "matrix.toml", matrix.source_text.encode())
+    runs = list(matrix.runs() if runs is None else runs)
+    records = read_records(out, runs)
+    report = BatchReport(out_dir=out, runs=runs, records={})
+    todo: list[Run] = []
+    for run in runs:
+        rec = records.get(run.id)
+        if (
+            rec is not None
+            and rec.status == "ok"
+            and rec.digest == run.digest
+            and all((out / p).is_file() for p in rec.files.values())
+        ):
+            report.records[run.id] = rec
+            report.skipped.append(run.id)
+            continue
+        if rec is not None:
+            report.records[run.id] = rec  # a failed or stale record, replaced when redone
+        todo.append(run)
+    total = len(runs)
+    state = {"done": len(report.skipped), "failed": 0}
+    if progress is not None:
+        progress(state["done"], 0, total)
+
+    def store(record: RunRecord, files: RunFiles) -> None:
+        _store(out, record, files)
+        report.records[record.id] = record
+        report.executed.append(record.id)
+        state["done"] += 1
+        state["failed"] += record.status != "ok"
+        if record.status != "ok":
+            log.warning("run %s failed: %s", record.id, record.error)
+        if progress is not None:
+            progress(state["done"], state["failed"], total)
+
+    log.info("%d runs: %d finished before, %d to run", total, len(report.skipped), len(todo))
+    try:
+        if not todo:
+            pass
+        elif scheduler is not None:
+            _run_dask(todo, scheduler, workers, runner, timeout, store)
+        elif workers == 0:
+            for run in todo:
+                store(*execute(run, runner, timeout, "main"))
+        else:
+            n = (os.cpu_count() or 1) if workers is None else workers
+            _run_pool(todo, min(n, len(todo)), runner, timeout, store)
+    finally:
+        report.summary = write_summary(out, runs, report.records)
+    return report
+
+
+@contextlib.contextmanager
+def _single_thread_env() -> Iterator[None]:
+    """Set :data:`SINGLE_THREAD_ENV` in os.environ (inherited by the workers started inside)."""
+    saved = {k: os.environ.get(k) for k in SINGLE_THREAD_ENV}
+    os.environ.update(SINGLE_THREAD_ENV)
+    try:
+        yield
+    finally:
+        for k, v in saved.items():
+            if v is None:
+                os.environ.pop(k, None)
+            else:
+                os.environ[k] = v
+
+
+def _pin_threads() -> None:
+    """In a worker: one BLAS/OpenMP thread.
+
+    Sets the variables (for later imports and subprocesses) and, if threadpoolctl is installed,
+    limits the libraries already loaded.
+    """
+    os.environ.update(SINGLE_THREAD_ENV)
+    try:
+        from threadpoolctl import threadpool_limits
+    except ImportError:
+        return
+    threadpool_limits(1)
+
+
+def _init_worker() -> None:
+    """Initializer of the local pool's workers."""
+    _pin_threads()
+    # Ctrl-C goes to the whole process group: the parent stops the workers itself.
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
+def _run_pool(
+    todo: Sequence[Run],
+    n: int,
+    runner: Runner,
+    timeout: float | None,
+    store: Callable[[RunRecord, RunFiles], None],
+) -> None:
+    """Run on ``n`` local worker processes ('spawn').
+
+    At most n + 1 runs are submitted at a time, so that a broken pool's runs in flight are known.
+    When a worker process dies, the pool breaks: its runs in flight are run again on a fresh
+    pool, one at a time, so that a run that kills its worker again is known for sure (and is
+    recorded as failed) while the others complete.
+    """
+    queue = deque(todo)
+    isolate: deque[Run] = deque()
+    ctx = multiprocessing.get_context("spawn")
+    with _single_thread_env():
+        while queue or isolate:
+            pool = ProcessPoolExecutor(max_workers=n, mp_context=ctx, initializer=_init_worker)
+            inflight: dict[Future[tuple[RunRecord, RunFiles]], Run] = {}
+            alone: Run | None = None  # the run submitted alone, if any
+            lost: list[Run] = []
+            try:
+                while (queue or isolate or inflight) and not lost:
+                    if isolate:
+                        if not inflight:
+                            alone = isolate.popleft()
+                            inflight[pool.submit(execute, alone, runner, timeout, "local")] = alone
+                    else:
+                        while queue and len(inflight) <= n:
+                            run = queue.popleft()
+                            inflight[pool.submit(execute, run, runner, timeout, "local")] = run
+                    done, _ = wait(inflight, return_when=FIRST_COMPLETED)
+                    for fut in done:
+                        run = inflight.pop(fut)
+                        try:
+                            record, files = fut.result()
+                        except BrokenProcessPool:
+                            lost.append(run)
+                            continue
+                        store(record, files)
+            except BaseException:
+                _terminate(pool)
+                raise
+            finally:
+                pool.shutdown(wait=True, cancel_futures=True)
+            lost.extend(inflight.values())
+            if lost == [alone] and alone is not None:
+                log.warning("run %s killed its worker process again: recorded failed", alone.id)
+                msg = (
+                    "WorkerDied: the worker process died (killed or crashed) while running "
+                    "this run, twice (the second time alone)"
+                )
+                store(_failed(alone, msg, "local"), {})
+            elif lost:
+                ids = ", ".join(r.id for r in lost)
+                log.warning("a worker process died; running again one at a time: %s", ids)
+                isolate.extend(lost)
+
+
+def _terminate(pool: ProcessPoolExecutor) -> None:
+    """Stop a pool's worker processes now (their runs in flight are lost)."""
+    terminate = getattr(pool, "terminate_workers", None)  # Python >= 3.14
+    if terminate is not None:
+        terminate()
+        return
+    processes = getattr(pool, "_processes", None) or {}
+    for proc in list(processes.values()):
+        with contextlib.suppress(Exception):
+            proc.terminate()
+
+
+def _dask_execute(run: Run, runner: Runner, timeout: float | None) -> tuple[RunRecord, RunFiles]:
+    """The task run on a Dask worker."""
+    _pin_threads()
+    try:
+        from distributed import get_worker
+
+        where = f"dask:{get_worker().address}"
+    except (ImportError, ValueError):
+        where = "dask"
+    return execute(run, runner, timeout, where)
+
+
+def _run_dask(
+    todo: Sequence[Run],
+    scheduler: Any,
+    workers: int | None,
+    runner: Runner,
+    timeout: float | None,
+    store: Callable[[RunRecord, RunFiles], None],
+) -> None:
+    """Run on a Dask cluster.
+
+    A task that fails there (e.g. its worker was killed too often) is recorded as failed.
+    """
+    try:
+        import distributed
+    except ImportError as exc:
+        raise ConfigurationError(
+            "scheduler",
+            scheduler,
+            "dask.distributed installed (pip install 'packbot[distributed]')",
+        ) from exc
+    with contextlib.ExitStack() as stack:
+        if not log.isEnabledFor(logging.INFO):  # Dask logs every start and stop at INFO
+            dlog = logging.getLogger("distributed")
+            stack.callback(dlog.setLevel, dlog.level)
+            dlog.setLevel(logging.WARNING)
+        if isinstance(scheduler, distributed.Client):
+            client = scheduler
+        elif scheduler == "local":
+            cluster = stack.enter_context(
+                distributed.LocalCluster(
+                    n_workers=workers or os.cpu_count() or 1,
+                    threads_per_worker=1,
+                    processes=True,
+                    host="127.0.0.1",
+                    dashboard_address="127.0.0.1:0",
+                    env=dict(SINGLE_THREAD_ENV),
+                )
+            )
+            client = stack.enter_context(distributed.Client(cluster))
+            log.warning("Dask LocalCluster: dashboard at %s", client.dashboard_link)
+        elif isinstance(scheduler, str):
+            client = stack.enter_context(distributed.Client(scheduler))
+        else:
+            raise ConfigurationError(
+                "scheduler", scheduler, "'tcp://host:port', 'local' or a distributed.Client"
+            )
+        futures = {
+            client.submit(
+                _dask_execute, run, runner, timeout, key=f"packbot-{run.id}-{os.urandom(4).hex()}"
+            ): run
+            for run in todo
+        }
+        try:
+            for fut in distributed.as_completed(list(futures)):
+                run = futures[fut]
+                try:
+                    record, files = fut.result()
+                except Exception as exc:  # KilledWorker, a failed deserialization, ...
+                    record, files = _failed(run, f"{type(exc).__name__}: {exc}", "dask"), {}
+                store(record, files)
+        except BaseException:
+            client.cancel(list(futures))
+            raise
+
+
+def _failed(run: Run, message: str, worker: str) -> RunRecord:
+    return RunRecord(
+        id=run.id,
+        index=run.index,
+        params=run.params,
+        digest=run.digest,
+        status="failed",
+        error=message,
+        worker=worker,
+    )
+
+
+# ---------------------------------------------------------------------------------- files
+def read_records(out_dir: str | Path, runs: Sequence[Run] | None = None) -> dict[str, RunRecord]:
+    """The run records in ``out_dir/runs/`` (of ``runs`` only, if given), by id.
+
+    An unreadable record (corrupt, another format) is skipped with a warning: its run counts as
+    not finished.
+    """
+    folder = Path(out_dir) / "runs"
+    if runs is None:
+        paths = sorted(folder.glob("*.json"))
+    else:
+        paths = [folder / f"{r.id}.json" for r in runs]
+    out: dict[str, RunRecord] = {}
+    for path in paths:
+        if not path.is_file():
+            continue
+        try:
+            rec = RunRecord.from_json(json.loads(path.read_text()))
+        except (OSError, ValueError, ConfigurationError) as exc:
+            log.warning("ignoring unreadable run record %s: %s", path, exc)
+            continue
+        out[rec.id] = rec
+    return out
+
+
+def _store(out: Path, record: RunRecord, files: RunFiles) -> None:
+    """Write a run's files, then its record (last: it marks the run finished)."""
+    record.files = {}
+    for role, (name, data) in files.items():
+        if Path(name).name != name or name.startswith("."):
+            raise ConfigurationError(f"files.{role}", name, "a plain file name")
+        atomic_write(out / "trajectories" / name, data)
+        record.files[role] = f"trajectories/{name}"
+    text = json.dumps(record.to_json(), indent=1, allow_nan=False)
+    atomic_write(out / "runs" / f"{record.id}.json", (text + "\n").encode())
+
+
+def csv_text(rows: Sequence[Mapping[str, Any]], columns: Sequence[str]) -> str:
+    """Rows as CSV text: a header, floats exact (shortest repr), None as an empty cell."""
+    import csv
+    import io
+
+    buf = io.StringIO()
+    w = csv.writer(buf, lineterminator="\n")
+    w.writerow(columns)
+    for row in rows:
+        cells = [row.get(c) for c in columns]
+        w.writerow(["" if v is None else repr(v) if isinstance(v, float) else v for v in cells])
+    return buf.getvalue()
+
+
+def atomic_write(path: Path, data: bytes) -> None:
+    """Write a file atomically: a temporary file in the same folder, then renamed over ``path``.
+
+    A process killed at any point leaves the old file or the new one, never a part of it. The
+    data are not fsync'ed (that would cost about 4 ms per file here): a crash of the machine
+    itself may lose the last files written.
+    """
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    try:
+        with os.fdopen(fd, "wb") as fh:
+            fh.write(data)
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+
+
+def summary_rows(runs: Sequence[Run], records: Mapping[str, RunRecord]) -> list[dict[str, Any]]:
+    """One row per run of the matrix (status ``"missing"`` for a run without a record).
+
+    Columns: ``id``, ``index``, the parameters (lists and tables as JSON), ``status``,
+    ``q.<joint>`` [rad], ``rest_time`` [s], ``n_impacts``, ``n_limits``, ``n_events``,
+    ``min_distance`` [m], ``energy_change`` [J], ``t_end`` [s], ``wall_time`` [s], ``worker``,
+    ``error``. Missing values are None.
+    """
+    param_names: list[str] = []
+    joints: list[str] = []
+    for run in runs:
+        param_names += [k for k in run.params if k not in param_names]
+        rec = records.get(run.id)
+        if rec is not None:
+            joints += [j for j in rec.joint_names if j not in joints]
+    rows = []
+    for run in runs:
+        rec = records.get(run.id)
+        row: dict[str, Any] = {"id": run.id, "index": run.index}
+        for name in param_names:
+            value = run.params.get(name)
+            row[name] = json.dumps(value) if isinstance(value, (list, dict)) else value
+        row["status"] = "missing" if rec is None else rec.status
+        q = dict(zip(rec.joint_names, rec.final_q, strict=True)) if rec is not None else {}
+        for j in joints:
+            row[f"q.{j}"] = q.get(j)
+        for key in ("rest_time", "n_impacts", "n_limits", "n_events", "min_distance"):
+            row[key] = None if rec is None or rec.status != "ok" else getattr(rec, key)
+        for key in ("energy_change", "t_end"):
+            row[key] = None if rec is None or rec.status != "ok" else getattr(rec, key)
+        row["wall_time"] = None if rec is None else rec.wall_time
+        row["worker"] = None if rec is None else rec.worker
+        row["error"] = None if rec is None else rec.error
+        rows.append(row)
+    return rows
+
+
+def write_summary(
+    out_dir: str | Path, runs: Sequence[Run], records: Mapping[str, RunRecord]
+) -> list[Path]:
+    """Write ``summary.csv`` and, if pyarrow is installed, ``summary.parquet`` (atomically).
+
+    Floats are written exactly (shortest repr that reads back the same number).
+
+    Returns:
+        The files written.
+    """
+    import io
+
+    rows = summary_rows(runs, records)
+    columns = list(rows[0]) if rows else ["id", "status"]
+    out = Path(out_dir)
+    paths = [out / "summary.csv"]
+    atomic_write(paths[0], csv_text(rows, columns).encode())
+    try:
+        import pyarrow as pa
+        import pyarrow.parquet as pq
+    except ImportError:
+        log.info("pyarrow not installed: no summary.parquet")
+        return paths
+    arrays = {}
+    for c in columns:
+        values = [row[c] for row in rows]
+        try:
+            arrays[c] = pa.array(values)
+        except (pa.ArrowInvalid, pa.ArrowTypeError):  # mixed types: as text
+            arrays[c] = pa.array([None if v is None else json.dumps(v) for v in values])
+    sink = io.BytesIO()
+    pq.write_table(pa.table(arrays), sink)
+    paths.append(out / "summary.parquet")
+    atomic_write(paths[1], sink.getvalue())
+    return paths
+
+
+def _enc(x: float) -> float | str:
+    """A float for JSON: finite as is (exact repr), else ``"inf"``, ``"-inf"``, ``"nan"``."""
+    x = float(x)
+    return x if math.isfinite(x) else str(x)
+
+
+def _dec(x: Any) -> float:
+    return float(x)

@@ -1,0 +1,164 @@
+"""Shared helpers of the controllers: their Pinocchio model, and parsing of targets and gains.
+
+Targets and gains can be given the way a scenario file writes them:
+
+- a configuration q [rad]: a list of nq numbers, a named pose (``"stand"``), or a table
+  ``{joint: angle}`` (the other joints from the initial configuration);
+- a per-joint gain: one number (every joint), a list of nv numbers, or a table
+  ``{joint: gain}`` (the other joints keep the default).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+import pinocchio as pin
+from numpy.typing import NDArray
+
+from packbot.errors import ConfigurationError, UnknownNameError
+
+if TYPE_CHECKING:
+    from packbot.model import Robot
+
+__all__ = [
+    "DEFAULT_GRAVITY",
+    "GainLike",
+    "QLike",
+    "controller_model",
+    "resolve_gains",
+    "resolve_gravity",
+    "resolve_q",
+    "resolve_vector3",
+]
+
+FloatArray = NDArray[np.float64]
+
+#: Gravity the controllers assume by default [m/s^2], world frame (SimConfig's default).
+DEFAULT_GRAVITY: tuple[float, float, float] = (0.0, 0.0, -9.81)
+
+#: A configuration: a list of nq angles [rad], a pose name, or a {joint: angle} table.
+QLike = str | Sequence[float] | Mapping[str, float] | FloatArray
+#: A per-joint gain: a number, a list of nv numbers, or a {joint: gain} table.
+GainLike = float | Sequence[float] | Mapping[str, float] | FloatArray
+
+
+def _finite(x: object) -> bool:
+    return isinstance(x, (int, float, np.floating)) and not isinstance(x, bool) and math.isfinite(x)
+
+
+def resolve_gravity(gravity: Any, field: str = "controller.gravity") -> FloatArray:
+    """Validate a gravity vector [m/s^2] and return it as an array of shape (3,)."""
+    return resolve_vector3(gravity, field, "3 finite numbers [m/s^2]")
+
+
+def resolve_vector3(value: Any, field: str, expected: str = "3 finite numbers") -> FloatArray:
+    """Validate a 3-vector and return it as an array of shape (3,)."""
+    try:
+        arr = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        raise ConfigurationError(field, value, expected) from None
+    if arr.shape != (3,) or not np.all(np.isfinite(arr)):
+        raise ConfigurationError(field, value, expected)
+    return arr
+
+
+def controller_model(robot: Robot, gravity: FloatArray) -> tuple[pin.Model, pin.Data]:
+    """A copy of the robot's model (armature included) with the controller's gravity.
+
+    Args:
+        robot: The full robot.
+        gravity: Gravity [m/s^2], world frame.
+
+    Returns:
+        The model and a fresh data.
+    """
+    model = robot.model.copy()
+    model.gravity.linear = np.asarray(gravity, dtype=float)
+    return model, model.createData()
+
+
+def resolve_q(robot: Robot, value: QLike, field: str, base: FloatArray | None = None) -> FloatArray:
+    """A configuration [rad], shape (nq,), from a list, a pose name or a {joint: angle} table.
+
+    Args:
+        robot: The robot (names, poses, limits).
+        value: The configuration as written.
+        field: Name of the field, for error messages (``"controller.target"``).
+        base: Configuration supplying the joints a table leaves out (default: zeros).
+
+    Raises:
+        ConfigurationError: Wrong length, non-finite, or outside the joint limits.
+        UnknownNameError: An unknown pose or joint name.
+    """
+    nq = robot.nq
+    if isinstance(value, str):
+        if value not in robot.poses:
+            raise UnknownNameError("pose", value, robot.poses)
+        q = robot.pose(value)
+    elif isinstance(value, Mapping):
+        q = np.zeros(nq) if base is None else np.array(base, dtype=float)
+        for name, x in value.items():
+            if name not in robot.joint_names:
+                raise UnknownNameError("joint", name, robot.joint_names)
+            if not _finite(x):
+                raise ConfigurationError(f"{field}.{name}", x, "a finite angle [rad]")
+            q[robot.params.index(name)] = float(x)
+    else:
+        try:
+            q = np.asarray(value, dtype=float)
+        except (TypeError, ValueError):
+            raise ConfigurationError(
+                field, value, f"a pose name, a {{joint: angle}} table or {nq} angles [rad]"
+            ) from None
+        if q.shape != (nq,) or not np.all(np.isfinite(q)):
+            raise ConfigurationError(
+                field, value, f"a pose name, a {{joint: angle}} table or {nq} angles [rad]"
+            )
+    robot.check_within_limits(q, field)
+    return np.array(q, dtype=float)
+
+
+def resolve_gains(
+    robot: Robot, value: GainLike | None, field: str, default: FloatArray
+) -> FloatArray:
+    """Per-joint gains, shape (nv,), from a number, a list or a {joint: gain} table.
+
+    Args:
+        robot: The robot (joint names).
+        value: The gains as written; None: ``default``.
+        field: Name of the field, for error messages (``"controller.kp"``).
+        default: Gains of the joints a table leaves out, shape (nv,).
+
+    Raises:
+        ConfigurationError: Wrong length, negative or non-finite gains.
+        UnknownNameError: An unknown joint name in a table.
+    """
+    nv = robot.nq
+    out = np.array(default, dtype=float)
+    if value is None:
+        pass
+    elif isinstance(value, Mapping):
+        for name, x in value.items():
+            if name not in robot.joint_names:
+                raise UnknownNameError("joint", name, robot.joint_names)
+            if not _finite(x) or float(x) < 0:
+                raise ConfigurationError(f"{field}.{name}", x, "a finite gain >= 0")
+            out[robot.params.index(name)] = float(x)
+    elif _finite(value):
+        out[:] = float(value)  # type: ignore[arg-type]
+    else:
+        try:
+            arr = np.asarray(value, dtype=float)
+        except (TypeError, ValueError):
+            arr = np.zeros(0)
+        if arr.shape != (nv,) or not np.all(np.isfinite(arr)):
+            raise ConfigurationError(
+                field, value, f"a number, a {{joint: gain}} table or {nv} finite gains"
+            )
+        out = arr.copy()
+    if np.any(out < 0) or not np.all(np.isfinite(out)):
+        raise ConfigurationError(field, value, "finite gains >= 0")
+    return out

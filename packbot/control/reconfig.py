@@ -1,0 +1,458 @@
+"""Reconfigurable control: bring the gripper to a target, and again after a joint fails.
+
+:class:`ReconfigurableController` places a frame (default ``gripper_tool``) at a target position
+[m] and holds it there:
+
+1. Plan: inverse kinematics (:func:`~packbot.control.ik.solve_position_ik`, damped least squares
+   on the joints that move the frame) from the current configuration, keeping only solutions
+   that are collision free with a clearance and whose straight joint-space path is collision
+   free; a minimum-jerk move to the solution within a fraction of the speed limits.
+2. Track: computed torque (RNEA) on the controller's current model of the arm.
+3. Watch: a momentum observer (:mod:`packbot.control.detector`) flags a failed joint from the
+   commanded versus the measured motion; or the simulator tells the controller
+   (:meth:`on_failure`, with ``simulate(..., inform_controller=True)``).
+4. Reconfigure:
+
+   - frozen joint: the model becomes ``pin.buildReducedModel`` of the arm locked at the measured
+     angle; IK is solved again on the remaining joints and a new move starts from the measured
+     state (its velocity included); the frozen joint is commanded zero torque;
+   - loose joint: the joint is unactuated (zero command). A static pose then needs zero gravity
+     torque on the loose joint, so the new goal is solved for jointly: the frame at the target
+     and the loose joint at a *stable* equilibrium (d g_u / d q_u > 0), by bounded least
+     squares (``scipy.optimize.least_squares``); the actuated joints follow it by collocated
+     partial feedback linearisation (the loose joint's acceleration eliminated from the
+     dynamics), with an added swing damper: the actuated joints accelerate by
+     ``sway_damping * M_au v_u / M_uu``, which adds -sway_damping (M_ua M_au / M_uu^2) v_u to the
+     loose joint's acceleration (energy leaves the swing through the coupling).
+
+Other failure kinds (weak, stuck, brake) are logged and not reconfigured.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+import pinocchio as pin
+from numpy.typing import NDArray
+from scipy.optimize import least_squares
+
+from packbot.collision import CollisionWorld
+from packbot.control._common import DEFAULT_GRAVITY, GainLike, resolve_gains, resolve_vector3
+from packbot.control.base import Sensor
+from packbot.control.detector import Detection, MomentumObserver
+from packbot.control.ik import solve_position_ik
+from packbot.control.model_based import ModelBasedController
+from packbot.control.trajectory import MIN_JERK_PEAK_SPEED, QuinticSegment
+from packbot.errors import ConfigurationError, UnknownNameError
+
+if TYPE_CHECKING:
+    from packbot.environment import Environment
+    from packbot.failures import Failure
+    from packbot.model import Robot
+
+__all__ = ["ReconfigEvent", "ReconfigurableController"]
+
+log = logging.getLogger(__name__)
+
+FloatArray = NDArray[np.float64]
+
+
+@dataclass(frozen=True, kw_only=True)
+class ReconfigEvent:
+    """An entry of the controller's log.
+
+    Attributes:
+        t: Time [s].
+        kind: ``"plan"``, ``"detect"``, ``"informed"``, ``"replan"`` or ``"ignored"``.
+        joint: Joint name ("" for the initial plan).
+        detail: Human-readable detail (failure kind, IK error, residual).
+        q_goal: The goal configuration planned [rad] (full coordinates), if any.
+    """
+
+    t: float
+    kind: str
+    joint: str = ""
+    detail: str = ""
+    q_goal: FloatArray | None = None
+
+
+def _num(x: object, field: str, *, positive: bool = True) -> float:
+    if not isinstance(x, (int, float)) or isinstance(x, bool) or not np.isfinite(x):
+        raise ConfigurationError(field, x, "a finite number")
+    if positive and x <= 0:
+        raise ConfigurationError(field, x, "a finite number > 0")
+    if not positive and x < 0:
+        raise ConfigurationError(field, x, "a finite number >= 0")
+    return float(x)
+
+
+class ReconfigurableController(ModelBasedController):
+    """Hold a frame at a target position, re-planning with the remaining joints after a failure.
+
+    Args:
+        target: Target position of the frame [m], world frame, or a pose name (the frame's
+            position at that pose).
+        frame: The placed frame.
+        speed_fraction: Moves peak at this fraction of each joint's speed limit [-].
+        min_move_time: Shortest move [s].
+        omega: Natural frequency of the tracking loop [rad/s] (gains omega^2, 2 zeta omega).
+        zeta: Damping ratio of the tracking loop [-].
+        detect: Run the momentum-observer detector.
+        reconfigure: Re-plan after a failure (False: keep the original plan; the baseline).
+        observer_gain: Observer gain K_O [1/s].
+        threshold: Detection threshold [N*m] per joint (number, nv numbers or {joint: value});
+            None: the joint's friction at its speed limit plus 1 % of its effort limit,
+            coulomb + viscous * velocity + 0.01 * effort (from the parameter table).
+        persistence: Time the residual must stay above the threshold [s].
+        frozen_speed: A detected joint slower than this over the window is frozen [rad/s].
+        clearance: Smallest signed distance accepted at a planned goal and along its path [m].
+        environment: Obstacles the planner avoids (None: the floor).
+        ik_seeds: Random restarts of IK when the first solution is rejected.
+        seed: Seed of the restarts.
+        sway_damping: Gain of the loose-link swing damper [1/s].
+        dt: Control period [s].
+        sensor: Measurement model.
+        gravity: Gravity the controller assumes [m/s^2].
+
+    Attributes:
+        events: The controller's log (:class:`ReconfigEvent`).
+        failed: Failed joints found so far, index -> ``"frozen"`` or ``"loose"``.
+        q_goal: The current goal [rad], full coordinates.
+        observer: The detector (None before reset or if ``detect`` is False).
+    """
+
+    def __init__(
+        self,
+        *,
+        target: str | Sequence[float] | FloatArray,
+        frame: str = "gripper_tool",
+        speed_fraction: float = 0.5,
+        min_move_time: float = 0.5,
+        omega: float = 20.0,
+        zeta: float = 1.0,
+        detect: bool = True,
+        reconfigure: bool = True,
+        observer_gain: float = 50.0,
+        threshold: GainLike | None = None,
+        persistence: float = 0.02,
+        frozen_speed: float = 1e-3,
+        clearance: float = 0.01,
+        environment: Environment | None = None,
+        ik_seeds: int = 30,
+        seed: int = 0,
+        sway_damping: float = 5.0,
+        dt: float = 1e-3,
+        sensor: Sensor | None = None,
+        gravity: Sequence[float] = DEFAULT_GRAVITY,
+    ) -> None:
+        super().__init__(dt=dt, sensor=sensor, gravity=gravity)
+        self.target_spec = target
+        self.frame = frame
+        self.speed_fraction = _num(speed_fraction, "controller.speed_fraction")
+        self.min_move_time = _num(min_move_time, "controller.min_move_time")
+        self.omega = _num(omega, "controller.omega")
+        self.zeta = _num(zeta, "controller.zeta")
+        for name, flag in (("detect", detect), ("reconfigure", reconfigure)):
+            if not isinstance(flag, bool):
+                raise ConfigurationError(f"controller.{name}", flag, "true or false")
+        self.detect, self.reconfigure = detect, reconfigure
+        self.observer_gain = _num(observer_gain, "controller.observer_gain")
+        self.threshold_spec = threshold
+        self.persistence = _num(persistence, "controller.persistence")
+        self.frozen_speed = _num(frozen_speed, "controller.frozen_speed")
+        self.clearance = _num(clearance, "controller.clearance", positive=False)
+        self.environment = environment
+        if not isinstance(ik_seeds, int) or isinstance(ik_seeds, bool) or ik_seeds < 0:
+            raise ConfigurationError("controller.ik_seeds", ik_seeds, "an integer >= 0")
+        self.ik_seeds = ik_seeds
+        if not isinstance(seed, int) or isinstance(seed, bool):
+            raise ConfigurationError("controller.seed", seed, "an integer")
+        self.seed = seed
+        self.sway_damping = _num(sway_damping, "controller.sway_damping", positive=False)
+        self.target = np.zeros(3)
+        self.threshold = np.zeros(0)
+        self.events: list[ReconfigEvent] = []
+        self.failed: dict[int, str] = {}
+        self.q_goal = np.zeros(0)
+        self.observer: MomentumObserver | None = None
+        self._world: CollisionWorld | None = None
+        self._frame_id = -1
+        self._pending: list[tuple[int, str]] = []
+        self._tau_prev = np.zeros(0)
+        self._free = np.zeros(0, dtype=int)  # joints of the tracking model (not frozen)
+        self._loose = np.zeros(0, dtype=int)  # indices into the full q
+        self._track_model: pin.Model | None = None
+        self._track_data: pin.Data | None = None
+        self._traj: QuinticSegment | None = None
+        self._rng = np.random.default_rng(seed)
+
+    # ------------------------------------------------------------------ setup
+    def prepare(self, robot: Robot) -> None:
+        """Resolve the target, frame and thresholds; build the collision world."""
+        super().prepare(robot)
+        model, data = self._md()
+        if not isinstance(self.frame, str) or not model.existFrame(self.frame):
+            raise UnknownNameError("frame", self.frame, [f.name for f in model.frames])
+        self._frame_id = model.getFrameId(self.frame)
+        if isinstance(self.target_spec, str):
+            pin.framesForwardKinematics(model, data, robot.pose(self.target_spec))
+            self.target = data.oMf[self._frame_id].translation.copy()
+        else:
+            self.target = resolve_vector3(
+                self.target_spec, "controller.target", "3 finite coordinates [m] or a pose name"
+            )
+        pp = robot.params
+        default = pp.coulomb + pp.viscous * pp.velocity + 0.01 * pp.effort
+        self.threshold = resolve_gains(robot, self.threshold_spec, "controller.threshold", default)
+        if np.any(self.threshold <= 0):
+            raise ConfigurationError("controller.threshold", self.threshold_spec, "values > 0")
+        self._world = CollisionWorld(robot, self.environment)
+
+    def on_reset(self, robot: Robot, t0: float, q0: FloatArray, v0: FloatArray) -> None:
+        """Plan the move to the target from (q0, v0) on the healthy model."""
+        self.prepare(robot)
+        model, _ = self._md()
+        n = robot.nq
+        self.events = []
+        self.failed = {}
+        self._pending = []
+        self._rng = np.random.default_rng(self.seed)
+        self._free = np.arange(n)
+        self._loose = np.zeros(0, dtype=int)
+        self._track_model, self._track_data = model, model.createData()
+        self._tau_prev = np.zeros(n)
+        self.observer = None
+        if self.detect:
+            self.observer = MomentumObserver(
+                model,
+                robot.params.effort,
+                gain=self.observer_gain,
+                threshold=self.threshold,
+                persistence=self.persistence,
+                frozen_speed=self.frozen_speed,
+            )
+            self.observer.reset(t0, np.asarray(q0, dtype=float), np.asarray(v0, dtype=float))
+        q0 = np.asarray(q0, dtype=float)
+        goal, detail = self._solve_goal(q0, frozen=[])
+        self._start_move(t0, q0, np.asarray(v0, dtype=float), goal)
+        self.events.append(ReconfigEvent(t=t0, kind="plan", detail=detail, q_goal=goal.copy()))
+
+    # ------------------------------------------------------------------ planning
+    def _frame_joints(self, model: pin.Model) -> list[int]:
+        """Indices (into q of ``model``) of the joints that move the frame."""
+        fid = model.getFrameId(self.frame)
+        parent = model.frames[fid].parentJoint
+        return sorted(model.joints[j].idx_q for j in model.supports[parent] if j > 0)
+
+    def _clear(self, q_full: FloatArray) -> bool:
+        assert self._world is not None
+        return not self._world.in_collision(q_full, self.clearance)
+
+    def _path_clear(self, qa: FloatArray, qb: FloatArray, samples: int = 20) -> bool:
+        return all(self._clear(qa + s * (qb - qa)) for s in np.linspace(0.0, 1.0, samples)[1:])
+
+    def _candidates(self, q: FloatArray, active: list[int], lower: FloatArray, upper: FloatArray):  # type: ignore[no-untyped-def]
+        """Seeds: the current configuration, then random ones (active joints only)."""
+        yield q.copy()
+        for _ in range(self.ik_seeds):
+            s = q.copy()
+            s[active] = self._rng.uniform(lower[active], upper[active])
+            yield s
+
+    def _solve_goal(self, q: FloatArray, frozen: list[int]) -> tuple[FloatArray, str]:
+        """IK for the target with the frozen joints at their current angles (full coords)."""
+        model, _ = self._md()
+        if frozen:
+            ids = [model.getJointId(model.names[1 + j]) for j in frozen]
+            red = pin.buildReducedModel(model, ids, q)
+        else:
+            red = model
+        keep = np.array([j for j in range(model.nq) if j not in frozen], dtype=int)
+        active = self._frame_joints(red)
+        lower = np.asarray(red.lowerPositionLimit)
+        upper = np.asarray(red.upperPositionLimit)
+
+        def full(qr: FloatArray) -> FloatArray:
+            out = q.copy()
+            out[keep] = qr
+            return out
+
+        best: tuple[float, FloatArray, float] | None = None
+        fallback: tuple[float, FloatArray] | None = None
+        for k, seed in enumerate(self._candidates(q[keep], active, lower, upper)):
+            res = solve_position_ik(red, self.frame, self.target, seed, active=active, tol=1e-4)
+            if fallback is None or res.error < fallback[0]:
+                fallback = (res.error, res.q)
+            if not res.success:
+                continue
+            qf = full(res.q)
+            if not (self._clear(qf) and self._path_clear(q, qf)):
+                continue
+            cost = float(np.max(np.abs(qf - q)))
+            if best is None or cost < best[0]:
+                best = (cost, qf, res.error)
+            if k == 0:
+                break  # the solution nearest the current configuration is taken as is
+        if best is not None:
+            return best[1], f"IK error {best[2] * 1000:.3g} mm, {len(active)} joints"
+        assert fallback is not None
+        log.warning("no collision-free IK solution for the target; going to the closest point")
+        return full(fallback[1]), f"target out of reach: IK error {fallback[0] * 1000:.3g} mm"
+
+    def _solve_loose_goal(self, q: FloatArray, loose: int) -> tuple[FloatArray, str]:
+        """Goal with the loose joint at a stable equilibrium and the frame at the target."""
+        model, data = self._md()
+        active = [j for j in self._frame_joints(model) if j not in self.failed or j == loose]
+        lower = np.asarray(model.lowerPositionLimit)[active]
+        upper = np.asarray(model.upperPositionLimit)[active]
+        g_scale = 10.0  # [N*m per m]: weight of the equilibrium residual
+
+        def resid(x: FloatArray) -> FloatArray:
+            qq = q.copy()
+            qq[active] = x
+            pin.framesForwardKinematics(model, data, qq)
+            g = pin.computeGeneralizedGravity(model, data, qq)[loose]
+            return np.concatenate(
+                [data.oMf[self._frame_id].translation - self.target, [g / g_scale]]
+            )
+
+        def stable(qq: FloatArray) -> bool:
+            h = 1e-5
+            qp, qm = qq.copy(), qq.copy()
+            qp[loose] += h
+            qm[loose] -= h
+            gp = pin.computeGeneralizedGravity(model, data, qp)[loose]
+            gm = pin.computeGeneralizedGravity(model, data, qm)[loose]
+            return bool((gp - gm) / (2 * h) > 0)
+
+        best: tuple[float, FloatArray] | None = None
+        for seed in self._candidates(
+            q, active, np.asarray(model.lowerPositionLimit), np.asarray(model.upperPositionLimit)
+        ):
+            x0 = np.clip(seed[active], lower + 1e-9, upper - 1e-9)
+            sol = least_squares(resid, x0, bounds=(lower, upper), xtol=1e-10, ftol=1e-12)
+            qq = q.copy()
+            qq[active] = sol.x
+            r = resid(sol.x)
+            if abs(r[3]) * g_scale > 1e-3 or not stable(qq) or not self._clear(qq):
+                continue
+            err = float(np.linalg.norm(r[:3]))
+            if best is None or err < best[0] - 1e-6:
+                best = (err, qq)
+            if err < 1e-4:
+                break
+        if best is None:
+            log.warning("no stable collision-free equilibrium of the loose joint; holding")
+            return q.copy(), "no stable equilibrium found: holding"
+        return best[1], f"stable equilibrium, frame error {best[0] * 1000:.3g} mm"
+
+    def _start_move(self, t: float, q: FloatArray, v: FloatArray, goal: FloatArray) -> None:
+        assert self.robot is not None
+        vmax = self.speed_fraction * self.robot.params.velocity
+        free = self._free
+        movers = np.setdiff1d(free, self._loose)
+        d = np.abs(goal - q)[movers]
+        T = max(
+            self.min_move_time, float(np.max(MIN_JERK_PEAK_SPEED * d / vmax[movers], initial=0))
+        )
+        self.q_goal = goal.copy()
+        self._traj = QuinticSegment(q0=q[free], q1=goal[free], t0=t, duration=T, v0=v[free])
+
+    # ------------------------------------------------------------------ failures
+    def on_failure(self, failure: Failure, t: float) -> None:
+        """The simulator reports a failure: reconfigure at the next tick (frozen, loose)."""
+        assert self.robot is not None
+        j = self.robot.params.index(failure.joint)
+        if failure.kind in ("frozen", "loose"):
+            self._pending.append((j, failure.kind))
+        self.events.append(
+            ReconfigEvent(t=t, kind="informed", joint=failure.joint, detail=failure.kind)
+        )
+
+    def _handle(self, t: float, j: int, kind: str, q: FloatArray, v: FloatArray) -> None:
+        assert self.robot is not None
+        name = self.robot.joint_names[j]
+        if j in self.failed:
+            return
+        self.failed[j] = kind
+        if self.observer is not None:
+            self.observer.ignored[j] = True
+        if not self.reconfigure:
+            self.events.append(ReconfigEvent(t=t, kind="ignored", joint=name, detail=kind))
+            return
+        model, _ = self._md()
+        frozen = sorted(i for i, k in self.failed.items() if k == "frozen")
+        self._free = np.array([i for i in range(model.nq) if i not in frozen], dtype=int)
+        self._loose = np.array(sorted(i for i, k in self.failed.items() if k == "loose"), dtype=int)
+        if frozen:
+            ids = [model.getJointId(self.robot.joint_names[i]) for i in frozen]
+            red = pin.buildReducedModel(model, ids, q)
+            red.gravity.linear = self.gravity.copy()
+            self._track_model, self._track_data = red, red.createData()
+        if kind == "loose":
+            goal, detail = self._solve_loose_goal(q, j)
+        else:
+            goal, detail = self._solve_goal(q, frozen)
+        vv = v.copy()
+        vv[frozen] = 0.0
+        self._start_move(t, q, vv, goal)
+        self.events.append(
+            ReconfigEvent(t=t, kind="replan", joint=name, detail=f"{kind}: {detail}", q_goal=goal)
+        )
+
+    # ------------------------------------------------------------------ control
+    def compute(self, t: float, q: FloatArray, v: FloatArray) -> FloatArray:
+        """Detect, reconfigure if needed, and return the tracking torque [N*m]."""
+        assert self.robot is not None
+        if self.observer is not None:
+            det: Detection | None = self.observer.update(t, q, v, self._tau_prev)
+            if det is not None:
+                name = self.robot.joint_names[det.joint]
+                self.events.append(
+                    ReconfigEvent(
+                        t=t,
+                        kind="detect",
+                        joint=name,
+                        detail=f"{det.kind}: residual {det.residual:.3g} N*m since "
+                        f"t = {det.t_onset:.4g} s",
+                    )
+                )
+                self._pending.append((det.joint, det.kind))
+        while self._pending:
+            j, kind = self._pending.pop(0)
+            self._handle(t, j, kind, q, v)
+        tau = self._track(t, q, v)
+        for j in self.failed:
+            tau[j] = 0.0  # a failed motor is not driven
+        self._tau_prev = tau.copy()
+        return tau
+
+    def _track(self, t: float, q: FloatArray, v: FloatArray) -> FloatArray:
+        assert self._traj is not None and self._track_model is not None
+        model, data = self._track_model, self._track_data
+        free = self._free
+        qd, vd, ad = self._traj(t)
+        qr, vr = q[free], v[free]
+        kp, kd = self.omega**2, 2 * self.zeta * self.omega
+        a = ad + kp * (qd - qr) + kd * (vd - vr)
+        tau = np.zeros(len(q))
+        if len(self._loose) == 0:
+            tau[free] = pin.rnea(model, data, qr, vr, a)
+            return tau
+        # Collocated partial feedback linearisation: the loose joints' accelerations follow
+        # from the actuated ones; a swing damper moves the actuated joints against the swing.
+        u = np.searchsorted(free, self._loose)
+        act = np.setdiff1d(np.arange(len(free)), u)
+        M = pin.crba(model, data, qr)
+        M = np.triu(M) + np.triu(M, 1).T
+        h = pin.nonLinearEffects(model, data, qr, vr)
+        Muu = M[np.ix_(u, u)]
+        Mau = M[np.ix_(act, u)]
+        a_act = a[act] + self.sway_damping * Mau @ np.linalg.solve(Muu, vr[u])
+        a_u = -np.linalg.solve(Muu, Mau.T @ a_act + h[u])
+        tau[free[act]] = M[np.ix_(act, act)] @ a_act + Mau @ a_u + h[act]
+        return tau
