@@ -578,6 +578,8 @@ class _Run:
             # "momentum" law, never adding energy for e <= 1), whatever reset_rule says (the
             # report's "zero" rule is its law for link collisions; on a stop it can add energy).
             v_new, acted = self.reset(q, v, np.array([j]), rule="momentum")
+            if side * v_new[j] < 0.0:  # it bounced (e > 0): it leaves the stop, nothing to clamp
+                self.active.pop(("limit", j, side))
         lim = self.sys.upper[j] if side > 0 else self.sys.lower[j]
         ev_before, ev_after = self.energy(q, v), self.energy(q, v_new)
         self.events.append(
@@ -604,7 +606,8 @@ class _Run:
         for key in [k for k in self.active if k[0] == "limit"]:
             _, j, side = key
             lim = self.sys.upper[j] if side > 0 else self.sys.lower[j]
-            if side * (lim - y[j]) > 1e-6 and j not in self.locks.engaged:
+            # Left the stop (an engaged lock would keep a receding joint's speed: work done).
+            if side * (lim - y[j]) > 1e-6:
                 self.active.pop(key)
                 energy = self.energy(y[:n], y[n : 2 * n])
                 self.events.append(

@@ -442,3 +442,20 @@ def test_step_size_underflow_stops_with_the_result_attached(robot):
     assert exc.value.t <= 0.5
     assert exc.value.result is not None
     assert exc.value.result.t[-1] <= 0.5
+
+
+@pytest.mark.parametrize("e", [0.0, 0.5, 1.0])
+def test_limit_stops_never_add_energy(robot, e):
+    """Limit stops use a joint-space impulse on the stopped joint whatever reset_rule says;
+    with e > 0 the joint bounces off and is not clamped (an engaged lock on a receding joint
+    would do work). The whole run (no friction, no contacts) never gains energy."""
+    cfg = packbot.SimConfig(contact_mode="none", restitution=e, locked_joints=WRIST)
+    v0 = np.array([0.5, 1.5, -2.0, 2.5, 0, 0, 0, 0])
+    res = packbot.simulate(robot, robot.pose("stand"), v0, 2.0, config=cfg)
+    stops = res.events_of("limit")
+    assert len(stops) >= 2
+    for ev in stops:
+        assert ev.energy_after <= ev.energy_before + 1e-9 * abs(ev.energy_before)
+    assert res.energy.max() <= res.energy[0] + 1e-5 * abs(res.energy[0])  # integration error
+    if e == 1.0:  # elastic stops conserve energy
+        assert abs(res.energy[-1] - res.energy[0]) < 1e-4 * abs(res.energy[0])
