@@ -28,8 +28,9 @@ class SimConfig:
 
     Attributes:
         contact_mode: ``"joint_clamp"`` (the 2010 report's law: stop and clamp the joints between
-            the colliding bodies), ``"normal"`` (contact-normal constraints; not available yet),
-            or ``"none"`` (no collisions; joint limit stops still act if ``joint_limits``).
+            the colliding bodies), ``"normal"`` (contact-normal constraints on contact patches,
+            complementarity and Coulomb friction; see docs/contact.md), or ``"none"`` (no
+            collisions; joint limit stops still act if ``joint_limits``).
         restitution: Coefficient of restitution e in [0, 1] (0: perfectly inelastic).
         contact_tolerance: Contact tolerance [m]: a contact event fires when a pair's signed
             distance falls to +tol; the simulation keeps every distance >= -tol.
@@ -61,6 +62,11 @@ class SimConfig:
         effort_saturation: Clip commanded torques to the joints' effort limits [N*m].
         motor_lag: Time constant T of a first-order lag between the (saturated) command and the
             motor torque [s]; 0: no lag.
+        mu: Coulomb friction coefficient of every contact pair [-] (``contact_mode="normal"``
+            only; 0: frictionless).
+        zeno_speed: Impacts whose fastest approaching point is slower than this are perfectly
+            inelastic [m/s] (``"normal"`` only): ends a Zeno sequence of ever closer bounces
+            in resting contact.
     """
 
     contact_mode: ContactMode = "joint_clamp"
@@ -83,6 +89,8 @@ class SimConfig:
     joint_friction: bool = False
     effort_saturation: bool = True
     motor_lag: float = 0.0
+    mu: float = 0.0
+    zeno_speed: float = 1e-2
 
     def validate(self) -> None:
         """Check every field; raise :class:`ConfigurationError` naming the first bad one."""
@@ -131,9 +139,14 @@ class SimConfig:
             raise ConfigurationError("motor_lag", lag, "a finite time >= 0 [s] (0: no lag)")
         if not isinstance(self.max_events, int) or self.max_events < 1:
             raise ConfigurationError("max_events", self.max_events, "a positive integer")
-        if self.contact_mode == "normal":
+        for name in ("mu", "zeno_speed"):
+            v = getattr(self, name)
+            if not isinstance(v, (int, float)) or not math.isfinite(v) or v < 0:
+                raise ConfigurationError(name, v, "a finite number >= 0")
+        if self.contact_mode == "normal" and self.joint_friction:
             raise ConfigurationError(
-                "contact_mode",
-                self.contact_mode,
-                "'joint_clamp' or 'none': the contact-normal mode is not implemented yet",
+                "joint_friction",
+                self.joint_friction,
+                "False with contact_mode='normal' (joint stick/slip and contact forces are not "
+                "yet solved as one problem)",
             )

@@ -47,6 +47,7 @@ from packbot.collision import PairInfo
 from packbot.config import SimConfig
 from packbot.contact import JointLocks, clamp_directions, impact_reset, relevant_joints
 from packbot.contact.locks import TORQUE_BAND
+from packbot.contact.normal import PENETRATION_TOL, NormalContacts
 from packbot.control.base import Controller
 from packbot.environment import Environment
 from packbot.errors import (
@@ -180,6 +181,17 @@ class _Run:
         self.last_d: dict[int, float] = {}  # pair -> distance at the last kept state [m]
         self.pending_d: dict[int, float] = {}  # the same at the end of the step being checked
         self.pending_min: tuple[float, int] = (math.inf, -1)
+        self.normal: NormalContacts | None = None
+        if cfg.contact_mode == "normal":
+            self.normal = NormalContacts(
+                self.sys.model,
+                self.sys.data,
+                self.sys.world,
+                mu=cfg.mu,
+                restitution=cfg.restitution,
+                zeno_speed=cfg.zeno_speed,
+                contact_tolerance=cfg.contact_tolerance,
+            )
 
     def full_state(self, y: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
         """(q, v, tau_m) in full coordinates from an integrated state."""
@@ -239,6 +251,8 @@ class _Run:
         a = self.sys.aba(q, v, applied + friction)
         if len(self.locks.locked):
             a = self.locks.accelerations(a, self.sys.minv(q))
+        if self.normal is not None and self.normal.engaged:
+            a = self.normal.evaluate(q, v, a, self.sys.minv(q)).a
         if self.lag:
             return np.concatenate([v, a, (target - y[2 * n :]) / self.cfg.motor_lag])
         return np.concatenate([v, a])
@@ -318,7 +332,9 @@ class _Run:
             for p_idx, d1 in d_now.items():
                 key = ("pair", p_idx)
                 d0 = self.last_d.get(p_idx, math.inf)
-                if key in self.active:
+                if self.normal is not None:
+                    out.extend(self._normal_pair_crossing(key, p_idx, seg, d0, d1))
+                elif key in self.active:
                     if d1 > cfg.proximity_tolerance:
                         out.append(
                             self._pair_crossing(
@@ -344,6 +360,8 @@ class _Run:
                         )
                     )
             self.pending_d = d_now
+        if self.normal is not None and not self.normal.empty:
+            out.extend(self._normal_mode_crossings(seg, y1))
         if self.locks.held or any(len(s) == 1 for s in self.locks.signs.values()):
             cond1 = self.lock_conditions(seg.t1, y1)
             bad = [k for k, g in cond1.items() if g < 0.0]
@@ -368,6 +386,56 @@ class _Run:
 
             g0 = float(self.fdir[j] * seg.y0[n + j])
             out.append(_Crossing("stick", ("stick", j), gs, g0, float(self.fdir[j] * y1[n + j])))
+        return out
+
+    def _normal_pair_crossing(
+        self, key: tuple[Any, ...], p_idx: int, seg: DenseSegment, d0: float, d1: float
+    ) -> list[_Crossing]:
+        """Pair events of the normal mode: touch at d = 0, re-patch, leave the contact set."""
+        cfg = self.cfg
+        if key not in self.active:
+            if d1 <= 0.0:
+                return [self._pair_crossing("impact", key, p_idx, seg, d0, d1, lambda d: d)]
+            return []
+        if d1 > cfg.proximity_tolerance:
+            return [
+                self._pair_crossing(
+                    "release", key, p_idx, seg, d0, d1, lambda d: cfg.proximity_tolerance - d
+                )
+            ]
+        if d1 < -PENETRATION_TOL:
+            return [
+                self._pair_crossing(
+                    "repatch", key, p_idx, seg, d0, d1, lambda d: d + PENETRATION_TOL
+                )
+            ]
+        return []
+
+    def _normal_conditions(
+        self, t: float, y: FloatArray
+    ) -> dict[tuple[Any, ...], tuple[str, float]]:
+        assert self.normal is not None
+        n = self.n
+        q, v = y[:n], y[n : 2 * n]
+        a = self.free_accel(t, y)
+        ev = self.normal.evaluate(q, v, a, self.sys.minv(q))
+        return self.normal.conditions(ev)
+
+    def _normal_mode_crossings(self, seg: DenseSegment, y1: FloatArray) -> list[_Crossing]:
+        """Mode conditions of the normal mode that changed sign over the step."""
+        cond1 = self._normal_conditions(seg.t1, y1)
+        bad = [k for k, (_, g) in cond1.items() if g < 0.0]
+        if not bad:
+            return []
+        cond0 = self._normal_conditions(seg.t0, seg.y0)
+        out = []
+        for k in bad:
+
+            def gn(t: float, k: tuple[Any, ...] = k) -> float:
+                return self._normal_conditions(t, seg(t))[k][1]
+
+            g0 = cond0[k][1] if k in cond0 else 1.0
+            out.append(_Crossing(cond1[k][0], ("mode", *k), gn, g0, cond1[k][1]))
         return out
 
     def _pair_crossing(
@@ -404,6 +472,8 @@ class _Run:
 
     def handle(self, t: float, y: FloatArray, crossings: list[_Crossing]) -> FloatArray:
         """Apply the events at time t to state y; returns the post-event state."""
+        if self.normal is not None:
+            return self.handle_normal(t, y, crossings)
         n = self.n
         q, v = y[:n], y[n : 2 * n].copy()
         flip: int | None = None
@@ -436,6 +506,57 @@ class _Run:
         y_new = self.with_v(y, v)
         self.settle_modes(t, y_new, flip=flip, candidates=stick, log_stick=True)
         return y_new
+
+    def handle_normal(self, t: float, y: FloatArray, crossings: list[_Crossing]) -> FloatArray:
+        """Events of the normal mode: update the contact set, then impulse and modes."""
+        normal, world = self.normal, self.sys.world
+        assert normal is not None
+        n = self.n
+        q, v = y[:n], y[n : 2 * n].copy()
+        tail = y[2 * n :]
+        logged: list[tuple[str, PairInfo | None, float, tuple[str, ...]]] = []
+        for c in sorted(crossings, key=lambda c: c.key[0] != "mode"):
+            key = c.key
+            if key[0] == "pair":
+                assert world is not None
+                p_idx = key[1]
+                info = world.pairs[p_idx]
+                d = self.distance(p_idx, y)
+                if c.kind == "release":  # left the contact set (all its rows were free)
+                    self.active.pop(key, None)
+                    normal.remove_pair(p_idx)
+                    log.debug("t=%.6f: pair %s left the contact set", t, info.piece1)
+                    continue
+                if normal.add_pair(q, p_idx):
+                    self.active[key] = _Active(info, [])
+                logged.append((c.kind, info, d, ()))
+            elif key[0] == "limit":
+                _, j, side = key
+                lim = self.sys.upper[j] if side > 0 else self.sys.lower[j]
+                normal.add_limit(j, side, lim)
+                self.active[key] = _Active(None, [])
+                logged.append(("limit", None, float(side * (lim - q[j])), (self.sys.names[j],)))
+            else:  # ("mode", "nrow"/"nfric", index)
+                if key[1] == "nrow":
+                    owner, lim_key = normal.row_owner(key[2])
+                    joints: tuple[str, ...] = ()
+                    if lim_key is not None:
+                        joints = (self.sys.names[lim_key[0]],)
+                    logged.append((c.kind, owner, math.nan, joints))
+                else:
+                    logged.append((c.kind, normal.pairs[key[2]].info, math.nan, ()))
+
+        def a_free(qq: FloatArray, vv: FloatArray) -> FloatArray:
+            return self.free_accel(t, np.concatenate([qq, vv, tail]))
+
+        q, v_new, mode_events = normal.restart(q, v, a_free, self.sys.minv(q))
+        for kind, info, d, joints in logged:
+            self.log_event(t, kind, q, v, v_new, info, d=d, joints=joints)
+        for me in mode_events:
+            if any(me.kind == k and me.pair == i for k, i, _, _ in logged):
+                continue
+            self.log_event(t, me.kind, q, v_new, v_new, me.pair)
+        return np.concatenate([q, v_new, tail])
 
     def with_v(self, y: FloatArray, v: FloatArray) -> FloatArray:
         """The state y with its velocities replaced."""
@@ -607,7 +728,10 @@ class _Run:
             _, j, side = key
             lim = self.sys.upper[j] if side > 0 else self.sys.lower[j]
             # Left the stop (an engaged lock would keep a receding joint's speed: work done).
-            if side * (lim - y[j]) > 1e-6:
+            held = self.normal is not None and self.normal.limit_engaged(j, side)
+            if side * (lim - y[j]) > 1e-6 and not held:
+                if self.normal is not None:
+                    self.normal.remove_limit(j, side)
                 self.active.pop(key)
                 energy = self.energy(y[:n], y[n : 2 * n])
                 self.events.append(
@@ -846,6 +970,20 @@ class _Run:
         self.build_phase(qf, vf, tau_mf)
         self.initial_contacts(t, check=False)
 
+    def refresh_sliding(self) -> None:
+        """Normal mode: re-patch sliding contacts after an accepted step (no event logged)."""
+        assert self.normal is not None
+        n, t = self.n, self.t
+        q, v, tail = self.y[:n], self.y[n : 2 * n], self.y[2 * n :]
+
+        def a_free(qq: FloatArray, vv: FloatArray) -> FloatArray:
+            return self.free_accel(t, np.concatenate([qq, vv, tail]))
+
+        q = self.normal.repatch(q, v, a_free, self.sys.minv(q))
+        self.y = np.concatenate([q, v, tail])
+        self.diag.restarts += 1
+        self.stepper.reset(t, self.y, h=max(self.stepper.h, 1e-6))
+
     def step_limit(self) -> float:
         """Largest step keeping every point's motion within half the query margin [s]."""
         if self.sys.world is None:
@@ -875,6 +1013,9 @@ class _Run:
                     self.last_d = self.pending_d
                     self.note_min(*self.pending_min)
                 self.release_limits(self.y)
+                n = self.n
+                if self.normal is not None and self.normal.sliding(y1[:n], y1[n : 2 * n]):
+                    self.refresh_sliding()
                 if on_schedule:
                     self.run_scheduled(self.t)
                     self.record_due(self.t, self.y)
@@ -940,6 +1081,13 @@ def _check_inputs(
         raise ConfigurationError("failures", failures, "a list of packbot.Failure")
     validate_failures(list(failures), robot.joint_names)
     for f in failures:
+        if f.kind == "brake" and config.contact_mode == "normal":
+            raise ConfigurationError(
+                "failures",
+                f"{f.joint}: brake",
+                "no brake failure with contact_mode='normal' (joint holds and contact forces "
+                "are not yet solved as one problem)",
+            )
         if f.joint in config.locked_joints:
             raise ConfigurationError(
                 "failures", f.joint, "a joint that is not in config.locked_joints"

@@ -22,6 +22,8 @@ EventKind = Literal[
     "disengage",
     "slip",
     "stick",
+    "repatch",
+    "painleve",
     "failure",
     "freeze",
     "pick",
@@ -35,8 +37,12 @@ EVENT_KINDS: tuple[str, ...] = (
     "secondary_intersection",  # an active, clamped pair penetrated anyway (report's self-diagnosis)
     "engage",  # a clamped joint started to accelerate toward its contact: its lock engaged
     "disengage",  # a locked joint's constraint torque would pull: its lock let go
-    "slip",  # a joint held by static friction or a brake needed more than its holding torque
-    "stick",  # a sliding joint with Coulomb friction stopped and its holding torque suffices
+    "slip",  # a joint held by static friction or a brake needed more than its holding torque;
+    # normal mode: a sticking contact's friction force reached the cone (link1/link2: the pair)
+    "stick",  # a sliding joint with Coulomb friction stopped and its holding torque suffices;
+    # normal mode: a sliding contact stopped sliding (friction holds it)
+    "repatch",  # normal mode: a pair in contact penetrated: its patch was recomputed
+    "painleve",  # normal mode: no consistent contact forces (friction): handled impulsively
     "failure",  # a joint failure was injected (link1: joint, link2: kind)
     "freeze",  # the impulse that stops a freezing joint (link1: joint; distance: its angle)
     "pick",  # the payload was picked up (generalized momentum kept)

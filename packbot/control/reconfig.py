@@ -19,11 +19,19 @@
    - loose joint: the joint is unactuated (zero command). A static pose then needs zero gravity
      torque on the loose joint, so the new goal is solved for jointly: the frame at the target
      and the loose joint at a *stable* equilibrium (d g_u / d q_u > 0), by bounded least
-     squares (``scipy.optimize.least_squares``); the actuated joints follow it by collocated
-     partial feedback linearisation (the loose joint's acceleration eliminated from the
-     dynamics), with an added swing damper: the actuated joints accelerate by
-     ``sway_damping * M_au v_u / M_uu``, which adds -sway_damping (M_ua M_au / M_uu^2) v_u to the
-     loose joint's acceleration (energy leaves the swing through the coupling).
+     squares (``scipy.optimize.least_squares``), keeping the loose joint at least
+     ``loose_margin`` from its stops (room for the swing); the actuated joints follow it by
+     collocated partial feedback linearisation (the loose joint's acceleration eliminated from
+     the dynamics), with a swing damper. The swing psi is the loose joint's angle relative to
+     its equilibrium, which moves with the actuated joints: psi' = v_u + G_uu^-1 G_ua v_a
+     (G = dg/dq). Under PFL, psi'' = B a_a + ..., B = G_uu^-1 G_ua - M_uu^-1 M_ua. The joints
+     that carry the loose joint (its pivot) track the planned move plus an offset delta,
+     ``delta'' = -sway_damping B^T psi' - swing_return^2 delta - 2 swing_return delta'``,
+     which adds about -sway_damping B B^T psi' to the swing's acceleration at its frequency
+     while delta returns to zero at the slower ``swing_return`` rate. The damper shapes the
+     tracking reference, so that the tracking loop does not cancel it. The loose goal moves
+     only the loose joint and the joints that carry it and is collision free for swings of
+     +/- ``swing_check``.
 
 Other failure kinds (weak, stuck, brake) are logged and not reconfigured.
 """
@@ -114,6 +122,12 @@ class ReconfigurableController(ModelBasedController):
         ik_seeds: Random restarts of IK when the first solution is rejected.
         seed: Seed of the restarts.
         sway_damping: Gain of the loose-link swing damper [1/s].
+        swing_return: Natural frequency at which the damper's offset of the pivot joints
+            returns to the planned move [rad/s] (well below the swing's frequency).
+        swing_check: A planned rest of a loose joint must stay collision free (with the
+            clearance) for any swing of the loose joint within +/- this angle [rad].
+        loose_margin: Smallest distance of a loose joint's planned rest angle to its stops
+            [rad].
         dt: Control period [s].
         sensor: Measurement model.
         gravity: Gravity the controller assumes [m/s^2].
@@ -144,7 +158,10 @@ class ReconfigurableController(ModelBasedController):
         environment: Environment | None = None,
         ik_seeds: int = 30,
         seed: int = 0,
-        sway_damping: float = 5.0,
+        sway_damping: float = 4.0,
+        swing_return: float = 2.5,
+        swing_check: float = 0.3,
+        loose_margin: float = 0.5,
         dt: float = 1e-3,
         sensor: Sensor | None = None,
         gravity: Sequence[float] = DEFAULT_GRAVITY,
@@ -173,6 +190,9 @@ class ReconfigurableController(ModelBasedController):
             raise ConfigurationError("controller.seed", seed, "an integer")
         self.seed = seed
         self.sway_damping = _num(sway_damping, "controller.sway_damping", positive=False)
+        self.swing_return = _num(swing_return, "controller.swing_return")
+        self.swing_check = _num(swing_check, "controller.swing_check", positive=False)
+        self.loose_margin = _num(loose_margin, "controller.loose_margin", positive=False)
         self.target = np.zeros(3)
         self.threshold = np.zeros(0)
         self.events: list[ReconfigEvent] = []
@@ -185,9 +205,13 @@ class ReconfigurableController(ModelBasedController):
         self._tau_prev = np.zeros(0)
         self._free = np.zeros(0, dtype=int)  # joints of the tracking model (not frozen)
         self._loose = np.zeros(0, dtype=int)  # indices into the full q
+        self._pivot = np.zeros(0, dtype=int)  # actuated joints that carry a loose joint
         self._track_model: pin.Model | None = None
         self._track_data: pin.Data | None = None
         self._traj: QuinticSegment | None = None
+        self._delta = np.zeros(0)  # swing damper's offset of the free joints [rad]
+        self._delta_v = np.zeros(0)  # its rate [rad/s]
+        self._t_last: float | None = None
         self._rng = np.random.default_rng(seed)
 
     # ------------------------------------------------------------------ setup
@@ -225,6 +249,7 @@ class ReconfigurableController(ModelBasedController):
         self._loose = np.zeros(0, dtype=int)
         self._track_model, self._track_data = model, model.createData()
         self._tau_prev = np.zeros(n)
+        self._delta, self._delta_v, self._t_last = np.zeros(n), np.zeros(n), None
         self.observer = None
         if self.detect:
             self.observer = MomentumObserver(
@@ -248,9 +273,24 @@ class ReconfigurableController(ModelBasedController):
         parent = model.frames[fid].parentJoint
         return sorted(model.joints[j].idx_q for j in model.supports[parent] if j > 0)
 
+    def _ancestors(self, j: int) -> set[int]:
+        """Indices (into q) of the joints that carry joint ``j`` (``j`` excluded)."""
+        model, _ = self._md()
+        jid = model.getJointId(model.names[1 + j])
+        return {model.joints[i].idx_q for i in model.supports[jid] if 0 < i != jid}
+
     def _clear(self, q_full: FloatArray) -> bool:
         assert self._world is not None
         return not self._world.in_collision(q_full, self.clearance)
+
+    def _swing_clear(self, q_full: FloatArray, loose: int, samples: int = 9) -> bool:
+        """Collision free with the loose joint anywhere within +/- swing_check of q_full."""
+        for dq in np.linspace(-self.swing_check, self.swing_check, samples):
+            qq = q_full.copy()
+            qq[loose] += dq
+            if not self._clear(qq):
+                return False
+        return True
 
     def _path_clear(self, qa: FloatArray, qb: FloatArray, samples: int = 20) -> bool:
         return all(self._clear(qa + s * (qb - qa)) for s in np.linspace(0.0, 1.0, samples)[1:])
@@ -306,9 +346,18 @@ class ReconfigurableController(ModelBasedController):
     def _solve_loose_goal(self, q: FloatArray, loose: int) -> tuple[FloatArray, str]:
         """Goal with the loose joint at a stable equilibrium and the frame at the target."""
         model, data = self._md()
-        active = [j for j in self._frame_joints(model) if j not in self.failed or j == loose]
+        # The loose joint and the joints that carry it place the frame (the others keep their
+        # angles); if the loose joint does not carry the frame, all the frame's joints do.
+        frame_joints = set(self._frame_joints(model))
+        carry = self._ancestors(loose) | {loose}
+        movers = frame_joints & carry if loose in frame_joints else frame_joints | {loose}
+        active = sorted(j for j in movers if j not in self.failed or j == loose)
         lower = np.asarray(model.lowerPositionLimit)[active]
         upper = np.asarray(model.upperPositionLimit)[active]
+        k_loose = active.index(loose)
+        room = 0.5 * (upper[k_loose] - lower[k_loose])
+        lower[k_loose] += min(self.loose_margin, room - 1e-6)
+        upper[k_loose] -= min(self.loose_margin, room - 1e-6)
         g_scale = 10.0  # [N*m per m]: weight of the equilibrium residual
 
         def resid(x: FloatArray) -> FloatArray:
@@ -338,7 +387,7 @@ class ReconfigurableController(ModelBasedController):
             qq = q.copy()
             qq[active] = sol.x
             r = resid(sol.x)
-            if abs(r[3]) * g_scale > 1e-3 or not stable(qq) or not self._clear(qq):
+            if abs(r[3]) * g_scale > 1e-3 or not stable(qq) or not self._swing_clear(qq, loose):
                 continue
             err = float(np.linalg.norm(r[:3]))
             if best is None or err < best[0] - 1e-6:
@@ -388,6 +437,15 @@ class ReconfigurableController(ModelBasedController):
         frozen = sorted(i for i, k in self.failed.items() if k == "frozen")
         self._free = np.array([i for i in range(model.nq) if i not in frozen], dtype=int)
         self._loose = np.array(sorted(i for i, k in self.failed.items() if k == "loose"), dtype=int)
+        self._pivot = np.array(
+            [
+                i
+                for i in sorted(set().union(*(self._ancestors(int(k)) for k in self._loose)))
+                if i not in self.failed
+            ],
+            dtype=int,
+        )
+        self._delta[:], self._delta_v[:], self._t_last = 0.0, 0.0, None
         if frozen:
             ids = [model.getJointId(self.robot.joint_names[i]) for i in frozen]
             red = pin.buildReducedModel(model, ids, q)
@@ -444,7 +502,7 @@ class ReconfigurableController(ModelBasedController):
             tau[free] = pin.rnea(model, data, qr, vr, a)
             return tau
         # Collocated partial feedback linearisation: the loose joints' accelerations follow
-        # from the actuated ones; a swing damper moves the actuated joints against the swing.
+        # from the actuated ones; a swing damper offsets the pivot joints' reference by delta.
         u = np.searchsorted(free, self._loose)
         act = np.setdiff1d(np.arange(len(free)), u)
         M = pin.crba(model, data, qr)
@@ -452,7 +510,25 @@ class ReconfigurableController(ModelBasedController):
         h = pin.nonLinearEffects(model, data, qr, vr)
         Muu = M[np.ix_(u, u)]
         Mau = M[np.ix_(act, u)]
-        a_act = a[act] + self.sway_damping * Mau @ np.linalg.solve(Muu, vr[u])
+        # Swing psi: the loose joints' angle relative to their equilibrium, which moves with the
+        # actuated joints (dq_eq/dq_a = -G_uu^-1 G_ua, G = dg/dq): following the pivot
+        # quasi-statically is not a swing. psi'' = B a_act + ..., B = G_uu^-1 G_ua - M_uu^-1 M_ua;
+        # the damper accelerates the pivot joints by -k B^T psi' (psi'' gains -k B B^T psi').
+        G = pin.computeGeneralizedGravityDerivatives(model, data, qr)
+        Guu = G[np.ix_(u, u)]
+        B = np.linalg.solve(Guu, G[np.ix_(u, act)]) - np.linalg.solve(Muu, Mau.T)
+        swing = vr[u] + np.linalg.solve(Guu, G[np.ix_(u, act)] @ vr[act])
+        pivot = np.isin(free[act], self._pivot)
+        push = np.where(pivot, -self.sway_damping * B.T @ swing, 0.0)
+        d, dv = self._delta[free[act]], self._delta_v[free[act]]
+        wr = self.swing_return
+        dd = push - wr**2 * d - 2.0 * wr * dv
+        h_tick = 0.0 if self._t_last is None else max(t - self._t_last, 0.0)
+        self._t_last = t
+        dv = dv + h_tick * dd
+        d = d + h_tick * dv
+        self._delta[free[act]], self._delta_v[free[act]] = d, dv
+        a_act = a[act] + dd + kp * d + kd * dv
         a_u = -np.linalg.solve(Muu, Mau.T @ a_act + h[u])
         tau[free[act]] = M[np.ix_(act, act)] @ a_act + Mau @ a_u + h[act]
         return tau

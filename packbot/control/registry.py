@@ -11,7 +11,8 @@
   posture, k_posture, damping, omega_posture, pinv_damping);
 - ``reconfig``: :class:`ReconfigurableController` (target, frame, speed_fraction, min_move_time,
   omega, zeta, detect, reconfigure, observer_gain, threshold, persistence, frozen_speed,
-  clearance, ik_seeds, seed, sway_damping); see :data:`CONTROLLER_PARAMS`.
+  clearance, ik_seeds, seed, sway_damping, swing_return, swing_check,
+  loose_margin); see :data:`CONTROLLER_PARAMS`.
 
 Every kind also takes ``dt`` (control period [s]), ``gravity`` (3 numbers [m/s^2], which must
 match the simulation's) and ``sensor`` (a table: resolution, noise_q, noise_v, seed). Vectors are
@@ -84,6 +85,9 @@ CONTROLLER_PARAMS: dict[str, tuple[str, ...]] = {
         "ik_seeds",
         "seed",
         "sway_damping",
+        "swing_return",
+        "swing_check",
+        "loose_margin",
     ),
 }
 #: The valid controller kinds.

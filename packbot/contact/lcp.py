@@ -1,0 +1,190 @@
+"""Small dense complementarity solvers for the contact-normal mode, with residual checks.
+
+The linear complementarity problem LCP(G, q): find z >= 0 with w = G z + q >= 0 and z . w = 0.
+
+- :func:`solve_lcp_psd`: G symmetric positive semi-definite (a Delassus matrix J M^-1 J^T,
+  possibly rank-deficient: a contact patch has more rows than its body has freedoms). Written
+  as a non-negative least-squares problem (G = A A^T by ``eigh``, q = A c, then
+  min ||A^T z + c||, z >= 0 by ``scipy.optimize.nnls``); the Lawson-Hanson active set keeps the
+  support's rows independent, so the solution is a *basic* one (its engaged rows have a
+  non-singular Delassus block).
+- :func:`lemke`: any matrix with a solution (P0, copositive-plus), e.g. the non-symmetric
+  matrix of a problem with sliding friction; complementary pivoting.
+- :func:`lcp_residual`: the true residual max(-min z, -min w, |z . w|), scaled; never trust a
+  solver's own convergence flag.
+
+And the frictional impact problem on Pinocchio's solver, :func:`solve_ncp_admm`: point-contact
+constraint models whose cone axis (z of ``joint1_placement``) is the contact normal, a fresh
+``DelassusOperatorDense`` per solve (ADMM leaves its damping inside the operator), and the
+residual checked here.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pinocchio as pin
+from numpy.typing import NDArray
+from scipy.optimize import nnls
+
+__all__ = ["lcp_residual", "lemke", "ncp_residual", "solve_lcp_psd", "solve_ncp_admm"]
+
+FloatArray = NDArray[np.float64]
+
+
+def lcp_residual(G: FloatArray, q: FloatArray, z: FloatArray) -> float:
+    """Residual of an LCP solution, relative to the problem's scale [-].
+
+    Returns:
+        max(-min z, -min w, |z . w|) / (1 + |q|_inf + |G z|_inf), w = G z + q.
+    """
+    if len(q) == 0:
+        return 0.0
+    w = G @ z + q
+    scale = 1.0 + float(np.abs(q).max()) + float(np.abs(G @ z).max())
+    res = max(-float(z.min()), -float(w.min()), abs(float(z @ w)) / scale, 0.0)
+    return res / scale
+
+
+def solve_lcp_psd(G: FloatArray, q: FloatArray) -> FloatArray:
+    """Solve LCP(G, q) for a symmetric positive semi-definite G by non-negative least squares.
+
+    Exact when q lies in the range of G (always for a Delassus matrix and a velocity or
+    acceleration that the constrained bodies can produce); otherwise the least-squares
+    solution, which the caller's residual check catches.
+
+    Args:
+        G: Symmetric PSD matrix, shape (m, m).
+        q: Vector, shape (m,).
+
+    Returns:
+        z, shape (m,), with a basic (independent) support.
+    """
+    m = len(q)
+    if m == 0 or np.all(q >= 0.0):
+        return np.zeros(m)
+    w, V = np.linalg.eigh(0.5 * (G + G.T))
+    keep = w > 1e-12 * max(float(w.max()), 1e-300)
+    A = V[:, keep] * np.sqrt(w[keep])  # G = A A^T
+    c = np.linalg.lstsq(A, q, rcond=None)[0]  # q = A c
+    z, _ = nnls(A.T, -c, maxiter=50 * m)
+    return np.asarray(z, dtype=np.float64)
+
+
+def lemke(
+    M: FloatArray, q: FloatArray, max_iter: int = 200, tol: float = 1e-12
+) -> FloatArray | None:
+    """Lemke's complementary pivoting for LCP(M, q).
+
+    Args:
+        M: Matrix, shape (m, m) (need not be symmetric).
+        q: Vector, shape (m,).
+        max_iter: Pivot limit.
+        tol: Pivot tolerance.
+
+    Returns:
+        z, or None on ray termination or the pivot limit (no solution found: for a contact
+        problem, a Painleve configuration).
+    """
+    n = len(q)
+    if n == 0 or np.all(q >= 0.0):
+        return np.zeros(n)
+    T = np.hstack([np.eye(n), -M, -np.ones((n, 1)), q.reshape(-1, 1)]).astype(float)
+    basis = list(range(n))
+    r = int(np.argmin(q))
+    entering = 2 * n
+    for _ in range(max_iter):
+        T[r] /= T[r, entering]
+        col = T[:, entering].copy()
+        col[r] = 0.0
+        T -= np.outer(col, T[r])
+        leaving = basis[r]
+        basis[r] = entering
+        if leaving == 2 * n:
+            z = np.zeros(2 * n + 1)
+            for i, b in enumerate(basis):
+                z[b] = T[i, -1]
+            return np.maximum(z[n : 2 * n], 0.0)
+        entering = leaving + n if leaving < n else leaving - n
+        col = T[:, entering]
+        mask = col > tol
+        if not np.any(mask):
+            return None
+        ratios = np.full(n, np.inf)
+        ratios[mask] = T[mask, -1] / col[mask]
+        rmin = ratios.min()
+        cands = np.flatnonzero(ratios <= rmin + 1e-12 * (1.0 + abs(rmin)))
+        r = next((int(c) for c in cands if basis[c] == 2 * n), int(cands[0]))
+    return None
+
+
+def ncp_residual(G3: FloatArray, g3: FloatArray, x: FloatArray, mus: FloatArray) -> float:
+    """Residual of a frictional contact problem's solution (blocks (t1, t2, n)), scaled [-].
+
+    The maximum of the primal cone violation (|x_t| - mu x_n), the dual cone violation of the
+    De Saxce-shifted velocity and the complementarity |x . v'|, over 1 + |g3| + |G3 x|.
+    """
+    if len(g3) == 0:
+        return 0.0
+    v = G3 @ x + g3
+    X, V = x.reshape(-1, 3), v.reshape(-1, 3)
+    xt = np.linalg.norm(X[:, :2], axis=1)
+    vt = np.linalg.norm(V[:, :2], axis=1)
+    vn_shift = V[:, 2] + mus * vt
+    primal = np.maximum(xt - mus * X[:, 2], -X[:, 2]).max()
+    dual = np.maximum(-vn_shift, 0.0).max()
+    # dual cone of the mu-cone: mu |v_t| <= v_n' (after the shift): |v_t| mu <= vn_shift
+    dual = max(dual, float(np.maximum(mus * vt - vn_shift, 0.0).max()) if np.any(mus) else dual)
+    compl = abs(float((X[:, :2] * V[:, :2]).sum() + X[:, 2] @ vn_shift))
+    scale = 1.0 + float(np.abs(g3).max()) + float(np.abs(G3 @ x).max())
+    return float(max(primal, dual, compl / scale, 0.0)) / scale
+
+
+def solve_ncp_admm(
+    model: pin.Model,
+    data: pin.Data,
+    G3: FloatArray,
+    g3: FloatArray,
+    mus: FloatArray,
+    *,
+    tol: float = 1e-10,
+    max_iterations: int = 5000,
+) -> tuple[FloatArray, float]:
+    """Frictional contact problem on Pinocchio's ADMM solver, with a fresh Delassus operator.
+
+    The problem: x_k in the cone of friction mu_k (blocks (t1, t2, n), n the normal), v = G3 x +
+    g3, the De Saxce-shifted v in the dual cone, complementary. The constraint models only
+    supply the cones (their Jacobians are not used: G3 and g3 come from the caller); each is a
+    ``PointContactConstraintModel`` of the universe on itself whose cone axis is z.
+
+    Args:
+        model: Any Pinocchio model (the constraint models need one).
+        data: Its data.
+        G3: Delassus matrix, shape (3K, 3K).
+        g3: Free velocity (or acceleration), shape (3K,).
+        mus: Friction coefficient per block, shape (K,).
+        tol: Solver tolerance.
+        max_iterations: Iteration limit.
+
+    Returns:
+        x (shape (3K,)) and its true residual (:func:`ncp_residual`).
+    """
+    K = len(mus)
+    cms = pin.StdVec_ConstraintModel()
+    cds = pin.StdVec_ConstraintData()
+    eye = pin.SE3.Identity()
+    for mu in mus:
+        cm = pin.PointContactConstraintModel(model, 0, eye, 0, eye)
+        cm.setFriction(float(mu))
+        gcm = pin.ConstraintModel(cm)
+        cms.append(gcm)
+        cds.append(gcm.createData())
+    D = pin.DelassusOperatorDense(np.ascontiguousarray(0.5 * (G3 + G3.T)))  # fresh: see above
+    solver = pin.ADMMConstraintSolver(3 * K)
+    res = pin.ADMMSolverResult()
+    st = pin.ADMMSolverSettings()
+    st.absolute_feasibility_tol = st.relative_feasibility_tol = tol
+    st.absolute_complementarity_tol = st.relative_complementarity_tol = tol
+    st.max_iterations = max_iterations
+    solver.solve(D, np.ascontiguousarray(g3), cms, cds, st, res)
+    x = np.array(res.retrieveConstraintImpulses(), dtype=np.float64)
+    return x, ncp_residual(G3, g3, x, np.asarray(mus, dtype=float))

@@ -1,0 +1,776 @@
+"""The contact-normal mode (``contact_mode="normal"``): patches, complementarity, Coulomb friction.
+
+**Rows.** Each touching pair is represented by its contact patch (Coal's ``computeContactPatch``:
+4 points face on face, 2 edge on face, 1 vertex on face), one *normal row* per patch point. A
+point is stored as two material points, p1 on body 1 and p2 on body 2 (in their joint frames),
+and the normal n in body 2's frame; its gap is g = n . (p2 - p1) [m] and its normal Jacobian
+J_n = n^T (J_p2 - J_p1), so g' = J_n v (n points from body 1 to body 2: g' > 0 separates). A
+joint at a position limit adds a row too: gap s (limit - q_j) [rad], J = -s e_j (s = +1 upper,
+-1 lower). The patches are recomputed at every restart.
+
+**Forces.** Contact forces lambda_k >= 0 act along the normals: M a = tau - h + J_n^T lambda (+
+friction). Coulomb friction (coefficient mu) acts per pair at the patch centre: a *sticking*
+pair has two tangential rows (zero relative tangential acceleration, force lambda_t free,
+checked against the cone |lambda_t| <= mu sum(lambda_n)); on a *slipping* pair each point's
+friction force is -mu lambda_k s, s the unit sliding direction of body 2 relative to body 1.
+
+**Modes.** Inside an integration step the modes are fixed: which normal rows are engaged
+(a_n = 0, lambda free) and which pairs stick or slip; the right-hand side then solves a small
+linear system (smooth, so steps stay long). A light Baumgarte term (a_n = -2 w g' - w^2 g with
+w = :data:`BAUMGARTE`) holds the engaged gaps at zero against integration drift. At the end of
+every step the mode conditions are checked; a violated one is an event located by root finding:
+
+- an engaged row's force would pull (lambda < 0): ``release``;
+- a free row of a pair in contact penetrates (g < -:data:`POINT_TOL`): ``impact``;
+- a sticking pair's force leaves the cone: ``slip``;
+- a slipping pair's sliding speed falls through zero: ``stick``.
+
+**Restart.** After every event the patches are recomputed, then:
+
+1. *impulse*: every row touching (g <= :data:`TOUCH_GAP`) takes part in one impulse problem,
+   Newton's law per row with restitution e (0 below the Zeno speed
+   :attr:`SimConfig.zeno_speed`: a bounce so slow becomes resting contact); frictionless, an LCP
+   on the Delassus matrix G = J M^-1 J^T (:func:`packbot.contact.lcp.solve_lcp_psd`); with
+   friction, Pinocchio's ADMM on point-contact cones
+   (:func:`packbot.contact.lcp.solve_ncp_admm`); residuals checked;
+2. *modes*: the acceleration-level problem with the touching rows (lambda >= 0, a_n >= 0,
+   complementary), sticking pairs' tangential rows eliminated, sliding friction making it
+   non-symmetric (Lemke); a sticking pair whose force leaves the cone is switched to slip and
+   the problem solved again. No solution (Painleve: friction making the problem inconsistent)
+   is logged as an event and handled impulsively: the sliding pairs are stopped by a
+   frictional impulse and the problem is solved with them sticking.
+
+The engaged rows are the support of the solution, which both solvers return *basic* (the
+engaged rows' Delassus block is non-singular even on a rank-deficient patch).
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass, field
+from typing import Any
+
+import coal
+import numpy as np
+import pinocchio as pin
+from numpy.typing import NDArray
+
+from packbot.collision import CollisionWorld, PairInfo
+from packbot.contact.lcp import lcp_residual, lemke, solve_lcp_psd, solve_ncp_admm
+
+__all__ = [
+    "BAUMGARTE",
+    "FORCE_BAND",
+    "PENETRATION_TOL",
+    "POINT_TOL",
+    "SPEED_BAND",
+    "TOUCH_GAP",
+    "ModeEvent",
+    "NormalContacts",
+]
+
+log = logging.getLogger(__name__)
+
+FloatArray = NDArray[np.float64]
+
+#: A row takes part in the impulse and acceleration problems when its gap is below this [m].
+TOUCH_GAP = 1e-5
+#: A free row of a pair in contact is an impact when its gap falls below -POINT_TOL [m].
+POINT_TOL = 1e-6
+#: A pair in contact whose signed distance falls below -PENETRATION_TOL [m] is re-patched (its
+#: patch no longer describes the touching features).
+PENETRATION_TOL = 1e-5
+#: Hysteresis of the force conditions [N] (release, cone).
+FORCE_BAND = 1e-6
+#: Sliding speed below which a pair may stick, and hysteresis of the stick condition [m/s].
+SPEED_BAND = 1e-6
+#: A pair may start sticking when its sliding speed is below this [m/s] (the stick mode's
+#: velocity term removes the rest).
+STICK_SPEED = 1e-4
+#: Stiffness of the drift correction [rad/s] (a_n = -2 w g' - w^2 g on engaged rows).
+BAUMGARTE = 20.0
+#: Largest acceptable scaled residual of a complementarity solution [-].
+RESIDUAL_TOL = 1e-7
+
+
+@dataclass
+class _Pair:
+    """A pair in contact: its patch as material points and its friction mode."""
+
+    info: PairInfo
+    local1: FloatArray  # (K, 3) points on body 1, joint1 frame [m]
+    local2: FloatArray  # (K, 3) points on body 2, joint2 frame [m]
+    normal2: FloatArray  # (3,) normal in joint2 frame
+    stick: bool = True
+    slip_dir: FloatArray = field(default_factory=lambda: np.zeros(3))  # world, at onset
+
+
+@dataclass
+class ModeEvent:
+    """A mode change found at a restart (for the event log).
+
+    Attributes:
+        kind: ``"stick"``, ``"slip"``, ``"release"`` or ``"painleve"``.
+        pair: The pair (None for a limit row).
+        detail: Extra text (a limit row's joint).
+    """
+
+    kind: str
+    pair: PairInfo | None
+    detail: str = ""
+
+
+@dataclass
+class _Eval:
+    """The constrained dynamics at one state with the modes fixed."""
+
+    a: FloatArray
+    lam: FloatArray  # forces of the engaged normal rows then the stick rows
+    gap: FloatArray  # every row
+    vn: FloatArray  # every row
+    vt: list[FloatArray]  # per pair: relative tangential velocity at the centre (world)
+
+
+class NormalContacts:
+    """The contact set of the normal mode, its modes, and the constrained dynamics.
+
+    Args:
+        model: The Pinocchio model integrated (reduced if joints are locked).
+        data: Its data (shared with the system: every call recomputes what it reads).
+        world: The collision world.
+        mu: Coulomb friction coefficient of every pair [-].
+        restitution: Coefficient of restitution e [-].
+        zeno_speed: Impacts slower than this are inelastic [m/s].
+        contact_tolerance: Security margin of the patch query [m].
+    """
+
+    def __init__(
+        self,
+        model: pin.Model,
+        data: pin.Data,
+        world: CollisionWorld | None,
+        *,
+        mu: float,
+        restitution: float,
+        zeno_speed: float,
+        contact_tolerance: float,
+    ) -> None:
+        self.model, self.data, self.world = model, data, world
+        self.mu = float(mu)
+        self.e = float(restitution)
+        self.zeno_speed = float(zeno_speed)
+        self.tol = float(contact_tolerance)
+        self.nv = int(model.nv)
+        self.pairs: dict[int, _Pair] = {}
+        self.limits: dict[tuple[int, int], float] = {}  # (joint, side) -> limit [rad]
+        self.engaged: list[int] = []  # row indices
+        self.zero_a = np.zeros(self.nv)
+        self.n_painleve = 0
+
+    # ------------------------------------------------------------------ set
+    @property
+    def empty(self) -> bool:
+        """No pair and no limit in contact."""
+        return not self.pairs and not self.limits
+
+    def add_pair(self, q: FloatArray, pair: int) -> bool:
+        """Put a pair in contact (or refresh its patch); False if it is not within tolerance."""
+        assert self.world is not None
+        patch = self.world.contact_patch(q, pair, self.tol)
+        pin.forwardKinematics(self.model, self.data, q)
+        if patch is None:
+            return False
+        old = self.pairs.get(pair)
+        info = patch.pair
+        M1 = self._placement(info.joint1)
+        M2 = self._placement(info.joint2)
+        mid = 0.5 * (patch.points1 + patch.points2)
+        gm, gd = self.world.geom_model, self.world.geom_data
+        pts1 = _lift(
+            gm.geometryObjects[info.geom1].geometry, gd.oMg[info.geom1], mid, patch.normal, 1.0
+        )
+        pts2 = _lift(
+            gm.geometryObjects[info.geom2].geometry, gd.oMg[info.geom2], mid, patch.normal, -1.0
+        )
+        if pts1 is None or pts2 is None:
+            pts1, pts2 = patch.points1, patch.points2
+        local1 = (pts1 - M1.translation) @ M1.rotation
+        local2 = (pts2 - M2.translation) @ M2.rotation
+        normal2 = M2.rotation.T @ patch.normal
+        p = _Pair(info, local1, local2, normal2)
+        if old is not None:
+            p.stick, p.slip_dir = old.stick, old.slip_dir
+        self.pairs[pair] = p
+        return True
+
+    def remove_pair(self, pair: int) -> None:
+        """Take a pair out of the contact set."""
+        self.pairs.pop(pair, None)
+        self.engaged = []
+
+    def add_limit(self, joint: int, side: int, limit: float) -> None:
+        """Put a joint position limit in contact (side +1: upper, -1: lower)."""
+        self.limits[(joint, side)] = float(limit)
+
+    def remove_limit(self, joint: int, side: int) -> None:
+        """Take a limit out of the contact set (its row must not be engaged)."""
+        keys = list(self.limits)
+        if (joint, side) not in self.limits:
+            return
+        row = sum(len(p.local1) for p in self.pairs.values()) + keys.index((joint, side))
+        self.limits.pop((joint, side))
+        self.engaged = [r if r < row else r - 1 for r in self.engaged if r != row]
+
+    def limit_engaged(self, joint: int, side: int) -> bool:
+        """Whether a limit's row is engaged."""
+        if (joint, side) not in self.limits:
+            return False
+        row = sum(len(p.local1) for p in self.pairs.values()) + list(self.limits).index(
+            (joint, side)
+        )
+        return row in self.engaged
+
+    def _placement(self, joint: int) -> pin.SE3:
+        return self.data.oMi[joint] if joint > 0 else pin.SE3.Identity()
+
+    def refresh(self, q: FloatArray) -> None:
+        """Recompute every pair's patch at q (drops pairs no longer within tolerance)."""
+        for k in list(self.pairs):
+            if not self.add_pair(q, k):
+                self.pairs.pop(k)
+        self.engaged = []
+
+    def row_owner(self, row: int) -> tuple[PairInfo | None, tuple[int, int] | None]:
+        """The pair or the limit (joint, side) of a row."""
+        k = 0
+        for p in self.pairs.values():
+            n = len(p.local1)
+            if row < k + n:
+                return p.info, None
+            k += n
+        return None, list(self.limits)[row - k]
+
+    # ------------------------------------------------------------------ kinematics
+    def _kinematics(
+        self, q: FloatArray, v: FloatArray
+    ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray, list[dict[str, Any]]]:
+        """Rows of every contact: J_n (m, nv), drift (m,), gap (m,), v_n (m,).
+
+        And per pair the tangential rows and the velocities at the patch centre.
+        """
+        model, data = self.model, self.data
+        pin.forwardKinematics(model, data, q, v, self.zero_a)
+        pin.computeJointJacobians(model, data)
+        rows, drift, gaps, vns, extra = [], [], [], [], []
+        cache: dict[int, tuple[Any, ...]] = {}
+        for p in self.pairs.values():
+            b1 = self._body(p.info.joint1, cache)
+            b2 = self._body(p.info.joint2, cache)
+            n = b2[0] @ p.normal2
+            P1 = p.local1 @ b1[0].T + b1[1]
+            P2 = p.local2 @ b2[0].T + b2[1]
+            c1 = P1.mean(axis=0)
+            c2 = P2.mean(axis=0)
+            pts1 = np.vstack([P1, c1])
+            pts2 = np.vstack([P2, c2])
+            Jp1, vp1, ap1 = _points(b1, pts1)
+            Jp2, vp2, ap2 = _points(b2, pts2)
+            dJ = Jp2 - Jp1  # (K+1, 3, nv)
+            vrel = vp2 - vp1
+            arel = ap2 - ap1
+            w2 = b2[3]
+            rows.append(np.einsum("i,kij->kj", n, dJ[:-1]))
+            drift.append(arel[:-1] @ n + 2.0 * (vrel[:-1] @ np.cross(w2, n)))
+            gaps.append((P2 - P1) @ n)
+            vns.append(vrel[:-1] @ n)
+            t1, t2 = _tangents(n)
+            T = np.stack([t1, t2])
+            vt = vrel[-1] - n * (vrel[-1] @ n)
+            extra.append(
+                {
+                    "n": n,
+                    "T": T,
+                    "JT": T @ dJ[-1],
+                    "bT": T @ arel[-1],
+                    "vT": T @ vrel[-1],
+                    "vt": vt,
+                    "dJ": dJ[:-1],
+                    "vrel": vrel[:-1],
+                }
+            )
+        for (j, side), lim in self.limits.items():
+            r = np.zeros(self.nv)
+            r[j] = -side
+            rows.append(r[None, :])
+            drift.append(np.zeros(1))
+            gaps.append(np.array([side * (lim - q[j])]))
+            vns.append(np.array([-side * v[j]]))
+        if not rows:
+            z = np.zeros(0)
+            return np.zeros((0, self.nv)), z, z, z, extra
+        return (
+            np.vstack(rows),
+            np.concatenate(drift),
+            np.concatenate(gaps),
+            np.concatenate(vns),
+            extra,
+        )
+
+    def _body(self, joint: int, cache: dict[int, tuple[Any, ...]]) -> tuple[Any, ...]:
+        """(R, o, J (6, nv) LWA, omega, v_o, alpha, a_o) of a joint's body (world axes)."""
+        if joint in cache:
+            return cache[joint]
+        nv = self.nv
+        if joint == 0:
+            z3 = np.zeros(3)
+            out: tuple[Any, ...] = (np.eye(3), z3, np.zeros((6, nv)), z3, z3, z3, z3)
+        else:
+            M = self.data.oMi[joint]
+            R = M.rotation
+            J = np.asarray(
+                pin.getJointJacobian(self.model, self.data, joint, pin.LOCAL_WORLD_ALIGNED)
+            ).reshape(6, nv)
+            vel = self.data.v[joint]
+            acc = self.data.a[joint]
+            out = (
+                R,
+                M.translation,
+                J,
+                R @ vel.angular,
+                R @ vel.linear,
+                R @ acc.angular,
+                R @ acc.linear,
+            )
+        cache[joint] = out
+        return out
+
+    # ------------------------------------------------------------------ dynamics
+    def _problem(
+        self, q: FloatArray, v: FloatArray
+    ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray, list[dict[str, Any]]]:
+        return self._kinematics(q, v)
+
+    def _slip_columns(self, Jn: FloatArray, extra: list[dict[str, Any]]) -> FloatArray:
+        """Force columns of the normal rows: J_n - mu J_s on the rows of slipping pairs."""
+        if self.mu == 0.0:
+            return Jn
+        C = Jn.copy()
+        k = 0
+        for p, ex in zip(self.pairs.values(), extra, strict=True):
+            K = len(p.local1)
+            if not p.stick:
+                s = self._slip_direction(p, ex)
+                C[k : k + K] -= self.mu * np.einsum("i,kij->kj", s, ex["dJ"])
+            k += K
+        return C
+
+    def _slip_direction(self, p: _Pair, ex: dict[str, Any]) -> FloatArray:
+        """The sliding direction, fixed inside a step.
+
+        Set at the restart; a sliding pair is re-patched, and its direction refreshed, after
+        every accepted step. A direction following v_t would switch at every rounding error
+        once v_t is near zero.
+        """
+        return p.slip_dir
+
+    def _stick_rows(self, extra: list[dict[str, Any]]) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """Tangential rows (2 per sticking pair), their drift and velocities."""
+        if self.mu == 0.0:
+            z = np.zeros(0)
+            return np.zeros((0, self.nv)), z, z
+        JT, bT, vT = [], [], []
+        for p, ex in zip(self.pairs.values(), extra, strict=True):
+            if p.stick and self._pair_engaged(p):
+                JT.append(ex["JT"])
+                bT.append(ex["bT"])
+                vT.append(ex["vT"])
+        if not JT:
+            z = np.zeros(0)
+            return np.zeros((0, self.nv)), z, z
+        return np.vstack(JT), np.concatenate(bT), np.concatenate(vT)
+
+    def _pair_engaged(self, p: _Pair) -> bool:
+        k = 0
+        for other in self.pairs.values():
+            K = len(other.local1)
+            if other is p:
+                return any(k <= r < k + K for r in self.engaged)
+            k += K
+        return False
+
+    def evaluate(self, q: FloatArray, v: FloatArray, a_free: FloatArray, minv: FloatArray) -> _Eval:
+        """Constrained accelerations with the modes fixed, and what the conditions need.
+
+        Args:
+            q: Configuration [rad].
+            v: Velocity [rad/s].
+            a_free: Unconstrained accelerations [rad/s^2].
+            minv: M^-1 at q.
+        """
+        Jn, drift, gap, vn, extra = self._problem(q, v)
+        vt = [ex["vt"] for ex in extra]
+        E = self.engaged
+        JT, bT, vT = self._stick_rows(extra)
+        if not E:
+            return _Eval(a_free, np.zeros(0), gap, vn, vt)
+        C = self._slip_columns(Jn, extra)
+        A = np.vstack([Jn[E], JT])
+        Cm = np.vstack([C[E], JT])
+        target = np.concatenate([-2.0 * BAUMGARTE * vn[E] - BAUMGARTE**2 * gap[E], -BAUMGARTE * vT])
+        b = A @ a_free + np.concatenate([drift[E], bT])
+        MC = minv @ Cm.T
+        Gm = A @ MC
+        try:
+            lam = np.linalg.solve(Gm, target - b)
+        except np.linalg.LinAlgError:
+            lam = np.linalg.lstsq(Gm, target - b, rcond=None)[0]
+        return _Eval(a_free + MC @ lam, lam, gap, vn, vt)
+
+    def conditions(self, ev: _Eval) -> dict[tuple[Any, ...], tuple[str, float]]:
+        """Mode conditions g >= 0 (a negative one is an event) with the event kind.
+
+        Keys: ``("nrow", i)`` (engaged: release; free: impact), ``("nfric", k)`` (stick: slip;
+        slip: stick).
+        """
+        out: dict[tuple[Any, ...], tuple[str, float]] = {}
+        E = self.engaged
+        pos = {r: i for i, r in enumerate(E)}
+        for r in range(len(ev.gap)):
+            if r in pos:
+                out[("nrow", r)] = ("release", float(ev.lam[pos[r]]) + FORCE_BAND)
+            else:
+                out[("nrow", r)] = ("impact", float(ev.gap[r]) + POINT_TOL)
+        if self.mu > 0.0:
+            k_row, k_t = 0, len(E)
+            for (key, p), vt in zip(self.pairs.items(), ev.vt, strict=True):
+                K = len(p.local1)
+                rows = [pos[r] for r in range(k_row, k_row + K) if r in pos]
+                k_row += K
+                if not rows:
+                    continue
+                if p.stick:
+                    lt = ev.lam[k_t : k_t + 2]
+                    k_t += 2
+                    g = self.mu * float(ev.lam[rows].sum()) - float(np.linalg.norm(lt))
+                    out[("nfric", key)] = ("slip", g + FORCE_BAND)
+                else:
+                    out[("nfric", key)] = ("stick", float(vt @ p.slip_dir) + SPEED_BAND)
+        return out
+
+    # ------------------------------------------------------------------ restart
+    def restart(
+        self, q: FloatArray, v: FloatArray, a_free_fn: Any, minv: FloatArray
+    ) -> tuple[FloatArray, FloatArray, list[ModeEvent]]:
+        """Drift correction, impulse, then modes, at a restart.
+
+        Args:
+            q: Configuration [rad].
+            v: Velocity before [rad/s].
+            a_free_fn: Callable (q, v) -> unconstrained accelerations [rad/s^2].
+            minv: M^-1 at q.
+
+        Returns:
+            The configuration after the drift correction, the velocity after the impulse and
+            the mode changes to log.
+        """
+        self.refresh(q)
+        events: list[ModeEvent] = []
+        q = self.project(q, v, minv)
+        v = self.impulse(q, v, minv)
+        events += self.select_modes(q, v, a_free_fn(q, v), minv)
+        return q, v, events
+
+    def sliding(self, q: FloatArray, v: FloatArray) -> bool:
+        """Whether a pair with engaged rows slides (its material points drift off the patch)."""
+        if not self.engaged or not self.pairs:
+            return False
+        _, _, _, _, extra = self._problem(q, v)
+        for p, ex in zip(self.pairs.values(), extra, strict=True):
+            if (
+                self._pair_engaged(p)
+                and not (self.mu > 0.0 and p.stick)
+                and float(np.linalg.norm(ex["vt"])) > STICK_SPEED
+            ):
+                return True
+        return False
+
+    def repatch(self, q: FloatArray, v: FloatArray, a_free_fn: Any, minv: FloatArray) -> FloatArray:
+        """Recompute the patches of a sliding contact, correct drift and select the modes again.
+
+        Returns:
+            The corrected configuration [rad].
+        """
+        self.refresh(q)
+        q = self.project(q, v, minv)
+        self.select_modes(q, v, a_free_fn(q, v), minv, keep=True)
+        return q
+
+    def project(self, q: FloatArray, v: FloatArray, minv: FloatArray) -> FloatArray:
+        """Move q by the least (M-weighted) amount that closes every negative touching gap.
+
+        The position-level LCP: dq = M^-1 J^T mu, mu >= 0, J dq + g >= 0, complementary, on
+        the rows with g < 0 (g: gaps before). Removes the integration drift of resting gaps
+        and the event tolerance's last micrometre at every restart.
+        """
+        Jn, _, gap, _, _ = self._problem(q, v)
+        rows = np.flatnonzero(gap < 0.0)
+        if len(rows) == 0:
+            return q
+        touch = np.flatnonzero(gap <= TOUCH_GAP)
+        J = Jn[touch]
+        G = J @ minv @ J.T
+        mu = solve_lcp_psd(G, gap[touch])
+        return np.asarray(q + minv @ J.T @ mu, dtype=np.float64)
+
+    def impulse(self, q: FloatArray, v: FloatArray, minv: FloatArray) -> FloatArray:
+        """Simultaneous impact of every touching row (Newton's law, restitution e)."""
+        Jn, _, gap, vn, extra = self._problem(q, v)
+        touch = np.flatnonzero(gap <= TOUCH_GAP)
+        if len(touch) == 0 or float(vn[touch].min()) >= 0.0:
+            return v
+        e = self.e if float(vn[touch].min()) < -self.zeno_speed else 0.0
+        target = vn[touch] + e * np.minimum(vn[touch], 0.0)
+        J = Jn[touch]
+        if self.mu == 0.0:
+            G = J @ minv @ J.T
+            P = solve_lcp_psd(G, target)
+            res = lcp_residual(G, target, P)
+            if res > RESIDUAL_TOL:
+                P2 = lemke(G, target)
+                if P2 is not None and lcp_residual(G, target, P2) < res:
+                    P, res = P2, lcp_residual(G, target, P2)
+            if res > RESIDUAL_TOL:
+                log.warning("impact LCP residual %.3g", res)
+            return np.asarray(v + minv @ J.T @ P, dtype=np.float64)
+        # Frictional impact: blocks (t1, t2, n) per touching row on Pinocchio's ADMM.
+        J3, mus = self._frictional_rows(touch, Jn, extra)
+        G3 = J3 @ minv @ J3.T
+        g3 = J3 @ v
+        g3[2::3] += e * np.minimum(g3[2::3], 0.0)
+        x, res = solve_ncp_admm(self.model, self.data, G3, g3, mus)
+        if res > 1e-6:
+            log.warning("frictional impact residual %.3g: frictionless fallback", res)
+            G = J @ minv @ J.T
+            P = solve_lcp_psd(G, target)
+            return np.asarray(v + minv @ J.T @ P, dtype=np.float64)
+        return np.asarray(v + minv @ J3.T @ x, dtype=np.float64)
+
+    def _frictional_rows(
+        self, rows: NDArray[np.intp], Jn: FloatArray, extra: list[dict[str, Any]]
+    ) -> tuple[FloatArray, FloatArray]:
+        """Blocks (t1, t2, n) of the given normal rows (limit rows: no tangential part)."""
+        per_row: list[tuple[FloatArray, float]] = []
+        k = 0
+        lookup: dict[int, tuple[FloatArray, float]] = {}
+        for p, ex in zip(self.pairs.values(), extra, strict=True):
+            K = len(p.local1)
+            for i in range(K):
+                Tk = ex["T"] @ ex["dJ"][i]
+                lookup[k + i] = (np.vstack([Tk, Jn[k + i][None, :]]), self.mu)
+            k += K
+        for r in rows.tolist():
+            if r in lookup:
+                per_row.append(lookup[r])
+            else:
+                blk = np.zeros((3, self.nv))
+                blk[2] = Jn[r]
+                per_row.append((blk, 0.0))
+        return np.vstack([b for b, _ in per_row]), np.array([m for _, m in per_row])
+
+    def select_modes(
+        self,
+        q: FloatArray,
+        v: FloatArray,
+        a_free: FloatArray,
+        minv: FloatArray,
+        keep: bool = False,
+    ) -> list[ModeEvent]:
+        """Solve the acceleration-level problem; set the engaged rows and stick/slip.
+
+        With ``keep`` (a re-patch inside a mode), sticking pairs stay sticking and sliding
+        pairs only update their direction.
+        """
+        events: list[ModeEvent] = []
+        Jn, drift, gap, vn, extra = self._problem(q, v)
+        touch = [int(r) for r in np.flatnonzero((gap <= TOUCH_GAP) & (vn <= SPEED_BAND))]
+        self.engaged = touch
+        if self.mu > 0.0:
+            for p, ex in zip(self.pairs.values(), extra, strict=True):
+                speed = float(np.linalg.norm(ex["vt"]))
+                was = p.stick
+                if keep and p.stick:
+                    continue
+                p.stick = speed <= STICK_SPEED and not keep
+                if not p.stick:
+                    p.slip_dir = ex["vt"] / speed
+                if was != p.stick:
+                    events.append(ModeEvent("stick" if p.stick else "slip", p.info))
+        if not touch:
+            self.engaged = []
+            return events
+        for _ in range(len(self.pairs) + 2):
+            lam, ok = self._solve_modes(touch, Jn, drift, gap, vn, extra, a_free, minv)
+            if not ok:
+                events.append(ModeEvent("painleve", None))
+                self.n_painleve += 1
+                for p in self.pairs.values():
+                    p.stick = True
+                lam, ok = self._solve_modes(touch, Jn, drift, gap, vn, extra, a_free, minv)
+                if not ok:  # give up friction for this restart
+                    log.warning("contact problem unsolved even with sticking contacts")
+                    self.engaged = [r for r in touch]
+                    return events
+            moved = self._cone_check(lam, extra)
+            if not moved:
+                break
+            for p, s in moved:
+                p.stick = False
+                p.slip_dir = s
+                events.append(ModeEvent("slip", p.info))
+        if log.isEnabledFor(logging.DEBUG):
+            log.debug(
+                "modes: touch %s engaged %s gaps %s vn %s",
+                touch,
+                self.engaged,
+                np.array2string(gap, precision=8),
+                np.array2string(vn, precision=6),
+            )
+        return events
+
+    def _solve_modes(
+        self,
+        touch: list[int],
+        Jn: FloatArray,
+        drift: FloatArray,
+        gap: FloatArray,
+        vn: FloatArray,
+        extra: list[dict[str, Any]],
+        a_free: FloatArray,
+        minv: FloatArray,
+    ) -> tuple[dict[str, Any], bool]:
+        """The mixed LCP: touching normal rows complementary, sticking rows equalities."""
+        self.engaged = list(touch)
+        C = self._slip_columns(Jn, extra)
+        JT, bT, vT = self._stick_rows(extra)
+        N = touch
+        bN = Jn[N] @ a_free + drift[N] + 2.0 * BAUMGARTE * vn[N] + BAUMGARTE**2 * gap[N]
+        GNN = Jn[N] @ minv @ C[N].T
+        symmetric = all(p.stick for p in self.pairs.values()) or self.mu == 0.0
+        if len(JT):
+            bTt = JT @ a_free + bT + BAUMGARTE * vT
+            GNT = Jn[N] @ minv @ JT.T
+            GTN = JT @ minv @ C[N].T
+            GTT = JT @ minv @ JT.T
+            GTTi = np.linalg.pinv(GTT, rcond=1e-10)
+            Ml = GNN - GNT @ GTTi @ GTN
+            ql = bN - GNT @ GTTi @ bTt
+        else:
+            Ml, ql = GNN, bN
+        if symmetric:
+            z = solve_lcp_psd(Ml, ql)
+            res = lcp_residual(Ml, ql, z)
+            if res > RESIDUAL_TOL:
+                z2 = lemke(Ml, ql)
+                if z2 is not None and lcp_residual(Ml, ql, z2) < res:
+                    z, res = z2, lcp_residual(Ml, ql, z2)
+        else:
+            z2 = lemke(Ml, ql)
+            if z2 is None:
+                return {}, False
+            z, res = z2, lcp_residual(Ml, ql, z2)
+        if res > 1e-6:
+            log.debug("mode LCP residual %.3g", res)
+            if not symmetric:
+                return {}, False
+        scale = 1e-12 * (1.0 + float(np.abs(z).max(initial=0.0)))
+        self.engaged = [r for r, zr in zip(N, z.tolist(), strict=True) if zr > scale]
+        lamT = -GTTi @ (GTN @ z + bTt) if len(JT) else np.zeros(0)
+        return {"lamN": dict(zip(N, z.tolist(), strict=True)), "lamT": lamT}, True
+
+    def _cone_check(
+        self, lam: dict[str, Any], extra: list[dict[str, Any]]
+    ) -> list[tuple[_Pair, FloatArray]]:
+        """Sticking pairs whose tangential force leaves the cone, with their slip direction."""
+        if self.mu == 0.0:
+            return []
+        out = []
+        k_row, k_t = 0, 0
+        lamN, lamT = lam["lamN"], lam["lamT"]
+        for p, ex in zip(self.pairs.values(), extra, strict=True):
+            K = len(p.local1)
+            fn = sum(lamN.get(r, 0.0) for r in range(k_row, k_row + K))
+            had_rows = any(k_row <= r < k_row + K for r in lamN)
+            k_row += K
+            if not p.stick or not had_rows:
+                continue
+            # tangential rows exist for this pair only if it was engaged when rows were built
+            if k_t + 2 > len(lamT):
+                continue
+            lt = lamT[k_t : k_t + 2]
+            k_t += 2
+            nt = float(np.linalg.norm(lt))
+            if nt > self.mu * fn + FORCE_BAND:
+                f_world = ex["T"].T @ lt
+                out.append((p, -f_world / nt))
+        return out
+
+
+def _planes(shape: Any) -> tuple[FloatArray, FloatArray] | None:
+    """Face planes (unit outward normals N, offsets o: inside <=> N x + o <= 0), local frame."""
+    if isinstance(shape, coal.Halfspace):
+        return np.array([shape.n]), np.array([-float(shape.d)])
+    if isinstance(shape, coal.Box):
+        h = np.asarray(shape.halfSide)
+        N = np.vstack([np.eye(3), -np.eye(3)])
+        return N, -np.concatenate([h, h])
+    try:
+        N = np.asarray(shape.normals(), dtype=float)
+        o = np.asarray(shape.offsets(), dtype=float)
+    except (AttributeError, RuntimeError):
+        return None
+    return (N, o) if len(N) else None
+
+
+def _lift(
+    shape: Any, oMg: pin.SE3, mid: FloatArray, n: FloatArray, sign: float
+) -> FloatArray | None:
+    """Patch points moved along n onto the shape's face most aligned with sign * n.
+
+    Coal puts every patch point at the patch's one depth; on two faces meeting at a small angle
+    the points' true gaps differ (by up to Coal's patch tolerance, 1 mm). The face whose
+    outward normal is closest to sign * n carries them.
+    """
+    planes = _planes(shape)
+    if planes is None:
+        return None
+    N, o = planes
+    R, t = oMg.rotation, oMg.translation
+    nl = R.T @ n
+    f = int(np.argmax(sign * (N @ nl)))
+    den = float(N[f] @ nl)
+    if abs(den) < 0.5:
+        return None
+    pl = (mid - t) @ R  # local
+    s = -(pl @ N[f] + o[f]) / den
+    return np.asarray(mid + s[:, None] * n, dtype=np.float64)
+
+
+def _tangents(n: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """Two unit tangents (t1, t2) with (t1, t2, n) right-handed."""
+    a = np.array([1.0, 0.0, 0.0]) if abs(n[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
+    t1 = np.cross(a, n)
+    t1 /= np.linalg.norm(t1)
+    return t1, np.cross(n, t1)
+
+
+def _points(body: tuple[Any, ...], pts: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """Point Jacobians (K, 3, nv), velocities (K, 3) and drift accelerations (K, 3) (q'' = 0)."""
+    _, o, J, w, vo, alpha, ao = body
+    r = pts - o
+    Jv, Jw = J[:3], J[3:]
+    # J_p = Jv - skew(r) Jw  ->  per point: Jv + (Jw columns) x r ... written with cross
+    Jp = Jv[None, :, :] - np.cross(r[:, None, :], Jw.T[None, :, :]).transpose(0, 2, 1)
+    wr = np.cross(w, r)
+    vp = vo + wr
+    ap = ao + np.cross(alpha, r) + np.cross(w, vo + wr)
+    return Jp, vp, ap

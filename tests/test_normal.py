@@ -1,0 +1,207 @@
+"""The contact-normal mode on real simulation output: a box on a floor (patches, impacts,
+resting contact, Zeno), on a slope (Coulomb stick and slip against the analytic motion), the
+complementarity solvers, and the arm."""
+
+from pathlib import Path
+
+import coal
+import numpy as np
+import pinocchio as pin
+import pytest
+
+import packbot
+from packbot.collision import CollisionWorld
+from packbot.contact.lcp import lcp_residual, lemke, solve_lcp_psd, solve_ncp_admm
+from packbot.contact.normal import PENETRATION_TOL, POINT_TOL
+from packbot.model import JointParams, Robot
+
+SIZE = (0.2, 0.1, 0.05)  # box extents [m]
+HALF_Z = SIZE[2] / 2
+
+
+def box_robot(joints: tuple[str, ...] = ("PX", "PZ", "RY"), mass: float = 2.0) -> Robot:
+    """A box on a chain of joints (Pinocchio joint types), one convex piece."""
+    model = pin.Model()
+    parent = 0
+    names = []
+    for k, jt in enumerate(joints):
+        parent = model.addJoint(
+            parent, getattr(pin, f"JointModel{jt}")(), pin.SE3.Identity(), f"j{k}_{jt}"
+        )
+        names.append(f"j{k}_{jt}")
+        if k < len(joints) - 1:
+            tiny = pin.Inertia(1e-9, np.zeros(3), 1e-12 * np.eye(3))
+            model.appendBodyToJoint(parent, tiny, pin.SE3.Identity())
+    model.appendBodyToJoint(parent, pin.Inertia.FromBox(mass, *SIZE), pin.SE3.Identity())
+    fid = model.addFrame(pin.Frame("box", parent, 0, pin.SE3.Identity(), pin.FrameType.BODY))
+    n = model.nq
+    model.lowerPositionLimit = -10 * np.ones(n)
+    model.upperPositionLimit = 10 * np.ones(n)
+    h = np.array(SIZE) / 2
+    corners = np.array([[a, b, c] for a in (-1, 1) for b in (-1, 1) for c in (-1, 1)]) * h
+    vec = coal.StdVec_Vec3s()
+    vec.extend(corners)
+    shape = coal.Convex.convexHull(vec, True, "Qt")
+    gm = pin.GeometryModel()
+    gm.addGeometryObject(pin.GeometryObject("box/0", parent, fid, pin.SE3.Identity(), shape))
+    z = np.zeros(n)
+    params = JointParams(
+        names=tuple(names),
+        lower=model.lowerPositionLimit.copy(),
+        upper=model.upperPositionLimit.copy(),
+        velocity=np.full(n, 100.0),
+        effort=np.full(n, 100.0),
+        gear_ratio=np.ones(n),
+        rotor_inertia=z.copy(),
+        armature=z.copy(),
+        viscous=z.copy(),
+        coulomb=z.copy(),
+        table={},
+    )
+    return Robot(model, gm, gm.copy(), {}, params, Path("box.urdf"))
+
+
+def distances(robot: Robot, res: packbot.SimResult) -> np.ndarray:
+    """Signed distance box - floor at every sample [m]."""
+    world = CollisionWorld(robot, srdf=False)
+    return np.array([world.all_distances(q).min() for q in res.q])
+
+
+# ------------------------------------------------------------------ solvers
+def test_lcp_solvers_agree_on_a_rank_deficient_patch():
+    """4 coplanar points on a 3-dof body: G (4x4) has rank 3; v+ is unique."""
+    rng = np.random.default_rng(1)
+    J = rng.normal(size=(3, 3))
+    J = np.vstack([J, J[0] + J[1] - J[2]])  # the 4th row depends on the others
+    G = J @ J.T
+    q = np.array([-1.0, -0.5, 0.2, -0.7])
+    q = G @ rng.uniform(0.1, 1.0, size=4) + q - q  # q in range(G): a consistent problem
+    q = -np.abs(q)
+    z1 = solve_lcp_psd(G, q)
+    z2 = lemke(G, q)
+    assert z2 is not None
+    assert lcp_residual(G, q, z1) < 1e-9 and lcp_residual(G, q, z2) < 1e-9
+    np.testing.assert_allclose(J.T @ z1, J.T @ z2, atol=1e-8)
+    assert np.count_nonzero(z1 > 1e-12) <= 3  # a basic solution: independent support
+
+
+def test_admm_fresh_operator_reproduces_slope_forces():
+    th = np.deg2rad(20.0)
+    g3 = 9.81 * np.array([np.sin(th), 0.0, -np.cos(th)])
+    model = pin.Model()
+    for _ in range(2):  # a second solve must not see the first one's damping
+        x, res = solve_ncp_admm(model, model.createData(), np.eye(3) / 2.0, g3, np.array([0.2]))
+        assert res < 1e-9
+        assert x[2] == pytest.approx(2.0 * 9.81 * np.cos(th), rel=1e-8)
+        assert abs(x[0]) == pytest.approx(0.2 * x[2], rel=1e-6)
+
+
+# ------------------------------------------------------------------ slope
+@pytest.mark.parametrize("mu", [0.5, 0.364, 0.2, 0.0])
+def test_block_on_slope_sticks_or_slides_with_the_analytic_acceleration(mu):
+    """A slope of 20 deg (gravity tilted): sticks for mu >= tan 20 deg, else
+    a = g (sin - mu cos)."""
+    th = np.deg2rad(20.0)
+    robot = box_robot()
+    gravity = (9.81 * np.sin(th), 0.0, -9.81 * np.cos(th))
+    cfg = packbot.SimConfig(contact_mode="normal", mu=mu, gravity=gravity)
+    q0 = np.array([0.0, HALF_Z, 0.0])  # resting on its face
+    res = packbot.simulate(robot, q0, np.zeros(3), 0.4, config=cfg)
+    x, t = res.q[:, 0], res.t
+    expected = 9.81 * (np.sin(th) - mu * np.cos(th))
+    if expected <= 0.0:
+        assert np.abs(x).max() < 1e-9
+        assert not res.events_of("slip")
+    else:
+        # x = a t^2 / 2 from rest (released at t = 0)
+        np.testing.assert_allclose(x, 0.5 * expected * t**2, rtol=1e-6, atol=1e-9)
+    assert np.abs(res.q[:, 1] - HALF_Z).max() < 1e-8  # neither sinks nor lifts
+    assert distances(robot, res).min() > -1e-7
+
+
+# ------------------------------------------------------------------ impacts and resting
+def test_box_dropped_flat_rests_still_with_long_steps():
+    robot = box_robot(("PX", "PZ", "RY"))
+    cfg = packbot.SimConfig(contact_mode="normal", restitution=0.0)
+    q0 = np.array([0.0, HALF_Z + 0.01, 0.0])
+    res = packbot.simulate(robot, q0, np.zeros(3), 2.0, config=cfg)
+    land = res.events_of("impact")[0].t
+    assert land == pytest.approx(np.sqrt(2 * 0.01 / 9.81), abs=1e-8)
+    after = res.t > land + 1e-9
+    np.testing.assert_allclose(res.q[after, 1], HALF_Z, atol=1e-9)
+    assert np.abs(res.q[after][:, [0, 2]]).max() < 1e-12  # no rocking, no creeping
+    assert np.abs(res.v[after]).max() < 1e-9
+    assert all(e.t <= land + 1e-9 for e in res.events)  # no event after the landing
+    assert res.diagnostics.steps < 80  # 2 s at rest: long steps (max_step 50 ms)
+
+
+def test_tilted_box_lands_without_penetration_or_energy_gain():
+    """Dropped on a corner edge: impact, rotation onto the face, rest; e = 0 then e = 0.5."""
+    robot = box_robot(("PX", "PZ", "RY"))
+    for e in (0.0, 0.5):
+        cfg = packbot.SimConfig(contact_mode="normal", restitution=e)
+        q0 = np.array([0.0, 0.08, 0.4])
+        res = packbot.simulate(robot, q0, np.zeros(3), 1.5, config=cfg)
+        impacts = res.events_of("impact")
+        assert impacts
+        for ev in impacts:
+            assert ev.energy_after <= ev.energy_before + 1e-9
+        assert distances(robot, res).min() > -1.01 * PENETRATION_TOL  # re-patch threshold
+        assert res.diagnostics.min_distance > -1e-5
+        assert res.q[-1][2] == pytest.approx(0.0, abs=1e-6)  # face down at the end
+        assert res.rest_time is not None
+
+
+def test_inelastic_impact_leaves_zero_normal_speed():
+    robot = box_robot(("PZ",))
+    cfg = packbot.SimConfig(contact_mode="normal", restitution=0.0)
+    res = packbot.simulate(robot, np.array([0.1]), np.array([-1.0]), 0.2, config=cfg)
+    (hit,) = res.events_of("impact")[:1]
+    assert hit.v_before[0] < -1.0
+    assert hit.v_after[0] == pytest.approx(0.0, abs=1e-12)
+
+
+@pytest.mark.parametrize("e", [0.5, 1.0])
+def test_restitution_reverses_normal_speed_and_zeno_ends_in_rest(e):
+    robot = box_robot(("PZ",))
+    cfg = packbot.SimConfig(contact_mode="normal", restitution=e)
+    res = packbot.simulate(robot, np.array([HALF_Z + 0.05]), np.zeros(1), 1.0, config=cfg)
+    impacts = res.events_of("impact")
+    first = impacts[0]
+    assert first.v_after[0] == pytest.approx(-e * first.v_before[0], rel=1e-9)
+    for ev in impacts:
+        assert ev.energy_after <= ev.energy_before + 1e-12
+    if e < 1.0:
+        # a geometric series of bounces: the last ones, below zeno_speed, are inelastic
+        slow = [ev for ev in impacts if abs(ev.v_before[0]) < cfg.zeno_speed]
+        assert slow and slow[-1].v_after[0] == pytest.approx(0.0, abs=1e-12)
+        assert len(impacts) < 40
+        assert res.q[-1][0] == pytest.approx(HALF_Z, abs=1e-9)
+    assert res.q[:, 0].min() > HALF_Z - 2 * POINT_TOL
+
+
+def test_joint_limit_is_a_row_of_the_same_problem():
+    """A box falling along z with its lower limit 1 cm above the floor: the limit stops it."""
+    robot = box_robot(("PZ",))
+    robot.model.lowerPositionLimit[0] = HALF_Z + 0.01
+    robot.params.lower[0] = HALF_Z + 0.01
+    cfg = packbot.SimConfig(contact_mode="normal")
+    res = packbot.simulate(robot, np.array([HALF_Z + 0.05]), np.zeros(1), 0.5, config=cfg)
+    (lim,) = res.events_of("limit")
+    assert lim.v_after[0] == pytest.approx(0.0, abs=1e-12)
+    np.testing.assert_allclose(res.q[res.t > lim.t + 1e-9, 0], HALF_Z + 0.01, atol=1e-9)
+    assert not res.events_of("impact")
+
+
+# ------------------------------------------------------------------ the arm
+def test_arm_collapse_normal_mode_keeps_every_distance_above_tolerance(robot):
+    wrist = ("camera_tilt", "camera_pan", "gripper_roll", "gripper_jaw")
+    cfg = packbot.SimConfig(contact_mode="normal", locked_joints=wrist)
+    res = packbot.simulate(robot, robot.pose("drive"), np.zeros(8), 0.4, config=cfg)
+    assert res.events_of("impact")
+    assert res.diagnostics.min_distance > -cfg.contact_tolerance
+    sysw = CollisionWorld(robot)
+    d = [sysw.all_distances(q).min() for q in res.q[::4]]
+    assert min(d) > -cfg.contact_tolerance
+    for ev in res.events_of("impact", "limit"):
+        assert ev.energy_after <= ev.energy_before + 1e-9
