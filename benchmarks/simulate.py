@@ -7,7 +7,15 @@ camera and gripper joints locked (the report's model had them as solid parts). R
 median of REPEATS runs; the other columns come from the last run, which is deterministic), then
 a cProfile of the default rule (zero + velocity), top 15 functions by cumulative time.
 
-Run: python benchmarks/simulate.py [--repeats N] [--duration S]
+Then the collapse side by side (issue 5): ``joint_clamp`` (zero and momentum reset),
+``contact_mode="normal"`` with mu = 0 and mu = 0.5 (one run each, stopped after
+``--normal-timeout`` wall seconds; ``--normal-duration`` shortens them), and MuJoCo
+(:mod:`packbot.mujoco_model`, same URDF, mu = 0.5, stiff solref) at 0.5, 1 and 2 ms: wall time,
+real-time factor, rest time, rest pose and deepest penetration (ours: max(0, -min signed
+distance); MuJoCo: max(0, -contact dist)). Skipped without ``mujoco`` or with ``--no-compare``.
+
+Run: python benchmarks/simulate.py [--repeats N] [--duration S] [--normal-duration S]
+    [--normal-timeout S] [--no-compare] [--no-profile]
 """
 
 from __future__ import annotations
@@ -24,6 +32,7 @@ import time
 import numpy as np
 
 import packbot
+from packbot.mujoco_model import build_mujoco_model, run_collapse
 
 LOCKED = ("camera_tilt", "camera_pan", "gripper_roll", "gripper_jaw")
 CASES: tuple[tuple[str, dict[str, str]], ...] = (
@@ -43,6 +52,14 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeats", type=int, default=5, help="runs per case (median wall time)")
     ap.add_argument("--duration", type=float, default=5.0, help="simulated time [s]")
+    ap.add_argument(
+        "--normal-duration", type=float, default=None, help="simulated time of normal rows [s]"
+    )
+    ap.add_argument(
+        "--normal-timeout", type=float, default=300.0, help="wall limit per normal row [s]"
+    )
+    ap.add_argument("--no-compare", action="store_true", help="skip the side-by-side table")
+    ap.add_argument("--no-profile", action="store_true", help="skip the cProfile")
     args = ap.parse_args()
     robot = packbot.load_robot()
     run(robot, packbot.SimConfig(locked_joints=LOCKED), 0.2)  # warm-up (imports, caches)
@@ -82,6 +99,10 @@ def main() -> None:
         "at the end minus at the start."
     )
 
+    if not args.no_compare:
+        compare(robot, args)
+    if args.no_profile:
+        return
     cfg = packbot.SimConfig(locked_joints=LOCKED)
     prof = cProfile.Profile()
     prof.enable()
@@ -91,6 +112,97 @@ def main() -> None:
     pstats.Stats(prof, stream=buf).sort_stats("cumulative").print_stats(15)
     print("\ncProfile, zero/velocity (the default rule), top 15 by cumulative time:")
     print(buf.getvalue())
+
+
+class _Timeout(Exception):
+    """Raised from the progress callback when a row exceeds its wall-time budget."""
+
+
+def _ours(
+    robot: packbot.Robot, cfg: packbot.SimConfig, duration: float, repeats: int, timeout: float
+) -> tuple[str, float, packbot.SimResult | None, float]:
+    """Run one of our rows; returns (status, wall [s], result or None, simulated time [s])."""
+    walls = []
+    res = None
+    reached = [0.0]
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+
+        def progress(t: float, t0: float = t0) -> None:
+            reached[0] = t
+            if time.perf_counter() - t0 > timeout:
+                raise _Timeout
+
+        try:
+            res = packbot.simulate(
+                robot,
+                robot.pose("drive"),
+                np.zeros(robot.nq),
+                duration,
+                config=cfg,
+                progress=progress,
+            )
+        except _Timeout:
+            return "timeout", time.perf_counter() - t0, None, reached[0]
+        except packbot.SimulationError as exc:
+            print(f"  ({exc})")
+            return "error", time.perf_counter() - t0, None, reached[0]
+        walls.append(time.perf_counter() - t0)
+    return "ok", statistics.median(walls), res, duration
+
+
+def compare(robot: packbot.Robot, args: argparse.Namespace) -> None:
+    """The collapse side by side: joint_clamp, normal, MuJoCo (see the module docstring)."""
+    dur = args.duration
+    ndur = dur if args.normal_duration is None else args.normal_duration
+    head = (
+        f"{'case':<26}{'sim[s]':>7}{'wall[s]':>9}{'RTF':>7}{'rest[s]':>8}{'shoulder':>9}"
+        f"{'elbow1':>8}{'elbow2':>8}{'pen[m]':>10}"
+    )
+    print(f"\ncollapse side by side (drive pose, wrist locked, load {os.getloadavg()[0]:.2f})")
+    print(head)
+    print("-" * len(head))
+    i_s, i_e1, i_e2 = (robot.joint_names.index(n) for n in ("shoulder", "elbow1", "elbow2"))
+
+    def row(label: str, sim: float, wall: float, rest: float | None, q: np.ndarray, pen: float):
+        r = "-" if rest is None else f"{rest:.3f}"
+        print(
+            f"{label:<26}{sim:7.2f}{wall:9.3f}{sim / wall:7.1f}{r:>8}{q[i_s]:9.4f}{q[i_e1]:8.4f}"
+            f"{q[i_e2]:8.4f}{pen:10.2e}"
+        )
+
+    ours = (
+        ("joint_clamp zero", {"reset_rule": "zero"}, dur, args.repeats),
+        ("joint_clamp momentum", {"reset_rule": "momentum"}, dur, args.repeats),
+        ("normal mu=0", {"contact_mode": "normal", "mu": 0.0}, ndur, 1),
+        ("normal mu=0.5", {"contact_mode": "normal", "mu": 0.5}, ndur, 1),
+    )
+    for label, kw, d, reps in ours:
+        cfg = packbot.SimConfig(locked_joints=LOCKED, **kw)  # type: ignore[arg-type]
+        status, wall, res, reached = _ours(robot, cfg, d, reps, args.normal_timeout)
+        if res is None:
+            print(f"{label:<26}{status} after {wall:.1f} s wall at t = {reached:.3f} s simulated")
+            continue
+        pen = max(0.0, -res.diagnostics.min_distance)
+        row(label, d, wall, res.rest_time, res.q[-1], pen)
+    try:
+        for dt in (5e-4, 1e-3, 2e-3):
+            arm = build_mujoco_model(robot, timestep=dt, mu=0.5, locked_joints=LOCKED)
+            walls = []
+            for _ in range(args.repeats):
+                t0 = time.perf_counter()
+                run = run_collapse(arm, robot.pose("drive"), dur)
+                walls.append(time.perf_counter() - t0)
+            label = f"MuJoCo {dt * 1e3:g} ms mu=0.5"
+            row(
+                label, dur, statistics.median(walls), run.rest_time, run.q_rest, run.max_penetration
+            )
+    except packbot.ModelError as exc:
+        print(f"MuJoCo rows skipped: {exc}")
+    print(
+        "\npen: deepest penetration over the run [m] (ours: max(0, -diagnostics.min_distance); "
+        "MuJoCo: max(0, -contact.dist)); rest: every joint speed below 1e-3 rad/s from then on."
+    )
 
 
 if __name__ == "__main__":
