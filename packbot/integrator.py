@@ -249,7 +249,7 @@ class _Run:
         q, v = y[:n], y[n : 2 * n]
         _, target, applied, friction = self.torques(t, y)
         a = self.sys.aba(q, v, applied + friction)
-        if len(self.locks.locked):
+        if self.locks.any_locked:
             a = self.locks.accelerations(a, self.sys.minv(q))
         if self.normal is not None and self.normal.engaged:
             a = self.normal.evaluate(q, v, a, self.sys.minv(q)).a
@@ -259,7 +259,7 @@ class _Run:
 
     def lock_conditions(self, t: float, y: FloatArray) -> dict[tuple[str, int], float]:
         a = self.free_accel(t, y)
-        minv = self.sys.minv(y[: self.n]) if len(self.locks.locked) else None
+        minv = self.sys.minv(y[: self.n]) if self.locks.any_locked else None
         return self.locks.conditions(a, minv)
 
     # ------------------------------------------------------------------ recording
@@ -1171,6 +1171,11 @@ def simulate(
     """
     cfg = SimConfig() if config is None else config
     q, v = _check_inputs(robot, q0, v0, duration, cfg, failures, payload, controller)
+    if cfg.contact_mode == "normal":
+        log.warning(
+            "contact_mode='normal' is experimental: exact on simple bodies, but the arm's "
+            "collapse does not come to rest in it yet (docs/contact.md, 'Open problems')"
+        )
     wall = time.perf_counter()
     run = _Run(
         robot,

@@ -57,6 +57,11 @@ class JointLocks:
         self._set_engaged(())
 
     @property
+    def any_locked(self) -> bool:
+        """Whether some joint is engaged or held (the right-hand side's cheap test)."""
+        return bool(self._idx.size)
+
+    @property
     def locked(self) -> tuple[int, ...]:
         """Every joint with a_j = 0 in the current mode (engaged or held), sorted."""
         return tuple(int(j) for j in self._idx)
