@@ -120,15 +120,12 @@ class TorquePath:
             lag=float(config.motor_lag),
         )
 
-    @property
-    def passive(self) -> bool:
-        """No joint applies a torque of its own (no ``"stuck"`` joint): zero in, zero out."""
-        return not bool(self.stuck.any())
-
-    @property
-    def rubs(self) -> bool:
-        """Some joint has friction."""
-        return bool(self.viscous.any() or self.coulomb.any())
+    def __post_init__(self) -> None:
+        # Cached: the right-hand side's fast path reads them at every call.
+        #: No joint applies a torque of its own (no ``"stuck"`` joint): zero in, zero out.
+        self.passive = not bool(self.stuck.any())
+        #: Some joint has friction.
+        self.rubs = bool(self.viscous.any() or self.coulomb.any())
 
     def target(self, tau_cmd: FloatArray) -> FloatArray:
         """The saturated command tau_sat [N*m] (what the motor tracks)."""

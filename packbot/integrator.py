@@ -150,7 +150,7 @@ class _Run:
         self.ticks = 0
         self.events: list[Event] = []
         self.diag = Diagnostics()
-        self.samples: list[tuple[FloatArray, ...]] = []
+        self.samples: list[tuple[Any, ...]] = []  # (q, v, tau_cmd, tau, tau_friction, effort, E)
         self.samples_t: list[float] = []
         self.next_sample = 0
         self.stepper = RK45Stepper(
@@ -173,6 +173,7 @@ class _Run:
         self.active: dict[tuple[Any, ...], _Active] = {}
         self.fdir = np.zeros(self.n)  # sliding direction of each joint with Coulomb friction
         self.tau_zero = np.zeros(self.n)
+        self.zero_full = np.zeros(self.robot.nq)
         self.tau_hold = self.sys.reduce(self.tau_hold_full)
         parts = [self.sys.reduce(qf), self.sys.reduce(vf)]
         if self.lag:
@@ -284,21 +285,26 @@ class _Run:
         n = self.n
         q, v = y[:n], y[n : 2 * n]
         cmd, _, applied, friction = self.torques(t, y)
-        if len(self.locks.held):
+        if self.locks.held:
+            friction = friction.copy()
             a_free = self.sys.aba(q, v, applied + friction)
             _, lam = self.locks.torques(a_free, self.sys.minv(q))
             for j in self.locks.held:
                 friction[j] = lam[j]
         qf, vf, _ = self.full_state(y)
-        full = self.robot.nq
-        cmd_f, app_f, fr_f = np.zeros(full), np.zeros(full), np.zeros(full)
-        eff = np.array(self.robot.params.effort, dtype=float)
+        zero = self.zero_full  # shared by the samples of a torque-free run (never written)
         free = self.sys.free
-        cmd_f[free], app_f[free], fr_f[free], eff[free] = cmd, applied, friction, self.path.effort
+        if cmd is self.tau_zero and applied is cmd and friction is cmd:
+            cmd_f = app_f = fr_f = zero
+        else:
+            cmd_f, app_f, fr_f = zero.copy(), zero.copy(), zero.copy()
+            cmd_f[free], app_f[free], fr_f[free] = cmd, applied, friction
         if self.ctrl_obj is not None:
             cmd_f = self.tau_hold_full.copy()
+        eff = self.robot.params.effort.copy()
+        eff[free] = self.path.effort
         self.samples_t.append(t)
-        self.samples.append((qf, vf, cmd_f, app_f, fr_f, eff, np.array([self.energy(q, v)])))
+        self.samples.append((qf, vf, cmd_f, app_f, fr_f, eff, self.energy(q, v)))
 
     # ------------------------------------------------------------------ events
     def distance(self, pair: int, y: FloatArray) -> float:
@@ -1042,7 +1048,7 @@ class _Run:
 
     def result(self) -> SimResult:
         t = np.array(self.samples_t)
-        cols = [np.array([s[k] for s in self.samples]) for k in range(7)]
+        cols = [np.array([s[k] for s in self.samples], dtype=float) for k in range(7)]
         q, v, tau_cmd, tau, tau_fr, effort, energy = cols
         self.diag.steps = self.stepper.n_steps
         self.diag.rejected_steps = self.stepper.n_rejected
@@ -1052,7 +1058,7 @@ class _Run:
             q=q,
             v=v,
             tau=tau,
-            energy=energy[:, 0],
+            energy=energy,
             events=self.events,
             rest_time=rest_time(t, v, self.cfg.rest_speed),
             joint_names=self.robot.joint_names,
