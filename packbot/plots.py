@@ -186,13 +186,27 @@ def plot_joints(
     ax_v.set_ylabel("joint velocity [rad/s]")
     ax_v.set_xlabel("time [s]")
     ax_q.set_title(f"Joint positions and velocities\n({_title(result)})")
-    for ax in (ax_q, ax_v):
+    _finish_two_panels(fig, ax_q, ax_v, result, drawn, path, formats, dpi)
+    return fig
+
+
+def _finish_two_panels(
+    fig: Figure,
+    top: Axes,
+    bottom: Axes,
+    result: SimResult,
+    drawn: list[tuple[str, str]],
+    path: str | Path | None,
+    formats: Sequence[str],
+    dpi: int,
+) -> None:
+    """Grid, time range and legends of a two-panel time plot (events on top), then save it."""
+    for ax in (top, bottom):
         ax.grid(True, alpha=0.3)
         ax.set_xlim(float(result.t[0]), float(result.t[-1]))
-    _event_legend(ax_q, drawn, result)
-    ax_v.legend(loc="best", fontsize="small", framealpha=0.85)
+    _event_legend(top, drawn, result)
+    bottom.legend(loc="best", fontsize="small", framealpha=0.85)
     _save(fig, path, formats, dpi)
-    return fig
 
 
 def _tested_pairs(result: SimResult, world: CollisionWorld) -> NDArray[np.intp]:
@@ -489,12 +503,7 @@ def plot_tracking(
     ax_e.set_ylabel("error q - q_ref [rad]")
     ax_e.set_xlabel("time [s]")
     ax_q.set_title(f"Tracking\n({_title(result)})")
-    for ax in (ax_q, ax_e):
-        ax.grid(True, alpha=0.3)
-        ax.set_xlim(float(result.t[0]), float(result.t[-1]))
-    _event_legend(ax_q, drawn, result)
-    ax_e.legend(loc="best", fontsize="small", framealpha=0.85)
-    _save(fig, path, formats, dpi)
+    _finish_two_panels(fig, ax_q, ax_e, result, drawn, path, formats, dpi)
     return fig
 
 
