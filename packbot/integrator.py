@@ -542,8 +542,10 @@ class _Run:
                 normal.add_limit(j, side, lim)
                 self.active[key] = _Active(None, [])
                 logged.append(("limit", None, float(side * (lim - q[j])), (self.sys.names[j],)))
-            else:  # ("mode", "nrow"/"nfric", index)
-                if key[1] == "nrow":
+            else:  # ("mode", "nrow"/"nfric"/"nrest", index)
+                if key[1] == "nrest":  # the resting arm starts moving again
+                    logged.append((c.kind, None, math.nan, ()))
+                elif key[1] == "nrow":
                     owner, lim_key = normal.row_owner(key[2])
                     joints: tuple[str, ...] = ()
                     if lim_key is not None:
@@ -1179,8 +1181,9 @@ def simulate(
     q, v = _check_inputs(robot, q0, v0, duration, cfg, failures, payload, controller)
     if cfg.contact_mode == "normal":
         log.warning(
-            "contact_mode='normal' is experimental: exact on simple bodies, but the arm's "
-            "collapse does not come to rest in it yet (docs/contact.md, 'Open problems')"
+            "contact_mode='normal' is experimental: exact on simple bodies; the arm's collapse "
+            "rests with friction (mu > 0) but slowly, and not yet without (docs/contact.md, "
+            "'Open problems')"
         )
     wall = time.perf_counter()
     run = _Run(

@@ -175,10 +175,9 @@ class _TooSlow(Exception):
 @pytest.mark.xfail(
     strict=True,
     reason=(
-        "normal mode does not come to rest yet (2026-11-22): 5 s at mu=0.5 ended at shoulder "
-        "-0.1981, elbow1 2.6348 vs MuJoCo 0.5 ms -0.1982, 2.6378 (gaps 3e-5 and 3.0e-3 rad) "
-        "but still moving (1905 events, rest_time None); the normal.py being edited later "
-        "stopped at max_events=20000 at t = 0.33 s"
+        "normal mode rests, but not yet on MuJoCo's pose (2026-11-22): at mu=0.5 it rests at "
+        "1.85 s after 170 events with shoulder -0.2021, elbow1 2.6921 vs MuJoCo 0.5 ms -0.1982, "
+        "2.6378 (elbow1 0.054 rad off; the shoulder lifts off when link 3 lands at ~1.2 s)"
     ),
 )
 def test_normal_mode_rests_within_003_rad_of_mujoco(robot, mujoco_rest) -> None:

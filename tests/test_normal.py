@@ -205,3 +205,20 @@ def test_arm_collapse_normal_mode_keeps_every_distance_above_tolerance(robot):
     assert min(d) > -cfg.contact_tolerance
     for ev in res.events_of("impact", "limit"):
         assert ev.energy_after <= ev.energy_before + 1e-9
+
+
+def test_arm_collapse_with_friction_comes_to_rest_on_its_contacts(robot):
+    """mu = 0.5: the collapse ends captured at rest (v = 0, no event after), without
+    penetration, in a bounded number of events, with the arm held by its contacts."""
+    wrist = ("camera_tilt", "camera_pan", "gripper_roll", "gripper_jaw")
+    cfg = packbot.SimConfig(contact_mode="normal", mu=0.5, locked_joints=wrist)
+    res = packbot.simulate(robot, robot.pose("drive"), np.zeros(8), 2.2, config=cfg)
+    assert res.rest_time is not None and res.rest_time < 2.1
+    assert len(res.events) < 200
+    assert not [ev for ev in res.events if ev.t > res.rest_time + 1e-9]
+    np.testing.assert_array_equal(res.v[res.t > res.rest_time], 0.0)
+    assert res.diagnostics.min_distance > -2 * PENETRATION_TOL
+    # at rest on its contacts: some pair touches (within the touch gap) and the arm did fold
+    world = CollisionWorld(robot)
+    assert abs(world.all_distances(res.q[-1]).min()) < 1e-4
+    assert res.q[-1][robot.joint_names.index("elbow2")] > 0.5  # link 3 slid and folded over

@@ -23,7 +23,9 @@ every step the mode conditions are checked; a violated one is an event located b
 - an engaged row's force would pull (lambda < 0): ``release``;
 - a free row of a pair in contact penetrates (g < -:data:`POINT_TOL`): ``impact``;
 - a sticking pair's force leaves the cone: ``slip``;
-- a slipping pair's sliding speed falls through zero: ``stick``.
+- a slipping pair's sliding velocity comes back through zero by :data:`STICK_BAND` along its
+  friction direction: ``stick``;
+- a resting arm's accelerations leave the rest band (see below): ``slip``.
 
 **Restart.** After every event the patches are recomputed, then:
 
@@ -42,6 +44,13 @@ every step the mode conditions are checked; a violated one is an event located b
 
 The engaged rows are the support of the solution, which both solvers return *basic* (the
 engaged rows' Delassus block is non-singular even on a rank-deficient patch).
+
+**Rest.** At a restart where every joint is slower than :data:`CAPTURE_SPEED` (and the impulse
+was not a bounce), the frictional problem of every touching row is solved jointly at v = 0
+(per-point cones, ADMM); if its joint accelerations are below :data:`CAPTURE_ACCEL` the
+velocity is set to zero and the contacts rest (a = 0, one condition: those accelerations below
+twice the band). The pair-by-pair cone check above cannot do this on a statically indeterminate
+arm: it takes one force distribution of many (see :meth:`NormalContacts.capture`).
 """
 
 from __future__ import annotations
@@ -60,10 +69,13 @@ from packbot.contact.lcp import lcp_residual, lemke, solve_lcp_psd, solve_ncp_ad
 
 __all__ = [
     "BAUMGARTE",
+    "CAPTURE_ACCEL",
+    "CAPTURE_SPEED",
     "FORCE_BAND",
     "PENETRATION_TOL",
     "POINT_TOL",
     "SPEED_BAND",
+    "STICK_BAND",
     "TOUCH_GAP",
     "ModeEvent",
     "NormalContacts",
@@ -82,11 +94,23 @@ POINT_TOL = 1e-6
 PENETRATION_TOL = 1e-5
 #: Hysteresis of the force conditions [N] (release, cone).
 FORCE_BAND = 1e-6
-#: Sliding speed below which a pair may stick, and hysteresis of the stick condition [m/s].
+#: A touching row separating slower than this takes part in the mode problem [m/s].
 SPEED_BAND = 1e-6
+#: Hysteresis of the stick condition [m/s]: a slipping pair sticks once its sliding velocity
+#: has come back through zero by this much along its friction direction. Smaller bands let
+#: a pair sliding at the cone's edge with almost no acceleration (the arm's elbow casing on the
+#: chassis while link 3 slides) fire a stick event every few milliseconds, each followed by an
+#: immediate slip: the restarts then keep resetting the other pair's slide (measured: a
+#: stick/slip pair of events every 3.35 ms with 1e-6 m/s).
+STICK_BAND = 1e-4
 #: A pair may start sticking when its sliding speed is below this [m/s] (the stick mode's
 #: velocity term removes the rest).
-STICK_SPEED = 1e-4
+STICK_SPEED = 1e-3
+#: Rest capture (:meth:`NormalContacts.capture`): at a restart, an arm slower than this
+#: [rad/s] whose contacts can all stick at v = 0 with accelerations below CAPTURE_ACCEL
+#: [rad/s^2] is brought to rest.
+CAPTURE_SPEED = 1e-2
+CAPTURE_ACCEL = 1e-2
 #: Stiffness of the drift correction [rad/s] (a_n = -2 w g' - w^2 g on engaged rows).
 BAUMGARTE = 20.0
 #: Largest acceptable scaled residual of a complementarity solution [-].
@@ -129,6 +153,7 @@ class _Eval:
     gap: FloatArray  # every row
     vn: FloatArray  # every row
     vt: list[FloatArray]  # per pair: relative tangential velocity at the centre (world)
+    rest: tuple[FloatArray, FloatArray, FloatArray] | None = None  # (q, a_free, M^-1) at rest
 
 
 class NormalContacts:
@@ -166,6 +191,8 @@ class NormalContacts:
         self.engaged: list[int] = []  # row indices
         self.zero_a = np.zeros(self.nv)
         self.n_painleve = 0
+        self.resting = False  # captured at rest (see capture)
+        self.bounced = False  # the last impulse had restitution
 
     # ------------------------------------------------------------------ set
     @property
@@ -235,6 +262,7 @@ class NormalContacts:
 
     def refresh(self, q: FloatArray) -> None:
         """Recompute every pair's patch at q (drops pairs no longer within tolerance)."""
+        self.resting = False
         for k in list(self.pairs):
             if not self.add_pair(q, k):
                 self.pairs.pop(k)
@@ -280,7 +308,7 @@ class NormalContacts:
             arel = ap2 - ap1
             w2 = b2[3]
             rows.append(np.einsum("i,kij->kj", n, dJ[:-1]))
-            drift.append(arel[:-1] @ n + 2.0 * (vrel[:-1] @ np.cross(w2, n)))
+            drift.append(arel[:-1] @ n + 2.0 * (vrel[:-1] @ _cross(w2, n)))
             gaps.append((P2 - P1) @ n)
             vns.append(vrel[:-1] @ n)
             t1, t2 = _tangents(n)
@@ -365,13 +393,17 @@ class NormalContacts:
         return C
 
     def _slip_direction(self, p: _Pair, ex: dict[str, Any]) -> FloatArray:
-        """The sliding direction, fixed inside a step.
+        """The unit sliding direction of body 2 relative to body 1 at the patch centre (world).
 
-        Set at the restart; a sliding pair is re-patched, and its direction refreshed, after
-        every accepted step. A direction following v_t would switch at every rounding error
-        once v_t is near zero.
+        It follows the sliding velocity v_t inside a step (a direction frozen at the onset
+        lets the friction force turn v_t sideways: an event every few degrees), blended with
+        the onset direction below :data:`STICK_SPEED`: s = (v_t + STICK_SPEED s0) / |...|, so
+        a slip starting from rest has the direction of its onset and a slowing slide keeps a
+        smooth direction until its stick event.
         """
-        return p.slip_dir
+        w = ex["vt"] + STICK_SPEED * p.slip_dir
+        nw = float(np.linalg.norm(w))
+        return np.asarray(w / nw if nw > 0.0 else p.slip_dir, dtype=np.float64)
 
     def _stick_rows(self, extra: list[dict[str, Any]]) -> tuple[FloatArray, FloatArray, FloatArray]:
         """Tangential rows (2 per sticking pair), their drift and velocities."""
@@ -409,6 +441,8 @@ class NormalContacts:
         """
         Jn, drift, gap, vn, extra = self._problem(q, v)
         vt = [ex["vt"] for ex in extra]
+        if self.resting:  # captured: at rest while the rest condition holds
+            return _Eval(np.zeros(self.nv), np.zeros(0), gap, vn, vt, (q, a_free, minv))
         E = self.engaged
         JT, bT, vT = self._stick_rows(extra)
         if not E:
@@ -433,6 +467,10 @@ class NormalContacts:
         slip: stick).
         """
         out: dict[tuple[Any, ...], tuple[str, float]] = {}
+        if ev.rest is not None:
+            a = self._rest_accel(*ev.rest)
+            margin = -1.0 if a is None else 2.0 * CAPTURE_ACCEL - float(np.abs(a).max())
+            return {("nrest", 0): ("slip", margin)}
         E = self.engaged
         pos = {r: i for i, r in enumerate(E)}
         for r in range(len(ev.gap)):
@@ -454,7 +492,11 @@ class NormalContacts:
                     g = self.mu * float(ev.lam[rows].sum()) - float(np.linalg.norm(lt))
                     out[("nfric", key)] = ("slip", g + FORCE_BAND)
                 else:
-                    out[("nfric", key)] = ("stick", float(vt @ p.slip_dir) + SPEED_BAND)
+                    # v_t along the friction direction (blended with the onset direction):
+                    # negative once the slide has come back through zero.
+                    w = vt + STICK_SPEED * p.slip_dir
+                    g = float(vt @ w) / max(float(np.linalg.norm(w)), 1e-300)
+                    out[("nfric", key)] = ("stick", g + STICK_BAND)
         return out
 
     # ------------------------------------------------------------------ restart
@@ -476,13 +518,105 @@ class NormalContacts:
         self.refresh(q)
         events: list[ModeEvent] = []
         q = self.project(q, v, minv)
+        self.bounced = False
         v = self.impulse(q, v, minv)
+        v = self.stop_slow(q, v, minv)
+        captured = self.capture(q, v, a_free_fn, minv)
+        if captured is not None:
+            return q, np.zeros_like(v), events + captured
         events += self.select_modes(q, v, a_free_fn(q, v), minv)
         return q, v, events
 
+    def capture(
+        self, q: FloatArray, v: FloatArray, a_free_fn: Any, minv: FloatArray
+    ) -> list[ModeEvent] | None:
+        """Bring a slow arm to rest when it can stay there (rest capture).
+
+        When every joint speed is below :data:`CAPTURE_SPEED` and, at v = 0, the frictional
+        contact problem of every touching row (per-point Coulomb cones, solved jointly by
+        :func:`packbot.contact.lcp.solve_ncp_admm`) has joint accelerations below
+        :data:`CAPTURE_ACCEL`, the velocity is set to zero and the contacts are *resting*:
+        a = 0 until the rest condition (the same accelerations below 2 CAPTURE_ACCEL) fails.
+        This is a documented regularisation of the mode decision, not of the forces. The
+        joint problem is needed because a statically indeterminate arm (4 dof, an edge patch
+        and a second contact: 7 rows) has many force distributions; the pair-by-pair cone check
+        of :meth:`select_modes` takes one of them and finds it outside the cone (measured: 1.9
+        times the cone on the elbow casing) where a feasible one exists. Without the capture
+        the arm rocks on its edge patch in a periodic cycle of micro-impacts (period 16.7 ms,
+        joint speeds 6e-3 rad/s, forever). A bounce (an impulse with restitution) is never
+        captured.
+
+        Returns:
+            The mode changes if the arm was captured (the caller sets v = 0), else None (modes
+            untouched).
+        """
+        if self.bounced or not self.pairs or float(np.abs(v).max(initial=0.0)) > CAPTURE_SPEED:
+            return None
+        z = np.zeros_like(v)
+        a_free = a_free_fn(q, z)
+        a = self._rest_accel(q, a_free, minv)
+        if a is None or float(np.abs(a).max()) > CAPTURE_ACCEL:
+            return None
+        events = []
+        for p in self.pairs.values():
+            if self.mu > 0.0 and not p.stick:
+                events.append(ModeEvent("stick", p.info))
+            p.stick = True
+        _, _, gap, _, _ = self._problem(q, z)
+        self.engaged = [int(r) for r in np.flatnonzero(gap <= TOUCH_GAP)]
+        self.resting = bool(self.engaged)
+        return events if self.resting else None
+
+    def _rest_accel(self, q: FloatArray, a_free: FloatArray, minv: FloatArray) -> FloatArray | None:
+        """Joint accelerations at v = 0 under the frictional contact of every touching row.
+
+        None when no row touches or the cone problem is not solved.
+        """
+        z = np.zeros(self.nv)
+        Jn, _, gap, _, extra = self._problem(q, z)
+        touch = np.flatnonzero(gap <= TOUCH_GAP)
+        if len(touch) == 0:
+            return None
+        J3, mus = self._frictional_rows(touch, Jn, extra)
+        G3 = J3 @ minv @ J3.T
+        x, res = solve_ncp_admm(self.model, self.data, G3, J3 @ a_free, mus)
+        if res > 1e-6:
+            return None
+        return np.asarray(a_free + minv @ J3.T @ x, dtype=np.float64)
+
+    def stop_slow(self, q: FloatArray, v: FloatArray, minv: FloatArray) -> FloatArray:
+        """Bring the touching pairs sliding slower than :data:`STICK_SPEED` to rest.
+
+        The least (M-weighted) velocity change that zeroes their tangential velocity at the
+        patch centre and keeps the touching rows' normal velocities (a stick event's residual
+        speed, like the joint-clamp mode's ``v_j = 0`` at a stick). Without it a slip that
+        starts from such a residual speed can be against its own onset direction, and the
+        stick condition fires again at once.
+        """
+        if self.mu == 0.0 or not self.pairs:
+            return v
+        Jn, _, gap, vn, extra = self._problem(q, v)
+        rows, target = [], []
+        k = 0
+        for p, ex in zip(self.pairs.values(), extra, strict=True):
+            K = len(p.local1)
+            touching = bool(np.any(gap[k : k + K] <= TOUCH_GAP))
+            k += K
+            if touching and float(np.linalg.norm(ex["vt"])) <= STICK_SPEED:
+                rows.append(ex["JT"])
+                target.append(-ex["vT"])
+        if not rows:
+            return v
+        touch = np.flatnonzero(gap <= TOUCH_GAP)
+        A = np.vstack([*rows, Jn[touch]])
+        b = np.concatenate([*target, np.maximum(-vn[touch], 0.0)])
+        G = A @ minv @ A.T
+        x = np.linalg.lstsq(G, b, rcond=1e-10)[0]
+        return np.asarray(v + minv @ A.T @ x, dtype=np.float64)
+
     def sliding(self, q: FloatArray, v: FloatArray) -> bool:
         """Whether a pair with engaged rows slides (its material points drift off the patch)."""
-        if not self.engaged or not self.pairs:
+        if not self.engaged or not self.pairs or self.resting:
             return False
         _, _, _, _, extra = self._problem(q, v)
         for p, ex in zip(self.pairs.values(), extra, strict=True):
@@ -529,6 +663,7 @@ class NormalContacts:
         if len(touch) == 0 or float(vn[touch].min()) >= 0.0:
             return v
         e = self.e if float(vn[touch].min()) < -self.zeno_speed else 0.0
+        self.bounced = e > 0.0
         target = vn[touch] + e * np.minimum(vn[touch], 0.0)
         J = Jn[touch]
         if self.mu == 0.0:
@@ -627,6 +762,7 @@ class NormalContacts:
                 p.stick = False
                 p.slip_dir = s
                 events.append(ModeEvent("slip", p.info))
+        self._consistent_directions(q, v, Jn, drift, gap, vn, extra, a_free, minv, touch)
         if log.isEnabledFor(logging.DEBUG):
             log.debug(
                 "modes: touch %s engaged %s gaps %s vn %s",
@@ -636,6 +772,53 @@ class NormalContacts:
                 np.array2string(vn, precision=6),
             )
         return events
+
+    def _consistent_directions(
+        self,
+        q: FloatArray,
+        v: FloatArray,
+        Jn: FloatArray,
+        drift: FloatArray,
+        gap: FloatArray,
+        vn: FloatArray,
+        extra: list[dict[str, Any]],
+        a_free: FloatArray,
+        minv: FloatArray,
+        touch: list[int],
+    ) -> None:
+        """Slip directions of pairs starting to slide from rest: their tangential acceleration.
+
+        A slip onset at rest (|v_t| <= :data:`STICK_SPEED`) must slide along its direction s:
+        a_t(s) . s > 0, a_t the tangential acceleration of the patch centre in the slip mode.
+        From the cone check's s = -f_t / |f_t|, s is turned towards a_t (s <- s + a_t / |a_t|)
+        until it is (a plain fixed point s = a_t / |a_t| can flip-flop).
+        """
+        if self.mu == 0.0:
+            return
+        starting = [
+            p
+            for p, ex in zip(self.pairs.values(), extra, strict=True)
+            if not p.stick and float(np.linalg.norm(ex["vt"])) <= STICK_SPEED
+        ]
+        if not starting or not self.engaged:
+            return
+        for _ in range(8):
+            a = self.evaluate(q, v, a_free, minv).a
+            moved = False
+            for p, ex in zip(self.pairs.values(), extra, strict=True):
+                if p not in starting:
+                    continue
+                at = ex["T"].T @ (ex["JT"] @ a + ex["bT"])
+                na = float(np.linalg.norm(at))
+                if na <= 1e-9 or float(at @ p.slip_dir) > 0.0:
+                    continue  # the slide grows along its direction: consistent
+                s = p.slip_dir + at / na
+                ns = float(np.linalg.norm(s))
+                p.slip_dir = s / ns if ns > 1e-9 else at / na
+                moved = True
+            if not moved:
+                return
+            self._solve_modes(touch, Jn, drift, gap, vn, extra, a_free, minv)
 
     def _solve_modes(
         self,
@@ -758,9 +941,9 @@ def _lift(
 def _tangents(n: FloatArray) -> tuple[FloatArray, FloatArray]:
     """Two unit tangents (t1, t2) with (t1, t2, n) right-handed."""
     a = np.array([1.0, 0.0, 0.0]) if abs(n[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
-    t1 = np.cross(a, n)
+    t1 = _cross(a, n)
     t1 /= np.linalg.norm(t1)
-    return t1, np.cross(n, t1)
+    return t1, _cross(n, t1)
 
 
 def _points(body: tuple[Any, ...], pts: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
@@ -769,8 +952,30 @@ def _points(body: tuple[Any, ...], pts: FloatArray) -> tuple[FloatArray, FloatAr
     r = pts - o
     Jv, Jw = J[:3], J[3:]
     # J_p = Jv - skew(r) Jw  ->  per point: Jv + (Jw columns) x r ... written with cross
-    Jp = Jv[None, :, :] - np.cross(r[:, None, :], Jw.T[None, :, :]).transpose(0, 2, 1)
-    wr = np.cross(w, r)
+    # J_p = Jv + Jw x r = Jv - r x Jw (column-wise), per point
+    x, y, z = r[:, 0, None], r[:, 1, None], r[:, 2, None]
+    Jp = np.empty((len(r), 3, J.shape[1]))
+    Jp[:, 0] = Jv[0] - (y * Jw[2] - z * Jw[1])
+    Jp[:, 1] = Jv[1] - (z * Jw[0] - x * Jw[2])
+    Jp[:, 2] = Jv[2] - (x * Jw[1] - y * Jw[0])
+    wr = _cross(w, r)
     vp = vo + wr
-    ap = ao + np.cross(alpha, r) + np.cross(w, vo + wr)
+    ap = ao + _cross(alpha, r) + _cross(w, vo + wr)
     return Jp, vp, ap
+
+
+def _cross(a: FloatArray, b: FloatArray) -> FloatArray:
+    """Cross product of 3-vectors along the last axis, broadcast.
+
+    np.cross is slow on the small arrays of the contact rows.
+    """
+    if a.ndim == 1 and b.ndim == 1:
+        a0, a1, a2 = a.tolist()
+        b0, b1, b2 = b.tolist()
+        return np.array([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0])
+    a, b = np.broadcast_arrays(a, b)
+    out = np.empty(a.shape)
+    out[..., 0] = a[..., 1] * b[..., 2] - a[..., 2] * b[..., 1]
+    out[..., 1] = a[..., 2] * b[..., 0] - a[..., 0] * b[..., 2]
+    out[..., 2] = a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]
+    return out
