@@ -91,6 +91,12 @@ def _cmd_generate_srdf(args: argparse.Namespace) -> int:
     if root is None:
         print("error: not in a source checkout; pass --root DIR", file=sys.stderr)
         return 2
+    if not (root / "urdf").is_dir():
+        print(
+            f"error: --root {root} has no urdf/ folder; pass the source checkout's root",
+            file=sys.stderr,
+        )
+        return 2
     path = write_srdf(load_robot(), root, samples=args.samples, clearance=args.clearance)
     print(f"wrote {path}")
     return 0

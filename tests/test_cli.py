@@ -124,3 +124,10 @@ def test_list_shows_scenarios_and_poses(capsys):
 def test_no_command_prints_help(capsys):
     assert main([]) == 2
     assert "run" in capsys.readouterr().out
+
+
+def test_generate_srdf_without_urdf_folder_names_the_option(tmp_path, capsys):
+    assert main(["generate-srdf", "--root", str(tmp_path)]) == 2
+    err = capsys.readouterr().err
+    assert "--root" in err and "urdf/" in err
+    assert not (tmp_path / "urdf").exists()
