@@ -67,6 +67,15 @@ class SimConfig:
         zeno_speed: Impacts whose fastest approaching point is slower than this are perfectly
             inelastic [m/s] (``"normal"`` only): ends a Zeno sequence of ever closer bounces
             in resting contact.
+        handoff: ``contact_mode="joint_clamp"`` only (True with another mode is an error): at a
+            ``secondary_intersection`` of a pair (the report's self-diagnosis: a clamped pair
+            penetrates anyway), its clamps are released and the pair is handed to the
+            contact-normal machinery (patch rows, impulse with ``restitution``, resting contact
+            with friction ``mu``, release when its force would pull) instead of applying the
+            report's law again; the other pairs' clamps become one-sided joint rows of the same
+            complementarity problem while a handed-off pair is in contact. The pair returns to
+            the report's law once it separates beyond ``proximity_tolerance``. Logged as a
+            ``handoff`` event. See docs/contact.md, "Hand-off".
     """
 
     contact_mode: ContactMode = "joint_clamp"
@@ -91,6 +100,7 @@ class SimConfig:
     motor_lag: float = 0.0
     mu: float = 0.0
     zeno_speed: float = 1e-2
+    handoff: bool = False
 
     def validate(self) -> None:
         """Check every field; raise :class:`ConfigurationError` naming the first bad one."""
@@ -131,7 +141,7 @@ class SimConfig:
             )
         if len(self.gravity) != 3 or not all(math.isfinite(g) for g in self.gravity):
             raise ConfigurationError("gravity", self.gravity, "3 finite numbers [m/s^2]")
-        for name in ("joint_friction", "effort_saturation", "joint_limits"):
+        for name in ("joint_friction", "effort_saturation", "joint_limits", "handoff"):
             if not isinstance(getattr(self, name), bool):
                 raise ConfigurationError(name, getattr(self, name), "true or false")
         lag = self.motor_lag
@@ -148,5 +158,19 @@ class SimConfig:
                 "joint_friction",
                 self.joint_friction,
                 "False with contact_mode='normal' (joint stick/slip and contact forces are not "
+                "yet solved as one problem)",
+            )
+        if self.handoff and self.contact_mode != "joint_clamp":
+            raise ConfigurationError(
+                "handoff",
+                self.handoff,
+                f"False with contact_mode={self.contact_mode!r} (a hand-off goes from the "
+                "'joint_clamp' law to the contact-normal machinery)",
+            )
+        if self.handoff and self.joint_friction:
+            raise ConfigurationError(
+                "handoff",
+                self.handoff,
+                "False with joint_friction=True (joint stick/slip and contact forces are not "
                 "yet solved as one problem)",
             )

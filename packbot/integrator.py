@@ -11,7 +11,8 @@ there, the event is handled, and the stepper restarts with a fresh step. Event f
 - ``release``: an active pair separates beyond proximity_tolerance;
 - ``secondary_intersection``: an active, clamped pair's distance falls below zero (the
   report's "secondary intersection", self-diagnosed: logged, and the impact law is applied again
-  with the current geometry);
+  with the current geometry); with ``SimConfig.handoff`` the pair is instead handed to the
+  contact-normal machinery (a ``handoff`` event; :mod:`packbot.contact.handoff`);
 - ``engage`` / ``disengage``: a clamped joint's sign condition changes (it starts to accelerate
   toward its contact, or its lock torque would pull); see :mod:`packbot.contact.locks`;
 - ``slip`` / ``stick``: a joint held by static friction or a brake needs more than its holding
@@ -46,6 +47,7 @@ from packbot.actuators import TorquePath
 from packbot.collision import PairInfo
 from packbot.config import SimConfig
 from packbot.contact import JointLocks, clamp_directions, impact_reset, relevant_joints
+from packbot.contact.handoff import HandoffContacts
 from packbot.contact.locks import TORQUE_BAND
 from packbot.contact.normal import PENETRATION_TOL, NormalContacts
 from packbot.control.base import Controller
@@ -193,6 +195,23 @@ class _Run:
                 zeno_speed=cfg.zeno_speed,
                 contact_tolerance=cfg.contact_tolerance,
             )
+        # Hand-off (joint_clamp mode): pairs handed to the normal machinery, the clamps as rows.
+        self.mixed: HandoffContacts | None = None
+        if cfg.handoff and self.sys.world is not None:
+            self.mixed = HandoffContacts(
+                self.sys.model,
+                self.sys.data,
+                self.sys.world,
+                mu=cfg.mu,
+                restitution=cfg.restitution,
+                zeno_speed=cfg.zeno_speed,
+                contact_tolerance=cfg.contact_tolerance,
+            )
+
+    @property
+    def mixed_on(self) -> bool:
+        """Whether a handed-off pair is in contact (the clamps are then rows of its problem)."""
+        return self.mixed is not None and bool(self.mixed.pairs)
 
     def full_state(self, y: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
         """(q, v, tau_m) in full coordinates from an integrated state."""
@@ -254,6 +273,8 @@ class _Run:
             a = self.locks.accelerations(a, self.sys.minv(q))
         if self.normal is not None and self.normal.engaged:
             a = self.normal.evaluate(q, v, a, self.sys.minv(q)).a
+        if self.mixed is not None and self.mixed.constrained:
+            a = self.mixed.evaluate(q, v, a, self.sys.minv(q)).a
         if self.lag:
             return np.concatenate([v, a, (target - y[2 * n :]) / self.cfg.motor_lag])
         return np.concatenate([v, a])
@@ -338,7 +359,8 @@ class _Run:
             for p_idx, d1 in d_now.items():
                 key = ("pair", p_idx)
                 d0 = self.last_d.get(p_idx, math.inf)
-                if self.normal is not None:
+                handed = self.mixed is not None and p_idx in self.mixed.pairs
+                if self.normal is not None or handed:  # handed: a handed-off pair
                     out.extend(self._normal_pair_crossing(key, p_idx, seg, d0, d1))
                 elif key in self.active:
                     if d1 > cfg.proximity_tolerance:
@@ -368,6 +390,8 @@ class _Run:
             self.pending_d = d_now
         if self.normal is not None and not self.normal.empty:
             out.extend(self._normal_mode_crossings(seg, y1))
+        if self.mixed_on:
+            out.extend(self._mixed_mode_crossings(seg, y1))
         if self.locks.held or any(len(s) == 1 for s in self.locks.signs.values()):
             cond1 = self.lock_conditions(seg.t1, y1)
             bad = [k for k, g in cond1.items() if g < 0.0]
@@ -480,6 +504,10 @@ class _Run:
         """Apply the events at time t to state y; returns the post-event state."""
         if self.normal is not None:
             return self.handle_normal(t, y, crossings)
+        if self.mixed is not None and (
+            self.mixed_on or any(c.kind == "secondary_intersection" for c in crossings)
+        ):
+            return self.handle_mixed(t, y, crossings)
         n = self.n
         q, v = y[:n], y[n : 2 * n].copy()
         flip: int | None = None
@@ -566,6 +594,157 @@ class _Run:
             self.log_event(t, me.kind, q, v_new, v_new, me.pair)
         return np.concatenate([q, v_new, tail])
 
+    # ------------------------------------------------------------------ hand-off (mixed)
+    def _mixed_conditions(
+        self, t: float, y: FloatArray
+    ) -> dict[tuple[Any, ...], tuple[str, float]]:
+        assert self.mixed is not None
+        n = self.n
+        q, v = y[:n], y[n : 2 * n]
+        ev = self.mixed.evaluate(q, v, self.free_accel(t, y), self.sys.minv(q))
+        return self.mixed.conditions(ev)
+
+    def _mixed_mode_crossings(self, seg: DenseSegment, y1: FloatArray) -> list[_Crossing]:
+        """Mode conditions of the hand-off problem that changed sign over the step."""
+        cond1 = self._mixed_conditions(seg.t1, y1)
+        bad = [k for k, (_, g) in cond1.items() if g < 0.0]
+        if not bad:
+            return []
+        cond0 = self._mixed_conditions(seg.t0, seg.y0)
+        out = []
+        for k in bad:
+
+            def gm(t: float, k: tuple[Any, ...] = k) -> float:
+                return self._mixed_conditions(t, seg(t))[k][1]
+
+            g0 = cond0[k][1] if k in cond0 else 1.0
+            out.append(_Crossing(cond1[k][0], ("mode", *k), gm, g0, cond1[k][1]))
+        return out
+
+    def apply_clamps(self) -> None:
+        """Give the clamps of the active contacts to the hand-off rows or to the joint locks."""
+        clamps = [cl for a in self.active.values() for cl in a.clamps]
+        if self.mixed_on:
+            assert self.mixed is not None
+            self.mixed.set_clamps(clamps)
+            self.locks.set_clamps(())
+        else:
+            if self.mixed is not None:
+                self.mixed.set_clamps(())
+            self.locks.set_clamps(clamps)
+
+    def settle_mixed(self, t: float, y: FloatArray) -> None:
+        """Hand-off: the modes of the mixed problem at (t, y) (no impulse: v is kept)."""
+        mixed = self.mixed
+        assert mixed is not None
+        n, tail = self.n, y[2 * self.n :]
+        q, v = y[:n], y[n : 2 * n]
+        self.apply_clamps()
+        mixed.refresh(q)
+        mixed.select_modes(q, v, self.free_accel(t, y), self.sys.minv(q))
+        if not mixed.pairs:  # the refresh dropped the last pair: the locks take the clamps
+            self.apply_clamps()
+            self.settle_modes(t, np.concatenate([q, v, tail]))
+
+    def mixed_sliding(self, y: FloatArray) -> bool:
+        """Whether a handed-off pair slides (its patch must follow)."""
+        assert self.mixed is not None
+        return self.mixed.sliding(y[: self.n], y[self.n : 2 * self.n])
+
+    def refresh_mixed(self) -> None:
+        """Hand-off: re-patch sliding handed-off pairs after an accepted step (not logged)."""
+        mixed = self.mixed
+        assert mixed is not None
+        n, t = self.n, self.t
+        q, v, tail = self.y[:n], self.y[n : 2 * n], self.y[2 * n :]
+
+        def a_free(qq: FloatArray, vv: FloatArray) -> FloatArray:
+            return self.free_accel(t, np.concatenate([qq, vv, tail]))
+
+        q = mixed.repatch(q, v, a_free, self.sys.minv(q))
+        self.y = np.concatenate([q, v, tail])
+        self.diag.restarts += 1
+        self.stepper.reset(t, self.y, h=max(self.stepper.h, 1e-6))
+
+    def handle_mixed(self, t: float, y: FloatArray, crossings: list[_Crossing]) -> FloatArray:
+        """Events with ``handoff``: a secondary intersection hands its pair over.
+
+        The handed-off pairs follow the normal mode (re-patch, leave the set beyond the
+        proximity tolerance, row and friction mode changes); the other pairs and the limit
+        stops follow the report's law (impact, limit, release: their clamps). Then, while a
+        handed-off pair is in contact, one restart of the mixed problem (drift correction,
+        impulse, modes) with the clamps as rows; otherwise the joint locks take the clamps.
+        """
+        mixed, world = self.mixed, self.sys.world
+        assert mixed is not None and world is not None
+        n = self.n
+        q, v = y[:n], y[n : 2 * n].copy()
+        tail = y[2 * n :]
+        handed: list[tuple[PairInfo, float]] = []
+        logged: list[tuple[str, PairInfo | None, float, tuple[str, ...], int | None]] = []
+        order = {"release": 0, "secondary_intersection": 1}
+        for c in sorted(crossings, key=lambda c: order.get(c.kind, 2)):
+            key = c.key
+            if key[0] == "pair":
+                p_idx = key[1]
+                info = world.pairs[p_idx]
+                d = self.distance(p_idx, y)
+                if p_idx in mixed.pairs:  # a handed-off pair
+                    if c.kind == "release":
+                        self.active.pop(key, None)
+                        mixed.remove_pair(p_idx)
+                        logged.append(("release", info, d, (), None))
+                    else:  # repatch
+                        mixed.add_pair(q, p_idx)
+                        logged.append((c.kind, info, d, (), None))
+                elif c.kind == "release":
+                    act = self.active.pop(key, None)
+                    if act is not None:
+                        self.log_event(t, "release", q, v, v, info, d=d)
+                elif c.kind == "secondary_intersection" and mixed.add_pair(q, p_idx):
+                    self.active[key] = _Active(info, [])  # its clamps are released
+                    handed.append((info, d))
+                else:  # an impact (or a secondary intersection without a patch): the law
+                    v = self.impact(t, q, v, p_idx, c.kind)
+            elif key[0] == "limit":
+                v = self.limit(t, q, v, key[1], key[2])
+            elif key[0] == "mode":
+                if key[1] == "nrow" and (cl := mixed.clamp_of_row(key[2])) is not None:
+                    j = cl[0]
+                    logged.append((c.kind, None, math.nan, (self.sys.names[j],), j))
+                elif key[1] == "nrow":
+                    owner, _ = mixed.row_owner(key[2])
+                    logged.append((c.kind, owner, math.nan, (), None))
+                elif key[1] == "nfric":
+                    logged.append((c.kind, mixed.pairs[key[2]].info, math.nan, (), None))
+                else:  # nrest: the resting arm starts moving again
+                    logged.append((c.kind, None, math.nan, (), None))
+            else:  # a lock's engage/disengage at the instant of a hand-off: re-solved below
+                j = key[1]
+                logged.append((c.kind, None, math.nan, (self.sys.names[j],), j))
+        self.apply_clamps()
+        if not self.mixed_on:  # the last handed-off pair left: the report's law alone
+            for kind, info, d, joints, jnt in logged:
+                self.log_event(t, kind, q, v, v, info, d=d, joints=joints, joint=jnt)
+            y_new = self.with_v(y, v)
+            self.settle_modes(t, y_new)
+            return y_new
+
+        def a_free(qq: FloatArray, vv: FloatArray) -> FloatArray:
+            return self.free_accel(t, np.concatenate([qq, vv, tail]))
+
+        q, v_new, mode_events = mixed.restart(q, v, a_free, self.sys.minv(q))
+        for info, d in handed:
+            joints = tuple(self.sys.names[i] for i in np.flatnonzero(v_new != v))
+            self.log_event(t, "handoff", q, v, v_new, info, d=d, joints=joints)
+        for kind, info, d, joints, jnt in logged:
+            self.log_event(t, kind, q, v, v_new, info, d=d, joints=joints, joint=jnt)
+        for me in mode_events:
+            if any(me.kind == k and me.pair == i for k, i, _, _, _ in logged):
+                continue
+            self.log_event(t, me.kind, q, v_new, v_new, me.pair)
+        return np.concatenate([q, v_new, tail])
+
     def with_v(self, y: FloatArray, v: FloatArray) -> FloatArray:
         """The state y with its velocities replaced."""
         out = y.copy()
@@ -605,6 +784,9 @@ class _Run:
         """
         n = self.n
         q, v = y[:n], y[n : 2 * n]
+        if self.mixed_on:  # the clamps are rows of the hand-off problem
+            self.settle_mixed(t, y)
+            return
         self.locks.set_clamps(cl for a in self.active.values() for cl in a.clamps)
         bound = self.path.coulomb
         held = {j: b for j, b in self.locks.held.items() if bound[j] > 0}
@@ -756,7 +938,7 @@ class _Run:
                         energy_after=energy,
                     )
                 )
-                self.locks.set_clamps(cl for a in self.active.values() for cl in a.clamps)
+                self.apply_clamps()
 
     def note_min(self, d: float, pair: int) -> None:
         """Track the smallest signed distance of the states the run keeps."""
@@ -1024,6 +1206,8 @@ class _Run:
                 n = self.n
                 if self.normal is not None and self.normal.sliding(y1[:n], y1[n : 2 * n]):
                     self.refresh_sliding()
+                elif self.mixed_on and self.mixed_sliding(y1):
+                    self.refresh_mixed()
                 if on_schedule:
                     self.run_scheduled(self.t)
                     self.record_due(self.t, self.y)
@@ -1089,6 +1273,13 @@ def _check_inputs(
         raise ConfigurationError("failures", failures, "a list of packbot.Failure")
     validate_failures(list(failures), robot.joint_names)
     for f in failures:
+        if f.kind == "brake" and config.handoff:
+            raise ConfigurationError(
+                "failures",
+                f"{f.joint}: brake",
+                "no brake failure with handoff=True (joint holds and contact forces are not yet "
+                "solved as one problem)",
+            )
         if f.kind == "brake" and config.contact_mode == "normal":
             raise ConfigurationError(
                 "failures",

@@ -18,6 +18,7 @@ EventKind = Literal[
     "limit",
     "release",
     "secondary_intersection",
+    "handoff",
     "engage",
     "disengage",
     "slip",
@@ -35,6 +36,8 @@ EVENT_KINDS: tuple[str, ...] = (
     "limit",  # a joint reached a position limit: the same impact law and clamp
     "release",  # an active contact or limit stop let go (separated, or its clamp would pull)
     "secondary_intersection",  # an active, clamped pair penetrated anyway (report's self-diagnosis)
+    "handoff",  # the same with SimConfig.handoff: its clamps released, the pair handed to the
+    # contact-normal machinery (velocities before/after its restart's impulse)
     "engage",  # a clamped joint started to accelerate toward its contact: its lock engaged
     "disengage",  # a locked joint's constraint torque would pull: its lock let go
     "slip",  # a joint held by static friction or a brake needed more than its holding torque;

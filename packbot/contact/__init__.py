@@ -4,6 +4,9 @@
   the report's law: a clamped joint may not accelerate toward its contact.
 - :mod:`packbot.contact.joint_clamp`: the 2010 report's impact law (``contact_mode="joint_clamp"``):
   relevant joints, velocity reset rules, clamp directions.
+- :mod:`packbot.contact.normal`, :mod:`packbot.contact.lcp`: the contact-normal mode.
+- :mod:`packbot.contact.handoff`: ``SimConfig.handoff``, a joint_clamp pair handed to the normal
+  mode at a secondary intersection, the remaining clamps as rows of its problem.
 """
 
 from packbot.contact.joint_clamp import clamp_directions, impact_reset, relevant_joints
