@@ -10,7 +10,8 @@ a cProfile of the default rule (zero + velocity), top 15 functions by cumulative
 Then the collapse side by side (issue 5): ``joint_clamp`` (zero and momentum reset),
 ``contact_mode="normal"`` with mu = 0 and mu = 0.5 (one run each, stopped after
 ``--normal-timeout`` wall seconds; ``--normal-duration`` shortens them), and MuJoCo
-(:mod:`packbot.mujoco_model`, same URDF, mu = 0.5, stiff solref) at 0.5, 1 and 2 ms: wall time,
+(:mod:`packbot.mujoco_model`, same URDF, mu = 0.5, stiff solref) at 0.5, 1 and 2 ms with its default
+Euler integrator and with RK4, and at 0.1 ms with a 1 ms contact time constant: wall time,
 real-time factor, rest time, rest pose and deepest penetration (ours: max(0, -min signed
 distance); MuJoCo: max(0, -contact dist)). Skipped without ``mujoco`` or with ``--no-compare``.
 
@@ -186,14 +187,19 @@ def compare(robot: packbot.Robot, args: argparse.Namespace) -> None:
         pen = max(0.0, -res.diagnostics.min_distance)
         row(label, d, wall, res.rest_time, res.q[-1], pen)
     try:
-        for dt in (5e-4, 1e-3, 2e-3):
-            arm = build_mujoco_model(robot, timestep=dt, mu=0.5, locked_joints=LOCKED)
+        mj_cases = [
+            (f"MuJoCo {dt * 1e3:g} ms {integ}", {"timestep": dt, "integrator": integ})
+            for integ in ("euler", "rk4")
+            for dt in (5e-4, 1e-3, 2e-3)
+        ]
+        mj_cases.append(("MuJoCo 0.1 ms tau 1 ms", {"timestep": 1e-4, "solref": (1e-3, 1.0)}))
+        for label, mj in mj_cases:
+            arm = build_mujoco_model(robot, mu=0.5, locked_joints=LOCKED, **mj)  # type: ignore[arg-type]
             walls = []
             for _ in range(args.repeats):
                 t0 = time.perf_counter()
                 run = run_collapse(arm, robot.pose("drive"), dur)
                 walls.append(time.perf_counter() - t0)
-            label = f"MuJoCo {dt * 1e3:g} ms mu=0.5"
             row(
                 label, dur, statistics.median(walls), run.rest_time, run.q_rest, run.max_penetration
             )

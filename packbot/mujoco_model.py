@@ -34,7 +34,7 @@ import xml.etree.ElementTree as ET
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Literal, get_args
 
 import numpy as np
 import pinocchio as pin
@@ -46,10 +46,23 @@ if TYPE_CHECKING:
     from packbot.environment import Environment
     from packbot.model import Robot
 
-__all__ = ["WRIST_JOINTS", "MujocoArm", "MujocoRun", "build_mujoco_model", "run_collapse"]
+__all__ = [
+    "MUJOCO_INTEGRATORS",
+    "WRIST_JOINTS",
+    "MujocoArm",
+    "MujocoIntegrator",
+    "MujocoRun",
+    "build_mujoco_model",
+    "run_collapse",
+    "sliding_lift",
+]
 
 #: The joints held rigid in the report's collapse (wrist, camera and gripper).
 WRIST_JOINTS: tuple[str, ...] = ("camera_tilt", "camera_pan", "gripper_roll", "gripper_jaw")
+
+#: MuJoCo integrators :func:`build_mujoco_model` accepts (``mjINT_EULER``, ...).
+MujocoIntegrator = Literal["euler", "implicitfast", "rk4"]
+MUJOCO_INTEGRATORS: tuple[str, ...] = get_args(MujocoIntegrator)
 
 _SRDF_NAME = "packbot_eod.srdf"
 _PACKAGE = "package://packbot/meshes/"
@@ -79,6 +92,7 @@ class MujocoArm:
         mu: Coulomb friction coefficient of every geom [-].
         timestep: MuJoCo step [s].
         solref: (time constant [s], damping ratio [-]) of contacts and joint limits.
+        integrator: MuJoCo integrator, one of :data:`MUJOCO_INTEGRATORS`.
         xml: The rewritten URDF text that MuJoCo loaded.
     """
 
@@ -90,6 +104,7 @@ class MujocoArm:
     mu: float
     timestep: float
     solref: tuple[float, float]
+    integrator: MujocoIntegrator
     xml: str = field(repr=False)
 
     def to_qpos(self, q: Sequence[float] | NDArray[np.float64]) -> NDArray[np.float64]:
@@ -193,6 +208,7 @@ def build_mujoco_model(
     mu: float = 0.5,
     solref: tuple[float, float] | None = None,
     solimp: tuple[float, float, float] = (0.99, 0.999, 0.001),
+    integrator: MujocoIntegrator = "euler",
     environment: Environment | None = None,
     srdf: Path | str | None = None,
 ) -> MujocoArm:
@@ -209,6 +225,12 @@ def build_mujoco_model(
         solref: (time constant [s], damping ratio [-]) of contacts and joint limits; None:
             ``(2 * timestep, 1.0)``.
         solimp: MuJoCo impedance (dmin, dmax, width [m]) of contacts and joint limits.
+        integrator: ``"euler"`` (MuJoCo's default, semi-implicit), ``"implicitfast"`` or
+            ``"rk4"``. With ``"euler"`` and the default ``solref`` a sliding contact lifts off at
+            a normal speed of about mu times its sliding speed, whatever the timestep (MuJoCo's
+            convex contact model; docs/contact.md, "MuJoCo as a reference"): for a reference
+            of Coulomb sliding use ``"rk4"``, or a ``solref`` time constant of at least ten
+            timesteps.
         environment: Static obstacles; only halfspaces are supported (each becomes a plane);
             None: the floor z = 0.
         srdf: SRDF of link pairs never to test; None: the one beside the URDF.
@@ -218,7 +240,8 @@ def build_mujoco_model(
 
     Raises:
         UnknownNameError: A locked joint that the robot does not have.
-        ConfigurationError: A bad step, friction, solref, q_locked or a non-halfspace obstacle.
+        ConfigurationError: A bad step, friction, solref, integrator, q_locked or a
+            non-halfspace obstacle.
         ModelError: mujoco is not installed, or it rejects the model.
     """
     mujoco = _mujoco()
@@ -229,6 +252,8 @@ def build_mujoco_model(
         if j not in names:
             raise UnknownNameError("joint", j, names)
     _check_positive("timestep", timestep)
+    if integrator not in MUJOCO_INTEGRATORS:
+        raise ConfigurationError("integrator", integrator, MUJOCO_INTEGRATORS)
     if not isinstance(mu, (int, float)) or not math.isfinite(mu) or mu < 0:
         raise ConfigurationError("mu", mu, "a finite number >= 0")
     ref = (2.0 * timestep, 1.0) if solref is None else (float(solref[0]), float(solref[1]))
@@ -265,7 +290,11 @@ def build_mujoco_model(
     spec.option.timestep = timestep
     spec.option.gravity = np.asarray(robot.model.gravity.linear, dtype=float)
     spec.option.cone = mujoco.mjtCone.mjCONE_ELLIPTIC
-    spec.option.integrator = mujoco.mjtIntegrator.mjINT_EULER
+    spec.option.integrator = {
+        "euler": mujoco.mjtIntegrator.mjINT_EULER,
+        "implicitfast": mujoco.mjtIntegrator.mjINT_IMPLICITFAST,
+        "rk4": mujoco.mjtIntegrator.mjINT_RK4,
+    }[integrator]
     imp = [solimp[0], solimp[1], solimp[2], 0.5, 2.0]
     for joint in spec.joints:
         if joint.name not in names:
@@ -319,6 +348,7 @@ def build_mujoco_model(
         mu=float(mu),
         timestep=float(timestep),
         solref=ref,
+        integrator=integrator,
         xml=xml,
     )
 
@@ -394,3 +424,85 @@ def run_collapse(
         steps=n,
         wall_time=wall,
     )
+
+
+_SLIDER_XML = """<mujoco>
+  <option timestep="{dt}" integrator="{integ}" cone="elliptic" gravity="0 0 -9.81"/>
+  <default>
+    <geom friction="{mu} 0.005 0.0001" solref="{tau} {zeta}" solimp="{imp}" condim="3"/>
+  </default>
+  <worldbody>
+    <geom type="plane" size="0 0 1"/>
+    <body pos="0 0 0.05">
+      <joint name="x" type="slide" axis="1 0 0"/>
+      <joint name="z" type="slide" axis="0 0 1"/>
+      <geom type="sphere" size="0.05" mass="1"/>
+    </body>
+  </worldbody>
+</mujoco>"""
+
+
+def sliding_lift(
+    *,
+    timestep: float = 5e-4,
+    integrator: MujocoIntegrator = "euler",
+    solref: tuple[float, float] | None = None,
+    solimp: tuple[float, float, float] = (0.99, 0.999, 0.001),
+    mu: float = 0.5,
+    speed: float = 1.0,
+    duration: float = 0.3,
+) -> float:
+    """Sliding-induced lift of MuJoCo's contact model with the settings of the arm model.
+
+    A 1 kg sphere (radius 5 cm) that can only translate along x and z (slide joints: it can
+    slide but not roll) settles on the plane z = 0, is then launched along +x at ``speed``
+    [m/s] and slides to a stop under friction ``mu``. Under Coulomb's law it never leaves the
+    plane (normal speed 0 while sliding); MuJoCo's convex contact model gives it an upward
+    speed of up to about mu * speed with its default Euler integrator and a ``solref`` time
+    constant of two steps, whatever the step.
+
+    Args:
+        timestep: MuJoCo step [s].
+        integrator: One of :data:`MUJOCO_INTEGRATORS`.
+        solref: (time constant [s], damping ratio [-]); None: ``(2 * timestep, 1.0)`` as in
+            :func:`build_mujoco_model`.
+        solimp: MuJoCo impedance (dmin, dmax, width [m]).
+        mu: Coulomb friction coefficient [-], > 0.
+        speed: Launch speed [m/s], > 0.
+        duration: Time simulated after the launch [s].
+
+    Returns:
+        The largest upward speed of the sphere after the launch divided by ``mu * speed``
+        [-] (0 for Coulomb sliding).
+
+    Raises:
+        ConfigurationError: A bad step, integrator, solref, mu, speed or duration.
+        ModelError: mujoco is not installed.
+    """
+    mujoco = _mujoco()
+    for name, value in (("timestep", timestep), ("mu", mu), ("speed", speed)):
+        _check_positive(name, value)
+    _check_positive("duration", duration)
+    if integrator not in MUJOCO_INTEGRATORS:
+        raise ConfigurationError("integrator", integrator, MUJOCO_INTEGRATORS)
+    ref = (2.0 * timestep, 1.0) if solref is None else (float(solref[0]), float(solref[1]))
+    _check_positive("solref[0]", ref[0])
+    _check_positive("solref[1]", ref[1])
+    xml = _SLIDER_XML.format(
+        dt=timestep,
+        integ={"euler": "Euler", "implicitfast": "implicitfast", "rk4": "RK4"}[integrator],
+        mu=mu,
+        tau=ref[0],
+        zeta=ref[1],
+        imp=" ".join(str(x) for x in solimp),
+    )
+    model = mujoco.MjModel.from_xml_string(xml)
+    data = mujoco.MjData(model)
+    for _ in range(round(0.3 / timestep)):  # settle into the plane
+        mujoco.mj_step(model, data)
+    data.qvel[:] = (speed, 0.0)
+    vz_max = 0.0
+    for _ in range(round(duration / timestep)):
+        mujoco.mj_step(model, data)
+        vz_max = max(vz_max, float(data.qvel[1]))
+    return vz_max / (mu * speed)
