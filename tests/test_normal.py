@@ -226,3 +226,26 @@ def test_arm_collapse_with_friction_comes_to_rest_on_its_contacts(robot):
     # 2.9 rad/s at t = 0.508 s, the elbow casing's slide being driven by link 3's)
     for ev in res.events_of("stick"):
         assert np.abs(ev.v_after - ev.v_before).max() <= CAPTURE_SPEED, ev.t
+
+
+def test_slip_against_a_driven_residual_slide_advances_time(robot):
+    # mu = 0.45: at t = 0.3161 s link 2's casing slides on the chassis at 4.6e-4 m/s, driven
+    # through the closed chain by link 3 sliding on the shoulder casing; the onset direction
+    # from the forces pointed against that residual slide and the stick condition held at once:
+    # 100 000 stick/slip events at one instant. Coulomb's direction (along the slide) lets
+    # the slide pass through zero first.
+    cfg = packbot.SimConfig(
+        contact_mode="normal",
+        mu=0.45,
+        locked_joints=("camera_tilt", "camera_pan", "gripper_roll", "gripper_jaw"),
+        max_events=400,
+    )
+    res = packbot.simulate(robot, robot.pose("drive"), np.zeros(robot.nq), 0.4, config=cfg)
+    assert res.t[-1] == pytest.approx(0.4)
+    mode = [e for e in res.events if e.kind in ("stick", "slip")]
+    assert mode, "the run passes stick/slip transitions"
+    times = np.array([e.t for e in mode])
+    # no pair flips stick <-> slip more than twice at one instant
+    _, counts = np.unique(times, return_counts=True)
+    assert counts.max() <= 4
+    assert res.diagnostics.min_distance > -1.01 * PENETRATION_TOL

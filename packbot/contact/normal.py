@@ -789,6 +789,7 @@ class NormalContacts:
                 p.slip_dir = s
                 events.append(ModeEvent("slip", p.info))
         self._consistent_directions(q, v, Jn, drift, gap, vn, extra, a_free, minv, touch)
+        self._coulomb_residual_directions(extra)
         if log.isEnabledFor(logging.DEBUG):
             log.debug(
                 "modes: touch %s engaged %s gaps %s vn %s",
@@ -845,6 +846,33 @@ class NormalContacts:
             if not moved:
                 return
             self._solve_modes(touch, Jn, drift, gap, vn, extra, a_free, minv)
+
+    def _coulomb_residual_directions(self, extra: list[dict[str, Any]]) -> None:
+        """A pair set to slip against its own residual slide slips along that slide.
+
+        A slip onset inside the stick band (|v_t| <= :data:`STICK_SPEED`) takes its direction
+        s from the forces (cone check, then :meth:`_consistent_directions`). When the contact
+        still moves at a residual v_t that :meth:`stop_slow` could not remove (a slide driven
+        through a closed chain by the motion elsewhere) and s points so far against it that
+        the stick condition (the slide came back through zero) is below half of
+        :data:`STICK_BAND`, that condition would fire at once and the restart repeat at the
+        same instant (stick -> cone check -> slip -> stick ...; seen at mu = 0.45 in the
+        collapse: link 2's casing on the chassis at 4.6e-4 m/s). Coulomb's law for a moving
+        contact is friction against the motion, so such a pair slips along v_t: the slide
+        slows down, passes through zero and fires the
+        stick event after a finite time, where the onset is decided again.
+        """
+        if self.mu == 0.0:
+            return
+        for p, ex in zip(self.pairs.values(), extra, strict=True):
+            if p.stick:
+                continue
+            vt = ex["vt"]
+            speed = float(np.linalg.norm(vt))
+            w = vt + STICK_SPEED * p.slip_dir  # as in conditions(): g = v_t . w/|w| + band
+            g = float(vt @ w) / max(float(np.linalg.norm(w)), 1e-300) + STICK_BAND
+            if speed > 0.0 and g < 0.5 * STICK_BAND:
+                p.slip_dir = vt / speed
 
     def _solve_modes(
         self,
