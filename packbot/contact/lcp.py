@@ -21,14 +21,25 @@ residual checked here.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pinocchio as pin
 from numpy.typing import NDArray
 from scipy.optimize import nnls
 
-__all__ = ["lcp_residual", "lemke", "ncp_residual", "solve_lcp_psd", "solve_ncp_admm"]
+__all__ = [
+    "SMALL_LCP",
+    "lcp_residual",
+    "lemke",
+    "ncp_residual",
+    "solve_lcp_psd",
+    "solve_ncp_admm",
+]
 
 FloatArray = NDArray[np.float64]
+#: Problems with at most this many rows are pivoted on Python floats (:func:`lemke`).
+SMALL_LCP = 8
 
 
 def lcp_residual(G: FloatArray, q: FloatArray, z: FloatArray) -> float:
@@ -88,6 +99,8 @@ def lemke(
     n = len(q)
     if n == 0 or np.all(q >= 0.0):
         return np.zeros(n)
+    if n <= SMALL_LCP:
+        return _lemke_small(M, q, max_iter, tol)
     T = np.hstack([np.eye(n), -M, -np.ones((n, 1)), q.reshape(-1, 1)]).astype(float)
     basis = list(range(n))
     r = int(np.argmin(q))
@@ -114,6 +127,47 @@ def lemke(
         rmin = ratios.min()
         cands = np.flatnonzero(ratios <= rmin + 1e-12 * (1.0 + abs(rmin)))
         r = next((int(c) for c in cands if basis[c] == 2 * n), int(cands[0]))
+    return None
+
+
+def _lemke_small(M: FloatArray, q: FloatArray, max_iter: int, tol: float) -> FloatArray | None:
+    """:func:`lemke` on Python floats, for a small problem (the contact problems' usual size).
+
+    The same pivots and the same floating-point operations as the array version, so the same
+    result to the last bit; numpy's per-call overhead dominates a tableau of a few rows.
+    """
+    n = len(q)
+    w = 2 * n + 2
+    rows, qs = np.asarray(M, dtype=float).tolist(), q.tolist()
+    T = [
+        [1.0 if j == i else 0.0 for j in range(n)] + [-x for x in rows[i]] + [-1.0, qs[i]]
+        for i in range(n)
+    ]
+    basis = list(range(n))
+    r = int(np.argmin(q))
+    entering = 2 * n
+    for _ in range(max_iter):
+        piv = T[r][entering]
+        Tr = [x / piv for x in T[r]]
+        T[r] = Tr
+        for i in range(n):
+            c = 0.0 if i == r else T[i][entering]
+            Ti = T[i]
+            T[i] = [Ti[j] - c * Tr[j] for j in range(w)]
+        leaving = basis[r]
+        basis[r] = entering
+        if leaving == 2 * n:
+            z = [0.0] * (2 * n + 1)
+            for i, b in enumerate(basis):
+                z[b] = T[i][-1]
+            return np.maximum(np.array(z[n : 2 * n]), 0.0)
+        entering = leaving + n if leaving < n else leaving - n
+        ratios = [T[i][-1] / T[i][entering] if T[i][entering] > tol else math.inf for i in range(n)]
+        if all(T[i][entering] <= tol for i in range(n)):
+            return None
+        rmin = min(ratios)
+        cands = [i for i in range(n) if ratios[i] <= rmin + 1e-12 * (1.0 + abs(rmin))]
+        r = next((c for c in cands if basis[c] == 2 * n), cands[0])
     return None
 
 

@@ -56,6 +56,7 @@ arm: it takes one force distribution of many (see :meth:`NormalContacts.capture`
 from __future__ import annotations
 
 import logging
+import math
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -130,6 +131,26 @@ class _Pair:
 
 
 @dataclass
+class _Layout:
+    """Where the patch points of the contact set are, for the batched kinematics.
+
+    Every pair contributes its K points and its centre (their mean), on body 1 then on
+    body 2: point i of the h = sum(K + 1) points is row i on body 1 and row h + i on body 2.
+    """
+
+    joints: list[int]  # the joints of the bodies involved
+    masks: FloatArray  # (bodies, 1, nv) 1 on the velocities moving each body
+    body: NDArray[np.intp]  # (2h,) index into joints of each point's body
+    local: FloatArray  # (2h, 4) point in its joint frame, homogeneous [m]
+    pair: NDArray[np.intp]  # (h,) pair of each point (position in the contact set)
+    rows: NDArray[np.intp]  # (m,) the patch points (not the centres), in row order
+    centre: NDArray[np.intp]  # (pairs,) the centres
+    normal_body: NDArray[np.intp]  # (pairs,) index into joints of body 2
+    frame2: FloatArray  # (pairs, 3, 3) rows t1, t2, n in body 2's joint frame
+    points: list[slice]  # per pair, its patch points among the h
+
+
+@dataclass
 class ModeEvent:
     """A mode change found at a restart (for the event log).
 
@@ -189,10 +210,20 @@ class NormalContacts:
         self.pairs: dict[int, _Pair] = {}
         self.limits: dict[tuple[int, int], float] = {}  # (joint, side) -> limit [rad]
         self.engaged: list[int] = []  # row indices
-        self.zero_a = np.zeros(self.nv)
         self.n_painleve = 0
         self.resting = False  # captured at rest (see capture)
         self.bounced = False  # the last impulse had restitution
+        self._kin_cache: dict[tuple[bytes, bytes], Any] = {}  # see _kinematics
+        self._lay: _Layout | None = None
+        self._pairs_cache: list[_Pair] | None = None
+        self._version = 0  # of the contact set, see _invalidate
+        # per joint: 1 on the velocities that move its body (its support), (joints, 1, nv)
+        self._masks = np.zeros((model.njoints, 1, self.nv))
+        for j in range(1, model.njoints):
+            for s in list(model.supports[j])[1:]:
+                self._masks[j, 0, model.idx_vs[s] : model.idx_vs[s] + model.nvs[s]] = 1.0
+        self._plan_key: tuple[Any, ...] | None = None
+        self._plan_val: tuple[NDArray[np.intp], list[tuple[int, Any, Any]], list[int]]
 
     # ------------------------------------------------------------------ set
     @property
@@ -228,16 +259,19 @@ class NormalContacts:
         if old is not None:
             p.stick, p.slip_dir = old.stick, old.slip_dir
         self.pairs[pair] = p
+        self._invalidate()
         return True
 
     def remove_pair(self, pair: int) -> None:
         """Take a pair out of the contact set."""
         self.pairs.pop(pair, None)
+        self._invalidate()
         self.engaged = []
 
     def add_limit(self, joint: int, side: int, limit: float) -> None:
         """Put a joint position limit in contact (side +1: upper, -1: lower)."""
         self.limits[(joint, side)] = float(limit)
+        self._invalidate()
 
     def remove_limit(self, joint: int, side: int) -> None:
         """Take a limit out of the contact set (its row must not be engaged)."""
@@ -246,6 +280,7 @@ class NormalContacts:
             return
         row = sum(len(p.local1) for p in self.pairs.values()) + keys.index((joint, side))
         self.limits.pop((joint, side))
+        self._invalidate()
         self.engaged = [r if r < row else r - 1 for r in self.engaged if r != row]
 
     def limit_engaged(self, joint: int, side: int) -> bool:
@@ -266,6 +301,7 @@ class NormalContacts:
         for k in list(self.pairs):
             if not self.add_pair(q, k):
                 self.pairs.pop(k)
+        self._invalidate()
         self.engaged = []
 
     def row_owner(self, row: int) -> tuple[PairInfo | None, tuple[int, int] | None]:
@@ -284,93 +320,156 @@ class NormalContacts:
     ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray, list[dict[str, Any]]]:
         """Rows of every contact: J_n (m, nv), drift (m,), gap (m,), v_n (m,).
 
-        And per pair the tangential rows and the velocities at the patch centre.
+        And per pair the tangential rows and the velocities at the patch centre. Every patch
+        point of every pair is computed in one batch of numpy operations (the contact set has
+        a few pairs of a few points: the cost is the number of operations, not their size).
+        The result depends only on (q, v) and the contact set, so it is cached (a few states:
+        the right-hand side, the mode conditions and the restart's problems ask for the same
+        state several times); the cache is emptied whenever the contact set changes. The
+        arrays returned are read-only.
+        """
+        key = (q.tobytes(), v.tobytes())
+        hit = self._kin_cache.get(key)
+        if hit is not None:
+            return hit
+        rows = np.zeros((0, self.nv))
+        drift = gap = vn = np.zeros(0)
+        extra: list[dict[str, Any]] = []
+        if self.pairs:
+            rows, drift, gap, vn, extra = self._pair_rows(q, v)
+        if self.limits:
+            lim = np.zeros((len(self.limits), self.nv))
+            lgap, lvn = np.empty(len(self.limits)), np.empty(len(self.limits))
+            for i, ((j, side), value) in enumerate(self.limits.items()):
+                lim[i, j] = -side
+                lgap[i] = side * (value - q[j])
+                lvn[i] = -side * v[j]
+            rows = np.vstack([rows, lim])
+            drift = np.concatenate([drift, np.zeros(len(lgap))])
+            gap = np.concatenate([gap, lgap])
+            vn = np.concatenate([vn, lvn])
+        out = (rows, drift, gap, vn, extra)
+        for arr in out[:4]:
+            arr.setflags(write=False)
+        if len(self._kin_cache) >= 8:
+            self._kin_cache.clear()
+        self._kin_cache[key] = out
+        return out
+
+    def _pair_rows(
+        self, q: FloatArray, v: FloatArray
+    ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray, list[dict[str, Any]]]:
+        """The pairs' part of :meth:`_kinematics`, all points at once (world frame).
+
+        From the joint Jacobians in the world frame and their time variation (one Pinocchio
+        call): per body the spatial velocity (v_0, w) = J v and drift acceleration (a_0,
+        alpha) = J' v (q'' = 0) at the world origin; per point P: J_p = Jv - skew(P) Jw,
+        v_p = J_p v, a_p = a_0 + alpha x P + w x v_p. Body 2 minus body 1.
         """
         model, data = self.model, self.data
-        pin.forwardKinematics(model, data, q, v, self.zero_a)
-        pin.computeJointJacobians(model, data)
-        rows, drift, gaps, vns, extra = [], [], [], [], []
-        cache: dict[int, tuple[Any, ...]] = {}
-        for p in self.pairs.values():
-            b1 = self._body(p.info.joint1, cache)
-            b2 = self._body(p.info.joint2, cache)
-            n = b2[0] @ p.normal2
-            P1 = p.local1 @ b1[0].T + b1[1]
-            P2 = p.local2 @ b2[0].T + b2[1]
-            c1 = P1.mean(axis=0)
-            c2 = P2.mean(axis=0)
-            pts1 = np.vstack([P1, c1])
-            pts2 = np.vstack([P2, c2])
-            Jp1, vp1, ap1 = _points(b1, pts1)
-            Jp2, vp2, ap2 = _points(b2, pts2)
-            dJ = Jp2 - Jp1  # (K+1, 3, nv)
-            vrel = vp2 - vp1
-            arel = ap2 - ap1
-            w2 = b2[3]
-            rows.append(np.einsum("i,kij->kj", n, dJ[:-1]))
-            drift.append(arel[:-1] @ n + 2.0 * (vrel[:-1] @ _cross(w2, n)))
-            gaps.append((P2 - P1) @ n)
-            vns.append(vrel[:-1] @ n)
-            t1, t2 = _tangents(n)
-            T = np.stack([t1, t2])
-            vt = vrel[-1] - n * (vrel[-1] @ n)
-            extra.append(
-                {
-                    "n": n,
-                    "T": T,
-                    "JT": T @ dJ[-1],
-                    "bT": T @ arel[-1],
-                    "vT": T @ vrel[-1],
-                    "vt": vt,
-                    "dJ": dJ[:-1],
-                    "vrel": vrel[:-1],
-                }
-            )
-        for (j, side), lim in self.limits.items():
-            r = np.zeros(self.nv)
-            r[j] = -side
-            rows.append(r[None, :])
-            drift.append(np.zeros(1))
-            gaps.append(np.array([side * (lim - q[j])]))
-            vns.append(np.array([-side * v[j]]))
-        if not rows:
-            z = np.zeros(0)
-            return np.zeros((0, self.nv)), z, z, z, extra
-        return (
-            np.vstack(rows),
-            np.concatenate(drift),
-            np.concatenate(gaps),
-            np.concatenate(vns),
-            extra,
-        )
-
-    def _body(self, joint: int, cache: dict[int, tuple[Any, ...]]) -> tuple[Any, ...]:
-        """(R, o, J (6, nv) LWA, omega, v_o, alpha, a_o) of a joint's body (world axes)."""
-        if joint in cache:
-            return cache[joint]
+        lay = self._layout()
+        pin.computeJointJacobiansTimeVariation(model, data, q, v)
+        H = np.array([data.oMi[j].homogeneous if j else _I4 for j in lay.joints])
         nv = self.nv
-        if joint == 0:
-            z3 = np.zeros(3)
-            out: tuple[Any, ...] = (np.eye(3), z3, np.zeros((6, nv)), z3, z3, z3, z3)
-        else:
-            M = self.data.oMi[joint]
-            R = M.rotation
-            J = np.asarray(
-                pin.getJointJacobian(self.model, self.data, joint, pin.LOCAL_WORLD_ALIGNED)
-            ).reshape(6, nv)
-            vel = self.data.v[joint]
-            acc = self.data.a[joint]
-            out = (
-                R,
-                M.translation,
-                J,
-                R @ vel.angular,
-                R @ vel.linear,
-                R @ acc.angular,
-                R @ acc.linear,
-            )
-        cache[joint] = out
-        return out
+        Jb = data.J.reshape(6, nv) * lay.masks  # (bodies, 6, nv) (nv = 1: data.J is (6,))
+        Vb = Jb @ v
+        Ab = (data.dJ.reshape(6, nv) * lay.masks) @ v
+        B = lay.body
+        h = len(B) // 2
+        P = (H[B] @ lay.local[:, :, None])[:, :3, 0]  # (2h, 3)
+        JB = Jb[B]
+        SP = (P @ _E9).reshape(-1, 3, 3)  # skew(P)
+        Jp = JB[:, :3] - SP @ JB[:, 3:]  # (2h, 3, nv)
+        vp = Jp @ v
+        Sw = (Vb[:, 3:] @ _E9).reshape(-1, 3, 3)[B]  # skew(w)
+        ap = Ab[B, :3] - (SP @ Ab[B, 3:, None])[:, :, 0] + (Sw @ vp[:, :, None])[:, :, 0]
+        dJ = Jp[h:] - Jp[:h]
+        vrel = vp[h:] - vp[:h]
+        arel = ap[h:] - ap[:h]
+        # contact frames (t1, t2, n) in the world, rows: the frame in body 2 turned with it
+        F = lay.frame2 @ H[lay.normal_body, :3, :3].transpose(0, 2, 1)  # (pairs, 3, 3)
+        nw = F[:, 2]
+        T = F[:, :2]
+        n = nw[lay.pair]  # (h, 3)
+        wxn = (Sw[h:] @ n[:, :, None])[:, :, 0]  # w2 x n
+        pts = lay.rows
+        rows = (n[:, None, :] @ dJ)[pts, 0]
+        gap = np.einsum("ij,ij->i", P[h:] - P[:h], n)[pts]
+        vn = np.einsum("ij,ij->i", vrel, n)[pts]
+        drift = (np.einsum("ij,ij->i", arel, n) + 2.0 * np.einsum("ij,ij->i", vrel, wxn))[pts]
+        c = lay.centre
+        JT = T @ dJ[c]
+        vc, ac = vrel[c], arel[c]
+        bT = (T @ ac[:, :, None])[:, :, 0]
+        Fv = (F @ vc[:, :, None])[:, :, 0]
+        vT = Fv[:, :2]
+        vt = vc - nw * Fv[:, 2:]
+        extra = [
+            {
+                "n": nw[i],
+                "T": T[i],
+                "JT": JT[i],
+                "bT": bT[i],
+                "vT": vT[i],
+                "vt": vt[i],
+                "dJ": dJ[sl],
+            }
+            for i, sl in enumerate(lay.points)
+        ]
+        return rows, drift, gap, vn, extra
+
+    def _layout(self) -> _Layout:
+        """The point layout of the current contact set (cached until it changes)."""
+        if self._lay is not None:
+            return self._lay
+        pairs = list(self.pairs.values())
+        joints = sorted({p.info.joint1 for p in pairs} | {p.info.joint2 for p in pairs})
+        index = {j: i for i, j in enumerate(joints)}
+        body1: list[int] = []
+        body2: list[int] = []
+        pair: list[int] = []
+        rows: list[int] = []
+        centre: list[int] = []
+        local1: list[FloatArray] = []
+        local2: list[FloatArray] = []
+        points: list[slice] = []
+        k = 0
+        for i, p in enumerate(pairs):
+            K = len(p.local1)
+            local1 += [p.local1, p.local1.mean(axis=0)[None, :]]
+            local2 += [p.local2, p.local2.mean(axis=0)[None, :]]
+            body1 += [index[p.info.joint1]] * (K + 1)
+            body2 += [index[p.info.joint2]] * (K + 1)
+            pair += [i] * (K + 1)
+            rows += range(k, k + K)
+            points.append(slice(k, k + K))
+            centre.append(k + K)
+            k += K + 1
+        self._lay = _Layout(
+            joints=joints,
+            masks=self._masks[joints],
+            body=np.array(body1 + body2, dtype=np.intp),
+            local=np.hstack([np.vstack(local1 + local2), np.ones((2 * k, 1))]),
+            pair=np.array(pair, dtype=np.intp),
+            rows=np.array(rows, dtype=np.intp),
+            centre=np.array(centre, dtype=np.intp),
+            normal_body=np.array([index[p.info.joint2] for p in pairs], dtype=np.intp),
+            frame2=np.array([np.vstack([*_tangents(p.normal2), p.normal2]) for p in pairs]),
+            points=points,
+        )
+        return self._lay
+
+    def _invalidate(self) -> None:
+        """The contact set changed: forget the cached kinematics and point layout."""
+        self._kin_cache.clear()
+        self._lay = None
+        self._pairs_cache = None
+        self._version += 1
+
+    @staticmethod
+    def _direction_rows(ex: dict[str, Any], d: FloatArray) -> FloatArray:
+        """d^T (J_p2 - J_p1) at every patch point of a pair, shape (K, nv); d (3,) world."""
+        return np.asarray(d @ ex["dJ"], dtype=np.float64)
 
     # ------------------------------------------------------------------ dynamics
     def _problem(
@@ -388,7 +487,7 @@ class NormalContacts:
             K = len(p.local1)
             if not p.stick:
                 s = self._slip_direction(p, ex)
-                C[k : k + K] -= self.mu * np.einsum("i,kij->kj", s, ex["dJ"])
+                C[k : k + K] -= self.mu * self._direction_rows(ex, s)
             k += K
         return C
 
@@ -402,7 +501,7 @@ class NormalContacts:
         smooth direction until its stick event.
         """
         w = ex["vt"] + STICK_SPEED * p.slip_dir
-        nw = float(np.linalg.norm(w))
+        nw = math.sqrt(float(w @ w))
         return np.asarray(w / nw if nw > 0.0 else p.slip_dir, dtype=np.float64)
 
     def _stick_rows(self, extra: list[dict[str, Any]]) -> tuple[FloatArray, FloatArray, FloatArray]:
@@ -430,6 +529,44 @@ class NormalContacts:
             k += K
         return False
 
+    def _plan(self) -> tuple[NDArray[np.intp], list[tuple[int, Any, Any]], list[int]]:
+        """The rows of the constrained problem for the current modes (cached while they hold).
+
+        Returns:
+            The engaged rows E; per slipping pair with engaged rows (its position in the
+            contact set, the positions of its rows in E, their points in its patch); the
+            positions of the sticking pairs with engaged rows.
+        """
+        pairs = self._pair_list
+        key = (self._version, tuple(self.engaged), tuple(p.stick for p in pairs))
+        if self._plan_key == key:
+            return self._plan_val
+        pos = {r: i for i, r in enumerate(self.engaged)}
+        slips: list[tuple[int, Any, Any]] = []
+        sticks: list[int] = []
+        k = 0
+        for i, p in enumerate(pairs):
+            K = len(p.local1)
+            mine = [(pos[r], r - k) for r in range(k, k + K) if r in pos]
+            k += K
+            if not mine or self.mu == 0.0:
+                continue
+            if p.stick:
+                sticks.append(i)
+            else:
+                at = np.array([m[0] for m in mine], dtype=np.intp)
+                slips.append((i, at, np.array([m[1] for m in mine], dtype=np.intp)))
+        self._plan_key = key
+        self._plan_val = (np.array(self.engaged, dtype=np.intp), slips, sticks)
+        return self._plan_val
+
+    @property
+    def _pair_list(self) -> list[_Pair]:
+        """The pairs in contact, in row order (cached while the contact set holds)."""
+        if self._pairs_cache is None:
+            self._pairs_cache = list(self.pairs.values())
+        return self._pairs_cache
+
     def evaluate(self, q: FloatArray, v: FloatArray, a_free: FloatArray, minv: FloatArray) -> _Eval:
         """Constrained accelerations with the modes fixed, and what the conditions need.
 
@@ -443,21 +580,30 @@ class NormalContacts:
         vt = [ex["vt"] for ex in extra]
         if self.resting:  # captured: at rest while the rest condition holds
             return _Eval(np.zeros(self.nv), np.zeros(0), gap, vn, vt, (q, a_free, minv))
-        E = self.engaged
-        JT, bT, vT = self._stick_rows(extra)
-        if not E:
+        E, slips, sticks = self._plan()
+        if not len(E):
             return _Eval(a_free, np.zeros(0), gap, vn, vt)
-        C = self._slip_columns(Jn, extra)
-        A = np.vstack([Jn[E], JT])
-        Cm = np.vstack([C[E], JT])
-        target = np.concatenate([-2.0 * BAUMGARTE * vn[E] - BAUMGARTE**2 * gap[E], -BAUMGARTE * vT])
-        b = A @ a_free + np.concatenate([drift[E], bT])
+        A = Jn[E]  # the engaged rows, then the sticking pairs' tangential rows
+        Cm = A  # their force columns (J_n - mu J_s on slipping pairs' rows)
+        if slips:
+            Cm = A.copy()
+            for i, pos, loc in slips:
+                ex = extra[i]
+                s = self._slip_direction(self._pair_list[i], ex)
+                Cm[pos] -= self.mu * (s @ ex["dJ"][loc])
+        target = -2.0 * BAUMGARTE * vn[E] - BAUMGARTE**2 * gap[E]
+        b = drift[E]
+        if sticks:
+            JT = [extra[i]["JT"] for i in sticks]
+            A = np.vstack([A, *JT])
+            Cm = np.vstack([Cm, *JT])
+            vT = np.concatenate([extra[i]["vT"] for i in sticks])
+            target = np.concatenate([target, -BAUMGARTE * vT])
+            b = np.concatenate([b, *(extra[i]["bT"] for i in sticks)])
+        b = A @ a_free + b
         MC = minv @ Cm.T
         Gm = A @ MC
-        try:
-            lam = np.linalg.solve(Gm, target - b)
-        except np.linalg.LinAlgError:
-            lam = np.linalg.lstsq(Gm, target - b, rcond=None)[0]
+        lam = _solve(Gm, target - b)
         return _Eval(a_free + MC @ lam, lam, gap, vn, vt)
 
     def conditions(self, ev: _Eval) -> dict[tuple[Any, ...], tuple[str, float]]:
@@ -725,9 +871,10 @@ class NormalContacts:
         lookup: dict[int, tuple[FloatArray, float]] = {}
         for p, ex in zip(self.pairs.values(), extra, strict=True):
             K = len(p.local1)
+            t1 = self._direction_rows(ex, ex["T"][0])
+            t2 = self._direction_rows(ex, ex["T"][1])
             for i in range(K):
-                Tk = ex["T"] @ ex["dJ"][i]
-                lookup[k + i] = (np.vstack([Tk, Jn[k + i][None, :]]), self.mu)
+                lookup[k + i] = (np.vstack([t1[i], t2[i], Jn[k + i]]), self.mu)
             k += K
         for r in rows.tolist():
             if r in lookup:
@@ -952,6 +1099,27 @@ class NormalContacts:
         return out
 
 
+def _solve(G: FloatArray, r: FloatArray) -> FloatArray:
+    """Solve G x = r (least squares if G is singular); 1 x 1 and 2 x 2 in closed form.
+
+    The right-hand side's systems are this small most of the time, and numpy's solver costs
+    several microseconds of call overhead on them.
+    """
+    m = len(r)
+    if m == 1 and G[0, 0] != 0.0:
+        return r / G[0, 0]
+    if m == 2:
+        (a, b), (c, d) = G.tolist()
+        det = a * d - b * c
+        if abs(det) > 1e-12 * (abs(a * d) + abs(b * c)):
+            r0, r1 = r.tolist()
+            return np.array([(d * r0 - b * r1) / det, (a * r1 - c * r0) / det])
+    try:
+        return np.asarray(np.linalg.solve(G, r), dtype=np.float64)
+    except np.linalg.LinAlgError:
+        return np.asarray(np.linalg.lstsq(G, r, rcond=None)[0], dtype=np.float64)
+
+
 def _planes(shape: Any) -> tuple[FloatArray, FloatArray] | None:
     """Face planes (unit outward normals N, offsets o: inside <=> N x + o <= 0), local frame."""
     if isinstance(shape, coal.Halfspace):
@@ -1000,22 +1168,19 @@ def _tangents(n: FloatArray) -> tuple[FloatArray, FloatArray]:
     return t1, _cross(n, t1)
 
 
-def _points(body: tuple[Any, ...], pts: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
-    """Point Jacobians (K, 3, nv), velocities (K, 3) and drift accelerations (K, 3) (q'' = 0)."""
-    _, o, J, w, vo, alpha, ao = body
-    r = pts - o
-    Jv, Jw = J[:3], J[3:]
-    # J_p = Jv - skew(r) Jw  ->  per point: Jv + (Jw columns) x r ... written with cross
-    # J_p = Jv + Jw x r = Jv - r x Jw (column-wise), per point
-    x, y, z = r[:, 0, None], r[:, 1, None], r[:, 2, None]
-    Jp = np.empty((len(r), 3, J.shape[1]))
-    Jp[:, 0] = Jv[0] - (y * Jw[2] - z * Jw[1])
-    Jp[:, 1] = Jv[1] - (z * Jw[0] - x * Jw[2])
-    Jp[:, 2] = Jv[2] - (x * Jw[1] - y * Jw[0])
-    wr = _cross(w, r)
-    vp = vo + wr
-    ap = ao + _cross(alpha, r) + _cross(w, vo + wr)
-    return Jp, vp, ap
+#: Levi-Civita symbol: skew(w)[i, k] = eps[i, j, k] w[j].
+_EPS = np.zeros((3, 3, 3))
+_EPS[0, 1, 2] = _EPS[1, 2, 0] = _EPS[2, 0, 1] = 1.0
+_EPS[0, 2, 1] = _EPS[2, 1, 0] = _EPS[1, 0, 2] = -1.0
+#: skew(w) = (w @ _E9).reshape(3, 3), batched over the rows of w.
+_E9 = _EPS.transpose(1, 0, 2).reshape(3, 9)
+_I4 = np.eye(4)
+
+
+def _skew(a: FloatArray) -> FloatArray:
+    """The cross-product matrix of a 3-vector: skew(a) b = a x b."""
+    a0, a1, a2 = a.tolist()
+    return np.array([[0.0, -a2, a1], [a2, 0.0, -a0], [-a1, a0, 0.0]])
 
 
 def _cross(a: FloatArray, b: FloatArray) -> FloatArray:

@@ -1,0 +1,124 @@
+"""The contact-normal mode's batched contact rows and small solvers, against references.
+
+The rows of :class:`packbot.contact.normal.NormalContacts` (one batch of numpy operations over
+every patch point) are checked against Pinocchio point Jacobians computed point by point and
+against finite differences of the gaps along q(t) = q + v t (q'' = 0); the small-problem path
+of :func:`packbot.contact.lcp.lemke` against its array path; and the collapse past the state
+where a stick/slip restart once repeated forever.
+"""
+
+import numpy as np
+import pinocchio as pin
+import pytest
+
+import packbot
+from packbot.contact.lcp import SMALL_LCP, lemke
+from packbot.contact.normal import NormalContacts
+from packbot.system import System
+
+WRIST = ("camera_tilt", "camera_pan", "gripper_roll", "gripper_jaw")
+
+
+@pytest.fixture(scope="module")
+def contacts(robot):
+    """The arm 0.6 s into the collapse (mu = 0.5): link 2 on the chassis, link 3 on link 1."""
+    cfg = packbot.SimConfig(contact_mode="normal", mu=0.5, locked_joints=WRIST)
+    res = packbot.simulate(robot, robot.pose("drive"), np.zeros(8), 0.6, config=cfg)
+    sysm = System(robot, res.q[-1], cfg, None)
+    nc = NormalContacts(
+        sysm.model,
+        sysm.data,
+        sysm.world,
+        mu=0.5,
+        restitution=0.0,
+        zeno_speed=cfg.zeno_speed,
+        contact_tolerance=cfg.contact_tolerance,
+    )
+    q = sysm.reduce(res.q[-1])
+    assert sysm.world is not None
+    for p in range(len(sysm.world.pairs)):
+        nc.add_pair(q, p)
+    assert len(nc.pairs) >= 2
+    return sysm, nc, q
+
+
+def _point_jacobian(sysm: System, q: np.ndarray, joint: int, local: np.ndarray) -> np.ndarray:
+    """3 x nv Jacobian of a point fixed in a joint's frame, Pinocchio alone."""
+    if joint == 0:
+        return np.zeros((3, sysm.nv))
+    pin.computeJointJacobians(sysm.model, sysm.data, q)
+    M = sysm.data.oMi[joint]
+    return sysm.point_jacobian(q, joint, M.act(local))
+
+
+def test_rows_match_pointwise_jacobians_and_gap_derivatives(contacts, rng):
+    sysm, nc, q0 = contacts
+    for _ in range(3):
+        q = q0 + 0.01 * rng.standard_normal(len(q0))
+        v = rng.standard_normal(len(q0))
+        Jn, _, _, vn, extra = nc._kinematics(q, v)
+        k = 0
+        for p, ex in zip(nc.pairs.values(), extra, strict=True):
+            i1, i2 = p.info.joint1, p.info.joint2
+            pin.forwardKinematics(sysm.model, sysm.data, q)
+            R2 = sysm.data.oMi[i2].rotation if i2 else np.eye(3)
+            n = R2 @ p.normal2
+            np.testing.assert_allclose(ex["n"], n, atol=1e-14)
+            for a, b in zip(p.local1, p.local2, strict=True):
+                J = _point_jacobian(sysm, q, i2, b) - _point_jacobian(sysm, q, i1, a)
+                np.testing.assert_allclose(Jn[k], n @ J, atol=1e-13)
+                assert vn[k] == pytest.approx(n @ J @ v, abs=1e-12)
+                k += 1
+
+    # At the patch's own state (p2 - p1 along n) the gap's derivatives along q + v t
+    # (q'' = 0) are g' = J_n v and g'' = drift (central differences).
+    v = rng.standard_normal(len(q0))
+    _, drift, gap, vn, _ = nc._kinematics(q0, v)
+    h = 1e-4
+    g_plus = nc._kinematics(q0 + h * v, v)[2]
+    g_minus = nc._kinematics(q0 - h * v, v)[2]
+    np.testing.assert_allclose((g_plus - g_minus) / (2 * h), vn, rtol=1e-6, atol=1e-8)
+    np.testing.assert_allclose((g_plus - 2 * gap + g_minus) / h**2, drift, rtol=1e-5, atol=1e-5)
+
+
+def test_tangential_rows_span_the_contact_plane(contacts, rng):
+    _, nc, q0 = contacts
+    v = rng.standard_normal(len(q0))
+    _, _, _, _, extra = nc._kinematics(q0, v)
+    for ex in extra:
+        F = np.vstack([ex["T"], ex["n"]])
+        np.testing.assert_allclose(F @ F.T, np.eye(3), atol=1e-14)
+        assert np.linalg.det(F) == pytest.approx(1.0)  # (t1, t2, n) right-handed
+        # the tangential velocity of the centre is the plane part of its velocity
+        np.testing.assert_allclose(ex["T"].T @ ex["vT"], ex["vt"], atol=1e-14)
+        np.testing.assert_allclose(ex["JT"] @ v, ex["vT"], atol=1e-12)
+
+
+def test_small_lemke_reproduces_the_array_pivots_to_the_last_bit(rng, monkeypatch):
+    import packbot.contact.lcp as lcp
+
+    problems = []
+    for trial in range(400):
+        n = int(rng.integers(1, SMALL_LCP + 1))
+        A = rng.standard_normal((n, n + 1))
+        M = A @ A.T + (0.3 * rng.standard_normal((n, n)) if trial % 2 else 0.0)
+        problems.append((M, rng.standard_normal(n)))
+    small = [lemke(M, q) for M, q in problems]
+    monkeypatch.setattr(lcp, "SMALL_LCP", 0)  # every problem on the array path
+    for (M, q), z in zip(problems, small, strict=True):
+        ref = lcp.lemke(M, q)
+        assert (z is None) == (ref is None)
+        if z is not None:
+            np.testing.assert_array_equal(z, ref)
+
+
+def test_collapse_passes_the_stick_slip_restart_that_repeated(robot):
+    """A 1e-15 rad change of the initial shoulder angle once led to a stick event at the same
+    state after every restart (t = 0.3245 s, max_events reached): it must pass."""
+    cfg = packbot.SimConfig(contact_mode="normal", mu=0.5, locked_joints=WRIST, max_events=300)
+    q0 = robot.pose("drive").copy()
+    q0[robot.joint_names.index("shoulder")] += 1e-15
+    res = packbot.simulate(robot, q0, np.zeros(8), 0.4, config=cfg)
+    assert res.t[-1] == pytest.approx(0.4)
+    same_time = np.unique([ev.t for ev in res.events_of("stick")], return_counts=True)[1]
+    assert same_time.max(initial=0) <= 10  # before: until max_events
