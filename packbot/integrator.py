@@ -1204,10 +1204,15 @@ class _Run:
                     self.note_min(*self.pending_min)
                 self.release_limits(self.y)
                 n = self.n
+                # A sliding contact's patch is rebuilt only once it is stale (slid SLIDE_TOL
+                # or its gap off the pair's distance): its rows stay valid until then.
                 if self.normal is not None and self.normal.sliding(y1[:n], y1[n : 2 * n]):
-                    self.refresh_sliding()
+                    if self.normal.stale(y1[:n], y1[n : 2 * n], self.last_d):
+                        self.refresh_sliding()
                 elif self.mixed_on and self.mixed_sliding(y1):
-                    self.refresh_mixed()
+                    assert self.mixed is not None
+                    if self.mixed.stale(y1[:n], y1[n : 2 * n], self.last_d):
+                        self.refresh_mixed()
                 if on_schedule:
                     self.run_scheduled(self.t)
                     self.record_due(self.t, self.y)

@@ -12,8 +12,15 @@ import pytest
 import packbot
 from packbot.collision import CollisionWorld
 from packbot.contact.lcp import lcp_residual, lemke, solve_lcp_psd, solve_ncp_admm
-from packbot.contact.normal import CAPTURE_SPEED, PENETRATION_TOL, POINT_TOL
+from packbot.contact.normal import (
+    CAPTURE_SPEED,
+    PENETRATION_TOL,
+    POINT_TOL,
+    SLIDE_TOL,
+    NormalContacts,
+)
 from packbot.model import JointParams, Robot
+from packbot.system import System
 
 SIZE = (0.2, 0.1, 0.05)  # box extents [m]
 HALF_Z = SIZE[2] / 2
@@ -117,6 +124,54 @@ def test_block_on_slope_sticks_or_slides_with_the_analytic_acceleration(mu):
         np.testing.assert_allclose(x, 0.5 * expected * t**2, rtol=1e-6, atol=1e-9)
     assert np.abs(res.q[:, 1] - HALF_Z).max() < 1e-8  # neither sinks nor lifts
     assert distances(robot, res).min() > -1e-7
+
+
+def test_sliding_patch_is_stale_only_once_slid_or_off_its_distance():
+    """The box's face patch on the floor, its 4 rows engaged: moved along x by less than
+    SLIDE_TOL it is still valid (kept while sliding), by more it is rebuilt; a Coal distance
+    disagreeing with its smallest gap by more than POINT_TOL makes it stale too."""
+    robot = box_robot()
+    cfg = packbot.SimConfig(contact_mode="normal", mu=0.5)
+    sysm = System(robot, np.array([0.0, HALF_Z, 0.0]), cfg, None)
+    assert sysm.world is not None
+    nc = NormalContacts(
+        sysm.model,
+        sysm.data,
+        sysm.world,
+        mu=0.5,
+        restitution=0.0,
+        zeno_speed=cfg.zeno_speed,
+        contact_tolerance=cfg.contact_tolerance,
+    )
+    q0, v = np.array([0.0, HALF_Z, 0.0]), np.array([0.01, 0.0, 0.0])
+    assert nc.add_pair(q0, 0)
+    nc.engaged = list(range(len(nc.pairs[0].local1)))
+    assert len(nc.engaged) == 4
+
+    def dist(q: np.ndarray) -> dict[int, float]:
+        return {0: sysm.world.pair_contact(q, 0).distance}
+
+    for dx, stale in ((0.0, False), (0.5 * SLIDE_TOL, False), (2.0 * SLIDE_TOL, True)):
+        q = q0 + np.array([dx, 0.0, 0.0])
+        assert nc.stale(q, v, dist(q)) is stale, dx
+    q = q0 + np.array([0.5 * SLIDE_TOL, 0.0, 0.0])
+    assert nc.stale(q, v, {0: dist(q)[0] - 2.0 * POINT_TOL})
+    assert nc.stale(q, v, {})  # no distance for a pair in contact: rebuilt
+    nc.engaged = []
+    assert not nc.stale(q0 + np.array([2 * SLIDE_TOL, 0.0, 0.0]), v, {})  # no engaged row: no patch
+
+
+def test_collapse_rebuilds_sliding_patches_far_less_often_than_it_steps(robot):
+    """Arm collapse, mu = 0.5, 0.45 s (link 2 sliding slowly on the chassis from 0.3 s):
+    a sliding patch is rebuilt only when stale, so the re-patches (restarts without an event)
+    are a fraction of the steps, and no pair penetrates beyond the re-patch tolerance."""
+    wrist = ("camera_tilt", "camera_pan", "gripper_roll", "gripper_jaw")
+    cfg = packbot.SimConfig(contact_mode="normal", mu=0.5, locked_joints=wrist)
+    res = packbot.simulate(robot, robot.pose("drive"), np.zeros(8), 0.45, config=cfg)
+    d = res.diagnostics
+    repatches = d.restarts - len(res.events)
+    assert 0 < repatches < 0.3 * d.steps, (repatches, d.steps)
+    assert d.min_distance > -PENETRATION_TOL - 1e-9
 
 
 # ------------------------------------------------------------------ impacts and resting

@@ -75,6 +75,7 @@ __all__ = [
     "FORCE_BAND",
     "PENETRATION_TOL",
     "POINT_TOL",
+    "SLIDE_TOL",
     "SPEED_BAND",
     "STICK_BAND",
     "TOUCH_GAP",
@@ -112,6 +113,12 @@ STICK_SPEED = 1e-3
 #: [rad/s^2] is brought to rest.
 CAPTURE_SPEED = 1e-2
 CAPTURE_ACCEL = 1e-2
+#: A sliding pair's patch is rebuilt once its material points have slid this far apart
+#: tangentially since it was built [m] (see :meth:`NormalContacts.stale`): the patch points are
+#: where the contact forces act, so 0.1 mm moves a force's point of application by less than
+#: 1e-3 of the arm's lever arms (0.1 to 0.5 m); the gap condition of ``stale`` catches a
+#: curved body's next facet, or a point sliding off its face, much earlier.
+SLIDE_TOL = 1e-4
 #: Stiffness of the drift correction [rad/s] (a_n = -2 w g' - w^2 g on engaged rows).
 BAUMGARTE = 20.0
 #: Largest acceptable scaled residual of a complementarity solution [-].
@@ -128,6 +135,8 @@ class _Pair:
     normal2: FloatArray  # (3,) normal in joint2 frame
     stick: bool = True
     slip_dir: FloatArray = field(default_factory=lambda: np.zeros(3))  # world, at onset
+    # (2, K) tangential offsets (t1, t2 of the contact frame) of p2 - p1 when built [m]
+    offset0: FloatArray = field(default_factory=lambda: np.zeros((2, 0)))
 
 
 @dataclass
@@ -255,7 +264,9 @@ class NormalContacts:
         local1 = (pts1 - M1.translation) @ M1.rotation
         local2 = (pts2 - M2.translation) @ M2.rotation
         normal2 = M2.rotation.T @ patch.normal
-        p = _Pair(info, local1, local2, normal2)
+        t1, t2 = _tangents(normal2)
+        offset0 = np.vstack([t1, t2]) @ (M2.rotation.T @ (pts2 - pts1).T)
+        p = _Pair(info, local1, local2, normal2, offset0=offset0)
         if old is not None:
             p.stick, p.slip_dir = old.stick, old.slip_dir
         self.pairs[pair] = p
@@ -394,7 +405,8 @@ class NormalContacts:
         wxn = (Sw[h:] @ n[:, :, None])[:, :, 0]  # w2 x n
         pts = lay.rows
         rows = (n[:, None, :] @ dJ)[pts, 0]
-        gap = np.einsum("ij,ij->i", P[h:] - P[:h], n)[pts]
+        dP = P[h:] - P[:h]  # p2 - p1 (world)
+        gap = np.einsum("ij,ij->i", dP, n)[pts]
         vn = np.einsum("ij,ij->i", vrel, n)[pts]
         drift = (np.einsum("ij,ij->i", arel, n) + 2.0 * np.einsum("ij,ij->i", vrel, wxn))[pts]
         c = lay.centre
@@ -413,6 +425,7 @@ class NormalContacts:
                 "vT": vT[i],
                 "vt": vt[i],
                 "dJ": dJ[sl],
+                "dp": dP[sl],
             }
             for i, sl in enumerate(lay.points)
         ]
@@ -797,6 +810,43 @@ class NormalContacts:
                 and not (self.mu > 0.0 and p.stick)
                 and float(np.linalg.norm(ex["vt"])) > STICK_SPEED
             ):
+                return True
+        return False
+
+    def stale(self, q: FloatArray, v: FloatArray, distance: dict[int, float]) -> bool:
+        """Whether a pair with engaged rows no longer has a valid patch (it must be rebuilt).
+
+        A patch is a set of material point pairs (p1 on body 1, p2 on body 2) and a normal fixed
+        in body 2; it describes the contact while (1) the points have not slid apart by more
+        than :data:`SLIDE_TOL` tangentially since it was built (the forces act where the bodies
+        touched, not where they touch now), and (2) the patch's smallest gap equals the pair's
+        signed distance to :data:`POINT_TOL` (a curved body's next facet comes closer than the
+        patch predicts, or a point slides off the edge of its face and the face's plane holds
+        it where nothing does). A slide of 2e-8 m per step passes both: the patch, its drift
+        projection and its modes are kept (events still watch every row and the pair's
+        distance).
+
+        Args:
+            q: Configuration [rad].
+            v: Velocity [rad/s].
+            distance: Signed distance [m] of the pairs in contact at q (Coal, by pair index);
+                a pair missing from it counts as stale.
+        """
+        if not self.pairs:
+            return False
+        _, _, gap, _, extra = self._problem(q, v)
+        k = 0
+        for (key, p), ex in zip(self.pairs.items(), extra, strict=True):
+            K = len(p.local1)
+            g = gap[k : k + K]
+            k += K
+            if not self._pair_engaged(p):
+                continue
+            d = distance.get(key)
+            if d is None or abs(float(g.min()) - d) > POINT_TOL:
+                return True
+            slide = ex["T"] @ ex["dp"].T - p.offset0  # (2, K)
+            if float(np.max(slide[0] ** 2 + slide[1] ** 2)) > SLIDE_TOL**2:
                 return True
         return False
 
