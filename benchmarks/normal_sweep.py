@@ -7,7 +7,8 @@ two MuJoCo references without sliding lift at the same mu (RK4 0.5 ms; Euler 0.1
 1 ms contact time constant; docs/contact.md, "MuJoCo as a reference").
 
 Run: python benchmarks/normal_sweep.py [--duration S] [--quick]
-(about 3 minutes for the full sweep on this 2-core machine; ``--quick``: mu 0.3, 0.5 only.)
+(about 5 minutes for the full sweep on this 2-core machine, ``--timeout`` wall seconds at most
+per run; ``--quick``: mu 0.3, 0.5 only.)
 """
 
 from __future__ import annotations
@@ -44,11 +45,18 @@ SWEEP: tuple[tuple[str, dict[str, Any]], ...] = (
 QUICK = ("mu 0.3", "mu 0.5")
 
 
+class _Timeout(Exception):
+    def __init__(self, t: float) -> None:
+        super().__init__(t)
+        self.t = t
+
+
 def main(argv: list[str] | None = None) -> None:
     """Print the table (see the module docstring)."""
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--duration", type=float, default=3.0, help="simulated time [s]")
     ap.add_argument("--quick", action="store_true", help="only " + ", ".join(QUICK))
+    ap.add_argument("--timeout", type=float, default=120.0, help="wall limit per run [s]")
     args = ap.parse_args(argv)
     warnings.filterwarnings("ignore", message="contact_mode='normal' is experimental")
     logging.getLogger("packbot").setLevel(logging.ERROR)
@@ -81,10 +89,20 @@ def main(argv: list[str] | None = None) -> None:
             contact_mode="normal", locked_joints=WRIST_JOINTS, max_events=20000, **kw
         )
         t0 = time.perf_counter()
+
+        def guard(t: float, t0: float = t0) -> None:
+            if time.perf_counter() - t0 > args.timeout:
+                raise _Timeout(t)
+
         try:
-            res = packbot.simulate(robot, q0, np.zeros(robot.nq), args.duration, config=cfg)
+            res = packbot.simulate(
+                robot, q0, np.zeros(robot.nq), args.duration, config=cfg, progress=guard
+            )
         except packbot.SimulationError as exc:
             print(f"{label:<11}failed at t = {exc.t:.4f} s: {str(exc)[:60]}")
+            continue
+        except _Timeout as exc:
+            print(f"{label:<11}stopped after {args.timeout:g} s of wall time at t = {exc.t:.4f} s")
             continue
         wall = time.perf_counter() - t0
         rest = "-" if res.rest_time is None else f"{res.rest_time:.3f}"

@@ -1375,10 +1375,10 @@ def simulate(
     """
     cfg = SimConfig() if config is None else config
     q, v = _check_inputs(robot, q0, v0, duration, cfg, failures, payload, controller)
-    if cfg.contact_mode == "normal":
+    if cfg.contact_mode == "normal" and cfg.mu == 0.0:
         log.warning(
-            "contact_mode='normal' is experimental: exact on simple bodies; the arm's collapse "
-            "rests with friction (mu > 0) but slowly, and not yet without (docs/contact.md, "
+            "contact_mode='normal' with mu = 0: frictionless contact on faceted pieces can chatter "
+            "(an impact every few ms) and an arm may never come to rest (docs/contact.md, "
             "'Open problems')"
         )
     wall = time.perf_counter()
