@@ -376,10 +376,18 @@ class CollisionWorld:
     # ------------------------------------------------------------------ queries
     def _place(self, q: NDArray[np.float64]) -> None:
         """Forward kinematics and piece placements only (the boxes are updated on demand)."""
-        pin.updateGeometryPlacements(
-            self.robot.model, self._data, self.geom_model, self.geom_data, q
-        )
+        self._fk(q)
         self._boxes_valid = False
+
+    def _fk(self, q: NDArray[np.float64]) -> None:
+        """Forward kinematics and piece placements; a wrong-size q is a ConfigurationError."""
+        try:
+            pin.updateGeometryPlacements(
+                self.robot.model, self._data, self.geom_model, self.geom_data, q
+            )
+        except (ValueError, TypeError) as exc:  # Pinocchio's own size/type check
+            nq = self.robot.model.nq
+            raise ConfigurationError("q", np.shape(q), f"a vector of shape ({nq},) [rad]") from exc
 
     def update(self, q: NDArray[np.float64]) -> None:
         """Place every piece at configuration q [rad] (forward kinematics) and its world box."""
@@ -416,9 +424,7 @@ class CollisionWorld:
             margin: Query margin [m] (default: the world's).
         """
         m = self.margin if margin is None else margin
-        pin.updateGeometryPlacements(
-            self.robot.model, self._data, self.geom_model, self.geom_data, q
-        )
+        self._fk(q)
         self._update_boxes()
         t = self._F.take(self._I)
         gap = t[:6]

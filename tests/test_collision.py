@@ -789,3 +789,10 @@ def test_obstacles_of_every_kind_report_their_name(robot, obstacle_world):
         ks = obstacle_world.pair_index("link3", name)
         assert len(ks) == len(obstacle_world.pieces("link3"))
         assert all(obstacle_world.pairs[k].link2 == name for k in ks)
+
+
+@pytest.mark.parametrize("method", ["sweep", "all_distances", "contacts", "closest", "update"])
+def test_wrong_size_q_names_the_field(robot, method):
+    world = CollisionWorld(robot)
+    with pytest.raises(packbot.ConfigurationError, match=r"q.*\(8,\)"):
+        getattr(world, method)(np.zeros(robot.nq - 1))
