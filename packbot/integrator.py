@@ -206,6 +206,7 @@ class _Run:
                 restitution=cfg.restitution,
                 zeno_speed=cfg.zeno_speed,
                 contact_tolerance=cfg.contact_tolerance,
+                check_others=False,  # its other pairs are the joint_clamp mode's
             )
 
     @property
@@ -586,6 +587,7 @@ class _Run:
             return self.free_accel(t, np.concatenate([qq, vv, tail]))
 
         q, v_new, mode_events = normal.restart(q, v, a_free, self.sys.minv(q))
+        self._sync_normal_pairs()
         for kind, info, d, joints in logged:
             self.log_event(t, kind, q, v, v_new, info, d=d, joints=joints)
         for me in mode_events:
@@ -593,6 +595,16 @@ class _Run:
                 continue
             self.log_event(t, me.kind, q, v_new, v_new, me.pair)
         return np.concatenate([q, v_new, tail])
+
+    def _sync_normal_pairs(self) -> None:
+        """Pairs that the drift projection put in the contact set become active pairs.
+
+        :meth:`NormalContacts.project` adds a pair it made penetrate (as an impact would):
+        its events are then those of a pair in contact (re-patch, release).
+        """
+        assert self.normal is not None
+        for k, p in self.normal.pairs.items():
+            self.active.setdefault(("pair", k), _Active(p.info, []))
 
     # ------------------------------------------------------------------ hand-off (mixed)
     def _mixed_conditions(
@@ -1170,6 +1182,7 @@ class _Run:
             return self.free_accel(t, np.concatenate([qq, vv, tail]))
 
         q = self.normal.repatch(q, v, a_free, self.sys.minv(q))
+        self._sync_normal_pairs()
         self.y = np.concatenate([q, v, tail])
         self.diag.restarts += 1
         self.stepper.reset(t, self.y, h=max(self.stepper.h, 1e-6))

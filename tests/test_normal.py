@@ -275,6 +275,9 @@ def test_arm_collapse_with_friction_comes_to_rest_on_its_contacts(robot):
     assert res.diagnostics.min_distance > -2 * PENETRATION_TOL
     # at rest on its contacts: some pair touches (within the touch gap) and the arm did fold
     world = CollisionWorld(robot)
+    # every pair over every sample: no penetration beyond the re-patch threshold (the drift
+    # projection checks the pairs outside the contact set)
+    assert min(world.all_distances(q).min() for q in res.q) > -1.01 * PENETRATION_TOL
     assert abs(world.all_distances(res.q[-1]).min()) < 1e-4
     assert res.q[-1][robot.joint_names.index("elbow2")] > 0.5  # link 3 slid and folded over
     # a stick only removes a residual slide: it never stops the arm (it once zeroed elbow2's
@@ -304,3 +307,88 @@ def test_slip_against_a_driven_residual_slide_advances_time(robot):
     _, counts = np.unique(times, return_counts=True)
     assert counts.max() <= 4
     assert res.diagnostics.min_distance > -1.01 * PENETRATION_TOL
+
+
+# ------------------------------------------------------------------ drift projection
+def _contacts(robot: Robot, q: np.ndarray, env: packbot.Environment | None = None):
+    cfg = packbot.SimConfig(contact_mode="normal")
+    sysm = System(robot, q, cfg, env)
+    assert sysm.world is not None
+    nc = NormalContacts(
+        sysm.model,
+        sysm.data,
+        sysm.world,
+        mu=0.0,
+        restitution=0.0,
+        zeno_speed=cfg.zeno_speed,
+        contact_tolerance=cfg.contact_tolerance,
+    )
+    return sysm, nc
+
+
+def _pair(world: CollisionWorld, name: str) -> int:
+    (k,) = [i for i, p in enumerate(world.pairs) if name in (p.link1, p.link2)]
+    return k
+
+
+def test_projection_adds_the_pair_it_would_make_penetrate():
+    """A box (x, z) sunk 0.5 mm into the floor, a slope 0.2 mm above its top right corner and
+    not in the contact set: raising the box 0.5 mm would sink the corner 0.15 mm into the
+    slope. The restart adds the slope (its impulse and modes see it) and leaves no pair
+    penetrating."""
+    robot = box_robot(("PX", "PZ"))
+    depth, gap = 5e-4, 2e-4
+    q = np.array([0.0, HALF_Z - depth])
+    corner = np.array([SIZE[0] / 2, 2 * HALF_Z - depth])
+    n = -np.array([1.0, 0.0, 1.0]) / np.sqrt(2.0)  # outward normal of the slope, down-left
+    offset = float(n @ np.array([corner[0], 0.0, corner[1]])) - gap  # solid: n.x <= offset
+    slope = packbot.Obstacle(name="slope", kind="halfspace", normal=tuple(n), offset=offset)
+    env = packbot.Environment().with_obstacles(slope)
+    sysm, nc = _contacts(robot, q, env)
+    world = sysm.world
+    floor, sl = _pair(world, "floor"), _pair(world, "slope")
+    assert world.pair_contact(q, sl).distance == pytest.approx(gap, rel=1e-6)
+    assert nc.add_pair(q, floor)
+    minv = sysm.minv(q)
+    q1, _, _ = nc.restart(q, np.zeros(2), lambda qq, vv: np.array([0.0, -9.81]), minv)
+    d = world.all_distances(q1)
+    assert d.min() > -PENETRATION_TOL, d
+    assert sl in nc.pairs  # joined the contact set
+    assert q1[0] < 0.0  # slid left along the slope to clear it
+    # the same projection without the check leaves the slope penetrated (the test can fail)
+    _, nc0 = _contacts(robot, q, env)
+    nc0.check_others = False
+    assert nc0.add_pair(q, floor)
+    q0 = nc0.project(q, np.zeros(2), minv)
+    assert world.pair_contact(q0, sl).distance < -1e-4
+
+
+@pytest.mark.parametrize("depth", [2e-6, -2e-6])
+def test_stale_patch_point_moves_q_no_more_than_the_true_penetration(depth):
+    """The floor patch of a box sunk by ``depth`` (negative: apart) with its points made stale,
+    1 mm deeper than the box: the projection moves the box by the true penetration plus at
+    most the drift band PENETRATION_TOL, not by the patch's 1 mm."""
+    robot = box_robot()
+    q = np.array([0.0, HALF_Z - depth, 0.0])
+    sysm, nc = _contacts(robot, q)
+    assert sysm.world is not None
+    assert nc.add_pair(q, 0)
+    p = nc.pairs[0]
+    p.local2 = p.local2 - 1e-3 * p.normal2  # every gap n.(p2 - p1) 1 mm smaller
+    nc._invalidate()
+    q1 = nc.project(q, np.zeros(3), sysm.minv(q))
+    moved = float(np.abs(q1 - q).max())
+    assert moved == pytest.approx(max(depth, 0.0) + PENETRATION_TOL, rel=1e-6)  # not 1 mm
+    d1 = sysm.world.pair_contact(q1, 0).distance
+    assert d1 == pytest.approx(moved - depth, rel=1e-4)  # moved straight up
+
+
+def test_arm_collapse_frictionless_penetrates_no_pair(robot):
+    """mu = 0, 2 s: over every sample and every pair, no distance below the re-patch
+    threshold (the drift projection once sank the camera wrist 0.94 mm into the turret)."""
+    wrist = ("camera_tilt", "camera_pan", "gripper_roll", "gripper_jaw")
+    cfg = packbot.SimConfig(contact_mode="normal", mu=0.0, locked_joints=wrist)
+    res = packbot.simulate(robot, robot.pose("drive"), np.zeros(8), 2.0, config=cfg)
+    assert res.events_of("impact")
+    world = CollisionWorld(robot)
+    assert min(world.all_distances(q).min() for q in res.q) > -1.01 * PENETRATION_TOL

@@ -75,6 +75,7 @@ __all__ = [
     "FORCE_BAND",
     "PENETRATION_TOL",
     "POINT_TOL",
+    "PROJECT_ROUNDS",
     "SLIDE_TOL",
     "SPEED_BAND",
     "STICK_BAND",
@@ -123,6 +124,9 @@ SLIDE_TOL = 1e-4
 BAUMGARTE = 20.0
 #: Largest acceptable scaled residual of a complementarity solution [-].
 RESIDUAL_TOL = 1e-7
+#: Rounds of the drift projection (:meth:`NormalContacts.project`): each adds to the contact set
+#: the pairs that the previous one made penetrate.
+PROJECT_ROUNDS = 3
 
 
 @dataclass
@@ -197,6 +201,8 @@ class NormalContacts:
         restitution: Coefficient of restitution e [-].
         zeno_speed: Impacts slower than this are inelastic [m/s].
         contact_tolerance: Security margin of the patch query [m].
+        check_others: Whether the drift projection checks the pairs not in the contact set
+            (see :meth:`project`).
     """
 
     def __init__(
@@ -209,8 +215,10 @@ class NormalContacts:
         restitution: float,
         zeno_speed: float,
         contact_tolerance: float,
+        check_others: bool = True,
     ) -> None:
         self.model, self.data, self.world = model, data, world
+        self.check_others = bool(check_others)
         self.mu = float(mu)
         self.e = float(restitution)
         self.zeno_speed = float(zeno_speed)
@@ -865,18 +873,97 @@ class NormalContacts:
         """Move q by the least (M-weighted) amount that closes every negative touching gap.
 
         The position-level LCP: dq = M^-1 J^T mu, mu >= 0, J dq + g >= 0, complementary, on
-        the rows with g < 0 (g: gaps before). Removes the integration drift of resting gaps
-        and the event tolerance's last micrometre at every restart.
+        the touching rows (g <= :data:`TOUCH_GAP`, gaps before). Removes the integration drift
+        of resting gaps and the event tolerance's last micrometre at every restart. Two guards
+        make it safe:
+
+        1. *Targets clipped at the true distance*: a row's gap is measured against its patch's
+           geometry (a point against a face's plane), which can read far deeper than the pair
+           really is (a patch point lifted onto a face's plane beyond the face's edge, or a
+           stale point). Each pair row's gap is raised to min(d, 0) - :data:`PENETRATION_TOL`
+           when below it, d the pair's signed distance (Coal, one pruned sweep at q), so the
+           correction never exceeds the true penetration by more than the drift it exists
+           for. The band keeps the micrometre disagreements of a fresh patch corrected in
+           full (the collapse, mu = 0: a lifted point reading 1.6 um deeper than the distance
+           at t = 0.206 s; the elbow casing's edge patch on the chassis reading -1 um with the
+           pair 10 um apart at t = 1.45 s): left below -:data:`POINT_TOL`, such a row fires
+           its impact condition again at once and the restart repeats forever. Clipping
+           rather than re-patching: the patches are rebuilt just before every projection
+           (restart, re-patch), so a gap still off the distance is the patch's geometry,
+           which a new patch reproduces.
+        2. *No penetration elsewhere*: the projection moves q without looking at the pairs not
+           in the contact set. After it, the pairs the sweep leaves (within the world's
+           margin) are checked; one below -:data:`PENETRATION_TOL` joins the contact set (its
+           patch at the projected q, as an impact would add it: it then takes part in the
+           restart's impulse and modes) and the projection is made again from there, up to
+           :data:`PROJECT_ROUNDS` rounds. Off with ``check_others=False`` (the hand-off,
+           whose other pairs are the joint_clamp mode's).
+
+        Args:
+            q: Configuration [rad].
+            v: Velocity [rad/s] (for the rows' cache key only).
+            minv: M^-1 at q.
+
+        Returns:
+            The corrected configuration [rad].
         """
-        Jn, _, gap, _, _ = self._problem(q, v)
-        rows = np.flatnonzero(gap < 0.0)
-        if len(rows) == 0:
-            return q
-        touch = np.flatnonzero(gap <= TOUCH_GAP)
-        J = Jn[touch]
-        G = J @ minv @ J.T
-        mu = solve_lcp_psd(G, gap[touch])
-        return np.asarray(q + minv @ J.T @ mu, dtype=np.float64)
+        for _ in range(PROJECT_ROUNDS):
+            Jn, _, gap, _, _ = self._problem(q, v)
+            if not bool(np.any(gap < 0.0)):
+                return q
+            dist = self._sweep(q)
+            gap = self._clip_gaps(gap, dist)
+            if not bool(np.any(gap < 0.0)):
+                return q
+            touch = np.flatnonzero(gap <= TOUCH_GAP)
+            J = Jn[touch]
+            G = J @ minv @ J.T
+            mu = solve_lcp_psd(G, gap[touch])
+            q = np.asarray(q + minv @ J.T @ mu, dtype=np.float64)
+            if not self.check_others or self.world is None:
+                return q
+            dist = self._sweep(q)
+            bad = [k for k, d in dist.items() if k not in self.pairs and d < -PENETRATION_TOL]
+            if not bad:
+                return q
+            for k in bad:
+                log.debug(
+                    "projection: pair %s / %s at %.3g m joins the contact set",
+                    self.world.pairs[k].piece1,
+                    self.world.pairs[k].piece2,
+                    dist[k],
+                )
+                self.add_pair(q, k)
+        log.debug("projection: still penetrating after %d rounds", PROJECT_ROUNDS)
+        return q
+
+    def _sweep(self, q: FloatArray) -> dict[int, float]:
+        """Signed distances [m] at q of the pairs within the world's margin, by pair index.
+
+        Every pair of the contact set is included (queried alone if the sweep pruned it).
+        """
+        if self.world is None:
+            return {}
+        sw = self.world.sweep(q)
+        dist = dict(zip(sw.pairs.tolist(), sw.distances.tolist(), strict=True))
+        for k in self.pairs:
+            if k not in dist:
+                dist[k] = self.world.pair_contact(q, k).distance
+        return dist
+
+    def _clip_gaps(self, gap: FloatArray, dist: dict[int, float]) -> FloatArray:
+        """The rows' gaps [m], a pair's raised to min(d, 0) - PENETRATION_TOL (d: its distance)."""
+        if not self.pairs or not dist:
+            return gap
+        out = gap.copy()
+        k = 0
+        for key, p in self.pairs.items():
+            K = len(p.local1)
+            d = dist.get(key)
+            if d is not None:
+                np.maximum(out[k : k + K], min(d, 0.0) - PENETRATION_TOL, out=out[k : k + K])
+            k += K
+        return out
 
     def impulse(self, q: FloatArray, v: FloatArray, minv: FloatArray) -> FloatArray:
         """Simultaneous impact of every touching row (Newton's law, restitution e)."""
