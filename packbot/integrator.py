@@ -186,26 +186,17 @@ class _Run:
         self.pending_min: tuple[float, int] = (math.inf, -1)
         self.normal: NormalContacts | None = None
         if cfg.contact_mode == "normal":
-            self.normal = NormalContacts(
-                self.sys.model,
-                self.sys.data,
-                self.sys.world,
-                mu=cfg.mu,
-                restitution=cfg.restitution,
-                zeno_speed=cfg.zeno_speed,
-                contact_tolerance=cfg.contact_tolerance,
+            self.normal = NormalContacts.from_config(
+                self.sys.model, self.sys.data, self.sys.world, cfg
             )
         # Hand-off (joint_clamp mode): pairs handed to the normal machinery, the clamps as rows.
         self.mixed: HandoffContacts | None = None
         if cfg.handoff and self.sys.world is not None:
-            self.mixed = HandoffContacts(
+            self.mixed = HandoffContacts.from_config(
                 self.sys.model,
                 self.sys.data,
                 self.sys.world,
-                mu=cfg.mu,
-                restitution=cfg.restitution,
-                zeno_speed=cfg.zeno_speed,
-                contact_tolerance=cfg.contact_tolerance,
+                cfg,
                 check_others=False,  # its other pairs are the joint_clamp mode's
             )
 
@@ -390,9 +381,10 @@ class _Run:
                     )
             self.pending_d = d_now
         if self.normal is not None and not self.normal.empty:
-            out.extend(self._normal_mode_crossings(seg, y1))
+            out.extend(self._mode_crossings(self.normal, seg, y1))
         if self.mixed_on:
-            out.extend(self._mixed_mode_crossings(seg, y1))
+            assert self.mixed is not None
+            out.extend(self._mode_crossings(self.mixed, seg, y1))
         if self.locks.held or any(len(s) == 1 for s in self.locks.signs.values()):
             cond1 = self.lock_conditions(seg.t1, y1)
             bad = [k for k, g in cond1.items() if g < 0.0]
@@ -442,28 +434,29 @@ class _Run:
             ]
         return []
 
-    def _normal_conditions(
-        self, t: float, y: FloatArray
+    def _contact_conditions(
+        self, contacts: NormalContacts, t: float, y: FloatArray
     ) -> dict[tuple[Any, ...], tuple[str, float]]:
-        assert self.normal is not None
+        """Mode conditions of a contact problem (normal mode or hand-off) at state y."""
         n = self.n
         q, v = y[:n], y[n : 2 * n]
-        a = self.free_accel(t, y)
-        ev = self.normal.evaluate(q, v, a, self.sys.minv(q))
-        return self.normal.conditions(ev)
+        ev = contacts.evaluate(q, v, self.free_accel(t, y), self.sys.minv(q))
+        return contacts.conditions(ev)
 
-    def _normal_mode_crossings(self, seg: DenseSegment, y1: FloatArray) -> list[_Crossing]:
-        """Mode conditions of the normal mode that changed sign over the step."""
-        cond1 = self._normal_conditions(seg.t1, y1)
+    def _mode_crossings(
+        self, contacts: NormalContacts, seg: DenseSegment, y1: FloatArray
+    ) -> list[_Crossing]:
+        """Mode conditions of a contact problem that changed sign over the step."""
+        cond1 = self._contact_conditions(contacts, seg.t1, y1)
         bad = [k for k, (_, g) in cond1.items() if g < 0.0]
         if not bad:
             return []
-        cond0 = self._normal_conditions(seg.t0, seg.y0)
+        cond0 = self._contact_conditions(contacts, seg.t0, seg.y0)
         out = []
         for k in bad:
 
             def gn(t: float, k: tuple[Any, ...] = k) -> float:
-                return self._normal_conditions(t, seg(t))[k][1]
+                return self._contact_conditions(contacts, t, seg(t))[k][1]
 
             g0 = cond0[k][1] if k in cond0 else 1.0
             out.append(_Crossing(cond1[k][0], ("mode", *k), gn, g0, cond1[k][1]))
@@ -607,32 +600,6 @@ class _Run:
             self.active.setdefault(("pair", k), _Active(p.info, []))
 
     # ------------------------------------------------------------------ hand-off (mixed)
-    def _mixed_conditions(
-        self, t: float, y: FloatArray
-    ) -> dict[tuple[Any, ...], tuple[str, float]]:
-        assert self.mixed is not None
-        n = self.n
-        q, v = y[:n], y[n : 2 * n]
-        ev = self.mixed.evaluate(q, v, self.free_accel(t, y), self.sys.minv(q))
-        return self.mixed.conditions(ev)
-
-    def _mixed_mode_crossings(self, seg: DenseSegment, y1: FloatArray) -> list[_Crossing]:
-        """Mode conditions of the hand-off problem that changed sign over the step."""
-        cond1 = self._mixed_conditions(seg.t1, y1)
-        bad = [k for k, (_, g) in cond1.items() if g < 0.0]
-        if not bad:
-            return []
-        cond0 = self._mixed_conditions(seg.t0, seg.y0)
-        out = []
-        for k in bad:
-
-            def gm(t: float, k: tuple[Any, ...] = k) -> float:
-                return self._mixed_conditions(t, seg(t))[k][1]
-
-            g0 = cond0[k][1] if k in cond0 else 1.0
-            out.append(_Crossing(cond1[k][0], ("mode", *k), gm, g0, cond1[k][1]))
-        return out
-
     def apply_clamps(self) -> None:
         """Give the clamps of the active contacts to the hand-off rows or to the joint locks."""
         clamps = [cl for a in self.active.values() for cl in a.clamps]

@@ -134,15 +134,7 @@ def test_sliding_patch_is_stale_only_once_slid_or_off_its_distance():
     cfg = packbot.SimConfig(contact_mode="normal", mu=0.5)
     sysm = System(robot, np.array([0.0, HALF_Z, 0.0]), cfg, None)
     assert sysm.world is not None
-    nc = NormalContacts(
-        sysm.model,
-        sysm.data,
-        sysm.world,
-        mu=0.5,
-        restitution=0.0,
-        zeno_speed=cfg.zeno_speed,
-        contact_tolerance=cfg.contact_tolerance,
-    )
+    nc = NormalContacts.from_config(sysm.model, sysm.data, sysm.world, cfg)
     q0, v = np.array([0.0, HALF_Z, 0.0]), np.array([0.01, 0.0, 0.0])
     assert nc.add_pair(q0, 0)
     nc.engaged = list(range(len(nc.pairs[0].local1)))
@@ -314,15 +306,7 @@ def _contacts(robot: Robot, q: np.ndarray, env: packbot.Environment | None = Non
     cfg = packbot.SimConfig(contact_mode="normal")
     sysm = System(robot, q, cfg, env)
     assert sysm.world is not None
-    nc = NormalContacts(
-        sysm.model,
-        sysm.data,
-        sysm.world,
-        mu=0.0,
-        restitution=0.0,
-        zeno_speed=cfg.zeno_speed,
-        contact_tolerance=cfg.contact_tolerance,
-    )
+    nc = NormalContacts.from_config(sysm.model, sysm.data, sysm.world, cfg)  # mu = 0
     return sysm, nc
 
 

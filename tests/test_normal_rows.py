@@ -25,15 +25,7 @@ def contacts(robot):
     cfg = packbot.SimConfig(contact_mode="normal", mu=0.5, locked_joints=WRIST)
     res = packbot.simulate(robot, robot.pose("drive"), np.zeros(8), 0.6, config=cfg)
     sysm = System(robot, res.q[-1], cfg, None)
-    nc = NormalContacts(
-        sysm.model,
-        sysm.data,
-        sysm.world,
-        mu=0.5,
-        restitution=0.0,
-        zeno_speed=cfg.zeno_speed,
-        contact_tolerance=cfg.contact_tolerance,
-    )
+    nc = NormalContacts.from_config(sysm.model, sysm.data, sysm.world, cfg)
     q = sysm.reduce(res.q[-1])
     assert sysm.world is not None
     for p in range(len(sysm.world.pairs)):

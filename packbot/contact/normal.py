@@ -58,7 +58,7 @@ from __future__ import annotations
 import logging
 import math
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import coal
 import numpy as np
@@ -67,6 +67,11 @@ from numpy.typing import NDArray
 
 from packbot.collision import CollisionWorld, PairInfo
 from packbot.contact.lcp import lcp_residual, lemke, solve_lcp_psd, solve_ncp_admm
+
+if TYPE_CHECKING:
+    from typing_extensions import Self
+
+    from packbot.config import SimConfig
 
 __all__ = [
     "BAUMGARTE",
@@ -204,6 +209,27 @@ class NormalContacts:
         check_others: Whether the drift projection checks the pairs not in the contact set
             (see :meth:`project`).
     """
+
+    @classmethod
+    def from_config(
+        cls,
+        model: pin.Model,
+        data: pin.Data,
+        world: CollisionWorld | None,
+        config: SimConfig,
+        **kwargs: Any,
+    ) -> Self:
+        """The contact set with ``config``'s friction, restitution, Zeno speed and tolerance."""
+        return cls(
+            model,
+            data,
+            world,
+            mu=config.mu,
+            restitution=config.restitution,
+            zeno_speed=config.zeno_speed,
+            contact_tolerance=config.contact_tolerance,
+            **kwargs,
+        )
 
     def __init__(
         self,
