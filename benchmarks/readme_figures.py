@@ -19,6 +19,7 @@ import tempfile
 from pathlib import Path
 
 from packbot.cli import main as packbot_main
+from packbot.viz.html import screenshot_command
 
 FIGURES = Path(__file__).resolve().parents[1] / "docs" / "figures"
 
@@ -37,24 +38,12 @@ def main() -> int:
     page = FIGURES / "collapse.html"
     with tempfile.TemporaryDirectory() as profile:
         subprocess.run(
-            [
+            screenshot_command(
                 browser,
-                "--headless",
-                "--no-sandbox",
-                "--disable-gpu",
-                "--use-angle=swiftshader",
-                "--enable-unsafe-swiftshader",
-                "--disable-quic",
-                "--no-first-run",
-                "--disable-background-networking",
-                "--disable-component-update",
-                "--disable-sync",
-                f"--user-data-dir={profile}",
-                "--window-size=1024,768",
-                "--virtual-time-budget=3000",
-                f"--screenshot={FIGURES / 'collapse_animation.png'}",
                 f"{page.as_uri()}#t={args.time:.3f}",
-            ],
+                FIGURES / "collapse_animation.png",
+                profile,
+            ),
             check=True,
             capture_output=True,
             timeout=120,

@@ -35,6 +35,7 @@ from packbot.viz import (
     start_viewer,
     write_html,
 )
+from packbot.viz.html import screenshot_command
 
 LOCKED = ("camera_tilt", "camera_pan", "gripper_roll", "gripper_jaw")
 
@@ -335,24 +336,7 @@ def chromium() -> str:
 
 def _screenshot(chromium: str, url: str, out: Path) -> np.ndarray:
     profile = out.parent / f"profile-{out.stem}"
-    cmd = [
-        chromium,
-        "--headless",
-        "--no-sandbox",
-        "--disable-gpu",
-        "--use-angle=swiftshader",
-        "--enable-unsafe-swiftshader",
-        "--disable-quic",
-        "--no-first-run",
-        "--disable-background-networking",
-        "--disable-component-update",
-        "--disable-sync",
-        f"--user-data-dir={profile}",
-        "--window-size=1024,768",
-        "--virtual-time-budget=3000",
-        f"--screenshot={out}",
-        url,
-    ]
+    cmd = screenshot_command(chromium, url, out, profile)
     proc = subprocess.run(cmd, capture_output=True, text=True, timeout=120)
     assert proc.returncode == 0 and out.exists(), proc.stderr[-2000:]
     return np.asarray(imread(out))[..., :3]

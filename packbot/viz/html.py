@@ -31,7 +31,7 @@ from packbot.viz.keyframes import _check_speed
 from packbot.viz.recorder import SceneRecorder
 from packbot.viz.scene import _Scene
 
-__all__ = ["html_page", "write_html"]
+__all__ = ["html_page", "screenshot_command", "write_html"]
 
 log = logging.getLogger(__name__)
 
@@ -162,3 +162,31 @@ def write_html(
     _write_atomic(out, html)
     log.info("wrote %s (%.1f MB)", out, len(html) / 1e6)
     return out
+
+
+def screenshot_command(browser: str, url: str, png: Path | str, profile: Path | str) -> list[str]:
+    """The command line that screenshots ``url`` into ``png`` with a headless Chromium.
+
+    Software WebGL (SwiftShader), a fresh profile directory ``profile``, no background
+    networking (a closed network otherwise stalls the start), a 1024x768 window and 3 s of
+    virtual time for the page's animation to reach the time in its URL fragment (``#t=...``).
+    Used by the browser tests and ``benchmarks/readme_figures.py``.
+    """
+    return [
+        browser,
+        "--headless",
+        "--no-sandbox",
+        "--disable-gpu",
+        "--use-angle=swiftshader",
+        "--enable-unsafe-swiftshader",
+        "--disable-quic",
+        "--no-first-run",
+        "--disable-background-networking",
+        "--disable-component-update",
+        "--disable-sync",
+        f"--user-data-dir={profile}",
+        "--window-size=1024,768",
+        "--virtual-time-budget=3000",
+        f"--screenshot={png}",
+        url,
+    ]
