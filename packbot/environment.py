@@ -6,7 +6,6 @@ chassis belongs to the robot model, not to the environment.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 from typing import Literal
 
@@ -16,6 +15,7 @@ import pinocchio as pin
 from numpy.typing import NDArray
 
 from packbot.errors import ConfigurationError, ConvexityError
+from packbot.validation import choice, finite_number, name_str, real_array, vector
 
 __all__ = ["FLOOR", "OBSTACLE_KINDS", "Environment", "Obstacle"]
 
@@ -25,11 +25,17 @@ OBSTACLE_KINDS: tuple[str, ...] = ("box", "halfspace", "convex")
 #: A convex obstacle thinner than this fraction of its size (or of its distance from its frame's
 #: origin) is degenerate.
 FLATNESS_RTOL = 1e-6
+#: Largest coordinate, extent or offset of an obstacle [m]: a world of a kilometre around the
+#: robot (the arm reaches about 2 m).
+COORD_MAX = 1000.0
 
 
 @dataclass(frozen=True, kw_only=True)
 class Obstacle:
-    """A static convex obstacle.
+    """A static convex obstacle. Its fields are checked at construction.
+
+    Coordinates, extents and the offset are finite and within +/-1000 m; a box has positive
+    extents, a halfspace a non-zero normal, a convex obstacle >= 4 points spanning a volume.
 
     Attributes:
         name: Unique name (reported as the "link" of contacts with it).
@@ -52,51 +58,73 @@ class Obstacle:
     offset: float = 0.0
     points: tuple[tuple[float, float, float], ...] = ()
 
+    def __post_init__(self) -> None:
+        for fname, value in self._checked().items():
+            object.__setattr__(self, fname, value)
+
     def validate(self) -> None:
-        """Raise :class:`ConfigurationError` naming the first bad field."""
-        if not self.name:
-            raise ConfigurationError("obstacle.name", self.name, "a non-empty name")
-        if self.kind not in OBSTACLE_KINDS:
-            raise ConfigurationError(f"obstacle {self.name!r}: kind", self.kind, OBSTACLE_KINDS)
+        """Raise :class:`ConfigurationError` naming the first bad field (done at construction).
+
+        Raises:
+            ConfigurationError: A bad field.
+            ConvexityError: The points of a convex obstacle span no volume.
+        """
+        self._checked()
+
+    def _checked(self) -> dict[str, object]:
+        """The fields checked and normalised to floats and tuples."""
+        nm = name_str("obstacle.name", self.name)
+        where = f"obstacle {nm!r}: "
+        kind = choice(f"{where}kind", self.kind, OBSTACLE_KINDS)
+        out: dict[str, object] = {"name": nm, "kind": kind}
         for fname in ("xyz", "rpy", "normal", "size"):
-            v = getattr(self, fname)
-            if len(v) != 3 or not all(math.isfinite(x) for x in v):
-                raise ConfigurationError(f"obstacle {self.name!r}: {fname}", v, "3 finite numbers")
-        if self.kind == "box" and min(self.size) <= 0:
+            bound = None if fname == "rpy" else COORD_MAX
+            unit = {"rpy": "rad", "normal": "-"}.get(fname, "m")
+            out[fname] = vector(f"{where}{fname}", getattr(self, fname), 3, bound=bound, unit=unit)
+        out["offset"] = finite_number(
+            f"{where}offset", self.offset, low=-COORD_MAX, high=COORD_MAX, unit="m"
+        )
+        size = out["size"]
+        assert isinstance(size, tuple)
+        if kind == "box" and min(size) <= 0:
+            raise ConfigurationError(f"{where}size", self.size, "3 positive extents [m]")
+        normal = out["normal"]
+        assert isinstance(normal, tuple)
+        if kind == "halfspace" and float(np.linalg.norm(normal)) < 1e-12:
+            raise ConfigurationError(f"{where}normal", self.normal, "a non-zero vector")
+        if kind == "convex":
+            out["points"] = self._points(where)
+        elif not (isinstance(self.points, (list, tuple)) and len(self.points) == 0):
             raise ConfigurationError(
-                f"obstacle {self.name!r}: size", self.size, "3 positive extents [m]"
+                f"{where}points", self.points, "no points: only a 'convex' obstacle has points"
             )
-        if self.kind == "halfspace":
-            if float(np.linalg.norm(self.normal)) < 1e-12:
-                raise ConfigurationError(f"obstacle {self.name!r}: normal", self.normal, "non-zero")
-            if not math.isfinite(self.offset):
-                raise ConfigurationError(f"obstacle {self.name!r}: offset", self.offset, "finite")
-        if self.kind == "convex":
-            try:
-                pts = np.asarray(self.points, dtype=float)
-            except (TypeError, ValueError):  # ragged or not numbers
-                raise ConfigurationError(
-                    f"obstacle {self.name!r}: points", self.points, "(N, 3) numbers [m]"
-                ) from None
-            if pts.size and not np.all(np.isfinite(pts)):
-                raise ConfigurationError(
-                    f"obstacle {self.name!r}: points", self.points, "finite coordinates [m]"
-                )
-            if pts.ndim != 2 or pts.shape[1] != 3 or len(pts) < 4:
-                raise ConvexityError(self.name, f"needs >= 4 points (N, 3), got shape {pts.shape}")
-            # Thickness along the least principal axis against the size (and the distance from
-            # the frame origin, which sets Qhull's roundoff): Qhull crashes the process on
-            # nearly flat input (thickness 1e-8 of the size), so reject it well before that.
-            centred = pts - pts.mean(axis=0)
-            axes = np.linalg.svd(centred, full_matrices=False)[2]
-            extent = np.ptp(centred @ axes.T, axis=0)
-            scale = max(float(extent[0]), float(np.abs(pts).max()))
-            if not extent[2] > FLATNESS_RTOL * scale:
-                raise ConvexityError(
-                    self.name,
-                    f"degenerate: its points span no volume (thickness {extent[2]:.3g} m over "
-                    f"an extent of {extent[0]:.3g} m); give >= 4 points not in one plane",
-                )
+        else:
+            out["points"] = ()
+        return out
+
+    def _points(self, where: str) -> tuple[tuple[float, float, float], ...]:
+        expected = f"(N, 3) finite coordinates [m], N >= 4, each within +/-{COORD_MAX:g} m"
+        if isinstance(self.points, (list, tuple, np.ndarray)) and len(self.points) == 0:
+            raise ConvexityError(self.name, "needs >= 4 points (N, 3), got none")
+        pts = real_array(f"{where}points", self.points, expected=expected)
+        if pts.ndim != 2 or pts.shape[1] != 3 or len(pts) < 4:
+            raise ConvexityError(self.name, f"needs >= 4 points (N, 3), got shape {pts.shape}")
+        if np.any(np.abs(pts) > COORD_MAX):
+            raise ConfigurationError(f"{where}points", self.points, expected)
+        # Thickness along the least principal axis against the size (and the distance from
+        # the frame origin, which sets Qhull's roundoff): Qhull crashes the process on
+        # nearly flat input (thickness 1e-8 of the size), so reject it well before that.
+        centred = pts - pts.mean(axis=0)
+        axes = np.linalg.svd(centred, full_matrices=False)[2]
+        extent = np.ptp(centred @ axes.T, axis=0)
+        scale = max(float(extent[0]), float(np.abs(pts).max()))
+        if not extent[2] > FLATNESS_RTOL * scale:
+            raise ConvexityError(
+                self.name,
+                f"degenerate: its points span no volume (thickness {extent[2]:.3g} m over "
+                f"an extent of {extent[0]:.3g} m); give >= 4 points not in one plane",
+            )
+        return tuple((float(x), float(y), float(z)) for x, y, z in pts)
 
     def placement(self) -> pin.SE3:
         """Pose of the obstacle frame in the world (identity for a halfspace)."""
@@ -168,11 +196,29 @@ class Environment:
         """A copy with more obstacles."""
         return Environment(obstacles=(*self.obstacles, *obstacles))
 
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "obstacles", self._checked())
+
     def validate(self) -> None:
-        """Raise a :class:`ConfigurationError` for duplicate names or a bad obstacle."""
-        seen: set[str] = set()
+        """Raise a :class:`ConfigurationError` for duplicate names or a bad obstacle.
+
+        Done at construction already.
+        """
+        self._checked()
         for ob in self.obstacles:
             ob.validate()
+
+    def _checked(self) -> tuple[Obstacle, ...]:
+        obstacles = self.obstacles
+        if isinstance(obstacles, Obstacle) or not isinstance(obstacles, (list, tuple)):
+            raise ConfigurationError(
+                "environment.obstacles", obstacles, "a tuple of packbot.Obstacle"
+            )
+        seen: set[str] = set()
+        for k, ob in enumerate(obstacles):
+            if not isinstance(ob, Obstacle):
+                raise ConfigurationError(f"environment.obstacles[{k}]", ob, "a packbot.Obstacle")
             if ob.name in seen:
                 raise ConfigurationError("obstacle.name", ob.name, "a name not used twice")
             seen.add(ob.name)
+        return tuple(obstacles)

@@ -19,12 +19,12 @@ with ``pin.buildReducedModel`` (see docs/failures.md):
 
 from __future__ import annotations
 
-import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Literal, get_args
 
 from packbot.errors import ConfigurationError, UnknownNameError
+from packbot.validation import choice, finite_number, name_str
 
 __all__ = ["FAILURE_KINDS", "Failure", "FailureKind", "validate_failures"]
 
@@ -37,11 +37,15 @@ FAILURE_KINDS: tuple[str, ...] = get_args(FailureKind)
 class Failure:
     """A joint failure.
 
+    The fields are checked at construction (a :class:`~packbot.errors.ConfigurationError`
+    naming the field); whether ``joint`` is a joint of the robot is checked by
+    :meth:`validate` and by :func:`packbot.simulate`.
+
     Attributes:
         joint: The failed joint's name (one of ``robot.params.names``).
         kind: One of :data:`FAILURE_KINDS`.
         t: Injection time [s] (0: failed from the start).
-        scale: ``"weak"`` only: effort-limit multiplier in (0, 1] [-].
+        scale: ``"weak"`` only: effort-limit multiplier in (0, 1] [-] (checked for every kind).
         torque: ``"stuck"`` only: the constant joint torque the driver applies [N*m].
         threshold: ``"brake"`` only: holding (and slipping) torque of the brake [N*m]; None: the
             joint's effort limit.
@@ -54,30 +58,48 @@ class Failure:
     torque: float = 0.0
     threshold: float | None = None
 
+    def __post_init__(self) -> None:
+        for fname, value in self._checked().items():
+            object.__setattr__(self, fname, value)
+
+    def _checked(self) -> dict[str, object]:
+        """The fields checked and normalised (everything but the joint's existence)."""
+        kind = choice("failure.kind", self.kind, FAILURE_KINDS)
+        threshold = self.threshold
+        if threshold is not None:
+            threshold = finite_number(
+                "failure.threshold",
+                threshold,
+                low=0.0,
+                low_open=True,
+                unit="N*m",
+                what="None (the effort limit) or a finite positive torque",
+            )
+        return {
+            "joint": name_str("failure.joint", self.joint, "a joint name (a non-empty string)"),
+            "kind": kind,
+            "t": finite_number("failure.t", self.t, low=0.0, unit="s", what="a finite time"),
+            "scale": finite_number(
+                "failure.scale", self.scale, low=0.0, high=1.0, low_open=True, what="a number"
+            ),
+            "torque": finite_number(
+                "failure.torque", self.torque, unit="N*m", what="a finite torque"
+            ),
+            "threshold": threshold,
+        }
+
     def validate(self, joint_names: Sequence[str]) -> None:
         """Raise a :class:`~packbot.errors.PackbotError` naming the first bad field.
+
+        The fields are checked at construction already; this also checks that the joint is one
+        of ``joint_names``.
 
         Args:
             joint_names: The valid joint names.
         """
+        self._checked()
         if self.joint not in joint_names:
             raise UnknownNameError("joint", self.joint, joint_names)
-        if self.kind not in FAILURE_KINDS:
-            raise ConfigurationError("failure.kind", self.kind, FAILURE_KINDS)
-        if not _finite(self.t) or self.t < 0:
-            raise ConfigurationError("failure.t", self.t, "a finite time >= 0 [s]")
-        if self.kind == "weak" and not (_finite(self.scale) and 0 < self.scale <= 1):
-            raise ConfigurationError("failure.scale", self.scale, "a number in (0, 1]")
-        if self.kind == "stuck" and not _finite(self.torque):
-            raise ConfigurationError("failure.torque", self.torque, "a finite torque [N*m]")
-        if (
-            self.kind == "brake"
-            and self.threshold is not None
-            and not (_finite(self.threshold) and self.threshold > 0)
-        ):
-            raise ConfigurationError(
-                "failure.threshold", self.threshold, "a finite positive torque [N*m], or None"
-            )
 
 
 def validate_failures(failures: Sequence[Failure], joint_names: Sequence[str]) -> None:
@@ -96,7 +118,3 @@ def validate_failures(failures: Sequence[Failure], joint_names: Sequence[str]) -
                 "failures", f.joint, "at most one failure per joint (this joint has two)"
             )
         seen.add(f.joint)
-
-
-def _finite(x: object) -> bool:
-    return isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x)

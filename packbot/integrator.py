@@ -36,7 +36,7 @@ from __future__ import annotations
 import logging
 import math
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -57,6 +57,7 @@ from packbot.errors import (
     ControllerError,
     InitialCollisionError,
     SimulationError,
+    UnknownNameError,
 )
 from packbot.failures import Failure, validate_failures
 from packbot.model import Robot
@@ -64,6 +65,15 @@ from packbot.ode import DenseSegment, RK45Stepper, StepSizeUnderflow, locate_roo
 from packbot.payload import Payload
 from packbot.result import Diagnostics, Event, SimResult, rest_time
 from packbot.system import System
+from packbot.validation import (
+    CONTROL_DT_MIN,
+    MAX_SAMPLES,
+    MAX_STEPS,
+    boolean,
+    finite_number,
+    joint_names,
+    real_array,
+)
 
 __all__ = ["EVENT_XTOL", "TorqueFunction", "simulate"]
 
@@ -292,6 +302,17 @@ class _Run:
         while self.next_sample * dt <= min(t, self.duration) + 1e-12:
             self.record_point(self.next_sample * dt, y)
             self.next_sample += 1
+
+    def record_final(self) -> None:
+        """Keep the final state as a sample if the last one is earlier (within 1e-12 s).
+
+        The regular samples fall on multiples of ``sample_dt``; when it does not divide the
+        duration (or exceeds it) the last of them is before the end, and the final state is
+        kept here, at t = duration (the last interval is then shorter). A run whose duration
+        is a multiple of ``sample_dt`` already ends on a sample and is unchanged.
+        """
+        if not self.samples_t or self.samples_t[-1] < self.duration - 1e-12:
+            self.record_point(self.duration, self.y)
 
     def record_point(self, t: float, y: FloatArray) -> None:
         """Keep a sample: full q, v, the torques and the energy at (t, y)."""
@@ -1216,6 +1237,7 @@ class _Run:
             self.stepper.reset(t_star, y_new, h=max(self.stepper.h, 1e-6))
             if self.progress is not None:
                 self.progress(self.t)
+        self.record_final()
 
     def result(self) -> SimResult:
         t = np.array(self.samples_t)
@@ -1244,19 +1266,72 @@ class _Run:
 
 
 def _check_inputs(
-    robot: Robot,
+    robot: Any,
     q0: Any,
     v0: Any,
     duration: Any,
-    config: SimConfig,
-    failures: Sequence[Failure],
-    payload: Payload | None,
+    config: Any,
+    failures: Any,
+    payload: Any,
     controller: Any,
-) -> tuple[FloatArray, FloatArray]:
-    config.validate()
-    if isinstance(failures, Failure):
+    environment: Any,
+    inform_controller: Any,
+    progress: Any,
+) -> tuple[FloatArray, FloatArray, float, tuple[Failure, ...]]:
+    """Check every argument of :func:`simulate`; return (q0, v0, duration, failures) normalised.
+
+    Besides each argument's type and range, the limits that protect the machine are checked
+    here, where the duration is known (docs/simulator.md, "Inputs: checks, ranges and limits").
+    """
+    if not isinstance(robot, Robot):
+        raise ConfigurationError("robot", robot, "a packbot.Robot (from packbot.load_robot())")
+    if not isinstance(config, SimConfig):
+        raise ConfigurationError("config", config, "None or a packbot.SimConfig")
+    config.validate()  # a SimConfig can be changed after its construction
+    duration = finite_number(
+        "duration", duration, low=0.0, low_open=True, unit="s", what="a finite positive time"
+    )
+    n_samples = duration / config.sample_dt
+    if n_samples > MAX_SAMPLES:
+        raise ConfigurationError(
+            "sample_dt",
+            config.sample_dt,
+            f"a sampling interval >= duration / {MAX_SAMPLES:,} = {duration / MAX_SAMPLES:.3g} s "
+            f"for duration={duration:g} s (at most {MAX_SAMPLES:,} samples per run: each "
+            "takes about 1.7 kB of memory while the run lasts)",
+        )
+    if duration / config.max_step > MAX_STEPS:
+        raise ConfigurationError(
+            "max_step",
+            config.max_step,
+            f"a step >= duration / {MAX_STEPS:,} = {duration / MAX_STEPS:.3g} s for "
+            f"duration={duration:g} s (a run may not force more than {MAX_STEPS:,} steps)",
+        )
+    if isinstance(failures, (Failure, str, bytes, Mapping)) or not isinstance(
+        failures, (list, tuple)
+    ):
         raise ConfigurationError("failures", failures, "a list of packbot.Failure")
-    validate_failures(list(failures), robot.joint_names)
+    failures = tuple(failures)
+    validate_failures(failures, robot.joint_names)
+    locked = joint_names("locked_joints", config.locked_joints, robot.joint_names)
+    frozen = [f.joint for f in failures if f.kind == "frozen"]
+    if len(set(locked) | set(frozen)) >= robot.nq:
+        what = "locked_joints" if len(locked) >= robot.nq else "locked_joints and frozen failures"
+        raise ConfigurationError(
+            "locked_joints",
+            locked,
+            f"at least one joint left free ({what} cover all {robot.nq} joints)",
+        )
+    n_free = robot.nq - len(locked)
+    bound = 1.0 / math.sqrt(n_free)
+    if config.relevant_threshold >= bound:
+        raise ConfigurationError(
+            "relevant_threshold",
+            config.relevant_threshold,
+            f"a fraction < 1/sqrt({n_free}) = {bound:.4g} with {n_free} free joints (the "
+            f"largest of {n_free} components of J_n is at least ||J_n|| / sqrt({n_free}), so "
+            "below this bound every contact has a relevant joint)",
+        )
     for f in failures:
         if f.kind == "brake" and config.handoff:
             raise ConfigurationError(
@@ -1272,7 +1347,7 @@ def _check_inputs(
                 "no brake failure with contact_mode='normal' (joint holds and contact forces "
                 "are not yet solved as one problem)",
             )
-        if f.joint in config.locked_joints:
+        if f.joint in locked:
             raise ConfigurationError(
                 "failures", f.joint, "a joint that is not in config.locked_joints"
             )
@@ -1280,31 +1355,47 @@ def _check_inputs(
         if not isinstance(payload, Payload):
             raise ConfigurationError("payload", payload, "a packbot.Payload or None")
         payload.validate()
-    if controller is not None and not (isinstance(controller, Controller) or callable(controller)):
+        if not robot.model.existFrame(payload.frame):
+            raise UnknownNameError(
+                "frame", payload.frame, [str(f.name) for f in robot.model.frames]
+            )
+    if environment is not None:
+        if not isinstance(environment, Environment):
+            raise ConfigurationError("environment", environment, "None or a packbot.Environment")
+        environment.validate()
+    if isinstance(controller, Controller):
+        dt = finite_number(
+            "controller.dt", controller.dt, low=CONTROL_DT_MIN, unit="s", what="a control period"
+        )
+        if duration / dt > MAX_STEPS:
+            raise ConfigurationError(
+                "controller.dt",
+                controller.dt,
+                f"a control period >= duration / {MAX_STEPS:,} = {duration / MAX_STEPS:.3g} s "
+                f"for duration={duration:g} s (at most {MAX_STEPS:,} control ticks per run: "
+                "each cuts an integration step)",
+            )
+    elif controller is not None and (not callable(controller) or isinstance(controller, type)):
         raise ConfigurationError(
             "controller",
             controller,
             "None, a packbot.control.Controller or a function tau(t, q, v)",
         )
+    boolean("inform_controller", inform_controller)
+    if progress is not None and not callable(progress):
+        raise ConfigurationError("progress", progress, "None or a function progress(t)")
     nq = robot.nq
-    q = np.asarray(q0, dtype=float)
-    v = np.asarray(v0, dtype=float)
-    if q.shape != (nq,):
-        raise ConfigurationError("q0", q.shape, f"an array of shape ({nq},) [rad]")
-    if v.shape != (nq,):
-        raise ConfigurationError("v0", v.shape, f"an array of shape ({nq},) [rad/s]")
-    for name, arr in (("q0", q), ("v0", v)):
-        if not np.all(np.isfinite(arr)):
-            raise ConfigurationError(name, arr.tolist(), "finite values")
-    if not isinstance(duration, (int, float)) or not math.isfinite(duration) or duration <= 0:
-        raise ConfigurationError("duration", duration, "a finite positive time [s]")
+    q = real_array(
+        "q0", q0, shape=(nq,), expected=f"an array of shape ({nq},) [rad]", shape_error_value=True
+    )
+    v = real_array(
+        "v0", v0, shape=(nq,), expected=f"an array of shape ({nq},) [rad/s]", shape_error_value=True
+    )
     robot.check_within_limits(q, "q0")
-    for name in config.locked_joints:
-        robot.params.index(name)  # raises UnknownNameError listing the joints
-    locked = [robot.params.index(nm) for nm in config.locked_joints]
-    if np.any(v[locked] != 0.0):
+    idx = [robot.params.index(nm) for nm in locked]
+    if np.any(v[idx] != 0.0):
         raise ConfigurationError("v0", v.tolist(), "zero velocity on the locked joints")
-    return q, v
+    return q, v, duration, failures
 
 
 def simulate(
@@ -1343,10 +1434,17 @@ def simulate(
         progress: Called with the simulated time [s] after every accepted step.
 
     Returns:
-        The sampled trajectory, the event log and diagnostics.
+        The sampled trajectory, the event log and diagnostics. Samples are at multiples of
+        ``config.sample_dt``, before and after every event, and at t = duration (the final
+        state is always a sample).
 
     Raises:
-        ConfigurationError: Bad input (names the field and what is expected).
+        ConfigurationError: Bad input (names the field and what is expected), checked before
+            the run: every argument's type and range, and the limits that protect the machine
+            (at most 500,000 samples, ``duration / config.sample_dt``; at most 1,000,000
+            control ticks, ``duration / controller.dt``, or forced steps, ``duration /
+            config.max_step``; see docs/simulator.md).
+        UnknownNameError: An unknown locked joint, failed joint or payload frame.
         InitialCollisionError: The initial state penetrates (names the pairs and depths).
         ControllerError: The controller raised or returned bad torques (says when, and which
             joint).
@@ -1354,7 +1452,19 @@ def simulate(
             holds the trajectory up to then.
     """
     cfg = SimConfig() if config is None else config
-    q, v = _check_inputs(robot, q0, v0, duration, cfg, failures, payload, controller)
+    q, v, t_end, failure_list = _check_inputs(
+        robot,
+        q0,
+        v0,
+        duration,
+        cfg,
+        failures,
+        payload,
+        controller,
+        environment,
+        inform_controller,
+        progress,
+    )
     if cfg.contact_mode == "normal" and cfg.mu == 0.0:
         log.warning(
             "contact_mode='normal' with mu = 0: frictionless contact on faceted pieces can chatter "
@@ -1366,13 +1476,13 @@ def simulate(
         robot,
         q,
         v,
-        float(duration),
+        t_end,
         controller,
         environment,
         cfg,
-        failures=tuple(failures),
+        failures=failure_list,
         payload=payload,
-        inform_controller=inform_controller,
+        inform_controller=bool(inform_controller),
         progress=progress,
     )
     try:

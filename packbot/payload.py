@@ -10,29 +10,40 @@ The payload has no collision geometry of its own (the gripper's pieces still col
 
 from __future__ import annotations
 
-import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
 
 from packbot.errors import ConfigurationError
+from packbot.validation import finite_number, name_str, vector
 
 __all__ = ["Payload"]
+
+#: Largest payload mass [kg] (100 times the arm's): beyond it the arm would break, and the mass
+#: matrix's conditioning is ruined.
+MASS_MAX = 1000.0
+#: Largest centre-of-mass coordinate in the holding frame [m].
+COM_MAX = 10.0
+#: Largest inertia component [kg*m^2] (MASS_MAX at COM_MAX).
+INERTIA_MAX = MASS_MAX * COM_MAX**2
 
 
 @dataclass(frozen=True, kw_only=True)
 class Payload:
-    """A payload.
+    """A payload. Its fields are checked at construction (a ConfigurationError names the field).
 
     Attributes:
-        mass: Mass [kg], > 0.
-        com: Centre of mass in ``frame`` [m].
+        mass: Mass [kg], in (0, 1000].
+        com: Centre of mass in ``frame`` [m], each coordinate within +/-10 m.
         inertia: Rotational inertia about the centre of mass, axes of ``frame``, as
-            (ixx, iyy, izz, ixy, ixz, iyz) [kg*m^2]; all zero: a point mass.
-        frame: The Pinocchio frame it is held in (``gripper_tool`` by default).
+            (ixx, iyy, izz, ixy, ixz, iyz) [kg*m^2]; all zero: a point mass. Positive
+            semi-definite and physical (each principal moment at most the sum of the others).
+        frame: The Pinocchio frame it is held in (``gripper_tool`` by default; checked against
+            the robot by :func:`packbot.simulate`).
         t_pick: Time it is picked up [s] (0: held from the start).
-        t_drop: Time it is dropped [s], or None (held to the end).
+        t_drop: Time it is dropped [s], after ``t_pick``, or None (held to the end).
     """
 
     mass: float
@@ -42,33 +53,67 @@ class Payload:
     t_pick: float = 0.0
     t_drop: float | None = None
 
+    def __post_init__(self) -> None:
+        for fname, value in self._checked().items():
+            object.__setattr__(self, fname, value)
+
     def validate(self) -> None:
-        """Raise :class:`ConfigurationError` naming the first bad field."""
-        if not _finite(self.mass) or self.mass <= 0:
-            raise ConfigurationError("payload.mass", self.mass, "a finite positive mass [kg]")
-        if len(self.com) != 3 or not all(_finite(c) for c in self.com):
-            raise ConfigurationError("payload.com", self.com, "3 finite coordinates [m]")
-        if len(self.inertia) != 6 or not all(_finite(c) for c in self.inertia):
-            raise ConfigurationError(
-                "payload.inertia", self.inertia, "6 finite numbers (ixx, iyy, izz, ixy, ixz, iyz)"
-            )
-        eig = np.linalg.eigvalsh(self.inertia_matrix())
-        if eig.min() < -1e-12 * max(1.0, float(abs(eig).max())):
+        """Raise :class:`ConfigurationError` naming the first bad field (done at construction)."""
+        self._checked()
+
+    def _checked(self) -> dict[str, object]:
+        """The fields checked and normalised to floats and tuples."""
+        mass = finite_number(
+            "payload.mass",
+            self.mass,
+            low=0.0,
+            high=MASS_MAX,
+            low_open=True,
+            unit="kg",
+            what="a finite positive mass",
+        )
+        com = vector("payload.com", self.com, 3, bound=COM_MAX, unit="m")
+        inertia = vector("payload.inertia", self.inertia, 6, bound=INERTIA_MAX, unit="kg*m^2")
+        eig = np.linalg.eigvalsh(_matrix(inertia))
+        tol = 1e-12 * max(1.0, float(abs(eig).max()))
+        if eig.min() < -tol:
             raise ConfigurationError(
                 "payload.inertia", self.inertia, "a positive semi-definite inertia [kg*m^2]"
             )
-        if not _finite(self.t_pick) or self.t_pick < 0:
-            raise ConfigurationError("payload.t_pick", self.t_pick, "a finite time >= 0 [s]")
-        if self.t_drop is not None and not (_finite(self.t_drop) and self.t_drop > self.t_pick):
+        if eig[2] > eig[0] + eig[1] + tol:
             raise ConfigurationError(
-                "payload.t_drop", self.t_drop, f"a time > t_pick={self.t_pick} [s], or None"
+                "payload.inertia",
+                self.inertia,
+                "a physical inertia [kg*m^2]: each principal moment at most the sum of the "
+                f"other two (the principal moments are {eig[0]:.4g}, {eig[1]:.4g}, {eig[2]:.4g})",
             )
+        t_pick = finite_number(
+            "payload.t_pick", self.t_pick, low=0.0, unit="s", what="a finite time"
+        )
+        t_drop = self.t_drop
+        if t_drop is not None:
+            t_drop = finite_number(
+                "payload.t_drop",
+                t_drop,
+                low=t_pick,
+                low_open=True,
+                unit="s",
+                what="None (held to the end) or a finite time",
+            )
+        return {
+            "mass": mass,
+            "com": com,
+            "inertia": inertia,
+            "frame": name_str("payload.frame", self.frame, "a frame name (a non-empty string)"),
+            "t_pick": t_pick,
+            "t_drop": t_drop,
+        }
 
     def inertia_matrix(self) -> NDArray[np.float64]:
         """The 3x3 inertia about the centre of mass [kg*m^2], axes of ``frame``."""
-        ixx, iyy, izz, ixy, ixz, iyz = (float(x) for x in self.inertia)
-        return np.array([[ixx, ixy, ixz], [ixy, iyy, iyz], [ixz, iyz, izz]])
+        return _matrix(self.inertia)
 
 
-def _finite(x: object) -> bool:
-    return isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x)
+def _matrix(inertia: Sequence[float]) -> NDArray[np.float64]:
+    ixx, iyy, izz, ixy, ixz, iyz = (float(x) for x in inertia)
+    return np.array([[ixx, ixy, ixz], [ixy, iyy, iyz], [ixz, iyz, izz]])

@@ -507,6 +507,10 @@ def _dataclass_from(
     kwargs = {k: _coerce(f"{path}.{k}", v, hints.get(k, Any)) for k, v in table.items()}
     try:
         return cls(**kwargs, **extra)
+    except ConvexityError as exc:  # an obstacle's points (checked at construction)
+        raise ConfigurationError(f"{path}.points", table.get("name"), str(exc)) from None
+    except ConfigurationError as exc:  # a bad value (checked at construction): name its path
+        raise ConfigurationError(f"{path}.{_last(exc.field)}", exc.value, exc.expected) from None
     except TypeError as exc:  # a required field is missing
         missing = [
             f.name
@@ -585,6 +589,11 @@ def scenario_from_dict(data: Mapping[str, Any], *, name: str, source_text: str =
         _dataclass_from(Obstacle, o, f"environment.obstacles[{k}]")
         for k, o in enumerate(raw_obstacles)
     )
+    for k, ob in enumerate(obstacles):  # before Environment() refuses them without the path
+        if ob.name == FLOOR.name or ob.name in [o.name for o in obstacles[:k]]:
+            raise ConfigurationError(
+                f"environment.obstacles[{k}].name", ob.name, "a name not used twice ('floor' too)"
+            )
     environment = Environment(obstacles=((FLOOR,) if floor else ()) + obstacles)
 
     out = dict(_table(data.get("outputs", {}), "outputs"))

@@ -739,8 +739,8 @@ def _square(z: float) -> list[tuple[float, float, float]]:
     ],
 )
 def test_empty_or_degenerate_convex_obstacles(robot, points, match):
-    ob = Obstacle(name="shard", kind="convex", points=points)
-    with pytest.raises(ConvexityError, match=f"'shard'.*{match}"):
+    with pytest.raises(ConvexityError, match=f"'shard'.*{match}"):  # at construction
+        ob = Obstacle(name="shard", kind="convex", points=points)
         CollisionWorld(robot, Environment().with_obstacles(ob))
 
 
@@ -761,8 +761,8 @@ def test_empty_or_degenerate_convex_obstacles(robot, points, match):
     ],
 )
 def test_bad_obstacle_fields_name_the_field(robot, fields, match):
-    ob = Obstacle(name="b", **fields)
-    with pytest.raises(ConfigurationError, match=match):
+    with pytest.raises(ConfigurationError, match=match):  # at construction
+        ob = Obstacle(name="b", **fields)
         CollisionWorld(robot, Environment().with_obstacles(ob))
 
 

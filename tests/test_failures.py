@@ -428,14 +428,23 @@ def test_every_failure_kind_runs_with_collisions_on(robot, kind):
 
 # ------------------------------------------------------------------ bad input
 @pytest.mark.parametrize(
-    ("kwargs", "words"),
+    ("make", "words"),
     [
-        (dict(failures=[Failure(joint="knee", kind="loose")]), ["knee", "shoulder", "elbow1"]),
-        (dict(failures=[Failure(joint="elbow1", kind="melted")]), ["failure.kind", "frozen"]),
-        (dict(failures=[Failure(joint="elbow1", kind="weak", scale=2.0)]), ["failure.scale"]),
-        (dict(failures=[Failure(joint="elbow1", kind="loose", t=-1.0)]), ["failure.t"]),
         (
-            dict(
+            lambda: dict(failures=[Failure(joint="knee", kind="loose")]),
+            ["knee", "shoulder", "elbow1"],
+        ),
+        (
+            lambda: dict(failures=[Failure(joint="elbow1", kind="melted")]),
+            ["failure.kind", "frozen"],
+        ),
+        (
+            lambda: dict(failures=[Failure(joint="elbow1", kind="weak", scale=2.0)]),
+            ["failure.scale"],
+        ),
+        (lambda: dict(failures=[Failure(joint="elbow1", kind="loose", t=-1.0)]), ["failure.t"]),
+        (
+            lambda: dict(
                 failures=[
                     Failure(joint="elbow1", kind="loose"),
                     Failure(joint="elbow1", kind="weak"),
@@ -443,16 +452,16 @@ def test_every_failure_kind_runs_with_collisions_on(robot, kind):
             ),
             ["at most one failure per joint"],
         ),
-        (dict(failures=[Failure(joint="gripper_jaw", kind="loose")]), ["locked_joints"]),
-        (dict(payload=Payload(mass=-1.0)), ["payload.mass"]),
-        (dict(payload=Payload(mass=1.0, frame="hand")), ["hand", "gripper_tool"]),
-        (dict(payload=Payload(mass=1.0, t_pick=0.5, t_drop=0.2)), ["payload.t_drop"]),
+        (lambda: dict(failures=[Failure(joint="gripper_jaw", kind="loose")]), ["locked_joints"]),
+        (lambda: dict(payload=Payload(mass=-1.0)), ["payload.mass"]),
+        (lambda: dict(payload=Payload(mass=1.0, frame="hand")), ["hand", "gripper_tool"]),
+        (lambda: dict(payload=Payload(mass=1.0, t_pick=0.5, t_drop=0.2)), ["payload.t_drop"]),
     ],
 )
-def test_bad_failure_and_payload_input_is_named(robot, kwargs, words):
+def test_bad_failure_and_payload_input_is_named(robot, make, words):
     cfg = packbot.SimConfig(locked_joints=WRIST)
-    with pytest.raises(packbot.PackbotError) as exc:
-        packbot.simulate(robot, robot.pose("high"), np.zeros(8), 0.1, config=cfg, **kwargs)
+    with pytest.raises(packbot.PackbotError) as exc:  # at construction or in simulate
+        packbot.simulate(robot, robot.pose("high"), np.zeros(8), 0.1, config=cfg, **make())
     for w in words:
         assert w in str(exc.value)
 

@@ -19,6 +19,13 @@ import pinocchio as pin
 from numpy.typing import NDArray
 
 from packbot.errors import ConfigurationError, UnknownNameError
+from packbot.validation import (
+    GRAVITY_MAX,
+    finite_number,
+    is_number,
+    real_array,
+    vector,
+)
 
 if TYPE_CHECKING:
     from packbot.model import Robot
@@ -27,7 +34,11 @@ __all__ = [
     "DEFAULT_GRAVITY",
     "GainLike",
     "QLike",
+    "check_gain_spec",
+    "check_q_spec",
     "controller_model",
+    "damping_ratio",
+    "loop_frequency",
     "resolve_gains",
     "resolve_gravity",
     "resolve_q",
@@ -46,23 +57,96 @@ GainLike = float | Sequence[float] | Mapping[str, float] | FloatArray
 
 
 def _finite(x: object) -> bool:
-    return isinstance(x, (int, float, np.floating)) and not isinstance(x, bool) and math.isfinite(x)
+    return is_number(x) and math.isfinite(float(x))  # type: ignore[arg-type]
 
 
 def resolve_gravity(gravity: Any, field: str = "controller.gravity") -> FloatArray:
     """Validate a gravity vector [m/s^2] and return it as an array of shape (3,)."""
-    return resolve_vector3(gravity, field, "3 finite numbers [m/s^2]")
+    return np.array(vector(field, gravity, 3, bound=GRAVITY_MAX, unit="m/s^2"))
 
 
 def resolve_vector3(value: Any, field: str, expected: str = "3 finite numbers") -> FloatArray:
     """Validate a 3-vector and return it as an array of shape (3,)."""
-    try:
-        arr = np.asarray(value, dtype=float)
-    except (TypeError, ValueError):
-        raise ConfigurationError(field, value, expected) from None
-    if arr.shape != (3,) or not np.all(np.isfinite(arr)):
+    return real_array(field, value, shape=(3,), expected=expected)
+
+
+#: Largest damping ratio of a controller's default gains [-] (critical damping is 1).
+ZETA_MAX = 100.0
+
+
+def damping_ratio(value: Any, field: str) -> float:
+    """A damping ratio zeta [-], in (0, ZETA_MAX]."""
+    return finite_number(field, value, low=0.0, high=ZETA_MAX, low_open=True, what="a ratio")
+
+
+def loop_frequency(value: Any, field: str, dt: float) -> float:
+    """A loop's natural frequency omega [rad/s]: > 0 and below the Nyquist rate pi / dt.
+
+    A sampled loop cannot act faster than half its sampling rate: omega * dt < pi.
+    """
+    return finite_number(
+        field,
+        value,
+        low=0.0,
+        high=math.pi / dt,
+        low_open=True,
+        high_open=True,
+        unit="rad/s",
+        what=f"a frequency below the Nyquist rate pi / dt of the control period dt={dt:g} s",
+    )
+
+
+def check_q_spec(value: Any, field: str, *, optional: bool = True) -> None:
+    """Check the form of a configuration before the robot is known (see :func:`resolve_q`).
+
+    A pose name, a {joint: angle} table of finite numbers, or a list of finite angles.
+
+    Raises:
+        ConfigurationError: Any other value.
+    """
+    expected = "a pose name, a {joint: angle} table or a list of angles [rad]"
+    if value is None and optional:
+        return
+    if isinstance(value, str):
+        if not value:
+            raise ConfigurationError(field, value, expected)
+        return
+    if isinstance(value, Mapping):
+        for key, x in value.items():
+            if not isinstance(key, str):
+                raise ConfigurationError(field, value, expected + " (joint names are strings)")
+            finite_number(f"{field}.{key}", x, unit="rad", what="a finite angle")
+        return
+    real_array(field, value, ndim=1, expected=expected)
+
+
+def check_gain_spec(value: Any, field: str, *, positive: bool = False) -> None:
+    """Check the form of a per-joint gain before the robot is known (see :func:`resolve_gains`).
+
+    None, a number, a {joint: gain} table or a list of gains; each finite and >= 0 (> 0 if
+    ``positive``).
+
+    Raises:
+        ConfigurationError: Any other value.
+    """
+    what = "a finite gain"
+    if value is None:
+        return
+    if isinstance(value, Mapping):
+        for key, x in value.items():
+            if not isinstance(key, str):
+                raise ConfigurationError(field, value, "a {joint: gain} table (joint names)")
+            finite_number(f"{field}.{key}", x, low=0.0, low_open=positive, what=what)
+        return
+    if is_number(value):
+        finite_number(field, value, low=0.0, low_open=positive, what=what)
+        return
+    expected = "a number, a {joint: gain} table or a list of finite gains " + (
+        "> 0" if positive else ">= 0"
+    )
+    arr = real_array(field, value, ndim=1, expected=expected)
+    if np.any(arr < 0) or (positive and np.any(arr == 0)):
         raise ConfigurationError(field, value, expected)
-    return arr
 
 
 def controller_model(robot: Robot, gravity: FloatArray) -> tuple[pin.Model, pin.Data]:
@@ -107,16 +191,12 @@ def resolve_q(robot: Robot, value: QLike, field: str, base: FloatArray | None = 
                 raise ConfigurationError(f"{field}.{name}", x, "a finite angle [rad]")
             q[robot.params.index(name)] = float(x)
     else:
-        try:
-            q = np.asarray(value, dtype=float)
-        except (TypeError, ValueError):
-            raise ConfigurationError(
-                field, value, f"a pose name, a {{joint: angle}} table or {nq} angles [rad]"
-            ) from None
-        if q.shape != (nq,) or not np.all(np.isfinite(q)):
-            raise ConfigurationError(
-                field, value, f"a pose name, a {{joint: angle}} table or {nq} angles [rad]"
-            )
+        q = real_array(
+            field,
+            value,
+            shape=(nq,),
+            expected=f"a pose name, a {{joint: angle}} table or {nq} angles [rad]",
+        )
     robot.check_within_limits(q, field)
     return np.array(q, dtype=float)
 
@@ -150,14 +230,12 @@ def resolve_gains(
     elif _finite(value):
         out[:] = float(value)  # type: ignore[arg-type]
     else:
-        try:
-            arr = np.asarray(value, dtype=float)
-        except (TypeError, ValueError):
-            arr = np.zeros(0)
-        if arr.shape != (nv,) or not np.all(np.isfinite(arr)):
-            raise ConfigurationError(
-                field, value, f"a number, a {{joint: gain}} table or {nv} finite gains"
-            )
+        arr = real_array(
+            field,
+            value,
+            shape=(nv,),
+            expected=f"a number, a {{joint: gain}} table or {nv} finite gains",
+        )
         out = arr.copy()
     if np.any(out < 0) or not np.all(np.isfinite(out)):
         raise ConfigurationError(field, value, "finite gains >= 0")

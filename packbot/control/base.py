@@ -24,6 +24,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from packbot.errors import ConfigurationError
+from packbot.validation import CONTROL_DT_MIN, finite_number, integer
 
 if TYPE_CHECKING:
     from packbot.failures import Failure
@@ -33,10 +34,16 @@ __all__ = ["Controller", "Sensor"]
 
 FloatArray = NDArray[np.float64]
 
+#: Largest velocity noise [rad/s] (ten times the fastest joint's speed limit).
+NOISE_V_MAX = 100.0
+
 
 @dataclass(kw_only=True)
 class Sensor:
     """What the controller measures: joint encoders (and velocities derived from them).
+
+    Checked at construction: resolution and noise_q in [0, pi] rad, noise_v in [0, 100] rad/s,
+    seed an integer >= 0.
 
     Attributes:
         resolution: Encoder quantum [rad] (0: exact positions). Positions are rounded to it.
@@ -56,11 +63,17 @@ class Sensor:
         self.reset()
 
     def validate(self) -> None:
-        """Raise :class:`ConfigurationError` naming the first bad field."""
-        for name in ("resolution", "noise_q", "noise_v"):
-            x = getattr(self, name)
-            if not isinstance(x, (int, float)) or not math.isfinite(x) or x < 0:
-                raise ConfigurationError(f"sensor.{name}", x, "a finite number >= 0")
+        """Check and normalise the fields; raise :class:`ConfigurationError` naming a bad one."""
+        for fname, high, unit in (
+            ("resolution", math.pi, "rad"),
+            ("noise_q", math.pi, "rad"),
+            ("noise_v", NOISE_V_MAX, "rad/s"),
+        ):
+            x = finite_number(
+                f"sensor.{fname}", getattr(self, fname), low=0.0, high=high, unit=unit
+            )
+            setattr(self, fname, x)
+        self.seed = integer("sensor.seed", self.seed, low=0, what="an integer seed")
 
     def reset(self) -> None:
         """Restart the noise sequence from the seed."""
@@ -86,14 +99,25 @@ class Controller(ABC):
     state). All vectors are in the full model's coordinates, shape (nv,).
 
     Args:
-        dt: Control period [s] (default 1 ms).
+        dt: Control period [s] (default 1 ms), >= 1e-6 s.
         sensor: The measurement model (default: exact).
+
+    Raises:
+        ConfigurationError: A bad ``dt`` or ``sensor`` (checked at construction).
     """
 
     def __init__(self, *, dt: float = 1e-3, sensor: Sensor | None = None) -> None:
-        if not isinstance(dt, (int, float)) or not math.isfinite(dt) or dt <= 0:
-            raise ConfigurationError("controller.dt", dt, "a finite positive period [s]")
-        self.dt = float(dt)
+        self.dt = finite_number(
+            "controller.dt",
+            dt,
+            low=CONTROL_DT_MIN,
+            unit="s",
+            what="a control period (a loop faster than 1 MHz is refused)",
+        )
+        if sensor is not None and not isinstance(sensor, Sensor):
+            raise ConfigurationError(
+                "controller.sensor", sensor, "None or a packbot.control.Sensor"
+            )
         self.sensor = sensor if sensor is not None else Sensor()
         self.robot: Robot | None = None
 

@@ -28,6 +28,9 @@ from packbot.control._common import (
     DEFAULT_GRAVITY,
     GainLike,
     QLike,
+    check_gain_spec,
+    check_q_spec,
+    loop_frequency,
     resolve_gains,
     resolve_q,
     resolve_vector3,
@@ -36,6 +39,7 @@ from packbot.control.base import Sensor
 from packbot.control.model_based import ModelBasedController
 from packbot.control.pd import default_gains
 from packbot.errors import ConfigurationError, UnknownNameError
+from packbot.validation import finite_number, is_number, name_str, real_array
 
 if TYPE_CHECKING:
     from packbot.model import Robot
@@ -58,13 +62,30 @@ def frame_jacobian(model: pin.Model, data: pin.Data, q: FloatArray, frame: int) 
 
 
 def _gain3(value: Any, field: str) -> FloatArray:
-    if isinstance(value, (int, float)) and not isinstance(value, bool):
-        arr = np.full(3, float(value))
+    expected = "a number or 3 finite numbers >= 0"
+    if is_number(value):
+        arr = np.full(3, finite_number(field, value, low=0.0, what="a finite gain"))
     else:
-        arr = resolve_vector3(value, field, "a number or 3 numbers >= 0")
-    if not np.all(np.isfinite(arr)) or np.any(arr < 0):
-        raise ConfigurationError(field, value, "a number or 3 finite numbers >= 0")
+        arr = resolve_vector3(value, field, expected)
+    if np.any(arr < 0):
+        raise ConfigurationError(field, value, expected)
     return arr
+
+
+def _position_spec(value: Any, field: str) -> None:
+    """Check a target position: a pose name or 3 finite coordinates [m]."""
+    if isinstance(value, str) and value:
+        return
+    resolve_vector3(value, field, "3 finite coordinates [m] or a pose name")
+
+
+def _rotation(spec: Any) -> FloatArray:
+    """A 3x3 rotation matrix (world frame) from a matrix."""
+    expected = "None, a 3x3 rotation matrix or a pose name"
+    R = real_array("controller.orientation", spec, shape=(3, 3), expected=expected)
+    if not np.allclose(R @ R.T, np.eye(3), atol=1e-6) or np.linalg.det(R) <= 0:
+        raise ConfigurationError("controller.orientation", spec, expected)
+    return R
 
 
 class CartesianPD(ModelBasedController):
@@ -83,8 +104,10 @@ class CartesianPD(ModelBasedController):
         posture: Null-space posture (nq angles, pose name or {joint: angle}); None: q0.
         k_posture: Posture stiffness [N*m/rad] per joint; None: M_ii omega_posture^2.
         damping: Joint damping [N*m*s/rad] per joint; None: 2 M_ii omega_posture.
-        omega_posture: Frequency of the default posture and damping gains [rad/s].
-        pinv_damping: Damping of the pseudo-inverse in the null-space projector [-].
+        omega_posture: Frequency of the default posture and damping gains [rad/s], below the
+            Nyquist rate pi / dt.
+        pinv_damping: Damping of the pseudo-inverse in the null-space projector [m], in
+            (0, 1].
         dt: Control period [s].
         sensor: Measurement model.
         gravity: Gravity the controller assumes [m/s^2].
@@ -110,19 +133,30 @@ class CartesianPD(ModelBasedController):
         gravity: Sequence[float] = DEFAULT_GRAVITY,
     ) -> None:
         super().__init__(dt=dt, sensor=sensor, gravity=gravity)
+        _position_spec(target, "controller.target")
+        if orientation is not None and not (isinstance(orientation, str) and orientation):
+            _rotation(orientation)
+        check_q_spec(posture, "controller.posture")
+        check_gain_spec(k_posture, "controller.k_posture")
+        check_gain_spec(damping, "controller.damping")
         self.target_spec = target
-        self.frame = frame
+        self.frame = name_str("controller.frame", frame, "a frame name (a non-empty string)")
         self.orientation_spec = orientation
         self.kp, self.kd = _gain3(kp, "controller.kp"), _gain3(kd, "controller.kd")
         self.kp_rot = _gain3(kp_rot, "controller.kp_rot")
         self.kd_rot = _gain3(kd_rot, "controller.kd_rot")
         self.posture_spec = posture
         self.k_posture_spec, self.damping_spec = k_posture, damping
-        for name, x in (("omega_posture", omega_posture), ("pinv_damping", pinv_damping)):
-            if not isinstance(x, (int, float)) or not np.isfinite(x) or x <= 0:
-                raise ConfigurationError(f"controller.{name}", x, "a finite positive number")
-        self.omega_posture = float(omega_posture)
-        self.pinv_damping = float(pinv_damping)
+        self.omega_posture = loop_frequency(omega_posture, "controller.omega_posture", self.dt)
+        self.pinv_damping = finite_number(
+            "controller.pinv_damping",
+            pinv_damping,
+            low=0.0,
+            high=1.0,
+            low_open=True,
+            unit="m",
+            what="a damping of the pseudo-inverse",
+        )
         self.frame_id = -1
         self.target = np.zeros(3)
         self.rotation: FloatArray | None = None
@@ -160,12 +194,7 @@ class CartesianPD(ModelBasedController):
         if isinstance(spec, str):
             model, data = self._md()
             return frame_pose(model, data, robot.pose(spec), self.frame_id).rotation.copy()
-        R = np.asarray(spec, dtype=float)
-        if R.shape != (3, 3) or not np.allclose(R @ R.T, np.eye(3), atol=1e-6):
-            raise ConfigurationError(
-                "controller.orientation", spec, "a 3x3 rotation matrix or a pose name"
-            )
-        return R
+        return _rotation(spec)
 
     def on_reset(self, robot: Robot, t0: float, q0: FloatArray, v0: FloatArray) -> None:
         """Resolve everything; the posture defaults to q0."""

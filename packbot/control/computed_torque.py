@@ -15,10 +15,18 @@ import numpy as np
 import pinocchio as pin
 from numpy.typing import NDArray
 
-from packbot.control._common import DEFAULT_GRAVITY, GainLike, resolve_gains
+from packbot.control._common import (
+    DEFAULT_GRAVITY,
+    GainLike,
+    check_gain_spec,
+    damping_ratio,
+    loop_frequency,
+    resolve_gains,
+)
 from packbot.control.base import Sensor
 from packbot.control.model_based import ModelBasedController
 from packbot.errors import ConfigurationError
+from packbot.validation import real_array
 
 if TYPE_CHECKING:
     from packbot.model import Robot
@@ -63,8 +71,9 @@ class ComputedTorque(ModelBasedController):
             :class:`~packbot.control.trajectory.JointTrajectory`).
         kp: Position gains [1/s^2]: number, nv numbers or {joint: gain}; None: omega^2.
         kd: Velocity gains [1/s], same forms; None: 2 zeta omega.
-        omega: Natural frequency of the default gains [rad/s].
-        zeta: Damping ratio of the default gains [-].
+        omega: Natural frequency of the default gains [rad/s], below the Nyquist rate
+            pi / dt.
+        zeta: Damping ratio of the default gains [-], in (0, 100].
         dt: Control period [s].
         sensor: Measurement model.
         gravity: Gravity the controller assumes [m/s^2].
@@ -87,12 +96,12 @@ class ComputedTorque(ModelBasedController):
             raise ConfigurationError(
                 "controller.trajectory", trajectory, "a callable t -> (q, v, a)"
             )
-        for name, x in (("omega", omega), ("zeta", zeta)):
-            if not isinstance(x, (int, float)) or not np.isfinite(x) or x <= 0:
-                raise ConfigurationError(f"controller.{name}", x, "a finite positive number")
+        check_gain_spec(kp, "controller.kp")
+        check_gain_spec(kd, "controller.kd")
         self.trajectory = trajectory
         self.kp_spec, self.kd_spec = kp, kd
-        self.omega, self.zeta = float(omega), float(zeta)
+        self.omega = loop_frequency(omega, "controller.omega", self.dt)
+        self.zeta = damping_ratio(zeta, "controller.zeta")
         self.kp = np.zeros(0)
         self.kd = np.zeros(0)
 
@@ -104,12 +113,17 @@ class ComputedTorque(ModelBasedController):
         self.kd = resolve_gains(
             robot, self.kd_spec, "controller.kd", np.full(n, 2 * self.zeta * self.omega)
         )
-        qd, vd, ad = self.trajectory(0.0)
-        for name, x in (("q", qd), ("v", vd), ("a", ad)):
-            if np.shape(x) != (n,):
-                raise ConfigurationError(
-                    "controller.trajectory", f"{name} of shape {np.shape(x)}", f"shape ({n},)"
-                )
+        expected = f"a callable t -> (q, v, a), each of shape ({n},)"
+        try:
+            ref = self.trajectory(0.0)
+        except Exception as exc:  # a user's callable: any error is a bad setting
+            raise ConfigurationError(
+                "controller.trajectory", self.trajectory, f"{expected} (at t = 0 it raised {exc!r})"
+            ) from exc
+        if not isinstance(ref, (tuple, list)) or len(ref) != 3:
+            raise ConfigurationError("controller.trajectory", f"t=0 -> {ref!r}", expected)
+        for name, x in zip(("q", "v", "a"), ref, strict=True):
+            real_array("controller.trajectory", x, shape=(n,), expected=f"{name}: {expected}")
 
     def compute(self, t: float, q: FloatArray, v: FloatArray) -> FloatArray:
         """RNEA(q, v, a_d + Kp e + Kd e') [N*m]."""

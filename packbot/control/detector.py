@@ -32,6 +32,7 @@ import pinocchio as pin
 from numpy.typing import NDArray
 
 from packbot.errors import ConfigurationError
+from packbot.validation import finite_number, real_array
 
 __all__ = ["Detection", "MomentumObserver"]
 
@@ -79,21 +80,30 @@ class MomentumObserver:
         persistence: float = 0.02,
         frozen_speed: float = 1e-3,
     ) -> None:
-        for name, x in (
-            ("gain", gain),
-            ("persistence", persistence),
-            ("frozen_speed", frozen_speed),
+        for name, x, unit in (
+            ("gain", gain, "1/s"),
+            ("persistence", persistence, "s"),
+            ("frozen_speed", frozen_speed, "rad/s"),
         ):
-            if not isinstance(x, (int, float)) or not np.isfinite(x) or x <= 0:
-                raise ConfigurationError(f"controller.observer_{name}", x, "a finite number > 0")
+            finite_number(f"controller.observer_{name}", x, low=0.0, low_open=True, unit=unit)
+        if not isinstance(model, pin.Model):
+            raise ConfigurationError("observer.model", model, "a pinocchio.Model")
+        n = model.nv
         self.model = model
         self.data = model.createData()
-        self.effort = np.asarray(effort, dtype=float)
+        self.effort = real_array(
+            "observer.effort", effort, shape=(n,), expected=f"{n} finite effort limits [N*m]"
+        )
+        if np.any(self.effort < 0):
+            raise ConfigurationError("observer.effort", effort, f"{n} effort limits >= 0 [N*m]")
         self.gain = float(gain)
-        self.threshold = np.asarray(threshold, dtype=float)
+        self.threshold = real_array(
+            "observer.threshold", threshold, shape=(n,), expected=f"{n} finite thresholds [N*m]"
+        )
+        if np.any(self.threshold <= 0):
+            raise ConfigurationError("observer.threshold", threshold, f"{n} thresholds > 0 [N*m]")
         self.persistence = float(persistence)
         self.frozen_speed = float(frozen_speed)
-        n = model.nv
         self.residual = np.zeros(n)
         self.ignored = np.zeros(n, dtype=bool)
         self._integral = np.zeros(n)

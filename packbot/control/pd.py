@@ -15,10 +15,20 @@ import numpy as np
 import pinocchio as pin
 from numpy.typing import NDArray
 
-from packbot.control._common import DEFAULT_GRAVITY, GainLike, QLike, resolve_gains, resolve_q
+from packbot.control._common import (
+    DEFAULT_GRAVITY,
+    GainLike,
+    QLike,
+    check_gain_spec,
+    check_q_spec,
+    damping_ratio,
+    loop_frequency,
+    resolve_gains,
+    resolve_q,
+)
 from packbot.control.base import Sensor
 from packbot.control.model_based import ModelBasedController
-from packbot.errors import ConfigurationError
+from packbot.validation import boolean
 
 if TYPE_CHECKING:
     from packbot.model import Robot
@@ -47,12 +57,6 @@ def default_gains(
     return m * omega**2, 2.0 * zeta * omega * m
 
 
-def _positive(x: object, field: str) -> float:
-    if not isinstance(x, (int, float)) or isinstance(x, bool) or not np.isfinite(x) or x <= 0:
-        raise ConfigurationError(field, x, "a finite positive number")
-    return float(x)
-
-
 class JointPD(ModelBasedController):
     """Joint PD regulation to a fixed target, with gravity compensation.
 
@@ -62,12 +66,17 @@ class JointPD(ModelBasedController):
         kp: Stiffness [N*m/rad]: a number, nv numbers or a {joint: gain} table; None: from
             ``omega``.
         kd: Damping [N*m*s/rad], same forms; None: from ``omega`` and ``zeta``.
-        omega: Natural frequency of the default gains [rad/s].
-        zeta: Damping ratio of the default gains [-].
+        omega: Natural frequency of the default gains [rad/s], below the Nyquist rate
+            pi / dt.
+        zeta: Damping ratio of the default gains [-], in (0, 100].
         gravity_compensation: Add g(q) to the command.
         dt: Control period [s].
         sensor: Measurement model.
         gravity: Gravity the controller assumes [m/s^2].
+
+    Raises:
+        ConfigurationError: A bad setting (its form and range are checked at construction;
+            names and lengths against the robot by :meth:`prepare`).
     """
 
     def __init__(
@@ -84,15 +93,14 @@ class JointPD(ModelBasedController):
         gravity: Sequence[float] = DEFAULT_GRAVITY,
     ) -> None:
         super().__init__(dt=dt, sensor=sensor, gravity=gravity)
+        check_q_spec(target, "controller.target")
+        check_gain_spec(kp, "controller.kp")
+        check_gain_spec(kd, "controller.kd")
         self.target_spec = target
         self.kp_spec, self.kd_spec = kp, kd
-        self.omega = _positive(omega, "controller.omega")
-        self.zeta = _positive(zeta, "controller.zeta")
-        if not isinstance(gravity_compensation, bool):
-            raise ConfigurationError(
-                "controller.gravity_compensation", gravity_compensation, "true or false"
-            )
-        self.gravity_compensation = gravity_compensation
+        self.omega = loop_frequency(omega, "controller.omega", self.dt)
+        self.zeta = damping_ratio(zeta, "controller.zeta")
+        self.gravity_compensation = boolean("controller.gravity_compensation", gravity_compensation)
         self.target: FloatArray | None = None
         self.kp = np.zeros(0)
         self.kd = np.zeros(0)

@@ -39,6 +39,7 @@ Other failure kinds (weak, stuck, brake) are logged and not reconfigured.
 from __future__ import annotations
 
 import logging
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
@@ -49,16 +50,25 @@ from numpy.typing import NDArray
 from scipy.optimize import least_squares
 
 from packbot.collision import CollisionWorld
-from packbot.control._common import DEFAULT_GRAVITY, GainLike, resolve_gains, resolve_vector3
+from packbot.control._common import (
+    DEFAULT_GRAVITY,
+    GainLike,
+    check_gain_spec,
+    damping_ratio,
+    loop_frequency,
+    resolve_gains,
+    resolve_vector3,
+)
 from packbot.control.base import Sensor
 from packbot.control.detector import Detection, MomentumObserver
 from packbot.control.ik import solve_position_ik
 from packbot.control.model_based import ModelBasedController
 from packbot.control.trajectory import MIN_JERK_PEAK_SPEED, QuinticSegment
+from packbot.environment import Environment
 from packbot.errors import ConfigurationError, UnknownNameError
+from packbot.validation import boolean, finite_number, integer, name_str
 
 if TYPE_CHECKING:
-    from packbot.environment import Environment
     from packbot.failures import Failure
     from packbot.model import Robot
 
@@ -67,6 +77,9 @@ __all__ = ["ReconfigEvent", "ReconfigurableController"]
 log = logging.getLogger(__name__)
 
 FloatArray = NDArray[np.float64]
+
+#: Most IK restarts per plan (each is an IK solve and collision checks: milliseconds).
+IK_SEEDS_MAX = 1000
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -88,14 +101,8 @@ class ReconfigEvent:
     q_goal: FloatArray | None = None
 
 
-def _num(x: object, field: str, *, positive: bool = True) -> float:
-    if not isinstance(x, (int, float)) or isinstance(x, bool) or not np.isfinite(x):
-        raise ConfigurationError(field, x, "a finite number")
-    if positive and x <= 0:
-        raise ConfigurationError(field, x, "a finite number > 0")
-    if not positive and x < 0:
-        raise ConfigurationError(field, x, "a finite number >= 0")
-    return float(x)
+def _positive(x: object, field: str, unit: str) -> float:
+    return finite_number(field, x, low=0.0, low_open=True, unit=unit)
 
 
 class ReconfigurableController(ModelBasedController):
@@ -105,29 +112,33 @@ class ReconfigurableController(ModelBasedController):
         target: Target position of the frame [m], world frame, or a pose name (the frame's
             position at that pose).
         frame: The placed frame.
-        speed_fraction: Moves peak at this fraction of each joint's speed limit [-].
+        speed_fraction: Moves peak at this fraction of each joint's speed limit [-], in (0, 1].
         min_move_time: Shortest move [s].
-        omega: Natural frequency of the tracking loop [rad/s] (gains omega^2, 2 zeta omega).
-        zeta: Damping ratio of the tracking loop [-].
+        omega: Natural frequency of the tracking loop [rad/s] (gains omega^2, 2 zeta omega),
+            below the Nyquist rate pi / dt.
+        zeta: Damping ratio of the tracking loop [-], in (0, 100].
         detect: Run the momentum-observer detector.
         reconfigure: Re-plan after a failure (False: keep the original plan; the baseline).
-        observer_gain: Observer gain K_O [1/s].
+        observer_gain: Observer gain K_O [1/s], below 2 / dt (the residual's discrete update is
+            an explicit Euler step of r' = K_O (tau_ext - r), stable for K_O dt < 2).
         threshold: Detection threshold [N*m] per joint (number, nv numbers or {joint: value});
             None: the joint's friction at its speed limit plus 1 % of its effort limit,
             coulomb + viscous * velocity + 0.01 * effort (from the parameter table).
         persistence: Time the residual must stay above the threshold [s].
         frozen_speed: A detected joint slower than this over the window is frozen [rad/s].
-        clearance: Smallest signed distance accepted at a planned goal and along its path [m].
+        clearance: Smallest signed distance accepted at a planned goal and along its path [m],
+            in [0, 1].
         environment: Obstacles the planner avoids (None: the floor).
-        ik_seeds: Random restarts of IK when the first solution is rejected.
-        seed: Seed of the restarts.
+        ik_seeds: Random restarts of IK when the first solution is rejected, in [0, 1000].
+        seed: Seed of the restarts (an integer >= 0).
         sway_damping: Gain of the loose-link swing damper [1/s].
         swing_return: Natural frequency at which the damper's offset of the pivot joints
-            returns to the planned move [rad/s] (well below the swing's frequency).
+            returns to the planned move [rad/s] (well below the swing's frequency; below pi /
+            dt).
         swing_check: A planned rest of a loose joint must stay collision free (with the
-            clearance) for any swing of the loose joint within +/- this angle [rad].
+            clearance) for any swing of the loose joint within +/- this angle [rad], in [0, pi].
         loose_margin: Smallest distance of a loose joint's planned rest angle to its stops
-            [rad].
+            [rad], in [0, pi].
         dt: Control period [s].
         sensor: Measurement model.
         gravity: Gravity the controller assumes [m/s^2].
@@ -167,32 +178,55 @@ class ReconfigurableController(ModelBasedController):
         gravity: Sequence[float] = DEFAULT_GRAVITY,
     ) -> None:
         super().__init__(dt=dt, sensor=sensor, gravity=gravity)
+        if not (isinstance(target, str) and target):
+            resolve_vector3(target, "controller.target", "3 finite coordinates [m] or a pose name")
         self.target_spec = target
-        self.frame = frame
-        self.speed_fraction = _num(speed_fraction, "controller.speed_fraction")
-        self.min_move_time = _num(min_move_time, "controller.min_move_time")
-        self.omega = _num(omega, "controller.omega")
-        self.zeta = _num(zeta, "controller.zeta")
-        for name, flag in (("detect", detect), ("reconfigure", reconfigure)):
-            if not isinstance(flag, bool):
-                raise ConfigurationError(f"controller.{name}", flag, "true or false")
-        self.detect, self.reconfigure = detect, reconfigure
-        self.observer_gain = _num(observer_gain, "controller.observer_gain")
+        self.frame = name_str("controller.frame", frame, "a frame name (a non-empty string)")
+        self.speed_fraction = finite_number(
+            "controller.speed_fraction", speed_fraction, low=0.0, high=1.0, low_open=True
+        )
+        self.min_move_time = _positive(min_move_time, "controller.min_move_time", "s")
+        self.omega = loop_frequency(omega, "controller.omega", self.dt)
+        self.zeta = damping_ratio(zeta, "controller.zeta")
+        self.detect = boolean("controller.detect", detect)
+        self.reconfigure = boolean("controller.reconfigure", reconfigure)
+        # The residual's update is an explicit Euler step of r' = K_O (tau_ext - r): stable for
+        # K_O * dt < 2.
+        self.observer_gain = finite_number(
+            "controller.observer_gain",
+            observer_gain,
+            low=0.0,
+            high=2.0 / self.dt,
+            low_open=True,
+            high_open=True,
+            unit="1/s",
+            what=f"an observer gain below 2 / dt (the residual's update is stable for "
+            f"K_O * dt < 2; dt={self.dt:g} s)",
+        )
+        check_gain_spec(threshold, "controller.threshold", positive=True)
         self.threshold_spec = threshold
-        self.persistence = _num(persistence, "controller.persistence")
-        self.frozen_speed = _num(frozen_speed, "controller.frozen_speed")
-        self.clearance = _num(clearance, "controller.clearance", positive=False)
+        self.persistence = _positive(persistence, "controller.persistence", "s")
+        self.frozen_speed = _positive(frozen_speed, "controller.frozen_speed", "rad/s")
+        self.clearance = finite_number(
+            "controller.clearance", clearance, low=0.0, high=1.0, unit="m", what="a distance"
+        )
+        if environment is not None and not isinstance(environment, Environment):
+            raise ConfigurationError(
+                "controller.environment", environment, "None or a packbot.Environment"
+            )
         self.environment = environment
-        if not isinstance(ik_seeds, int) or isinstance(ik_seeds, bool) or ik_seeds < 0:
-            raise ConfigurationError("controller.ik_seeds", ik_seeds, "an integer >= 0")
-        self.ik_seeds = ik_seeds
-        if not isinstance(seed, int) or isinstance(seed, bool):
-            raise ConfigurationError("controller.seed", seed, "an integer")
-        self.seed = seed
-        self.sway_damping = _num(sway_damping, "controller.sway_damping", positive=False)
-        self.swing_return = _num(swing_return, "controller.swing_return")
-        self.swing_check = _num(swing_check, "controller.swing_check", positive=False)
-        self.loose_margin = _num(loose_margin, "controller.loose_margin", positive=False)
+        self.ik_seeds = integer("controller.ik_seeds", ik_seeds, low=0, high=IK_SEEDS_MAX)
+        self.seed = integer("controller.seed", seed, low=0, what="an integer seed")
+        self.sway_damping = finite_number(
+            "controller.sway_damping", sway_damping, low=0.0, unit="1/s"
+        )
+        self.swing_return = loop_frequency(swing_return, "controller.swing_return", self.dt)
+        self.swing_check = finite_number(
+            "controller.swing_check", swing_check, low=0.0, high=math.pi, unit="rad"
+        )
+        self.loose_margin = finite_number(
+            "controller.loose_margin", loose_margin, low=0.0, high=math.pi, unit="rad"
+        )
         self.target = np.zeros(3)
         self.threshold = np.zeros(0)
         self.events: list[ReconfigEvent] = []

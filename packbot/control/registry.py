@@ -39,6 +39,7 @@ from packbot.control.pd import JointPD
 from packbot.control.reconfig import ReconfigurableController
 from packbot.control.trajectory import JointTrajectory, min_jerk_duration
 from packbot.errors import ConfigurationError, PackbotError
+from packbot.validation import finite_number
 
 if TYPE_CHECKING:
     from packbot.environment import Environment
@@ -117,9 +118,9 @@ def _trajectory(robot: Robot, p: dict[str, Any]) -> JointTrajectory:
     for k, w in enumerate(wps):
         base = W[-1] if W else None
         W.append(resolve_q(robot, w, f"controller.waypoints[{k}]", base))
-    frac = p.pop("speed_fraction", 0.5)
-    if not isinstance(frac, (int, float)) or isinstance(frac, bool) or not 0 < frac <= 1:
-        raise ConfigurationError("controller.speed_fraction", frac, "a number in (0, 1]")
+    frac = finite_number(
+        "controller.speed_fraction", p.pop("speed_fraction", 0.5), low=0.0, high=1.0, low_open=True
+    )
     times = p.pop("times", None)
     vmax = robot.params.velocity
     if times is None:

@@ -16,11 +16,16 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from packbot.errors import ConfigurationError
+from packbot.validation import finite_number, real_array
 
 __all__ = ["JointTrajectory", "QuinticSegment", "min_jerk_duration"]
 
 FloatArray = NDArray[np.float64]
 
+#: Largest time of a trajectory [s] (about 11 days: beyond any run's limits).
+TIME_MAX = 1e6
+#: Shortest segment [s]: the fastest control period (a shorter move cannot be tracked).
+DURATION_MIN = 1e-6
 #: Peak speed of a rest-to-rest minimum-jerk move, in units of |q1 - q0| / T.
 MIN_JERK_PEAK_SPEED = 15.0 / 8.0
 #: Peak acceleration of a rest-to-rest minimum-jerk move, in units of |q1 - q0| / T^2.
@@ -30,10 +35,7 @@ MIN_JERK_PEAK_ACCEL = 10.0 / np.sqrt(3.0)
 def _vec(x: ArrayLike | None, n: int, field_name: str) -> FloatArray:
     if x is None:
         return np.zeros(n)
-    arr = np.asarray(x, dtype=float)
-    if arr.shape != (n,) or not np.all(np.isfinite(arr)):
-        raise ConfigurationError(field_name, x, f"{n} finite numbers")
-    return arr
+    return real_array(field_name, x, shape=(n,), expected=f"{n} finite numbers")
 
 
 @dataclass(kw_only=True)
@@ -44,7 +46,7 @@ class QuinticSegment:
         q0: Start position [rad], shape (n,).
         q1: End position [rad], shape (n,).
         t0: Start time [s].
-        duration: Duration T [s] (> 0).
+        duration: Duration T [s], in [1e-6, 1e6].
         v0: Start velocity [rad/s] (default zero).
         v1: End velocity [rad/s] (default zero).
         a0: Start acceleration [rad/s^2] (default zero).
@@ -75,23 +77,30 @@ class QuinticSegment:
         c4 = -15 * d + 8 * v0 + 7 * v1 + 1.5 * a0 - a1
         c5 = 6 * d - 3 * v0 - 3 * v1 - 0.5 * a0 + 0.5 * a1
         self._c = np.stack([q0, v0, 0.5 * a0, c3, c4, c5])
+        if not np.all(np.isfinite(self._c)):
+            raise ConfigurationError(
+                "trajectory",
+                f"duration={T:g} s",
+                "boundary values whose polynomial coefficients are finite (they overflow)",
+            )
 
     def validate(self) -> None:
         """Raise :class:`ConfigurationError` naming the first bad field."""
-        q0 = np.asarray(self.q0, dtype=float)
-        if q0.ndim != 1 or q0.size == 0 or not np.all(np.isfinite(q0)):
-            raise ConfigurationError(
-                "trajectory.q0", self.q0, "a non-empty vector of finite angles"
-            )
-        _vec(self.q1, q0.shape[0], "trajectory.q1")
-        if not isinstance(self.t0, (int, float)) or not np.isfinite(self.t0):
-            raise ConfigurationError("trajectory.t0", self.t0, "a finite time [s]")
-        if (
-            not isinstance(self.duration, (int, float))
-            or not np.isfinite(self.duration)
-            or self.duration <= 0
-        ):
-            raise ConfigurationError("trajectory.duration", self.duration, "a finite time > 0 [s]")
+        expected = "a non-empty vector of finite angles [rad]"
+        q0 = real_array("trajectory.q0", self.q0, ndim=1, expected=expected)
+        if q0.size == 0:
+            raise ConfigurationError("trajectory.q0", self.q0, expected)
+        for fname in ("q1", "v0", "v1", "a0", "a1"):
+            _vec(getattr(self, fname), q0.shape[0], f"trajectory.{fname}")
+        finite_number("trajectory.t0", self.t0, low=-TIME_MAX, high=TIME_MAX, unit="s")
+        finite_number(
+            "trajectory.duration",
+            self.duration,
+            low=DURATION_MIN,
+            high=TIME_MAX,
+            unit="s",
+            what="a segment duration",
+        )
 
     @property
     def t1(self) -> float:
@@ -164,16 +173,17 @@ class JointTrajectory:
         upper: ArrayLike | None = None,
         v_max: ArrayLike | None = None,
     ) -> None:
-        W = np.asarray(waypoints, dtype=float)
-        ts = np.asarray(times, dtype=float)
-        if W.ndim != 2 or W.shape[0] < 2 or not np.all(np.isfinite(W)):
-            raise ConfigurationError(
-                "trajectory.waypoints", W.shape, "an (m, n) array of finite angles, m >= 2"
-            )
-        if ts.shape != (W.shape[0],) or not np.all(np.isfinite(ts)) or np.any(np.diff(ts) <= 0):
-            raise ConfigurationError(
-                "trajectory.times", ts.tolist(), f"{W.shape[0]} strictly increasing times [s]"
-            )
+        expected = "an (m, n) array of finite angles [rad], m >= 2, n >= 1"
+        W = real_array("trajectory.waypoints", waypoints, ndim=2, expected=expected)
+        if W.shape[0] < 2 or W.shape[1] < 1:
+            raise ConfigurationError("trajectory.waypoints", W.shape, expected)
+        expected = (
+            f"{W.shape[0]} increasing times [s] within +/-{TIME_MAX:g} s, at least "
+            f"{DURATION_MIN:g} s apart"
+        )
+        ts = real_array("trajectory.times", times, shape=(W.shape[0],), expected=expected)
+        if np.any(np.abs(ts) > TIME_MAX) or np.any(np.diff(ts) < DURATION_MIN):
+            raise ConfigurationError("trajectory.times", ts.tolist(), expected)
         n = W.shape[1]
         for name, lim, bad in (("lower", lower, lambda w, x: w < x), ("upper", upper, np.greater)):
             if lim is None:
