@@ -35,6 +35,140 @@ class ResourceNotFound(ModelError):
         super().__init__(msg)
 
 
+class URDFError(ModelError):
+    """A URDF file is malformed, or describes a model packbot cannot use.
+
+    The message names the file, the element (link, joint, mesh) and how to fix it.
+
+    Attributes:
+        path: The URDF file.
+        element: The offending element, e.g. ``"link 'link1' <mass>"`` ("" for the whole file).
+        problem: What is wrong with it.
+        fix: How to fix it.
+        line: Line of the file, when the XML parser reports one (else None).
+    """
+
+    def __init__(
+        self,
+        path: Path | str,
+        element: str,
+        problem: str,
+        fix: str = "",
+        line: int | None = None,
+    ) -> None:
+        self.path = Path(path)
+        self.element = element
+        self.problem = problem
+        self.fix = fix
+        self.line = line
+        where = f"{self.path}, line {line}" if line is not None else str(self.path)
+        msg = f"invalid URDF {where}: " + (f"{element}: " if element else "") + problem
+        if fix:
+            msg += f"; {fix}"
+        ModelError.__init__(self, msg)
+
+
+class URDFSyntaxError(URDFError):
+    """The URDF file is empty, is not well-formed XML, or is not a URDF (no ``<robot>``)."""
+
+
+class MeshError(URDFError):
+    """A mesh a link uses is missing, unreadable or corrupt.
+
+    Attributes:
+        link: Name of the link using the mesh.
+        uri: The mesh file name as written in the URDF (``package://packbot/...`` or a path).
+        mesh_path: The file that was tried (None if the URI could not be resolved).
+    """
+
+    def __init__(
+        self,
+        path: Path | str,
+        link: str,
+        uri: str,
+        mesh_path: Path | None,
+        problem: str,
+        fix: str = "",
+    ) -> None:
+        self.link = link
+        self.uri = uri
+        self.mesh_path = mesh_path
+        tried = f" (tried {mesh_path})" if mesh_path is not None and str(mesh_path) != uri else ""
+        super().__init__(path, f"link {link!r} mesh {uri!r}{tried}", problem, fix)
+
+
+class InertialError(URDFError):
+    """A link's mass or inertia is not physical (non-positive, not finite, not a number).
+
+    Attributes:
+        link: Name of the link.
+        value: The offending value (a mass [kg], or the inertia's six entries [kg*m^2]).
+    """
+
+    def __init__(
+        self, path: Path | str, link: str, tag: str, value: Any, problem: str, fix: str
+    ) -> None:
+        self.link = link
+        self.value = value
+        super().__init__(path, f"link {link!r} <{tag}>", problem, fix)
+
+
+class JointError(URDFError):
+    """A joint's type, axis or limits are invalid (inverted, not finite, negative).
+
+    Attributes:
+        joint: Name of the joint.
+        value: The offending value.
+    """
+
+    def __init__(
+        self, path: Path | str, joint: str, tag: str, value: Any, problem: str, fix: str
+    ) -> None:
+        self.joint = joint
+        self.value = value
+        super().__init__(
+            path, f"joint {joint!r} <{tag}>" if tag else f"joint {joint!r}", problem, fix
+        )
+
+
+class JointMismatchError(URDFError):
+    """The URDF's movable joints are not the arm's joints of packbot's parameter table.
+
+    Attributes:
+        missing: Joints the parameter table expects that the file does not have.
+        unexpected: Movable joints of the file that the parameter table does not know.
+        found: The movable joints the file has, in file order.
+    """
+
+    def __init__(
+        self,
+        path: Path | str,
+        missing: Sequence[str],
+        unexpected: Sequence[str],
+        found: Sequence[str],
+        expected: Sequence[str],
+    ) -> None:
+        self.missing = tuple(missing)
+        self.unexpected = tuple(unexpected)
+        self.found = tuple(found)
+        parts = []
+        if self.missing:
+            parts.append(f"no joint named {', '.join(map(repr, self.missing))}")
+        if self.unexpected:
+            parts.append(
+                f"movable joint(s) {', '.join(map(repr, self.unexpected))} not in packbot's "
+                "parameter table"
+            )
+        problem = (
+            "; ".join(parts) + f" (the file's movable joints: {', '.join(self.found) or 'none'})"
+        )
+        fix = (
+            f"packbot's model expects the revolute joints {', '.join(expected)} "
+            "(packbot/params.py): rename the joints back, or make extra joints fixed"
+        )
+        super().__init__(path, "joints", problem, fix)
+
+
 class UnknownNameError(PackbotError, KeyError):
     """A name (joint, link, pose, obstacle, ...) is not one of the valid choices.
 

@@ -11,7 +11,10 @@ from pathlib import Path
 
 from packbot.errors import ResourceNotFound
 
-__all__ = ["data_dir", "repo_root"]
+__all__ = ["PACKAGE_URI", "data_dir", "repo_root", "resolve_mesh_uri"]
+
+#: Prefix of the mesh URIs of packbot's URDFs; it stands for the URDF file's own directory.
+PACKAGE_URI = "package://packbot/"
 
 
 def repo_root() -> Path | None:
@@ -33,3 +36,27 @@ def data_dir(name: str) -> Path:
     if root is not None and (root / name).is_dir():
         return root / name
     raise ResourceNotFound(packaged, "reinstall packbot (pip install .) or run from a checkout")
+
+
+def resolve_mesh_uri(uri: str, urdf_dir: Path) -> Path | None:
+    """The file a mesh URI written in a URDF stands for.
+
+    ``package://packbot/X`` is ``urdf_dir/X`` (packbot's URDFs keep their meshes beside them);
+    ``file:///abs/X`` and an absolute path are themselves; a relative path is relative to
+    ``urdf_dir``. The file is not required to exist.
+
+    Args:
+        uri: The ``filename`` attribute of a URDF ``<mesh>``.
+        urdf_dir: The (absolute) directory of the URDF file.
+
+    Returns:
+        The path, or None for a URI packbot cannot resolve (another ROS package, a URL).
+    """
+    if uri.startswith(PACKAGE_URI):
+        return urdf_dir / uri[len(PACKAGE_URI) :]
+    if uri.startswith("file://"):
+        uri = uri[len("file://") :]
+    elif "://" in uri:
+        return None
+    path = Path(uri)
+    return path if path.is_absolute() else urdf_dir / path
