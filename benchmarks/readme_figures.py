@@ -4,7 +4,7 @@ Run by hand from the repository root (needs Debian's ``chromium`` for the still)
 
     python benchmarks/readme_figures.py [--time 0.6]
 
-It runs ``packbot run collapse --out docs/figures --plot --html`` (the plots
+It runs ``packbot run collapse --out docs/figures --plot --html --overwrite`` (the plots
 ``collapse_{joints,distance,energy}`` as PNG + SVG, and ``collapse.html``), then screenshots the
 page headless at ``--time`` seconds into ``docs/figures/collapse_animation.png`` (the chromium
 command line of ``tests/test_viz.py``).
@@ -28,7 +28,8 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--time", type=float, default=0.6, help="animation time of the still [s]")
     args = parser.parse_args()
-    code = packbot_main(["run", "collapse", "--out", str(FIGURES), "--plot", "--html"])
+    argv = ["run", "collapse", "--out", str(FIGURES), "--plot", "--html", "--overwrite"]
+    code = packbot_main(argv)
     if code:
         return code
     browser = shutil.which("chromium") or shutil.which("chromium-browser")

@@ -1,25 +1,144 @@
 """The ``packbot`` command line: subcommands, each importing what it needs when it runs.
 
-Exit codes: 0 success, 1 failure of the task itself (a simulation that could not continue: the
-message says what and when), 2 bad input (a message, no traceback).
+Exit codes (:data:`EXIT_OK`, ...): 0 success; 1 failure of the task itself (a simulation that
+could not continue: the message says what and when; a regression that drifted); 2 bad input
+(usage, a bad option value, a bad or missing file, an ``--out`` folder that cannot be used: one
+line on stderr, no traceback); 130 interrupted by Ctrl-C (``packbot run`` saves the trajectory
+up to then, as a failed run does).
+
+``packbot run`` keeps a manifest in its ``--out`` folder (:data:`MANIFEST_NAME`) listing the files
+it wrote; the next run into that folder deletes exactly those files first, so a rerun leaves only
+its own files. A folder holding anything else is refused unless ``--overwrite`` is given.
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import logging
+import math
+import os
+import re
+import signal
 import sys
-from collections.abc import Sequence
+import threading
+from collections.abc import Callable, Iterable, Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from types import FrameType
+from typing import TYPE_CHECKING, Any, NoReturn
+
+from packbot.errors import PackbotError, SimulationError
 
 if TYPE_CHECKING:
     from packbot.result import SimResult
     from packbot.scenario import Scenario
 
-__all__ = ["main"]
+__all__ = [
+    "EXIT_FAILED",
+    "EXIT_INTERRUPTED",
+    "EXIT_OK",
+    "EXIT_USAGE",
+    "MANIFEST_NAME",
+    "build_parser",
+    "main",
+]
 
 log = logging.getLogger("packbot")
+
+#: Exit code: success.
+EXIT_OK = 0
+#: Exit code: the task itself failed (a simulation that could not continue, a regression drift).
+EXIT_FAILED = 1
+#: Exit code: bad input (usage, option values, files, the output folder).
+EXIT_USAGE = 2
+#: Exit code: interrupted by Ctrl-C (128 + SIGINT, as a shell reports it).
+EXIT_INTERRUPTED = 130
+#: The file in a ``packbot run --out`` folder listing the files that run wrote there.
+MANIFEST_NAME = "packbot-manifest.json"
+_MANIFEST_FORMAT = 1
+#: The Dask schemes ``--scheduler`` accepts (besides "local").
+_DASK_SCHEMES = ("tcp", "tls", "ws", "wss", "ucx")
+
+
+class _UsageError(PackbotError):
+    """Bad command-line input: printed as one line, exit code 2."""
+
+
+class _Interrupted(SimulationError):
+    """Ctrl-C during a simulation, raised at its next step (the result up to then is kept)."""
+
+    def __init__(self, t: float) -> None:
+        super().__init__("interrupted (Ctrl-C)", t)
+
+
+# ---------------------------------------------------------------------------------- option types
+def _positive_int(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        value = 0
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"invalid value {text!r}: expected an integer >= 1")
+    return value
+
+
+def _nonnegative_length(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        value = math.nan
+    if not (math.isfinite(value) and value >= 0):
+        raise argparse.ArgumentTypeError(
+            f"invalid value {text!r}: expected a finite length >= 0 [m]"
+        )
+    return value
+
+
+def _port(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        value = -1
+    if not 1 <= value <= 65535:
+        raise argparse.ArgumentTypeError(f"invalid port {text!r}: expected an integer in 1..65535")
+    return value
+
+
+_SCHEDULER_RE = re.compile(
+    r"(?:(?P<scheme>[A-Za-z][A-Za-z0-9+.-]*)://)?(?P<host>\[[0-9A-Fa-f:.]+\]|[A-Za-z0-9_.-]+)"
+    r":(?P<port>[0-9]{1,5})"
+)
+
+
+def _scheduler(text: str) -> str:
+    """A Dask scheduler address checked for its form (nothing is connected to here)."""
+    if text == "local":
+        return text
+    m = _SCHEDULER_RE.fullmatch(text)
+    ok = m is not None and (m["scheme"] or "tcp") in _DASK_SCHEMES and 1 <= int(m["port"]) <= 65535
+    if not ok:
+        raise argparse.ArgumentTypeError(
+            f"invalid scheduler address {text!r}: expected 'local' or a Dask scheduler's "
+            f"address SCHEME://HOST:PORT, e.g. tcp://127.0.0.1:8786 (SCHEME one of "
+            f"{', '.join(_DASK_SCHEMES)}; PORT in 1..65535)"
+        )
+    return text
+
+
+def _root_dir(value: str | None) -> Path:
+    """The ``--root`` of generate-model/-srdf: an existing folder (default: this checkout)."""
+    from packbot.resources import repo_root
+
+    if value is None:
+        root = repo_root()
+        if root is None:
+            raise _UsageError("not in a source checkout; pass --root DIR")
+        return root
+    root = Path(value)
+    if not root.is_dir():
+        what = "is not a directory" if root.exists() else "does not exist"
+        raise _UsageError(f"--root {root} {what}; pass the source checkout's root")
+    return root
 
 
 def _cmd_info(args: argparse.Namespace) -> int:
@@ -28,7 +147,12 @@ def _cmd_info(args: argparse.Namespace) -> int:
 
     from packbot.model import load_robot
 
-    robot = load_robot(args.urdf)
+    try:
+        robot = load_robot(args.urdf)
+    except PackbotError:
+        raise
+    except (ValueError, RuntimeError) as exc:  # a parser's own error: still bad input
+        raise _UsageError(f"--urdf {args.urdf}: not a loadable URDF: {exc}") from None
     m, p = robot.model, robot.params
     out = [f"PackBot EOD model: {robot.urdf_path}", f"nq = {m.nq}, nv = {m.nv}", ""]
     out.append(
@@ -63,13 +187,9 @@ def _cmd_info(args: argparse.Namespace) -> int:
 
 
 def _cmd_generate_model(args: argparse.Namespace) -> int:
-    from packbot.resources import repo_root
     from packbot.urdfgen import generate
 
-    root = Path(args.root) if args.root else repo_root()
-    if root is None:
-        print("error: not in a source checkout; pass --root DIR", file=sys.stderr)
-        return 2
+    root = _root_dir(args.root)
     paths = generate(root, check=args.check)
     if args.check:
         if paths:
@@ -84,13 +204,9 @@ def _cmd_generate_model(args: argparse.Namespace) -> int:
 
 def _cmd_generate_srdf(args: argparse.Namespace) -> int:
     from packbot.model import load_robot
-    from packbot.resources import repo_root
     from packbot.srdfgen import write_srdf
 
-    root = Path(args.root) if args.root else repo_root()
-    if root is None:
-        print("error: not in a source checkout; pass --root DIR", file=sys.stderr)
-        return 2
+    root = _root_dir(args.root)
     if not (root / "urdf").is_dir():
         print(
             f"error: --root {root} has no urdf/ folder; pass the source checkout's root",
@@ -173,24 +289,183 @@ def _summary(res: SimResult, scenario: Scenario, duration: float, dist: Any) -> 
     return lines
 
 
-def _out_dir(out: str) -> Path | None:
-    path = Path(out)
-    if path.exists() and not path.is_dir():
-        print(f"error: --out {path} exists and is not a directory", file=sys.stderr)
-        return None
-    path.mkdir(parents=True, exist_ok=True)
-    return path
-
-
-def _duration(value: float | None) -> bool:
-    import math
-
-    if value is None or (math.isfinite(value) and value > 0):
-        return True
-    print(
-        f"error: invalid --duration {value}: expected a finite positive time [s]", file=sys.stderr
+# ---------------------------------------------------------------------------------- --out folder
+def _is_plain_name(name: object) -> bool:
+    """Whether a manifest entry is a bare file name (nothing outside the folder, no ``..``)."""
+    return (
+        isinstance(name, str)
+        and name not in ("", ".", "..", MANIFEST_NAME)
+        and not any(c in name for c in "/\\:\0")
     )
-    return False
+
+
+def _read_manifest(out: Path) -> list[str] | None:
+    """The file names listed by ``out``'s manifest (bare names only), or None if it has none."""
+    path = out / MANIFEST_NAME
+    if not path.is_file():
+        return None
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError) as exc:  # unreadable, not UTF-8, not JSON
+        log.warning("%s ignored: not a packbot manifest (%s)", path, exc)
+        return None
+    files = data.get("files") if isinstance(data, dict) else None
+    if not isinstance(data, dict) or data.get("tool") != "packbot" or not isinstance(files, list):
+        log.warning("%s ignored: not a packbot manifest", path)
+        return None
+    names = []
+    for name in files:
+        if _is_plain_name(name):
+            names.append(name)
+        else:
+            log.warning("%s: entry %r ignored (not a file name inside the folder)", path, name)
+    return names
+
+
+def _is_ours(out: Path, name: str, listed: set[str]) -> bool:
+    """A file of an earlier run: listed (or its temporary file, left by a killed run)."""
+    path = out / name
+    if not (path.is_symlink() or path.is_file()):
+        return False
+    if name in listed or name == MANIFEST_NAME:
+        return True
+    return (
+        name.startswith(".")
+        and name.endswith(".tmp")
+        and any(name.startswith(f".{e}.") for e in (*listed, MANIFEST_NAME))
+    )
+
+
+def _prepare_out(out_arg: str, overwrite: bool) -> tuple[Path, list[Path]]:
+    """Check (or create) a run's ``--out`` folder.
+
+    Returns:
+        The folder, and the files of the earlier packbot run in it (to delete before writing).
+
+    Raises:
+        _UsageError: A path that is a file or cannot be created, a folder that is not writable,
+            or one holding files packbot did not write (without ``overwrite``).
+    """
+    out = Path(out_arg)
+    if out.exists() and not out.is_dir():
+        raise _UsageError(f"--out {out} exists and is not a directory")
+    if not out.exists():
+        for parent in out.parents:
+            if parent.exists() and not parent.is_dir():
+                raise _UsageError(f"--out {out}: {parent} is a file, not a directory")
+        try:
+            out.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            raise _UsageError(
+                f"--out {out}: cannot create the directory ({exc.strerror})"
+            ) from None
+    elif not os.access(out, os.W_OK | os.X_OK):
+        raise _UsageError(f"--out {out}: the directory is not writable")
+    try:
+        names = sorted(p.name for p in out.iterdir())
+    except OSError as exc:
+        raise _UsageError(f"--out {out}: cannot list the directory ({exc.strerror})") from None
+    listed = set(_read_manifest(out) or ())
+    ours = [n for n in names if _is_ours(out, n, listed)]
+    foreign = [n for n in names if n not in ours]
+    if foreign and not overwrite:
+        shown = ", ".join(foreign[:3]) + (
+            f" and {len(foreign) - 3} more" if len(foreign) > 3 else ""
+        )
+        raise _UsageError(
+            f"--out {out} holds files an earlier packbot run did not list ({shown}); pass "
+            "--overwrite to write into it anyway (those files are kept), or choose another folder"
+        )
+    return out, [out / n for n in ours if n != MANIFEST_NAME]
+
+
+def _planned_files(out: Path, scenario: Scenario, *, plots: bool, html: bool) -> list[Path]:
+    """Every file a run of ``scenario`` may write into ``out``."""
+    stem = scenario.name
+    names = [f"{stem}.npz", f"{stem}_events.csv", f"{stem}_partial.npz"]
+    names.append(f"{stem}_partial_events.csv")
+    if scenario.outputs.occlusion is not None:
+        names.append(f"{stem}_occlusion.csv")
+    if plots:
+        fmts = scenario.outputs.formats
+        names += [f"{stem}_{kind}.{fmt}" for kind in scenario.plot_kinds() for fmt in fmts]
+    if html:
+        names.append(f"{stem}.html")
+    return [out / n for n in names]
+
+
+def _write_manifest(out: Path, scenario: Scenario, status: str, files: Iterable[Path]) -> None:
+    """Write ``out/packbot-manifest.json``: the files of this run (bare names), its status."""
+    from packbot import __version__
+    from packbot.scenario import _atomic_write
+
+    data = {
+        "tool": "packbot",
+        "format": _MANIFEST_FORMAT,
+        "packbot_version": __version__,
+        "scenario": scenario.name,
+        "status": status,
+        "files": sorted({p.name for p in files if p.parent == out and _is_plain_name(p.name)}),
+    }
+    text = json.dumps(data, indent=2) + "\n"
+    _atomic_write(out / MANIFEST_NAME, lambda fh: fh.write(text), binary=False)
+
+
+def _written_files(paths: dict[str, Any], scenario: Scenario) -> list[Path]:
+    """The files behind the paths ``save_run``, ``write_outputs`` and ``write_html`` returned."""
+    from packbot.scenario import PLOT_KINDS
+
+    files: list[Path] = []
+    for key, path in paths.items():
+        if not isinstance(path, Path):
+            continue
+        if key in PLOT_KINDS:  # one entry per plot: its first format
+            files += [path.with_suffix(f".{fmt}") for fmt in scenario.outputs.formats]
+        else:
+            files.append(path)
+    return files
+
+
+class _SigintFlag:
+    """Ctrl-C as a request to stop a simulation at its next step.
+
+    While active (in the main thread only), the first Ctrl-C sets :attr:`requested`; a second
+    one raises KeyboardInterrupt at once.
+    """
+
+    def __init__(self) -> None:
+        self.requested = False
+        self._previous: Any = None
+        self._installed = False
+
+    def _handle(self, signum: int, frame: FrameType | None) -> None:
+        if self.requested:
+            raise KeyboardInterrupt
+        self.requested = True
+
+    def __enter__(self) -> _SigintFlag:
+        if threading.current_thread() is threading.main_thread():
+            self._previous = signal.signal(signal.SIGINT, self._handle)
+            self._installed = True
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        if self._installed:
+            previous = self._previous
+            signal.signal(
+                signal.SIGINT, signal.default_int_handler if previous is None else previous
+            )
+            self._installed = False
+
+
+def _duration(value: float | None) -> None:
+    if value is not None and not (math.isfinite(value) and value > 0):
+        raise _UsageError(f"invalid --duration {value}: expected a finite positive time [s]")
+
+
+def _stderr_line(text: str) -> None:
+    """One line on stderr (after the progress bar's line, on a terminal)."""
+    print(text, file=sys.stderr)
 
 
 def _run(
@@ -201,52 +476,102 @@ def _run(
     plot: bool,
     html: bool,
     view: bool,
+    overwrite: bool,
 ) -> int:
     import time
 
-    from packbot.errors import ConfigurationError, SimulationError
+    from packbot.errors import ConfigurationError
     from packbot.model import load_robot
     from packbot.scenario import load_scenario, run_scenario, save_run, write_outputs
 
-    if not _duration(duration_arg):
-        return 2
+    _duration(duration_arg)
     wall0 = time.perf_counter()
     try:
         scenario = load_scenario(scenario_name)
     except ConfigurationError as exc:
-        print(f"error: scenario {scenario_name}: {exc}", file=sys.stderr)
-        return 2
-    out = _out_dir(out_arg if out_arg is not None else f"out/{scenario.name}")
-    if out is None:
-        return 2
+        raise _UsageError(f"scenario {scenario_name}: {exc}") from None
+    out, old = _prepare_out(out_arg if out_arg is not None else f"out/{scenario.name}", overwrite)
     robot = load_robot()
-    scenario.validate(robot)
-    duration = scenario.duration if duration_arg is None else float(duration_arg)
-    bar = _Progress(duration, scenario.name) if sys.stderr.isatty() else None
     try:
-        res = run_scenario(scenario, robot, duration=duration, progress=bar)
+        scenario.validate(robot)
+    except ConfigurationError as exc:
+        raise _UsageError(f"scenario {scenario_name}: {exc}") from None
+    duration = scenario.duration if duration_arg is None else float(duration_arg)
+    html = html or scenario.outputs.html
+    bar = _Progress(duration, scenario.name) if sys.stderr.isatty() else None
+    stop = _SigintFlag()
+
+    def progress(t: float) -> None:
+        if stop.requested:
+            raise _Interrupted(t)
+        if bar is not None:
+            bar(t)
+
+    interrupted: _Interrupted | None = None
+    try:
+        with stop:  # from here on, Ctrl-C stops the simulation at its next step
+            # The earlier run's files go now, once the scenario is known to be good; the
+            # manifest names every file this run may write until it lists the ones it did.
+            for path in old:
+                path.unlink(missing_ok=True)
+            planned = _planned_files(out, scenario, plots=plot, html=html)
+            _write_manifest(out, scenario, "running", [p for p in planned if not p.exists()])
+            res = run_scenario(scenario, robot, duration=duration, progress=progress)
+        if stop.requested:  # Ctrl-C after the last step: stopped all the same
+            interrupted = _Interrupted(float(res.t[-1]))
+            interrupted.result = res
+    except _Interrupted as exc:
+        interrupted = exc
     except SimulationError as exc:
         if bar is not None:
             bar.close()
-        print(f"error: the simulation of {scenario.name} failed: {exc}", file=sys.stderr)
+        written: list[Path] = []
+        partial = ""
         if exc.result is not None:
-            partial = save_run(exc.result, scenario, out, f"{scenario.name}_partial")
-            print(f"  the trajectory up to then: {partial['trajectory']}", file=sys.stderr)
-        return 1
+            saved = save_run(exc.result, scenario, out, f"{scenario.name}_partial")
+            written = list(saved.values())
+            partial = f"\n  the trajectory up to then: {saved['trajectory']}"
+        _write_manifest(out, scenario, "failed", written)
+        _stderr_line(f"error: the simulation of {scenario.name} failed: {exc}{partial}")
+        return EXIT_FAILED
+    except KeyboardInterrupt:  # a second Ctrl-C: no result to save
+        if bar is not None:
+            bar.close()
+        _write_manifest(out, scenario, "interrupted", [])
+        _stderr_line(f"interrupted: {scenario.name} stopped at once, nothing saved")
+        return EXIT_INTERRUPTED
     if bar is not None:
         bar.close()
+    if interrupted is not None:
+        written = []
+        where = "nothing saved (no sample yet)"
+        if interrupted.result is not None:
+            saved = save_run(interrupted.result, scenario, out, f"{scenario.name}_partial")
+            written = list(saved.values())
+            where = f"the trajectory up to then is in {saved['trajectory']}"
+        _write_manifest(out, scenario, "interrupted", written)
+        _stderr_line(f"interrupted at t = {interrupted.t:.6g} s: {where}")
+        return EXIT_INTERRUPTED
     paths: dict[str, Any] = dict(save_run(res, scenario, out))
-    paths |= write_outputs(res, scenario, robot, out, plots=plot)
-    dist = paths.pop("min_distance", None)
-    if html or scenario.outputs.html:
-        from packbot.viz import write_html
+    try:
+        paths |= write_outputs(res, scenario, robot, out, plots=plot)
+        dist = paths.pop("min_distance", None)
+        if html:
+            from packbot.viz import write_html
 
-        paths["html"] = write_html(
-            robot, res, out / f"{scenario.name}.html", environment=scenario.environment
+            paths["html"] = write_html(
+                robot, res, out / f"{scenario.name}.html", environment=scenario.environment
+            )
+    except KeyboardInterrupt:
+        _write_manifest(out, scenario, "interrupted", _written_files(paths, scenario))
+        _stderr_line(
+            f"interrupted while writing the plots: the trajectory is in {paths['trajectory']}"
         )
+        return EXIT_INTERRUPTED
+    _write_manifest(out, scenario, "ok", _written_files(paths, scenario))
     print("\n".join(_summary(res, scenario, duration, dist)))
     print(f"  wrote ({time.perf_counter() - wall0:.2f} s in all):")
-    for p in paths.values():
+    for p in (*paths.values(), out / MANIFEST_NAME):
         print(f"    {p}")
     if view:
         from packbot.viz import start_viewer
@@ -261,18 +586,26 @@ def _run(
             pass
         finally:
             viewer.close()
-    return 0
+    return EXIT_OK
 
 
 def _cmd_run(args: argparse.Namespace) -> int:
     return _run(
-        args.scenario, args.out, args.duration, plot=args.plot, html=args.html, view=args.view
+        args.scenario,
+        args.out,
+        args.duration,
+        plot=args.plot,
+        html=args.html,
+        view=args.view,
+        overwrite=args.overwrite,
     )
 
 
 def _cmd_collapse(args: argparse.Namespace) -> int:
     name = "collapse" if args.mode == "joint_clamp" else "collapse_no_collisions"
-    return _run(name, args.out, args.duration, plot=True, html=True, view=False)
+    return _run(
+        name, args.out, args.duration, plot=True, html=True, view=False, overwrite=args.overwrite
+    )
 
 
 def _cmd_list(args: argparse.Namespace) -> int:
@@ -306,14 +639,16 @@ def _cmd_show(args: argparse.Namespace) -> int:
     robot = load_robot()
     q = robot.pose(args.pose)
     viewer = start_viewer(robot, port=args.port)
-    viewer.display(q)
-    print(f"pose {args.pose!r} at {viewer.url} (Ctrl-C to quit)")
     try:
+        viewer.display(q)
+        print(f"pose {args.pose!r} at {viewer.url} (Ctrl-C to quit)", flush=True)
         while True:
             time.sleep(1.0)
     except KeyboardInterrupt:
         pass
-    return 0
+    finally:
+        viewer.close()
+    return EXIT_OK
 
 
 def _cmd_batch(args: argparse.Namespace) -> int:
@@ -332,13 +667,12 @@ def _cmd_batch(args: argparse.Namespace) -> int:
             progress=bar,
         )
     except KeyboardInterrupt:
-        print(
-            "\ninterrupted: the finished runs are kept; rerun the same command to finish",
-            file=sys.stderr,
+        _interrupted_line(
+            "interrupted: the finished runs are kept; rerun the same command to finish"
         )
-        return 130
+        return EXIT_INTERRUPTED
     print(f"matrix {matrix.name}: {report.describe()}")
-    return 1 if report.failed else 0
+    return EXIT_FAILED if report.failed else EXIT_OK
 
 
 def _cmd_regress(args: argparse.Namespace) -> int:
@@ -349,8 +683,7 @@ def _cmd_regress(args: argparse.Namespace) -> int:
     golden = Path(args.golden) if args.golden else default_golden_dir()
     names = [args.matrix] if args.matrix else golden_matrices(golden)
     if not names:
-        print(f"error: no golden results in {golden} (create them with --update)", file=sys.stderr)
-        return 2
+        raise _UsageError(f"no golden results in {golden} (create them with --update)")
     drift = False
     for name in names:
         matrix = load_matrix(name)
@@ -368,19 +701,35 @@ def _cmd_regress(args: argparse.Namespace) -> int:
                 progress=None if args.no_progress else ProgressBar(),
             )
         except KeyboardInterrupt:
-            print("\ninterrupted", file=sys.stderr)
-            return 130
+            _interrupted_line("interrupted: no comparison made")
+            return EXIT_INTERRUPTED
         print(result.text())
         drift = drift or (bool(result.drifts) and not args.update)
-    return 1 if drift else 0
+    return EXIT_FAILED if drift else EXIT_OK
+
+
+def _interrupted_line(text: str) -> None:
+    """A Ctrl-C message: one line (after a progress bar's line on a terminal)."""
+    sys.stderr.write(("\n" if sys.stderr.isatty() else "") + text + "\n")
+    sys.stderr.flush()
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse, reporting a usage error in one line (exit code 2)."""
+
+    def error(self, message: str) -> NoReturn:
+        self.exit(EXIT_USAGE, f"{self.prog}: error: {message} (see `{self.prog} --help`)\n")
 
 
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser with every subcommand."""
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog="packbot",
         description="Simulate the iRobot PackBot EOD manipulator: kinematics, dynamics, "
         "collisions and joint failures.",
+        epilog="Exit codes: 0 success; 1 a simulation failed or a regression drifted; 2 bad input "
+        "(usage, option values, files, the output folder: one line on stderr); 130 interrupted "
+        "(Ctrl-C; `packbot run` saves the trajectory up to then as <name>_partial.npz).",
     )
     parser.add_argument("-v", "--verbose", action="count", default=0, help="more log output")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
@@ -401,19 +750,35 @@ def build_parser() -> argparse.ArgumentParser:
         "generate-srdf",
         help="sample the joint space and write urdf/packbot_eod.srdf (link pairs not to test)",
     )
-    p.add_argument("--samples", type=int, default=20000, help="random configurations (20000)")
-    p.add_argument("--clearance", type=float, default=0.05, help="'never' below this [m] (0.05)")
+    p.add_argument(
+        "--samples", type=_positive_int, default=20000, help="random configurations (20000)"
+    )
+    p.add_argument(
+        "--clearance", type=_nonnegative_length, default=0.05, help="'never' below this [m] (0.05)"
+    )
     p.add_argument("--root", default=None, help="repository root (default: this checkout)")
     p.set_defaults(func=_cmd_generate_srdf)
 
+    out_help = (
+        "output directory ({}); a rerun deletes the files the earlier run listed in its "
+        f"{MANIFEST_NAME} first; a directory holding other files is refused without --overwrite"
+    )
+    overwrite_help = (
+        "write into an --out directory that holds files packbot did not write: the earlier "
+        "run's listed files are deleted, the others are kept (same-named ones are replaced)"
+    )
     p = sub.add_parser(
         "run",
         help="run a scenario (a name in sims/ or a TOML file): trajectory, event log, plots",
+        epilog="Exit codes: 0 done; 1 the simulation failed (the trajectory up to then is saved "
+        "as <name>_partial.npz); 2 bad input; 130 Ctrl-C (the trajectory up to then is saved "
+        "as <name>_partial.npz).",
     )
     p.add_argument(
         "scenario", metavar="SCENARIO", help="scenario name (see `packbot list`) or path"
     )
-    p.add_argument("--out", default=None, help="output directory (./out/<scenario name>)")
+    p.add_argument("--out", default=None, help=out_help.format("./out/<scenario name>"))
+    p.add_argument("--overwrite", action="store_true", help=overwrite_help)
     p.add_argument("--plot", action="store_true", help="write the scenario's plots (PNG, SVG)")
     p.add_argument("--html", action="store_true", help="write the browser animation")
     p.add_argument("--view", action="store_true", help="play the result in a live viewer")
@@ -425,14 +790,17 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("show", help="show a named pose in a live viewer (meshcat)")
     p.add_argument("pose", nargs="?", default="drive", help="pose name (drive)")
-    p.add_argument("--port", type=int, default=None, help="viewer port (any free one)")
+    p.add_argument(
+        "--port", type=_port, default=None, help="viewer port, 1..65535 (the first free from 7000)"
+    )
     p.set_defaults(func=_cmd_show)
 
     p = sub.add_parser(
         "collapse",
         help="the report's collapse with its plots (the same as `packbot run collapse --plot`)",
     )
-    p.add_argument("--out", default="out/collapse", help="output directory (./out/collapse)")
+    p.add_argument("--out", default="out/collapse", help=out_help.format("./out/collapse"))
+    p.add_argument("--overwrite", action="store_true", help=overwrite_help)
     p.add_argument(
         "--mode",
         choices=("joint_clamp", "none"),
@@ -441,6 +809,8 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument("--duration", type=float, default=None, help="simulated time [s] (5)")
     p.set_defaults(func=_cmd_collapse)
+
+    scheduler_help = "Dask scheduler SCHEME://HOST:PORT (e.g. tcp://127.0.0.1:8786), or 'local'"
     p = sub.add_parser(
         "batch",
         help="run a scenario matrix (sims/matrices/) in parallel; rerun to resume",
@@ -448,7 +818,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("matrix", metavar="MATRIX", help="matrix name (sims/matrices/) or TOML file")
     p.add_argument("--out", required=True, help="output directory (resumed if it exists)")
     p.add_argument("--workers", type=int, default=None, help="processes (CPUs; 0: this one)")
-    p.add_argument("--scheduler", default=None, help="Dask scheduler tcp://host:port, or 'local'")
+    p.add_argument("--scheduler", type=_scheduler, default=None, help=scheduler_help)
     p.add_argument("--timeout", type=float, default=None, help="wall-time limit per run [s]")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.set_defaults(func=_cmd_batch)
@@ -468,14 +838,21 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", default=None, help="keep the batch output here (default: temporary)")
     p.add_argument("--update", action="store_true", help="rewrite the golden files (on purpose)")
     p.add_argument("--workers", type=int, default=None, help="processes (CPUs; 0: this one)")
-    p.add_argument("--scheduler", default=None, help="Dask scheduler tcp://host:port, or 'local'")
+    p.add_argument("--scheduler", type=_scheduler, default=None, help=scheduler_help)
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.set_defaults(func=_cmd_regress)
     return parser
 
 
+def _os_error_text(exc: OSError) -> str:
+    """One line for a file-system error: what, and which file."""
+    what = exc.strerror or str(exc) or type(exc).__name__
+    names = [repr(str(f)) for f in (exc.filename, exc.filename2) if f is not None]
+    return f"{what}: {' -> '.join(names)}" if names else what
+
+
 def main(argv: Sequence[str] | None = None) -> int:
-    """Run the command line; returns the exit code."""
+    """Run the command line; returns the exit code (:data:`EXIT_OK`, ...)."""
     parser = build_parser()
     args = parser.parse_args(argv)
     logging.basicConfig(
@@ -484,14 +861,19 @@ def main(argv: Sequence[str] | None = None) -> int:
     )
     if not getattr(args, "func", None):
         parser.print_help()
-        return 2
-    from packbot.errors import PackbotError
-
+        return EXIT_USAGE
+    func: Callable[[argparse.Namespace], int] = args.func
     try:
-        return int(args.func(args))
+        return int(func(args))
     except PackbotError as exc:
-        print(f"error: {exc}", file=sys.stderr)
-        return 2
+        _stderr_line(f"error: {exc}")
+        return EXIT_USAGE
+    except OSError as exc:  # a file or folder that cannot be read or written, a refused connection
+        _stderr_line(f"error: {_os_error_text(exc)}")
+        return EXIT_USAGE
+    except KeyboardInterrupt:
+        _interrupted_line("interrupted")
+        return EXIT_INTERRUPTED
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -1,7 +1,9 @@
 """The live viewer: meshcat's server in a background thread, listening on 127.0.0.1 only.
 
-meshcat's bridge binds its web server to every interface whatever its ``host``; ours passes the
-loopback address to tornado. :func:`start_viewer` returns a :class:`LiveViewer`.
+meshcat's bridge binds its web server to every interface whatever its ``host``; ours binds the
+loopback address itself and reports the port the socket really has (the operating system
+wraps a port above 65535 modulo 65536, and 0 means any free port: meshcat would print the port
+asked for). :func:`start_viewer` returns a :class:`LiveViewer`.
 """
 
 from __future__ import annotations
@@ -15,6 +17,8 @@ from typing import Any
 
 import meshcat
 import numpy as np
+import tornado.httpserver
+import tornado.netutil
 import tornado.web
 from meshcat.servers.zmqserver import (
     VIEWER_ROOT,
@@ -41,14 +45,24 @@ LOOPBACK = "127.0.0.1"
 
 
 class _LoopbackApplication(tornado.web.Application):
-    """A tornado application whose ``listen`` binds the loopback address only."""
+    """A tornado application whose ``listen`` binds the loopback address only.
+
+    Attributes:
+        server: The HTTP server, once listening.
+        port: The TCP port its socket is bound to (read back from the socket).
+    """
 
     server: Any = None
+    port: int | None = None
 
     def listen(self, port: int, address: str | None = None, **kwargs: Any) -> Any:
         """Listen on ``LOOPBACK``:port, whatever address is asked for."""
-        self.server = super().listen(port, address=LOOPBACK, **kwargs)
-        return self.server
+        sockets = tornado.netutil.bind_sockets(port, address=LOOPBACK)
+        server = tornado.httpserver.HTTPServer(self, **kwargs)
+        server.add_sockets(sockets)
+        self.server = server
+        self.port = int(sockets[0].getsockname()[1])
+        return server
 
 
 class _QuietWebSocketHandler(WebSocketHandler):
@@ -101,6 +115,17 @@ class _Window(ViewerWindow):
         self.zmq_socket.close(linger=0)
 
 
+def _check_port(port: object) -> int | None:
+    """A TCP port: None (the first free one from 7000), or an integer in 1..65535."""
+    if port is None:
+        return None
+    if isinstance(port, (bool, np.bool_)) or not isinstance(port, (int, np.integer)):
+        raise ConfigurationError("port", port, "None or an integer TCP port in 1..65535")
+    if not 1 <= int(port) <= 65535:
+        raise ConfigurationError("port", port, "None or an integer TCP port in 1..65535")
+    return int(port)
+
+
 class LiveViewer:
     """A meshcat viewer served on 127.0.0.1, its server running in a background thread.
 
@@ -121,6 +146,7 @@ class LiveViewer:
         port: int | None = None,
         collision: bool = False,
     ) -> None:
+        port = _check_port(port)
         self._bridge: _LoopbackBridge | None = None
         self._error: BaseException | None = None
         self._loop: asyncio.AbstractEventLoop | None = None
@@ -138,7 +164,12 @@ class LiveViewer:
                 ) from self._error
             raise PackbotError(f"the meshcat server did not start: {self._error!r}")
         bridge = self._bridge
-        self.port: int = int(bridge.fileserver_port)
+        port_bound = bridge.app.port
+        assert port_bound is not None
+        # meshcat reports the port it asked for; the socket's is the one to open
+        bridge.fileserver_port = port_bound
+        bridge.web_url = f"http://{LOOPBACK}:{port_bound}/static/"
+        self.port: int = port_bound
         self.zmq_url: str = str(bridge.zmq_url)
         self.url: str = str(bridge.web_url)
         self._window: _Window = _Window(self.zmq_url, self.url)
@@ -225,7 +256,7 @@ def start_viewer(
     Args:
         robot: The robot to show (drawn in its ``drive`` pose).
         environment: The obstacles; None means the floor alone.
-        port: The web server's TCP port; None takes the first free one from 7000.
+        port: The web server's TCP port (1..65535); None takes the first free one from 7000.
         open_browser: Open the page in the default browser.
         collision: Show the convex collision pieces instead of the visual meshes.
 
@@ -233,7 +264,7 @@ def start_viewer(
         The running viewer; its ``url`` is the page to open.
 
     Raises:
-        ConfigurationError: The port is taken.
+        ConfigurationError: The port is out of range or taken.
     """
     viewer = LiveViewer(robot, environment=environment, port=port, collision=collision)
     if open_browser:
