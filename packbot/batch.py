@@ -3,6 +3,8 @@
 :func:`run_batch` runs a matrix's runs (:mod:`packbot.matrix`) and writes, under its output
 directory::
 
+    batch.lock                  held while a batch runs here (:class:`BatchLock`)
+    matrix.json                 the matrix's canonical form and its SHA-256
     matrix.toml                 the matrix file's text
     runs/<id>.json              one record per finished run (:class:`RunRecord`)
     trajectories/<id>.npz       each run's trajectory and event log (packbot.scenario.save_run)
@@ -11,13 +13,20 @@ directory::
 
 Nothing finished is lost: each run's files, then its record, are written atomically (temporary
 file, then rename) by this process as soon as the run finishes; the record comes last, so a run
-counts as finished only when all its files are there. Rerunning skips the runs whose record says
-``"ok"`` for the same resolved scenario (same :attr:`Run.digest`) and redoes the missing, failed
-or stale ones. A run that raises, diverges (non-finite state) or exceeds its wall-time limit is
-recorded as ``"failed"`` with its message and the batch goes on. Ctrl-C stops the workers and
-loses only the runs in flight; a worker process that dies (killed, crashed) breaks the pool: its
-runs in flight are run again, one at a time, and a run that kills its worker again is recorded
-as failed.
+counts as finished only when all its files are there. Each record holds the SHA-256 of each of
+its files and of its own content. Rerunning verifies every record and skips the runs whose
+record is intact, says ``"ok"`` for the same resolved scenario (same :attr:`Run.digest`) and
+whose files are there with their checksums; it redoes the missing, failed and stale ones, and
+those whose record is malformed, edited or of an older format without checksums, or whose files
+are missing or changed (:attr:`BatchReport.rerun` says which and why). A run that raises,
+diverges (non-finite state) or exceeds its wall-time limit is recorded as ``"failed"`` with its
+message and the batch goes on. Ctrl-C stops the workers and loses only the runs in flight; a
+worker process that dies (killed, crashed) breaks the pool: its runs in flight are run again,
+one at a time, and a run that kills its worker again is recorded as failed.
+
+One batch at a time per folder: :class:`BatchLock` (``batch.lock``) makes a second one fail at
+once, and a folder holds the runs of one matrix (:meth:`packbot.matrix.Matrix.canonical`):
+another matrix is refused.
 
 Determinism: every run builds its own robot, solver and collision objects (nothing is shared
 between runs), and the worker processes run with one BLAS/OpenMP thread (the variables are set
@@ -28,12 +37,15 @@ in this process, a local worker or a Dask worker.
 from __future__ import annotations
 
 import contextlib
+import errno
+import hashlib
 import json
 import logging
 import math
 import multiprocessing
 import os
 import signal
+import socket
 import sys
 import tempfile
 import time
@@ -44,38 +56,72 @@ from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wai
 from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, TextIO
+from typing import TYPE_CHECKING, Any, NamedTuple, TextIO
 
 from packbot.errors import ConfigurationError, PackbotError, SimulationError
-from packbot.matrix import Matrix, Run
+from packbot.matrix import Matrix, Run, canonical_json, parse_matrix
+
+try:
+    import fcntl
+except ImportError:  # pragma: no cover - not POSIX
+    LOCK_WITH_FLOCK = False
+else:
+    #: Lock with ``fcntl.flock`` (POSIX); else with an exclusively created file.
+    LOCK_WITH_FLOCK = True
 
 if TYPE_CHECKING:
     from packbot.result import SimResult
 
 __all__ = [
+    "LEGACY_RECORD_FORMATS",
+    "LOCK_NAME",
     "RECORD_FORMAT",
+    "RERUN_CORRUPT_FILE",
+    "RERUN_EDITED",
+    "RERUN_FAILED",
+    "RERUN_MALFORMED",
+    "RERUN_MISSING_FILE",
+    "RERUN_OLD_FORMAT",
+    "RERUN_STALE",
     "RUN_STATUSES",
     "SINGLE_THREAD_ENV",
+    "BatchLock",
+    "BatchLockedError",
     "BatchReport",
     "ProgressBar",
     "RunFiles",
     "RunRecord",
     "Runner",
     "atomic_write",
+    "check_matrix",
     "csv_text",
     "execute",
+    "file_sha256",
     "read_records",
     "run_batch",
     "scenario_runner",
     "summarize",
     "summary_rows",
+    "write_matrix",
     "write_summary",
 ]
 
 log = logging.getLogger(__name__)
 
-#: Format tag of a run record.
-RECORD_FORMAT = "packbot-batch-run/1"
+#: Format tag of a run record (2: with the checksums of its files and of itself).
+RECORD_FORMAT = "packbot-batch-run/2"
+#: Older format tags of run records: readable, but without checksums (a resume reruns them).
+LEGACY_RECORD_FORMATS: tuple[str, ...] = ("packbot-batch-run/1",)
+#: Name of the lock file in a batch folder.
+LOCK_NAME = "batch.lock"
+#: Why a run that had a record is run again (:attr:`BatchReport.rerun`).
+RERUN_FAILED = "failed before"
+RERUN_STALE = "stale (its scenario changed)"
+RERUN_MISSING_FILE = "file missing"
+RERUN_CORRUPT_FILE = "file corrupted (SHA-256 differs)"
+RERUN_EDITED = "record edited (SHA-256 differs)"
+RERUN_MALFORMED = "record unreadable (malformed JSON or fields)"
+RERUN_OLD_FORMAT = "record of an older format, without checksums (unverifiable)"
 #: The statuses of a run record.
 RUN_STATUSES: tuple[str, ...] = ("ok", "failed")
 #: Environment of the worker processes: one thread for BLAS and OpenMP (determinism, and no
@@ -125,6 +171,10 @@ class RunRecord:
         wall_time: Wall-clock time of the run, scenario building and saving included [s].
         worker: Where it ran: ``"main"``, ``"local:<pid>"`` or ``"dask:<address>"``.
         files: Role -> path of the run's files, relative to the output directory.
+        file_sha256: Role -> SHA-256 (hex) of that file's bytes.
+
+    The record file also holds ``record_sha256``, the SHA-256 of the canonical JSON of the rest
+    of the record (:func:`_record_bytes`): a resume reruns a run whose record does not match it.
     """
 
     id: str
@@ -148,6 +198,7 @@ class RunRecord:
     wall_time: float = 0.0
     worker: str = ""
     files: dict[str, str] = field(default_factory=dict)
+    file_sha256: dict[str, str] = field(default_factory=dict)
 
     def validate(self) -> None:
         """Raise :class:`ConfigurationError` naming the first inconsistent field."""
@@ -165,10 +216,10 @@ class RunRecord:
     def quantities(self) -> dict[str, Any]:
         """The deterministic part: what must be identical whenever and wherever the run is made.
 
-        Everything but the wall time, the worker, the file paths and the traceback.
+        Everything but the wall time, the worker, the file paths and checksums and the traceback.
         """
         out = self.to_json()
-        for key in ("format", "wall_time", "worker", "files", "traceback", "index"):
+        for key in ("format", "wall_time", "worker", "files", "file_sha256", "traceback", "index"):
             out.pop(key, None)
         return out
 
@@ -197,17 +248,24 @@ class RunRecord:
             "wall_time": _enc(self.wall_time),
             "worker": self.worker,
             "files": dict(self.files),
+            "file_sha256": dict(self.file_sha256),
         }
 
     @classmethod
     def from_json(cls, data: Mapping[str, Any]) -> RunRecord:
-        """Read a record written by :meth:`to_json`.
+        """Read a record written by :meth:`to_json` (or of a :data:`LEGACY_RECORD_FORMATS`).
+
+        The checksums are read, not verified (:func:`run_batch` verifies them).
 
         Raises:
             ConfigurationError: Not a run record, or a missing or bad field.
         """
-        if data.get("format") != RECORD_FORMAT:
-            raise ConfigurationError("format", data.get("format"), repr(RECORD_FORMAT))
+        if not isinstance(data, Mapping):
+            raise ConfigurationError("record", type(data).__name__, "a JSON object")
+        if data.get("format") not in (RECORD_FORMAT, *LEGACY_RECORD_FORMATS):
+            raise ConfigurationError(
+                "format", data.get("format"), (RECORD_FORMAT, *LEGACY_RECORD_FORMATS)
+            )
         try:
             record = cls(
                 id=str(data["id"]),
@@ -230,7 +288,8 @@ class RunRecord:
                 t_end=_dec(data.get("t_end", "nan")),
                 wall_time=_dec(data.get("wall_time", 0.0)),
                 worker=str(data.get("worker", "")),
-                files=dict(data.get("files", {})),
+                files={str(k): str(v) for k, v in dict(data.get("files", {})).items()},
+                file_sha256={str(k): str(v) for k, v in dict(data.get("file_sha256", {})).items()},
             )
         except (KeyError, TypeError, ValueError) as exc:
             raise ConfigurationError(
@@ -249,7 +308,10 @@ class BatchReport:
         runs: The matrix's runs.
         records: The records of the runs that have one, by id (this batch's and earlier ones').
         executed: Ids of the runs made by this call.
-        skipped: Ids of the runs already finished by an earlier call.
+        skipped: Ids of the runs already finished by an earlier call (record and files verified).
+        rerun: Id -> why, for each run that had a record but was run again (one of the
+            ``RERUN_*`` reasons: failed before, stale, a file missing or corrupted, the record
+            edited, malformed or of an older format).
         summary: The summary files written.
     """
 
@@ -258,6 +320,7 @@ class BatchReport:
     records: dict[str, RunRecord]
     executed: list[str] = field(default_factory=list)
     skipped: list[str] = field(default_factory=list)
+    rerun: dict[str, str] = field(default_factory=dict)
     summary: list[Path] = field(default_factory=list)
 
     @property
@@ -281,6 +344,11 @@ class BatchReport:
             f"{len(self.missing)} missing ({len(self.executed)} run now, "
             f"{len(self.skipped)} finished before)"
         ]
+        if self.rerun:
+            counts = _count_reasons(self.rerun)
+            lines.append(
+                f"rerun {len(self.rerun)}: " + ", ".join(f"{n} {why}" for why, n in counts.items())
+            )
         for rid in self.failed:
             lines.append(f"  failed {rid}: {self.records[rid].error}")
         if self.summary:
@@ -449,12 +517,16 @@ def run_batch(
         progress: Called as ``progress(done, failed, total)`` at the start and after each run.
 
     Returns:
-        The report; failed runs are in the records, not raised.
+        The report; failed runs are in the records, not raised; the runs made again, and why,
+        in :attr:`BatchReport.rerun`.
 
     Raises:
         KeyboardInterrupt: On Ctrl-C, after the workers are stopped and the summary written;
             the finished runs are kept.
-        ConfigurationError: A bad argument (names it), or dask.distributed missing.
+        BatchLockedError: Another batch runs in ``out_dir`` (at once, nothing written).
+        ConfigurationError: A bad argument (names it), dask.distributed missing, an
+            ``out_dir`` that cannot be created, or one that holds another matrix's runs
+            (:func:`check_matrix`; nothing written).
     """
     if workers is not None and (not isinstance(workers, int) or workers < 0):
         raise ConfigurationError("workers", workers, "an integer >= 0")
@@ -463,30 +535,52 @@ def run_batch(
     out = Path(out_dir)
     if out.exists() and not out.is_dir():
         raise ConfigurationError("out_dir", str(out), "a directory (this is a file)")
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise ConfigurationError(
+            "out_dir", str(out), f"a folder that can be created ({exc.strerror or exc})"
+        ) from exc
+    with BatchLock(out):
+        return _run_locked(matrix, out, runs, workers, scheduler, runner, timeout, progress)
+
+
+def _run_locked(
+    matrix: Matrix,
+    out: Path,
+    runs: Sequence[Run] | None,
+    workers: int | None,
+    scheduler: Any,
+    runner: Runner,
+    timeout: float | None,
+    progress: Callable[[int, int, int], None] | None,
+) -> BatchReport:
+    """:func:`run_batch` once the folder is locked."""
+    check_matrix(out, matrix)
     for sub in ("runs", "trajectories"):
         (out / sub).mkdir(parents=True, exist_ok=True)
-        for stale in (out / sub).glob(".*.tmp"):  # left by a killed batch
+        for stale in (out / sub).glob(".*.tmp"):  # left by a killed batch (none runs: locked)
             stale.unlink(missing_ok=True)
-    if matrix.source_text:
-        atomic_write(out / "matrix.toml", matrix.source_text.encode())
+    write_matrix(out, matrix)
     runs = list(matrix.runs() if runs is None else runs)
-    records = read_records(out, runs)
     report = BatchReport(out_dir=out, runs=runs, records={})
     todo: list[Run] = []
+    old_files: dict[str, tuple[Path, ...]] = {}  # verified files of the runs to redo
+    details: dict[str, str] = {}
     for run in runs:
-        rec = records.get(run.id)
-        if (
-            rec is not None
-            and rec.status == "ok"
-            and rec.digest == run.digest
-            and all((out / p).is_file() for p in rec.files.values())
-        ):
-            report.records[run.id] = rec
+        check = _check_record(out, run)
+        if check.record is not None and check.reason is None:
+            report.records[run.id] = check.record
             report.skipped.append(run.id)
             continue
-        if rec is not None:
-            report.records[run.id] = rec  # a failed or stale record, replaced when redone
+        if check.reason is not None:
+            report.rerun[run.id] = check.reason
+            details[run.id] = check.detail
+            old_files[run.id] = check.files
+        if check.record is not None:
+            report.records[run.id] = check.record  # a failed or stale record, replaced when redone
         todo.append(run)
+    _log_reruns(out, report.rerun, details)
     total = len(runs)
     state = {"done": len(report.skipped), "failed": 0}
     if progress is not None:
@@ -494,6 +588,10 @@ def run_batch(
 
     def store(record: RunRecord, files: RunFiles) -> None:
         _store(out, record, files)
+        keep = {out / p for p in record.files.values()}
+        for path in old_files.pop(record.id, ()):  # an earlier run's files it did not rewrite
+            if path not in keep:
+                path.unlink(missing_ok=True)
         report.records[record.id] = record
         report.executed.append(record.id)
         state["done"] += 1
@@ -503,7 +601,13 @@ def run_batch(
         if progress is not None:
             progress(state["done"], state["failed"], total)
 
-    log.info("%d runs: %d finished before, %d to run", total, len(report.skipped), len(todo))
+    log.info(
+        "%d runs: %d finished before, %d to run (%d of them again)",
+        total,
+        len(report.skipped),
+        len(todo),
+        len(report.rerun),
+    )
     try:
         if not todo:
             pass
@@ -518,6 +622,277 @@ def run_batch(
     finally:
         report.summary = write_summary(out, runs, report.records)
     return report
+
+
+# ---------------------------------------------------------------------------------- lock
+class BatchLockedError(PackbotError):
+    """Another batch holds the batch folder's lock.
+
+    Attributes:
+        folder: The batch folder.
+        holder: What the lock file says of its holder (``pid``, ``host``, ``started``), maybe
+            empty (a holder still writing it).
+    """
+
+    def __init__(self, folder: Path, holder: Mapping[str, Any], why: str) -> None:
+        self.folder = folder
+        self.holder = dict(holder)
+        super().__init__(f"batch folder {folder} {why}")
+
+
+class BatchLock:
+    """The lock of a batch folder: one batch at a time (``<folder>/batch.lock``).
+
+    With ``fcntl.flock`` (POSIX): the lock is the kernel's lock on the open file, released when
+    the holding process exits however it exits (even ``kill -9``), so it never outlives its
+    holder; the file's content (pid, host, start time) names the holder in the error message.
+    A second holder (another process, or another open in the same process) fails at once. A
+    file left with the content of a process that is gone is taken over with a warning; one
+    left by another host is refused (the process there cannot be checked), with the command to
+    remove it. Without ``fcntl``: the file is created exclusively (``O_CREAT | O_EXCL``) and a
+    file whose process is gone (its pid not alive on this host) is taken over with a warning.
+
+    The lock is held by the process that calls :func:`run_batch`, which alone writes in the
+    folder: local workers and Dask workers return their results to it and never open the
+    folder (the descriptor is not inherited by the workers).
+
+    Args:
+        folder: The batch folder (it must exist).
+    """
+
+    def __init__(self, folder: str | Path) -> None:
+        self.folder = Path(folder)
+        self.path = self.folder / LOCK_NAME
+        self._fd: int | None = None
+
+    def __enter__(self) -> BatchLock:
+        self.acquire()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.release()
+
+    @property
+    def held(self) -> bool:
+        """Whether this object holds the lock."""
+        return self._fd is not None
+
+    def acquire(self) -> None:
+        """Take the lock, or raise at once.
+
+        Raises:
+            BatchLockedError: Another batch holds it (names its pid and host).
+            ConfigurationError: The lock file cannot be created (names the folder).
+        """
+        if self._fd is not None:
+            raise BatchLockedError(self.folder, _lock_info(), "is already locked by this object")
+        try:
+            if LOCK_WITH_FLOCK:
+                self._acquire_flock()
+            else:
+                self._acquire_exclusive()
+        except OSError as exc:
+            raise ConfigurationError(
+                "out_dir", str(self.folder), f"a folder where {LOCK_NAME} can be written ({exc})"
+            ) from exc
+
+    def _acquire_flock(self) -> None:
+        while True:
+            fd = os.open(self.path, os.O_RDWR | os.O_CREAT, 0o644)
+            try:
+                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except OSError as exc:
+                os.close(fd)
+                if exc.errno not in (errno.EWOULDBLOCK, errno.EAGAIN, errno.EACCES):
+                    raise
+                holder = _read_lock(self.path)
+                raise BatchLockedError(self.folder, holder, _held_by(holder, self.path)) from None
+            try:
+                same = os.path.samestat(os.fstat(fd), os.stat(self.path))
+            except FileNotFoundError:
+                same = False
+            if not same:  # released and removed by its holder meanwhile: lock the new one
+                os.close(fd)
+                continue
+            break
+        try:
+            previous = _parse_lock(os.read(fd, 65536))
+            if previous and previous.get("host") != socket.gethostname():
+                raise BatchLockedError(
+                    self.folder,
+                    previous,
+                    f"is locked by {_holder_text(previous)}, another machine: its process "
+                    f"cannot be checked from here; if no batch runs there, remove {self.path}",
+                )
+            if previous:
+                log.warning(
+                    "taking over the stale lock %s of %s: that process no longer holds it",
+                    self.path,
+                    _holder_text(previous),
+                )
+            os.lseek(fd, 0, os.SEEK_SET)
+            os.ftruncate(fd, 0)
+            os.write(fd, _lock_bytes())
+        except BaseException:
+            os.close(fd)
+            raise
+        self._fd = fd
+
+    def _acquire_exclusive(self) -> None:
+        for attempt in range(2):
+            try:
+                fd = os.open(self.path, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o644)
+            except FileExistsError:
+                holder = _read_lock(self.path)
+                alive = _holder_alive(holder)
+                if alive is not False or attempt:
+                    raise BatchLockedError(
+                        self.folder, holder, _held_by(holder, self.path)
+                    ) from None
+                log.warning(
+                    "taking over the stale lock %s of %s: that process is gone",
+                    self.path,
+                    _holder_text(holder),
+                )
+                self.path.unlink(missing_ok=True)
+                continue
+            try:
+                os.write(fd, _lock_bytes())
+            except BaseException:
+                os.close(fd)
+                self.path.unlink(missing_ok=True)
+                raise
+            self._fd = fd
+            return
+
+    def release(self) -> None:
+        """Remove the lock file and release the lock (nothing if not held)."""
+        fd, self._fd = self._fd, None
+        if fd is None:
+            return
+        try:
+            with contextlib.suppress(OSError):
+                if os.path.samestat(os.fstat(fd), os.stat(self.path)):
+                    self.path.unlink()  # before unlocking: a waiter re-checks the inode
+        finally:
+            os.close(fd)
+
+
+def _lock_info() -> dict[str, Any]:
+    return {
+        "pid": os.getpid(),
+        "host": socket.gethostname(),
+        "started": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
+    }
+
+
+def _lock_bytes() -> bytes:
+    return (json.dumps(_lock_info()) + "\n").encode()
+
+
+def _parse_lock(data: bytes) -> dict[str, Any]:
+    try:
+        info = json.loads(data.decode("utf-8"))
+    except (UnicodeDecodeError, ValueError):
+        return {}
+    return info if isinstance(info, dict) else {}
+
+
+def _read_lock(path: Path) -> dict[str, Any]:
+    try:
+        return _parse_lock(path.read_bytes())
+    except OSError:
+        return {}
+
+
+def _holder_text(holder: Mapping[str, Any]) -> str:
+    if not holder:
+        return "another process (not named yet)"
+    text = f"pid {holder.get('pid')} on host {holder.get('host')}"
+    if holder.get("started"):
+        text += f" (since {holder['started']})"
+    return text
+
+
+def _held_by(holder: Mapping[str, Any], path: Path) -> str:
+    return (
+        f"is in use by another batch: {path.name} is held by {_holder_text(holder)}; "
+        "wait for it to finish, or use another --out"
+    )
+
+
+def _holder_alive(holder: Mapping[str, Any]) -> bool | None:
+    """Whether the lock's holder runs: None if unknown (another host, no pid, not POSIX)."""
+    pid = holder.get("pid")
+    if holder.get("host") != socket.gethostname() or not isinstance(pid, int) or pid <= 0:
+        return None
+    if os.name != "posix":  # pragma: no cover - os.kill(pid, 0) would terminate it on Windows
+        return None
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:  # another user's process
+        return True
+    return True
+
+
+# ---------------------------------------------------------------------------------- matrix
+def check_matrix(out_dir: str | Path, matrix: Matrix) -> None:
+    """Refuse a batch folder that holds another matrix's runs.
+
+    Compares the matrix's canonical form (:meth:`packbot.matrix.Matrix.canonical`: comments,
+    layout, the description and the tolerances do not count) with the one stored in
+    ``matrix.json`` (or, for a folder of an older packbot, with the stored ``matrix.toml``).
+
+    Raises:
+        ConfigurationError: Another matrix, or an unreadable stored one (names the folder).
+    """
+    out = Path(out_dir)
+    stored: dict[str, Any] | None = None
+    source = out / "matrix.json"
+    try:
+        if source.is_file():
+            data = json.loads(source.read_text(encoding="utf-8"))
+            stored = data["matrix"]
+            if not isinstance(stored, dict):
+                raise TypeError("'matrix' is not a table")
+        elif (out / "matrix.toml").is_file():
+            source = out / "matrix.toml"
+            text = source.read_text(encoding="utf-8")
+            stored = parse_matrix(text, path=source, default_name=matrix.name).canonical()
+    except (OSError, UnicodeDecodeError, ValueError, KeyError, TypeError, PackbotError) as exc:
+        raise ConfigurationError(
+            "out_dir",
+            str(out),
+            f"a batch folder whose {source.name} can be read ({exc}); "
+            "use another --out, or remove the folder",
+        ) from exc
+    if stored is None:
+        return
+    mine = matrix.canonical()
+    if canonical_json(stored) == canonical_json(mine):
+        return
+    differ = sorted(k for k in set(stored) | set(mine) if stored.get(k) != mine.get(k))
+    if stored.get("name") == matrix.name:
+        other = f"another version of matrix {matrix.name!r}"
+    else:
+        other = f"matrix {stored.get('name')!r}, not {matrix.name!r}"
+    raise ConfigurationError(
+        "out_dir",
+        str(out),
+        f"a folder of this matrix: it holds the runs of {other} (they differ in: "
+        f"{', '.join(differ)}; stored in {source.name}); use another --out, or remove the folder",
+    )
+
+
+def write_matrix(out_dir: str | Path, matrix: Matrix) -> None:
+    """Write ``matrix.json`` (canonical form and SHA-256) and ``matrix.toml`` (its text)."""
+    out = Path(out_dir)
+    data = {"sha256": matrix.content_digest(), "matrix": matrix.canonical()}
+    atomic_write(out / "matrix.json", (json.dumps(data, indent=1) + "\n").encode())
+    if matrix.source_text:
+        atomic_write(out / "matrix.toml", matrix.source_text.encode())
 
 
 @contextlib.contextmanager
@@ -723,7 +1098,7 @@ def read_records(out_dir: str | Path, runs: Sequence[Run] | None = None) -> dict
     """The run records in ``out_dir/runs/`` (of ``runs`` only, if given), by id.
 
     An unreadable record (corrupt, another format) is skipped with a warning: its run counts as
-    not finished.
+    not finished. The checksums are not verified here (:func:`run_batch` verifies them).
     """
     folder = Path(out_dir) / "runs"
     if runs is None:
@@ -735,7 +1110,7 @@ def read_records(out_dir: str | Path, runs: Sequence[Run] | None = None) -> dict
         if not path.is_file():
             continue
         try:
-            rec = RunRecord.from_json(json.loads(path.read_text()))
+            rec = RunRecord.from_json(json.loads(path.read_text(encoding="utf-8")))
         except (OSError, ValueError, ConfigurationError) as exc:
             log.warning("ignoring unreadable run record %s: %s", path, exc)
             continue
@@ -746,13 +1121,129 @@ def read_records(out_dir: str | Path, runs: Sequence[Run] | None = None) -> dict
 def _store(out: Path, record: RunRecord, files: RunFiles) -> None:
     """Write a run's files, then its record (last: it marks the run finished)."""
     record.files = {}
+    record.file_sha256 = {}
     for role, (name, data) in files.items():
-        if Path(name).name != name or name.startswith("."):
+        if not _plain_name(name):
             raise ConfigurationError(f"files.{role}", name, "a plain file name")
         atomic_write(out / "trajectories" / name, data)
         record.files[role] = f"trajectories/{name}"
-    text = json.dumps(record.to_json(), indent=1, allow_nan=False)
-    atomic_write(out / "runs" / f"{record.id}.json", (text + "\n").encode())
+        record.file_sha256[role] = hashlib.sha256(data).hexdigest()
+    atomic_write(out / "runs" / f"{record.id}.json", _record_bytes(record))
+
+
+def _plain_name(name: str) -> bool:
+    return bool(name) and Path(name).name == name and not name.startswith(".")
+
+
+def _record_bytes(record: RunRecord) -> bytes:
+    """The record file: readable JSON of :meth:`RunRecord.to_json` plus ``record_sha256``.
+
+    ``record_sha256`` is the SHA-256 of the canonical JSON (sorted keys, no spaces) of the rest;
+    floats are written as their shortest repr, so the JSON read back gives the same canonical
+    text and the same checksum.
+    """
+    data = record.to_json()
+    data["record_sha256"] = _sha256_json(data)
+    return (json.dumps(data, indent=1, allow_nan=False) + "\n").encode()
+
+
+def _sha256_json(data: Mapping[str, Any]) -> str:
+    return hashlib.sha256(canonical_json(data).encode()).hexdigest()
+
+
+def file_sha256(path: str | Path) -> str:
+    """SHA-256 (hex) of a file's bytes, read in blocks of 1 MiB."""
+    h = hashlib.sha256()
+    with open(path, "rb") as fh:
+        for block in iter(lambda: fh.read(1 << 20), b""):
+            h.update(block)
+    return h.hexdigest()
+
+
+class _Check(NamedTuple):
+    """What :func:`_check_record` found."""
+
+    record: RunRecord | None  # the record, if it can be trusted (else None)
+    reason: str | None  # why the run must be made again (None: finished, or no record)
+    detail: str = ""  # the evidence, for the log
+    files: tuple[Path, ...] = ()  # the run's files, per its verified record
+
+
+def _check_record(out: Path, run: Run) -> _Check:
+    """Verify a run's record and files.
+
+    Returns ``(None, None)`` for no record; ``(record, None)`` for a finished run; otherwise the
+    reason to make it again, with the record if it can be trusted (failed or stale: its
+    checksum matches) and its files (removed if the run, made again, does not rewrite them).
+    """
+    path = out / "runs" / f"{run.id}.json"
+    if not path.is_file():
+        return _Check(None, None)
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, ValueError) as exc:
+        return _Check(None, RERUN_MALFORMED, f"{type(exc).__name__}: {exc}")
+    if not isinstance(data, dict):
+        return _Check(None, RERUN_MALFORMED, f"a JSON {type(data).__name__}, not an object")
+    fmt = data.get("format")
+    if fmt in LEGACY_RECORD_FORMATS:
+        return _Check(None, RERUN_OLD_FORMAT, f"format {fmt!r}, not {RECORD_FORMAT!r}")
+    if fmt != RECORD_FORMAT:
+        return _Check(None, RERUN_MALFORMED, f"format {fmt!r}, not {RECORD_FORMAT!r}")
+    stored = data.pop("record_sha256", None)
+    actual = _sha256_json(data)
+    if stored != actual:
+        return _Check(None, RERUN_EDITED, f"record_sha256 {stored!r}, content {actual}")
+    try:
+        rec = RunRecord.from_json(data)
+    except ConfigurationError as exc:
+        return _Check(None, RERUN_MALFORMED, str(exc))
+    if rec.id != run.id:
+        return _Check(None, RERUN_EDITED, f"the record of run {rec.id!r}, not {run.id!r}")
+    paths: list[Path] = []
+    for role, rel in rec.files.items():
+        parts = Path(rel).parts
+        if len(parts) != 2 or parts[0] != "trajectories" or not _plain_name(parts[1]):
+            return _Check(None, RERUN_EDITED, f"files.{role} = {rel!r} is not trajectories/<name>")
+        if role not in rec.file_sha256:
+            return _Check(None, RERUN_EDITED, f"no checksum of files.{role}")
+        paths.append(out / rel)
+    files = tuple(paths)
+    if rec.status != "ok":
+        return _Check(rec, RERUN_FAILED, rec.error, files)
+    if rec.digest != run.digest:
+        return _Check(rec, RERUN_STALE, f"digest {rec.digest}, scenario now {run.digest}", files)
+    for role, file in zip(rec.files, files, strict=True):
+        if not file.is_file():
+            return _Check(None, RERUN_MISSING_FILE, f"{rec.files[role]} ({role})", files)
+        try:
+            got = file_sha256(file)
+        except OSError as exc:
+            return _Check(None, RERUN_MISSING_FILE, f"{rec.files[role]}: {exc}", files)
+        if got != rec.file_sha256[role]:
+            detail = f"{rec.files[role]}: SHA-256 {got}, recorded {rec.file_sha256[role]}"
+            return _Check(None, RERUN_CORRUPT_FILE, detail, files)
+    return _Check(rec, None, "", files)
+
+
+def _count_reasons(rerun: Mapping[str, str]) -> dict[str, int]:
+    counts: dict[str, int] = {}
+    for why in rerun.values():
+        counts[why] = counts.get(why, 0) + 1
+    return counts
+
+
+def _log_reruns(out: Path, rerun: Mapping[str, str], details: Mapping[str, str]) -> None:
+    """Log the runs made again: one line per run whose record or files did not verify."""
+    routine = (RERUN_FAILED, RERUN_STALE)
+    for rid, why in rerun.items():
+        if why not in routine and why != RERUN_OLD_FORMAT:
+            log.warning("%s: run %s made again: %s: %s", out, rid, why, details.get(rid, ""))
+    for why, n in _count_reasons(rerun).items():
+        if why == RERUN_OLD_FORMAT:
+            log.warning("%s: %d runs made again: %s", out, n, why)
+        elif why in routine:
+            log.info("%s: %d runs made again: %s", out, n, why)
 
 
 def csv_text(rows: Sequence[Mapping[str, Any]], columns: Sequence[str]) -> str:

@@ -35,6 +35,10 @@ Each run's id is a readable slug of its parameters plus the first 10 hex digits 
 their canonical JSON (sorted keys, no spaces). It depends on the parameters only: reordering the
 axes or adding values to them keeps the ids of the existing runs. TOML's ``0`` and ``0.0`` are
 different values (an integer and a float) and give different ids.
+
+A matrix's identity is its :meth:`Matrix.canonical` form (name, base, ``[set]``, the axes in
+their order, includes, excludes; not the description, the tolerances, comments or layout): a
+batch folder holds the runs of one matrix, and :func:`packbot.batch.run_batch` refuses another.
 """
 
 from __future__ import annotations
@@ -59,6 +63,7 @@ else:  # pragma: no cover
     import tomli as tomllib
 
 __all__ = [
+    "MATRIX_FORMAT",
     "MATRIX_KEYS",
     "Matrix",
     "Run",
@@ -69,6 +74,7 @@ __all__ = [
     "find_matrix",
     "load_matrix",
     "matrix_names",
+    "parse_matrix",
     "run_id",
     "set_dotted",
 ]
@@ -84,6 +90,9 @@ MATRIX_KEYS: tuple[str, ...] = (
     "exclude",
     "tolerances",
 )
+
+#: Format tag of a matrix's canonical form (:meth:`Matrix.canonical`).
+MATRIX_FORMAT = "packbot-matrix/1"
 
 _COMPONENT = re.compile(r"^[A-Za-z0-9_\-]+$")
 _SLUG_CHARS = re.compile(r"[^A-Za-z0-9.+\-]+")
@@ -158,14 +167,16 @@ class Matrix:
             raise ConfigurationError("base", self.base, "a scenario name or path")
         if not isinstance(self.description, str):
             raise ConfigurationError("description", self.description, "a string")
-        for key in self.fixed:
+        for key, value in self.fixed.items():
             _check_dotted(f"set.{key}", key)
+            _check_json(f"set.{key}", value)
         if not self.axes and not self.include:
             raise ConfigurationError("axes", self.axes, "at least one axis or [[include]] table")
         for key, values in self.axes.items():
             _check_dotted(f"axes.{key}", key)
             if not isinstance(values, list) or not values:
                 raise ConfigurationError(f"axes.{key}", values, "a non-empty list of values")
+            _check_json(f"axes.{key}", values)
             seen = {canonical_json(v) for v in values}
             if len(seen) != len(values):
                 raise ConfigurationError(f"axes.{key}", values, "a list of distinct values")
@@ -184,6 +195,33 @@ class Matrix:
             ok = isinstance(value, (int, float)) and math.isfinite(value) and value >= 0
             if not ok:
                 raise ConfigurationError(f"tolerances.{key}", value, "a finite number >= 0")
+        # Like [set] and the axes: values that the JSON of the run records can hold.
+        for title, group in (("include", self.include), ("exclude", self.exclude)):
+            for i, overrides in enumerate(group):
+                for key, value in overrides.items():
+                    _check_json(f"{title}.{i}.{key}", value)
+
+    def canonical(self) -> dict[str, Any]:
+        """What defines the matrix's runs, as a JSON-ready dict.
+
+        The name, the base, ``[set]``, the axes in their order (it sets the runs' order), the
+        includes and the excludes. Not the description or the tolerances (they change no run),
+        nor the file's comments, layout or key quoting. Two matrices with the same canonical
+        form expand into the same runs over the same base scenario.
+        """
+        return {
+            "format": MATRIX_FORMAT,
+            "name": self.name,
+            "base": self.base,
+            "set": dict(sorted(self.fixed.items())),
+            "axes": [[key, list(values)] for key, values in self.axes.items()],
+            "include": [dict(sorted(t.items())) for t in self.include],
+            "exclude": [dict(sorted(t.items())) for t in self.exclude],
+        }
+
+    def content_digest(self) -> str:
+        """SHA-256 (hex) of the canonical JSON of :meth:`canonical`."""
+        return digest(self.canonical())
 
     def base_path(self) -> str | Path:
         """The base scenario to read.
@@ -257,11 +295,30 @@ def load_matrix(name_or_path: str | Path) -> Matrix:
         ConfigurationError: A bad value (the message names its key) or a TOML syntax error.
     """
     path = find_matrix(name_or_path)
-    text = path.read_text()
+    try:
+        text = path.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ConfigurationError(str(path), "(file)", f"a readable UTF-8 file ({exc})") from exc
+    return parse_matrix(text, path=path.resolve(), default_name=path.stem)
+
+
+def parse_matrix(text: str, *, path: Path | None = None, default_name: str = "") -> Matrix:
+    """Parse and validate a matrix file's text.
+
+    Args:
+        text: The TOML text.
+        path: The file it was read from (named in errors; a relative base is resolved beside it).
+        default_name: The name if the text has no ``name`` key (:func:`load_matrix`: the stem).
+
+    Raises:
+        UnknownNameError: An unknown key.
+        ConfigurationError: A bad value (the message names its key) or a TOML syntax error.
+    """
+    where = str(path) if path is not None else "matrix"
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
-        raise ConfigurationError(str(path), "(file)", f"valid TOML ({exc})") from exc
+        raise ConfigurationError(where, "(file)", f"valid TOML ({exc})") from exc
     for key in data:
         if key not in MATRIX_KEYS:
             raise UnknownNameError("matrix key", key, MATRIX_KEYS)
@@ -272,7 +329,7 @@ def load_matrix(name_or_path: str | Path) -> Matrix:
         if key in data and not isinstance(data[key], list):
             raise ConfigurationError(key, data[key], "an array of tables ([[...]])")
     matrix = Matrix(
-        name=data.get("name", path.stem),
+        name=data.get("name", default_name),
         base=data.get("base", ""),
         description=data.get("description", ""),
         fixed=_flatten(data.get("set", {})),
@@ -280,7 +337,7 @@ def load_matrix(name_or_path: str | Path) -> Matrix:
         include=[_flatten(t) if isinstance(t, dict) else t for t in data.get("include", [])],
         exclude=[_flatten(t) if isinstance(t, dict) else t for t in data.get("exclude", [])],
         tolerances=data.get("tolerances", {}),
-        path=path.resolve(),
+        path=path,
         source_text=text,
     )
     matrix.validate()
@@ -447,6 +504,16 @@ def _check_dotted(field: str, key: str) -> None:
         raise ConfigurationError(
             field, key, "a dotted name of letters, digits, '_' and '-' (e.g. config.restitution)"
         )
+
+
+def _check_json(field: str, value: Any) -> None:
+    """Raise :class:`ConfigurationError` if a value has no exact JSON form."""
+    try:
+        json.dumps(value, allow_nan=False)
+    except (TypeError, ValueError) as exc:
+        raise ConfigurationError(
+            field, value, f"a value JSON can hold: no date, no inf or nan ({exc})"
+        ) from exc
 
 
 def _matches(params: Mapping[str, Any], table: Mapping[str, Any]) -> bool:

@@ -1,24 +1,37 @@
 """Regression: compare a batch's results with committed golden results, quantity by quantity.
 
 The golden results of a matrix live in ``<golden>/<matrix name>/``: ``results.json`` (the
-deterministic part of each run's record, :meth:`packbot.batch.RunRecord.quantities`, by run id)
-and ``summary.csv`` (the same as a table, for reading). :func:`compare` checks, for every run:
+deterministic part of each run's record, :meth:`packbot.batch.RunRecord.quantities`, by run id,
+with the run's trajectory at checkpoints and its measured sensitivity) and ``summary.csv`` (the
+same as a table, for reading). :func:`compare` checks, for every run:
 
 - its status (``"ok"``/``"failed"``), exactly;
-- the final pose, joint by joint: ``|q_new - q_golden| <= tolerances.q`` [rad];
-- the rest time: both None, or ``|dt| <= tolerances.time`` [s];
+- the trajectory at the checkpoints (every :data:`CHECKPOINT_DT` s), joint by joint, and the
+  final pose: ``|q_new - q_golden| <= tol_q`` [rad];
+- the rest time: both None, or ``|dt| <= tol_time`` [s];
 - the event count of each kind, exactly, and the event times: same kinds in the same order,
-  ``|t_new - t_golden| <= tolerances.time`` [s] for each;
-- the minimum signed distance: ``|d_new - d_golden| <= tolerances.distance`` [m] (inf == inf);
-- the energy change: ``|dE| <= tolerances.energy`` [J];
+  ``|t_new - t_golden| <= tol_time`` [s] for each;
+- the minimum signed distance: ``|d_new - d_golden| <= tol_distance`` [m] (inf == inf);
+- the energy change: ``|dE| <= tol_energy`` [J];
 
-and lists the runs that are in one set and not the other. Each tolerance is absolute; the
-defaults sit far above the last-bit noise between machines (the same machine gives bit-identical
-results) and far below any change of behaviour worth knowing about.
+and lists the runs that are in one set and not the other.
+
+**What is reproducible.** Another CPU, BLAS kernel or library build rounds differently, and the
+integrator's step-size control and event location carry such differences along. ``--update``
+therefore measures each run's sensitivity: it makes the run again with its tolerances moved by
+one part in 10^9 (:data:`PERTURBATIONS`, a change of the rounding, not of the physics) and
+stores, per quantity, how far those runs land from the nominal one (:class:`Sensitivity`). Each
+tolerance is then ``max(tolerances.X, NOISE_FACTOR * noise_X)``: the absolute tolerance, or ten
+times the run's own measured noise where that is larger. A run whose perturbed copies part from
+it (another event sequence, or a trajectory that leaves ``tolerances.q``) is chaotic from that
+time, its **horizon**: up to the horizon it is compared as above (checkpoints and events); its
+final quantities are compared on the band the perturbed runs span (widened by its own width),
+which is what is reproducible of them. docs/batch.md gives the measurements behind these numbers.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 import tempfile
@@ -27,6 +40,9 @@ from collections.abc import Callable, Mapping, Sequence
 from dataclasses import asdict, dataclass, field, fields
 from pathlib import Path
 from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
 
 from packbot.batch import (
     RECORD_FORMAT,
@@ -39,25 +55,51 @@ from packbot.batch import (
     scenario_runner,
     summary_rows,
 )
+from packbot.config import SimConfig
 from packbot.errors import ConfigurationError, ResourceNotFound, UnknownNameError
-from packbot.matrix import Matrix, Run
+from packbot.matrix import Matrix, Run, apply_overrides, digest
 
 __all__ = [
+    "CHECKPOINT_DT",
     "GOLDEN_FORMAT",
+    "NOISE_FACTOR",
+    "PERTURBATIONS",
     "Drift",
     "RegressionResult",
+    "Sensitivity",
     "Tolerances",
     "compare",
     "default_golden_dir",
     "format_drifts",
     "golden_matrices",
+    "measure_sensitivity",
     "read_golden",
+    "read_trajectories",
     "run_regression",
     "write_golden",
 ]
 
-#: Format tag of a golden results file.
-GOLDEN_FORMAT = "packbot-golden/1"
+#: Format tag of a golden results file (2: with checkpoints and each run's sensitivity).
+GOLDEN_FORMAT = "packbot-golden/2"
+#: Older format tags that are still read (no checkpoints, no sensitivity: absolute tolerances).
+LEGACY_GOLDEN_FORMATS: tuple[str, ...] = ("packbot-golden/1",)
+#: The runs that measure a run's sensitivity: (dotted scenario key, factor on its value). A
+#: relative change of 1e-9 of the integrator's tolerances moves its step sizes in their last
+#: digits: the kind of difference another machine's rounding makes, at every step.
+PERTURBATIONS: tuple[tuple[str, float], ...] = (
+    ("config.rtol", 1.0 + 1e-9),
+    ("config.rtol", 1.0 - 1e-9),
+    ("config.atol", 1.0 + 1e-9),
+)
+#: A quantity's tolerance is at least this multiple of its measured noise (docs/batch.md gives
+#: the largest ratio measured with other BLAS kernels).
+NOISE_FACTOR = 10.0
+#: Interval of the trajectory checkpoints kept in the golden results [s].
+CHECKPOINT_DT = 0.25
+
+FloatArray = NDArray[np.float64]
+#: A run's trajectory: sample times [s] and joint positions [rad], shape (n,) and (n, nq).
+Trajectory = tuple[FloatArray, FloatArray]
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -100,6 +142,166 @@ class Tolerances:
         return tol
 
 
+@dataclass(frozen=True, kw_only=True)
+class Sensitivity:
+    """How far a run's perturbed copies (:data:`PERTURBATIONS`) land from it.
+
+    Attributes:
+        q: Largest joint position difference, over the checkpoints before the horizon and the
+            final pose [rad].
+        time: Largest difference of an event time or of the rest time [s].
+        distance: Difference of the minimum signed distance [m].
+        energy: Difference of the energy change [J].
+        horizon: Time from which the copies part from the run [s]: the first event where their
+            event sequences differ, or the first sample where a trajectory leaves
+            ``tolerances.q``; None if they never do.
+        band: With a horizon: quantity -> (lowest, highest) over the run and its copies, of the
+            final pose (``"q.<joint>"``), ``"rest_time"``, ``"n_events"``, ``"min_distance"``
+            and ``"energy_change"``.
+    """
+
+    q: float = 0.0
+    time: float = 0.0
+    distance: float = 0.0
+    energy: float = 0.0
+    horizon: float | None = None
+    band: dict[str, tuple[float, float]] = field(default_factory=dict)
+
+    def to_json(self) -> dict[str, Any]:
+        """A JSON-ready dict (finite floats; a band's None rest time as NaN -> "nan")."""
+        return {
+            "q": self.q,
+            "time": self.time,
+            "distance": _json_float(self.distance),
+            "energy": self.energy,
+            "horizon": self.horizon,
+            "band": {k: [_json_float(lo), _json_float(hi)] for k, (lo, hi) in self.band.items()},
+        }
+
+    @classmethod
+    def from_json(cls, data: Mapping[str, Any]) -> Sensitivity:
+        """Inverse of :meth:`to_json`."""
+        return cls(
+            q=float(data.get("q", 0.0)),
+            time=float(data.get("time", 0.0)),
+            distance=float(data.get("distance", 0.0)),
+            energy=float(data.get("energy", 0.0)),
+            horizon=None if data.get("horizon") is None else float(data["horizon"]),
+            band={k: (float(lo), float(hi)) for k, (lo, hi) in data.get("band", {}).items()},
+        )
+
+
+def _json_float(x: float) -> float | str:
+    return x if math.isfinite(x) else str(x)
+
+
+def perturbed_runs(run: Run) -> list[Run]:
+    """The copies of a run that measure its sensitivity, one per :data:`PERTURBATIONS` entry."""
+    defaults = SimConfig()
+    out = []
+    for k, (key, factor) in enumerate(PERTURBATIONS):
+        section, name = key.split(".")
+        value = run.scenario.get(section, {}).get(name, getattr(defaults, name))
+        scenario = apply_overrides(run.scenario, {key: float(value) * factor}, field_prefix="set")
+        out.append(
+            dataclasses.replace(
+                run, id=f"{run.id}-perturbed{k}", scenario=scenario, digest=digest(scenario)
+            )
+        )
+    return out
+
+
+def checkpoints(traj: Trajectory, duration: float) -> tuple[list[float], list[list[float]]]:
+    """The samples of a trajectory at the multiples of :data:`CHECKPOINT_DT` up to ``duration``.
+
+    Returns:
+        The checkpoint times [s] and the joint positions there [rad].
+    """
+    t, q = traj
+    times, rows = [], []
+    for k in range(int(duration / CHECKPOINT_DT + 1e-9) + 1):
+        tk = k * CHECKPOINT_DT
+        i = int(np.searchsorted(t, tk - 1e-9))
+        if i < len(t) and abs(t[i] - tk) <= 1e-9:
+            times.append(float(t[i]))
+            rows.append([float(x) for x in q[i]])
+    return times, rows
+
+
+def measure_sensitivity(
+    nominal: RunRecord,
+    traj: Trajectory,
+    members: Sequence[tuple[RunRecord, Trajectory]],
+    tolerances: Tolerances,
+) -> Sensitivity:
+    """Compare a run with its perturbed copies (see :class:`Sensitivity`)."""
+    horizon = math.inf
+    q_noise = time_noise = dist_noise = energy_noise = 0.0
+    records = [nominal]
+    for rec, (tm, qm) in members:
+        records.append(rec)
+        if rec.status != nominal.status or rec.status != "ok":
+            horizon = 0.0
+            continue
+        # Events: the first one where the sequences differ is a branch.
+        ka, kb = nominal.event_kinds, rec.event_kinds
+        n_same = next(
+            (i for i, (a, b) in enumerate(zip(ka, kb, strict=False)) if a != b),
+            min(len(ka), len(kb)),
+        )
+        if n_same < max(len(ka), len(kb)):
+            later = [
+                *nominal.event_times[n_same : n_same + 1],
+                *rec.event_times[n_same : n_same + 1],
+            ]
+            horizon = min(horizon, min(later))
+        for i in range(n_same):
+            time_noise = max(time_noise, abs(nominal.event_times[i] - rec.event_times[i]))
+        # Trajectories on their common samples.
+        t, q = traj
+        n = min(len(t), len(tm))
+        dev = np.abs(qm[:n] - q[:n]).max(axis=1) if n else np.zeros(0)
+        out = np.flatnonzero(dev > tolerances.q)
+        if len(out):
+            horizon = min(horizon, float(t[out[0]]))
+        before = t[:n] < horizon
+        if np.any(before):
+            q_noise = max(q_noise, float(dev[before].max()))
+        if (nominal.rest_time is None) != (rec.rest_time is None):
+            known = [x for x in (nominal.rest_time, rec.rest_time) if x is not None]
+            horizon = min(horizon, *known)
+        elif nominal.rest_time is not None and rec.rest_time is not None:
+            time_noise = max(time_noise, abs(nominal.rest_time - rec.rest_time))
+        if math.isinf(nominal.min_distance) != math.isinf(rec.min_distance):
+            horizon = min(horizon, float(t[-1]))
+        elif not math.isinf(nominal.min_distance):
+            dist_noise = max(dist_noise, abs(nominal.min_distance - rec.min_distance))
+        energy_noise = max(energy_noise, abs(nominal.energy_change - rec.energy_change))
+    if math.isinf(horizon):
+        return Sensitivity(q=q_noise, time=time_noise, distance=dist_noise, energy=energy_noise)
+    ok = [r for r in records if r.status == "ok"]
+    band: dict[str, tuple[float, float]] = {}
+
+    def span(name: str, values: Sequence[float]) -> None:
+        nan = any(math.isnan(x) for x in values)  # e.g. a rest time in some runs only
+        band[name] = (math.nan, math.nan) if nan else (min(values), max(values))
+
+    for j, joint in enumerate(nominal.joint_names):
+        span(f"q.{joint}", [r.final_q[j] for r in ok])
+    span("rest_time", [math.nan if r.rest_time is None else r.rest_time for r in ok])
+    span("n_events", [float(r.n_events) for r in ok])
+    span("min_distance", [r.min_distance for r in ok])
+    span("energy_change", [r.energy_change for r in ok])
+    return Sensitivity(
+        q=q_noise,
+        time=time_noise,
+        distance=dist_noise,
+        energy=energy_noise,
+        horizon=horizon,
+        band=band,
+    )
+
+
 @dataclass(frozen=True)
 class Drift:
     """One quantity of one run that moved beyond its tolerance.
@@ -125,13 +327,18 @@ def compare(
     golden: Mapping[str, Mapping[str, Any]],
     new: Mapping[str, RunRecord],
     tolerances: Tolerances | None = None,
+    trajectories: Mapping[str, Trajectory] | None = None,
 ) -> list[Drift]:
     """The quantities that moved between golden and new results.
 
     Args:
-        golden: Run id -> golden quantities (:func:`read_golden`).
+        golden: Run id -> golden quantities (:func:`read_golden`), with their checkpoints and
+            sensitivity where the golden file has them.
         new: Run id -> new record.
-        tolerances: Absolute tolerances (default: :class:`Tolerances`).
+        tolerances: Absolute tolerances (default: :class:`Tolerances`); each is widened to
+            :data:`NOISE_FACTOR` times the run's measured noise where that is larger.
+        trajectories: Run id -> the new run's trajectory (:func:`read_trajectories`), to check
+            the golden checkpoints; None: the checkpoints are not checked.
 
     Returns:
         The drifts, by run (golden order, then the new runs), empty when everything matches.
@@ -143,25 +350,76 @@ def compare(
         if rid not in new:
             drifts.append(Drift(rid, "run", "present", "missing"))
             continue
-        g = RunRecord.from_json({"format": RECORD_FORMAT, "index": 0, **gdata, "id": rid})
-        drifts += _compare_run(g, new[rid], tol)
+        quantities = {k: v for k, v in gdata.items() if k not in _GOLDEN_EXTRAS}
+        g = RunRecord.from_json({"format": RECORD_FORMAT, "index": 0, **quantities, "id": rid})
+        sens = Sensitivity.from_json(gdata.get("sensitivity", {}))
+        drifts += _compare_run(g, new[rid], _widened(tol, sens), sens)
+        if trajectories is not None and rid in trajectories and g.status == new[rid].status:
+            drifts += _compare_checkpoints(
+                rid, gdata.get("checkpoints"), trajectories[rid], g.joint_names, tol, sens
+            )
     drifts += [Drift(rid, "run", "missing", "present") for rid in new if rid not in golden]
     return drifts
 
 
-def _compare_run(g: RunRecord, n: RunRecord, tol: Tolerances) -> list[Drift]:
+#: Keys of a golden run that are not record quantities.
+_GOLDEN_EXTRAS = ("checkpoints", "sensitivity")
+
+
+def _widened(tol: Tolerances, sens: Sensitivity) -> Tolerances:
+    """Each tolerance at least NOISE_FACTOR times the run's measured noise."""
+    return Tolerances(
+        q=max(tol.q, NOISE_FACTOR * sens.q),
+        time=max(tol.time, NOISE_FACTOR * sens.time),
+        distance=max(tol.distance, NOISE_FACTOR * sens.distance),
+        energy=max(tol.energy, NOISE_FACTOR * sens.energy),
+    )
+
+
+def _compare_checkpoints(
+    rid: str,
+    stored: Mapping[str, Any] | None,
+    traj: Trajectory,
+    joints: Sequence[str],
+    tol: Tolerances,
+    sens: Sensitivity,
+) -> list[Drift]:
+    """The new trajectory at the golden checkpoints before the horizon: the worst joint."""
+    if not stored:
+        return []
+    limit = max(tol.q, NOISE_FACTOR * sens.q)
+    horizon = math.inf if sens.horizon is None else sens.horizon
+    t_new, q_new = traj
+    worst: tuple[float, int, int, float, float] | None = None
+    for tk, qk in zip(stored["t"], stored["q"], strict=True):
+        if tk >= horizon:
+            break
+        i = int(np.searchsorted(t_new, tk - 1e-9))
+        if i >= len(t_new) or abs(t_new[i] - tk) > 1e-9:
+            return [Drift(rid, f"q(t={tk:g})", "a sample", "no sample")]
+        diff = np.abs(q_new[i] - np.asarray(qk))
+        j = int(np.argmax(diff))
+        if worst is None or diff[j] > worst[0]:
+            worst = (float(diff[j]), j, i, float(qk[j]), float(q_new[i][j]))
+    if worst is None or worst[0] <= limit:
+        return []
+    diff, j, i, a, b = worst
+    return [Drift(rid, f"q(t={t_new[i]:g}).{joints[j]}", _fmt(a), _fmt(b), diff, limit)]
+
+
+def _compare_run(g: RunRecord, n: RunRecord, tol: Tolerances, sens: Sensitivity) -> list[Drift]:
     rid = g.id
     out: list[Drift] = []
     if g.status != n.status:
         return [Drift(rid, "status", g.status, f"{n.status} {n.error}".strip())]
     if g.status != "ok":
         return out
-    gq = dict(zip(g.joint_names, g.final_q, strict=True))
-    nq = dict(zip(n.joint_names, n.final_q, strict=True))
-    if list(gq) != list(nq):
-        out.append(Drift(rid, "joint_names", " ".join(gq), " ".join(nq)))
-    for joint in (j for j in gq if j in nq):
-        out += _number(rid, f"q.{joint}", gq[joint], nq[joint], tol.q)
+    if list(g.joint_names) != list(n.joint_names):
+        return [Drift(rid, "joint_names", " ".join(g.joint_names), " ".join(n.joint_names))]
+    if sens.horizon is not None:
+        return _compare_chaotic(g, n, tol, sens)
+    for joint, a, b in zip(g.joint_names, g.final_q, n.final_q, strict=True):
+        out += _number(rid, f"q.{joint}", a, b, tol.q)
     if (g.rest_time is None) != (n.rest_time is None):
         out.append(Drift(rid, "rest_time", _fmt(g.rest_time), _fmt(n.rest_time)))
     elif g.rest_time is not None and n.rest_time is not None:
@@ -170,27 +428,70 @@ def _compare_run(g: RunRecord, n: RunRecord, tol: Tolerances) -> list[Drift]:
     for kind in sorted(gk.keys() | nk.keys()):
         if gk[kind] != nk[kind]:
             out.append(Drift(rid, f"events.{kind}", str(gk[kind]), str(nk[kind])))
-    if gk == nk and g.event_kinds != n.event_kinds:
-        k = next(
-            i for i, (a, b) in enumerate(zip(g.event_kinds, n.event_kinds, strict=True)) if a != b
-        )
-        out.append(Drift(rid, f"event[{k}].kind", g.event_kinds[k], n.event_kinds[k]))
-    elif g.event_kinds == n.event_kinds and g.event_times:
-        diffs = [abs(a - b) for a, b in zip(g.event_times, n.event_times, strict=True)]
-        k = max(range(len(diffs)), key=diffs.__getitem__)
-        if not diffs[k] <= tol.time:
-            out.append(
-                Drift(
-                    rid,
-                    f"event[{k}].t ({g.event_kinds[k]})",
-                    _fmt(g.event_times[k]),
-                    _fmt(n.event_times[k]),
-                    diffs[k],
-                    tol.time,
-                )
-            )
+    if gk == nk:
+        out += _compare_events(rid, g, n, math.inf, tol.time)
     out += _number(rid, "min_distance", g.min_distance, n.min_distance, tol.distance)
     out += _number(rid, "energy_change", g.energy_change, n.energy_change, tol.energy)
+    return out
+
+
+def _compare_events(
+    rid: str, g: RunRecord, n: RunRecord, before: float, tol_time: float
+) -> list[Drift]:
+    """The events before ``before`` [s]: the same kinds in order, each time within tol_time."""
+    gi = [i for i, t in enumerate(g.event_times) if t < before]
+    ni = [i for i, t in enumerate(n.event_times) if t < before]
+    kinds_g = [g.event_kinds[i] for i in gi]
+    kinds_n = [n.event_kinds[i] for i in ni]
+    if kinds_g != kinds_n:
+        k = next(
+            (i for i, (a, b) in enumerate(zip(kinds_g, kinds_n, strict=False)) if a != b),
+            min(len(kinds_g), len(kinds_n)),
+        )
+        a = kinds_g[k] if k < len(kinds_g) else "none"
+        b = kinds_n[k] if k < len(kinds_n) else "none"
+        return [Drift(rid, f"event[{k}].kind", a, b)]
+    if not gi:
+        return []
+    diffs = [abs(g.event_times[i] - n.event_times[j]) for i, j in zip(gi, ni, strict=True)]
+    k = max(range(len(diffs)), key=diffs.__getitem__)
+    if diffs[k] <= tol_time:
+        return []
+    return [
+        Drift(
+            rid,
+            f"event[{k}].t ({kinds_g[k]})",
+            _fmt(g.event_times[gi[k]]),
+            _fmt(n.event_times[ni[k]]),
+            diffs[k],
+            tol_time,
+        )
+    ]
+
+
+def _compare_chaotic(g: RunRecord, n: RunRecord, tol: Tolerances, sens: Sensitivity) -> list[Drift]:
+    """A run with a horizon: its events before it; its final quantities on their band."""
+    assert sens.horizon is not None
+    rid = g.id
+    out = _compare_events(rid, g, n, sens.horizon, tol.time)
+    new_values: dict[str, float] = {
+        **{f"q.{j}": x for j, x in zip(n.joint_names, n.final_q, strict=True)},
+        "rest_time": math.nan if n.rest_time is None else n.rest_time,
+        "n_events": float(n.n_events),
+        "min_distance": n.min_distance,
+        "energy_change": n.energy_change,
+    }
+    absolute = {"rest_time": tol.time, "n_events": 0.0, "min_distance": tol.distance}
+    for name, (lo, hi) in sens.band.items():
+        x = new_values.get(name, math.nan)
+        if math.isnan(lo) or math.isnan(hi):  # a rest time in some copies, none in others
+            continue
+        pad = (hi - lo) + absolute.get(name, tol.energy if name == "energy_change" else tol.q)
+        if lo == hi == x or lo - pad <= x <= hi + pad:
+            continue
+        out.append(
+            Drift(rid, f"{name} (band)", f"[{_fmt(lo)}, {_fmt(hi)}]", _fmt(x), math.nan, pad)
+        )
     return out
 
 
@@ -268,9 +569,14 @@ def read_golden(folder: str | Path) -> tuple[str, dict[str, dict[str, Any]]]:
     path = Path(folder) / "results.json"
     if not path.is_file():
         raise ResourceNotFound(path, "create the golden results with `packbot regress --update`")
-    data = json.loads(path.read_text())
-    if data.get("format") != GOLDEN_FORMAT:
-        raise ConfigurationError(f"{path}: format", data.get("format"), repr(GOLDEN_FORMAT))
+    try:
+        data = json.loads(path.read_text())
+    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+        raise ConfigurationError(str(path), "unreadable", f"a golden results file ({exc})") from exc
+    valid = (GOLDEN_FORMAT, *LEGACY_GOLDEN_FORMATS)
+    if not isinstance(data, dict) or data.get("format") not in valid:
+        fmt = data.get("format") if isinstance(data, dict) else type(data).__name__
+        raise ConfigurationError(f"{path}: format", fmt, valid)
     return str(data["matrix"]), dict(data["runs"])
 
 
@@ -280,8 +586,18 @@ def write_golden(
     runs: Sequence[Run],
     records: Mapping[str, RunRecord],
     tolerances: Tolerances | None = None,
+    extras: Mapping[str, Mapping[str, Any]] | None = None,
 ) -> list[Path]:
     """Write ``results.json`` and ``summary.csv`` for the runs that have a record.
+
+    Args:
+        folder: The matrix's golden folder.
+        matrix_name: The matrix's name.
+        runs: The runs, in matrix order.
+        records: Run id -> record.
+        tolerances: The tolerances (stored for the reader).
+        extras: Run id -> ``{"checkpoints": ..., "sensitivity": ...}`` (see
+            :func:`run_regression`), stored with the run's quantities.
 
     Returns:
         The files written.
@@ -289,11 +605,17 @@ def write_golden(
     out = Path(folder)
     out.mkdir(parents=True, exist_ok=True)
     kept = [r for r in runs if r.id in records]
+    more = extras or {}
     data = {
         "format": GOLDEN_FORMAT,
         "matrix": matrix_name,
         "tolerances": asdict(tolerances or Tolerances()),
-        "runs": {r.id: records[r.id].quantities() for r in kept},
+        "noise": {
+            "perturbations": [[k, f] for k, f in PERTURBATIONS],
+            "factor": NOISE_FACTOR,
+            "checkpoint_dt": CHECKPOINT_DT,
+        },
+        "runs": {r.id: {**records[r.id].quantities(), **more.get(r.id, {})} for r in kept},
     }
     results = out / "results.json"
     atomic_write(results, _golden_json(data).encode())
@@ -386,19 +708,21 @@ def run_regression(
         golden = read_golden(folder)[1]
     elif not update:
         read_golden(folder)  # raises ResourceNotFound with the hint
+    batch_args: dict[str, Any] = {
+        "workers": workers,
+        "scheduler": scheduler,
+        "runner": runner,
+        "progress": progress,
+    }
     with tempfile.TemporaryDirectory(prefix=f"packbot-regress-{matrix.name}-") as tmp:
-        out = Path(tmp) if out_dir is None else Path(out_dir)
-        batch = run_batch(
-            matrix,
-            out,
-            runs=runs,
-            workers=workers,
-            scheduler=scheduler,
-            runner=runner,
-            progress=progress,
-        )
-    records = {r.id: batch.records[r.id] for r in batch.runs if r.id in batch.records}
-    drifts = [] if golden is None else compare(golden, records, tol)
+        out = Path(tmp) / "nominal" if out_dir is None else Path(out_dir)
+        batch = run_batch(matrix, out, runs=runs, **batch_args)
+        records = {r.id: batch.records[r.id] for r in batch.runs if r.id in batch.records}
+        trajectories = read_trajectories(out, records)
+        extras: dict[str, dict[str, Any]] = {}
+        if update:
+            extras = _measure(matrix, batch.runs, records, trajectories, tol, Path(tmp), batch_args)
+    drifts = [] if golden is None else compare(golden, records, tol, trajectories)
     result = RegressionResult(
         matrix=matrix.name,
         drifts=drifts,
@@ -407,5 +731,64 @@ def run_regression(
         had_golden=golden is not None,
     )
     if update:
-        result.written = write_golden(folder, matrix.name, batch.runs, records, tol)
+        result.written = write_golden(folder, matrix.name, batch.runs, records, tol, extras)
     return result
+
+
+def _measure(
+    matrix: Matrix,
+    runs: Sequence[Run],
+    records: Mapping[str, RunRecord],
+    trajectories: Mapping[str, Trajectory],
+    tol: Tolerances,
+    tmp: Path,
+    batch_args: Mapping[str, Any],
+) -> dict[str, dict[str, Any]]:
+    """Each run's checkpoints and sensitivity (its perturbed copies made in ``tmp``)."""
+    made = [r for r in runs if r.id in records]
+    copies = {r.id: perturbed_runs(r) for r in made}
+    flat = [c for cs in copies.values() for c in cs]
+    members = run_batch(matrix, tmp / "perturbed", runs=flat, **batch_args)
+    member_traj = read_trajectories(tmp / "perturbed", members.records)
+    extras: dict[str, dict[str, Any]] = {}
+    for run in made:
+        rec = records[run.id]
+        entry: dict[str, Any] = {}
+        if run.id in trajectories:
+            t, q = checkpoints(trajectories[run.id], rec.t_end)
+            entry["checkpoints"] = {"t": t, "q": q}
+            pairs = [
+                (members.records[c.id], member_traj.get(c.id, _EMPTY))
+                for c in copies[run.id]
+                if c.id in members.records
+            ]
+            sens = measure_sensitivity(rec, trajectories[run.id], pairs, tol)
+            entry["sensitivity"] = sens.to_json()
+        extras[run.id] = entry
+    return extras
+
+
+_EMPTY: Trajectory = (np.zeros(0), np.zeros((0, 0)))
+
+
+def read_trajectories(
+    out_dir: str | Path, records: Mapping[str, RunRecord]
+) -> dict[str, Trajectory]:
+    """The sample times and joint positions of each record's trajectory file, where it has one.
+
+    Args:
+        out_dir: The batch folder.
+        records: Run id -> record (its ``files["trajectory"]`` is relative to ``out_dir``).
+    """
+    out: dict[str, Trajectory] = {}
+    for rid, rec in records.items():
+        name = rec.files.get("trajectory")
+        if rec.status != "ok" or not name or not name.endswith(".npz"):
+            continue  # a runner of another kind (tests' toy runner) writes no npz
+        path = Path(out_dir) / name
+        if not path.is_file():
+            continue
+        with np.load(path) as z:
+            if "t" in z and "q" in z:
+                out[rid] = (np.asarray(z["t"], dtype=float), np.asarray(z["q"], dtype=float))
+    return out

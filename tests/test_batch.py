@@ -9,6 +9,7 @@ import math
 import os
 import shutil
 import signal
+import socket
 import subprocess
 import sys
 import time
@@ -18,22 +19,44 @@ from typing import Any
 import numpy as np
 import pytest
 
+import packbot.batch as batch_module
 from packbot.batch import (
+    LOCK_NAME,
+    RERUN_CORRUPT_FILE,
+    RERUN_EDITED,
+    RERUN_FAILED,
+    RERUN_MALFORMED,
+    RERUN_MISSING_FILE,
+    RERUN_OLD_FORMAT,
+    RERUN_STALE,
+    BatchLock,
+    BatchLockedError,
     ProgressBar,
     RunRecord,
     execute,
+    file_sha256,
     read_records,
     run_batch,
     scenario_runner,
 )
 from packbot.errors import ConfigurationError, UnknownNameError
-from packbot.matrix import Matrix, Run, apply_overrides, expand, load_matrix, run_id, set_dotted
+from packbot.matrix import (
+    Matrix,
+    Run,
+    apply_overrides,
+    expand,
+    load_matrix,
+    parse_matrix,
+    run_id,
+    set_dotted,
+)
 from packbot.regress import (
     Tolerances,
     compare,
     default_golden_dir,
     format_drifts,
     read_golden,
+    read_trajectories,
     run_regression,
 )
 
@@ -57,6 +80,8 @@ def toy_runner(run: Run, progress: Any) -> tuple[dict[str, Any], dict[str, tuple
             while True:
                 time.sleep(0.01)
                 progress(0.5)
+        if mode == "interrupt":
+            raise KeyboardInterrupt
         if mode == "die" or (mode == "die_once" and not (marker / "died").exists()):
             (marker / "died").touch()
             os.kill(os.getpid(), signal.SIGKILL)
@@ -168,6 +193,9 @@ def test_set_dotted() -> None:
         ('base = "collapse"\n[axes]\nx = [1]\n[[exclude]]\ny = 1', UnknownNameError, "'y'"),
         ('base = "collapse"\n[axes]\nx = [1]\n[tolerances]\nq = -1', ConfigurationError, "q"),
         ("base = ", ConfigurationError, "TOML"),
+        ('base = "collapse"\n[axes]\nx = [1979-05-27]', ConfigurationError, r"axes\.x.*date"),
+        ('base = "collapse"\n[axes]\nx = [1.0, inf]', ConfigurationError, r"axes\.x.*inf"),
+        ('base = "collapse"\n[set]\nx = nan\n[axes]\ny = [1]', ConfigurationError, r"set\.x"),
     ],
 )
 def test_matrix_errors(tmp_path: Path, text: str, error: type, match: str) -> None:
@@ -291,7 +319,10 @@ def test_small_matrix_matches_golden(reference) -> None:
     assert name == SMALL
     assert [r.id for r in reference.runs] == list(golden)
     tol = Tolerances.from_mapping(load_matrix(SMALL).tolerances)
-    drifts = compare(golden, reference.records, tol)
+    trajectories = read_trajectories(reference.out_dir, reference.records)
+    assert set(trajectories) == set(golden)  # the checkpoints are compared for every run
+    assert all("checkpoints" in g and "sensitivity" in g for g in golden.values())
+    drifts = compare(golden, reference.records, tol, trajectories)
     assert drifts == [], "\n" + format_drifts(drifts, len(golden))
     # The matrix exercises what it claims: impacts, a failure, runs not at rest.
     recs = list(reference.records.values())
@@ -456,3 +487,385 @@ def test_regress_cli_exit_codes(tmp_path: Path) -> None:
     assert "rest_time" in out and rid in out and "1 quantities moved in 1 runs" in out
     res = subprocess.run(_cli("regress", "--golden", str(tmp_path / "none")), capture_output=True)
     assert res.returncode == 2 and b"no golden results" in res.stderr
+
+
+# ---------------------------------------------------------------------------------- integrity
+def _record_path(out: Path, run: Run) -> Path:
+    return out / "runs" / f"{run.id}.json"
+
+
+def _ok_batch(tmp_path: Path):
+    """A finished toy batch: (matrix, runs, out, report)."""
+    m, runs = toy_runs(tmp_path)
+    out = tmp_path / "out"
+    rep = run_batch(m, out, runs=runs, workers=0, runner=toy_runner)
+    assert [rep.records[r.id].status for r in runs] == ["ok", "ok", "ok"]
+    return m, runs, out, rep
+
+
+def test_records_carry_checksums_of_their_files_and_of_themselves(tmp_path: Path) -> None:
+    _, runs, out, rep = _ok_batch(tmp_path)
+    text = _record_path(out, runs[0]).read_text()
+    assert text.startswith("{\n")  # readable, indented JSON
+    data = json.loads(text)
+    assert data["format"] == "packbot-batch-run/2"
+    path = out / data["files"]["trajectory"]
+    assert data["file_sha256"]["trajectory"] == file_sha256(path)
+    assert len(data["record_sha256"]) == 64
+    # The checksums are not part of the deterministic quantities (the golden results).
+    rec = rep.records[runs[0].id]
+    assert "file_sha256" not in rec.quantities() and "record_sha256" not in rec.quantities()
+    assert rec.file_sha256 == data["file_sha256"]
+
+
+def test_resume_reruns_a_corrupted_or_missing_trajectory(
+    tmp_path: Path, caplog: pytest.LogCaptureFixture
+) -> None:
+    m, runs, out, rep = _ok_batch(tmp_path)
+    bad = out / rep.records[runs[1].id].files["trajectory"]
+    good_bytes = bad.read_bytes()
+    bad.write_bytes(good_bytes[:-1] + b"7")  # same size, one byte changed
+    gone = out / rep.records[runs[2].id].files["trajectory"]
+    gone.unlink()
+    untouched = _record_path(out, runs[0]).read_bytes()
+    with caplog.at_level("WARNING", logger="packbot.batch"):
+        rep2 = run_batch(m, out, runs=runs, workers=0, runner=toy_runner)
+    assert rep2.rerun == {runs[1].id: RERUN_CORRUPT_FILE, runs[2].id: RERUN_MISSING_FILE}
+    assert rep2.executed == [runs[1].id, runs[2].id] and rep2.skipped == [runs[0].id]
+    assert bad.read_bytes() == good_bytes and gone.is_file()
+    assert _record_path(out, runs[0]).read_bytes() == untouched
+    text = rep2.describe()
+    assert f"rerun 2: 1 {RERUN_CORRUPT_FILE}, 1 {RERUN_MISSING_FILE}" in text
+    logged = caplog.text
+    assert runs[1].id in logged and "SHA-256" in logged and bad.name in logged
+    assert runs[2].id in logged and RERUN_MISSING_FILE in logged
+    # Now everything verifies: nothing to do.
+    rep3 = run_batch(m, out, runs=runs, workers=0, runner=toy_runner)
+    assert rep3.executed == [] and rep3.rerun == {}
+
+
+def test_resume_reruns_a_corrupted_npz_of_a_real_run(tmp_path: Path) -> None:
+    m = load_matrix(SMALL)
+    runs = m.runs()[:2]
+    rep = run_batch(m, tmp_path, runs=runs, workers=0)
+    npz = tmp_path / rep.records[runs[0].id].files["trajectory"]
+    data = bytearray(npz.read_bytes())
+    data[len(data) // 2] ^= 0x01  # one bit in the middle of the compressed trajectory
+    npz.write_bytes(bytes(data))
+    rep2 = run_batch(m, tmp_path, runs=runs, workers=0)
+    assert rep2.rerun == {runs[0].id: RERUN_CORRUPT_FILE}
+    assert rep2.executed == [runs[0].id]
+    assert rep2.records[runs[0].id].quantities() == rep.records[runs[0].id].quantities()
+    assert file_sha256(npz) == rep.records[runs[0].id].file_sha256["trajectory"]
+    with np.load(npz) as z:
+        assert z["q"].shape[0] > 1
+
+
+def _set_final_q(data: dict[str, Any]) -> None:
+    data["final_q"][0] = 123.0
+
+
+def _set_failed(data: dict[str, Any]) -> None:
+    data["status"] = "failed"
+
+
+def _add_field(data: dict[str, Any]) -> None:
+    data["note"] = "checked by hand"
+
+
+def _drop_checksum(data: dict[str, Any]) -> None:
+    del data["record_sha256"]
+
+
+def _point_elsewhere(data: dict[str, Any]) -> None:
+    data["files"]["trajectory"] = "../../elsewhere.txt"
+
+
+def _wall_time(data: dict[str, Any]) -> None:
+    data["wall_time"] = data["wall_time"] + 1.0
+
+
+@pytest.mark.parametrize(
+    "edit", [_set_final_q, _set_failed, _add_field, _drop_checksum, _point_elsewhere, _wall_time]
+)
+def test_resume_reruns_an_edited_record(tmp_path: Path, edit: Any) -> None:
+    m, runs, out, _ = _ok_batch(tmp_path)
+    path = _record_path(out, runs[1])
+    data = json.loads(path.read_text())
+    edit(data)
+    path.write_text(json.dumps(data, indent=1))
+    rep2 = run_batch(m, out, runs=runs, workers=0, runner=toy_runner)
+    assert rep2.rerun == {runs[1].id: RERUN_EDITED}
+    assert rep2.executed == [runs[1].id]
+    again = json.loads(path.read_text())
+    assert again["final_q"] == [2.0, 4.0] and again["status"] == "ok" and "note" not in again
+    assert again["files"]["trajectory"] == f"trajectories/{runs[1].id}.txt"
+    assert not (tmp_path / "elsewhere.txt").exists()
+
+
+def test_a_record_moved_to_another_run_is_rerun(tmp_path: Path) -> None:
+    m, runs, out, _ = _ok_batch(tmp_path)
+    shutil.copyfile(_record_path(out, runs[0]), _record_path(out, runs[1]))  # intact, wrong run
+    rep = run_batch(m, out, runs=runs, workers=0, runner=toy_runner)
+    assert rep.rerun == {runs[1].id: RERUN_EDITED}
+    assert rep.records[runs[1].id].final_q == (2.0, 4.0)
+
+
+@pytest.mark.parametrize(
+    "text", ["", '{"format": "packbot-batch-run/2", "id": ', "[1, 2]", "\udcff", "null"]
+)
+def test_resume_reruns_a_malformed_record(tmp_path: Path, text: str) -> None:
+    m, runs, out, _ = _ok_batch(tmp_path)
+    path = _record_path(out, runs[1])
+    path.write_bytes(text.encode("utf-8", "surrogateescape"))
+    rep = run_batch(m, out, runs=runs, workers=0, runner=toy_runner)
+    assert rep.rerun == {runs[1].id: RERUN_MALFORMED}
+    assert rep.executed == [runs[1].id]
+    assert json.loads(path.read_text())["status"] == "ok"
+
+
+def test_resume_reruns_old_records_without_checksums(
+    tmp_path: Path, caplog: pytest.LogCaptureFixture
+) -> None:
+    m, runs, out, _ = _ok_batch(tmp_path)
+    for run in runs:  # as packbot wrote them before the checksums
+        path = _record_path(out, run)
+        data = json.loads(path.read_text())
+        data["format"] = "packbot-batch-run/1"
+        del data["record_sha256"], data["file_sha256"]
+        path.write_text(json.dumps(data, indent=1))
+    assert set(read_records(out, runs)) == {r.id for r in runs}  # still readable
+    with caplog.at_level("WARNING", logger="packbot.batch"):
+        rep = run_batch(m, out, runs=runs, workers=0, runner=toy_runner)
+    assert rep.rerun == {r.id: RERUN_OLD_FORMAT for r in runs}
+    assert rep.executed == [r.id for r in runs]
+    assert f"3 runs made again: {RERUN_OLD_FORMAT}" in caplog.text
+    assert f"rerun 3: 3 {RERUN_OLD_FORMAT}" in rep.describe()
+
+
+def test_failed_and_stale_reruns_are_reported_and_leave_no_old_files(tmp_path: Path) -> None:
+    m = Matrix(name="toy", base="toy", axes={"x": [1.0, 2.0, 3.0]})
+    base = {"x": 0.0, "mode": "raise", "marker": str(tmp_path)}
+    runs = expand(m, base)
+    out = tmp_path / "out"
+    rep = run_batch(m, out, runs=runs, workers=0, runner=toy_runner)
+    old = out / rep.records[runs[1].id].files["trajectory"]
+    assert old.is_file()
+    # The base scenario changes (every run stale) and x = 2 now fails: its earlier trajectory,
+    # which belongs to no record any more, is removed.
+    (tmp_path / "fail").touch()
+    runs2 = expand(m, {**base, "y": 1})
+    rep2 = run_batch(m, out, runs=runs2, workers=0, runner=toy_runner)
+    assert rep2.rerun == {r.id: RERUN_STALE for r in runs2}
+    assert rep2.records[runs2[1].id].status == "failed"
+    assert not old.exists()
+    assert sorted(p.name for p in (out / "trajectories").iterdir()) == sorted(
+        f"{r.id}.txt" for r in (runs2[0], runs2[2])
+    )
+    (tmp_path / "fail").unlink()
+    rep3 = run_batch(m, out, runs=runs2, workers=0, runner=toy_runner)
+    assert rep3.rerun == {runs2[1].id: RERUN_FAILED} and rep3.failed == []
+    assert "rerun 1: 1 failed before" in rep3.describe()
+
+
+# ---------------------------------------------------------------------------------- lock
+_HOLDER = """
+import sys
+from packbot import batch
+batch.LOCK_WITH_FLOCK = sys.argv[2] == "flock"
+lock = batch.BatchLock(sys.argv[1])
+lock.acquire()
+print("locked", flush=True)
+sys.stdin.read()
+lock.release()
+"""
+
+
+def _hold_lock(folder: Path, mode: str) -> subprocess.Popen[str]:
+    """Another process that holds the folder's lock until its standard input is closed."""
+    folder.mkdir(parents=True, exist_ok=True)
+    proc = subprocess.Popen(
+        [sys.executable, "-c", _HOLDER, str(folder), mode],
+        stdin=subprocess.PIPE,
+        stdout=subprocess.PIPE,
+        text=True,
+    )
+    assert proc.stdout is not None and proc.stdout.readline() == "locked\n"
+    return proc
+
+
+@pytest.fixture(params=["flock", "exclusive"])
+def lock_mode(request: pytest.FixtureRequest, monkeypatch: pytest.MonkeyPatch) -> str:
+    """Both lock mechanisms: fcntl.flock (POSIX) and the exclusively created file."""
+    monkeypatch.setattr(batch_module, "LOCK_WITH_FLOCK", request.param == "flock")
+    return str(request.param)
+
+
+def test_a_second_batch_on_a_locked_folder_fails_at_once(tmp_path: Path, lock_mode: str) -> None:
+    m, runs = toy_runs(tmp_path)
+    out = tmp_path / "out"
+    holder = _hold_lock(out, lock_mode)
+    try:
+        with pytest.raises(BatchLockedError) as info:
+            run_batch(m, out, runs=runs, workers=0, runner=toy_runner)
+        msg = str(info.value)
+        assert str(out) in msg and f"pid {holder.pid}" in msg and socket.gethostname() in msg
+        assert "another --out" in msg and "\n" not in msg
+        assert info.value.holder["pid"] == holder.pid
+        assert not (out / "runs").exists() and not (out / "matrix.json").exists()  # untouched
+        # Another open of the lock in this very process is refused too (it names us).
+        with pytest.raises(BatchLockedError, match=f"pid {holder.pid}"):
+            BatchLock(out).acquire()
+    finally:
+        holder.communicate("")  # the holder releases the lock and exits
+    assert holder.returncode == 0 and not (out / LOCK_NAME).exists()
+    rep = run_batch(m, out, runs=runs, workers=0, runner=toy_runner)
+    assert len(rep.executed) == 3 and not (out / LOCK_NAME).exists()
+
+
+def test_a_batch_in_this_process_holds_the_lock(tmp_path: Path, lock_mode: str) -> None:
+    m, runs = toy_runs(tmp_path)
+    out = tmp_path / "out"
+    out.mkdir()
+    with BatchLock(out) as lock:
+        assert lock.held and (out / LOCK_NAME).is_file()
+        with pytest.raises(BatchLockedError, match=f"pid {os.getpid()} on host"):
+            run_batch(m, out, runs=runs, workers=0, runner=toy_runner)
+    assert not lock.held and not (out / LOCK_NAME).exists()
+    # Released however the batch ends, e.g. interrupted (Ctrl-C) in the middle.
+    m, runs = toy_runs(tmp_path, "interrupt")
+    with pytest.raises(KeyboardInterrupt):
+        run_batch(m, out, runs=runs, workers=0, runner=toy_runner)
+    assert not (out / LOCK_NAME).exists()
+    assert len(read_records(out, runs)) == 1  # x = 1 was finished and kept
+
+
+def test_a_stale_lock_is_taken_over_with_a_warning(
+    tmp_path: Path, lock_mode: str, caplog: pytest.LogCaptureFixture
+) -> None:
+    m, runs = toy_runs(tmp_path)
+    out = tmp_path / "out"
+    holder = _hold_lock(out, lock_mode)
+    holder.kill()  # kill -9: no clean-up, the lock file stays
+    holder.communicate()
+    assert (out / LOCK_NAME).is_file()
+    assert json.loads((out / LOCK_NAME).read_text())["pid"] == holder.pid
+    with caplog.at_level("WARNING", logger="packbot.batch"):
+        rep = run_batch(m, out, runs=runs, workers=0, runner=toy_runner)
+    assert len(rep.executed) == 3
+    assert "stale lock" in caplog.text and f"pid {holder.pid}" in caplog.text
+    assert not (out / LOCK_NAME).exists()
+
+
+def test_a_lock_left_by_another_host_is_refused(tmp_path: Path, lock_mode: str) -> None:
+    m, runs = toy_runs(tmp_path)
+    out = tmp_path / "out"
+    out.mkdir()
+    info = {"pid": 4242, "host": "not-" + socket.gethostname(), "started": "2026-01-01"}
+    (out / LOCK_NAME).write_text(json.dumps(info))
+    with pytest.raises(BatchLockedError, match="pid 4242 on host not-") as exc:
+        run_batch(m, out, runs=runs, workers=0, runner=toy_runner)
+    if lock_mode == "flock":
+        assert "another machine" in str(exc.value) and f"remove {out / LOCK_NAME}" in str(exc.value)
+    assert json.loads((out / LOCK_NAME).read_text()) == info  # left alone
+
+
+def test_batch_cli_on_a_locked_folder_exits_2_with_one_line(tmp_path: Path) -> None:
+    out = tmp_path / "out"
+    holder = _hold_lock(out, "flock")
+    try:
+        res = subprocess.run(
+            _cli("batch", SMALL, "--out", str(out), "--workers", "0", "--no-progress"),
+            capture_output=True,
+            text=True,
+            timeout=120,
+        )
+    finally:
+        holder.communicate("")
+    assert res.returncode == 2, res.stderr
+    lines = res.stderr.strip().splitlines()
+    assert len(lines) == 1 and "Traceback" not in res.stderr
+    assert str(out) in lines[0] and f"pid {holder.pid}" in lines[0]
+    assert socket.gethostname() in lines[0]
+    assert not (out / "runs").exists()
+
+
+# ---------------------------------------------------------------------------------- matrix
+_TOY_MATRIX = """
+name = "toy"
+base = "toy"
+[axes]
+x = [1.0, 2.0, 3.0]
+"""
+
+
+def _toy_matrix(text: str) -> tuple[Matrix, list[Run]]:
+    m = parse_matrix(text)
+    return m, expand(m, {"x": 0.0, "mode": "ok", "marker": "/nonexistent"})
+
+
+def test_a_different_matrix_in_a_batch_folder_is_refused(tmp_path: Path) -> None:
+    m, runs = _toy_matrix(_TOY_MATRIX)
+    out = tmp_path / "out"
+    run_batch(m, out, runs=runs, workers=0, runner=toy_runner)
+    stored = json.loads((out / "matrix.json").read_text())
+    assert stored["sha256"] == m.content_digest() and stored["matrix"]["name"] == "toy"
+    before = {p: p.read_bytes() for p in out.rglob("*") if p.is_file()}
+    others = [
+        _TOY_MATRIX.replace("[1.0, 2.0, 3.0]", "[1.0, 2.0]"),  # fewer runs
+        _TOY_MATRIX.replace("[1.0, 2.0, 3.0]", "[1.0, 2.0, 3.0, 4.0]"),  # more runs
+        _TOY_MATRIX.replace('base = "toy"', 'base = "other"'),
+        _TOY_MATRIX.replace('name = "toy"', 'name = "toy2"'),
+        _TOY_MATRIX + "[set]\nduration = 2.0\n",
+        _TOY_MATRIX + "y = [0, 1]\n",
+    ]
+    for text in others:
+        m2, runs2 = _toy_matrix(text)
+        with pytest.raises(ConfigurationError) as info:
+            run_batch(m2, out, runs=runs2, workers=0, runner=toy_runner)
+        msg = str(info.value)
+        assert str(out) in msg and "another --out" in msg and "remove the folder" in msg, msg
+        named = "matrix 'toy', not 'toy2'" if "toy2" in text else "another version of matrix 'toy'"
+        assert named in msg, msg
+    assert {p: p.read_bytes() for p in out.rglob("*") if p.is_file()} == before  # untouched
+    # The axes' order is the runs' order: another matrix too.
+    m3 = Matrix(name="toy", base="toy", axes={"x": [1.0, 2.0, 3.0], "y": [0, 1]})
+    m4 = Matrix(name="toy", base="toy", axes={"y": [0, 1], "x": [1.0, 2.0, 3.0]})
+    assert m3.content_digest() != m4.content_digest()
+    # A folder of an older packbot (matrix.toml, no matrix.json) is checked against its text.
+    (out / "matrix.json").unlink()
+    with pytest.raises(ConfigurationError, match=r"differ in: axes; stored in matrix\.toml"):
+        run_batch(_toy_matrix(others[0])[0], out, runs=runs, workers=0, runner=toy_runner)
+    rep = run_batch(m, out, runs=runs, workers=0, runner=toy_runner)
+    assert rep.skipped == [r.id for r in runs] and (out / "matrix.json").is_file()
+
+
+def test_the_same_matrix_written_differently_is_accepted(tmp_path: Path) -> None:
+    m, runs = _toy_matrix(_TOY_MATRIX)
+    out = tmp_path / "out"
+    run_batch(m, out, runs=runs, workers=0, runner=toy_runner)
+    same = """
+    # The same runs: comments, layout, quoting, a description and tolerances do not count.
+    base   =   'toy'       # the base
+    name = "toy"
+    description = "a toy matrix"
+
+    [axes]
+    "x" = [ 1.0,
+            2.0,
+            3.0 ]   # three values
+
+    [tolerances]
+    q = 1e-3
+    """
+    m2, runs2 = _toy_matrix(same)
+    assert m2.content_digest() == m.content_digest()
+    rep = run_batch(m2, out, runs=runs2, workers=0, runner=toy_runner)
+    assert rep.skipped == [r.id for r in runs] and rep.executed == []
+    assert (out / "matrix.toml").read_text() == same  # the newest text of the same matrix
+    # A matrix built in Python (no file) is checked the same way.
+    m3 = Matrix(name="toy", base="toy", axes={"x": [1.0, 2.0, 3.0]})
+    assert run_batch(m3, out, runs=runs, workers=0, runner=toy_runner).executed == []
+    m4 = Matrix(name="toy", base="toy", axes={"x": [1.0, 2.5]})
+    with pytest.raises(ConfigurationError, match="another version of matrix 'toy'.*in: axes;"):
+        run_batch(m4, out, runs=runs, workers=0, runner=toy_runner)

@@ -53,16 +53,21 @@ def impact_reset(
         rule: ``"zero"`` or ``"momentum"`` (see the module docstring).
         minv: M^-1 at the impact configuration (``"momentum"`` only).
     """
-    out = v.copy()
     if len(relevant) == 0:
-        return out
+        return v.copy()
     if rule == "zero":
+        out = v.copy()
         out[relevant] = -e * v[relevant]
         return out
     assert minv is not None
     W = minv[np.ix_(relevant, relevant)]
     P = np.linalg.solve(W, -(1.0 + e) * v[relevant])  # impulsive torques [N m s]
-    return v + minv[:, relevant] @ P
+    out = v + minv[:, relevant] @ P
+    # The impulse is solved for v_R+ = -e v_R-: write that exactly. The solve leaves rounding
+    # residue (~1e-16 rad/s) whose sign would otherwise decide whether a stopped joint counts
+    # as moving away from its stop, a branch that another machine's rounding takes the other way.
+    out[relevant] = -e * v[relevant]
+    return out
 
 
 #: Below this joint speed [rad/s] the ``"velocity"`` rule has no direction to read (a joint
