@@ -36,7 +36,7 @@ from __future__ import annotations
 import logging
 import math
 import time
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -51,38 +51,24 @@ from packbot.contact.handoff import HandoffContacts
 from packbot.contact.locks import TORQUE_BAND
 from packbot.contact.normal import PENETRATION_TOL, NormalContacts
 from packbot.control.base import Controller
+from packbot.drive import Drive, TorqueFunction
 from packbot.environment import Environment
-from packbot.errors import (
-    ConfigurationError,
-    ControllerError,
-    InitialCollisionError,
-    SimulationError,
-    UnknownNameError,
-)
-from packbot.failures import Failure, validate_failures
+from packbot.errors import ControllerError, InitialCollisionError, SimulationError
+from packbot.failures import Failure
+from packbot.inputs import check_inputs, warn_settings
 from packbot.model import Robot
 from packbot.ode import DenseSegment, RK45Stepper, StepSizeUnderflow, locate_root
 from packbot.payload import Payload
+from packbot.recorder import EventLog, Recorder, Sample, measure
 from packbot.result import Diagnostics, Event, SimResult, rest_time
+from packbot.schedule import Schedule, freeze_impulse, momentum_kept
 from packbot.system import System
-from packbot.validation import (
-    CONTROL_DT_MIN,
-    MAX_SAMPLES,
-    MAX_STEPS,
-    boolean,
-    finite_number,
-    joint_names,
-    real_array,
-)
 
 __all__ = ["EVENT_XTOL", "TorqueFunction", "simulate"]
 
 log = logging.getLogger(__name__)
 
 FloatArray = NDArray[np.float64]
-#: A continuous-time controller: joint torques [N*m] (shape (nv,), full coordinates) from
-#: t [s], q [rad], v [rad/s]; a smooth, stateless function.
-TorqueFunction = Callable[[float, FloatArray, FloatArray], Any]
 #: Joint speed below which a joint with Coulomb friction counts as stopped (it may stick) [rad/s].
 STICK_SPEED = 1e-9
 
@@ -140,36 +126,24 @@ class _Run:
         self.duration = duration
         self.robot = robot
         self.environment = environment
-        self.ctrl_obj = controller if isinstance(controller, Controller) else None
-        self.ctrl_fn = None if isinstance(controller, Controller) else controller
+        self.drive = Drive(robot, config, controller)
+        self.ctrl_obj = self.drive.ctrl_obj
         self.inform = inform_controller
         self.progress = progress
         self.payload = payload
         self.payload_on = False
         self.failures_in: list[Failure] = []
         self.frozen: list[str] = []
-        self.lag = config.motor_lag > 0.0
-        nv_full = robot.nq
-        self.tau_hold_full = np.zeros(nv_full)  # the held command of a sampled-data controller
-        # Scheduled actions, (time, order, what): failures first, then the payload, then ticks.
-        self.schedule: list[tuple[float, int, Any]] = [(f.t, 0, f) for f in failures]
-        if payload is not None:
-            self.schedule.append((payload.t_pick, 1, "pick"))
-            if payload.t_drop is not None:
-                self.schedule.append((payload.t_drop, 1, "drop"))
-        self.schedule.sort(key=lambda x: (x[0], x[1]))
-        self.next_tick = 0.0 if self.ctrl_obj is not None else math.inf
-        self.ticks = 0
-        self.events: list[Event] = []
+        self.lag = self.drive.lag
+        self.schedule = Schedule(failures, payload, self.ctrl_obj)
+        self.events = EventLog(config.max_events)
         self.diag = Diagnostics()
-        self.samples: list[tuple[Any, ...]] = []  # (q, v, tau_cmd, tau, tau_friction, effort, E)
-        self.samples_t: list[float] = []
-        self.next_sample = 0
+        self.rec = Recorder(config.sample_dt, duration, self.measure)
         self.stepper = RK45Stepper(
             self.rhs, rtol=config.rtol, atol=config.atol, h_max=config.max_step
         )
         self.t = 0.0
-        tau_m0 = np.zeros(nv_full)
+        tau_m0 = np.zeros(robot.nq)
         self.build_phase(np.asarray(q0, dtype=float), np.asarray(v0, dtype=float), tau_m0)
 
     # ------------------------------------------------------------------ phases
@@ -180,13 +154,9 @@ class _Run:
         payload = self.payload if self.payload_on else None
         self.sys = System(self.robot, qf, cfg, self.environment, locked=locked, payload=payload)
         self.n = self.sys.nv
-        self.path = TorquePath.build(self.robot.params, self.sys.free, cfg, self.failures_in)
+        self.drive.phase(self.sys, self.failures_in)
         self.locks = JointLocks()
         self.active: dict[tuple[Any, ...], _Active] = {}
-        self.fdir = np.zeros(self.n)  # sliding direction of each joint with Coulomb friction
-        self.tau_zero = np.zeros(self.n)
-        self.zero_full = np.zeros(self.robot.nq)
-        self.tau_hold = self.sys.reduce(self.tau_hold_full)
         parts = [self.sys.reduce(qf), self.sys.reduce(vf)]
         if self.lag:
             parts.append(self.sys.reduce(tau_mf))
@@ -225,51 +195,21 @@ class _Run:
         return qf, vf, tau_m
 
     # ------------------------------------------------------------------ dynamics
-    def command(self, t: float, q: FloatArray, v: FloatArray) -> FloatArray:
-        """Commanded torque on the integrated joints [N*m]."""
-        if self.ctrl_fn is not None:
-            qf, vf = self.sys.q_full(q), self.sys.v_full(v)
-            try:
-                tau = np.asarray(self.ctrl_fn(t, qf, vf), dtype=float)
-            except Exception as exc:
-                raise ControllerError(f"raised {type(exc).__name__}: {exc}", t) from exc
-            return self.check_torque(tau, t)[self.sys.free]
-        if self.ctrl_obj is not None:
-            return self.tau_hold
-        return self.tau_zero
+    @property
+    def path(self) -> TorquePath:
+        return self.drive.path
 
-    def check_torque(self, tau: FloatArray, t: float) -> FloatArray:
-        nq = self.robot.nq
-        if tau.shape != (nq,):
-            raise ControllerError(f"returned shape {tau.shape}, expected ({nq},)", t)
-        if not np.all(np.isfinite(tau)):
-            bad = self.robot.joint_names[int(np.flatnonzero(~np.isfinite(tau))[0])]
-            raise ControllerError(f"returned a non-finite torque for joint {bad!r}", t, bad)
-        return tau
-
-    def torques(
-        self, t: float, y: FloatArray
-    ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
-        """(command, motor target, applied motor torque, friction) [N*m] at (t, y)."""
-        n = self.n
-        q, v = y[:n], y[n : 2 * n]
-        cmd = self.command(t, q, v)
-        path = self.path
-        if cmd is self.tau_zero and not self.lag and path.passive:  # the collapse: fast path
-            return cmd, cmd, cmd, path.friction(v, self.fdir) if path.rubs else cmd
-        target = self.path.target(cmd)
-        tau_m = y[2 * n :] if self.lag else target
-        return cmd, target, self.path.applied(tau_m), self.path.friction(v, self.fdir)
+    @property
+    def fdir(self) -> FloatArray:
+        return self.drive.fdir
 
     def free_accel(self, t: float, y: FloatArray) -> FloatArray:
-        n = self.n
-        _, _, applied, friction = self.torques(t, y)
-        return self.sys.aba(y[:n], y[n : 2 * n], applied + friction)
+        return self.drive.free_accel(t, y)
 
     def rhs(self, t: float, y: FloatArray) -> FloatArray:
         n = self.n
         q, v = y[:n], y[n : 2 * n]
-        _, target, applied, friction = self.torques(t, y)
+        _, target, applied, friction = self.drive.torques(t, y)
         a = self.sys.aba(q, v, applied + friction)
         if self.locks.any_locked:
             a = self.locks.accelerations(a, self.sys.minv(q))
@@ -287,58 +227,19 @@ class _Run:
         return self.locks.conditions(a, minv)
 
     # ------------------------------------------------------------------ recording
-    def record(self, seg: DenseSegment, t_end: float) -> None:
-        dt = self.cfg.sample_dt
-        while True:
-            ts = self.next_sample * dt
-            if ts > t_end + 1e-12 or ts > self.duration + 1e-12:
-                break
-            self.record_point(ts, seg(min(max(ts, seg.t0), seg.t1)))
-            self.next_sample += 1
+    def measure(self, t: float, y: FloatArray) -> Sample:
+        return measure(t, y, self.drive, self.held_friction)
 
-    def record_due(self, t: float, y: FloatArray) -> None:
-        """Keep the regular samples due at t (within 1e-12 s) from the state y at t."""
-        dt = self.cfg.sample_dt
-        while self.next_sample * dt <= min(t, self.duration) + 1e-12:
-            self.record_point(self.next_sample * dt, y)
-            self.next_sample += 1
-
-    def record_final(self) -> None:
-        """Keep the final state as a sample if the last one is earlier (within 1e-12 s).
-
-        The regular samples fall on multiples of ``sample_dt``; when it does not divide the
-        duration (or exceeds it) the last of them is before the end, and the final state is
-        kept here, at t = duration (the last interval is then shorter). A run whose duration
-        is a multiple of ``sample_dt`` already ends on a sample and is unchanged.
-        """
-        if not self.samples_t or self.samples_t[-1] < self.duration - 1e-12:
-            self.record_point(self.duration, self.y)
-
-    def record_point(self, t: float, y: FloatArray) -> None:
-        """Keep a sample: full q, v, the torques and the energy at (t, y)."""
-        n = self.n
-        q, v = y[:n], y[n : 2 * n]
-        cmd, _, applied, friction = self.torques(t, y)
+    def held_friction(
+        self, q: FloatArray, v: FloatArray, applied: FloatArray, friction: FloatArray
+    ) -> FloatArray:
         if self.locks.held:
             friction = friction.copy()
             a_free = self.sys.aba(q, v, applied + friction)
             _, lam = self.locks.torques(a_free, self.sys.minv(q))
             for j in self.locks.held:
                 friction[j] = lam[j]
-        qf, vf, _ = self.full_state(y)
-        zero = self.zero_full  # shared by the samples of a torque-free run (never written)
-        free = self.sys.free
-        if cmd is self.tau_zero and applied is cmd and friction is cmd:
-            cmd_f = app_f = fr_f = zero
-        else:
-            cmd_f, app_f, fr_f = zero.copy(), zero.copy(), zero.copy()
-            cmd_f[free], app_f[free], fr_f[free] = cmd, applied, friction
-        if self.ctrl_obj is not None:
-            cmd_f = self.tau_hold_full.copy()
-        eff = self.robot.params.effort.copy()
-        eff[free] = self.path.effort
-        self.samples_t.append(t)
-        self.samples.append((qf, vf, cmd_f, app_f, fr_f, eff, self.energy(q, v)))
+        return friction
 
     # ------------------------------------------------------------------ events
     def distance(self, pair: int, y: FloatArray) -> float:
@@ -893,7 +794,7 @@ class _Run:
                 self.active.pop(("limit", j, side))
         lim = self.sys.upper[j] if side > 0 else self.sys.lower[j]
         ev_before, ev_after = self.energy(q, v), self.energy(q, v_new)
-        self.events.append(
+        self.events.log(
             Event(
                 t,
                 "limit",
@@ -907,7 +808,8 @@ class _Run:
                 self.sys.v_full(v_new),
                 ev_before,
                 ev_after,
-            )
+            ),
+            count=False,
         )
         return v_new
 
@@ -924,7 +826,7 @@ class _Run:
                     self.normal.remove_limit(j, side)
                 self.active.pop(key)
                 energy = self.energy(y[:n], y[n : 2 * n])
-                self.events.append(
+                self.events.log(
                     Event(
                         self.t,
                         "release",
@@ -936,7 +838,8 @@ class _Run:
                         v_after=self.sys.v_full(y[n : 2 * n]),
                         energy_before=energy,
                         energy_after=energy,
-                    )
+                    ),
+                    count=False,
                 )
                 self.apply_clamps()
 
@@ -965,7 +868,7 @@ class _Run:
     ) -> None:
         e0 = self.energy(q, v0)
         e1 = e0 if v1 is v0 else self.energy(q, v1)
-        self.events.append(
+        self.events.log(
             Event(
                 t,
                 kind,
@@ -981,12 +884,6 @@ class _Run:
                 e1,
             )
         )
-        if len(self.events) > self.cfg.max_events:
-            raise SimulationError(
-                f"more than max_events={self.cfg.max_events} events (a Zeno sequence or "
-                "chattering contact?)",
-                t,
-            )
 
     # ------------------------------------------------------------------ loop
     def initial_contacts(self, t: float, check: bool) -> None:
@@ -1029,16 +926,11 @@ class _Run:
         if self.ctrl_obj is not None:
             qf, vf, _ = self.full_state(self.y)
             self.ctrl_obj.reset(self.robot, 0.0, qf.copy(), vf.copy())
-        if self.next_scheduled() <= 0.0:
+        if self.schedule.next_time() <= 0.0:
             self.run_scheduled(0.0, record=False)
-        self.record_point(0.0, self.y)
-        self.next_sample = 1
+        self.rec.point(0.0, self.y)
+        self.rec.next_sample = 1
         self.stepper.reset(0.0, self.y)
-
-    def next_scheduled(self) -> float:
-        """Time of the next scheduled action (failure, payload, control tick) [s]."""
-        t_next = self.schedule[0][0] if self.schedule else math.inf
-        return min(t_next, self.next_tick)
 
     def run_scheduled(self, t: float, record: bool = True) -> None:
         """Apply every action scheduled at t (within 1e-12 s): failures, payload, a tick.
@@ -1047,17 +939,15 @@ class _Run:
             t: Time [s].
             record: Keep samples of the states before and after a failure or payload change.
         """
-        changed = False
-        while self.schedule and self.schedule[0][0] <= t + 1e-12:
-            _, _, what = self.schedule.pop(0)
-            if not changed and record:
-                self.record_point(t, self.y)  # the state before, for the plots
-            changed = True
+        due = self.schedule.due(t)
+        if due and record:
+            self.rec.point(t, self.y)  # the state before, for the plots
+        for what in due:
             if isinstance(what, Failure):
                 self.inject(t, what)
             else:
                 self.payload_change(t, what)
-        if self.next_tick <= t + 1e-12:
+        if self.schedule.tick_due(t):
             assert self.ctrl_obj is not None
             qf, vf, _ = self.full_state(self.y)
             try:
@@ -1066,12 +956,10 @@ class _Run:
                 raise
             except Exception as exc:
                 raise ControllerError(f"raised {type(exc).__name__}: {exc}", t) from exc
-            self.tau_hold_full = self.check_torque(tau, t).copy()
-            self.tau_hold = self.sys.reduce(self.tau_hold_full)
-            self.ticks += 1
-            self.next_tick = self.ticks * self.ctrl_obj.dt
-        if changed and record:
-            self.record_point(t, self.y)
+            self.drive.hold(tau, t)
+            self.schedule.ticked()
+        if due and record:
+            self.rec.point(t, self.y)
 
     def inject(self, t: float, failure: Failure) -> None:
         """A joint fails at t: log it; a frozen joint is stopped by an impulse and merged."""
@@ -1080,7 +968,7 @@ class _Run:
         if self.inform and self.ctrl_obj is not None:
             self.ctrl_obj.on_failure(failure, t)
         e = self.energy(self.y[: self.n], self.y[self.n : 2 * self.n])
-        self.events.append(
+        self.events.log(
             Event(
                 t,
                 "failure",
@@ -1090,12 +978,11 @@ class _Run:
                 v_after=vf,
                 energy_before=e,
                 energy_after=e,
-            )
+            ),
+            count=False,
         )
         if failure.kind != "frozen":
-            self.path = TorquePath.build(
-                self.robot.params, self.sys.free, self.cfg, self.failures_in
-            )
+            self.drive.set_failures(self.failures_in)
             self.settle_modes(t, self.y)
             return
         # Freezing: the impulse that stops joint j, with the engaged and held locks kept still
@@ -1103,14 +990,10 @@ class _Run:
         # (M dv = S^T p, p the joint impulses [N*m*s]).
         n = self.n
         j = int(np.flatnonzero(self.sys.free == self.robot.params.index(failure.joint))[0])
-        q, v = self.y[:n], self.y[n : 2 * n].copy()
-        idx = np.array(sorted({j, *self.locks.locked}), dtype=int)
-        minv = self.sys.minv(q)
-        p = np.linalg.solve(minv[np.ix_(idx, idx)], v[idx])
-        v_new = v - minv[:, idx] @ p
-        v_new[idx] = 0.0
+        q, v = self.y[:n], self.y[n : 2 * n]
+        v_new, idx = freeze_impulse(self.sys, q, v, j, self.locks.locked)
         e1 = self.energy(q, v_new)
-        self.events.append(
+        self.events.log(
             Event(
                 t,
                 "freeze",
@@ -1122,7 +1005,8 @@ class _Run:
                 v_after=self.sys.v_full(v_new),
                 energy_before=e,
                 energy_after=e1,
-            )
+            ),
+            count=False,
         )
         self.frozen.append(failure.joint)
         self.rebuild(t, self.with_v(self.y, v_new))
@@ -1138,10 +1022,10 @@ class _Run:
         self.rebuild(t, self.y)
         q, v = self.y[:n], self.y[n : 2 * n]
         if what == "pick":
-            v = np.asarray(np.linalg.solve(self.sys.mass_matrix(q), momentum), dtype=np.float64)
+            v = momentum_kept(self.sys, q, momentum)
             self.y = self.with_v(self.y, v)
             self.settle_modes(t, self.y)
-        self.events.append(
+        self.events.log(
             Event(
                 t,
                 what,
@@ -1151,7 +1035,8 @@ class _Run:
                 v_after=self.sys.v_full(v),
                 energy_before=e0,
                 energy_after=self.energy(q, v),
-            )
+            ),
+            count=False,
         )
 
     def rebuild(self, t: float, y: FloatArray) -> None:
@@ -1186,7 +1071,7 @@ class _Run:
         self.start()
         while self.t < self.duration - 1e-12:
             self.stepper.h_max = self.step_limit()
-            t_sched = self.next_scheduled()
+            t_sched = self.schedule.next_time()
             if t_sched <= self.t + 1e-12:  # an event landed on a scheduled time
                 self.run_scheduled(self.t)
                 self.stepper.reset(self.t, self.y, h=max(self.stepper.h, 1e-6))
@@ -1198,7 +1083,7 @@ class _Run:
                 on_schedule = seg.t1 >= t_sched - 1e-12 and seg.t1 < self.duration - 1e-12
                 # A sample on a scheduled time shows the state after the action (a new held
                 # command applies from its tick on).
-                self.record(seg, seg.t1 - 1e-11 if on_schedule else seg.t1)
+                self.rec.record(seg, seg.t1 - 1e-11 if on_schedule else seg.t1)
                 self.t, self.y = seg.t1, y1
                 if self.sys.world is not None:
                     self.last_d = self.pending_d
@@ -1216,17 +1101,17 @@ class _Run:
                         self.refresh_mixed()
                 if on_schedule:
                     self.run_scheduled(self.t)
-                    self.record_due(self.t, self.y)
+                    self.rec.record_due(self.t, self.y)
                     self.stepper.reset(self.t, self.y, h=max(self.stepper.h, 1e-6))
                 if self.progress is not None:
                     self.progress(self.t)
                 continue
             t_star, at = self.locate(seg, crossings)
             y_star = seg(t_star)
-            self.record(seg, t_star)
-            self.record_point(t_star, y_star)
+            self.rec.record(seg, t_star)
+            self.rec.point(t_star, y_star)
             y_new = self.handle(t_star, y_star, at)
-            self.record_point(t_star, y_new)
+            self.rec.point(t_star, y_new)
             self.t, self.y = t_star, y_new
             if self.sys.world is not None:
                 sw = self.sys.world.sweep(y_new[: self.n])
@@ -1237,12 +1122,10 @@ class _Run:
             self.stepper.reset(t_star, y_new, h=max(self.stepper.h, 1e-6))
             if self.progress is not None:
                 self.progress(self.t)
-        self.record_final()
+        self.rec.record_final(self.y)
 
     def result(self) -> SimResult:
-        t = np.array(self.samples_t)
-        cols = [np.array([s[k] for s in self.samples], dtype=float) for k in range(7)]
-        q, v, tau_cmd, tau, tau_fr, effort, energy = cols
+        t, q, v, tau_cmd, tau, tau_fr, effort, energy = self.rec.arrays()
         self.diag.steps = self.stepper.n_steps
         self.diag.rejected_steps = self.stepper.n_rejected
         self.diag.rhs_calls = self.stepper.n_rhs
@@ -1252,7 +1135,7 @@ class _Run:
             v=v,
             tau=tau,
             energy=energy,
-            events=self.events,
+            events=list(self.events),
             rest_time=rest_time(t, v, self.cfg.rest_speed),
             joint_names=self.robot.joint_names,
             config=self.cfg,
@@ -1261,141 +1144,8 @@ class _Run:
             tau_friction=tau_fr,
             effort=effort,
             failures=tuple(self.failures_in),
-            control_ticks=self.ticks,
+            control_ticks=self.schedule.ticks,
         )
-
-
-def _check_inputs(
-    robot: Any,
-    q0: Any,
-    v0: Any,
-    duration: Any,
-    config: Any,
-    failures: Any,
-    payload: Any,
-    controller: Any,
-    environment: Any,
-    inform_controller: Any,
-    progress: Any,
-) -> tuple[FloatArray, FloatArray, float, tuple[Failure, ...]]:
-    """Check every argument of :func:`simulate`; return (q0, v0, duration, failures) normalised.
-
-    Besides each argument's type and range, the limits that protect the machine are checked
-    here, where the duration is known (docs/simulator.md, "Inputs: checks, ranges and limits").
-    """
-    if not isinstance(robot, Robot):
-        raise ConfigurationError("robot", robot, "a packbot.Robot (from packbot.load_robot())")
-    if not isinstance(config, SimConfig):
-        raise ConfigurationError("config", config, "None or a packbot.SimConfig")
-    config.validate()  # a SimConfig can be changed after its construction
-    duration = finite_number(
-        "duration", duration, low=0.0, low_open=True, unit="s", what="a finite positive time"
-    )
-    n_samples = duration / config.sample_dt
-    if n_samples > MAX_SAMPLES:
-        raise ConfigurationError(
-            "sample_dt",
-            config.sample_dt,
-            f"a sampling interval >= duration / {MAX_SAMPLES:,} = {duration / MAX_SAMPLES:.3g} s "
-            f"for duration={duration:g} s (at most {MAX_SAMPLES:,} samples per run: each "
-            "takes about 1.7 kB of memory while the run lasts)",
-        )
-    if duration / config.max_step > MAX_STEPS:
-        raise ConfigurationError(
-            "max_step",
-            config.max_step,
-            f"a step >= duration / {MAX_STEPS:,} = {duration / MAX_STEPS:.3g} s for "
-            f"duration={duration:g} s (a run may not force more than {MAX_STEPS:,} steps)",
-        )
-    if isinstance(failures, (Failure, str, bytes, Mapping)) or not isinstance(
-        failures, (list, tuple)
-    ):
-        raise ConfigurationError("failures", failures, "a list of packbot.Failure")
-    failures = tuple(failures)
-    validate_failures(failures, robot.joint_names)
-    locked = joint_names("locked_joints", config.locked_joints, robot.joint_names)
-    frozen = [f.joint for f in failures if f.kind == "frozen"]
-    if len(set(locked) | set(frozen)) >= robot.nq:
-        what = "locked_joints" if len(locked) >= robot.nq else "locked_joints and frozen failures"
-        raise ConfigurationError(
-            "locked_joints",
-            locked,
-            f"at least one joint left free ({what} cover all {robot.nq} joints)",
-        )
-    n_free = robot.nq - len(locked)
-    bound = 1.0 / math.sqrt(n_free)
-    if config.relevant_threshold >= bound:
-        raise ConfigurationError(
-            "relevant_threshold",
-            config.relevant_threshold,
-            f"a fraction < 1/sqrt({n_free}) = {bound:.4g} with {n_free} free joints (the "
-            f"largest of {n_free} components of J_n is at least ||J_n|| / sqrt({n_free}), so "
-            "below this bound every contact has a relevant joint)",
-        )
-    for f in failures:
-        if f.kind == "brake" and config.handoff:
-            raise ConfigurationError(
-                "failures",
-                f"{f.joint}: brake",
-                "no brake failure with handoff=True (joint holds and contact forces are not yet "
-                "solved as one problem)",
-            )
-        if f.kind == "brake" and config.contact_mode == "normal":
-            raise ConfigurationError(
-                "failures",
-                f"{f.joint}: brake",
-                "no brake failure with contact_mode='normal' (joint holds and contact forces "
-                "are not yet solved as one problem)",
-            )
-        if f.joint in locked:
-            raise ConfigurationError(
-                "failures", f.joint, "a joint that is not in config.locked_joints"
-            )
-    if payload is not None:
-        if not isinstance(payload, Payload):
-            raise ConfigurationError("payload", payload, "a packbot.Payload or None")
-        payload.validate()
-        if not robot.model.existFrame(payload.frame):
-            raise UnknownNameError(
-                "frame", payload.frame, [str(f.name) for f in robot.model.frames]
-            )
-    if environment is not None:
-        if not isinstance(environment, Environment):
-            raise ConfigurationError("environment", environment, "None or a packbot.Environment")
-        environment.validate()
-    if isinstance(controller, Controller):
-        dt = finite_number(
-            "controller.dt", controller.dt, low=CONTROL_DT_MIN, unit="s", what="a control period"
-        )
-        if duration / dt > MAX_STEPS:
-            raise ConfigurationError(
-                "controller.dt",
-                controller.dt,
-                f"a control period >= duration / {MAX_STEPS:,} = {duration / MAX_STEPS:.3g} s "
-                f"for duration={duration:g} s (at most {MAX_STEPS:,} control ticks per run: "
-                "each cuts an integration step)",
-            )
-    elif controller is not None and (not callable(controller) or isinstance(controller, type)):
-        raise ConfigurationError(
-            "controller",
-            controller,
-            "None, a packbot.control.Controller or a function tau(t, q, v)",
-        )
-    boolean("inform_controller", inform_controller)
-    if progress is not None and not callable(progress):
-        raise ConfigurationError("progress", progress, "None or a function progress(t)")
-    nq = robot.nq
-    q = real_array(
-        "q0", q0, shape=(nq,), expected=f"an array of shape ({nq},) [rad]", shape_error_value=True
-    )
-    v = real_array(
-        "v0", v0, shape=(nq,), expected=f"an array of shape ({nq},) [rad/s]", shape_error_value=True
-    )
-    robot.check_within_limits(q, "q0")
-    idx = [robot.params.index(nm) for nm in locked]
-    if np.any(v[idx] != 0.0):
-        raise ConfigurationError("v0", v.tolist(), "zero velocity on the locked joints")
-    return q, v, duration, failures
 
 
 def simulate(
@@ -1452,7 +1202,7 @@ def simulate(
             holds the trajectory up to then.
     """
     cfg = SimConfig() if config is None else config
-    q, v, t_end, failure_list = _check_inputs(
+    q, v, t_end, failure_list = check_inputs(
         robot,
         q0,
         v0,
@@ -1465,12 +1215,7 @@ def simulate(
         inform_controller,
         progress,
     )
-    if cfg.contact_mode == "normal" and cfg.mu == 0.0:
-        log.warning(
-            "contact_mode='normal' with mu = 0: frictionless contact on faceted pieces can chatter "
-            "(an impact every few ms) and an arm may never come to rest (docs/contact.md, "
-            "'Open problems')"
-        )
+    warn_settings(cfg)
     wall = time.perf_counter()
     run = _Run(
         robot,
@@ -1493,7 +1238,7 @@ def simulate(
     except SimulationError as exc:
         run.diag.wall_time = time.perf_counter() - wall
         if exc.result is None:
-            exc.result = run.result() if run.samples_t else None
+            exc.result = run.result() if run.rec.samples_t else None
         raise
     run.diag.wall_time = time.perf_counter() - wall
     return run.result()

@@ -1,0 +1,131 @@
+"""The torques on the integrated joints: the command, the torque path, joint friction.
+
+:class:`Drive` turns a state (t, y) into the torques the dynamics see: the controller's
+command (a torque function evaluated at every call, or the command a sampled-data
+:class:`~packbot.control.Controller` holds between its ticks, or zero), passed through the
+failures and actuator models of :class:`~packbot.actuators.TorquePath` (saturation, motor lag,
+cut, stuck and weak motors), plus the joints' viscous and sliding Coulomb friction. Its
+:meth:`Drive.free_accel` is the unconstrained acceleration a contact law starts from.
+
+One :class:`Drive` lasts a whole run; :meth:`Drive.phase` points it at the system of a new
+phase (a frozen joint merged, a payload picked or dropped). The sliding direction of each joint
+with Coulomb friction (:attr:`Drive.fdir`) is state of the joint holds: the contact law sets it
+at a ``slip`` or ``stick`` event (:mod:`packbot.contact.stops`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from packbot.actuators import TorquePath
+from packbot.config import SimConfig
+from packbot.control.base import Controller
+from packbot.errors import ControllerError
+from packbot.failures import Failure
+from packbot.model import Robot
+from packbot.system import System
+
+__all__ = ["Drive", "TorqueFunction"]
+
+FloatArray = NDArray[np.float64]
+#: A continuous-time controller: joint torques [N*m] (shape (nv,), full coordinates) from
+#: t [s], q [rad], v [rad/s]; a smooth, stateless function.
+TorqueFunction = Callable[[float, FloatArray, FloatArray], Any]
+
+
+class Drive:
+    """The torques of one run on the integrated joints.
+
+    Args:
+        robot: The full robot.
+        config: Simulation settings (motor lag, joint friction, saturation).
+        controller: None (zero command), a sampled-data controller (its held command is set by
+            :meth:`hold` at each tick) or a torque function of (t, q, v), full coordinates.
+
+    Attributes:
+        lag: Whether the state carries the motor torques (``config.motor_lag > 0``).
+        hold_full: The command a sampled-data controller holds [N*m], full coordinates.
+        sys: The system of the current phase.
+        path: Its torque path (failures and actuators in force).
+        fdir: The sliding direction (+1, -1) of each joint with Coulomb friction that slides;
+            0 for a joint that is held or has none.
+    """
+
+    def __init__(
+        self,
+        robot: Robot,
+        config: SimConfig,
+        controller: Controller | TorqueFunction | None,
+    ) -> None:
+        self.robot = robot
+        self.cfg = config
+        self.ctrl_obj = controller if isinstance(controller, Controller) else None
+        self.ctrl_fn = None if isinstance(controller, Controller) else controller
+        self.lag = config.motor_lag > 0.0
+        self.hold_full = np.zeros(robot.nq)
+
+    def phase(self, sys: System, failures: Sequence[Failure]) -> None:
+        """Start a phase on ``sys``: torque path built, every joint's friction direction 0."""
+        self.sys = sys
+        self.n = sys.nv
+        self.path = TorquePath.build(self.robot.params, sys.free, self.cfg, failures)
+        self.fdir = np.zeros(self.n)
+        self.tau_zero = np.zeros(self.n)
+        self.zero_full = np.zeros(self.robot.nq)  # shared by torque-free samples, never written
+        self.tau_hold = sys.reduce(self.hold_full)
+
+    def set_failures(self, failures: Sequence[Failure]) -> None:
+        """Rebuild the torque path with the failures now in force (same phase)."""
+        self.path = TorquePath.build(self.robot.params, self.sys.free, self.cfg, failures)
+
+    def hold(self, tau: Any, t: float) -> None:
+        """A sampled-data controller's new command [N*m], full coordinates, from its tick at t."""
+        self.hold_full = self.check_torque(np.asarray(tau, dtype=float), t).copy()
+        self.tau_hold = self.sys.reduce(self.hold_full)
+
+    def command(self, t: float, q: FloatArray, v: FloatArray) -> FloatArray:
+        """Commanded torque on the integrated joints [N*m]."""
+        if self.ctrl_fn is not None:
+            qf, vf = self.sys.q_full(q), self.sys.v_full(v)
+            try:
+                tau = np.asarray(self.ctrl_fn(t, qf, vf), dtype=float)
+            except Exception as exc:
+                raise ControllerError(f"raised {type(exc).__name__}: {exc}", t) from exc
+            return self.check_torque(tau, t)[self.sys.free]
+        if self.ctrl_obj is not None:
+            return self.tau_hold
+        return self.tau_zero
+
+    def check_torque(self, tau: FloatArray, t: float) -> FloatArray:
+        """A controller's torques, checked: shape (nq,), finite (else a ControllerError)."""
+        nq = self.robot.nq
+        if tau.shape != (nq,):
+            raise ControllerError(f"returned shape {tau.shape}, expected ({nq},)", t)
+        if not np.all(np.isfinite(tau)):
+            bad = self.robot.joint_names[int(np.flatnonzero(~np.isfinite(tau))[0])]
+            raise ControllerError(f"returned a non-finite torque for joint {bad!r}", t, bad)
+        return tau
+
+    def torques(
+        self, t: float, y: FloatArray
+    ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
+        """(command, motor target, applied motor torque, friction) [N*m] at (t, y)."""
+        n = self.n
+        q, v = y[:n], y[n : 2 * n]
+        cmd = self.command(t, q, v)
+        path = self.path
+        if cmd is self.tau_zero and not self.lag and path.passive:  # the collapse: fast path
+            return cmd, cmd, cmd, path.friction(v, self.fdir) if path.rubs else cmd
+        target = self.path.target(cmd)
+        tau_m = y[2 * n :] if self.lag else target
+        return cmd, target, self.path.applied(tau_m), self.path.friction(v, self.fdir)
+
+    def free_accel(self, t: float, y: FloatArray) -> FloatArray:
+        """Accelerations [rad/s^2] of the unconstrained arm at (t, y) (no lock, no contact)."""
+        n = self.n
+        _, _, applied, friction = self.torques(t, y)
+        return self.sys.aba(y[:n], y[n : 2 * n], applied + friction)

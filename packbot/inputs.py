@@ -1,0 +1,181 @@
+"""The checks of :func:`packbot.simulate`'s arguments, before anything runs.
+
+Every argument's type and range, and the limits that protect the machine, checked where the
+duration is known (docs/simulator.md, "Inputs: checks, ranges and limits").
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from collections.abc import Mapping
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from packbot.config import SimConfig
+from packbot.control.base import Controller
+from packbot.environment import Environment
+from packbot.errors import ConfigurationError, UnknownNameError
+from packbot.failures import Failure, validate_failures
+from packbot.model import Robot
+from packbot.payload import Payload
+from packbot.validation import (
+    CONTROL_DT_MIN,
+    MAX_SAMPLES,
+    MAX_STEPS,
+    boolean,
+    finite_number,
+    joint_names,
+    real_array,
+)
+
+__all__ = ["check_inputs", "warn_settings"]
+
+log = logging.getLogger("packbot.integrator")
+
+FloatArray = NDArray[np.float64]
+
+
+def check_inputs(
+    robot: Any,
+    q0: Any,
+    v0: Any,
+    duration: Any,
+    config: Any,
+    failures: Any,
+    payload: Any,
+    controller: Any,
+    environment: Any,
+    inform_controller: Any,
+    progress: Any,
+) -> tuple[FloatArray, FloatArray, float, tuple[Failure, ...]]:
+    """Check every argument of :func:`simulate`; return (q0, v0, duration, failures) normalised.
+
+    Besides each argument's type and range, the limits that protect the machine are checked
+    here, where the duration is known (docs/simulator.md, "Inputs: checks, ranges and limits").
+    """
+    if not isinstance(robot, Robot):
+        raise ConfigurationError("robot", robot, "a packbot.Robot (from packbot.load_robot())")
+    if not isinstance(config, SimConfig):
+        raise ConfigurationError("config", config, "None or a packbot.SimConfig")
+    config.validate()  # a SimConfig can be changed after its construction
+    duration = finite_number(
+        "duration", duration, low=0.0, low_open=True, unit="s", what="a finite positive time"
+    )
+    n_samples = duration / config.sample_dt
+    if n_samples > MAX_SAMPLES:
+        raise ConfigurationError(
+            "sample_dt",
+            config.sample_dt,
+            f"a sampling interval >= duration / {MAX_SAMPLES:,} = {duration / MAX_SAMPLES:.3g} s "
+            f"for duration={duration:g} s (at most {MAX_SAMPLES:,} samples per run: each "
+            "takes about 1.7 kB of memory while the run lasts)",
+        )
+    if duration / config.max_step > MAX_STEPS:
+        raise ConfigurationError(
+            "max_step",
+            config.max_step,
+            f"a step >= duration / {MAX_STEPS:,} = {duration / MAX_STEPS:.3g} s for "
+            f"duration={duration:g} s (a run may not force more than {MAX_STEPS:,} steps)",
+        )
+    if isinstance(failures, (Failure, str, bytes, Mapping)) or not isinstance(
+        failures, (list, tuple)
+    ):
+        raise ConfigurationError("failures", failures, "a list of packbot.Failure")
+    failures = tuple(failures)
+    validate_failures(failures, robot.joint_names)
+    locked = joint_names("locked_joints", config.locked_joints, robot.joint_names)
+    frozen = [f.joint for f in failures if f.kind == "frozen"]
+    if len(set(locked) | set(frozen)) >= robot.nq:
+        what = "locked_joints" if len(locked) >= robot.nq else "locked_joints and frozen failures"
+        raise ConfigurationError(
+            "locked_joints",
+            locked,
+            f"at least one joint left free ({what} cover all {robot.nq} joints)",
+        )
+    n_free = robot.nq - len(locked)
+    bound = 1.0 / math.sqrt(n_free)
+    if config.relevant_threshold >= bound:
+        raise ConfigurationError(
+            "relevant_threshold",
+            config.relevant_threshold,
+            f"a fraction < 1/sqrt({n_free}) = {bound:.4g} with {n_free} free joints (the "
+            f"largest of {n_free} components of J_n is at least ||J_n|| / sqrt({n_free}), so "
+            "below this bound every contact has a relevant joint)",
+        )
+    for f in failures:
+        if f.kind == "brake" and config.handoff:
+            raise ConfigurationError(
+                "failures",
+                f"{f.joint}: brake",
+                "no brake failure with handoff=True (joint holds and contact forces are not yet "
+                "solved as one problem)",
+            )
+        if f.kind == "brake" and config.contact_mode == "normal":
+            raise ConfigurationError(
+                "failures",
+                f"{f.joint}: brake",
+                "no brake failure with contact_mode='normal' (joint holds and contact forces "
+                "are not yet solved as one problem)",
+            )
+        if f.joint in locked:
+            raise ConfigurationError(
+                "failures", f.joint, "a joint that is not in config.locked_joints"
+            )
+    if payload is not None:
+        if not isinstance(payload, Payload):
+            raise ConfigurationError("payload", payload, "a packbot.Payload or None")
+        payload.validate()
+        if not robot.model.existFrame(payload.frame):
+            raise UnknownNameError(
+                "frame", payload.frame, [str(f.name) for f in robot.model.frames]
+            )
+    if environment is not None:
+        if not isinstance(environment, Environment):
+            raise ConfigurationError("environment", environment, "None or a packbot.Environment")
+        environment.validate()
+    if isinstance(controller, Controller):
+        dt = finite_number(
+            "controller.dt", controller.dt, low=CONTROL_DT_MIN, unit="s", what="a control period"
+        )
+        if duration / dt > MAX_STEPS:
+            raise ConfigurationError(
+                "controller.dt",
+                controller.dt,
+                f"a control period >= duration / {MAX_STEPS:,} = {duration / MAX_STEPS:.3g} s "
+                f"for duration={duration:g} s (at most {MAX_STEPS:,} control ticks per run: "
+                "each cuts an integration step)",
+            )
+    elif controller is not None and (not callable(controller) or isinstance(controller, type)):
+        raise ConfigurationError(
+            "controller",
+            controller,
+            "None, a packbot.control.Controller or a function tau(t, q, v)",
+        )
+    boolean("inform_controller", inform_controller)
+    if progress is not None and not callable(progress):
+        raise ConfigurationError("progress", progress, "None or a function progress(t)")
+    nq = robot.nq
+    q = real_array(
+        "q0", q0, shape=(nq,), expected=f"an array of shape ({nq},) [rad]", shape_error_value=True
+    )
+    v = real_array(
+        "v0", v0, shape=(nq,), expected=f"an array of shape ({nq},) [rad/s]", shape_error_value=True
+    )
+    robot.check_within_limits(q, "q0")
+    idx = [robot.params.index(nm) for nm in locked]
+    if np.any(v[idx] != 0.0):
+        raise ConfigurationError("v0", v.tolist(), "zero velocity on the locked joints")
+    return q, v, duration, failures
+
+
+def warn_settings(config: SimConfig) -> None:
+    """Warn of settings that run but may not do what one expects."""
+    if config.contact_mode == "normal" and config.mu == 0.0:
+        log.warning(
+            "contact_mode='normal' with mu = 0: frictionless contact on faceted pieces can chatter "
+            "(an impact every few ms) and an arm may never come to rest (docs/contact.md, "
+            "'Open problems')"
+        )

@@ -1,0 +1,158 @@
+"""What a run keeps: its samples and its event log.
+
+:class:`EventLog` is the run's event list with its limit: an event that counts toward
+``SimConfig.max_events`` and takes the log past it stops the run (a ``SimulationError``, the
+partial result kept). The loop writes its scheduled events there (``failure``, ``freeze``,
+``pick``, ``drop``) and the contact law writes its own, as it happens, like a counter in the
+run's :class:`~packbot.result.Diagnostics`: the log is a list, not a call back into the loop.
+
+:class:`Recorder` keeps the samples: the regular ones at multiples of ``sample_dt`` (taken on
+each accepted step's dense output), the states just before and after every event and
+scheduled action, and the final state. What one sample holds is measured by the function it is
+built with (full q and v, the torques, the energy: :func:`measure`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from packbot.drive import Drive
+from packbot.errors import SimulationError
+from packbot.ode import DenseSegment
+from packbot.result import Event
+
+__all__ = ["EventLog", "Recorder", "Sample", "measure"]
+
+FloatArray = NDArray[np.float64]
+#: One sample: full q [rad], v [rad/s], commanded, applied and friction torques [N*m],
+#: effort limits [N*m] and the energy [J].
+Sample = tuple[Any, ...]
+
+
+class EventLog(list[Event]):
+    """The run's events, in order; at most ``max_events`` of those that count.
+
+    Args:
+        max_events: ``SimConfig.max_events``.
+    """
+
+    def __init__(self, max_events: int) -> None:
+        super().__init__()
+        self.max_events = max_events
+
+    def log(self, event: Event, count: bool = True) -> None:
+        """Append an event; one that counts and takes the log past the limit stops the run.
+
+        Args:
+            event: The event.
+            count: Check the limit (contact and mode events do; a limit stop, its release and
+                the scheduled actions are appended without the check, as they always were).
+
+        Raises:
+            SimulationError: More than ``max_events`` events (a Zeno sequence or chattering).
+        """
+        self.append(event)
+        if count and len(self) > self.max_events:
+            raise SimulationError(
+                f"more than max_events={self.max_events} events (a Zeno sequence or "
+                "chattering contact?)",
+                event.t,
+            )
+
+
+def measure(
+    t: float,
+    y: FloatArray,
+    drive: Drive,
+    held: Callable[[FloatArray, FloatArray, FloatArray, FloatArray], FloatArray],
+) -> Sample:
+    """The sample of state y at t: full q, v, the torques, the effort limits and the energy.
+
+    Args:
+        t: Time [s].
+        y: Integrated state (q, v[, tau_m]).
+        drive: The run's torques (its system is the current phase's).
+        held: The contact law's :meth:`~packbot.contact.base.ContactLaw.friction`: the
+            friction column with each held joint's holding torque.
+    """
+    sys = drive.sys
+    n = sys.nv
+    q, v = y[:n], y[n : 2 * n]
+    cmd, _, applied, friction = drive.torques(t, y)
+    friction = held(q, v, applied, friction)
+    qf, vf = sys.q_full(q), sys.v_full(v)
+    zero = drive.zero_full  # shared by the samples of a torque-free run (never written)
+    free = sys.free
+    if cmd is drive.tau_zero and applied is cmd and friction is cmd:
+        cmd_f = app_f = fr_f = zero
+    else:
+        cmd_f, app_f, fr_f = zero.copy(), zero.copy(), zero.copy()
+        cmd_f[free], app_f[free], fr_f[free] = cmd, applied, friction
+    if drive.ctrl_obj is not None:
+        cmd_f = drive.hold_full.copy()
+    eff = drive.robot.params.effort.copy()
+    eff[free] = drive.path.effort
+    return (qf, vf, cmd_f, app_f, fr_f, eff, sys.energy(q, v))
+
+
+class Recorder:
+    """The samples of one run.
+
+    Args:
+        sample_dt: Interval of the regular samples [s].
+        duration: The run's duration [s].
+        measure: The sample at (t, y).
+    """
+
+    def __init__(
+        self, sample_dt: float, duration: float, measure: Callable[[float, FloatArray], Sample]
+    ) -> None:
+        self.dt = sample_dt
+        self.duration = duration
+        self.measure = measure
+        self.samples: list[Sample] = []  # (q, v, tau_cmd, tau, tau_friction, effort, E)
+        self.samples_t: list[float] = []
+        self.next_sample = 0
+
+    def record(self, seg: DenseSegment, t_end: float) -> None:
+        """Keep the regular samples due up to t_end from a step's dense output."""
+        dt = self.dt
+        while True:
+            ts = self.next_sample * dt
+            if ts > t_end + 1e-12 or ts > self.duration + 1e-12:
+                break
+            self.point(ts, seg(min(max(ts, seg.t0), seg.t1)))
+            self.next_sample += 1
+
+    def record_due(self, t: float, y: FloatArray) -> None:
+        """Keep the regular samples due at t (within 1e-12 s) from the state y at t."""
+        dt = self.dt
+        while self.next_sample * dt <= min(t, self.duration) + 1e-12:
+            self.point(self.next_sample * dt, y)
+            self.next_sample += 1
+
+    def record_final(self, y: FloatArray) -> None:
+        """Keep the final state y as a sample if the last one is earlier (within 1e-12 s).
+
+        The regular samples fall on multiples of ``sample_dt``; when it does not divide the
+        duration (or exceeds it) the last of them is before the end, and the final state is
+        kept here, at t = duration (the last interval is then shorter). A run whose duration
+        is a multiple of ``sample_dt`` already ends on a sample and is unchanged.
+        """
+        if not self.samples_t or self.samples_t[-1] < self.duration - 1e-12:
+            self.point(self.duration, y)
+
+    def point(self, t: float, y: FloatArray) -> None:
+        """Keep the sample of state y at t (nothing kept if measuring it raises)."""
+        sample = self.measure(t, y)
+        self.samples_t.append(t)
+        self.samples.append(sample)
+
+    def arrays(self) -> list[FloatArray]:
+        """t, then the columns of the samples: q, v, tau_cmd, tau, tau_friction, effort, E."""
+        t = np.array(self.samples_t)
+        return [t] + [np.array([s[k] for s in self.samples], dtype=float) for k in range(7)]
