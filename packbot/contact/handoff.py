@@ -43,7 +43,8 @@ impact is a ``joint_clamp`` impact again.
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Iterator
+import math
+from collections.abc import Iterable, Iterator, Sequence
 from contextlib import contextmanager
 from typing import Any
 
@@ -51,11 +52,21 @@ import numpy as np
 from numpy.typing import NDArray
 
 from packbot.collision import PairInfo
+from packbot.contact.base import Active, Crossing, Key
+from packbot.contact.joint_clamp import JointClampLaw
 from packbot.contact.lcp import lcp_residual, lemke, solve_lcp_psd
 from packbot.contact.locks import ACCEL_BAND, TORQUE_BAND
-from packbot.contact.normal import RESIDUAL_TOL, ModeEvent, NormalContacts, _Eval
+from packbot.contact.normal import (
+    RESIDUAL_TOL,
+    ModeEvent,
+    NormalContacts,
+    PatchEvents,
+    _Eval,
+)
+from packbot.ode import DenseSegment
+from packbot.system import System
 
-__all__ = ["HandoffContacts"]
+__all__ = ["HandoffContacts", "HandoffLaw"]
 
 FloatArray = NDArray[np.float64]
 
@@ -324,3 +335,174 @@ class HandoffContacts(NormalContacts):
             else:
                 out[("nrow", r)] = ("engage", -s * float(ev.a[j]) + ACCEL_BAND)
         return out
+
+
+# ---------------------------------------------------------------------------------- the law
+class HandoffLaw(JointClampLaw, PatchEvents):
+    """The report's law with ``SimConfig.handoff``: a secondary intersection hands its pair over.
+
+    The handed-off pairs follow the normal mode (re-patch, leave the set beyond the proximity
+    tolerance, row and friction mode changes); the other pairs and the limit stops follow the
+    report's law (impact, limit, release: their clamps). While a handed-off pair is in contact,
+    the clamps are rows of its problem (:class:`HandoffContacts`); otherwise the joint locks
+    take them and the law is the report's alone. Same arguments as
+    :class:`~packbot.contact.stops.JointStops`.
+
+    Attributes:
+        mixed: The handed-off pairs and the clamp rows.
+    """
+
+    def rebuild(self, system: System) -> None:
+        """A new phase: no pair handed off."""
+        super().rebuild(system)
+        self.mixed = HandoffContacts.from_config(
+            system.model,
+            system.data,
+            system.world,
+            self.cfg,
+            check_others=False,  # its other pairs are the joint_clamp mode's
+        )
+
+    @property
+    def mixed_on(self) -> bool:
+        """Whether a handed-off pair is in contact (the clamps are then rows of its problem)."""
+        return bool(self.mixed.pairs)
+
+    def accel(self, q: FloatArray, v: FloatArray, a_free: FloatArray) -> FloatArray:
+        """Accelerations with the locks, then the mixed problem's rows, of the current mode."""
+        a = super().accel(q, v, a_free)
+        if self.mixed.constrained:
+            a = self.mixed.evaluate(q, v, a, self.sys.minv(q)).a
+        return a
+
+    def _pair_crossings(
+        self, key: Key, p_idx: int, seg: DenseSegment, d0: float, d1: float
+    ) -> list[Crossing]:
+        if p_idx in self.mixed.pairs:  # a handed-off pair
+            return self._patch_pair_crossings(key, p_idx, seg, d0, d1)
+        return super()._pair_crossings(key, p_idx, seg, d0, d1)
+
+    def _mode_crossings(self, seg: DenseSegment, y1: FloatArray) -> list[Crossing]:
+        if not self.mixed_on:
+            return []
+        return self._problem_crossings(self.mixed, seg, y1)
+
+    def _refresh(self, t: float, y: FloatArray) -> FloatArray | None:
+        """Re-patch sliding handed-off pairs after an accepted step (not logged)."""
+        n = self.n
+        q, v = y[:n], y[n : 2 * n]
+        if self.mixed_on and self.mixed.sliding(q, v) and self.mixed.stale(q, v, self.last_d):
+            return self._repatch(self.mixed, t, y)
+        return None
+
+    def apply_clamps(self) -> None:
+        """Give the clamps of the active contacts to the hand-off rows or to the joint locks."""
+        clamps = [cl for a in self.active.values() for cl in a.clamps]
+        if self.mixed_on:
+            self.mixed.set_clamps(clamps)
+            self.locks.set_clamps(())
+        else:
+            self.mixed.set_clamps(())
+            self.locks.set_clamps(clamps)
+
+    def settle_modes(
+        self,
+        t: float,
+        y: FloatArray,
+        *,
+        flip: int | None = None,
+        candidates: Sequence[int] = (),
+        log_stick: bool = False,
+    ) -> None:
+        """The locks' modes (the report's law), or the mixed problem's while it has a pair."""
+        if self.mixed_on:  # the clamps are rows of the hand-off problem
+            self.settle_mixed(t, y)
+            return
+        super().settle_modes(t, y, flip=flip, candidates=candidates, log_stick=log_stick)
+
+    def settle_mixed(self, t: float, y: FloatArray) -> None:
+        """The modes of the mixed problem at (t, y) (no impulse: v is kept)."""
+        mixed = self.mixed
+        n, tail = self.n, y[2 * self.n :]
+        q, v = y[:n], y[n : 2 * n]
+        self.apply_clamps()
+        mixed.refresh(q)
+        mixed.select_modes(q, v, self.free_accel(t, y), self.sys.minv(q))
+        if not mixed.pairs:  # the refresh dropped the last pair: the locks take the clamps
+            self.apply_clamps()
+            self.settle_modes(t, np.concatenate([q, v, tail]))
+
+    def _handle(self, t: float, y: FloatArray, crossings: Sequence[Crossing]) -> FloatArray:
+        """Events with a handed-off pair in contact, or at a secondary intersection.
+
+        The handed-off pairs follow the normal mode, the others and the stops the report's
+        law; then, while a handed-off pair is in contact, one restart of the mixed problem
+        (drift correction, impulse, modes) with the clamps as rows; otherwise the joint locks
+        take the clamps. Without either, the report's handling.
+        """
+        if not (self.mixed_on or any(c.kind == "secondary_intersection" for c in crossings)):
+            return super()._handle(t, y, crossings)
+        mixed, world = self.mixed, self.world
+        n = self.n
+        q, v = y[:n], y[n : 2 * n].copy()
+        tail = y[2 * n :]
+        handed: list[tuple[PairInfo, float]] = []
+        logged: list[tuple[str, PairInfo | None, float, tuple[str, ...], int | None]] = []
+        order = {"release": 0, "secondary_intersection": 1}
+        for c in sorted(crossings, key=lambda c: order.get(c.kind, 2)):
+            key = c.key
+            if key[0] == "pair":
+                p_idx = key[1]
+                info = world.pairs[p_idx]
+                d = self.distance(p_idx, y)
+                if p_idx in mixed.pairs:  # a handed-off pair
+                    if c.kind == "release":
+                        self.active.pop(key, None)
+                        mixed.remove_pair(p_idx)
+                        logged.append(("release", info, d, (), None))
+                    else:  # repatch
+                        mixed.add_pair(q, p_idx)
+                        logged.append((c.kind, info, d, (), None))
+                elif c.kind == "release":
+                    act = self.active.pop(key, None)
+                    if act is not None:
+                        self.log_event(t, "release", q, v, v, info, d=d)
+                elif c.kind == "secondary_intersection" and mixed.add_pair(q, p_idx):
+                    self.active[key] = Active(info, [])  # its clamps are released
+                    handed.append((info, d))
+                else:  # an impact (or a secondary intersection without a patch): the law
+                    v = self.impact(t, q, v, p_idx, c.kind)
+            elif key[0] == "limit":
+                v = self.limit(t, q, v, key[1], key[2])
+            elif key[0] == "mode":
+                if key[1] == "nrow" and (cl := mixed.clamp_of_row(key[2])) is not None:
+                    j = cl[0]
+                    logged.append((c.kind, None, math.nan, (self.sys.names[j],), j))
+                elif key[1] == "nrow":
+                    owner, _ = mixed.row_owner(key[2])
+                    logged.append((c.kind, owner, math.nan, (), None))
+                elif key[1] == "nfric":
+                    logged.append((c.kind, mixed.pairs[key[2]].info, math.nan, (), None))
+                else:  # nrest: the resting arm starts moving again
+                    logged.append((c.kind, None, math.nan, (), None))
+            else:  # a lock's engage/disengage at the instant of a hand-off: re-solved below
+                j = key[1]
+                logged.append((c.kind, None, math.nan, (self.sys.names[j],), j))
+        self.apply_clamps()
+        if not self.mixed_on:  # the last handed-off pair left: the report's law alone
+            for kind, who, d, joints, jnt in logged:
+                self.log_event(t, kind, q, v, v, who, d=d, joints=joints, joint=jnt)
+            y_new = self.with_v(y, v)
+            self.settle_modes(t, y_new)
+            return y_new
+        q, v_new, mode_events = self._restart(mixed, t, q, v, tail)
+        for pair, d in handed:
+            joints = tuple(self.sys.names[i] for i in np.flatnonzero(v_new != v))
+            self.log_event(t, "handoff", q, v, v_new, pair, d=d, joints=joints)
+        for kind, who, d, joints, jnt in logged:
+            self.log_event(t, kind, q, v, v_new, who, d=d, joints=joints, joint=jnt)
+        for me in mode_events:
+            if any(me.kind == k and me.pair == i for k, i, _, _, _ in logged):
+                continue
+            self.log_event(t, me.kind, q, v_new, v_new, me.pair)
+        return np.concatenate([q, v_new, tail])

@@ -57,6 +57,7 @@ from __future__ import annotations
 
 import logging
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
@@ -66,7 +67,11 @@ import pinocchio as pin
 from numpy.typing import NDArray
 
 from packbot.collision import CollisionWorld, PairInfo
+from packbot.contact.base import Active, Crossing, Key
 from packbot.contact.lcp import lcp_residual, lemke, solve_lcp_psd, solve_ncp_admm
+from packbot.contact.pairs import PairLaw
+from packbot.ode import DenseSegment
+from packbot.system import System
 
 if TYPE_CHECKING:
     from typing_extensions import Self
@@ -87,6 +92,8 @@ __all__ = [
     "TOUCH_GAP",
     "ModeEvent",
     "NormalContacts",
+    "NormalLaw",
+    "PatchEvents",
 ]
 
 log = logging.getLogger(__name__)
@@ -1361,3 +1368,196 @@ def _cross(a: FloatArray, b: FloatArray) -> FloatArray:
     out[..., 1] = a[..., 2] * b[..., 0] - a[..., 0] * b[..., 2]
     out[..., 2] = a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]
     return out
+
+
+# ---------------------------------------------------------------------------------- the law
+class PatchEvents(PairLaw):
+    """The events of a contact-normal problem: the normal mode's, and the hand-off's.
+
+    A pair in the problem's contact set is watched for leaving it (``release`` beyond the
+    proximity tolerance) and for penetrating past :data:`PENETRATION_TOL` (``repatch``); a pair
+    outside it touches at d = 0 (``impact``). The problem's own mode conditions (a row's force
+    or acceleration, a friction cone, the resting arm: :meth:`NormalContacts.conditions`) are
+    event functions too (keys ``("mode", kind, index)``).
+    """
+
+    def _patch_pair_crossings(
+        self, key: Key, p_idx: int, seg: DenseSegment, d0: float, d1: float
+    ) -> list[Crossing]:
+        """Pair events of a contact-normal pair: touch at d = 0, re-patch, leave the set."""
+        cfg = self.cfg
+        if key not in self.active:
+            if d1 <= 0.0:
+                return [self._pair_crossing("impact", key, p_idx, seg, d0, d1, lambda d: d)]
+            return []
+        if d1 > cfg.proximity_tolerance:
+            return [
+                self._pair_crossing(
+                    "release", key, p_idx, seg, d0, d1, lambda d: cfg.proximity_tolerance - d
+                )
+            ]
+        if d1 < -PENETRATION_TOL:
+            return [
+                self._pair_crossing(
+                    "repatch", key, p_idx, seg, d0, d1, lambda d: d + PENETRATION_TOL
+                )
+            ]
+        return []
+
+    def _contact_conditions(
+        self, contacts: NormalContacts, t: float, y: FloatArray
+    ) -> dict[tuple[Any, ...], tuple[str, float]]:
+        """Mode conditions of a contact problem at state y."""
+        n = self.n
+        q, v = y[:n], y[n : 2 * n]
+        ev = contacts.evaluate(q, v, self.free_accel(t, y), self.sys.minv(q))
+        return contacts.conditions(ev)
+
+    def _problem_crossings(
+        self, contacts: NormalContacts, seg: DenseSegment, y1: FloatArray
+    ) -> list[Crossing]:
+        """Mode conditions of a contact problem that changed sign over the step."""
+        cond1 = self._contact_conditions(contacts, seg.t1, y1)
+        bad = [k for k, (_, g) in cond1.items() if g < 0.0]
+        if not bad:
+            return []
+        cond0 = self._contact_conditions(contacts, seg.t0, seg.y0)
+        out = []
+        for k in bad:
+
+            def gn(t: float, k: tuple[Any, ...] = k) -> float:
+                return self._contact_conditions(contacts, t, seg(t))[k][1]
+
+            g0 = cond0[k][1] if k in cond0 else 1.0
+            out.append(Crossing(cond1[k][0], ("mode", *k), gn, g0, cond1[k][1]))
+        return out
+
+    def _restart(
+        self, contacts: NormalContacts, t: float, q: FloatArray, v: FloatArray, tail: FloatArray
+    ) -> tuple[FloatArray, FloatArray, list[ModeEvent]]:
+        """A contact problem's restart at t: drift correction, impulse, modes."""
+
+        def a_free(qq: FloatArray, vv: FloatArray) -> FloatArray:
+            return self.free_accel(t, np.concatenate([qq, vv, tail]))
+
+        return contacts.restart(q, v, a_free, self.sys.minv(q))
+
+    def _repatch(self, contacts: NormalContacts, t: float, y: FloatArray) -> FloatArray:
+        """Re-patch a contact problem's sliding pairs at (t, y); the state after."""
+        n = self.n
+        q, v, tail = y[:n], y[n : 2 * n], y[2 * n :]
+
+        def a_free(qq: FloatArray, vv: FloatArray) -> FloatArray:
+            return self.free_accel(t, np.concatenate([qq, vv, tail]))
+
+        q = contacts.repatch(q, v, a_free, self.sys.minv(q))
+        return np.concatenate([q, v, tail])
+
+
+class NormalLaw(PatchEvents):
+    """The contact-normal mode (``contact_mode="normal"``).
+
+    Its contacts are the patches of :class:`NormalContacts` (impulse with restitution, resting
+    contact with Coulomb friction ``mu``, release when a force would pull) and its limit stops
+    are rows of the same problem. Same arguments as
+    :class:`~packbot.contact.stops.JointStops`.
+
+    Attributes:
+        normal: The contact set and its modes.
+    """
+
+    def rebuild(self, system: System) -> None:
+        """A new phase: an empty contact set on the new system."""
+        super().rebuild(system)
+        self.normal = NormalContacts.from_config(system.model, system.data, system.world, self.cfg)
+
+    def accel(self, q: FloatArray, v: FloatArray, a_free: FloatArray) -> FloatArray:
+        """Accelerations with the contact forces (and locks) of the current mode."""
+        a = super().accel(q, v, a_free)
+        if self.normal.engaged:
+            a = self.normal.evaluate(q, v, a, self.sys.minv(q)).a
+        return a
+
+    def _pair_crossings(
+        self, key: Key, p_idx: int, seg: DenseSegment, d0: float, d1: float
+    ) -> list[Crossing]:
+        return self._patch_pair_crossings(key, p_idx, seg, d0, d1)
+
+    def _mode_crossings(self, seg: DenseSegment, y1: FloatArray) -> list[Crossing]:
+        if self.normal.empty:
+            return []
+        return self._problem_crossings(self.normal, seg, y1)
+
+    def _limit_held(self, j: int, side: int) -> bool:
+        return self.normal.limit_engaged(j, side)
+
+    def _drop_limit(self, j: int, side: int) -> None:
+        self.normal.remove_limit(j, side)
+
+    def _refresh(self, t: float, y: FloatArray) -> FloatArray | None:
+        # A sliding contact's patch is rebuilt only once it is stale (slid SLIDE_TOL or its gap
+        # off the pair's distance): its rows stay valid until then.
+        n = self.n
+        q, v = y[:n], y[n : 2 * n]
+        if self.normal.sliding(q, v) and self.normal.stale(q, v, self.last_d):
+            y_new = self._repatch(self.normal, t, y)
+            self._sync_pairs()
+            return y_new
+        return None
+
+    def _handle(self, t: float, y: FloatArray, crossings: Sequence[Crossing]) -> FloatArray:
+        """Events of the normal mode: update the contact set, then impulse and modes."""
+        normal, world = self.normal, self.world
+        n = self.n
+        q, v = y[:n], y[n : 2 * n].copy()
+        tail = y[2 * n :]
+        logged: list[tuple[str, PairInfo | None, float, tuple[str, ...]]] = []
+        for c in sorted(crossings, key=lambda c: c.key[0] != "mode"):
+            key = c.key
+            if key[0] == "pair":
+                p_idx = key[1]
+                info = world.pairs[p_idx]
+                d = self.distance(p_idx, y)
+                if c.kind == "release":  # left the contact set (all its rows were free)
+                    self.active.pop(key, None)
+                    normal.remove_pair(p_idx)
+                    log.debug("t=%.6f: pair %s left the contact set", t, info.piece1)
+                    continue
+                if normal.add_pair(q, p_idx):
+                    self.active[key] = Active(info, [])
+                logged.append((c.kind, info, d, ()))
+            elif key[0] == "limit":
+                _, j, side = key
+                lim = float(self.sys.upper[j] if side > 0 else self.sys.lower[j])
+                normal.add_limit(j, side, lim)
+                self.active[key] = Active(None, [])
+                logged.append(("limit", None, float(side * (lim - q[j])), (self.sys.names[j],)))
+            else:  # ("mode", "nrow"/"nfric"/"nrest", index)
+                if key[1] == "nrest":  # the resting arm starts moving again
+                    logged.append((c.kind, None, math.nan, ()))
+                elif key[1] == "nrow":
+                    owner, lim_key = normal.row_owner(key[2])
+                    joints: tuple[str, ...] = ()
+                    if lim_key is not None:
+                        joints = (self.sys.names[lim_key[0]],)
+                    logged.append((c.kind, owner, math.nan, joints))
+                else:
+                    logged.append((c.kind, normal.pairs[key[2]].info, math.nan, ()))
+        q, v_new, mode_events = self._restart(normal, t, q, v, tail)
+        self._sync_pairs()
+        for kind, who, d, joints in logged:
+            self.log_event(t, kind, q, v, v_new, who, d=d, joints=joints)
+        for me in mode_events:
+            if any(me.kind == k and me.pair == i for k, i, _, _ in logged):
+                continue
+            self.log_event(t, me.kind, q, v_new, v_new, me.pair)
+        return np.concatenate([q, v_new, tail])
+
+    def _sync_pairs(self) -> None:
+        """Pairs that the drift projection put in the contact set become active pairs.
+
+        :meth:`NormalContacts.project` adds a pair it made penetrate (as an impact would):
+        its events are then those of a pair in contact (re-patch, release).
+        """
+        for k, p in self.normal.pairs.items():
+            self.active.setdefault(("pair", k), Active(p.info, []))

@@ -1,0 +1,135 @@
+"""The protocol between the event loop and a contact law, and the records they share.
+
+The event loop (:mod:`packbot.integrator`) integrates, locates events and asks the law; it never
+asks which law it holds. A law (:class:`ContactLaw`) is built with what it needs of the arm, the
+phase's :class:`~packbot.system.System` (model, mass matrix, Jacobians, its collision world) and
+the run's :class:`~packbot.drive.Drive` (the torques, hence the free accelerations), and writes
+its events to the run's :class:`~packbot.recorder.EventLog` and its counters to the run's
+:class:`~packbot.result.Diagnostics`. The laws: :class:`~packbot.contact.none.NoneLaw`,
+:class:`~packbot.contact.joint_clamp.JointClampLaw`, :class:`~packbot.contact.normal.NormalLaw`,
+:class:`~packbot.contact.handoff.HandoffLaw`; :func:`packbot.contact.make_law` picks one from
+a :class:`~packbot.config.SimConfig`.
+
+Who calls what, and when (docs/simulator.md, "The loop and the contact laws"):
+
+- a new phase (the run's start, a frozen joint merged, a payload change): :meth:`~ContactLaw.
+  rebuild`, then :meth:`~ContactLaw.start` (the contacts and stops present);
+- every right-hand side: :meth:`~ContactLaw.accel` (the current mode's accelerations);
+- before each step: :meth:`~ContactLaw.step_bound`;
+- after each step: :meth:`~ContactLaw.watch` (the event functions that changed sign);
+  none: the step is accepted, :meth:`~ContactLaw.after_step`; else the loop locates the
+  earliest crossing and calls :meth:`~ContactLaw.handle` with the crossings at that instant;
+- a failure or a payload change that keeps the phase: :meth:`~ContactLaw.settle`;
+- a freezing joint: :meth:`~ContactLaw.held` (the joints its impulse keeps still);
+- every sample: :meth:`~ContactLaw.friction`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from typing import Any, Protocol
+
+import numpy as np
+from numpy.typing import NDArray
+
+from packbot.collision import PairInfo
+from packbot.ode import DenseSegment
+from packbot.system import System
+
+__all__ = ["Active", "ContactLaw", "Crossing", "Key"]
+
+FloatArray = NDArray[np.float64]
+#: An event function's identity: ``("pair", index)``, ``("limit", joint, side)``,
+#: ``("lock", joint)``, ``("stick", joint)`` or ``("mode", kind, index)``.
+Key = tuple[Any, ...]
+
+
+@dataclass
+class Active:
+    """An active contact: a pair (None for a limit stop) and the clamps it imposes.
+
+    Its key in a law's ``active`` is ``("pair", index)`` or ``("limit", joint, side)`` with side
+    +1 for the upper stop and -1 for the lower one. The clamps are (joint, s) pairs: joint may
+    not accelerate in direction s (:mod:`packbot.contact.locks`); the contact-normal mode's
+    contacts have none.
+    """
+
+    pair: PairInfo | None
+    clamps: list[tuple[int, int]]
+
+
+@dataclass
+class Crossing:
+    """An event function that changed sign within a step.
+
+    Attributes:
+        kind: The event it is (``"impact"``, ``"limit"``, ``"release"``, ``"slip"``, ...).
+        key: Its identity.
+        g: The function of time on the step's dense output; the event is where it falls to 0.
+        g0: Its value at the step's start (<= 0: already on the event side there).
+        g1: Its value at the step's end (< 0).
+    """
+
+    kind: str
+    key: Key
+    g: Callable[[float], float]
+    g0: float
+    g1: float
+
+
+class ContactLaw(Protocol):
+    """What the event loop asks of a contact law.
+
+    States are the integrated ones, y = (q, v[, tau_m]) (the motor torques when
+    ``SimConfig.motor_lag > 0``); a law changes velocities (an impulse) and, in the
+    contact-normal modes, positions (a drift correction), never tau_m.
+    """
+
+    def rebuild(self, system: System) -> None:
+        """The integrated system changed (a new phase): every contact and mode is forgotten."""
+        ...
+
+    def start(self, t: float, y: FloatArray, check: bool) -> FloatArray:
+        """The contacts and limit stops present at (t, y); returns the state after.
+
+        Args:
+            t: Time [s].
+            y: State.
+            check: Raise ``InitialCollisionError`` if a pair penetrates (the run's start).
+        """
+        ...
+
+    def accel(self, q: FloatArray, v: FloatArray, a_free: FloatArray) -> FloatArray:
+        """Accelerations [rad/s^2] of the current mode, from the free ones (fixed in a step)."""
+        ...
+
+    def step_bound(self, y: FloatArray) -> float:
+        """The longest step [s] from y that the law's event detection allows."""
+        ...
+
+    def watch(self, seg: DenseSegment) -> list[Crossing]:
+        """The law's event functions that changed sign over an accepted step."""
+        ...
+
+    def handle(self, t: float, y: FloatArray, crossings: Sequence[Crossing]) -> FloatArray:
+        """Apply the events at t (those located at the earliest crossing); the state after."""
+        ...
+
+    def after_step(self, t: float, y: FloatArray) -> FloatArray | None:
+        """A step ended at (t, y) with no event; a changed state (the loop restarts) or None."""
+        ...
+
+    def settle(self, t: float, y: FloatArray) -> None:
+        """The forces changed at t (a failure, a payload): the modes again (y is kept)."""
+        ...
+
+    def held(self) -> tuple[int, ...]:
+        """The joints the law holds still (engaged locks, friction holds), sorted."""
+        ...
+
+    def friction(
+        self, q: FloatArray, v: FloatArray, applied: FloatArray, friction: FloatArray
+    ) -> FloatArray:
+        """The joint friction torques [N*m] to report: each held joint's holding torque."""
+        ...

@@ -1,0 +1,138 @@
+"""Pairs of bodies: what every law with a collision world does with its signed distances.
+
+:class:`PairLaw` extends :class:`~packbot.contact.stops.JointStops` with the phase's
+:class:`~packbot.collision.CollisionWorld`: one pruned sweep of the signed distances at each
+step's end (the pair events of a law are sign changes against the distances kept at the step's
+start), one after the events of an instant, one at a phase's start (a penetrating start is
+refused; pairs within the contact tolerance are contacts at once); root finding on one pair's
+distance along the step's dense output; the smallest distance over the kept states
+(``Diagnostics.min_distance``); and the step bound that keeps every pair from passing through
+contact within one step unseen. A law says what the distances mean: its ``_pair_crossings``.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+
+import numpy as np
+from numpy.typing import NDArray
+
+from packbot.contact.base import Crossing, Key
+from packbot.contact.stops import JointStops
+from packbot.errors import InitialCollisionError
+from packbot.ode import DenseSegment
+from packbot.system import System
+
+__all__ = ["REACH_BOUND", "PairLaw"]
+
+FloatArray = NDArray[np.float64]
+#: Bound on the distance from any joint axis to any point of the arm [m] (reach is ~2 m).
+REACH_BOUND = 2.2
+
+
+class PairLaw(JointStops):
+    """The base of the laws with collisions: distances tracked, pair events located.
+
+    Same arguments as :class:`~packbot.contact.stops.JointStops`; the system must have a
+    collision world.
+
+    Attributes:
+        world: The phase's collision world.
+        last_d: Pair -> signed distance at the last kept state [m].
+    """
+
+    def rebuild(self, system: System) -> None:
+        """A new phase: the pairs' kept distances forgotten."""
+        super().rebuild(system)
+        assert system.world is not None
+        self.world = system.world
+        self.last_d: dict[int, float] = {}
+        self.pending_d: dict[int, float] = {}  # the same at the end of the step being checked
+        self.pending_min: tuple[float, int] = (math.inf, -1)
+
+    def step_bound(self, y: FloatArray) -> float:
+        """Largest step keeping every point's motion within half the query margin [s]."""
+        speed = REACH_BOUND * float(np.abs(y[self.n : 2 * self.n]).sum())
+        return min(self.cfg.max_step, 0.5 * self.cfg.margin / max(speed, 1e-9))
+
+    def distance(self, pair: int, y: FloatArray) -> float:
+        """Signed distance [m] of one pair at state y."""
+        self.diag.distance_queries += 1
+        return self.world.pair_contact(y[: self.n], pair).distance
+
+    def note_min(self, d: float, pair: int) -> None:
+        """Track the smallest signed distance of the states the run keeps."""
+        if pair >= 0 and d < self.diag.min_distance:
+            p = self.world.pairs[pair]
+            self.diag.min_distance = d
+            self.diag.min_distance_pair = f"{p.piece1} - {p.piece2}"
+
+    # ------------------------------------------------------------------ hooks
+    def _pair_crossings(
+        self, key: Key, p_idx: int, seg: DenseSegment, d0: float, d1: float
+    ) -> list[Crossing]:
+        """A pair's events over the step, from its distances at the start (d0) and end (d1)."""
+        raise NotImplementedError
+
+    def _mode_crossings(self, seg: DenseSegment, y1: FloatArray) -> list[Crossing]:
+        """The law's contact modes that changed over the step (after the pairs')."""
+        return []
+
+    def _initial_pairs(self, y: FloatArray, check: bool) -> list[Crossing]:
+        world, cfg, n = self.world, self.cfg, self.n
+        crossings: list[Crossing] = []
+        sw = world.sweep(y[:n])
+        self.diag.sweeps += 1
+        self.note_min(sw.min_distance, sw.min_pair)
+        bad = [(world.pairs[p], d) for p, d in zip(sw.pairs, sw.distances, strict=True) if d < 0]
+        if bad and check:
+            raise InitialCollisionError([(p.piece1, p.piece2, d) for p, d in bad])
+        self.last_d = dict(zip(sw.pairs.tolist(), sw.distances.tolist(), strict=True))
+        for p, d in self.last_d.items():
+            if d <= cfg.contact_tolerance:
+                crossings.append(Crossing("impact", ("pair", p), lambda t: 0.0, 0.0, 0.0))
+        return crossings
+
+    def _contact_crossings(self, seg: DenseSegment, y1: FloatArray) -> list[Crossing]:
+        out: list[Crossing] = []
+        sw = self.world.sweep(y1[: self.n])
+        self.diag.sweeps += 1
+        self.pending_min = (sw.min_distance, sw.min_pair)
+        d_now = dict(zip(sw.pairs.tolist(), sw.distances.tolist(), strict=True))
+        for p_idx, d1 in d_now.items():
+            d0 = self.last_d.get(p_idx, math.inf)
+            out.extend(self._pair_crossings(("pair", p_idx), p_idx, seg, d0, d1))
+        self.pending_d = d_now
+        out.extend(self._mode_crossings(seg, y1))
+        return out
+
+    def _after_event(self, y: FloatArray) -> None:
+        sw = self.world.sweep(y[: self.n])
+        self.diag.sweeps += 1
+        self.last_d = dict(zip(sw.pairs.tolist(), sw.distances.tolist(), strict=True))
+        self.note_min(sw.min_distance, sw.min_pair)
+
+    def _accept(self) -> None:
+        self.last_d = self.pending_d
+        self.note_min(*self.pending_min)
+
+    def _pair_crossing(
+        self,
+        kind: str,
+        key: Key,
+        p_idx: int,
+        seg: DenseSegment,
+        d0: float,
+        d1: float,
+        fn: Callable[[float], float],
+    ) -> Crossing:
+        """The crossing of fn(distance) of one pair, located on the step's dense output."""
+
+        def g(t: float) -> float:
+            return fn(self.distance(p_idx, seg(t)))
+
+        g0 = fn(d0) if math.isfinite(d0) else 1.0
+        if g0 <= 0.0:  # not a clean crossing (e.g. just restarted on it): take the step start
+            g0 = g(seg.t0)
+        return Crossing(kind, key, g, g0, fn(d1))

@@ -1,0 +1,518 @@
+"""Limit stops and joint holds: what every contact law has, in one place.
+
+:class:`JointStops` is the base of every law (and, alone, the law without collisions,
+:class:`~packbot.contact.none.NoneLaw`). It holds the phase's
+:class:`~packbot.contact.locks.JointLocks` and the law's active contacts, and does:
+
+- **limit stops**: a joint reaching a position limit (event ``limit``) gets a joint-space
+  impulse on that joint alone (the ``momentum`` rule of :func:`impact_reset`, whatever
+  ``reset_rule`` says: on a stop the report's ``zero`` rule can add energy) and a clamp,
+  unless it bounces off (e > 0); the stop lets go once the joint has left it by 1e-6 rad (a
+  ``release`` after an accepted step);
+- **joint holds**: the clamps (of the stops and of the report's contacts) and the friction
+  holds (static joint friction, brakes) as joint locks; their sign conditions (``engage``,
+  ``disengage``, ``slip``) and the sliding joints' stops (``stick``) as event functions;
+  :meth:`JointStops.settle_modes` makes locks and holds consistent after any change;
+- the template of the protocol (:class:`~packbot.contact.base.ContactLaw`): a law with
+  contacts fills the hooks (``_initial_pairs``, ``_contact_crossings``, ``_pair_event``,
+  ``_after_event``, ``_accept``, ``_refresh``, ``_limit_held``, ``_drop_limit``) and, where
+  its handling differs, overrides ``_handle``.
+
+Velocity reset of an impact or a stop, on the acted joints R (e = restitution):
+
+- ``"zero"`` (the report's): ``v_i <- -e v_i`` for i in R. On a coupled arm this can *add*
+  kinetic energy (the joints are not decoupled in M); every impact logs its energy change.
+- ``"momentum"``: an impulsive torque on the joints of R only, ``M dv = S_R^T P``, makes
+  ``v_R+ = -e v_R-``: the other joints keep their generalized momentum
+  (``(M v)_j`` unchanged for j not in R). With e <= 1 it never adds energy.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+
+import numpy as np
+from numpy.typing import NDArray
+
+from packbot.collision import PairInfo
+from packbot.config import SimConfig
+from packbot.contact.base import Active, Crossing, Key
+from packbot.contact.locks import TORQUE_BAND, JointLocks
+from packbot.drive import Drive
+from packbot.ode import DenseSegment
+from packbot.recorder import EventLog
+from packbot.result import Diagnostics, Event
+from packbot.system import System
+
+__all__ = ["STICK_SPEED", "JointStops", "impact_reset"]
+
+FloatArray = NDArray[np.float64]
+#: Joint speed below which a joint with Coulomb friction counts as stopped (it may stick) [rad/s].
+STICK_SPEED = 1e-9
+
+
+def impact_reset(
+    v: FloatArray, relevant: NDArray[np.intp], e: float, rule: str, minv: FloatArray | None
+) -> FloatArray:
+    """Post-impact joint velocities [rad/s].
+
+    Args:
+        v: Pre-impact velocities.
+        relevant: The joints acted on.
+        e: Restitution in [0, 1].
+        rule: ``"zero"`` or ``"momentum"`` (see the module docstring).
+        minv: M^-1 at the impact configuration (``"momentum"`` only).
+    """
+    if len(relevant) == 0:
+        return v.copy()
+    if rule == "zero":
+        out = v.copy()
+        out[relevant] = -e * v[relevant]
+        return out
+    assert minv is not None
+    W = minv[np.ix_(relevant, relevant)]
+    P = np.linalg.solve(W, -(1.0 + e) * v[relevant])  # impulsive torques [N m s]
+    out = v + minv[:, relevant] @ P
+    # The impulse is solved for v_R+ = -e v_R-: write that exactly. The solve leaves rounding
+    # residue (~1e-16 rad/s) whose sign would otherwise decide whether a stopped joint counts
+    # as moving away from its stop, a branch that another machine's rounding takes the other way.
+    out[relevant] = -e * v[relevant]
+    return out
+
+
+class JointStops:
+    """Limit stops and joint holds; the base of every contact law.
+
+    Args:
+        config: Simulation settings.
+        system: The integrated system of the first phase.
+        drive: The run's torques (free accelerations, the sliding directions ``drive.fdir``).
+        events: The run's event log (the law writes its events there).
+        diag: The run's diagnostics (the law counts its distance queries and sweeps there).
+
+    Attributes:
+        locks: The joint locks: clamps and friction holds.
+        active: The active contacts and limit stops (key -> :class:`Active`).
+    """
+
+    def __init__(
+        self,
+        config: SimConfig,
+        system: System,
+        drive: Drive,
+        events: EventLog,
+        diag: Diagnostics,
+    ) -> None:
+        self.cfg = config
+        self.drive = drive
+        self.events = events
+        self.diag = diag
+        self.rebuild(system)
+
+    # ------------------------------------------------------------------ the protocol
+    def rebuild(self, system: System) -> None:
+        """A new phase on ``system``: no contact, no stop, no lock."""
+        self.sys = system
+        self.n = system.nv
+        self.locks = JointLocks()
+        self.active: dict[Key, Active] = {}
+
+    def start(self, t: float, y: FloatArray, check: bool) -> FloatArray:
+        """Contacts (pairs within the contact tolerance) and limit stops at (t, y).
+
+        Each gets its event's handling at t (an impact with zero speed gets its clamps); with
+        none, the locks and holds are settled. Returns the state after.
+        """
+        crossings = self._initial_pairs(y, check)
+        if self.cfg.joint_limits:
+            for j in range(self.n):
+                for side, lim in ((1, self.sys.upper[j]), (-1, self.sys.lower[j])):
+                    if side * (lim - y[j]) <= 0.0:
+                        crossings.append(
+                            Crossing("limit", ("limit", j, side), lambda t: 0.0, 0.0, 0.0)
+                        )
+        if crossings:
+            return self._handle(t, y, crossings)
+        self.settle_modes(t, y)
+        return y
+
+    def accel(self, q: FloatArray, v: FloatArray, a_free: FloatArray) -> FloatArray:
+        """Accelerations with the engaged and held locks applied."""
+        if self.locks.any_locked:
+            return self.locks.accelerations(a_free, self.sys.minv(q))
+        return a_free
+
+    def step_bound(self, y: FloatArray) -> float:
+        """``max_step``: without a collision world nothing else bounds a step."""
+        return self.cfg.max_step
+
+    def watch(self, seg: DenseSegment) -> list[Crossing]:
+        """Event functions that changed sign over the step (evaluated at its end).
+
+        In this order: limit stops, the law's contacts (pairs, then its modes), the locks' and
+        holds' sign conditions, the sliding joints' stops.
+        """
+        y1 = seg.y1
+        out = self._limit_crossings(seg, y1)
+        out.extend(self._contact_crossings(seg, y1))
+        out.extend(self._hold_crossings(seg, y1))
+        return out
+
+    def handle(self, t: float, y: FloatArray, crossings: Sequence[Crossing]) -> FloatArray:
+        """Apply the events at t to state y; returns the post-event state."""
+        y_new = self._handle(t, y, crossings)
+        self._after_event(y_new)
+        return y_new
+
+    def after_step(self, t: float, y: FloatArray) -> FloatArray | None:
+        """An accepted step without event: distances kept, stops released, patches refreshed."""
+        self._accept()
+        self.release_limits(t, y)
+        return self._refresh(t, y)
+
+    def settle(self, t: float, y: FloatArray) -> None:
+        """The forces changed at t: locks and holds made consistent again."""
+        self.settle_modes(t, y)
+
+    def held(self) -> tuple[int, ...]:
+        """Every joint with a_j = 0 in the current mode (engaged or held), sorted."""
+        return self.locks.locked
+
+    def friction(
+        self, q: FloatArray, v: FloatArray, applied: FloatArray, friction: FloatArray
+    ) -> FloatArray:
+        """The friction torques with each held joint's holding torque in place."""
+        if self.locks.held:
+            friction = friction.copy()
+            a_free = self.sys.aba(q, v, applied + friction)
+            _, lam = self.locks.torques(a_free, self.sys.minv(q))
+            for j in self.locks.held:
+                friction[j] = lam[j]
+        return friction
+
+    # ------------------------------------------------------------------ hooks (no contacts)
+    def _initial_pairs(self, y: FloatArray, check: bool) -> list[Crossing]:
+        """The pairs in contact at a phase's start, as crossings at that instant."""
+        return []
+
+    def _contact_crossings(self, seg: DenseSegment, y1: FloatArray) -> list[Crossing]:
+        """The contacts' event functions that changed sign over the step."""
+        return []
+
+    def _pair_event(
+        self, t: float, y: FloatArray, q: FloatArray, v: FloatArray, c: Crossing
+    ) -> FloatArray:
+        """A pair's impact, secondary intersection or release (the report's law)."""
+        raise AssertionError(f"{c.kind} of {c.key} without a collision world")
+
+    def _after_event(self, y: FloatArray) -> None:
+        """After the events of an instant (the distances at the new state)."""
+
+    def _accept(self) -> None:
+        """A step was accepted (the distances at its end become the kept ones)."""
+
+    def _refresh(self, t: float, y: FloatArray) -> FloatArray | None:
+        """After an accepted step: a changed state (re-patched contacts), or None."""
+        return None
+
+    def _limit_held(self, j: int, side: int) -> bool:
+        """Whether a stop's own constraint still holds its joint (it is not released)."""
+        return False
+
+    def _drop_limit(self, j: int, side: int) -> None:
+        """A limit stop let go (the law's own record of it)."""
+
+    # ------------------------------------------------------------------ events
+    def free_accel(self, t: float, y: FloatArray) -> FloatArray:
+        """Accelerations of the unconstrained arm at (t, y) [rad/s^2]."""
+        return self.drive.free_accel(t, y)
+
+    def energy(self, q: FloatArray, v: FloatArray) -> float:
+        """Total mechanical energy [J]."""
+        return self.sys.energy(q, v)
+
+    def with_v(self, y: FloatArray, v: FloatArray) -> FloatArray:
+        """The state y with its velocities replaced."""
+        out = y.copy()
+        out[self.n : 2 * self.n] = v
+        return out
+
+    def lock_conditions(self, t: float, y: FloatArray) -> dict[tuple[str, int], float]:
+        """The locks' and holds' sign conditions at (t, y) (see JointLocks.conditions)."""
+        a = self.free_accel(t, y)
+        minv = self.sys.minv(y[: self.n]) if self.locks.any_locked else None
+        return self.locks.conditions(a, minv)
+
+    def _limit_crossings(self, seg: DenseSegment, y1: FloatArray) -> list[Crossing]:
+        out: list[Crossing] = []
+        if not self.cfg.joint_limits:
+            return out
+        q1 = y1[: self.n]  # numpy screen first: a limit crossing is rare
+        upper, lower = self.sys.upper, self.sys.lower
+        for j in np.flatnonzero((q1 >= upper) | (q1 <= lower)).tolist():
+            side, lim = (1, upper[j]) if q1[j] >= upper[j] else (-1, lower[j])
+            if ("limit", j, side) in self.active:
+                continue
+
+            def g(t: float, j: int = j, side: int = side, lim: float = lim) -> float:
+                return float(side * (lim - seg(t)[j]))
+
+            g0 = side * (lim - seg.y0[j])
+            out.append(Crossing("limit", ("limit", j, side), g, g0, side * (lim - q1[j])))
+        return out
+
+    def _hold_crossings(self, seg: DenseSegment, y1: FloatArray) -> list[Crossing]:
+        n, out = self.n, []
+        if self.locks.held or any(len(s) == 1 for s in self.locks.signs.values()):
+            cond1 = self.lock_conditions(seg.t1, y1)
+            bad = [k for k, g in cond1.items() if g < 0.0]
+            if bad:
+                cond0 = self.lock_conditions(seg.t0, seg.y0)
+                for k in bad:
+
+                    def gl(t: float, k: tuple[str, int] = k) -> float:
+                        return self.lock_conditions(t, seg(t))[k]
+
+                    kind, j = k
+                    if kind == "hold":
+                        kind = "slip"
+                    else:
+                        kind = "disengage" if j in self.locks.engaged else "engage"
+                    out.append(Crossing(kind, ("lock", j), gl, cond0.get(k, 1.0), cond1[k]))
+        fdir = self.drive.fdir
+        sliding = np.flatnonzero(fdir * y1[n : 2 * n] < -STICK_SPEED)
+        for j in sliding.tolist():
+
+            def gs(t: float, j: int = j) -> float:
+                return float(fdir[j] * seg(t)[n + j])
+
+            g0 = float(fdir[j] * seg.y0[n + j])
+            out.append(Crossing("stick", ("stick", j), gs, g0, float(fdir[j] * y1[n + j])))
+        return out
+
+    def _handle(self, t: float, y: FloatArray, crossings: Sequence[Crossing]) -> FloatArray:
+        """The report's handling (and the stops' and holds'): events applied in turn."""
+        n = self.n
+        q, v = y[:n], y[n : 2 * n].copy()
+        fdir = self.drive.fdir
+        flip: int | None = None
+        stick: list[int] = []
+        for c in sorted(crossings, key=lambda c: c.kind != "release"):
+            if c.kind in ("impact", "secondary_intersection", "release"):
+                v = self._pair_event(t, y, q, v, c)
+            elif c.kind == "limit":
+                v = self.limit(t, q, v, c.key[1], c.key[2])
+            elif c.kind == "slip":
+                j = c.key[1]
+                lam = self.hold_torque(t, self.with_v(y, v), j)
+                self.locks.set_held({k: b for k, b in self.locks.held.items() if k != j})
+                fdir[j] = -math.copysign(1.0, lam)
+                self.log_event(t, "slip", q, v, v, None, joints=(self.sys.names[j],), joint=j)
+            elif c.kind == "stick":
+                j = c.key[1]
+                v[j] = 0.0
+                fdir[j] = 0.0
+                stick.append(j)
+            else:  # engage / disengage
+                flip = c.key[1]
+                self.log_event(t, c.kind, q, v, v, None, joints=(self.sys.names[flip],), joint=flip)
+        y_new = self.with_v(y, v)
+        self.settle_modes(t, y_new, flip=flip, candidates=stick, log_stick=True)
+        return y_new
+
+    def hold_torque(self, t: float, y: FloatArray, j: int) -> float:
+        """The torque [N*m] joint j's lock needs at (t, y) with the current locked set (and j)."""
+        n = self.n
+        a_free = self.free_accel(t, y)
+        held = dict(self.locks.held)
+        if j not in held:
+            self.locks.set_held({**held, j: 0.0})
+        _, lam = self.locks.torques(a_free, self.sys.minv(y[:n]))
+        self.locks.set_held(held)
+        return lam[j]
+
+    def apply_clamps(self) -> None:
+        """Give the clamps of the active contacts and stops to the joint locks."""
+        self.locks.set_clamps([cl for a in self.active.values() for cl in a.clamps])
+
+    def settle_modes(
+        self,
+        t: float,
+        y: FloatArray,
+        *,
+        flip: int | None = None,
+        candidates: Sequence[int] = (),
+        log_stick: bool = False,
+    ) -> None:
+        """Set the clamps, the engaged locks and the friction holds consistent at (t, y).
+
+        Args:
+            t: Time [s].
+            y: State (its velocities already reset).
+            flip: A clamped joint whose mode an event just changed (see JointLocks).
+            candidates: Joints with Coulomb friction that just stopped: they stick if the
+                holding torque is within their bound, else they slide on in the direction of
+                the net torque.
+            log_stick: Log a ``stick`` event for each candidate that sticks.
+        """
+        n = self.n
+        q, v = y[:n], y[n : 2 * n]
+        fdir = self.drive.fdir
+        self.locks.set_clamps(cl for a in self.active.values() for cl in a.clamps)
+        bound = self.drive.path.coulomb
+        held = {j: b for j, b in self.locks.held.items() if bound[j] > 0}
+        self.locks.set_held(held)
+        for j in np.flatnonzero(bound > 0).tolist():  # directions of the sliding joints
+            if j not in held and j not in candidates:
+                if abs(v[j]) > STICK_SPEED:
+                    fdir[j] = math.copysign(1.0, v[j])
+                elif fdir[j] == 0.0:
+                    candidates = [*candidates, j]
+        if not (self.locks.signs or self.locks.held or candidates):
+            return
+        minv = self.sys.minv(q)
+        if self.locks.signs:
+            self.locks.solve_engaged(self.free_accel(t, y), minv, flip=flip)
+        if candidates:
+            for j in candidates:
+                fdir[j] = 0.0
+            trial = {**self.locks.held, **{j: float(bound[j]) for j in candidates}}
+            self.locks.set_held(trial)
+            _, lam = self.locks.torques(self.free_accel(t, y), minv)
+            keep = dict(self.locks.held)
+            for j in candidates:
+                signs = self.locks.signs.get(j, set())
+                # a contact clamp may supply the torque: both ways (bilateral), or pushing
+                pushes = len(signs) == 2 or (len(signs) == 1 and -next(iter(signs)) * lam[j] >= 0)
+                if abs(lam[j]) <= bound[j] + 0.5 * TORQUE_BAND or pushes:
+                    if log_stick:
+                        self.log_event(
+                            t, "stick", q, v, v, None, joints=(self.sys.names[j],), joint=j
+                        )
+                else:
+                    keep.pop(j)
+                    fdir[j] = -math.copysign(1.0, lam[j])
+                    self.log_event(t, "slip", q, v, v, None, joints=(self.sys.names[j],), joint=j)
+            self.locks.set_held(keep)
+            if self.locks.signs:
+                self.locks.solve_engaged(self.free_accel(t, y), minv, flip=flip)
+
+    # ------------------------------------------------------------------ stops
+    def reset(
+        self, q: FloatArray, v: FloatArray, rel: NDArray[np.intp], rule: str | None = None
+    ) -> tuple[FloatArray, NDArray[np.intp]]:
+        """Apply the reset rule on ``rel``, widened where it would push a clamped joint.
+
+        The widening takes in every clamped joint that the impulse would set moving toward its
+        own contact: one simultaneous impact, not a cascade of secondary ones.
+
+        Returns:
+            The new velocities and the joints acted on.
+        """
+        cfg = self.cfg
+        rule = cfg.reset_rule if rule is None else rule
+        minv = self.sys.minv(q) if rule == "momentum" else None
+        acted = np.array(sorted(set(rel.tolist())), dtype=np.intp)
+        clamps = [cl for a in self.active.values() for cl in a.clamps]
+        for _ in range(self.n + 1):
+            v_new = impact_reset(v, acted, cfg.restitution, rule, minv)
+            tiny = 1e-12 * (1.0 + float(np.abs(v).max()))
+            more = {j for j, s in clamps if s * v_new[j] > tiny and j not in set(acted.tolist())}
+            if not more:
+                return v_new, acted
+            acted = np.array(sorted(set(acted.tolist()) | more), dtype=np.intp)
+        return v_new, acted
+
+    def limit(self, t: float, q: FloatArray, v: FloatArray, j: int, side: int) -> FloatArray:
+        """Joint j reached its upper (side +1) or lower (-1) stop: impulse and clamp."""
+        self.active[("limit", j, side)] = Active(None, [(j, side)])
+        v_new, acted = v, np.array([j])
+        if side * v[j] > 0.0:
+            # A limit stop is a hard stop on this joint alone: a joint-space impulse on it (the
+            # "momentum" law, never adding energy for e <= 1), whatever reset_rule says (the
+            # report's "zero" rule is its law for link collisions; on a stop it can add energy).
+            v_new, acted = self.reset(q, v, np.array([j]), rule="momentum")
+            if side * v_new[j] < 0.0:  # it bounced (e > 0): it leaves the stop, nothing to clamp
+                self.active.pop(("limit", j, side))
+        lim = self.sys.upper[j] if side > 0 else self.sys.lower[j]
+        ev_before, ev_after = self.energy(q, v), self.energy(q, v_new)
+        self.events.log(
+            Event(
+                t,
+                "limit",
+                self.sys.names[j],
+                "upper" if side > 0 else "lower",
+                "",
+                "",
+                float(side * (lim - q[j])),
+                tuple(self.sys.names[i] for i in acted),
+                self.sys.v_full(v),
+                self.sys.v_full(v_new),
+                ev_before,
+                ev_after,
+            ),
+            count=False,
+        )
+        return v_new
+
+    def release_limits(self, t: float, y: FloatArray) -> None:
+        """Limit stops let go when the joint has left the stop (moving away)."""
+        n = self.n
+        for key in [k for k in self.active if k[0] == "limit"]:
+            _, j, side = key
+            lim = self.sys.upper[j] if side > 0 else self.sys.lower[j]
+            # Left the stop (an engaged lock would keep a receding joint's speed: work done).
+            held = self._limit_held(j, side)
+            if side * (lim - y[j]) > 1e-6 and not held:
+                self._drop_limit(j, side)
+                self.active.pop(key)
+                energy = self.energy(y[:n], y[n : 2 * n])
+                self.events.log(
+                    Event(
+                        t,
+                        "release",
+                        self.sys.names[j],
+                        "upper" if side > 0 else "lower",
+                        distance=float(side * (lim - y[j])),
+                        relevant_joints=(self.sys.names[j],),
+                        v_before=self.sys.v_full(y[n : 2 * n]),
+                        v_after=self.sys.v_full(y[n : 2 * n]),
+                        energy_before=energy,
+                        energy_after=energy,
+                    ),
+                    count=False,
+                )
+                self.apply_clamps()
+
+    def log_event(
+        self,
+        t: float,
+        kind: str,
+        q: FloatArray,
+        v0: FloatArray,
+        v1: FloatArray,
+        pair: PairInfo | None,
+        d: float = math.nan,
+        joints: tuple[str, ...] = (),
+        joint: int | None = None,
+    ) -> None:
+        """Log an event (energies before and after, full velocities) to the run's event log."""
+        e0 = self.energy(q, v0)
+        e1 = e0 if v1 is v0 else self.energy(q, v1)
+        self.events.log(
+            Event(
+                t,
+                kind,
+                pair.link1 if pair else (self.sys.names[joint] if joint is not None else ""),
+                pair.link2 if pair else "",
+                pair.piece1 if pair else "",
+                pair.piece2 if pair else "",
+                d,
+                joints,
+                self.sys.v_full(v0),
+                self.sys.v_full(v1),
+                e0,
+                e1,
+            )
+        )
