@@ -259,10 +259,18 @@ class _Run:
         q, v = self.y[:n], self.y[n : 2 * n]
         e = self.energy(q, v)
         self.events.log(
-            Event(t, "failure", failure.joint, failure.kind, v_before=vf, v_after=vf,
-                  energy_before=e, energy_after=e),
+            Event(
+                t,
+                "failure",
+                failure.joint,
+                failure.kind,
+                v_before=vf,
+                v_after=vf,
+                energy_before=e,
+                energy_after=e,
+            ),
             count=False,
-        )  # fmt: skip
+        )
         if failure.kind != "frozen":
             self.drive.set_failures(self.failures_in)
             self.law.settle(t, self.y)
@@ -271,12 +279,20 @@ class _Run:
         j = int(np.flatnonzero(self.sys.free == self.robot.params.index(failure.joint))[0])
         v_new, idx = freeze_impulse(self.sys, q, v, j, self.law.held())
         self.events.log(
-            Event(t, "freeze", failure.joint, "", distance=float(qf[self.sys.free[j]]),
-                  relevant_joints=tuple(self.sys.names[i] for i in idx), v_before=vf,
-                  v_after=self.sys.v_full(v_new), energy_before=e,
-                  energy_after=self.energy(q, v_new)),
+            Event(
+                t,
+                "freeze",
+                failure.joint,
+                "",
+                distance=float(qf[self.sys.free[j]]),
+                relevant_joints=tuple(self.sys.names[i] for i in idx),
+                v_before=vf,
+                v_after=self.sys.v_full(v_new),
+                energy_before=e,
+                energy_after=self.energy(q, v_new),
+            ),
             count=False,
-        )  # fmt: skip
+        )
         self.frozen.append(failure.joint)
         y = self.y.copy()
         y[n : 2 * n] = v_new
@@ -298,10 +314,18 @@ class _Run:
             self.y[n : 2 * n] = v
             self.law.settle(t, self.y)
         self.events.log(
-            Event(t, what, self.payload.frame if self.payload else "", "", v_before=vf0,
-                  v_after=self.sys.v_full(v), energy_before=e0, energy_after=self.energy(q, v)),
+            Event(
+                t,
+                what,
+                self.payload.frame if self.payload else "",
+                "",
+                v_before=vf0,
+                v_after=self.sys.v_full(v),
+                energy_before=e0,
+                energy_after=self.energy(q, v),
+            ),
             count=False,
-        )  # fmt: skip
+        )
 
     def result(self) -> SimResult:
         """The run's result (also the partial result of a run that stopped)."""

@@ -34,7 +34,10 @@ Sample = tuple[Any, ...]
 
 
 class EventLog(list[Event]):
-    """The run's events, in order; at most ``max_events`` of those that count.
+    """The run's events, in order, with the run's limit on their number.
+
+    The limit is on the log's length; only an event logged with ``count=True`` (a contact or
+    mode event) checks it, and stops the run when the log is longer than ``max_events``.
 
     Args:
         max_events: ``SimConfig.max_events``.
