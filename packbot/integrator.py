@@ -56,6 +56,7 @@ from packbot.errors import (
     ConfigurationError,
     ControllerError,
     InitialCollisionError,
+    PackbotError,
     SimulationError,
     UnknownNameError,
 )
@@ -69,13 +70,14 @@ from packbot.validation import (
     CONTROL_DT_MIN,
     MAX_SAMPLES,
     MAX_STEPS,
+    V0_MAX,
     boolean,
     finite_number,
     joint_names,
     real_array,
 )
 
-__all__ = ["EVENT_XTOL", "TorqueFunction", "simulate"]
+__all__ = ["EVENT_XTOL", "TorqueFunction", "check_arguments", "check_initial_state", "simulate"]
 
 log = logging.getLogger(__name__)
 
@@ -230,16 +232,26 @@ class _Run:
         if self.ctrl_fn is not None:
             qf, vf = self.sys.q_full(q), self.sys.v_full(v)
             try:
-                tau = np.asarray(self.ctrl_fn(t, qf, vf), dtype=float)
+                raw = self.ctrl_fn(t, qf, vf)
             except Exception as exc:
                 raise ControllerError(f"raised {type(exc).__name__}: {exc}", t) from exc
-            return self.check_torque(tau, t)[self.sys.free]
+            return self.check_torque(raw, t)[self.sys.free]
         if self.ctrl_obj is not None:
             return self.tau_hold
         return self.tau_zero
 
-    def check_torque(self, tau: FloatArray, t: float) -> FloatArray:
+    def check_torque(self, raw: Any, t: float) -> FloatArray:
+        """The controller's torque [N*m] as a float array of shape (nq,), or ControllerError."""
         nq = self.robot.nq
+        try:
+            tau = np.asarray(raw)
+        except Exception as exc:  # a ragged list, an object numpy cannot take
+            raise ControllerError(f"returned {type(raw).__name__}, not {nq} torques", t) from exc
+        if tau.dtype.kind not in "iuf":  # complex, bool, strings, objects
+            raise ControllerError(
+                f"returned {tau.dtype} values, not real torques (shape ({nq},), float)", t
+            )
+        tau = tau.astype(float)
         if tau.shape != (nq,):
             raise ControllerError(f"returned shape {tau.shape}, expected ({nq},)", t)
         if not np.all(np.isfinite(tau)):
@@ -1061,12 +1073,12 @@ class _Run:
             assert self.ctrl_obj is not None
             qf, vf, _ = self.full_state(self.y)
             try:
-                tau = np.asarray(self.ctrl_obj.step(t, qf.copy(), vf.copy()), dtype=float)
+                raw = self.ctrl_obj.step(t, qf.copy(), vf.copy())
             except ControllerError:
                 raise
             except Exception as exc:
                 raise ControllerError(f"raised {type(exc).__name__}: {exc}", t) from exc
-            self.tau_hold_full = self.check_torque(tau, t).copy()
+            self.tau_hold_full = self.check_torque(raw, t).copy()
             self.tau_hold = self.sys.reduce(self.tau_hold_full)
             self.ticks += 1
             self.next_tick = self.ticks * self.ctrl_obj.dt
@@ -1218,8 +1230,7 @@ class _Run:
                     self.run_scheduled(self.t)
                     self.record_due(self.t, self.y)
                     self.stepper.reset(self.t, self.y, h=max(self.stepper.h, 1e-6))
-                if self.progress is not None:
-                    self.progress(self.t)
+                self.report_progress()
                 continue
             t_star, at = self.locate(seg, crossings)
             y_star = seg(t_star)
@@ -1235,9 +1246,25 @@ class _Run:
                 self.note_min(sw.min_distance, sw.min_pair)
             self.diag.restarts += 1
             self.stepper.reset(t_star, y_new, h=max(self.stepper.h, 1e-6))
-            if self.progress is not None:
-                self.progress(self.t)
+            self.report_progress()
         self.record_final()
+
+    def report_progress(self) -> None:
+        """Call the progress callback; an error it raises stops the run as a SimulationError.
+
+        A PackbotError it raises (a wall-time limit, Ctrl-C in ``packbot run``) passes as it is;
+        KeyboardInterrupt too.
+        """
+        if self.progress is None:
+            return
+        try:
+            self.progress(self.t)
+        except PackbotError:
+            raise
+        except Exception as exc:
+            raise SimulationError(
+                f"the progress callback raised {type(exc).__name__}: {exc}", self.t
+            ) from exc
 
     def result(self) -> SimResult:
         t = np.array(self.samples_t)
@@ -1365,7 +1392,11 @@ def _check_inputs(
         environment.validate()
     if isinstance(controller, Controller):
         dt = finite_number(
-            "controller.dt", controller.dt, low=CONTROL_DT_MIN, unit="s", what="a control period"
+            "controller.dt",
+            getattr(controller, "dt", None),
+            low=CONTROL_DT_MIN,
+            unit="s",
+            what="a control period (a Controller subclass must call Controller.__init__)",
         )
         if duration / dt > MAX_STEPS:
             raise ConfigurationError(
@@ -1391,11 +1422,86 @@ def _check_inputs(
     v = real_array(
         "v0", v0, shape=(nq,), expected=f"an array of shape ({nq},) [rad/s]", shape_error_value=True
     )
+    fast = np.flatnonzero(np.abs(v) > V0_MAX)
+    if len(fast):
+        raise ConfigurationError(
+            "v0",
+            "; ".join(f"{robot.joint_names[i]}={v[i]:g}" for i in fast),
+            f"joint speeds within +/-{V0_MAX:g} rad/s (50 times the fastest joint's velocity "
+            "limit; more is a unit mistake: deg/s or rpm)",
+        )
     robot.check_within_limits(q, "q0")
     idx = [robot.params.index(nm) for nm in locked]
     if np.any(v[idx] != 0.0):
         raise ConfigurationError("v0", v.tolist(), "zero velocity on the locked joints")
     return q, v, duration, failures
+
+
+def check_arguments(
+    robot: Robot,
+    q0: Any,
+    v0: Any,
+    duration: float,
+    *,
+    controller: Controller | TorqueFunction | None = None,
+    environment: Environment | None = None,
+    config: SimConfig | None = None,
+    failures: Sequence[Failure] = (),
+    payload: Payload | None = None,
+    inform_controller: bool = False,
+    progress: Callable[[float], None] | None = None,
+) -> None:
+    """Check :func:`simulate`'s arguments as it does before a run, without running it.
+
+    Everything but the initial collision check (which needs the collision world): types,
+    ranges, names, and the limits that protect the machine. Used to refuse a bad scenario before
+    anything is written.
+
+    Raises:
+        ConfigurationError: A bad argument (see :func:`simulate`).
+        UnknownNameError: An unknown locked joint, failed joint or payload frame.
+    """
+    _check_inputs(
+        robot,
+        q0,
+        v0,
+        duration,
+        SimConfig() if config is None else config,
+        failures,
+        payload,
+        controller,
+        environment,
+        inform_controller,
+        progress,
+    )
+
+
+def check_initial_state(
+    robot: Robot,
+    q0: Any,
+    *,
+    environment: Environment | None = None,
+    config: SimConfig | None = None,
+) -> None:
+    """Raise if the initial configuration penetrates, as :func:`simulate` does at its start.
+
+    Builds the same collision world as the run (its locked joints, its environment) and tests
+    every pair at q0; nothing with ``contact_mode="none"``. Call it after :func:`check_arguments`
+    (the arguments are assumed valid).
+
+    Raises:
+        InitialCollisionError: A pair penetrates at q0 (names the pairs and depths).
+    """
+    cfg = SimConfig() if config is None else config
+    q = np.asarray(q0, dtype=float)
+    system = System(robot, q, cfg, environment, locked=tuple(cfg.locked_joints))
+    world = system.world
+    if world is None:
+        return
+    sw = world.sweep(system.reduce(q))
+    bad = [(world.pairs[p], d) for p, d in zip(sw.pairs, sw.distances, strict=True) if d < 0]
+    if bad:
+        raise InitialCollisionError([(p.piece1, p.piece2, d) for p, d in bad])
 
 
 def simulate(
@@ -1417,7 +1523,7 @@ def simulate(
     Args:
         robot: The robot (:func:`packbot.load_robot`).
         q0: Initial joint positions [rad], shape (nq,), within the limits, collision free.
-        v0: Initial joint velocities [rad/s], shape (nq,).
+        v0: Initial joint velocities [rad/s], shape (nq,), each within +/-100 rad/s.
         duration: Simulated time [s].
         controller: None (zero command: a total collapse), a sampled-data
             :class:`~packbot.control.Controller` (ticks every ``controller.dt``, zero-order
@@ -1431,7 +1537,9 @@ def simulate(
         payload: A payload held in the gripper from ``payload.t_pick`` to ``payload.t_drop``.
         inform_controller: Call ``controller.on_failure(failure, t)`` at each injection (the
             scenario tells the controller; otherwise it must detect the failure itself).
-        progress: Called with the simulated time [s] after every accepted step.
+        progress: Called with the simulated time [s] after every accepted step. An exception
+            it raises stops the run: a PackbotError (or KeyboardInterrupt) as it is, any other
+            as a SimulationError holding the result up to then.
 
     Returns:
         The sampled trajectory, the event log and diagnostics. Samples are at multiples of
