@@ -60,6 +60,7 @@ from typing import TYPE_CHECKING, Any, NamedTuple, TextIO
 
 from packbot.errors import ConfigurationError, PackbotError, SimulationError
 from packbot.matrix import Matrix, Run, canonical_json, parse_matrix
+from packbot.validation import is_number
 
 try:
     import fcntl
@@ -94,6 +95,7 @@ __all__ = [
     "Runner",
     "atomic_write",
     "check_matrix",
+    "check_runs",
     "csv_text",
     "execute",
     "file_sha256",
@@ -436,6 +438,43 @@ def scenario_runner(run: Run, progress: Callable[[float], None]) -> tuple[dict[s
     return quantities, files
 
 
+def check_runs(runs: Sequence[Run]) -> None:
+    """Check every run's scenario before any is made: a bad value in a matrix is bad input.
+
+    Each run's resolved scenario is built (:func:`packbot.scenario.scenario_from_dict`: keys,
+    types, ranges) and checked against the robot (:meth:`packbot.scenario.Scenario.validate`:
+    the names of poses, joints, frames and links, and the controller's parameters), as
+    :func:`scenario_runner` would at the start of the run. What only the simulation finds (an
+    initial state in collision, a run that cannot continue) still fails that run alone.
+
+    Raises:
+        ConfigurationError: A run's scenario is bad; the message names the run, its parameters
+            and the field.
+    """
+    from packbot.model import load_robot
+    from packbot.scenario import scenario_from_dict
+
+    robot = None
+    for run in runs:
+        try:
+            scenario = scenario_from_dict(run.scenario, name=run.id, source_text=run.source_text)
+            if robot is None:
+                robot = load_robot()
+            scenario.validate(robot)
+        except ConfigurationError as exc:
+            raise ConfigurationError(
+                f"run {run.id} ({_params_text(run)}): {exc.field}", exc.value, exc.expected
+            ) from None
+        except PackbotError as exc:  # an unknown name, a degenerate obstacle...
+            raise ConfigurationError(
+                f"run {run.id}", _params_text(run), f"parameters its scenario accepts: {exc}"
+            ) from None
+
+
+def _params_text(run: Run) -> str:
+    return ", ".join(f"{k} = {canonical_json(v)}" for k, v in run.params.items())
+
+
 def execute(
     run: Run,
     runner: Runner = scenario_runner,
@@ -526,15 +565,23 @@ def run_batch(
         BatchLockedError: Another batch runs in ``out_dir`` (at once, nothing written).
         ConfigurationError: A bad argument (names it), dask.distributed missing, an
             ``out_dir`` that cannot be created, or one that holds another matrix's runs
-            (:func:`check_matrix`; nothing written).
+            (:func:`check_matrix`; nothing written); with the default runner, a run whose
+            scenario is bad (:func:`check_runs`; nothing run or written).
     """
-    if workers is not None and (not isinstance(workers, int) or workers < 0):
+    if workers is not None and (
+        not isinstance(workers, int) or isinstance(workers, bool) or workers < 0
+    ):
         raise ConfigurationError("workers", workers, "an integer >= 0")
-    if timeout is not None and not (math.isfinite(timeout) and timeout > 0):
+    if timeout is not None and not (is_number(timeout) and math.isfinite(timeout) and timeout > 0):
         raise ConfigurationError("timeout", timeout, "a finite positive time [s], or None")
+    if not isinstance(out_dir, (str, os.PathLike)) or not str(out_dir):
+        raise ConfigurationError("out_dir", out_dir, "a folder path")
     out = Path(out_dir)
     if out.exists() and not out.is_dir():
         raise ConfigurationError("out_dir", str(out), "a directory (this is a file)")
+    runs = list(matrix.runs() if runs is None else runs)
+    if runner is scenario_runner:  # a bad value in the matrix is refused before anything runs
+        check_runs(runs)
     try:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
@@ -562,7 +609,7 @@ def _run_locked(
         for stale in (out / sub).glob(".*.tmp"):  # left by a killed batch (none runs: locked)
             stale.unlink(missing_ok=True)
     write_matrix(out, matrix)
-    runs = list(matrix.runs() if runs is None else runs)
+    runs = list(matrix.runs() if runs is None else runs)  # (given by run_batch)
     report = BatchReport(out_dir=out, runs=runs, records={})
     todo: list[Run] = []
     old_files: dict[str, tuple[Path, ...]] = {}  # verified files of the runs to redo

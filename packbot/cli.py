@@ -104,6 +104,15 @@ def _port(text: str) -> int:
     return value
 
 
+def _folder(text: str) -> str:
+    """An ``--out`` or ``--golden`` folder: a non-empty path ("" would be the current folder)."""
+    if not text.strip():
+        raise argparse.ArgumentTypeError(
+            f"invalid folder {text!r}: expected a path (write . for the current folder)"
+        )
+    return text
+
+
 _SCHEDULER_RE = re.compile(
     r"(?:(?P<scheme>[A-Za-z][A-Za-z0-9+.-]*)://)?(?P<host>\[[0-9A-Fa-f:.]+\]|[A-Za-z0-9_.-]+)"
     r":(?P<port>[0-9]{1,5})"
@@ -481,6 +490,7 @@ def _run(
     import time
 
     from packbot.errors import ConfigurationError
+    from packbot.inputs import check_initial_state
     from packbot.model import load_robot
     from packbot.scenario import load_scenario, run_scenario, save_run, write_outputs
 
@@ -494,6 +504,13 @@ def _run(
     robot = load_robot()
     try:
         scenario.validate(robot)
+        # the initial collision check too, before the earlier run's files are deleted
+        check_initial_state(
+            robot,
+            scenario.initial_state(robot)[0],
+            environment=scenario.environment,
+            config=scenario.config,
+        )
     except ConfigurationError as exc:
         raise _UsageError(f"scenario {scenario_name}: {exc}") from None
     duration = scenario.duration if duration_arg is None else float(duration_arg)
@@ -743,7 +760,9 @@ def build_parser() -> argparse.ArgumentParser:
         help="regenerate urdf/ and docs/parameters.md from packbot/params.py",
     )
     p.add_argument("--check", action="store_true", help="only report files that are out of date")
-    p.add_argument("--root", default=None, help="repository root (default: this checkout)")
+    p.add_argument(
+        "--root", type=_folder, default=None, help="repository root (default: this checkout)"
+    )
     p.set_defaults(func=_cmd_generate_model)
 
     p = sub.add_parser(
@@ -756,7 +775,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument(
         "--clearance", type=_nonnegative_length, default=0.05, help="'never' below this [m] (0.05)"
     )
-    p.add_argument("--root", default=None, help="repository root (default: this checkout)")
+    p.add_argument(
+        "--root", type=_folder, default=None, help="repository root (default: this checkout)"
+    )
     p.set_defaults(func=_cmd_generate_srdf)
 
     out_help = (
@@ -777,7 +798,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument(
         "scenario", metavar="SCENARIO", help="scenario name (see `packbot list`) or path"
     )
-    p.add_argument("--out", default=None, help=out_help.format("./out/<scenario name>"))
+    p.add_argument(
+        "--out", type=_folder, default=None, help=out_help.format("./out/<scenario name>")
+    )
     p.add_argument("--overwrite", action="store_true", help=overwrite_help)
     p.add_argument("--plot", action="store_true", help="write the scenario's plots (PNG, SVG)")
     p.add_argument("--html", action="store_true", help="write the browser animation")
@@ -799,7 +822,9 @@ def build_parser() -> argparse.ArgumentParser:
         "collapse",
         help="the report's collapse with its plots (the same as `packbot run collapse --plot`)",
     )
-    p.add_argument("--out", default="out/collapse", help=out_help.format("./out/collapse"))
+    p.add_argument(
+        "--out", type=_folder, default="out/collapse", help=out_help.format("./out/collapse")
+    )
     p.add_argument("--overwrite", action="store_true", help=overwrite_help)
     p.add_argument(
         "--mode",
@@ -816,7 +841,9 @@ def build_parser() -> argparse.ArgumentParser:
         help="run a scenario matrix (sims/matrices/) in parallel; rerun to resume",
     )
     p.add_argument("matrix", metavar="MATRIX", help="matrix name (sims/matrices/) or TOML file")
-    p.add_argument("--out", required=True, help="output directory (resumed if it exists)")
+    p.add_argument(
+        "--out", type=_folder, required=True, help="output directory (resumed if it exists)"
+    )
     p.add_argument("--workers", type=int, default=None, help="processes (CPUs; 0: this one)")
     p.add_argument("--scheduler", type=_scheduler, default=None, help=scheduler_help)
     p.add_argument("--timeout", type=float, default=None, help="wall-time limit per run [s]")
@@ -834,8 +861,12 @@ def build_parser() -> argparse.ArgumentParser:
         default=None,
         help="matrix name or file (default: every matrix with golden results)",
     )
-    p.add_argument("--golden", default=None, help="golden results folder (sims/golden)")
-    p.add_argument("--out", default=None, help="keep the batch output here (default: temporary)")
+    p.add_argument(
+        "--golden", type=_folder, default=None, help="golden results folder (sims/golden)"
+    )
+    p.add_argument(
+        "--out", type=_folder, default=None, help="keep the batch output here (default: temporary)"
+    )
     p.add_argument("--update", action="store_true", help="rewrite the golden files (on purpose)")
     p.add_argument("--workers", type=int, default=None, help="processes (CPUs; 0: this one)")
     p.add_argument("--scheduler", type=_scheduler, default=None, help=scheduler_help)
@@ -861,6 +892,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     )
     if not getattr(args, "func", None):
         parser.print_help()
+        _stderr_line("packbot: error: no command given (the commands are listed above)")
         return EXIT_USAGE
     func: Callable[[argparse.Namespace], int] = args.func
     try:

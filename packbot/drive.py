@@ -84,7 +84,7 @@ class Drive:
 
     def hold(self, tau: Any, t: float) -> None:
         """A sampled-data controller's new command [N*m], full coordinates, from its tick at t."""
-        self.hold_full = self.check_torque(np.asarray(tau, dtype=float), t).copy()
+        self.hold_full = self.check_torque(tau, t).copy()
         self.tau_hold = self.sys.reduce(self.hold_full)
 
     def command(self, t: float, q: FloatArray, v: FloatArray) -> FloatArray:
@@ -92,17 +92,30 @@ class Drive:
         if self.ctrl_fn is not None:
             qf, vf = self.sys.q_full(q), self.sys.v_full(v)
             try:
-                tau = np.asarray(self.ctrl_fn(t, qf, vf), dtype=float)
+                raw = self.ctrl_fn(t, qf, vf)
             except Exception as exc:
                 raise ControllerError(f"raised {type(exc).__name__}: {exc}", t) from exc
-            return self.check_torque(tau, t)[self.sys.free]
+            return self.check_torque(raw, t)[self.sys.free]
         if self.ctrl_obj is not None:
             return self.tau_hold
         return self.tau_zero
 
-    def check_torque(self, tau: FloatArray, t: float) -> FloatArray:
-        """A controller's torques, checked: shape (nq,), finite (else a ControllerError)."""
+    def check_torque(self, raw: Any, t: float) -> FloatArray:
+        """A controller's torques [N*m] as floats, checked: real, shape (nq,), finite.
+
+        Raises:
+            ControllerError: Anything else (says when, and which joint).
+        """
         nq = self.robot.nq
+        try:
+            tau = np.asarray(raw)
+        except Exception as exc:  # a ragged list, an object numpy cannot take
+            raise ControllerError(f"returned {type(raw).__name__}, not {nq} torques", t) from exc
+        if tau.dtype.kind not in "iuf":  # complex, bool, strings, objects
+            raise ControllerError(
+                f"returned {tau.dtype} values, not real torques (shape ({nq},), float)", t
+            )
+        tau = tau.astype(float)
         if tau.shape != (nq,):
             raise ControllerError(f"returned shape {tau.shape}, expected ({nq},)", t)
         if not np.all(np.isfinite(tau)):

@@ -17,7 +17,7 @@ from numpy.typing import NDArray
 from packbot.config import SimConfig
 from packbot.control.base import Controller
 from packbot.environment import Environment
-from packbot.errors import ConfigurationError, UnknownNameError
+from packbot.errors import ConfigurationError, InitialCollisionError, UnknownNameError
 from packbot.failures import Failure, validate_failures
 from packbot.model import Robot
 from packbot.payload import Payload
@@ -25,13 +25,14 @@ from packbot.validation import (
     CONTROL_DT_MIN,
     MAX_SAMPLES,
     MAX_STEPS,
+    V0_MAX,
     boolean,
     finite_number,
     joint_names,
     real_array,
 )
 
-__all__ = ["check_inputs", "warn_settings"]
+__all__ = ["check_arguments", "check_initial_state", "check_inputs", "warn_settings"]
 
 log = logging.getLogger("packbot.integrator")
 
@@ -138,7 +139,11 @@ def check_inputs(
         environment.validate()
     if isinstance(controller, Controller):
         dt = finite_number(
-            "controller.dt", controller.dt, low=CONTROL_DT_MIN, unit="s", what="a control period"
+            "controller.dt",
+            getattr(controller, "dt", None),
+            low=CONTROL_DT_MIN,
+            unit="s",
+            what="a control period (a Controller subclass must call Controller.__init__)",
         )
         if duration / dt > MAX_STEPS:
             raise ConfigurationError(
@@ -164,6 +169,14 @@ def check_inputs(
     v = real_array(
         "v0", v0, shape=(nq,), expected=f"an array of shape ({nq},) [rad/s]", shape_error_value=True
     )
+    fast = np.flatnonzero(np.abs(v) > V0_MAX)
+    if len(fast):
+        raise ConfigurationError(
+            "v0",
+            "; ".join(f"{robot.joint_names[i]}={v[i]:g}" for i in fast),
+            f"joint speeds within +/-{V0_MAX:g} rad/s (50 times the fastest joint's velocity "
+            "limit; more is a unit mistake: deg/s or rpm)",
+        )
     robot.check_within_limits(q, "q0")
     idx = [robot.params.index(nm) for nm in locked]
     if np.any(v[idx] != 0.0):
@@ -179,3 +192,72 @@ def warn_settings(config: SimConfig) -> None:
             "(an impact every few ms) and an arm may never come to rest (docs/contact.md, "
             "'Open problems')"
         )
+
+
+def check_arguments(
+    robot: Robot,
+    q0: Any,
+    v0: Any,
+    duration: float,
+    *,
+    controller: Any = None,
+    environment: Environment | None = None,
+    config: SimConfig | None = None,
+    failures: Any = (),
+    payload: Payload | None = None,
+    inform_controller: bool = False,
+    progress: Any = None,
+) -> None:
+    """Check :func:`packbot.simulate`'s arguments as it does before a run, without running it.
+
+    Everything but the initial collision check (which needs the collision world): types,
+    ranges, names, and the limits that protect the machine. Used to refuse a bad scenario before
+    anything is written.
+
+    Raises:
+        ConfigurationError: A bad argument (see :func:`packbot.simulate`).
+        UnknownNameError: An unknown locked joint, failed joint or payload frame.
+    """
+    check_inputs(
+        robot,
+        q0,
+        v0,
+        duration,
+        SimConfig() if config is None else config,
+        failures,
+        payload,
+        controller,
+        environment,
+        inform_controller,
+        progress,
+    )
+
+
+def check_initial_state(
+    robot: Robot,
+    q0: Any,
+    *,
+    environment: Environment | None = None,
+    config: SimConfig | None = None,
+) -> None:
+    """Raise if the initial configuration penetrates, as :func:`packbot.simulate` does at its start.
+
+    Builds the same collision world as the run (its locked joints, its environment) and tests
+    every pair at q0; nothing with ``contact_mode="none"``. Call it after :func:`check_arguments`
+    (the arguments are assumed valid).
+
+    Raises:
+        InitialCollisionError: A pair penetrates at q0 (names the pairs and depths).
+    """
+    from packbot.system import System
+
+    cfg = SimConfig() if config is None else config
+    q = np.asarray(q0, dtype=float)
+    system = System(robot, q, cfg, environment, locked=tuple(cfg.locked_joints))
+    world = system.world
+    if world is None:
+        return
+    sw = world.sweep(system.reduce(q))
+    bad = [(world.pairs[p], d) for p, d in zip(sw.pairs, sw.distances, strict=True) if d < 0]
+    if bad:
+        raise InitialCollisionError([(p.piece1, p.piece2, d) for p, d in bad])

@@ -36,7 +36,7 @@ from packbot.contact.base import Crossing
 from packbot.control.base import Controller
 from packbot.drive import Drive, TorqueFunction
 from packbot.environment import Environment
-from packbot.errors import ControllerError, SimulationError
+from packbot.errors import ControllerError, PackbotError, SimulationError
 from packbot.failures import Failure
 from packbot.inputs import check_inputs, warn_settings
 from packbot.model import Robot
@@ -203,9 +203,25 @@ class _Run:
                 self.t, self.y = t_star, y_new
                 self.diag.restarts += 1
                 self.restart()
-            if self.progress is not None:
-                self.progress(self.t)
+            self.report_progress()
         self.rec.record_final(self.y)
+
+    def report_progress(self) -> None:
+        """Call the progress callback; an error it raises stops the run as a SimulationError.
+
+        A PackbotError it raises (a wall-time limit, Ctrl-C in ``packbot run``) passes as it is;
+        KeyboardInterrupt too.
+        """
+        if self.progress is None:
+            return
+        try:
+            self.progress(self.t)
+        except PackbotError:
+            raise
+        except Exception as exc:
+            raise SimulationError(
+                f"the progress callback raised {type(exc).__name__}: {exc}", self.t
+            ) from exc
 
     def locate(self, seg: DenseSegment, crossings: list[Crossing]) -> tuple[float, list[Crossing]]:
         """Earliest crossing time and the crossings that happen at it."""
@@ -239,12 +255,12 @@ class _Run:
             assert self.ctrl_obj is not None
             qf, vf, _ = self.full_state(self.y)
             try:
-                tau = np.asarray(self.ctrl_obj.step(t, qf.copy(), vf.copy()), dtype=float)
+                raw = self.ctrl_obj.step(t, qf.copy(), vf.copy())
             except ControllerError:
                 raise
             except Exception as exc:
                 raise ControllerError(f"raised {type(exc).__name__}: {exc}", t) from exc
-            self.drive.hold(tau, t)
+            self.drive.hold(raw, t)
             self.schedule.ticked()
         if due and record:
             self.rec.point(t, self.y)
@@ -371,7 +387,7 @@ def simulate(
     Args:
         robot: The robot (:func:`packbot.load_robot`).
         q0: Initial joint positions [rad], shape (nq,), within the limits, collision free.
-        v0: Initial joint velocities [rad/s], shape (nq,).
+        v0: Initial joint velocities [rad/s], shape (nq,), each within +/-100 rad/s.
         duration: Simulated time [s].
         controller: None (zero command: a total collapse), a sampled-data
             :class:`~packbot.control.Controller` (ticks every ``controller.dt``, zero-order
@@ -385,7 +401,9 @@ def simulate(
         payload: A payload held in the gripper from ``payload.t_pick`` to ``payload.t_drop``.
         inform_controller: Call ``controller.on_failure(failure, t)`` at each injection (the
             scenario tells the controller; otherwise it must detect the failure itself).
-        progress: Called with the simulated time [s] after every accepted step.
+        progress: Called with the simulated time [s] after every accepted step. An exception
+            it raises stops the run: a PackbotError (or KeyboardInterrupt) as it is, any other
+            as a SimulationError holding the result up to then.
 
     Returns:
         The sampled trajectory, the event log and diagnostics. Samples are at multiples of

@@ -47,7 +47,7 @@ import copy
 import hashlib
 import itertools
 import json
-import math
+import os
 import re
 import sys
 from collections.abc import Mapping
@@ -191,10 +191,11 @@ class Matrix:
             for key in table:
                 if key not in self.axes:
                     raise UnknownNameError(f"axis (in exclude.{i})", key, self.axes)
-        for key, value in self.tolerances.items():
-            ok = isinstance(value, (int, float)) and math.isfinite(value) and value >= 0
-            if not ok:
-                raise ConfigurationError(f"tolerances.{key}", value, "a finite number >= 0")
+        if not isinstance(self.tolerances, dict):
+            raise ConfigurationError("tolerances", self.tolerances, "a table")
+        from packbot.regress import Tolerances  # regress imports this module
+
+        Tolerances.from_mapping(self.tolerances)  # known names, finite numbers >= 0 (no bools)
         # Like [set] and the axes: values that the JSON of the run records can hold.
         for title, group in (("include", self.include), ("exclude", self.exclude)):
             for i, overrides in enumerate(group):
@@ -258,8 +259,11 @@ def find_matrix(name_or_path: str | Path) -> Path:
     """The matrix file: an existing path, or a name in the shipped ``sims/matrices/``.
 
     Raises:
+        ConfigurationError: Not a name or path (an empty string, a number).
         UnknownNameError: Neither a file nor the name of a shipped matrix.
     """
+    if not isinstance(name_or_path, (str, os.PathLike)) or not str(name_or_path):
+        raise ConfigurationError("matrix", name_or_path, "a matrix name or the path of a file")
     path = Path(name_or_path)
     if path.is_file():
         return path

@@ -44,6 +44,7 @@ from packbot.errors import (
 )
 from packbot.resources import data_dir, resolve_mesh_uri
 from packbot.urdfgen import URDF_NAME
+from packbot.validation import finite_number
 
 __all__ = ["JointParams", "Robot", "check_urdf", "link_adjacency", "load_robot"]
 
@@ -144,7 +145,7 @@ class Robot:
         Raises:
             UnknownNameError: No pose of that name; lists the valid ones.
         """
-        if name not in self.poses:
+        if not isinstance(name, str) or name not in self.poses:
             raise UnknownNameError("pose", name, self.poses)
         return self.poses[name].copy()
 
@@ -152,11 +153,17 @@ class Robot:
         """Build q [rad] from joint values by name, the others from pose ``base`` (or zero).
 
         Raises:
-            UnknownNameError: A joint name that the model does not have.
+            ConfigurationError: ``values`` is not a {joint: angle} table, or an angle is not a
+                finite number.
+            UnknownNameError: A joint name that the model does not have, or an unknown pose.
         """
+        if not isinstance(values, Mapping):
+            raise ConfigurationError("values", values, "a {joint: angle [rad]} table")
         q = self.pose(base) if base is not None else np.zeros(self.nq)
         for name, val in values.items():
-            q[self.params.index(name)] = float(val)
+            q[self.params.index(name)] = finite_number(
+                str(name), val, unit="rad", what="a finite angle"
+            )
         return q
 
     def check_within_limits(self, q: NDArray[np.float64], field_name: str = "q") -> None:
@@ -217,6 +224,8 @@ def _convexify(geom_model: pin.GeometryModel) -> None:
         if not hasattr(mesh, "buildConvexHull"):
             continue
         pts = np.asarray(mesh.vertices(), dtype=float)
+        if not np.all(np.isfinite(pts)):
+            raise ConvexityError(go.name, "mesh has a non-finite vertex coordinate (NaN or inf)")
         if len(pts) < 4:
             raise ConvexityError(go.name, f"mesh has {len(pts)} vertices, needs >= 4")
         spread = np.linalg.svd(pts - pts.mean(axis=0), compute_uv=False)
@@ -309,13 +318,32 @@ def _mesh_problem(path: Path) -> str | None:
     if size >= 84:
         count = int.from_bytes(head[80:84], "little")
         if size >= 84 + 50 * count:
-            return None if count > 0 else "the binary STL file holds no triangles"
+            if count == 0:
+                return "the binary STL file holds no triangles"
+            return _stl_vertices_problem(path, count)
     if head[:5].lower() == b"solid":
         return None  # ASCII STL: Coal's loader parses it
     return (
         f"not an STL file: {size} bytes, neither an ASCII STL (starting with 'solid') nor a "
         "binary STL (84 header bytes + 50 bytes per triangle); the file is corrupt or truncated"
     )
+
+
+#: A binary STL triangle: normal, three vertices (float32), attribute byte count.
+_STL_TRIANGLE = np.dtype([("normal", "<f4", (3,)), ("vertices", "<f4", (3, 3)), ("attr", "<u2")])
+
+
+def _stl_vertices_problem(path: Path, count: int) -> str | None:
+    """Whether a binary STL's vertices are all finite (Coal's loader would not say)."""
+    try:
+        data = path.read_bytes()
+    except OSError as exc:
+        return f"the mesh file cannot be read ({exc.strerror or exc})"
+    tri = np.frombuffer(data, dtype=_STL_TRIANGLE, count=count, offset=84)
+    bad = int(np.count_nonzero(~np.isfinite(tri["vertices"]).all(axis=(1, 2))))
+    if bad:
+        return f"{bad} of its {count} triangles have a non-finite vertex coordinate (NaN or inf)"
+    return None
 
 
 class _URDFChecker:
@@ -366,6 +394,16 @@ class _URDFChecker:
         if not data.strip():
             raise URDFSyntaxError(
                 self.path, "", "the file is empty", f"pass a URDF file, {_REGENERATE}"
+            )
+        if b"<!ENTITY" in data:  # an entity bomb or an external file: refused whatever expat does
+            line = data[: data.index(b"<!ENTITY")].count(b"\n") + 1
+            raise URDFSyntaxError(
+                self.path,
+                "<!ENTITY>",
+                "the file declares XML entities, which a URDF does not use (they can expand to "
+                "gigabytes, or read other files)",
+                "remove the <!DOCTYPE> and write the values out",
+                line=line,
             )
         try:
             root = ET.fromstring(data)

@@ -58,6 +58,7 @@ from packbot.batch import (
 from packbot.config import SimConfig
 from packbot.errors import ConfigurationError, ResourceNotFound, UnknownNameError
 from packbot.matrix import Matrix, Run, apply_overrides, digest
+from packbot.validation import finite_number
 
 __all__ = [
     "CHECKPOINT_DT",
@@ -119,11 +120,9 @@ class Tolerances:
     energy: float = 1e-6
 
     def validate(self) -> None:
-        """Raise :class:`ConfigurationError` naming the first bad tolerance."""
+        """Raise :class:`ConfigurationError` naming the first bad tolerance (a bool is not one)."""
         for f in fields(self):
-            v = getattr(self, f.name)
-            if not isinstance(v, (int, float)) or not math.isfinite(v) or v < 0:
-                raise ConfigurationError(f"tolerances.{f.name}", v, "a finite number >= 0")
+            finite_number(f"tolerances.{f.name}", getattr(self, f.name), low=0.0)
 
     @classmethod
     def from_mapping(cls, data: Mapping[str, Any]) -> Tolerances:
@@ -137,7 +136,7 @@ class Tolerances:
         for key in data:
             if key not in names:
                 raise UnknownNameError("tolerance", key, names)
-        tol = cls(**{k: float(v) for k, v in data.items()})
+        tol = cls(**{k: finite_number(f"tolerances.{k}", v, low=0.0) for k, v in data.items()})
         tol.validate()
         return tol
 

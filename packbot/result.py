@@ -9,6 +9,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from packbot.config import SimConfig
+from packbot.errors import UnknownNameError
 from packbot.failures import Failure
 
 __all__ = ["EVENT_KINDS", "Diagnostics", "Event", "SimResult"]
@@ -163,11 +164,24 @@ class SimResult:
     control_ticks: int = 0
 
     def events_of(self, *kinds: str) -> list[Event]:
-        """The events of the given kinds."""
+        """The events of the given kinds (each one of :data:`EVENT_KINDS`).
+
+        Raises:
+            UnknownNameError: A kind that is not an event kind (a typo would give no events).
+        """
+        for kind in kinds:
+            if kind not in EVENT_KINDS:
+                raise UnknownNameError("event kind", kind, EVENT_KINDS)
         return [e for e in self.events if e.kind in kinds]
 
     def joint(self, name: str) -> int:
-        """Column index of a joint."""
+        """Column index of a joint.
+
+        Raises:
+            UnknownNameError: No joint of that name.
+        """
+        if name not in self.joint_names:
+            raise UnknownNameError("joint", name, self.joint_names)
         return self.joint_names.index(name)
 
 

@@ -57,6 +57,7 @@ from packbot.environment import FLOOR, Environment, Obstacle
 from packbot.errors import ConfigurationError, ConvexityError, UnknownNameError
 from packbot.failures import Failure
 from packbot.payload import Payload
+from packbot.validation import finite_number, real_array
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -165,6 +166,19 @@ class Outputs:
 
     def validate(self) -> None:
         """Raise :class:`ConfigurationError` naming the first bad field."""
+        for name, items in (
+            ("plots", self.plots),
+            ("joints", self.joints),
+            ("formats", self.formats),
+        ):
+            if name == "plots" and items is None:
+                continue
+            if not isinstance(items, (tuple, list)) or not all(isinstance(x, str) for x in items):
+                raise ConfigurationError(f"outputs.{name}", items, "a list of names (strings)")
+        if not isinstance(self.html, bool):
+            raise ConfigurationError("outputs.html", self.html, "true or false")
+        if self.occlusion is not None and not isinstance(self.occlusion, OcclusionCheck):
+            raise ConfigurationError("outputs.occlusion", self.occlusion, "an OcclusionCheck")
         for k, kind in enumerate(self.plots or ()):
             if kind not in PLOT_KINDS:
                 raise ConfigurationError(f"outputs.plots[{k}]", kind, PLOT_KINDS)
@@ -177,6 +191,21 @@ class Outputs:
         for k, fmt in enumerate(self.formats):
             if fmt not in _FORMATS:
                 raise ConfigurationError(f"outputs.formats[{k}]", fmt, _FORMATS)
+        for name, items in (
+            ("plots", self.plots or ()),
+            ("joints", self.joints),
+            ("formats", self.formats),
+        ):
+            if len(set(items)) != len(items):
+                raise ConfigurationError(f"outputs.{name}", list(items), "each name at most once")
+        if not self.formats:
+            raise ConfigurationError(
+                "outputs.formats", [], f"at least one image format, of {', '.join(_FORMATS)}"
+            )
+        if not self.joints:
+            raise ConfigurationError(
+                "outputs.joints", [], "at least one joint to plot (omit it for the default)"
+            )
         if self.occlusion is not None:
             self.occlusion.validate()
 
@@ -229,6 +258,7 @@ class Scenario:
         Without ``robot`` only what needs no model is checked (values, ranges, choices); with
         it also the names (poses, joints, frames, links) and the controller's parameters.
         """
+        self._check_types()
         if not (_finite(self.duration) and self.duration > 0):
             raise ConfigurationError("duration", self.duration, "a finite positive time [s]")
         _prefixed(self.config.validate, "config")
@@ -239,7 +269,7 @@ class Scenario:
             self.payload.validate()
         _validate_environment(self.environment)
         self.outputs.validate()
-        if isinstance(self.q0, tuple) and self.pose is not None:
+        if isinstance(self.q0, (tuple, list)) and self.pose is not None:
             raise ConfigurationError(
                 "initial.q", list(self.q0), "a joint = value table when initial.pose is given"
             )
@@ -281,7 +311,52 @@ class Scenario:
             for k, link in enumerate(occ.ignore):
                 if link not in links:
                     raise ConfigurationError(f"outputs.occlusion.ignore[{k}]", link, links)
-        self.build_controller(robot)
+        controller = self.build_controller(robot)
+        # What simulate() checks before a run (the initial state's speeds, a failure on a locked
+        # joint, the relevant-joint bound, the limits on samples, ticks and steps...), now, so
+        # that a bad scenario is refused before anything is written.
+        from packbot.inputs import check_arguments
+
+        q0, v0 = self.initial_state(robot)
+        try:
+            check_arguments(
+                robot,
+                q0,
+                v0,
+                self.duration,
+                controller=controller,
+                environment=self.environment,
+                config=self.config,
+                failures=list(self.failures),
+                payload=self.payload,
+                inform_controller=self.inform_controller,
+            )
+        except ConfigurationError as exc:
+            raise ConfigurationError(_scenario_field(exc.field), exc.value, exc.expected) from None
+
+    def _check_types(self) -> None:
+        """The type of each field (a Scenario built in code is not checked at construction)."""
+        kinds: tuple[tuple[str, object, type | tuple[type, ...], str], ...] = (
+            ("name", self.name, str, "a string"),
+            ("description", self.description, str, "a string"),
+            ("initial.pose", self.pose, (str, type(None)), "a pose name or None"),
+            ("initial.q", self.q0, (tuple, list, dict), "a list or a {joint: angle} table"),
+            ("initial.v", self.v0, (tuple, list, dict), "a list or a {joint: speed} table"),
+            ("config", self.config, SimConfig, "a packbot.SimConfig"),
+            ("failures", self.failures, (tuple, list), "a list of packbot.Failure"),
+            ("payload", self.payload, (Payload, type(None)), "a packbot.Payload or None"),
+            ("controller.kind", self.controller, str, "a controller kind"),
+            ("controller", self.controller_params, dict, "a table of parameters"),
+            ("controller.inform", self.inform_controller, bool, "true or false"),
+            ("environment", self.environment, Environment, "a packbot.Environment"),
+            ("outputs", self.outputs, Outputs, "a packbot.scenario.Outputs"),
+        )
+        for path, value, types_, expected in kinds:
+            if not isinstance(value, types_):
+                raise ConfigurationError(path, value, expected)
+        for k, f in enumerate(self.failures):
+            if not isinstance(f, Failure):
+                raise ConfigurationError(f"failures[{k}]", f, "a packbot.Failure")
 
     def initial_state(self, robot: Robot) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """The initial joint positions [rad] and velocities [rad/s], shape (nq,) each.
@@ -301,16 +376,16 @@ class Scenario:
                 for j, val in given.items():
                     if j not in names:
                         raise ConfigurationError(f"initial.{key}.{j}", val, names)
-                    arr[names.index(j)] = float(val)
+                    arr[names.index(j)] = finite_number(f"initial.{key}.{j}", val, unit=unit)
             else:
-                if len(given) != nq:
-                    raise ConfigurationError(
-                        f"initial.{key}",
-                        list(given),
-                        f"{nq} values [{unit}] in joint order ({', '.join(names)}), or a table "
-                        "joint = value",
-                    )
-                arr[:] = np.asarray(given, dtype=float)
+                expected = (
+                    f"{nq} values [{unit}] in joint order ({', '.join(names)}), or a table "
+                    "joint = value"
+                )
+                if not isinstance(given, (list, tuple)) or len(given) != nq:
+                    shown = list(given) if isinstance(given, (list, tuple)) else given
+                    raise ConfigurationError(f"initial.{key}", shown, expected)
+                arr[:] = real_array(f"initial.{key}", list(given), shape=(nq,), expected=expected)
         robot.check_within_limits(q, "initial.q")
         return q, v
 
@@ -366,6 +441,15 @@ def _validate_environment(env: Environment) -> None:
         if ob.name in seen or ob.name == FLOOR.name:
             raise ConfigurationError(f"{path}.name", ob.name, "a name not used twice ('floor' too)")
         seen.add(ob.name)
+
+
+def _scenario_field(name: str) -> str:
+    """The dotted path in a scenario file of a field named by ``simulate``'s checks."""
+    if name in ("q0", "v0"):
+        return f"initial.{name[0]}"
+    if name in {f.name for f in dataclasses.fields(SimConfig)}:
+        return f"config.{name}"
+    return name
 
 
 def _last(field_name: str) -> str:
@@ -549,7 +633,11 @@ def scenario_from_dict(data: Mapping[str, Any], *, name: str, source_text: str =
     Raises:
         ConfigurationError: A bad key or value; the message names its dotted path.
     """
-    data = _table(dict(data), "scenario")
+    if not isinstance(data, Mapping):
+        raise ConfigurationError("scenario", data, "a table (the parsed TOML of a scenario file)")
+    if not isinstance(name, str) or not name:
+        raise ConfigurationError("name", name, "a non-empty string")
+    data = dict(data)
     _check_keys(data, "", TOP_LEVEL_KEYS)
     if "duration" not in data:
         raise ConfigurationError("duration", None, "a finite positive time [s] (required)")
@@ -713,10 +801,16 @@ def run_scenario(
         SimulationError: The run could not continue (says what and when).
     """
     from packbot.integrator import simulate
-    from packbot.model import load_robot
+    from packbot.model import Robot, load_robot
 
+    if not isinstance(scenario, Scenario):
+        raise ConfigurationError(
+            "scenario", scenario, "a packbot.scenario.Scenario (from load_scenario())"
+        )
     if robot is None:
         robot = load_robot()
+    elif not isinstance(robot, Robot):
+        raise ConfigurationError("robot", robot, "None or a packbot.Robot (from load_robot())")
     scenario.validate(robot)
     if duration is not None and not (_finite(duration) and duration > 0):
         raise ConfigurationError("duration", duration, "a finite positive time [s]")
@@ -813,6 +907,8 @@ def save_run(
     from packbot import __version__
 
     out = Path(out_dir)
+    if out.exists() and not out.is_dir():
+        raise ConfigurationError("out_dir", str(out), "a directory (this is a file)")
     stem = scenario.name if stem is None else stem
     arrays: dict[str, Any] = {
         "t": result.t,

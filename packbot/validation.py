@@ -36,6 +36,7 @@ __all__ = [
     "RTOL_MAX",
     "RTOL_MIN",
     "SAMPLE_DT_MIN",
+    "V0_MAX",
     "boolean",
     "choice",
     "expected_number",
@@ -74,6 +75,9 @@ MAX_STEP_MIN = 1e-9
 RTOL_MIN, RTOL_MAX = 1e-13, 0.1
 #: Largest gravity [m/s^2] (about 10 g): more is a unit mistake (cm/s^2), not a slope or a planet.
 GRAVITY_MAX = 100.0
+#: Largest initial joint speed [rad/s]: 50 times the fastest joint's velocity limit (2 rad/s); an
+#: arm falling from its highest pose reaches a few rad/s, so more is a unit mistake (deg/s, rpm).
+V0_MAX = 100.0
 
 
 def is_number(x: object) -> bool:

@@ -135,9 +135,13 @@ class Controller(ABC):
         self.on_reset(robot, t0, q0, v0)
 
     def step(self, t: float, q: FloatArray, v: FloatArray) -> FloatArray:
-        """One control tick: measure the true state, compute the command [N*m], shape (nv,)."""
+        """One control tick: measure the true state, compute the command [N*m], shape (nv,).
+
+        The command is returned as computed (the simulator checks that it is nv real, finite
+        torques: a complex or non-numeric value is an error there, not silently converted).
+        """
         qm, vm = self.sensor.measure(q, v)
-        return np.asarray(self.compute(t, qm, vm), dtype=float)
+        return np.asarray(self.compute(t, qm, vm))
 
     def on_reset(self, robot: Robot, t0: float, q0: FloatArray, v0: FloatArray) -> None:  # noqa: B027
         """Hook for subclasses: set up state (default: nothing)."""

@@ -1,0 +1,172 @@
+"""Robustness of a contact law from random starts: errors, energy gained at events, penetration.
+
+The collapse (zero torque) from random start poses: every free joint uniform inside its limits,
+the start at least ``2 * contact_tolerance`` from any contact, zero velocity; the same poses
+(seeded) for every setting. For each setting of friction mu, restitution e and the wrist (and
+camera) joints locked or free, it prints: runs, errors (a ``SimulationError``: step-size
+underflow, the ``max_events`` guard, ...), runs that reached ``max_events``, runs stopped by the
+wall-time guard, the largest energy gained at one event [J] (``energy_after - energy_before``,
+over every event of every run), the largest energy gained over a whole run [J] (final minus
+initial energy), the deepest penetration [m] (``-min_distance``, 0 if none), the runs at rest at
+the end, and the median and worst wall time per run [s].
+
+    python benchmarks/robustness.py                      # the contact-normal mode, full grid
+    python benchmarks/robustness.py --law joint_clamp --mu 0 --e 0 0.3
+    python benchmarks/robustness.py --starts 20 --mu 0.5 --wrist locked --workers 2
+
+The full grid (200 starts x 5 mu x 2 e x 2 wrist settings = 4,000 runs of 3 s) takes hours on 2
+cores; ``--starts`` and the filters pick a slice. Issue 16's goal: 0 errors, 0 energy gained at
+any event (beyond 1e-6 J), penetration within ``PENETRATION_TOL``, in every setting.
+"""
+
+from __future__ import annotations
+
+import argparse
+import itertools
+import logging
+import multiprocessing as mp
+import os
+import statistics
+import time
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+import packbot
+from packbot.collision import CollisionWorld
+from packbot.mujoco_model import WRIST_JOINTS
+
+MU = (0.0, 0.2, 0.5, 0.8, 1.2)
+RESTITUTION = (0.0, 0.3)
+WRIST = ("locked", "free")
+#: Energy gained at one event beyond this is counted as a gain [J].
+GAIN_TOL = 1e-6
+
+
+@dataclass
+class Outcome:
+    """One run's figures."""
+
+    error: str = ""
+    max_events: bool = False
+    timeout: bool = False
+    event_gain: float = 0.0
+    run_gain: float = 0.0
+    penetration: float = 0.0
+    at_rest: bool = False
+    wall: float = 0.0
+
+
+class _Timeout(Exception):
+    pass
+
+
+def start_poses(robot: packbot.Robot, n: int, seed: int, clearance: float) -> list[np.ndarray]:
+    """``n`` random start poses, each at least ``clearance`` [m] from any contact."""
+    rng = np.random.default_rng(seed)
+    world = CollisionWorld(robot)
+    lo, hi = robot.model.lowerPositionLimit, robot.model.upperPositionLimit
+    out: list[np.ndarray] = []
+    while len(out) < n:
+        q = rng.uniform(lo, hi)
+        if not world.in_collision(q, tol=clearance):
+            out.append(q)
+    return out
+
+
+def one_run(args: tuple[np.ndarray, dict[str, Any], float, float]) -> Outcome:
+    """Simulate one start with one setting (in a worker process)."""
+    q0, cfg_kw, duration, timeout = args
+    logging.getLogger("packbot").setLevel(logging.ERROR)
+    robot = _robot()
+    cfg = packbot.SimConfig(**cfg_kw)
+    q = q0.copy()
+    t0 = time.perf_counter()
+
+    def guard(t: float) -> None:
+        if time.perf_counter() - t0 > timeout:
+            raise _Timeout(t)
+
+    out = Outcome()
+    res = None
+    try:
+        res = packbot.simulate(robot, q, np.zeros(robot.nq), duration, config=cfg, progress=guard)
+    except packbot.SimulationError as exc:
+        out.error = str(exc)
+        out.max_events = "max_events=" in str(exc)
+        res = exc.result
+    except _Timeout:
+        out.timeout = True
+    out.wall = time.perf_counter() - t0
+    if res is not None and len(res.t):
+        gains = [e.energy_after - e.energy_before for e in res.events]
+        out.event_gain = max([0.0, *[g for g in gains if np.isfinite(g)]])
+        out.run_gain = float(res.energy[-1] - res.energy[0])
+        out.penetration = max(0.0, -float(res.diagnostics.min_distance))
+        out.at_rest = res.rest_time is not None and not out.error
+    return out
+
+
+_ROBOT: packbot.Robot | None = None
+
+
+def _robot() -> packbot.Robot:
+    global _ROBOT
+    if _ROBOT is None:
+        _ROBOT = packbot.load_robot()
+    return _ROBOT
+
+
+def main(argv: list[str] | None = None) -> None:
+    """Print the table (see the module docstring)."""
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--law", default="normal", help="contact_mode (default: normal)")
+    ap.add_argument("--starts", type=int, default=200, help="random starts per setting")
+    ap.add_argument("--seed", type=int, default=2026)
+    ap.add_argument("--mu", type=float, nargs="*", default=list(MU))
+    ap.add_argument("--e", type=float, nargs="*", default=list(RESTITUTION))
+    ap.add_argument("--wrist", nargs="*", default=list(WRIST), choices=WRIST)
+    ap.add_argument("--duration", type=float, default=3.0, help="simulated time per run [s]")
+    ap.add_argument("--timeout", type=float, default=120.0, help="wall limit per run [s]")
+    ap.add_argument("--workers", type=int, default=os.cpu_count() or 1)
+    args = ap.parse_args(argv)
+    robot = _robot()
+    tol = packbot.SimConfig().contact_tolerance
+    poses = start_poses(robot, args.starts, args.seed, 2 * tol)
+    print(
+        f"{args.law}: collapse from {args.starts} random starts (seed {args.seed}), "
+        f"{args.duration:g} s each, load {os.getloadavg()[0]:.2f}"
+    )
+    print(
+        "| mu | e | wrist | runs | errors | max_events | timeouts | max gain at an event [J] | "
+        "max gain over a run [J] | deepest penetration [m] | at rest | median wall [s] | "
+        "worst wall [s] |"
+    )
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|")
+    ctx = mp.get_context("spawn")
+    with ctx.Pool(args.workers) as pool:
+        for mu, e, wrist in itertools.product(args.mu, args.e, args.wrist):
+            kw: dict[str, Any] = {"contact_mode": args.law, "restitution": e}
+            if args.law == "normal":
+                kw["mu"] = mu
+            if wrist == "locked":
+                kw["locked_joints"] = WRIST_JOINTS
+            jobs = [(q, kw, args.duration, args.timeout) for q in poses]
+            outs = pool.map(one_run, jobs, chunksize=1)
+            walls = [o.wall for o in outs]
+            errors = [o for o in outs if o.error]
+            print(
+                f"| {mu:g} | {e:g} | {wrist} | {len(outs)} | {len(errors)} | "
+                f"{sum(o.max_events for o in outs)} | {sum(o.timeout for o in outs)} | "
+                f"{max(o.event_gain for o in outs):.2g} | {max(o.run_gain for o in outs):.3g} | "
+                f"{max(o.penetration for o in outs):.2g} | {sum(o.at_rest for o in outs)} | "
+                f"{statistics.median(walls):.2f} | {max(walls):.2f} |",
+                flush=True,
+            )
+            for o in errors[:3]:
+                print(f"    error: {o.error[:150]}")
+
+
+if __name__ == "__main__":
+    main()
