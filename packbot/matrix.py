@@ -23,7 +23,7 @@ sweep; every field of the scenario is addressed by its dotted name (``config.res
     "config.contact_mode" = "none"
     "config.restitution" = 0.3
 
-    [tolerances]                       # regression tolerances (see packbot.regress.Tolerances)
+    [tolerances]                       # regression tolerances (see packbot.tolerances.Tolerances)
     q = 1e-6
 
 Keys may be quoted dotted names or TOML's bare dotted keys (``config.restitution = [...]``, which
@@ -56,6 +56,7 @@ from pathlib import Path
 from typing import Any
 
 from packbot.errors import ConfigurationError, ResourceNotFound, UnknownNameError
+from packbot.tolerances import Tolerances
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -141,7 +142,7 @@ class Matrix:
         exclude: Tables of dotted name -> value; a product run matching every key of one of
             them is dropped.
         tolerances: Regression tolerances, name -> value (see
-            :class:`packbot.regress.Tolerances`).
+            :class:`packbot.tolerances.Tolerances`).
         path: The file it was read from, if any (a relative ``base`` is resolved beside it).
         source_text: The file's text.
     """
@@ -193,8 +194,6 @@ class Matrix:
                     raise UnknownNameError(f"axis (in exclude.{i})", key, self.axes)
         if not isinstance(self.tolerances, dict):
             raise ConfigurationError("tolerances", self.tolerances, "a table")
-        from packbot.regress import Tolerances  # regress imports this module
-
         Tolerances.from_mapping(self.tolerances)  # known names, finite numbers >= 0 (no bools)
         # Like [set] and the axes: values that the JSON of the run records can hold.
         for title, group in (("include", self.include), ("exclude", self.exclude)):

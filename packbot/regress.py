@@ -37,7 +37,7 @@ import math
 import tempfile
 from collections import Counter
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import asdict, dataclass, field, fields
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -56,9 +56,9 @@ from packbot.batch import (
     summary_rows,
 )
 from packbot.config import SimConfig
-from packbot.errors import ConfigurationError, ResourceNotFound, UnknownNameError
+from packbot.errors import ConfigurationError, ResourceNotFound
 from packbot.matrix import Matrix, Run, apply_overrides, digest
-from packbot.validation import finite_number
+from packbot.tolerances import Tolerances
 
 __all__ = [
     "CHECKPOINT_DT",
@@ -101,44 +101,6 @@ CHECKPOINT_DT = 0.25
 FloatArray = NDArray[np.float64]
 #: A run's trajectory: sample times [s] and joint positions [rad], shape (n,) and (n, nq).
 Trajectory = tuple[FloatArray, FloatArray]
-
-
-@dataclass(frozen=True, kw_only=True)
-class Tolerances:
-    """Absolute tolerances of :func:`compare`.
-
-    Attributes:
-        q: Final joint positions [rad].
-        time: Rest time and event times [s].
-        distance: Minimum signed distance [m].
-        energy: Energy change [J].
-    """
-
-    q: float = 1e-6
-    time: float = 1e-6
-    distance: float = 1e-7
-    energy: float = 1e-6
-
-    def validate(self) -> None:
-        """Raise :class:`ConfigurationError` naming the first bad tolerance (a bool is not one)."""
-        for f in fields(self):
-            finite_number(f"tolerances.{f.name}", getattr(self, f.name), low=0.0)
-
-    @classmethod
-    def from_mapping(cls, data: Mapping[str, Any]) -> Tolerances:
-        """From a matrix file's ``[tolerances]`` table (missing names keep their default).
-
-        Raises:
-            UnknownNameError: An unknown tolerance name.
-            ConfigurationError: A bad value.
-        """
-        names = [f.name for f in fields(cls)]
-        for key in data:
-            if key not in names:
-                raise UnknownNameError("tolerance", key, names)
-        tol = cls(**{k: finite_number(f"tolerances.{k}", v, low=0.0) for k, v in data.items()})
-        tol.validate()
-        return tol
 
 
 @dataclass(frozen=True, kw_only=True)
