@@ -107,6 +107,10 @@ class Diagnostics:
         wall_time: Wall-clock time of the run [s].
         min_distance: Smallest signed distance seen at any accepted step or sample [m].
         min_distance_pair: Links of that pair, ``"link1/piece1 - link2/piece2"``.
+        reset_energy_gain: Total energy the report's velocity resets added [J]: the sum, over
+            the ``impact``, ``secondary_intersection`` and ``limit`` events, of each one's
+            ``energy_after - energy_before`` where positive (the ``"zero"`` reset on a coupled
+            arm can add kinetic energy; docs/simulator.md, "The impact law").
     """
 
     steps: int = 0
@@ -118,6 +122,7 @@ class Diagnostics:
     wall_time: float = 0.0
     min_distance: float = float("inf")
     min_distance_pair: str = ""
+    reset_energy_gain: float = 0.0
 
 
 @dataclass

@@ -127,7 +127,7 @@ class JointClampLaw(PairLaw):
         v_new, acted = v, rel
         if float(Jn @ v) < 0.0 and len(rel):  # approaching: apply the reset
             v_new, acted = self.reset(q, v, rel)
-        self.log_event(
+        event = self.log_event(
             t,
             kind,
             q,
@@ -137,4 +137,5 @@ class JointClampLaw(PairLaw):
             d=c.distance,
             joints=tuple(self.sys.names[i] for i in acted),
         )
+        self.note_reset(event.energy_before, event.energy_after)
         return v_new

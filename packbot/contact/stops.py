@@ -373,7 +373,7 @@ class JointStops:
             return
         minv = self.sys.minv(q)
         if self.locks.signs:
-            self.locks.solve_engaged(self.free_accel(t, y), minv, flip=flip)
+            self._solve_engaged(t, y, minv, flip)
         if candidates:
             for j in candidates:
                 fdir[j] = 0.0
@@ -396,7 +396,15 @@ class JointStops:
                     self.log_event(t, "slip", q, v, v, None, joints=(self.sys.names[j],), joint=j)
             self.locks.set_held(keep)
             if self.locks.signs:
-                self.locks.solve_engaged(self.free_accel(t, y), minv, flip=flip)
+                self._solve_engaged(t, y, minv, flip)
+
+    def _solve_engaged(self, t: float, y: FloatArray, minv: FloatArray, flip: int | None) -> None:
+        """Choose the engaged clamps at (t, y) (the locks' complementarity problem).
+
+        A hook: a law may release clamps here (issue 16, item 4: a clamp holding a receding
+        joint does positive work; /work/notes/issue16-item4-clamp-release.patch).
+        """
+        self.locks.solve_engaged(self.free_accel(t, y), minv, flip=flip)
 
     # ------------------------------------------------------------------ stops
     def reset(
@@ -414,7 +422,7 @@ class JointStops:
         rule = cfg.reset_rule if rule is None else rule
         minv = self.sys.minv(q) if rule == "momentum" else None
         acted = np.array(sorted(set(rel.tolist())), dtype=np.intp)
-        clamps = [cl for a in self.active.values() for cl in a.clamps]
+        clamps = self._widening_clamps()
         for _ in range(self.n + 1):
             v_new = impact_reset(v, acted, cfg.restitution, rule, minv)
             tiny = 1e-12 * (1.0 + float(np.abs(v).max()))
@@ -423,6 +431,10 @@ class JointStops:
                 return v_new, acted
             acted = np.array(sorted(set(acted.tolist()) | more), dtype=np.intp)
         return v_new, acted
+
+    def _widening_clamps(self) -> list[tuple[int, int]]:
+        """The clamps (joint, s) a reset is widened for: those of the active contacts."""
+        return [cl for a in self.active.values() for cl in a.clamps]
 
     def limit(self, t: float, q: FloatArray, v: FloatArray, j: int, side: int) -> FloatArray:
         """Joint j reached its upper (side +1) or lower (-1) stop: impulse and clamp."""
@@ -437,6 +449,7 @@ class JointStops:
                 self.active.pop(("limit", j, side))
         lim = self.sys.upper[j] if side > 0 else self.sys.lower[j]
         ev_before, ev_after = self.energy(q, v), self.energy(q, v_new)
+        self.note_reset(ev_before, ev_after)
         self.events.log(
             Event(
                 t,
@@ -496,23 +509,36 @@ class JointStops:
         d: float = math.nan,
         joints: tuple[str, ...] = (),
         joint: int | None = None,
-    ) -> None:
-        """Log an event (energies before and after, full velocities) to the run's event log."""
+    ) -> Event:
+        """Log an event (energies before and after, full velocities) to the run's event log.
+
+        Returns:
+            The event logged.
+        """
         e0 = self.energy(q, v0)
         e1 = e0 if v1 is v0 else self.energy(q, v1)
-        self.events.log(
-            Event(
-                t,
-                kind,
-                pair.link1 if pair else (self.sys.names[joint] if joint is not None else ""),
-                pair.link2 if pair else "",
-                pair.piece1 if pair else "",
-                pair.piece2 if pair else "",
-                d,
-                joints,
-                self.sys.v_full(v0),
-                self.sys.v_full(v1),
-                e0,
-                e1,
-            )
+        event = Event(
+            t,
+            kind,
+            pair.link1 if pair else (self.sys.names[joint] if joint is not None else ""),
+            pair.link2 if pair else "",
+            pair.piece1 if pair else "",
+            pair.piece2 if pair else "",
+            d,
+            joints,
+            self.sys.v_full(v0),
+            self.sys.v_full(v1),
+            e0,
+            e1,
         )
+        self.events.log(event)
+        return event
+
+    def note_reset(self, energy_before: float, energy_after: float) -> None:
+        """Count a velocity reset's energy gain in ``Diagnostics.reset_energy_gain`` [J].
+
+        Args:
+            energy_before: Total energy before the reset [J].
+            energy_after: Total energy after it [J]; only a rise counts (a loss is not a gain).
+        """
+        self.diag.reset_energy_gain += max(0.0, energy_after - energy_before)
