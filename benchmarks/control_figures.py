@@ -17,7 +17,12 @@ import pinocchio as pin
 from matplotlib.figure import Figure
 
 import packbot
-from packbot.analysis import loose_joint_equilibria, plot_workspace, workspace
+from packbot.analysis import (
+    loose_joint_equilibria,
+    plot_workspace,
+    reachable_volume,
+    workspace,
+)
 from packbot.control import ReconfigurableController
 from packbot.scenario import load_scenario
 
@@ -118,11 +123,21 @@ def main() -> None:
     angle = float(res.q[-1, robot.params.index("elbow1")])
     healthy = workspace(robot, samples=20000, seed=0)
     frozen = workspace(robot, ("elbow1", angle), samples=20000, seed=0)
-    plot_workspace([healthy, frozen], OUT / "workspace_elbow1")
+    vol_h = reachable_volume(robot, healthy, rel_tol=0.01, seed=1)
+    vol_f = reachable_volume(robot, frozen, rel_tol=0.01, seed=1)
+    plot_workspace(
+        [healthy, frozen],
+        OUT / "workspace_elbow1",
+        labels=[
+            f"healthy ({len(healthy.points)} pts, {vol_h.volume_m3:.2f} +- "
+            f"{vol_h.stderr_m3:.2f} m$^3$)",
+            f"elbow1 frozen at {angle:.2f} rad ({len(frozen.points)} pts, "
+            f"{vol_f.volume_m3:.2f} +- {vol_f.stderr_m3:.2f} m$^3$)",
+        ],
+    )
     print(
-        f"workspace (5 cm voxels): healthy {healthy.volume():.3f} m^3 "
-        f"({healthy.free_fraction:.0%} free), elbow1 frozen at {angle:.3f} rad "
-        f"{frozen.volume():.3f} m^3 ({frozen.free_fraction:.0%} free)"
+        f"reachable volume: healthy {vol_h} ({healthy.free_fraction:.0%} of samples free), "
+        f"elbow1 frozen at {angle:.3f} rad {vol_f} ({frozen.free_fraction:.0%} free)"
     )
     for joint in ("shoulder", "elbow1", "elbow2"):
         for eq in loose_joint_equilibria(robot, joint, robot.pose("stand")):
