@@ -18,6 +18,7 @@ from packbot.failures import FAILURE_KINDS, Failure
 from packbot.integrator import simulate
 from packbot.model import JointParams, Robot, load_robot
 from packbot.payload import Payload
+from packbot.resources import package_dirs, urdf_path
 from packbot.result import Diagnostics, Event, SimResult
 
 __version__ = "0.1.0"
@@ -50,5 +51,7 @@ __all__ = [
     "UnknownNameError",
     "__version__",
     "load_robot",
+    "package_dirs",
     "simulate",
+    "urdf_path",
 ]

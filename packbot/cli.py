@@ -767,7 +767,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser(
         "generate-srdf",
-        help="sample the joint space and write urdf/packbot_eod.srdf (link pairs not to test)",
+        help="sample the joint space and write urdf/packbot/packbot_eod.srdf (groups, pairs)",
     )
     p.add_argument(
         "--samples", type=_positive_int, default=20000, help="random configurations (20000)"

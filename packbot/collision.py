@@ -13,7 +13,7 @@ Conventions (used everywhere in packbot):
   ``p2 - p1 = d * n``. Swapping the pair flips n and swaps the points.
 
 Pairs that are never tested: pieces of one body, bodies joined by a joint (adjacent), two static
-bodies, and link pairs listed in ``urdf/packbot_eod.srdf`` (never within 5 cm of each other
+bodies, and link pairs listed in ``urdf/packbot/packbot_eod.srdf`` (never within 5 cm of each other
 over a sampling of the joint space; regenerate with ``packbot generate-srdf``).
 
 Pruning (the report's bounding-volume hierarchy, one level finer): each piece has a bounding box

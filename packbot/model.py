@@ -1,6 +1,6 @@
 """Load the PackBot EOD model: :func:`load_robot` returns a :class:`Robot`.
 
-The Pinocchio models come from ``urdf/packbot_eod.urdf``; actuator data (gear ratios, rotor
+The Pinocchio models come from ``urdf/packbot/packbot_eod.urdf``; actuator data (gear ratios, rotor
 inertias, friction) from the parameter table :mod:`packbot.params`. The armature
 ``gear_ratio^2 * rotor_inertia`` is written into ``model.armature``, which Pinocchio's ABA and
 CRBA add to the joint-space mass matrix. Collision meshes are replaced by their convex hulls
@@ -844,7 +844,7 @@ def load_robot(urdf: str | Path | None = None) -> Robot:
     naming the file, the element and the fix, never Pinocchio's bare exceptions.
 
     Args:
-        urdf: A URDF file to load instead of the shipped ``urdf/packbot_eod.urdf``. Mesh URIs
+        urdf: A URDF file to load instead of the shipped one (``packbot.urdf_path()``). Mesh URIs
             ``package://packbot/...`` and relative paths resolve to that file's directory.
 
     Returns:

@@ -15,7 +15,7 @@ joints with the URDF range, the floor (our default :class:`~packbot.environment.
 the halfspace z <= 0) as a plane, Coulomb friction ``mu`` on every geom (elliptic cone),
 a stiff ``solref`` (default: time constant ``2 * timestep``, critical damping, the stiffest that
 MuJoCo allows without instability) on contacts and limits, and one ``<exclude>`` per SRDF pair
-(``urdf/packbot_eod.srdf``: adjacent and never-colliding links), so that MuJoCo tests the same
+(``packbot_eod.srdf``: adjacent and never-colliding links), so that MuJoCo tests the same
 candidate pairs as :class:`~packbot.collision.CollisionWorld` (MuJoCo also skips bodies welded
 together, which we only skip when their distance cannot change). The chassis ``base_link`` is
 welded to the world.
@@ -53,6 +53,7 @@ __all__ = [
     "MujocoIntegrator",
     "MujocoRun",
     "build_mujoco_model",
+    "generate_mjcf",
     "run_collapse",
     "sliding_lift",
 ]
@@ -244,6 +245,45 @@ def build_mujoco_model(
             non-halfspace obstacle.
         ModelError: mujoco is not installed, or it rejects the model.
     """
+    spec, xml, q_lock, ref = _arm_spec(
+        robot,
+        q_locked=q_locked,
+        locked_joints=locked_joints,
+        timestep=timestep,
+        mu=mu,
+        solref=solref,
+        solimp=solimp,
+        integrator=integrator,
+        environment=environment,
+        srdf=srdf,
+    )
+    urdf = Path(robot.urdf_path)
+    try:
+        model = spec.compile()
+    except ValueError as exc:
+        raise ModelError(f"MuJoCo could not compile the model of {urdf}: {exc}") from exc
+    return _arm(model, robot, q_lock, locked_joints, mu, timestep, ref, integrator, xml)
+
+
+def _arm_spec(
+    robot: Robot,
+    *,
+    q_locked: Sequence[float] | NDArray[np.float64] | None,
+    locked_joints: Sequence[str],
+    timestep: float,
+    mu: float,
+    solref: tuple[float, float] | None,
+    solimp: tuple[float, float, float],
+    integrator: MujocoIntegrator,
+    environment: Environment | None,
+    srdf: Path | str | None,
+    joint_dynamics: bool = False,
+) -> tuple[Any, str, NDArray[np.float64], tuple[float, float]]:
+    """The uncompiled MjSpec of :func:`build_mujoco_model`.
+
+    Returns the spec, the URDF text it read, q_locked [rad] and solref; ``joint_dynamics`` keeps
+    the URDF's viscous damping and Coulomb friction (otherwise both are zero).
+    """
     mujoco = _mujoco()
     from packbot.environment import Environment
 
@@ -299,9 +339,16 @@ def build_mujoco_model(
     for joint in spec.joints:
         if joint.name not in names:
             raise ModelError(f"MuJoCo joint {joint.name!r} is not one of ours: {names}")
-        joint.armature = float(robot.params.armature[names.index(joint.name)])
-        joint.damping = np.zeros_like(np.atleast_1d(joint.damping))
-        joint.frictionloss = 0.0
+        i = names.index(joint.name)
+        joint.armature = float(robot.params.armature[i])
+        if joint_dynamics:
+            joint.damping = np.full_like(
+                np.atleast_1d(joint.damping), float(robot.params.viscous[i])
+            )
+            joint.frictionloss = float(robot.params.coulomb[i])
+        else:
+            joint.damping = np.zeros_like(np.atleast_1d(joint.damping))
+            joint.frictionloss = 0.0
         joint.solref_limit = list(ref)
         joint.solimp_limit = imp
     for obs in planes:
@@ -326,11 +373,67 @@ def build_mujoco_model(
     srdf_path = urdf.parent / _SRDF_NAME if srdf is None else Path(srdf)
     for a, b in _srdf_pairs(srdf_path):
         spec.add_exclude(bodyname1=a, bodyname2=b)
-    try:
-        model = spec.compile()
-    except ValueError as exc:
-        raise ModelError(f"MuJoCo could not compile the model of {urdf}: {exc}") from exc
+    return spec, xml, q_lock, ref
 
+
+def generate_mjcf(robot: Robot) -> str:
+    """The MJCF text of the shipped MuJoCo model (``urdf/packbot/packbot_eod.xml``).
+
+    The model of :func:`build_mujoco_model` with every joint free (none locked), each hinge with
+    its armature [kg*m^2], its URDF viscous damping [N*m*s/rad] and Coulomb friction [N*m], the
+    floor plane, and the SRDF's disabled link pairs as ``<exclude>``; meshes are read from
+    ``meshes/`` beside the file, so ``mujoco.MjModel.from_xml_path`` loads it as it is.
+
+    Raises:
+        ModelError: mujoco is not installed, or it rejects the model.
+    """
+    mujoco = _mujoco()
+    spec, _, _, _ = _arm_spec(
+        robot,
+        q_locked=None,
+        locked_joints=(),
+        timestep=5e-4,
+        mu=0.5,
+        solref=None,
+        solimp=(0.99, 0.999, 0.001),
+        integrator="euler",
+        environment=None,
+        srdf=None,
+        joint_dynamics=True,
+    )
+    spec.modelname = "packbot_eod"
+    try:
+        spec.compile()
+    except ValueError as exc:
+        raise ModelError(f"MuJoCo could not compile the model of {robot.urdf_path}: {exc}") from exc
+    xml = str(spec.to_xml())
+    meshdir = f'meshdir="{Path(robot.urdf_path).parent / "meshes"}/"'
+    if meshdir not in xml:
+        meshdir = meshdir.replace('/"', '"')
+    if meshdir not in xml:
+        raise ModelError(f"MuJoCo's MJCF of {robot.urdf_path} has no {meshdir}")
+    xml = xml.replace(meshdir, 'meshdir="meshes"', 1)
+    header = (
+        f"<!-- GENERATED by `packbot generate-model` from packbot/params.py with MuJoCo "
+        f"{mujoco.__version__}: do not edit. -->\n"
+    )
+    return header + xml
+
+
+def _arm(
+    model: Any,
+    robot: Robot,
+    q_lock: NDArray[np.float64],
+    locked_joints: Sequence[str],
+    mu: float,
+    timestep: float,
+    ref: tuple[float, float],
+    integrator: MujocoIntegrator,
+    xml: str,
+) -> MujocoArm:
+    mujoco = _mujoco()
+    names = tuple(robot.joint_names)
+    locked = set(locked_joints)
     qpos_index = np.full(len(names), -1, dtype=np.intp)
     for i, name in enumerate(names):
         if name in locked:

@@ -2,6 +2,13 @@
 
 In a source checkout (or an editable install) they are the repository's top-level folders; in an
 installed wheel they are packaged as ``packbot/_data/urdf`` and ``packbot/_data/sims``.
+
+``urdf/`` holds one ROS-style description package, ``urdf/packbot/`` (``package.xml`` names it
+``packbot``, as the URDF's ``package://packbot/meshes/...`` URIs do). A loader resolves
+``package://packbot/X`` by searching its package directories for ``<dir>/packbot/X``, so
+:func:`package_dirs` is ``[urdf/]`` and :func:`urdf_path` is ``urdf/packbot/packbot_eod.urdf``::
+
+    pinocchio.buildModelsFromUrdf(str(packbot.urdf_path()), package_dirs=packbot.package_dirs())
 """
 
 from __future__ import annotations
@@ -11,10 +18,30 @@ from pathlib import Path
 
 from packbot.errors import ResourceNotFound
 
-__all__ = ["PACKAGE_URI", "data_dir", "repo_root", "resolve_mesh_uri"]
+__all__ = [
+    "DESCRIPTION_PACKAGE",
+    "MJCF_NAME",
+    "PACKAGE_URI",
+    "SRDF_NAME",
+    "URDF_NAME",
+    "data_dir",
+    "description_dir",
+    "mjcf_path",
+    "package_dirs",
+    "repo_root",
+    "resolve_mesh_uri",
+    "srdf_path",
+    "urdf_path",
+]
 
+#: Name of the ROS-style description package (its ``package.xml`` and its folder's name).
+DESCRIPTION_PACKAGE = "packbot"
 #: Prefix of the mesh URIs of packbot's URDFs; it stands for the URDF file's own directory.
-PACKAGE_URI = "package://packbot/"
+PACKAGE_URI = f"package://{DESCRIPTION_PACKAGE}/"
+#: File names inside the description package.
+URDF_NAME = "packbot_eod.urdf"
+SRDF_NAME = "packbot_eod.srdf"
+MJCF_NAME = "packbot_eod.xml"
 
 
 def repo_root() -> Path | None:
@@ -23,8 +50,8 @@ def repo_root() -> Path | None:
     return root if (root / "pyproject.toml").is_file() and (root / "urdf").is_dir() else None
 
 
-def data_dir(name: str) -> Path:
-    """Absolute path of a data folder, ``"urdf"`` or ``"sims"``.
+def _data_root(name: str) -> Path:
+    """Absolute path of the top-level data folder ``urdf/`` or ``sims/``.
 
     Raises:
         ResourceNotFound: Neither the wheel's nor the checkout's folder exists.
@@ -36,6 +63,56 @@ def data_dir(name: str) -> Path:
     if root is not None and (root / name).is_dir():
         return root / name
     raise ResourceNotFound(packaged, "reinstall packbot (pip install .) or run from a checkout")
+
+
+def data_dir(name: str) -> Path:
+    """Absolute path of a data folder: ``"urdf"`` (the description package) or ``"sims"``.
+
+    ``data_dir("urdf")`` is the package folder ``urdf/packbot`` holding the URDF, the SRDF, the
+    MJCF and ``meshes/``; ``data_dir("sims")`` is ``sims/``.
+
+    Raises:
+        ResourceNotFound: Neither the wheel's nor the checkout's folder exists.
+    """
+    if name == "urdf":
+        return description_dir()
+    return _data_root(name)
+
+
+def description_dir() -> Path:
+    """Absolute path of the description package folder ``urdf/packbot`` (holds ``package.xml``).
+
+    Raises:
+        ResourceNotFound: The folder is missing (a broken install).
+    """
+    path = _data_root("urdf") / DESCRIPTION_PACKAGE
+    if not path.is_dir():
+        raise ResourceNotFound(path, "reinstall packbot (pip install .) or run from a checkout")
+    return path
+
+
+def package_dirs() -> list[str]:
+    """The package directories under which ``package://packbot/...`` mesh URIs resolve.
+
+    Pass them to a loader's package path, e.g. ``pinocchio.buildModelsFromUrdf(...,
+    package_dirs=packbot.package_dirs())`` or ``ROS_PACKAGE_PATH``.
+    """
+    return [str(description_dir().parent)]
+
+
+def urdf_path() -> Path:
+    """Absolute path of the shipped URDF, ``urdf/packbot/packbot_eod.urdf``."""
+    return description_dir() / URDF_NAME
+
+
+def srdf_path() -> Path:
+    """Absolute path of the shipped SRDF (collision pairs, groups, named poses)."""
+    return description_dir() / SRDF_NAME
+
+
+def mjcf_path() -> Path:
+    """Absolute path of the shipped MuJoCo model (MJCF) generated from the same parameters."""
+    return description_dir() / MJCF_NAME
 
 
 def resolve_mesh_uri(uri: str, urdf_dir: Path) -> Path | None:

@@ -1,4 +1,9 @@
-"""Generate ``urdf/packbot_eod.srdf``: link pairs the collision world need not test.
+"""Generate ``urdf/packbot/packbot_eod.srdf``: groups, named poses, link pairs not to test.
+
+Groups (MoveIt's rules: a ``group_state`` may only set joints of its group, and every joint a group
+names exists in the URDF): ``arm`` (turret, shoulder, elbow1, elbow2), ``gripper`` (gripper_roll,
+gripper_jaw), ``camera`` (camera_tilt, camera_pan) and ``packbot``, made of the three. Each named
+pose is written once per group, with that group's joints.
 
 As ROS MoveIt's setup assistant does, sample the joint space uniformly within the limits and
 record each link pair's smallest and largest signed distance. A pair is disabled when it is
@@ -22,15 +27,33 @@ import pinocchio as pin
 
 from packbot.collision import SRDF_NAME, CollisionWorld
 from packbot.environment import Environment
+from packbot.errors import ModelError
 from packbot.model import Robot
+from packbot.resources import DESCRIPTION_PACKAGE
 
-__all__ = ["DEFAULT_CLEARANCE", "DEFAULT_SAMPLES", "generate_srdf", "sample_link_distances"]
+__all__ = [
+    "DEFAULT_CLEARANCE",
+    "DEFAULT_SAMPLES",
+    "GROUPS",
+    "WHOLE_GROUP",
+    "generate_srdf",
+    "sample_link_distances",
+]
 
 log = logging.getLogger(__name__)
 
 DEFAULT_SAMPLES = 20000
 DEFAULT_CLEARANCE = 0.05
 DEFAULT_SEED = 2010
+
+#: Planning groups: name -> its joints, in the model's order.
+GROUPS: dict[str, tuple[str, ...]] = {
+    "arm": ("turret", "shoulder", "elbow1", "elbow2"),
+    "gripper": ("gripper_roll", "gripper_jaw"),
+    "camera": ("camera_tilt", "camera_pan"),
+}
+#: The group made of all of :data:`GROUPS` (every actuated joint).
+WHOLE_GROUP = "packbot"
 
 
 def sample_link_distances(
@@ -86,12 +109,23 @@ def generate_srdf(
                 f'  <disable_collisions link1="{a}" link2="{b}" reason="Always"/>'
                 f"  <!-- max {dmax:.3f} m -->"
             )
+    missing = sorted(set(robot.joint_names) - {j for js in GROUPS.values() for j in js})
+    if missing:
+        raise ModelError(f"joints {missing} belong to no SRDF group (packbot.srdfgen.GROUPS)")
+    for group, joints in GROUPS.items():
+        lines.append(f'  <group name="{group}">')
+        lines += [f'    <joint name="{j}"/>' for j in joints]
+        lines.append("  </group>")
+    lines.append(f'  <group name="{WHOLE_GROUP}">')
+    lines += [f'    <group name="{g}"/>' for g in GROUPS]
+    lines.append("  </group>")
     for name, q in robot.poses.items():
-        values = " ".join(
-            f'<joint name="{n}" value="{v:.12g}"/>'
-            for n, v in zip(robot.joint_names, q, strict=True)
-        )
-        lines.append(f'  <group_state name="{name}" group="arm">{values}</group_state>')
+        value = dict(zip(robot.joint_names, q, strict=True))
+        # The whole-body state first: Pinocchio's loadReferenceConfigurations keeps the first
+        # state of a name, so it gets the full pose.
+        for group, joints in {WHOLE_GROUP: tuple(robot.joint_names), **GROUPS}.items():
+            values = " ".join(f'<joint name="{n}" value="{value[n]:.12g}"/>' for n in joints)
+            lines.append(f'  <group_state name="{name}" group="{group}">{values}</group_state>')
     lines.append("</robot>")
     return "\n".join(lines) + "\n"
 
@@ -105,7 +139,8 @@ def _child_link(robot: Robot, joint: int) -> str:
 
 
 def write_srdf(robot: Robot, root: Path, **kwargs: float) -> Path:
-    """Write the SRDF under ``root/urdf``; returns its path."""
-    path = root / "urdf" / SRDF_NAME
+    """Write the SRDF into the description package ``root/urdf/packbot``; returns its path."""
+    path = root / "urdf" / DESCRIPTION_PACKAGE / SRDF_NAME
+    path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text(generate_srdf(robot, **kwargs))  # type: ignore[arg-type]
     return path

@@ -2245,7 +2245,7 @@ cli(
 )
 cli(
     "run-urdf-as-scenario",
-    lambda c: ["run", str(HERE.parent / "urdf" / "packbot_eod.urdf"), "--out", c.out()],
+    lambda c: ["run", str(HERE.parent / "urdf" / "packbot" / "packbot_eod.urdf"), "--out", c.out()],
     "TOML",
 )
 

@@ -299,7 +299,7 @@ def test_floor_by_default_against_every_arm_piece_and_empty_environment(robot, w
 def test_committed_srdf_is_what_generate_srdf_writes(robot):
     committed = (data_dir("urdf") / SRDF_NAME).read_text()
     assert generate_srdf(robot) == committed, (
-        "urdf/packbot_eod.srdf is stale: run `packbot generate-srdf`"
+        "urdf/packbot/packbot_eod.srdf is stale: run `packbot generate-srdf`"
     )
 
 
@@ -316,7 +316,7 @@ def test_srdf_never_pairs_stay_apart_on_fresh_samples(robot):
 def test_cli_generate_srdf_writes_a_file(tmp_path, capsys):
     (tmp_path / "urdf").mkdir()
     assert cli_main(["generate-srdf", "--samples", "30", "--root", str(tmp_path)]) == 0
-    text = (tmp_path / "urdf" / SRDF_NAME).read_text()
+    text = (tmp_path / "urdf" / "packbot" / SRDF_NAME).read_text()
     assert 'reason="Adjacent"' in text and "30 samples" in text
     ET.fromstring(text)  # well-formed
     assert "wrote" in capsys.readouterr().out

@@ -167,7 +167,7 @@ def test_generated_files_match_committed():
     """The committed URDF, meshes and docs table equal the generator's output, and so do the
     files packbot actually loads (the installed wheel's copy, or the checkout's)."""
     gen = build()
-    for urdf_dir in {REPO / "urdf", data_dir("urdf")}:
+    for urdf_dir in {REPO / "urdf" / "packbot", data_dir("urdf")}:
         assert (urdf_dir / URDF_NAME).read_text() == gen.urdf
         shipped = {p.name for p in (urdf_dir / "meshes").glob("*.stl")}
         assert shipped == set(gen.meshes)
@@ -179,7 +179,7 @@ def test_generated_files_match_committed():
 def test_round_trip_check_detects_a_stale_file(tmp_path):
     generate(tmp_path)
     assert generate(tmp_path, check=True) == []
-    urdf = tmp_path / "urdf" / URDF_NAME
+    urdf = tmp_path / "urdf" / "packbot" / URDF_NAME
     urdf.write_text(urdf.read_text().replace('effort="156"', 'effort="150"'))
     assert generate(tmp_path, check=True) == [urdf]
     assert main(["generate-model", "--check", "--root", str(tmp_path)]) == 1
