@@ -273,3 +273,17 @@ class ControllerError(SimulationError):
     def __init__(self, message: str, t: float, joint: str | None = None) -> None:
         self.joint = joint
         super().__init__(f"controller: {message}", t)
+
+
+class ResultFileError(PackbotError):
+    """A file that :meth:`packbot.SimResult.load` cannot read: missing, not a result, or corrupt.
+
+    Attributes:
+        path: The file.
+        reason: What is wrong with it.
+    """
+
+    def __init__(self, path: str | Path, reason: str) -> None:
+        super().__init__(f"cannot load a packbot result from {str(path)!r}: {reason}")
+        self.path = str(path)
+        self.reason = reason

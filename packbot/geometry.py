@@ -15,7 +15,6 @@ import coal
 import numpy as np
 import pinocchio as pin
 from numpy.typing import NDArray
-from scipy.spatial import ConvexHull
 
 from packbot.errors import ConvexityError
 from packbot.params import Part
@@ -79,6 +78,8 @@ def hull_triangles(points: NDArray[np.float64], name: str = "piece") -> NDArray[
     pts = np.asarray(points, dtype=float)
     if pts.ndim != 2 or pts.shape[1] != 3 or len(pts) < 4:
         raise ConvexityError(name, f"needs at least 4 points in 3D, got shape {pts.shape}")
+    from scipy.spatial import ConvexHull  # lazy: ~0.25 s of import, needed by generate only
+
     try:
         hull = ConvexHull(pts)
     except Exception as exc:  # scipy raises QhullError for flat or degenerate sets

@@ -365,6 +365,8 @@ class _Run:
             effort=effort,
             failures=tuple(self.failures_in),
             control_ticks=self.schedule.ticks,
+            environment=Environment() if self.environment is None else self.environment,
+            payload=self.payload,
         )
 
 

@@ -42,8 +42,7 @@ from packbot.errors import (
     URDFError,
     URDFSyntaxError,
 )
-from packbot.resources import data_dir, resolve_mesh_uri
-from packbot.urdfgen import URDF_NAME
+from packbot.resources import URDF_NAME, data_dir, resolve_mesh_uri
 from packbot.validation import finite_number
 
 __all__ = ["JointParams", "Robot", "check_urdf", "link_adjacency", "load_robot"]

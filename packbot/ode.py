@@ -38,7 +38,6 @@ from collections.abc import Callable
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy.optimize import brentq
 
 from packbot.errors import ConfigurationError, PackbotError
 
@@ -530,6 +529,97 @@ class RK45Stepper:
         )
 
 
+#: Machine epsilon of float64.
+_EPS = 2.220446049250313e-16
+
+
+def brentq(
+    f: Callable[[float], float],
+    a: float,
+    b: float,
+    *,
+    xtol: float = 2e-12,
+    rtol: float = 4.0 * _EPS,
+    maxiter: int = 100,
+) -> float:
+    """Brent's root finder: a line-for-line port of SciPy's ``brentq`` (``Zeros/brentq.c``).
+
+    The same iterates as :func:`scipy.optimize.brentq` (tests compare them), without importing
+    ``scipy.optimize``, which takes about 0.2 s: a one-shot run such as ``packbot run collapse``
+    locates a handful of events and would spend more time importing SciPy than simulating.
+
+    Args:
+        f: Continuous scalar function with ``f(a)`` and ``f(b)`` of opposite signs.
+        a: One end of the bracket.
+        b: The other end.
+        xtol: Absolute tolerance on the root, > 0 (the bracket shrinks to ``xtol + rtol*|x|``).
+        rtol: Relative tolerance, >= 4 machine epsilons.
+        maxiter: Largest number of iterations, >= 0.
+
+    Returns:
+        A root estimate (an end of the final bracket; an exact zero if one was hit).
+
+    Raises:
+        ConfigurationError: A tolerance or ``maxiter`` is out of range, or ``f(a)`` and ``f(b)``
+            have the same sign, or ``f`` returns NaN.
+        PackbotError: No convergence within ``maxiter`` iterations.
+    """
+    if not xtol > 0.0:
+        raise ConfigurationError("xtol", xtol, "a tolerance > 0")
+    if not rtol >= 4.0 * _EPS:
+        raise ConfigurationError("rtol", rtol, f"a relative tolerance >= {4.0 * _EPS!r}")
+    if maxiter < 0:
+        raise ConfigurationError("maxiter", maxiter, "an iteration count >= 0")
+
+    def call(x: float) -> float:
+        v = float(f(x))
+        if math.isnan(v):
+            raise ConfigurationError("f(x)", v, f"a number at x={x!r}, not NaN")
+        return v
+
+    xpre, xcur = float(a), float(b)
+    xblk = fblk = spre = scur = 0.0
+    fpre = call(xpre)
+    fcur = call(xcur)
+    if fpre == 0.0:
+        return xpre
+    if fcur == 0.0:
+        return xcur
+    if math.copysign(1.0, fpre) == math.copysign(1.0, fcur):
+        raise ConfigurationError("(f(a), f(b))", (fpre, fcur), "values of opposite signs")
+    for _ in range(maxiter):
+        if fpre != 0.0 and fcur != 0.0 and math.copysign(1.0, fpre) != math.copysign(1.0, fcur):
+            xblk, fblk = xpre, fpre
+            spre = scur = xcur - xpre
+        if abs(fblk) < abs(fcur):
+            xpre, xcur, xblk = xcur, xblk, xcur
+            fpre, fcur, fblk = fcur, fblk, fcur
+        delta = (xtol + rtol * abs(xcur)) / 2.0
+        sbis = (xblk - xcur) / 2.0
+        if fcur == 0.0 or abs(sbis) < delta:
+            return xcur
+        if abs(spre) > delta and abs(fcur) < abs(fpre):
+            if xpre == xblk:  # interpolate
+                stry = -fcur * (xcur - xpre) / (fcur - fpre)
+            else:  # extrapolate
+                dpre = (fpre - fcur) / (xpre - xcur)
+                dblk = (fblk - fcur) / (xblk - xcur)
+                stry = -fcur * (fblk * dblk - fpre * dpre) / (dblk * dpre * (fblk - fpre))
+            if 2.0 * abs(stry) < min(abs(spre), 3.0 * abs(sbis) - delta):
+                spre, scur = scur, stry  # good short step
+            else:
+                spre = scur = sbis  # bisect
+        else:
+            spre = scur = sbis  # bisect
+        xpre, fpre = xcur, fcur
+        if abs(scur) > delta:
+            xcur += scur
+        else:
+            xcur += delta if sbis > 0.0 else -delta
+        fcur = call(xcur)
+    raise PackbotError(f"brentq: no convergence in {maxiter} iterations (last x={xcur!r})")
+
+
 def locate_root(
     g: Callable[[float], float],
     t0: float,
@@ -544,7 +634,7 @@ def locate_root(
     ``g`` goes from positive at ``t0`` to non-positive at ``t1`` (typically an event function
     evaluated on a :class:`DenseSegment`). Returns the right end ``tb`` of a final bracket
     ``[ta, tb]`` with ``g(ta) > 0 >= g(tb)`` and ``tb - ta <= xtol`` (plus rounding), found by
-    :func:`scipy.optimize.brentq`; so ``g(tb) <= 0``: the caller restarts at or just after the
+    :func:`brentq` (SciPy's, ported); so ``g(tb) <= 0``: the caller restarts at or just after the
     crossing, on the event side. An exact zero counts as the event side. If ``g`` has several
     sign changes in [t0, t1], one of the crossings from > 0 to <= 0 is returned, not
     necessarily the earliest.
@@ -587,7 +677,7 @@ def locate_root(
         return v if v != 0.0 else -1e-300
 
     rtol = 4.0 * float(np.finfo(np.float64).eps)
-    r = float(brentq(g_rec, t0, t1, xtol=xtol, rtol=rtol))
+    r = brentq(g_rec, t0, t1, xtol=xtol, rtol=rtol)
     # brentq returns one end of its final bracket, [ta, tb] with g(ta) > 0 >= g(tb): a bracket
     # that starts with its positive end on the left keeps it there, and no point evaluated
     # earlier lies inside it. So it is the pair of neighbouring evaluated points with a falling

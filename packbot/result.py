@@ -2,17 +2,39 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
-from typing import Literal
+import io
+import json
+import os
+import tempfile
+import zipfile
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
 from numpy.typing import NDArray
 
 from packbot.config import SimConfig
-from packbot.errors import UnknownNameError
+from packbot.errors import PackbotError, ResultFileError, UnknownNameError
 from packbot.failures import Failure
 
-__all__ = ["EVENT_KINDS", "Diagnostics", "Event", "SimResult"]
+if TYPE_CHECKING:
+    import pandas as pd
+
+    from packbot.environment import Environment
+    from packbot.payload import Payload
+
+__all__ = ["EVENT_KINDS", "RESULT_FORMAT", "Diagnostics", "Event", "ResultFileError", "SimResult"]
+
+#: The format tag of a file written by :meth:`SimResult.save` (its version after the slash).
+RESULT_FORMAT = "packbot.SimResult/1"
+#: The arrays of a result, each saved as it is.
+_ARRAYS = ("t", "q", "v", "tau", "energy", "tau_cmd", "tau_friction", "effort")
+#: The float fields of an event (saved as arrays, so NaN and every bit survive).
+_EVENT_FLOATS = ("t", "distance", "energy_before", "energy_after")
+#: The string fields of an event (saved as JSON).
+_EVENT_STRINGS = ("kind", "link1", "link2", "piece1", "piece2")
+
 
 EventKind = Literal[
     "impact",
@@ -150,6 +172,10 @@ class SimResult:
         effort: Effective effort limits [N*m], shape (N, nv) (a weak joint's scaled).
         failures: The failures injected during the run.
         control_ticks: Number of ticks of a sampled-data controller.
+        environment: The run's obstacles (None: a result built without one; ``simulate``
+            gives the floor alone when it was called without an environment).
+        payload: The run's payload, or None.
+        scenario_text: The scenario file's text ("" for a run not made from a file).
     """
 
     t: NDArray[np.float64]
@@ -167,6 +193,9 @@ class SimResult:
     effort: NDArray[np.float64]
     failures: tuple[Failure, ...] = ()
     control_ticks: int = 0
+    environment: Environment | None = None
+    payload: Payload | None = None
+    scenario_text: str = ""
 
     def events_of(self, *kinds: str) -> list[Event]:
         """The events of the given kinds (each one of :data:`EVENT_KINDS`).
@@ -188,6 +217,216 @@ class SimResult:
         if name not in self.joint_names:
             raise UnknownNameError("joint", name, self.joint_names)
         return self.joint_names.index(name)
+
+    def save(self, path: str | Path) -> Path:
+        """Write the whole result to one compressed ``.npz`` file, atomically.
+
+        The file (see docs/simulator.md, "Saving and loading results") holds the arrays as
+        they are (``t``, ``q``, ``v``, ``tau``, ``energy``, ``tau_cmd``, ``tau_friction``,
+        ``effort``), the events' float fields and velocities as arrays, and the rest as JSON:
+        the settings, environment, failures, payload, diagnostics, events' names, the
+        scenario text, the joint names, packbot's version and the format tag
+        :data:`RESULT_FORMAT`. Nothing is pickled. :meth:`load` gives back an equal result.
+        For a reader with NumPy alone, ``joint_names``, ``scenario_text``, ``packbot_version``,
+        ``config_json`` and ``rest_time`` [s] (NaN: none) are also stored as plain entries.
+
+        Args:
+            path: The file to write (written as given: no suffix is added).
+
+        Returns:
+            The path written.
+        """
+        from packbot import __version__
+
+        out = Path(path)
+        if out.is_dir():
+            raise PackbotError(f"cannot save a result to {str(out)!r}: it is a directory")
+        arrays: dict[str, Any] = {
+            name: np.asarray(getattr(self, name), dtype=np.float64) for name in _ARRAYS
+        }
+        ev = self.events
+        for name in _EVENT_FLOATS:
+            arrays[f"event_{name}"] = np.array([getattr(e, name) for e in ev], dtype=np.float64)
+        for name in ("v_before", "v_after"):
+            vs = [np.asarray(getattr(e, name), dtype=np.float64).ravel() for e in ev]
+            arrays[f"event_{name}_len"] = np.array([len(x) for x in vs], dtype=np.int64)
+            arrays[f"event_{name}"] = np.concatenate(vs) if vs else np.zeros(0)
+        meta = {
+            "format": RESULT_FORMAT,
+            "packbot_version": __version__,
+            "joint_names": list(self.joint_names),
+            "rest_time": self.rest_time,
+            "control_ticks": int(self.control_ticks),
+            "config": asdict(self.config),
+            "diagnostics": asdict(self.diagnostics),
+            "failures": [asdict(f) for f in self.failures],
+            "environment": None if self.environment is None else asdict(self.environment),
+            "payload": None if self.payload is None else asdict(self.payload),
+            "scenario_text": self.scenario_text,
+            "events": [
+                {
+                    **{name: getattr(e, name) for name in _EVENT_STRINGS},
+                    "relevant_joints": list(e.relevant_joints),
+                }
+                for e in ev
+            ],
+        }
+        arrays["format"] = np.array(RESULT_FORMAT)
+        arrays["meta_json"] = np.array(json.dumps(meta, allow_nan=True))
+        # Plain copies for a reader with NumPy alone (the keys of packbot's scenario writer);
+        # load() reads meta_json.
+        arrays |= {
+            "joint_names": np.array(self.joint_names, dtype=str),
+            "scenario_text": np.array(self.scenario_text),
+            "packbot_version": np.array(__version__),
+            "config_json": np.array(json.dumps(meta["config"])),
+            "rest_time": np.array(np.nan if self.rest_time is None else self.rest_time),
+        }
+        buf = io.BytesIO()
+        np.savez_compressed(buf, **arrays)
+        out.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(dir=out.parent, prefix=f".{out.name}.", suffix=".tmp")
+        try:
+            with os.fdopen(fd, "wb") as fh:
+                fh.write(buf.getvalue())
+            os.replace(tmp, out)
+        except BaseException:
+            Path(tmp).unlink(missing_ok=True)
+            raise
+        return out
+
+    @classmethod
+    def load(cls, path: str | Path) -> SimResult:
+        """Read a result written by :meth:`save`.
+
+        The settings, environment, failures and payload are rebuilt with their own
+        constructors, so their checks run again.
+
+        Args:
+            path: The file.
+
+        Raises:
+            ResultFileError: The file is missing, is not a packbot result (no or another
+                format tag) or is corrupt (a missing or inconsistent entry).
+            ConfigurationError: A stored setting, obstacle, failure or payload that is no longer
+                valid.
+        """
+        p = Path(path)
+        if not p.is_file():
+            raise ResultFileError(p, "no such file")
+        try:
+            with np.load(p, allow_pickle=False) as npz:
+                data = {k: npz[k] for k in npz.files}
+        except (OSError, ValueError, zipfile.BadZipFile, EOFError) as exc:
+            raise ResultFileError(p, f"not a readable .npz file ({exc})") from exc
+        if "format" not in data or "meta_json" not in data:
+            raise ResultFileError(p, f"no format tag (expected {RESULT_FORMAT!r})")
+        tag = str(data["format"])
+        if tag != RESULT_FORMAT:
+            raise ResultFileError(p, f"format {tag!r}, expected {RESULT_FORMAT!r}")
+        try:
+            meta = json.loads(str(data["meta_json"]))
+            return cls._from_saved(data, meta)
+        except PackbotError:
+            raise
+        except (KeyError, TypeError, ValueError, IndexError) as exc:
+            raise ResultFileError(p, f"corrupt ({type(exc).__name__}: {exc})") from exc
+
+    @classmethod
+    def _from_saved(cls, data: dict[str, NDArray[Any]], meta: dict[str, Any]) -> SimResult:
+        """The result from the arrays and JSON of a saved file (KeyError etc. when corrupt)."""
+        from packbot.environment import Environment, Obstacle
+        from packbot.payload import Payload
+
+        cfg = {k: _tuples(v) for k, v in meta["config"].items()}
+        env = meta["environment"]
+        environment = (
+            None
+            if env is None
+            else Environment(
+                obstacles=tuple(
+                    Obstacle(**{k: _tuples(v) for k, v in ob.items()}) for ob in env["obstacles"]
+                )
+            )
+        )
+        pay = meta["payload"]
+        payload = None if pay is None else Payload(**{k: _tuples(v) for k, v in pay.items()})
+        ev_meta = meta["events"]
+        n_ev = len(ev_meta)
+        vels: dict[str, list[NDArray[np.float64]]] = {}
+        for name in ("v_before", "v_after"):
+            lens = data[f"event_{name}_len"]
+            flat = data[f"event_{name}"]
+            if len(lens) != n_ev or int(lens.sum()) != len(flat):
+                raise ValueError(f"event {name} arrays do not match the event list")
+            vels[name] = list(np.split(flat, np.cumsum(lens)[:-1])) if n_ev else []
+        floats = {name: data[f"event_{name}"] for name in _EVENT_FLOATS}
+        for name, arr in floats.items():
+            if len(arr) != n_ev:
+                raise ValueError(f"event {name} array does not match the event list")
+        events = [
+            Event(
+                t=float(floats["t"][k]),
+                kind=str(em["kind"]),
+                link1=str(em["link1"]),
+                link2=str(em["link2"]),
+                piece1=str(em["piece1"]),
+                piece2=str(em["piece2"]),
+                distance=float(floats["distance"][k]),
+                relevant_joints=tuple(str(j) for j in em["relevant_joints"]),
+                v_before=vels["v_before"][k].copy(),
+                v_after=vels["v_after"][k].copy(),
+                energy_before=float(floats["energy_before"][k]),
+                energy_after=float(floats["energy_after"][k]),
+            )
+            for k, em in enumerate(ev_meta)
+        ]
+        rest = meta["rest_time"]
+        return cls(
+            **{name: data[name] for name in _ARRAYS},
+            events=events,
+            rest_time=None if rest is None else float(rest),
+            joint_names=tuple(str(j) for j in meta["joint_names"]),
+            config=SimConfig(**cfg),
+            diagnostics=Diagnostics(**meta["diagnostics"]),
+            failures=tuple(Failure(**f) for f in meta["failures"]),
+            control_ticks=int(meta["control_ticks"]),
+            environment=environment,
+            payload=payload,
+            scenario_text=str(meta["scenario_text"]),
+        )
+
+    def to_dataframe(self) -> pd.DataFrame:
+        """The samples as a pandas DataFrame (needs the optional extra ``packbot[pandas]``).
+
+        One row per sample, indexed by ``t`` [s]; columns ``q:<joint>`` [rad], ``v:<joint>``
+        [rad/s], ``tau:<joint>``, ``tau_cmd:<joint>``, ``tau_friction:<joint>``,
+        ``effort:<joint>`` [N*m] and ``energy`` [J]. Two samples share a time at each event
+        (before, then after).
+
+        Raises:
+            PackbotError: pandas is not installed.
+        """
+        try:
+            import pandas as pd
+        except ImportError as exc:
+            raise PackbotError(
+                'SimResult.to_dataframe needs pandas: pip install "packbot[pandas]"'
+            ) from exc
+        columns: dict[str, NDArray[Any]] = {}
+        for name in ("q", "v", "tau", "tau_cmd", "tau_friction", "effort"):
+            arr = np.asarray(getattr(self, name))
+            for k, joint in enumerate(self.joint_names):
+                columns[f"{name}:{joint}"] = arr[:, k]
+        columns["energy"] = np.asarray(self.energy)
+        return pd.DataFrame(columns, index=pd.Index(np.asarray(self.t), name="t"))
+
+
+def _tuples(value: Any) -> Any:
+    """JSON lists back to the tuples the dataclasses hold (recursively)."""
+    if isinstance(value, list):
+        return tuple(_tuples(v) for v in value)
+    return value
 
 
 def rest_time(t: NDArray[np.float64], v: NDArray[np.float64], speed: float) -> float | None:

@@ -794,7 +794,7 @@ def run_scenario(
         progress: Called with the simulated time [s] after each accepted step.
 
     Returns:
-        The result of :func:`packbot.simulate`.
+        The result of :func:`packbot.simulate`, with ``scenario_text`` the file's text.
 
     Raises:
         ConfigurationError: A bad scenario (names the field).
@@ -830,7 +830,9 @@ def run_scenario(
     if progress is not None:
         kwargs["progress"] = progress
     T = scenario.duration if duration is None else float(duration)
-    return simulate(robot, q0, v0, T, **kwargs)
+    result = simulate(robot, q0, v0, T, **kwargs)
+    result.scenario_text = scenario.source_text
+    return result
 
 
 # ---------------------------------------------------------------------------------- saving
@@ -985,7 +987,6 @@ def write_outputs(
         Name -> path of each file written, plus ``"min_distance"``: the sampled distances [m]
         when the distance plot was drawn.
     """
-    from packbot import plots as P
     from packbot.collision import CollisionWorld
 
     out = Path(out_dir)
@@ -993,6 +994,10 @@ def write_outputs(
     written: dict[str, Any] = {}
     kinds = scenario.plot_kinds() if plots else ()
     occ = scenario.outputs.occlusion
+    if not kinds and occ is None:
+        return written  # nothing to draw: matplotlib (~0.3 s of import) is not loaded
+    from packbot import plots as P
+
     need_world = occ is not None or "distance" in kinds
     if need_world and world is None:
         world = CollisionWorld(robot, scenario.environment)

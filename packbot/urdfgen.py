@@ -36,13 +36,12 @@ from numpy.typing import NDArray
 from packbot import params as P
 from packbot.dh import dh_transform, translation
 from packbot.geometry import hull_triangles, part_inertia, part_vertices, stl_bytes
-from packbot.resources import DESCRIPTION_PACKAGE, MJCF_NAME, SRDF_NAME
+from packbot.resources import DESCRIPTION_PACKAGE, MJCF_NAME, SRDF_NAME, URDF_NAME
 
 __all__ = ["URDF_NAME", "GeneratedModel", "build", "generate", "mesh_filename"]
 
 log = logging.getLogger(__name__)
 
-URDF_NAME = "packbot_eod.urdf"
 MESH_URI = "package://packbot/meshes/"
 
 

@@ -26,7 +26,6 @@ import math
 import numpy as np
 import pinocchio as pin
 from numpy.typing import NDArray
-from scipy.optimize import nnls
 
 __all__ = [
     "SMALL_LCP",
@@ -77,6 +76,8 @@ def solve_lcp_psd(G: FloatArray, q: FloatArray) -> FloatArray:
     keep = w > 1e-12 * max(float(w.max()), 1e-300)
     A = V[:, keep] * np.sqrt(w[keep])  # G = A A^T
     c = np.linalg.lstsq(A, q, rcond=None)[0]  # q = A c
+    from scipy.optimize import nnls  # lazy: scipy.optimize costs ~65 ms of import
+
     z, _ = nnls(A.T, -c, maxiter=50 * m)
     return np.asarray(z, dtype=np.float64)
 

@@ -47,7 +47,6 @@ from typing import TYPE_CHECKING
 import numpy as np
 import pinocchio as pin
 from numpy.typing import NDArray
-from scipy.optimize import least_squares
 
 from packbot.collision import CollisionWorld
 from packbot.control._common import (
@@ -411,6 +410,8 @@ class ReconfigurableController(ModelBasedController):
             gp = pin.computeGeneralizedGravity(model, data, qp)[loose]
             gm = pin.computeGeneralizedGravity(model, data, qm)[loose]
             return bool((gp - gm) / (2 * h) > 0)
+
+        from scipy.optimize import least_squares  # lazy: scipy.optimize costs ~65 ms of import
 
         best: tuple[float, FloatArray] | None = None
         for seed in self._candidates(
