@@ -246,13 +246,6 @@ class SimConfig:
         self.zeno_speed = finite_number(
             "zeno_speed", self.zeno_speed, low=0.0, unit="m/s", what="a finite number"
         )
-        if self.contact_mode == "normal" and self.joint_friction:
-            raise ConfigurationError(
-                "joint_friction",
-                self.joint_friction,
-                "False with contact_mode='normal' (joint stick/slip and contact forces are not "
-                "yet solved as one problem)",
-            )
         if self.handoff and self.contact_mode != "joint_clamp":
             raise ConfigurationError(
                 "handoff",

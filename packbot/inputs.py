@@ -114,13 +114,6 @@ def check_inputs(
                 "no brake failure with handoff=True (joint holds and contact forces are not yet "
                 "solved as one problem)",
             )
-        if f.kind == "brake" and config.contact_mode == "normal":
-            raise ConfigurationError(
-                "failures",
-                f"{f.joint}: brake",
-                "no brake failure with contact_mode='normal' (joint holds and contact forces "
-                "are not yet solved as one problem)",
-            )
         if f.joint in locked:
             raise ConfigurationError(
                 "failures", f.joint, "a joint that is not in config.locked_joints"

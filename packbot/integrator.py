@@ -176,7 +176,13 @@ class _Run:
                 self.run_scheduled(self.t)
                 self.restart()
                 continue
-            seg = self.stepper.step(min(self.duration, t_sched))
+            t_end = min(self.duration, t_sched)
+            try:
+                seg = self.law.advance(self.t, self.y, t_end) or self.stepper.step(t_end)
+            except StepSizeUnderflow:
+                if not self.law.rescue(self.t, self.y):
+                    raise
+                continue  # the law integrates the stiff stretch itself
             crossings = self.law.watch(seg)
             if not crossings:
                 on_schedule = seg.t1 >= t_sched - 1e-12 and seg.t1 < self.duration - 1e-12

@@ -48,6 +48,8 @@ EventKind = Literal[
     "stick",
     "repatch",
     "painleve",
+    "timestep",
+    "resume",
     "failure",
     "freeze",
     "pick",
@@ -69,6 +71,8 @@ EVENT_KINDS: tuple[str, ...] = (
     # normal mode: a sliding contact stopped sliding (friction holds it)
     "repatch",  # normal mode: a pair in contact penetrated: its patch was recomputed
     "painleve",  # normal mode: no consistent contact forces (friction): handled impulsively
+    "timestep",  # normal mode: events piled up: a window of time steps starts (contact/timestep)
+    "resume",  # normal mode: the window's contacts settled: event-driven integration resumes
     "failure",  # a joint failure was injected (link1: joint, link2: kind)
     "freeze",  # the impulse that stops a freezing joint (link1: joint; distance: its angle)
     "pick",  # the payload was picked up (generalized momentum kept)
@@ -133,6 +137,11 @@ class Diagnostics:
             the ``impact``, ``secondary_intersection`` and ``limit`` events, of each one's
             ``energy_after - energy_before`` where positive (the ``"zero"`` reset on a coupled
             arm can add kinetic energy; docs/simulator.md, "The impact law").
+        windows: Time-stepping windows of the contact-normal mode (events piled up).
+        window_steps: Time steps taken in them.
+        window_energy_removed: Energy the windows' guard removed [J]: the sum over their steps
+            of what a step would have gained beyond the applied torques' work
+            (:mod:`packbot.contact.timestep`).
     """
 
     steps: int = 0
@@ -145,6 +154,9 @@ class Diagnostics:
     min_distance: float = float("inf")
     min_distance_pair: str = ""
     reset_energy_gain: float = 0.0
+    windows: int = 0
+    window_steps: int = 0
+    window_energy_removed: float = 0.0
 
 
 @dataclass

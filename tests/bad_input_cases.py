@@ -411,7 +411,6 @@ _cfg_cases: list[tuple[str, dict[str, Any], str]] = [
     ("mu-negative", {"mu": -0.1}, "mu"),
     ("mu-100", {"mu": 100.0}, "mu"),
     ("zeno_speed-negative", {"zeno_speed": -1.0}, "zeno_speed"),
-    ("normal-with-joint_friction", {"contact_mode": "normal", "joint_friction": True}, "normal"),
     ("handoff-with-mode-none", {"contact_mode": "none", "handoff": True}, "handoff"),
     ("handoff-with-friction", {"handoff": True, "joint_friction": True}, "handoff"),
     ("handoff-int", {"handoff": 1}, "handoff"),
@@ -1225,11 +1224,6 @@ scenario(
     "[config]\nlocked_joints = ['camera_tilt']\n"
     "[[failures]]\njoint = 'camera_tilt'\nkind = 'loose'\n",
     "camera_tilt",
-)
-scenario(
-    "failure-brake-with-normal",
-    "[config]\ncontact_mode = 'normal'\n[[failures]]\njoint = 'elbow1'\nkind = 'brake'\n",
-    "failures",
 )
 # [payload]
 scenario("payload-no-mass", "[payload]\nframe = 'gripper_tool'\n", "payload.mass")

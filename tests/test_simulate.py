@@ -316,7 +316,6 @@ def _q(robot):
 BAD_CONFIGS = [
     ({"contact_mode": "bogus"}, "contact_mode.*'joint_clamp'"),
     ({"contact_mode": "normal", "mu": -0.1}, "mu"),
-    ({"contact_mode": "normal", "joint_friction": True}, "joint_friction.*normal"),
     ({"restitution": 1.5}, r"restitution=1.5.*\[0, 1\]"),
     ({"contact_tolerance": -1e-3}, "contact_tolerance.*positive"),
     ({"proximity_tolerance": 5e-4}, "proximity_tolerance.*greater than contact_tolerance"),

@@ -15,7 +15,9 @@ Who calls what, and when (docs/simulator.md, "The loop and the contact laws"):
 - a new phase (the run's start, a frozen joint merged, a payload change): :meth:`~ContactLaw.
   rebuild`, then :meth:`~ContactLaw.start` (the contacts and stops present);
 - every right-hand side: :meth:`~ContactLaw.accel` (the current mode's accelerations);
-- before each step: :meth:`~ContactLaw.step_bound`;
+- before each step: :meth:`~ContactLaw.step_bound`, then :meth:`~ContactLaw.advance` (a law
+  that integrates a stretch itself, the contact-normal mode's time-stepping windows, returns
+  its step; otherwise the loop's stepper takes it);
 - after each step: :meth:`~ContactLaw.watch` (the event functions that changed sign);
   none: the step is accepted, :meth:`~ContactLaw.after_step`; else the loop locates the
   earliest crossing and calls :meth:`~ContactLaw.handle` with the crossings at that instant;
@@ -106,6 +108,25 @@ class ContactLaw(Protocol):
 
     def step_bound(self, y: FloatArray) -> float:
         """The longest step [s] from y that the law's event detection allows."""
+        ...
+
+    def advance(self, t: float, y: FloatArray, t_end: float) -> DenseSegment | None:
+        """A step the law takes itself (a time-stepping window), or None: the loop's stepper.
+
+        Args:
+            t: Time [s].
+            y: State.
+            t_end: The step may not pass this time [s] (the run's end, a scheduled action).
+        """
+        ...
+
+    def rescue(self, t: float, y: FloatArray) -> bool:
+        """The loop's stepper cannot go on from (t, y): take over, or not.
+
+        Returns:
+            True if the law takes the next steps itself (:meth:`advance`), False to let the
+            run fail (the stepper's step size underflowed).
+        """
         ...
 
     def watch(self, seg: DenseSegment) -> list[Crossing]:

@@ -29,10 +29,12 @@ from numpy.typing import NDArray
 
 __all__ = [
     "SMALL_LCP",
+    "box_residual",
     "lcp_residual",
     "lemke",
     "ncp_residual",
     "solve_lcp_psd",
+    "solve_mixed_admm",
     "solve_ncp_admm",
 ]
 
@@ -243,3 +245,108 @@ def solve_ncp_admm(
     solver.solve(D, np.ascontiguousarray(g3), cms, cds, st, res)
     x = np.array(res.retrieveConstraintImpulses(), dtype=np.float64)
     return x, ncp_residual(G3, g3, x, np.asarray(mus, dtype=float))
+
+
+def box_residual(G: FloatArray, g: FloatArray, x: FloatArray, bound: FloatArray) -> float:
+    """Residual of box rows' solution, scaled by 1 + |g| + |G x| [-].
+
+    The conditions: |x| <= bound; u = G x + g is 0 strictly inside the box, u <= 0 at +bound
+    and u >= 0 at -bound (the impulse opposes the motion it cannot stop).
+    """
+    if len(g) == 0:
+        return 0.0
+    u = G @ x + g
+    at_hi = x >= bound * (1.0 - 1e-9)
+    at_lo = x <= -bound * (1.0 - 1e-9)
+    viol = np.where(at_hi, np.maximum(u, 0.0), np.where(at_lo, np.maximum(-u, 0.0), np.abs(u)))
+    over = np.maximum(np.abs(x) - bound, 0.0)
+    scale = 1.0 + float(np.abs(g).max()) + float(np.abs(G @ x).max())
+    return float(max(viol.max(), over.max(), 0.0)) / scale
+
+
+def solve_mixed_admm(
+    model: pin.Model,
+    data: pin.Data,
+    G: FloatArray,
+    g: FloatArray,
+    mus: FloatArray,
+    box_joints: NDArray[np.intp],
+    box_bound: FloatArray,
+    *,
+    tol: float = 1e-10,
+    max_iterations: int = 5000,
+) -> tuple[FloatArray, float]:
+    """Contact cones and joint friction boxes in one problem, on Pinocchio's ADMM solver.
+
+    Rows: K blocks (t1, t2, n) of contact points (cone of friction ``mus[k]``; a cone of
+    friction 0 is a unilateral row), then one row per box joint: the impulse x_j in
+    [-box_bound_j, box_bound_j], its velocity u_j = 0 strictly inside, against x_j at a bound
+    (a joint's Coulomb friction or brake: ``JointFrictionConstraintModel``). As in
+    :func:`solve_ncp_admm`, the constraint models only supply the sets; G and g are the
+    caller's.
+
+    Args:
+        model: The integrated Pinocchio model (the box rows name its joints).
+        data: Its data.
+        G: Delassus matrix, shape (3K + B, 3K + B).
+        g: Free velocity of the rows, shape (3K + B,).
+        mus: Friction coefficient per contact block, shape (K,).
+        box_joints: Model joint index of each box row, shape (B,).
+        box_bound: Bound of each box row, shape (B,) (> 0).
+        tol: Solver tolerance.
+        max_iterations: Iteration limit.
+
+    Returns:
+        x and its true residual (the larger of :func:`ncp_residual` on the cone rows and
+        :func:`box_residual` on the box rows, each with the other rows' impulses applied).
+    """
+    K = len(mus)
+    B = len(box_joints)
+    cms = pin.StdVec_ConstraintModel()
+    cds = pin.StdVec_ConstraintData()
+    eye = pin.SE3.Identity()
+    for mu in mus:
+        cm = pin.PointContactConstraintModel(model, 0, eye, 0, eye)
+        cm.setFriction(float(mu))
+        gcm = pin.ConstraintModel(cm)
+        cms.append(gcm)
+        cds.append(gcm.createData())
+    if B:
+        order = np.argsort(box_joints, kind="stable")
+        lb = np.zeros(model.nv)
+        ub = np.zeros(model.nv)
+        for j, bd in zip(box_joints.tolist(), box_bound.tolist(), strict=True):
+            iv = model.idx_vs[j]
+            lb[iv], ub[iv] = -bd, bd
+        jf = pin.JointFrictionConstraintModel(
+            model, pin.StdVec_Index([int(j) for j in box_joints[order]]), lb, ub
+        )
+        gcm = pin.ConstraintModel(jf)
+        cms.append(gcm)
+        cds.append(gcm.createData())
+        # the solver's box rows follow the joints in model order: permute ours to match
+        perm = np.concatenate([np.arange(3 * K), 3 * K + order])
+        Gs, gs = G[np.ix_(perm, perm)], g[perm]
+    else:
+        perm = None
+        Gs, gs = G, g
+    D = pin.DelassusOperatorDense(np.ascontiguousarray(0.5 * (Gs + Gs.T)))
+    solver = pin.ADMMConstraintSolver(len(gs))
+    res = pin.ADMMSolverResult()
+    st = pin.ADMMSolverSettings()
+    st.absolute_feasibility_tol = st.relative_feasibility_tol = tol
+    st.absolute_complementarity_tol = st.relative_complementarity_tol = tol
+    st.max_iterations = max_iterations
+    solver.solve(D, np.ascontiguousarray(gs), cms, cds, st, res)
+    xs = np.array(res.retrieveConstraintImpulses(), dtype=np.float64)
+    x = xs if perm is None else np.empty_like(xs)
+    if perm is not None:
+        x[perm] = xs
+    c = slice(0, 3 * K)
+    gc = g[c] + G[c, 3 * K :] @ x[3 * K :]
+    r = ncp_residual(G[c, c], gc, x[c], np.asarray(mus, dtype=float)) if K else 0.0
+    if B:
+        b = slice(3 * K, 3 * K + B)
+        gb = g[b] + G[b, c] @ x[c]
+        r = max(r, box_residual(G[b, b], gb, x[b], np.asarray(box_bound, dtype=float)))
+    return x, r

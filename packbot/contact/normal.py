@@ -57,6 +57,7 @@ from __future__ import annotations
 
 import logging
 import math
+from collections import deque
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
@@ -68,8 +69,16 @@ from numpy.typing import NDArray
 
 from packbot.collision import CollisionWorld, PairInfo
 from packbot.contact.base import Active, Crossing, Key
-from packbot.contact.lcp import lcp_residual, lemke, solve_lcp_psd, solve_ncp_admm
+from packbot.contact.lcp import (
+    lcp_residual,
+    lemke,
+    solve_lcp_psd,
+    solve_mixed_admm,
+    solve_ncp_admm,
+)
+from packbot.contact.locks import JointLocks
 from packbot.contact.pairs import PairLaw
+from packbot.contact.timestep import QUIET_STEPS, MoreauJeanStepper
 from packbot.ode import DenseSegment
 from packbot.system import System
 
@@ -82,14 +91,21 @@ __all__ = [
     "BAUMGARTE",
     "CAPTURE_ACCEL",
     "CAPTURE_SPEED",
+    "CASCADE_EVENTS",
+    "CASCADE_SPAN",
+    "CHATTER_EVENTS",
+    "CHATTER_SPAN",
     "FORCE_BAND",
+    "HOLD_SPEED",
     "PENETRATION_TOL",
     "POINT_TOL",
     "PROJECT_ROUNDS",
+    "RELAPSE_SPAN",
     "SLIDE_TOL",
     "SPEED_BAND",
     "STICK_BAND",
     "TOUCH_GAP",
+    "WINDOW_MIN",
     "ModeEvent",
     "NormalContacts",
     "NormalLaw",
@@ -134,6 +150,20 @@ CAPTURE_ACCEL = 1e-2
 SLIDE_TOL = 1e-4
 #: Stiffness of the drift correction [rad/s] (a_n = -2 w g' - w^2 g on engaged rows).
 BAUMGARTE = 20.0
+#: A cascade: CASCADE_EVENTS restarts within CASCADE_SPAN [s] (a pile-up at one instant), or
+#: CHATTER_EVENTS within CHATTER_SPAN [s] (a chattering slide: the drive-pose collapse with the
+#: wrist free and mu = 0.8 made 10,000 a second) start a time-stepping window.
+CASCADE_EVENTS = 20
+CASCADE_SPAN = 1e-3
+CHATTER_EVENTS = 32
+CHATTER_SPAN = 0.032
+#: A joint with Coulomb friction or a brake slower than this [rad/s] while contacts push
+#: starts a window (its hold and the contact forces are one problem).
+HOLD_SPEED = 1e-3
+#: The shortest time-stepping window [s]; doubled when a cascade follows the previous window's
+#: end within RELAPSE_SPAN [s].
+WINDOW_MIN = 0.02
+RELAPSE_SPAN = 0.05
 #: Largest acceptable scaled residual of a complementarity solution [-].
 RESIDUAL_TOL = 1e-7
 #: Rounds of the drift projection (:meth:`NormalContacts.project`): each adds to the contact set
@@ -261,6 +291,10 @@ class NormalContacts:
         self.limits: dict[tuple[int, int], float] = {}  # (joint, side) -> limit [rad]
         self.engaged: list[int] = []  # row indices
         self.n_painleve = 0
+        #: Joint Coulomb friction and brake torques F_j [N*m] (0: none) and the drive's sliding
+        #: directions, for the rest capture (set by the law; None: no joint friction).
+        self.joint_coulomb: FloatArray | None = None
+        self.joint_fdir: FloatArray | None = None
         self.resting = False  # captured at rest (see capture)
         self.bounced = False  # the last impulse had restitution
         self._kin_cache: dict[tuple[bytes, bytes], Any] = {}  # see _kinematics
@@ -272,6 +306,9 @@ class NormalContacts:
         for j in range(1, model.njoints):
             for s in list(model.supports[j])[1:]:
                 self._masks[j, 0, model.idx_vs[s] : model.idx_vs[s] + model.nvs[s]] = 1.0
+        self._joint_of = np.zeros(self.nv, dtype=np.intp)  # model joint of each velocity
+        for j in range(1, model.njoints):
+            self._joint_of[model.idx_vs[j] : model.idx_vs[j] + model.nvs[j]] = j
         self._plan_key: tuple[Any, ...] | None = None
         self._plan_val: tuple[NDArray[np.intp], list[tuple[int, Any, Any]], list[int]]
 
@@ -281,10 +318,16 @@ class NormalContacts:
         """No pair and no limit in contact."""
         return not self.pairs and not self.limits
 
-    def add_pair(self, q: FloatArray, pair: int) -> bool:
-        """Put a pair in contact (or refresh its patch); False if it is not within tolerance."""
+    def add_pair(self, q: FloatArray, pair: int, tol: float | None = None) -> bool:
+        """Put a pair in contact (or refresh its patch); False if it is not within tolerance.
+
+        Args:
+            q: Configuration [rad].
+            pair: The pair's index in the collision world.
+            tol: The patch query's security margin [m] (default: the contact tolerance).
+        """
         assert self.world is not None
-        patch = self.world.contact_patch(q, pair, self.tol)
+        patch = self.world.contact_patch(q, pair, self.tol if tol is None else tol)
         pin.forwardKinematics(self.model, self.data, q)
         if patch is None:
             return False
@@ -783,8 +826,21 @@ class NormalContacts:
         if len(touch) == 0:
             return None
         J3, mus = self._frictional_rows(touch, Jn, extra)
-        G3 = J3 @ minv @ J3.T
-        x, res = solve_ncp_admm(self.model, self.data, G3, J3 @ a_free, mus)
+        coul = self.joint_coulomb
+        cj = np.flatnonzero(coul > 0.0) if coul is not None else np.zeros(0, dtype=np.intp)
+        if len(cj):
+            # the joints' Coulomb friction and brakes hold too: boxes |tau_j| <= F_j, with
+            # the sliding torque -F_j s_j the free accelerations carry taken out
+            assert coul is not None and self.joint_fdir is not None
+            a_free = a_free + minv @ (coul * self.joint_fdir)
+            J = np.vstack([J3, np.eye(self.nv)[cj]])
+            x, res = solve_mixed_admm(
+                self.model, self.data, J @ minv @ J.T, J @ a_free, mus, self._joint_of[cj], coul[cj]
+            )
+            J3 = J
+        else:
+            G3 = J3 @ minv @ J3.T
+            x, res = solve_ncp_admm(self.model, self.data, G3, J3 @ a_free, mus)
         if res > 1e-6:
             return None
         return np.asarray(a_free + minv @ J3.T @ x, dtype=np.float64)
@@ -1487,6 +1543,9 @@ class PatchEvents(PairLaw):
         def a_free(qq: FloatArray, vv: FloatArray) -> FloatArray:
             return self.free_accel(t, np.concatenate([qq, vv, tail]))
 
+        coul = self.drive.path.coulomb
+        contacts.joint_coulomb = coul if coul.any() else None
+        contacts.joint_fdir = self.drive.fdir
         return contacts.restart(q, v, a_free, self.sys.minv(q))
 
     def _repatch(self, contacts: NormalContacts, t: float, y: FloatArray) -> FloatArray:
@@ -1501,6 +1560,18 @@ class PatchEvents(PairLaw):
         return np.concatenate([q, v, tail])
 
 
+@dataclass
+class _Window:
+    """A time-stepping window of the normal mode (:mod:`packbot.contact.timestep`)."""
+
+    stepper: MoreauJeanStepper
+    t_start: float
+    until: float  # the earliest exit [s]
+    energy_in: float  # [J]
+    quiet: int = 0  # steps whose signature equalled the previous one
+    last: Any = None  # the previous step's signature
+
+
 class NormalLaw(PatchEvents):
     """The contact-normal mode (``contact_mode="normal"``).
 
@@ -1509,14 +1580,99 @@ class NormalLaw(PatchEvents):
     are rows of the same problem. Same arguments as
     :class:`~packbot.contact.stops.JointStops`.
 
+    **Where events pile up** (:data:`CASCADE_EVENTS` restarts within :data:`CASCADE_SPAN`: a
+    stick/slip or jam cascade at one instant, an accumulation of impacts; or
+    :data:`CHATTER_EVENTS` within :data:`CHATTER_SPAN`: a chattering slide)
+    the law integrates a window with fixed time steps itself
+    (:class:`~packbot.contact.timestep.MoreauJeanStepper`, through :meth:`advance`): one
+    complementarity problem per step, no event location. The window lasts at least
+    :data:`WINDOW_MIN` (doubled when the next cascade follows within :data:`RELAPSE_SPAN` of
+    its end) and ends once the steps' decisions have held for
+    :data:`~packbot.contact.timestep.QUIET_STEPS` steps; the event-driven restart then takes
+    over from that state. Both ends are logged (``timestep``, ``resume``).
+
     Attributes:
         normal: The contact set and its modes.
+        window: The time-stepping window in progress, or None.
     """
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        self._min_len = WINDOW_MIN
+        self._last_exit = -math.inf
+        super().__init__(*args, **kwargs)
 
     def rebuild(self, system: System) -> None:
         """A new phase: an empty contact set on the new system."""
         super().rebuild(system)
         self.normal = NormalContacts.from_config(system.model, system.data, system.world, self.cfg)
+        self.window: _Window | None = None
+        self._recent: deque[float] = deque(maxlen=CHATTER_EVENTS)
+
+    # ------------------------------------------------------------------ windows
+    def advance(self, t: float, y: FloatArray, t_end: float) -> DenseSegment | None:
+        """In a window, one time step from (t, y) (not past t_end); else None."""
+        w = self.window
+        if w is None:
+            return None
+        seg, info = w.stepper.step(t, y, t_end, self.energy)
+        self.diag.window_steps += 1
+        self.diag.window_energy_removed += info.removed
+        w.quiet = w.quiet + 1 if info.signature == w.last else 0
+        w.last = info.signature
+        self._after_event(seg.y1)  # the distances at the step's end (and the deepest one)
+        return seg
+
+    def rescue(self, t: float, y: FloatArray) -> bool:
+        """A step-size underflow at (t, y) (a stiff or discontinuous stretch): a window."""
+        if self.window is not None:
+            return False
+        self._enter(t, y, "the stepper's step size underflowed")
+        return True
+
+    def watch(self, seg: DenseSegment) -> list[Crossing]:
+        """The event functions (none in a window: its steps resolve their contacts)."""
+        if self.window is not None:
+            return []
+        return super().watch(seg)
+
+    def after_step(self, t: float, y: FloatArray) -> FloatArray | None:
+        """After an accepted step; in a window, its end once the contacts have settled."""
+        w = self.window
+        if w is None:
+            return super().after_step(t, y)
+        if t < w.until or w.quiet < QUIET_STEPS:
+            return None
+        return self._resume(t, y)
+
+    def settle(self, t: float, y: FloatArray) -> None:
+        """The forces changed at t (in a window the next step sees them)."""
+        if self.window is None:
+            super().settle(t, y)
+
+    def _enter(self, t: float, y: FloatArray, why: str) -> None:
+        """Start a window at (t, y) (``why``: for the log)."""
+        relapse = t - self._last_exit <= RELAPSE_SPAN
+        self._min_len = 2.0 * self._min_len if relapse else WINDOW_MIN
+        n = self.n
+        q, v = y[:n], y[n : 2 * n]
+        self.drive.fdir[:] = 0.0  # Coulomb friction and brakes are rows of the steps
+        self.locks = JointLocks()
+        stepper = MoreauJeanStepper(self.sys, self.drive, self.normal, self.cfg)
+        self.window = _Window(stepper, t, t + self._min_len, self.energy(q, v))
+        self.diag.windows += 1
+        self.log_event(t, "timestep", q, v, v, None)
+        log.debug("t=%.6f: %s: time steps for %.3g s at least", t, why, self._min_len)
+
+    def _resume(self, t: float, y: FloatArray) -> FloatArray:
+        """End the window at (t, y): the event-driven mode restarts from that state."""
+        assert self.window is not None
+        n = self.n
+        self._last_exit = t
+        self.log_event(t, "resume", y[:n], y[n : 2 * n], y[n : 2 * n], None)
+        self.rebuild(self.sys)  # every contact and mode forgotten (the window is ended)
+        y_new = self.start(t, y, check=False)
+        self._after_event(y_new)
+        return y_new
 
     def accel(self, q: FloatArray, v: FloatArray, a_free: FloatArray) -> FloatArray:
         """Accelerations with the contact forces (and locks) of the current mode."""
@@ -1559,8 +1715,12 @@ class NormalLaw(PatchEvents):
         q, v = y[:n], y[n : 2 * n].copy()
         tail = y[2 * n :]
         logged: list[tuple[str, PairInfo | None, float, tuple[str, ...]]] = []
+        stick: list[int] = []
         for c in sorted(crossings, key=lambda c: c.key[0] != "mode"):
             key = c.key
+            if key[0] in ("lock", "stick"):  # a joint's Coulomb friction or brake
+                v = self._hold_event(t, y, q, v, c, stick)
+                continue
             if key[0] == "pair":
                 p_idx = key[1]
                 info = world.pairs[p_idx]
@@ -1598,7 +1758,72 @@ class NormalLaw(PatchEvents):
             if any(me.kind == k and me.pair == i for k, i, _, _ in logged):
                 continue
             self.log_event(t, me.kind, q, v_new, v_new, me.pair)
-        return np.concatenate([q, v_new, tail])
+        y_new = np.concatenate([q, v_new, tail])
+        if self.normal.resting:  # the rest capture holds every joint (friction included)
+            self.locks.set_held({})
+            self.drive.fdir[:] = 0.0
+        elif self.drive.path.coulomb.any():
+            self.settle_modes(t, y_new, candidates=stick, log_stick=True)
+        recent = self._recent
+        recent.append(t)
+        piled = len(recent) >= CASCADE_EVENTS and t - recent[-CASCADE_EVENTS] <= CASCADE_SPAN
+        if piled or (len(recent) == CHATTER_EVENTS and t - recent[0] <= CHATTER_SPAN):
+            recent.clear()
+            self._enter(t, y_new, "events piled up")
+        elif self._held_with_contacts(v_new):
+            self._enter(t, y_new, "joints held by friction while contacts push")
+        return y_new
+
+    def _hold_event(
+        self, t: float, y: FloatArray, q: FloatArray, v: FloatArray, c: Crossing, stick: list[int]
+    ) -> FloatArray:
+        """A held joint slips, or a sliding one stops (Coulomb friction, brakes); new v.
+
+        As in the other laws (:class:`~packbot.contact.stops.JointStops`): the slip takes the
+        direction of the torque the hold needed; a stopped joint becomes a candidate that
+        :meth:`settle_modes` holds or lets slide on.
+        """
+        j = c.key[1]
+        fdir = self.drive.fdir
+        if c.kind == "slip":
+            lam = self.hold_torque(t, self.with_v(y, v), j)
+            self.locks.set_held({k: b for k, b in self.locks.held.items() if k != j})
+            fdir[j] = -math.copysign(1.0, lam)
+            self.log_event(t, "slip", q, v, v, None, joints=(self.sys.names[j],), joint=j)
+        elif c.kind == "stick":
+            v = v.copy()
+            v[j] = 0.0
+            fdir[j] = 0.0
+            stick.append(j)
+        return v
+
+    def _held_with_contacts(self, v: FloatArray) -> bool:
+        """Joints held (or stopped) by friction or a brake while contact rows push.
+
+        The event-driven modes solve the holds (:class:`~packbot.contact.locks.JointLocks`)
+        and the contact forces (:class:`NormalContacts`) apart, which is exact while only one
+        of them acts; when both do, the joints' holding torques and the contact forces are one
+        problem: a window's steps solve it (boxes and cones together). A resting arm (rest
+        capture) needs neither.
+
+        Args:
+            v: Velocities [rad/s] after the restart.
+        """
+        if not self.normal.engaged or self.normal.resting:
+            return False
+        if self.locks.held:
+            return True
+        stopped = (self.drive.path.coulomb > 0.0) & (np.abs(v) <= HOLD_SPEED)
+        return bool(stopped.any())
+
+    def friction(
+        self, q: FloatArray, v: FloatArray, applied: FloatArray, friction: FloatArray
+    ) -> FloatArray:
+        """The friction torques [N*m]; in a window, the last step's Coulomb and brake torques."""
+        w = self.window
+        if w is None:
+            return super().friction(q, v, applied, friction)
+        return np.asarray(friction + w.stepper.joint_torque, dtype=np.float64)
 
     def _sync_pairs(self) -> None:
         """Pairs that the drift projection put in the contact set become active pairs.

@@ -147,6 +147,14 @@ class JointStops:
         """``max_step``: without a collision world nothing else bounds a step."""
         return self.cfg.max_step
 
+    def advance(self, t: float, y: FloatArray, t_end: float) -> DenseSegment | None:
+        """None: the loop's stepper takes every step (only the normal mode has windows)."""
+        return None
+
+    def rescue(self, t: float, y: FloatArray) -> bool:
+        """False: a step-size underflow stops the run (only the normal mode has windows)."""
+        return False
+
     def watch(self, seg: DenseSegment) -> list[Crossing]:
         """Event functions that changed sign over the step (evaluated at its end).
 

@@ -1,0 +1,156 @@
+"""Time-stepping windows of the contact-normal mode (packbot.contact.timestep, issue 16).
+
+Where events pile up the law takes fixed Moreau-Jean steps with one complementarity problem
+each (contact cones and the joints' Coulomb friction and brakes as boxes), then resumes
+event-driven integration. Checked here on real runs: the starts that used to stop at the
+``max_events`` guard finish; no event adds energy; nothing penetrates beyond
+``PENETRATION_TOL``; a run stepped in windows from start to end never gains energy between its
+steps and rests where the event-driven mode rests; joint friction and brakes work in the
+contact-normal mode.
+"""
+
+import numpy as np
+import pinocchio as pin
+import pytest
+
+import packbot
+from packbot.contact import normal as normal_mod
+from packbot.contact.lcp import box_residual, solve_mixed_admm
+from packbot.contact.normal import PENETRATION_TOL
+from packbot.contact.timestep import WINDOW_STEP, StepSegment
+from tests.test_normal_cascade import GAIN_TOL, start_pose
+
+LOCKED = ["camera_tilt", "camera_pan", "gripper_roll", "gripper_jaw"]
+
+
+def _event_gain(res: packbot.SimResult) -> float:
+    return max([0.0, *(e.energy_after - e.energy_before for e in res.events)])
+
+
+# ------------------------------------------------------------------ the combined problem
+def test_mixed_problem_cones_and_boxes_solved_together():
+    """One cone block and two box rows, coupled: the solution satisfies every condition."""
+    model = pin.buildSampleModelManipulator()
+    data = model.createData()
+    G = np.array(
+        [
+            [2.0, 1.0, 0.0, 0.0, 0.0],
+            [1.0, 2.0, 0.0, 0.0, 0.0],
+            [0.0, 0.0, 1.0, 0.2, 0.0],
+            [0.0, 0.0, 0.2, 1.0, 0.5],
+            [0.0, 0.0, 0.0, 0.5, 1.0],
+        ]
+    )
+    g = np.array([0.3, 0.0, -1.0, 0.5, -5.0])
+    bound = np.array([1.0, 2.0])
+    # box rows name model joints 3 and 1 (not in model order: the solver's order is permuted)
+    x, res = solve_mixed_admm(model, data, G, g, np.array([0.5]), np.array([3, 1]), bound)
+    u = G @ x + g
+    assert res < 1e-8
+    # the contact: pushing, tangential impulse inside the cone, normal velocity zero
+    assert x[2] > 0.0 and np.hypot(x[0], x[1]) <= 0.5 * x[2] + 1e-9
+    assert abs(u[2]) < 1e-8
+    # the boxes: row 4 slips (at +2, moving negative), row 3 at -1 moving positive
+    assert x[4] == pytest.approx(2.0) and u[4] < 0.0
+    assert x[3] == pytest.approx(-1.0) and u[3] > 0.0
+    assert box_residual(G[3:, 3:], g[3:] + G[3:, :3] @ x[:3], x[3:], bound) < 1e-8
+
+
+def test_box_residual_flags_a_wrong_solution():
+    G, g = np.eye(1), np.array([-5.0])
+    assert box_residual(G, g, np.array([2.0]), np.array([2.0])) < 1e-12  # slips at the bound
+    assert box_residual(G, g, np.array([1.0]), np.array([2.0])) > 0.1  # inside, still moving
+    assert box_residual(G, g, np.array([3.0]), np.array([2.0])) > 0.1  # outside the box
+
+
+def test_step_segment_interpolates_between_its_ends():
+    y0, y1 = np.array([0.0, 1.0]), np.array([1.0, 3.0])
+    seg = StepSegment(1.0, 1.5, y0, y1)
+    assert np.array_equal(seg(1.0), y0) and np.array_equal(seg(1.5), y1)
+    assert np.allclose(seg(1.25), [0.5, 2.0])
+    assert np.allclose(seg.derivative(1.2), [2.0, 4.0])
+
+
+# ------------------------------------------------------------------ hard starts
+@pytest.mark.parametrize(("start", "mu"), [(0, 0.5), (5, 0.5)])
+def test_a_start_that_stopped_at_max_events_finishes(robot, start, mu):
+    """Wrist free, mu 0.5: starts 0 and 5 of the benchmark stopped at 20,000 events."""
+    q0 = start_pose(robot, start)
+    cfg = packbot.SimConfig(contact_mode="normal", mu=mu, restitution=0.0)
+    res = packbot.simulate(robot, q0, np.zeros(robot.nq), 1.0, config=cfg)
+    d = res.diagnostics
+    assert d.windows >= 1 and d.window_steps > 0
+    assert len(res.events_of("timestep")) == d.windows
+    assert len(res.events_of("resume")) >= d.windows - 1
+    assert len(res.events) < 5000
+    assert _event_gain(res) <= GAIN_TOL
+    assert -d.min_distance <= PENETRATION_TOL
+    assert res.energy[-1] < res.energy[0]
+
+
+def test_a_run_stepped_in_windows_rests_where_the_event_driven_mode_rests(robot, monkeypatch):
+    """The collapse in windows from its first event to its end (a cascade threshold of one).
+
+    Sampled at the step ends, its energy never rises from one step to the next (zero torque:
+    the steps' contacts and the guard only dissipate), and it rests within 0.03 rad of the
+    event-driven run (time-stepping at 0.5 ms against exact events: the same physics).
+    """
+    q0 = robot.pose("drive")
+    base = {"contact_mode": "normal", "mu": 0.5, "restitution": 0.0, "locked_joints": LOCKED}
+    exact = packbot.simulate(
+        robot, q0, np.zeros(robot.nq), 2.0, config=packbot.SimConfig(**base)
+    )
+    assert exact.diagnostics.windows == 0
+    monkeypatch.setattr(normal_mod, "CASCADE_EVENTS", 1)
+    monkeypatch.setattr(normal_mod, "WINDOW_MIN", 10.0)
+    cfg = packbot.SimConfig(**base, sample_dt=WINDOW_STEP)
+    stepped = packbot.simulate(robot, q0, np.zeros(robot.nq), 2.0, config=cfg)
+    d = stepped.diagnostics
+    assert d.windows == 1 and d.window_steps > 0.9 * (2.0 - stepped.events[0].t) / WINDOW_STEP
+    t_in = stepped.events_of("timestep")[0].t
+    after = stepped.t > t_in + 1e-9
+    rises = np.diff(stepped.energy[after])
+    assert rises.max() <= 1e-9, rises.max()
+    assert -d.min_distance <= PENETRATION_TOL
+    assert np.abs(stepped.q[-1] - exact.q[-1]).max() < 0.03
+
+
+# ------------------------------------------------------------------ joint friction, brakes
+def test_joint_friction_works_in_the_contact_normal_mode(robot):
+    """The collapse with the joints' Coulomb friction: holds and contacts solved together."""
+    cfg = packbot.SimConfig(
+        contact_mode="normal", mu=0.5, joint_friction=True, locked_joints=LOCKED
+    )
+    res = packbot.simulate(robot, robot.pose("drive"), np.zeros(robot.nq), 1.5, config=cfg)
+    assert res.diagnostics.windows >= 1
+    assert _event_gain(res) <= GAIN_TOL
+    assert -res.diagnostics.min_distance <= PENETRATION_TOL
+    # the Coulomb part of each reported friction torque stays within its bound
+    coulomb = np.array(robot.params.coulomb)
+    viscous = np.array(robot.params.viscous)
+    tau_c = res.tau_friction + viscous * res.v
+    assert (np.abs(tau_c) <= coulomb + 1e-5).all()  # a slip fires 1e-6 N*m past its bound
+
+
+def test_a_brake_holds_its_joint_in_the_contact_normal_mode(robot):
+    """elbow2's brake (threshold 200 N*m, far above what gravity needs) holds it.
+
+    Only impulses move it: the shoulder's limit stop at 0.153 s is a rigid impact whose
+    impulse no finite brake torque resists (elbow2 jumps to 4.2 rad/s), and the brake then
+    stops it within a few hundredths of a radian. Without the brake elbow2 swings through
+    more than a radian.
+    """
+    cfg = packbot.SimConfig(contact_mode="normal", mu=0.5, locked_joints=LOCKED)
+    q0 = robot.pose("drive")
+    brake = packbot.Failure(joint="elbow2", kind="brake", t=0.0, threshold=200.0)
+    res = packbot.simulate(robot, q0, np.zeros(robot.nq), 1.0, config=cfg, failures=[brake])
+    free = packbot.simulate(robot, q0, np.zeros(robot.nq), 1.0, config=cfg)
+    j = res.joint_names.index("elbow2")
+    assert np.abs(free.q[:, j] - q0[j]).max() > 1.0
+    assert np.abs(res.q[:, j] - q0[j]).max() < 0.05
+    late = res.t > 0.5  # long after the last impact: held still
+    assert np.abs(res.v[late, j]).max() < 1e-6  # the window solver: to 1e-9 rad/s
+    assert _event_gain(res) <= GAIN_TOL
+    assert -res.diagnostics.min_distance <= PENETRATION_TOL
+    s = res.joint_names.index("shoulder")  # the free joints still fall
+    assert abs(res.q[-1, s] - res.q[0, s]) > 0.1
