@@ -90,7 +90,8 @@ class RecoveryEvent:
         t: Time [s].
         kind: ``"detect"`` (the observer flagged a joint), ``"track"`` (task tracking with the
             working joints started), ``"loose"`` (the loose-joint controller took over),
-            ``"plan"`` / ``"replan"`` (the loose-joint controller's plans).
+            ``"plan"`` / ``"replan"`` (the loose-joint controller's plans), ``"ignored"`` (a
+            joint flagged while the loose-joint controller is in charge: not acted on).
         joint: The joint concerned ("" if none).
         detail: What, in words (failure kind, residual, plan result).
     """
@@ -311,15 +312,19 @@ class TaskRecovery(ModelBasedController):
 
     def _on_detection(self, t: float, j: int, kind: str, q: FloatArray, v: FloatArray) -> None:
         assert self.robot is not None
-        self.failed[j] = kind
         names = self.robot.joint_names
-        if kind == "loose" or self.mode == "loose":
-            if self.loose_controller is None:
-                self._start_loose(t, q, v)
-            else:
-                from packbot.failures import Failure
-
-                self.loose_controller.on_failure(Failure(joint=names[j], kind=kind), t)  # type: ignore[arg-type]
+        if self.mode == "loose":
+            # The swinging link's transient can push other joints' residuals over their
+            # thresholds; the loose-joint controller handles one failed joint at a time.
+            self.log.append(
+                RecoveryEvent(
+                    t=t, kind="ignored", joint=names[j], detail=f"{kind}: a loose joint is handled"
+                )
+            )
+            return
+        self.failed[j] = kind
+        if kind == "loose":
+            self._start_loose(t, q, v)
             return
         # frozen: track the task with the joints that still move the frame
         self.mode = "track"
