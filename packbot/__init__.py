@@ -20,6 +20,7 @@ from packbot.model import JointParams, Robot, load_robot
 from packbot.payload import Payload
 from packbot.resources import package_dirs, urdf_path
 from packbot.result import Diagnostics, Event, SimResult
+from packbot.study import StudyResult, study
 
 __version__ = "0.1.0"
 
@@ -48,10 +49,12 @@ __all__ = [
     "SimConfig",
     "SimResult",
     "SimulationError",
+    "StudyResult",
     "UnknownNameError",
     "__version__",
     "load_robot",
     "package_dirs",
     "simulate",
+    "study",
     "urdf_path",
 ]

@@ -725,6 +725,54 @@ def _cmd_regress(args: argparse.Namespace) -> int:
     return EXIT_FAILED if drift else EXIT_OK
 
 
+def _cmd_study(args: argparse.Namespace) -> int:
+    from packbot.scenario import list_scenarios, load_scenario
+    from packbot.study import study
+    from packbot.viz.study_report import write_study
+
+    _duration(args.duration)
+    if not (math.isfinite(args.tolerance) and args.tolerance > 0):
+        raise _UsageError(f"invalid --tolerance {args.tolerance}: expected a distance > 0 [m]")
+    scenario = load_scenario(args.scenario)
+    if not scenario.failures:
+        shipped = [n for n in list_scenarios() if load_scenario(n).failures]
+        raise _UsageError(
+            f"scenario {scenario.name!r} has no [[failures]]: a study compares a healthy, a "
+            f"failed and a reconfigured run (shipped scenarios with failures: "
+            f"{', '.join(shipped)})"
+        )
+    out, old = _prepare_out(args.out or f"out/{scenario.name}_study", args.overwrite)
+    for path in old:
+        path.unlink(missing_ok=True)
+    result = study(
+        scenario,
+        duration=args.duration,
+        tolerance=args.tolerance,
+        contact_mode=args.contact_mode,
+        progress=lambda text: log.info("%s", text),
+    )
+    written = write_study(result, out, html=not args.no_html)
+    _write_manifest(out, scenario, "study", written.values())
+    rec = result.recovery
+    verdict = {True: "possible", False: "not possible", None: "not assessed"}[rec.possible]
+    print(f"study {scenario.name}: recovery {verdict}")
+    for reason in rec.reasons:
+        print(f"  - {reason}")
+    for name, run in result.runs.items():
+        m = run.metrics
+        if m is None:
+            print(f"  {name:<13} {run.status}: {run.reason}")
+            continue
+        detect = "" if m.detect_time_s is None else f", detected at {m.detect_time_s:.3f} s"
+        print(
+            f"  {name:<13} final task error {m.final_task_error_m * 1000:8.1f} mm, RMS "
+            f"{m.rms_task_error_m * 1000:7.1f} mm, peak torque {m.peak_torque_ratio:.0%} of its "
+            f"limit, {m.contacts} contacts{detect}"
+        )
+    print(f"wrote {out / 'study.json'}" + ("" if args.no_html else f" and {out / 'report.html'}"))
+    return EXIT_OK
+
+
 def _interrupted_line(text: str) -> None:
     """A Ctrl-C message: one line (after a progress bar's line on a terminal)."""
     sys.stderr.write(("\n" if sys.stderr.isatty() else "") + text + "\n")
@@ -834,6 +882,35 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument("--duration", type=float, default=None, help="simulated time [s] (5)")
     p.set_defaults(func=_cmd_collapse)
+
+    p = sub.add_parser(
+        "study",
+        help="failure study of a scenario with [[failures]]: healthy, failed and reconfigured "
+        "runs, study.json, figures and report.html",
+    )
+    p.add_argument(
+        "scenario", metavar="SCENARIO", help="scenario name (see `packbot list`) or path"
+    )
+    p.add_argument(
+        "--out", type=_folder, default=None, help=out_help.format("./out/<scenario name>_study")
+    )
+    p.add_argument("--overwrite", action="store_true", help=overwrite_help)
+    p.add_argument("--duration", type=float, default=None, help="simulated time [s] instead")
+    p.add_argument(
+        "--tolerance",
+        type=float,
+        default=0.01,
+        help="recovery tolerance on the gripper's task error [m] (0.01)",
+    )
+    p.add_argument(
+        "--contact-mode",
+        choices=("none", "joint_clamp", "normal"),
+        default=None,
+        help="contact mode instead of the scenario's (a combination the simulator refuses is "
+        "reported per run)",
+    )
+    p.add_argument("--no-html", action="store_true", help="no report.html (JSON and figures)")
+    p.set_defaults(func=_cmd_study)
 
     scheduler_help = "Dask scheduler SCHEME://HOST:PORT (e.g. tcp://127.0.0.1:8786), or 'local'"
     p = sub.add_parser(
