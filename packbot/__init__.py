@@ -21,6 +21,7 @@ from packbot.payload import Payload
 from packbot.resources import package_dirs, urdf_path
 from packbot.result import Diagnostics, Event, SimResult
 
+#: The package version (PEP 440), as in pyproject.toml.
 __version__ = "0.1.0"
 
 __all__ = [
