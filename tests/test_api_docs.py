@@ -122,8 +122,9 @@ def _has_attribute_doc(body: list[ast.stmt], i: int, lines: list[str]) -> bool:
 def _defines(node: ast.stmt, name: str) -> bool:
     if isinstance(node, (ast.ClassDef, ast.FunctionDef, ast.AsyncFunctionDef)):
         return node.name == name
-    if isinstance(node, ast.Assign):
-        return any(isinstance(t, ast.Name) and t.id == name for t in node.targets)
+    if isinstance(node, ast.Assign):  # also A, B = ... (each target of a tuple)
+        targets = [e for t in node.targets for e in (t.elts if isinstance(t, ast.Tuple) else [t])]
+        return any(isinstance(t, ast.Name) and t.id == name for t in targets)
     if isinstance(node, ast.AnnAssign):
         return isinstance(node.target, ast.Name) and node.target.id == name
     type_alias = getattr(ast, "TypeAlias", None)
