@@ -22,6 +22,7 @@ from packbot.resources import package_dirs, urdf_path
 from packbot.result import Diagnostics, Event, SimResult
 from packbot.study import StudyResult, study
 
+#: The package version (PEP 440), as in pyproject.toml.
 __version__ = "0.1.0"
 
 __all__ = [

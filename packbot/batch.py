@@ -116,13 +116,20 @@ RECORD_FORMAT = "packbot-batch-run/2"
 LEGACY_RECORD_FORMATS: tuple[str, ...] = ("packbot-batch-run/1",)
 #: Name of the lock file in a batch folder.
 LOCK_NAME = "batch.lock"
-#: Why a run that had a record is run again (:attr:`BatchReport.rerun`).
+# Why a run that had a record is run again (the values of :attr:`BatchReport.rerun`):
+#: Rerun reason: the run's record says it failed.
 RERUN_FAILED = "failed before"
+#: Rerun reason: the run's resolved scenario changed (another :attr:`Run.digest`).
 RERUN_STALE = "stale (its scenario changed)"
+#: Rerun reason: a file the record lists is missing.
 RERUN_MISSING_FILE = "file missing"
+#: Rerun reason: a file's SHA-256 differs from the record's.
 RERUN_CORRUPT_FILE = "file corrupted (SHA-256 differs)"
+#: Rerun reason: the record's own SHA-256 does not match its content.
 RERUN_EDITED = "record edited (SHA-256 differs)"
+#: Rerun reason: the record is not valid JSON or lacks fields.
 RERUN_MALFORMED = "record unreadable (malformed JSON or fields)"
+#: Rerun reason: the record is of a legacy format, without checksums.
 RERUN_OLD_FORMAT = "record of an older format, without checksums (unverifiable)"
 #: The statuses of a run record.
 RUN_STATUSES: tuple[str, ...] = ("ok", "failed")

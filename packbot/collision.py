@@ -52,6 +52,7 @@ __all__ = [
 
 log = logging.getLogger(__name__)
 
+#: File name of the SRDF beside the URDF (its disabled collision pairs).
 SRDF_NAME = "packbot_eod.srdf"
 #: Default query margin [m]: pairs farther apart than this are pruned.
 DEFAULT_MARGIN = 0.05

@@ -11,6 +11,25 @@ from collections.abc import Iterable, Sequence
 from pathlib import Path
 from typing import Any
 
+__all__ = [
+    "ConfigurationError",
+    "ControllerError",
+    "ConvexityError",
+    "InertialError",
+    "InitialCollisionError",
+    "JointError",
+    "JointMismatchError",
+    "MeshError",
+    "ModelError",
+    "PackbotError",
+    "ResourceNotFound",
+    "ResultFileError",
+    "SimulationError",
+    "URDFError",
+    "URDFSyntaxError",
+    "UnknownNameError",
+]
+
 
 class PackbotError(Exception):
     """Base class of every error packbot raises on purpose."""

@@ -28,6 +28,7 @@ from packbot.validation import choice, finite_number, name_str
 
 __all__ = ["FAILURE_KINDS", "Failure", "FailureKind", "validate_failures"]
 
+#: The failure kinds, as a type (the values of :data:`FAILURE_KINDS`).
 FailureKind = Literal["loose", "frozen", "weak", "stuck", "brake"]
 #: The valid values of :attr:`Failure.kind`.
 FAILURE_KINDS: tuple[str, ...] = get_args(FailureKind)

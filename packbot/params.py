@@ -32,6 +32,7 @@ __all__ = [
     "value",
 ]
 
+#: The sources of the numbers: key (as cited by :attr:`Param.source`) -> reference.
 SOURCES: dict[str, str] = {
     "press510": "PackBot 510 press figures (strategypage.com, 2007-12-19): base robot 42 lb "
     "(19.1 kg), 28 x 16 x 8 in (0.71 x 0.41 x 0.20 m).",
@@ -66,6 +67,7 @@ class Param:
     note: str = ""
 
 
+#: The parameter table: every number of the model by name (read one with :func:`value`).
 TABLE: dict[str, Param] = {}
 
 
@@ -305,6 +307,7 @@ DH_COMMON: tuple[DHRow, ...] = (
     DHRow("shoulder", 0.0, 0.0, L1, 0.0),
     DHRow("elbow1", 0.0, OFF2, L2, 0.0),
 )
+#: The standard DH chains from the base to each tool frame: ``"gripper"`` and ``"camera"``.
 CHAINS: dict[str, tuple[DHRow, ...]] = {
     "gripper": (
         *DH_COMMON,
@@ -323,6 +326,7 @@ DH_BASE = (MOUNT_X, 0.0, CH_H + MOUNT_H)
 #: Names of the tool frames at the end of each chain.
 TOOL_FRAMES = {"gripper": "gripper_tool", "camera": "camera_optical"}
 
+#: The arm's joints in model order: limits, actuator and friction parameters.
 JOINTS: tuple[JointSpec, ...] = (
     _joint("turret", "base_link", "turret_link", (-3.05, 3.05), 1.0, 60.0, 200, 3.3e-6, 0.8, 1.5),
     _joint("shoulder", "turret_link", "link1", (-1.3, 2.1), 0.8, None, 160, 3.3e-6, 0.8, 1.5),
@@ -348,6 +352,7 @@ def _cyl(r: float, length: float) -> tuple[float, float]:
     return (r, length)
 
 
+#: The links and their parts (geometry and mass), from the chassis to the gripper jaw.
 LINKS: tuple[LinkSpec, ...] = (
     LinkSpec(
         "base_link",

@@ -38,9 +38,11 @@ __all__ = [
 DESCRIPTION_PACKAGE = "packbot"
 #: Prefix of the mesh URIs of packbot's URDFs; it stands for the URDF file's own directory.
 PACKAGE_URI = f"package://{DESCRIPTION_PACKAGE}/"
-#: File names inside the description package.
+#: File name of the URDF inside the description package.
 URDF_NAME = "packbot_eod.urdf"
+#: File name of the SRDF (groups, named poses, disabled collision pairs) beside the URDF.
 SRDF_NAME = "packbot_eod.srdf"
+#: File name of the MuJoCo MJCF model beside the URDF.
 MJCF_NAME = "packbot_eod.xml"
 
 
