@@ -50,6 +50,7 @@ PUBLIC_MODULES = {
     "packbot.collision": "collision.md",
     "packbot.control": "control.md",
     "packbot.analysis": "analysis.md",
+    "packbot.study": "study.md",
     "packbot.scenario": "scenario.md",
     "packbot.matrix": "matrix.md",
     "packbot.batch": "batch.md",
