@@ -97,9 +97,7 @@ def test_a_run_stepped_in_windows_rests_where_the_event_driven_mode_rests(robot,
     """
     q0 = robot.pose("drive")
     base = {"contact_mode": "normal", "mu": 0.5, "restitution": 0.0, "locked_joints": LOCKED}
-    exact = packbot.simulate(
-        robot, q0, np.zeros(robot.nq), 2.0, config=packbot.SimConfig(**base)
-    )
+    exact = packbot.simulate(robot, q0, np.zeros(robot.nq), 2.0, config=packbot.SimConfig(**base))
     assert exact.diagnostics.windows == 0
     monkeypatch.setattr(normal_mod, "CASCADE_EVENTS", 1)
     monkeypatch.setattr(normal_mod, "WINDOW_MIN", 10.0)
