@@ -940,23 +940,42 @@ class NormalContacts:
             distance: Signed distance [m] of the pairs in contact at q (Coal, by pair index);
                 a pair missing from it counts as stale.
         """
+        return bool(self.stale_pairs(q, v, distance, engaged_only=True))
+
+    def stale_pairs(
+        self, q: FloatArray, v: FloatArray, distance: dict[int, float], engaged_only: bool = False
+    ) -> list[int]:
+        """The pairs whose patch no longer describes the contact (see :meth:`stale`).
+
+        Args:
+            q: Configuration [rad].
+            v: Velocity [rad/s].
+            distance: Signed distance [m] of the pairs at q, by pair index.
+            engaged_only: Only the pairs with engaged rows.
+        """
         if not self.pairs:
-            return False
+            return []
         _, _, gap, _, extra = self._problem(q, v)
+        out: list[int] = []
         k = 0
         for (key, p), ex in zip(self.pairs.items(), extra, strict=True):
             K = len(p.local1)
             g = gap[k : k + K]
             k += K
-            if not self._pair_engaged(p):
+            if engaged_only and not self._pair_engaged(p):
                 continue
             d = distance.get(key)
             if d is None or abs(float(g.min()) - d) > POINT_TOL:
-                return True
+                out.append(key)
+                if engaged_only:
+                    return out
+                continue
             slide = ex["T"] @ ex["dp"].T - p.offset0  # (2, K)
             if float(np.max(slide[0] ** 2 + slide[1] ** 2)) > SLIDE_TOL**2:
-                return True
-        return False
+                out.append(key)
+                if engaged_only:
+                    return out
+        return out
 
     def repatch(self, q: FloatArray, v: FloatArray, a_free_fn: Any, minv: FloatArray) -> FloatArray:
         """Recompute the patches of a sliding contact, correct drift and select the modes again.
@@ -1616,10 +1635,11 @@ class NormalLaw(PatchEvents):
             return None
         seg, info = w.stepper.step(t, y, t_end, self.energy)
         self.diag.window_steps += 1
+        self.diag.sweeps += 1
         self.diag.window_energy_removed += info.removed
+        self.note_min(*info.closest)  # the step's sweep at its start (the previous step's end)
         w.quiet = w.quiet + 1 if info.signature == w.last else 0
         w.last = info.signature
-        self._after_event(seg.y1)  # the distances at the step's end (and the deepest one)
         return seg
 
     def rescue(self, t: float, y: FloatArray) -> bool:
@@ -1670,6 +1690,7 @@ class NormalLaw(PatchEvents):
         self._last_exit = t
         self.log_event(t, "resume", y[:n], y[n : 2 * n], y[n : 2 * n], None)
         self.rebuild(self.sys)  # every contact and mode forgotten (the window is ended)
+        self._after_event(y)  # the distances at the window's end (and the deepest one)
         y_new = self.start(t, y, check=False)
         self._after_event(y_new)
         return y_new

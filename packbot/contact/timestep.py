@@ -139,6 +139,8 @@ class StepInfo:
         residual: The complementarity solution's scaled residual [-].
         removed: Energy the step's guard removed [J] (0 when the step did not gain).
         projected: Whether a penetrating pair was projected out.
+        closest: The smallest signed distance [m] of the step's sweep (at its start) and its
+            pair (-1: none within reach).
     """
 
     signature: tuple[frozenset[int], frozenset[int], frozenset[tuple[int, int]], frozenset[int]]
@@ -146,6 +148,7 @@ class StepInfo:
     residual: float
     removed: float
     projected: bool
+    closest: tuple[float, int] = (math.inf, -1)
 
 
 class MoreauJeanStepper:
@@ -202,7 +205,7 @@ class MoreauJeanStepper:
         v_f = v + h * a_free
         minv = sys.minv(q)
 
-        self._update_set(q, v, v_f, h)
+        closest = self._update_set(q, v, v_f, h)
         Jn, _, gap, vn, extra = contacts._problem(q, v)
         m = len(gap)
         coul = self.drive.path.coulomb
@@ -263,16 +266,30 @@ class MoreauJeanStepper:
         self.joint_torque = np.zeros(n)
         self.joint_torque[cj] = x[3 * m :] / h
         sig = self._signature(x, m, mus, gap, len(cj), cj)
-        return StepSegment(t, t + h, y, y1), StepInfo(sig, m, residual, removed, projected)
+        info = StepInfo(sig, m, residual, removed, projected, closest)
+        return StepSegment(t, t + h, y, y1), info
 
-    def _update_set(self, q: FloatArray, v: FloatArray, v_f: FloatArray, h: float) -> None:
-        """The pairs and limits within reach of the step form the contact set."""
+    def _update_set(
+        self, q: FloatArray, v: FloatArray, v_f: FloatArray, h: float
+    ) -> tuple[float, int]:
+        """The pairs and limits within reach of the step form the contact set.
+
+        A pair already in the set keeps its patch while the patch describes the contact (its
+        points have not slid apart and its smallest gap is the pair's distance:
+        :meth:`NormalContacts.stale_pairs`, the event-driven mode's rule); a new or stale one
+        is patched at q.
+
+        Returns:
+            The smallest signed distance of the sweep [m] and its pair (-1: none).
+        """
         contacts, cfg, sys = self.contacts, self.cfg, self.sys
         speed = REACH_BOUND * max(float(np.abs(v).sum()), float(np.abs(v_f).sum()))
         d_act = ACTIVE_GAP + 2.0 * h * speed
         near: dict[int, float] = {}
+        closest = (math.inf, -1)
         if contacts.world is not None:
             sw = contacts.world.sweep(q, margin=max(d_act, 1e-9))
+            closest = (float(sw.min_distance), int(sw.min_pair))
             near = {
                 int(k): float(d)
                 for k, d in zip(sw.pairs.tolist(), sw.distances.tolist(), strict=True)
@@ -281,10 +298,11 @@ class MoreauJeanStepper:
         for k in list(contacts.pairs):
             if k not in near:
                 contacts.remove_pair(k)
-        for k in near:
+        redo = set(contacts.stale_pairs(q, v, near)) | (near.keys() - contacts.pairs.keys())
+        for k in redo:
             contacts.add_pair(q, k, tol=d_act)
         if not cfg.joint_limits:
-            return
+            return closest
         reach = LIMIT_GAP + h * np.maximum(np.abs(v), np.abs(v_f))
         for j in range(self.n):
             for side, lim in ((1, float(sys.upper[j])), (-1, float(sys.lower[j]))):
@@ -295,6 +313,7 @@ class MoreauJeanStepper:
                         contacts.add_limit(j, side, lim)
                 elif (j, side) in contacts.limits:
                     contacts.remove_limit(j, side)
+        return closest
 
     def _signature(
         self,
