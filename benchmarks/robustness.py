@@ -8,7 +8,9 @@ underflow, the ``max_events`` guard, ...), runs that reached ``max_events``, run
 wall-time guard, the largest energy gained at one event [J] (``energy_after - energy_before``,
 over every event of every run), the largest energy gained over a whole run [J] (final minus
 initial energy), the deepest penetration [m] (``-min_distance``, 0 if none), the runs at rest at
-the end, and the median and worst wall time per run [s].
+the end, the runs that used time-stepping windows and the most energy a run's windows removed
+(``Diagnostics.window_energy_removed``, docs/contact.md), and the median and worst wall time
+per run [s].
 
     python benchmarks/robustness.py                      # the contact-normal mode, full grid
     python benchmarks/robustness.py --law joint_clamp --mu 0 --e 0 0.3
@@ -56,6 +58,8 @@ class Outcome:
     penetration: float = 0.0
     at_rest: bool = False
     wall: float = 0.0
+    windows: int = 0
+    removed: float = 0.0
 
 
 class _Timeout(Exception):
@@ -105,6 +109,8 @@ def one_run(args: tuple[np.ndarray, dict[str, Any], float, float]) -> Outcome:
         out.run_gain = float(res.energy[-1] - res.energy[0])
         out.penetration = max(0.0, -float(res.diagnostics.min_distance))
         out.at_rest = res.rest_time is not None and not out.error
+        out.windows = res.diagnostics.windows
+        out.removed = res.diagnostics.window_energy_removed
     return out
 
 
@@ -140,10 +146,10 @@ def main(argv: list[str] | None = None) -> None:
     )
     print(
         "| mu | e | wrist | runs | errors | max_events | timeouts | max gain at an event [J] | "
-        "max gain over a run [J] | deepest penetration [m] | at rest | median wall [s] | "
-        "worst wall [s] |"
+        "max gain over a run [J] | deepest penetration [m] | at rest | runs with windows | "
+        "max removed by windows [J] | median wall [s] | worst wall [s] |"
     )
-    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
     ctx = mp.get_context("spawn")
     with ctx.Pool(args.workers) as pool:
         for mu, e, wrist in itertools.product(args.mu, args.e, args.wrist):
@@ -161,6 +167,7 @@ def main(argv: list[str] | None = None) -> None:
                 f"{sum(o.max_events for o in outs)} | {sum(o.timeout for o in outs)} | "
                 f"{max(o.event_gain for o in outs):.2g} | {max(o.run_gain for o in outs):.3g} | "
                 f"{max(o.penetration for o in outs):.2g} | {sum(o.at_rest for o in outs)} | "
+                f"{sum(o.windows > 0 for o in outs)} | {max(o.removed for o in outs):.2g} | "
                 f"{statistics.median(walls):.2f} | {max(walls):.2f} |",
                 flush=True,
             )

@@ -233,6 +233,10 @@ class MoreauJeanStepper:
                 max_iterations=ADMM_ITERATIONS,
             )
         v1 = v_f + minv @ (J.T @ x) if len(J) else v_f
+        # what the step decided, on the rows it solved (the projection below may change the set)
+        sig = self._signature(x, m, mus, gap, len(cj), cj)
+        self.joint_torque = np.zeros(n)
+        self.joint_torque[cj] = x[3 * m :] / h
         q1 = np.asarray(pin.integrate(sys.model, q, h * v1), dtype=np.float64)
 
         projected = False
@@ -263,9 +267,6 @@ class MoreauJeanStepper:
             lag = cfg.motor_lag
             tail = target + (tail - target) * math.exp(-h / lag) if lag > 0.0 else tail
         y1 = np.concatenate([q1, v1, tail])
-        self.joint_torque = np.zeros(n)
-        self.joint_torque[cj] = x[3 * m :] / h
-        sig = self._signature(x, m, mus, gap, len(cj), cj)
         info = StepInfo(sig, m, residual, removed, projected, closest)
         return StepSegment(t, t + h, y, y1), info
 
