@@ -210,7 +210,10 @@ class MoreauJeanStepper:
         m = len(gap)
         coul = self.drive.path.coulomb
         cj = np.flatnonzero(coul > 0.0)
-        J3, mus = contacts._frictional_rows(np.arange(m, dtype=np.intp), Jn, extra)
+        if m:
+            J3, mus = contacts._frictional_rows(np.arange(m, dtype=np.intp), Jn, extra)
+        else:
+            J3, mus = np.zeros((0, n)), np.zeros(0)
         J = np.vstack([J3, np.eye(n)[cj]]) if len(cj) else J3
         x = np.zeros(len(J))
         residual = 0.0
