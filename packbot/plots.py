@@ -45,7 +45,8 @@ from numpy.typing import NDArray
 
 from packbot.collision import CollisionWorld
 from packbot.errors import ConfigurationError, UnknownNameError
-from packbot.result import Event, SimResult
+from packbot.labels import event_label
+from packbot.result import SimResult
 
 __all__ = [
     "EVENT_COLORS",
@@ -150,24 +151,6 @@ def _save(fig: Figure, path: str | Path | None, formats: Sequence[str], dpi: int
 
 
 # --------------------------------------------------------------------------- events and zoom
-def event_label(event: Event) -> str:
-    """The label of an event in the plots: its kind and its joint or pair.
-
-    ``"impact link3-link1"`` (the pair's bodies), ``"limit elbow1 upper"``, ``"failure: elbow1
-    frozen"`` (the joint and the failure's kind), ``"freeze elbow1"``, ``"slip shoulder"``.
-    """
-    kind, a, b = event.kind, event.link1, event.link2
-    if kind == "failure":
-        return f"failure: {a} {b}".rstrip() if a else "failure"
-    if kind == "limit":
-        return " ".join(s for s in ("limit", a, b) if s)
-    if b in ("upper", "lower"):  # a limit stop's release
-        return f"{kind} {a} {b}"
-    if a and b:
-        return f"{kind} {a}\u2013{b}"
-    return f"{kind} {a}".rstrip()
-
-
 def time_window(
     result: SimResult, event_kinds: Iterable[str] = MARKED_EVENTS
 ) -> tuple[float, float]:
