@@ -999,7 +999,7 @@ def write_outputs(
         elif kind == "energy":
             P.plot_energy(result, path=base, formats=fmts)
         elif kind == "torques":
-            P.plot_torques(result, joints, path=base, effort=robot.params.effort, formats=fmts)
+            P.plot_torques(result, joints, path=base, formats=fmts)  # limits: result.effort
         elif kind == "tracking":
             q_ref = _reference(scenario, robot, result)
             if q_ref is None:
