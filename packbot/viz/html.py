@@ -151,7 +151,11 @@ packbot.commands.forEach(function (b64) {{
     b.appendChild(dot);
     b.appendChild(document.createTextNode(ev.t.toFixed(3) + " s  " + ev.label));
     b.title = "jump to " + ev.t.toFixed(4) + " s";
-    b.addEventListener("click", function () {{ setPlaying(false); show(ev.t - packbot.t0); }});
+    b.addEventListener("click", function () {{
+      b.blur();  // the space key stays play/pause
+      setPlaying(false);
+      show(ev.t - packbot.t0);
+    }});
     li.appendChild(b);
     el("packbot-event-list").appendChild(li);
     items.push({{ t: ev.t - packbot.t0, button: b }});
@@ -182,9 +186,12 @@ packbot.commands.forEach(function (b64) {{
     play.innerHTML = p ? "&#10074;&#10074;" : "&#9654;";
     document.body.dataset.playing = p ? "true" : "false";
   }}
-  play.addEventListener("click", function () {{ setPlaying(!state.playing); }});
+  play.addEventListener("click", function () {{
+    play.blur();
+    setPlaying(!state.playing);
+  }});
   document.addEventListener("keydown", function (e) {{
-    if (e.key === " " && e.target.tagName !== "SELECT") {{
+    if (e.key === " " && e.target.tagName !== "SELECT" && e.target.tagName !== "BUTTON") {{
       e.preventDefault();
       setPlaying(!state.playing);
     }}
@@ -196,8 +203,8 @@ packbot.commands.forEach(function (b64) {{
   function frame(now) {{
     if (state.playing) {{
       if (state.last !== null) {{
-        // at most 0.1 s of wall time per frame: a stalled page does not skip the action
-        var t = state.t + Math.min((now - state.last) / 1000, 0.1) * state.rate;
+        // at most 0.25 s of wall time per frame: a stalled page does not skip the action
+        var t = state.t + Math.min((now - state.last) / 1000, 0.25) * state.rate;
         if (t >= duration) {{ show(duration); setPlaying(false); }} else {{ show(t); }}
       }}
       state.last = now;
