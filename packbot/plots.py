@@ -40,7 +40,6 @@ from matplotlib.axes import Axes
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
-from matplotlib.transforms import blended_transform_factory
 from numpy.typing import NDArray
 
 from packbot.collision import CollisionWorld
@@ -388,16 +387,16 @@ class _TimeFigure:
         for y, color in traces:
             ax.plot(result.t, y, color=color, lw=0.8)
         kinds = tuple(kinds)
-        trans = blended_transform_factory(ax.transData, ax.transAxes)
-        for ev in result.events:
-            if ev.kind in kinds:
-                ax.plot(
-                    [ev.t, ev.t],
-                    [0.75, 1.0],
-                    transform=trans,
-                    lw=0.9,
-                    color=EVENT_COLORS.get(ev.kind, "black"),
-                )
+        marked = [ev for ev in result.events if ev.kind in kinds]
+        if marked:  # ticks along the top
+            ax.vlines(
+                [ev.t for ev in marked],
+                0.75,
+                1.0,
+                transform=ax.get_xaxis_transform(),
+                colors=[EVENT_COLORS.get(ev.kind, "black") for ev in marked],
+                lw=0.9,
+            )
         ax.axvspan(tl.x0, tl.x1, color="gold", alpha=0.2, lw=0)
         ax.set_xlim(tl.t0, tl.t1)
         ax.set_yticks([])
