@@ -232,40 +232,67 @@ def _timeline(
     t0, t1 = float(result.t[0]), float(result.t[-1])
     x0, x1 = time_window(result, kinds) if zoom else (t0, t1)
     span = max(x1 - x0, 1e-12)
-    # (time, text, colour) of each event, repeats close in time merged: one label, counted
-    entries: list[tuple[float, str, str]] = []
+    # (time, kind, text, colour) of each event; repeats close in time merged: one label, counted
+    entries: list[tuple[float, str, str, str]] = []
     for i, ev in enumerate(result.events):
         if ev.kind in kinds and x0 <= ev.t <= x1:
             text = event_label(ev) + (extra or {}).get(i, "")
             color = _TEXT_COLORS.get(ev.kind, EVENT_COLORS.get(ev.kind, "black"))
-            entries.append((ev.t, text, color))
+            entries.append((ev.t, ev.kind, text, color))
     if result.rest_time is not None and x0 <= result.rest_time <= x1:
-        entries.append((float(result.rest_time), f"at rest {result.rest_time:.3f} s", "black"))
+        rest = float(result.rest_time)
+        entries.append((rest, "", f"at rest {rest:.3f} s", "black"))
     groups: dict[str, list[list[float]]] = {}
-    colors: dict[str, str] = {}
-    for t, text, color in sorted(entries, key=lambda e: e[0]):
+    style: dict[str, tuple[str, str]] = {}  # text -> (kind, colour)
+    for t, kind, text, color in sorted(entries, key=lambda e: e[0]):
         runs = groups.setdefault(text, [])
-        colors[text] = color
+        style[text] = (kind, color)
         # a repeat that its label would cover joins it (the label then counts them)
         if runs and t - runs[-1][0] < _text_width(f"{text} x99", span):
             runs[-1].append(t)
         else:
             runs.append([t])
-    items = sorted(
-        ((tuple(ts), text) for text, runs in groups.items() for ts in runs),
-        key=lambda g: (g[0][0], g[1]),
-    )
+    # Labels of one kind at the same instant (within 0.2 % of the shown time: a pixel or two)
+    # share one: "release elbow2 upper, shoulder lower" (not a failure: each has its own).
+    same = 0.002 * span
+    merged: list[tuple[list[float], str, list[str], str]] = []  # times, kind, parts, colour
+    for ts, text in sorted(
+        ((ts, text) for text, runs in groups.items() for ts in runs), key=lambda g: g[0][0]
+    ):
+        kind, color = style[text]
+        part = text if len(ts) == 1 else f"{text} \u00d7{len(ts)}"
+        target = None
+        if kind not in ("", "failure") and text.startswith(kind + " "):
+            for m in reversed(merged):
+                if ts[0] - m[0][0] >= same:
+                    break
+                if m[1] == kind:
+                    target = m
+                    break
+        if target is None:
+            merged.append((list(ts), kind, [part], color))
+        else:
+            target[0].extend(ts)
+            target[2].append(part[len(kind) + 1 :])
+    items = [(tuple(sorted(ts)), ", ".join(parts), color) for ts, _, parts, color in merged]
     pad = _text_width("", span) * 0.5
     # Latest first, each in the lowest row where it overlaps no label and where neither its
     # leader (a vertical line from the lane's bottom) nor the leaders of the rows above cross
-    # a label: the labels stack like stairs, the earliest on top.
+    # a label: the labels stack like stairs, the earliest on top. A label near the right end
+    # is written to the left of its line; those go last, earliest first (the mirror image),
+    # above the leaders they would cover.
     placed: list[tuple[int, float, float, float]] = []  # (row, left, right, leader x)
     labels = []
-    for ts, text in reversed(items):
-        full = text if len(ts) == 1 else f"{text} \u00d7{len(ts)}"
-        w = _text_width(full, span)
-        x = ts[0]
-        left = x + w + pad <= x1 or x - w - pad < x0
+    widths = [_text_width(full, span) for _, full, _ in items]
+    lefts = [
+        when[0] + w + pad <= x1 or when[0] - w - pad < x0
+        for (when, _, _), w in zip(items, widths, strict=True)
+    ]
+    order = [k for k in reversed(range(len(items))) if lefts[k]]
+    order += [k for k in range(len(items)) if not lefts[k]]  # the mirror image: earliest first
+    for k in order:
+        when, full, color = items[k]
+        w, left, x = widths[k], lefts[k], when[0]
         lo, hi = (x, x + w + pad) if left else (x - w - pad, x)
 
         def overlaps(row: int, lo: float = lo, hi: float = hi) -> bool:
@@ -279,7 +306,7 @@ def _timeline(
         free = [row for row in range(len(placed) + 1) if not overlaps(row)]
         row = next((r for r in free if not crosses(r)), free[0])
         placed.append((row, lo, hi, x))
-        labels.append(_Label(ts, full, colors[text], row, left))
+        labels.append(_Label(when, full, color, row, left))
     rows = 1 + max((lb.row for lb in labels), default=-1)
     return _Timeline(t0, t1, x0, x1, tuple(labels), rows)
 

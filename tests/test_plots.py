@@ -120,8 +120,10 @@ def test_time_window_whole_run_when_events_fill_it(short_collapse):
     assert t0 == 0.0 and 0.3 < t1 < 0.4
 
 
-def test_event_labels_never_overlap(short_collapse):
-    """Dense events: every one labelled (repeats close in time counted), no two labels overlap."""
+@pytest.mark.parametrize("zoom", [True, False])
+def test_event_labels_never_overlap(short_collapse, zoom):
+    """Dense events: every one labelled (repeats close in time counted), no two labels overlap,
+    no leader runs through a label (zoom=False: labels near the right end, written leftward)."""
     res = short_collapse
     base = res.events_of("impact")[0]
     dense = [dataclasses.replace(base, t=0.15 + 0.004 * k) for k in range(5)]  # repeats
@@ -137,11 +139,15 @@ def test_event_labels_never_overlap(short_collapse):
             ]
         )
     ]
-    events = sorted([*res.events, *dense, *others], key=lambda e: e.t)
-    fig = plot_joints(dataclasses.replace(res, events=events))
+    late = [
+        Event(t=t, kind="limit", link1=joint, link2="upper")
+        for t, joint in ((1.8, "turret"), (1.9, "shoulder"), (1.95, "elbow1"), (1.97, "elbow2"))
+    ]
+    events = sorted([*res.events, *dense, *others, *late], key=lambda e: e.t)
+    fig = plot_joints(dataclasses.replace(res, events=events), zoom=zoom)
     texts = lane_texts(fig)
     words = [t.get_text() for t in texts]
-    for e in others:
+    for e in [*others, *late]:
         assert event_label(e) in words
     assert f"{event_label(base)} \u00d76" in words  # the first impact and its 5 repeats
     renderer = fig.canvas.get_renderer()
@@ -149,10 +155,37 @@ def test_event_labels_never_overlap(short_collapse):
     for i, a in enumerate(boxes):
         for b in boxes[i + 1 :]:
             assert not a.overlaps(b), (a, b)
+    # no leader (the vertical line from an event up to its label) runs through a label
+    lane = texts[0].axes
+    leaders = [ln for ln in lane.get_lines() if len(ln.get_xdata()) == 2]
+    leaders = [ln for ln in leaders if ln.get_xdata()[0] == ln.get_xdata()[1]]
+    assert len(leaders) == len(texts)
+    for ln in leaders:
+        (x, y0), (_, y1) = lane.transData.transform(np.column_stack(ln.get_data()))
+        for b in boxes:
+            assert not (b.x0 + 0.5 < x < b.x1 - 0.5 and y0 < b.y1 - 0.5 and b.y0 + 0.5 < y1), (
+                ln.get_xdata(),
+                b,
+            )
     # each label in the figure, below the title
     title_box = fig.texts[0].get_window_extent(renderer)
     for b in boxes:
         assert b.x0 >= 0 and b.x1 <= fig.bbox.width and b.y1 < title_box.y0
+
+
+def test_simultaneous_events_of_a_kind_share_a_label(short_collapse):
+    both = [
+        Event(t=0.3, kind="release", link1="elbow2", link2="upper"),
+        Event(t=0.3, kind="release", link1="shoulder", link2="lower"),
+        Event(t=0.3, kind="failure", link1="elbow1", link2="loose"),
+        Event(t=0.3, kind="failure", link1="turret", link2="frozen"),
+    ]
+    events = sorted([*short_collapse.events, *both], key=lambda e: e.t)
+    fig = plot_joints(dataclasses.replace(short_collapse, events=events))
+    words = [t.get_text() for t in lane_texts(fig)]
+    assert "release elbow2 upper, shoulder lower" in words
+    # failures are never merged: each names its joint and kind
+    assert {"failure: elbow1 loose", "failure: turret frozen"} <= set(words)
 
 
 def test_failure_label_names_the_joint_and_the_kind(short_collapse):
