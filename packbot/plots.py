@@ -51,6 +51,7 @@ __all__ = [
     "EVENT_COLORS",
     "MARKED_EVENTS",
     "PLANAR_JOINTS",
+    "TORQUE_AXIS",
     "event_label",
     "plot_distance",
     "plot_energy",
@@ -96,6 +97,8 @@ EVENT_COLORS: dict[str, str] = {
 }
 # Label colours where the line colour is too light for text.
 _TEXT_COLORS = {"handoff": "darkgoldenrod", "freeze": "darkcyan"}
+#: The torque axes span this multiple of the joint's largest effort limit [-].
+TORQUE_AXIS = 1.15
 _JOINT_COLORS = ("tab:blue", "tab:orange", "tab:green", "tab:red", "tab:purple", "tab:brown")
 _FORMATS = ("png", "svg")
 
@@ -720,10 +723,6 @@ def _runs_beyond(values: NDArray[np.float64], edge: float) -> list[tuple[int, in
         (int(a), int(b))
         for a, b in zip(np.flatnonzero(d == 1), np.flatnonzero(d == -1), strict=True)
     ]
-
-
-#: The torque axes span this multiple of the effort limit [-].
-TORQUE_AXIS = 1.15
 
 
 def plot_torques(
