@@ -576,9 +576,7 @@ def _run(
         if html:
             from packbot.viz import write_html
 
-            paths["html"] = write_html(
-                robot, res, out / f"{scenario.name}.html", environment=scenario.environment
-            )
+            paths["html"] = write_html(robot, res, out / f"{scenario.name}.html")
     except KeyboardInterrupt:
         _write_manifest(out, scenario, "interrupted", _written_files(paths, scenario))
         _stderr_line(

@@ -10,18 +10,29 @@ and ``out/collapse_joints.svg`` (see ``formats``).
 - :func:`plot_distance`: the smallest signed distance over the tested pairs [m] against time,
   with the contact tolerance band;
 - :func:`plot_energy`: total mechanical energy [J] against time, with the jumps of the events;
-- :func:`plot_torques`: applied (and commanded) joint torques [N*m] with their effort limits;
+- :func:`plot_torques`: applied (and commanded) joint torques [N*m], scaled to the effort limits;
 - :func:`plot_tracking`: joint positions against a controller's reference, and the error [rad];
 - :func:`plot_occlusion`: whether the camera's view of target points is blocked, and by what
   (:func:`sample_occlusion`).
 
-Events are vertical lines coloured by kind; the rest time is a dashed black line.
+The time plots show the action: the time axis is zoomed to the events (first to last marked
+event and the rest time, plus a margin; the start of the run is kept when it is near) and a
+strip at the bottom shows the whole run with the zoomed interval shaded (see :func:`time_window`).
+Every marked event is a vertical line coloured by kind and is labelled, in a lane above the
+panels, with its kind and its joint or pair (:func:`event_label`; a failure names the joint and
+the failure's kind); labels never overlap (they stack in rows; repeats of one label close in
+time share one, counted). The rest time is a dashed black line, labelled too.
+
+The figures are laid out with fixed margins (no layout pass measuring every text at each save).
 """
 
 from __future__ import annotations
 
+import math
 from collections.abc import Iterable, Sequence
+from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from matplotlib import rc_context
@@ -33,12 +44,15 @@ from numpy.typing import NDArray
 
 from packbot.collision import CollisionWorld
 from packbot.errors import ConfigurationError, UnknownNameError
+from packbot.labels import event_label
 from packbot.result import SimResult
 
 __all__ = [
     "EVENT_COLORS",
     "MARKED_EVENTS",
     "PLANAR_JOINTS",
+    "TORQUE_AXIS",
+    "event_label",
     "plot_distance",
     "plot_energy",
     "plot_joints",
@@ -47,6 +61,7 @@ __all__ = [
     "plot_tracking",
     "sample_distances",
     "sample_occlusion",
+    "time_window",
 ]
 
 #: The arm's pitch joints: the report's "planar" joints.
@@ -80,8 +95,28 @@ EVENT_COLORS: dict[str, str] = {
     "stick": "tab:gray",
     "slip": "tab:brown",
 }
+# Label colours where the line colour is too light for text.
+_TEXT_COLORS = {"handoff": "darkgoldenrod", "freeze": "darkcyan"}
+#: The torque axes span this multiple of the joint's largest effort limit [-].
+TORQUE_AXIS = 1.15
 _JOINT_COLORS = ("tab:blue", "tab:orange", "tab:green", "tab:red", "tab:purple", "tab:brown")
 _FORMATS = ("png", "svg")
+
+# Fixed layout [in]: figure width, margins, title block, one label row of the event lane, gap
+# between stacked panels, room under the last panel (tick labels + axis label), whole-run strip.
+_WIDTH = 8.0
+_LEFT = 0.95
+_RIGHT = 0.22
+_TITLE = 0.5
+_ROW = 0.19
+_GAP = 0.12
+_XLABEL = 0.55
+_STRIP = 0.55
+_STRIP_TITLE = 0.22
+_STRIP_BOTTOM = 0.3
+_LABEL_PT = 7.5  # event label font size [pt]
+# The zoom: shown when the events' interval is under this fraction of the run.
+_ZOOM_BELOW = 0.6
 
 
 def _new_figure(height: float, nrows: int = 1) -> tuple[Figure, list[Axes]]:
@@ -99,9 +134,9 @@ def _save(fig: Figure, path: str | Path | None, formats: Sequence[str], dpi: int
         if fmt not in _FORMATS:
             raise ConfigurationError("formats", tuple(formats), _FORMATS)
     base.parent.mkdir(parents=True, exist_ok=True)
-    # The constrained layout (a pass measuring every text) is solved once, then frozen for every
-    # format: it is in figure fractions, so the same for any dpi (to a pixel of rounding). This
-    # makes a two-format figure ~12% faster.
+    # A constrained layout (a pass measuring every text; only the occlusion plot has one) is
+    # solved once, then frozen for every format: it is in figure fractions, so the same for any
+    # dpi (to a pixel of rounding).
     engine = fig.get_layout_engine()
     if engine is not None and len(formats) > 1:
         engine.execute(fig)
@@ -117,37 +152,291 @@ def _save(fig: Figure, path: str | Path | None, formats: Sequence[str], dpi: int
         fig.set_layout_engine(engine)
 
 
-def _mark_events(
-    ax: Axes, result: SimResult, kinds: Iterable[str], label: bool
-) -> list[tuple[str, str]]:
-    """Vertical lines at the events of the given kinds; returns the (kind, colour) drawn."""
-    drawn: dict[str, str] = {}
-    kinds = tuple(kinds)
-    for ev in result.events:
-        if ev.kind not in kinds:
-            continue
-        color = EVENT_COLORS.get(ev.kind, "black")
-        ax.axvline(ev.t, color=color, lw=0.9, ls="-", alpha=0.55, zorder=0)
-        drawn[ev.kind] = color
-    if result.rest_time is not None:
-        ax.axvline(result.rest_time, color="black", lw=1.1, ls="--", zorder=0)
-    if label:
-        return list(drawn.items())
-    return []
+# --------------------------------------------------------------------------- events and zoom
+def time_window(
+    result: SimResult, event_kinds: Iterable[str] = MARKED_EVENTS
+) -> tuple[float, float]:
+    """The time interval [s] the plots zoom to: where the marked events happen.
+
+    From the first to the last event of ``event_kinds`` and the rest time (when the arm never
+    comes to rest, the end of the run), plus a margin of a tenth of that span (at least 2 % of
+    the run); widened to the start (end) of the run when that is less than half the span away.
+    The whole run when the events fill most of it (the zoom would show little more than 60 %
+    of it) or when there is no event and no rest.
+
+    Args:
+        result: A simulation result.
+        event_kinds: The event kinds that count.
+
+    Returns:
+        ``(start, end)`` [s], within the run.
+    """
+    t0, t1 = float(result.t[0]), float(result.t[-1])
+    kinds = set(event_kinds)
+    times = [e.t for e in result.events if e.kind in kinds and t0 <= e.t <= t1]
+    if (not times and result.rest_time is None) or t1 <= t0:
+        return t0, t1
+    if not times:  # no event: from the start to the rest
+        times.append(t0)
+    times.append(t1 if result.rest_time is None else float(result.rest_time))
+    first, last = min(times), max(times)
+    margin = max(0.1 * (last - first), 0.02 * (t1 - t0))
+    a, b = max(t0, first - margin), min(t1, last + margin)
+    if a - t0 < 0.5 * (b - a):
+        a = t0
+    if t1 - b < 0.5 * (b - a):
+        b = t1
+    if b - a > _ZOOM_BELOW * (t1 - t0):
+        return t0, t1
+    return a, b
 
 
-def _event_legend(ax: Axes, drawn: list[tuple[str, str]], result: SimResult) -> None:
-    handles = ax.get_legend_handles_labels()[0]
-    for kind, color in drawn:
-        n = len(result.events_of(kind))
-        handles.append(Line2D([], [], color=color, lw=1.2, label=f"{kind} ({n})"))
-    if result.rest_time is not None:
-        handles.append(
-            Line2D(
-                [], [], color="black", ls="--", lw=1.1, label=f"at rest {result.rest_time:.3f} s"
+@dataclass(frozen=True)
+class _Label:
+    """An event label placed in the lane: the events' times, its text, row and alignment."""
+
+    times: tuple[float, ...]
+    text: str
+    color: str
+    row: int
+    left: bool  # text to the right of the first event (else to the left)
+
+
+@dataclass(frozen=True)
+class _Timeline:
+    """What a time plot shows: the run, the zoomed interval and the placed event labels."""
+
+    t0: float
+    t1: float
+    x0: float
+    x1: float
+    labels: tuple[_Label, ...]
+    rows: int
+
+    @property
+    def zoomed(self) -> bool:
+        return (self.x0, self.x1) != (self.t0, self.t1)
+
+
+def _text_width(text: str, span: float) -> float:
+    """A label's width in data units of a lane spanning ``span`` [s] (a generous estimate)."""
+    inches = (0.62 * _LABEL_PT * len(text) + 6.0) / 72.0
+    return inches / (_WIDTH - _LEFT - _RIGHT) * span
+
+
+def _timeline(
+    result: SimResult,
+    event_kinds: Iterable[str],
+    zoom: bool,
+    extra: dict[int, str] | None = None,
+) -> _Timeline:
+    """Zoom interval and label rows (``extra``: text appended to the label of event i)."""
+    kinds = tuple(event_kinds)
+    t0, t1 = float(result.t[0]), float(result.t[-1])
+    x0, x1 = time_window(result, kinds) if zoom else (t0, t1)
+    span = max(x1 - x0, 1e-12)
+    # (time, kind, text, colour) of each event; repeats close in time merged: one label, counted
+    entries: list[tuple[float, str, str, str]] = []
+    for i, ev in enumerate(result.events):
+        if ev.kind in kinds and x0 <= ev.t <= x1:
+            text = event_label(ev) + (extra or {}).get(i, "")
+            color = _TEXT_COLORS.get(ev.kind, EVENT_COLORS.get(ev.kind, "black"))
+            entries.append((ev.t, ev.kind, text, color))
+    if result.rest_time is not None and x0 <= result.rest_time <= x1:
+        rest = float(result.rest_time)
+        entries.append((rest, "", f"at rest {rest:.3f} s", "black"))
+    groups: dict[str, list[list[float]]] = {}
+    style: dict[str, tuple[str, str]] = {}  # text -> (kind, colour)
+    for t, kind, text, color in sorted(entries, key=lambda e: e[0]):
+        runs = groups.setdefault(text, [])
+        style[text] = (kind, color)
+        # a repeat that its label would cover joins it (the label then counts them)
+        if runs and t - runs[-1][0] < _text_width(f"{text} x99", span):
+            runs[-1].append(t)
+        else:
+            runs.append([t])
+    # Labels of one kind at the same instant (within 0.2 % of the shown time: a pixel or two)
+    # share one: "release elbow2 upper, shoulder lower" (not a failure: each has its own).
+    same = 0.002 * span
+    merged: list[tuple[list[float], str, list[str], str]] = []  # times, kind, parts, colour
+    for ts, text in sorted(
+        ((ts, text) for text, runs in groups.items() for ts in runs), key=lambda g: g[0][0]
+    ):
+        kind, color = style[text]
+        part = text if len(ts) == 1 else f"{text} \u00d7{len(ts)}"
+        target = None
+        if kind not in ("", "failure") and text.startswith(kind + " "):
+            for m in reversed(merged):
+                if ts[0] - m[0][0] >= same:
+                    break
+                if m[1] == kind:
+                    target = m
+                    break
+        if target is None:
+            merged.append((list(ts), kind, [part], color))
+        else:
+            target[0].extend(ts)
+            target[2].append(part[len(kind) + 1 :])
+    items = [(tuple(sorted(ts)), ", ".join(parts), color) for ts, _, parts, color in merged]
+    pad = _text_width("", span) * 0.5
+    # Latest first, each in the lowest row where it overlaps no label and where neither its
+    # leader (a vertical line from the lane's bottom) nor the leaders of the rows above cross
+    # a label: the labels stack like stairs, the earliest on top. A label near the right end
+    # is written to the left of its line; those go last, earliest first (the mirror image),
+    # above the leaders they would cover.
+    placed: list[tuple[int, float, float, float]] = []  # (row, left, right, leader x)
+    labels = []
+    widths = [_text_width(full, span) for _, full, _ in items]
+    lefts = [
+        when[0] + w + pad <= x1 or when[0] - w - pad < x0
+        for (when, _, _), w in zip(items, widths, strict=True)
+    ]
+    order = [k for k in reversed(range(len(items))) if lefts[k]]
+    order += [k for k in range(len(items)) if not lefts[k]]  # the mirror image: earliest first
+    for k in order:
+        when, full, color = items[k]
+        w, left, x = widths[k], lefts[k], when[0]
+        lo, hi = (x, x + w + pad) if left else (x - w - pad, x)
+
+        def overlaps(row: int, lo: float = lo, hi: float = hi) -> bool:
+            return any(r == row and lo < b and a < hi for r, a, b, _ in placed)
+
+        def crosses(row: int, lo: float = lo, hi: float = hi, x: float = x) -> bool:
+            return any(
+                (r < row and a < x < b) or (r > row and lo < lx < hi) for r, a, b, lx in placed
             )
+
+        free = [row for row in range(len(placed) + 1) if not overlaps(row)]
+        row = next((r for r in free if not crosses(r)), free[0])
+        placed.append((row, lo, hi, x))
+        labels.append(_Label(when, full, color, row, left))
+    rows = 1 + max((lb.row for lb in labels), default=-1)
+    return _Timeline(t0, t1, x0, x1, tuple(labels), rows)
+
+
+class _TimeFigure:
+    """A time plot with fixed margins: title, event lane, stacked panels, whole-run strip."""
+
+    def __init__(self, tl: _Timeline, heights: Sequence[float], title: str) -> None:
+        self.tl = tl
+        lane = tl.rows * _ROW + 0.08 if tl.rows else 0.0
+        strip = _STRIP_TITLE + _STRIP + _STRIP_BOTTOM if tl.zoomed else 0.0
+        panels = sum(heights) + _GAP * (len(heights) - 1)
+        height = _TITLE + lane + panels + _XLABEL + strip
+        fig = Figure(figsize=(_WIDTH, height))
+        FigureCanvasAgg(fig)
+        self.fig = fig
+        w = (_WIDTH - _LEFT - _RIGHT) / _WIDTH
+
+        def rect(top: float, h: float) -> tuple[float, float, float, float]:
+            return (_LEFT / _WIDTH, 1.0 - (top + h) / height, w, h / height)
+
+        fig.text(0.5, 1.0 - 0.08 / height, title, ha="center", va="top", fontsize="large")
+        top = _TITLE
+        self.lane: Axes | None = None
+        if tl.rows:
+            self.lane = fig.add_axes(rect(top, lane - 0.04))
+            top += lane
+        self.panels: list[Axes] = []
+        for k, h in enumerate(heights):
+            ax = fig.add_axes(rect(top, h), sharex=self.panels[0] if self.panels else None)
+            if k < len(heights) - 1:
+                ax.tick_params(labelbottom=False)
+            ax.grid(True, alpha=0.3)
+            self.panels.append(ax)
+            top += h + _GAP
+        top += _XLABEL - _GAP
+        self.strip: Axes | None = None
+        if tl.zoomed:
+            self.strip = fig.add_axes(rect(top + _STRIP_TITLE, _STRIP))
+        self.panels[0].set_xlim(tl.x0, tl.x1)
+        self.panels[-1].set_xlabel("time [s]")
+        if self.lane is not None:
+            self.lane.sharex(self.panels[0])
+            self._draw_lane(self.lane)
+
+    def _draw_lane(self, ax: Axes) -> None:
+        tl = self.tl
+        ax.set_ylim(0.0, tl.rows)
+        ax.set_axis_off()
+        ax.set_xlim(tl.x0, tl.x1)
+        pad = 0.5 * _text_width("", tl.x1 - tl.x0)
+        for lb in tl.labels:
+            x, y = lb.times[0], lb.row + 0.5
+            ls = "--" if lb.text.startswith("at rest") else "-"
+            ax.plot([x, x], [0.0, y], color=lb.color, lw=0.8, ls=ls, alpha=0.8)
+            if len(lb.times) > 1:
+                # the repeats' span, under the label (within its box: it overlaps nothing)
+                yb = lb.row + 0.1
+                ax.plot([lb.times[0], lb.times[-1]], [yb, yb], color=lb.color, lw=1.6)
+                ax.plot(lb.times, [yb] * len(lb.times), "|", color=lb.color, ms=4, mew=0.8)
+            ax.text(
+                x + pad if lb.left else x - pad,
+                y,
+                lb.text,
+                ha="left" if lb.left else "right",
+                va="center",
+                fontsize=_LABEL_PT,
+                color=lb.color,
+            )
+
+    def mark_events(self, result: SimResult, kinds: Iterable[str]) -> None:
+        """Vertical lines at the marked events and the rest time, on every panel."""
+        kinds = tuple(kinds)
+        times: dict[str, list[float]] = {}
+        for ev in result.events:
+            if ev.kind in kinds:
+                times.setdefault(ev.kind, []).append(ev.t)
+        for ax in self.panels:
+            if result.rest_time is not None:
+                ax.axvline(result.rest_time, color="black", lw=1.1, ls=(0, (4, 3)), zorder=1)
+            for kind, ts in times.items():
+                color = EVENT_COLORS.get(kind, "black")
+                ax.vlines(
+                    ts,
+                    0,
+                    1,
+                    transform=ax.get_xaxis_transform(),
+                    colors=color,
+                    lw=0.9,
+                    alpha=0.6,
+                    zorder=1.5,
+                )
+
+    def context(
+        self,
+        result: SimResult,
+        traces: Sequence[tuple[NDArray[np.float64], str]],
+        kinds: Iterable[str],
+    ) -> None:
+        """The whole-run strip: ``traces`` (values, colour) thin, events ticked, zoom shaded."""
+        ax = self.strip
+        if ax is None:
+            return
+        tl = self.tl
+        for y, color in traces:
+            ax.plot(result.t, y, color=color, lw=0.8)
+        kinds = tuple(kinds)
+        marked = [ev for ev in result.events if ev.kind in kinds]
+        if marked:  # ticks along the top
+            ax.vlines(
+                [ev.t for ev in marked],
+                0.75,
+                1.0,
+                transform=ax.get_xaxis_transform(),
+                colors=[EVENT_COLORS.get(ev.kind, "black") for ev in marked],
+                lw=0.9,
+            )
+        ax.axvspan(tl.x0, tl.x1, color="gold", alpha=0.2, lw=0)
+        ax.set_xlim(tl.t0, tl.t1)
+        ax.set_yticks([])
+        ax.tick_params(labelsize="small")
+        ax.set_title(
+            f"the whole run ({tl.t1 - tl.t0:.3g} s); shaded: the time shown above",
+            loc="left",
+            fontsize="small",
+            pad=3.0,
         )
-    ax.legend(handles=handles, loc="best", fontsize="small", framealpha=0.85)
 
 
 def _title(result: SimResult) -> str:
@@ -155,6 +444,24 @@ def _title(result: SimResult) -> str:
     if c.contact_mode == "none":
         return "contact_mode=none"
     return f"{c.contact_mode}, reset_rule={c.reset_rule}, clamp_rule={c.clamp_rule}"
+
+
+def _in_window(result: SimResult, tl: _Timeline) -> NDArray[np.bool_]:
+    t = np.asarray(result.t)
+    return (t >= tl.x0) & (t <= tl.x1)
+
+
+def _fit_y(ax: Axes, values: Sequence[NDArray[np.float64]], mask: NDArray[np.bool_]) -> None:
+    """Y limits fitting ``values`` over the shown samples (``mask``), with a 5 % margin."""
+    shown = [np.asarray(v)[mask] for v in values]
+    shown = [v[np.isfinite(v)] for v in shown if len(v)]
+    shown = [v for v in shown if len(v)]
+    if not shown:
+        return
+    lo = min(float(v.min()) for v in shown)
+    hi = max(float(v.max()) for v in shown)
+    pad = 0.05 * (hi - lo) if hi > lo else max(abs(hi), 1.0) * 0.05
+    ax.set_ylim(lo - pad, hi + pad)
 
 
 def plot_joints(
@@ -165,12 +472,14 @@ def plot_joints(
     event_kinds: Iterable[str] = MARKED_EVENTS,
     formats: Sequence[str] = _FORMATS,
     dpi: int = 120,
+    zoom: bool = True,
 ) -> Figure:
     """Joint positions [rad] and velocities [rad/s] against time [s] (report Figures 9, 10).
 
-    Two stacked axes sharing the time axis. Events are marked as vertical lines coloured by
-    kind, the rest time as a dashed black line. The samples include the instants just before
-    and after every event, so velocity jumps show as vertical segments.
+    Two stacked axes sharing the time axis, zoomed to the events (:func:`time_window`) with
+    the whole run's positions in a strip below. Events are vertical lines coloured by kind and
+    labelled above the axes, the rest time a dashed black line. The samples include the
+    instants just before and after every event, so velocity jumps show as vertical segments.
 
     Args:
         result: A simulation result.
@@ -180,6 +489,7 @@ def plot_joints(
         event_kinds: Event kinds to mark.
         formats: File formats written when ``path`` is given ("png", "svg").
         dpi: Resolution of the PNG [dots per inch].
+        zoom: Zoom the time axis to the events (False: the whole run, no strip).
 
     Returns:
         The figure (not registered with pyplot).
@@ -188,38 +498,23 @@ def plot_joints(
         UnknownNameError: A joint name that the result does not have.
     """
     idx = _joint_columns(result, joints)
-    fig, (ax_q, ax_v) = _new_figure(6.5, 2)
-    for k, (name, j) in enumerate(zip(joints, idx, strict=True)):
-        color = _JOINT_COLORS[k % len(_JOINT_COLORS)]
+    tl = _timeline(result, event_kinds, zoom)
+    tf = _TimeFigure(tl, (2.3, 2.3), f"Joint positions and velocities\n({_title(result)})")
+    ax_q, ax_v = tf.panels
+    colors = [_JOINT_COLORS[k % len(_JOINT_COLORS)] for k in range(len(idx))]
+    for name, j, color in zip(joints, idx, colors, strict=True):
         ax_q.plot(result.t, result.q[:, j], color=color, lw=1.5, label=name)
         ax_v.plot(result.t, result.v[:, j], color=color, lw=1.5, label=name)
-    drawn = _mark_events(ax_q, result, event_kinds, label=True)
-    _mark_events(ax_v, result, event_kinds, label=False)
+    tf.mark_events(result, event_kinds)
+    shown = _in_window(result, tl)
+    _fit_y(ax_q, [result.q[:, j] for j in idx], shown)
+    _fit_y(ax_v, [result.v[:, j] for j in idx], shown)
     ax_q.set_ylabel("joint position [rad]")
     ax_v.set_ylabel("joint velocity [rad/s]")
-    ax_v.set_xlabel("time [s]")
-    ax_q.set_title(f"Joint positions and velocities\n({_title(result)})")
-    _finish_two_panels(fig, ax_q, ax_v, result, drawn, path, formats, dpi)
-    return fig
-
-
-def _finish_two_panels(
-    fig: Figure,
-    top: Axes,
-    bottom: Axes,
-    result: SimResult,
-    drawn: list[tuple[str, str]],
-    path: str | Path | None,
-    formats: Sequence[str],
-    dpi: int,
-) -> None:
-    """Grid, time range and legends of a two-panel time plot (events on top), then save it."""
-    for ax in (top, bottom):
-        ax.grid(True, alpha=0.3)
-        ax.set_xlim(float(result.t[0]), float(result.t[-1]))
-    _event_legend(top, drawn, result)
-    bottom.legend(loc="best", fontsize="small", framealpha=0.85)
-    _save(fig, path, formats, dpi)
+    ax_q.legend(loc="best", fontsize="small", framealpha=0.85)
+    tf.context(result, [(result.q[:, j], c) for j, c in zip(idx, colors, strict=True)], event_kinds)
+    _save(tf.fig, path, formats, dpi)
+    return tf.fig
 
 
 def _tested_pairs(result: SimResult, world: CollisionWorld) -> NDArray[np.intp]:
@@ -287,13 +582,15 @@ def plot_distance(
     event_kinds: Iterable[str] = MARKED_EVENTS,
     formats: Sequence[str] = _FORMATS,
     dpi: int = 120,
+    zoom: bool = True,
 ) -> Figure:
     """Minimum signed distance [m] against time [s], with the contact tolerance band.
 
     The distance is recomputed at every sample with ``world`` (see :func:`sample_distances`),
     so the plot also works for a run with ``contact_mode="none"``. Two stacked axes: the whole
     range, and a zoom on the contact tolerance band (-3 tol to +6 tol, widened to show the
-    minimum if it lies within 10 tol). Negative values are penetration depths.
+    minimum if it lies within 10 tol). Negative values are penetration depths. The time axis
+    is zoomed to the events (:func:`time_window`), the whole run in a strip below.
 
     Args:
         result: A simulation result.
@@ -304,13 +601,17 @@ def plot_distance(
         event_kinds: Event kinds to mark.
         formats: File formats written when ``path`` is given ("png", "svg").
         dpi: Resolution of the PNG [dots per inch].
+        zoom: Zoom the time axis to the events (False: the whole run, no strip).
 
     Returns:
         The figure.
     """
     d = sample_distances(result, world) if distances is None else np.asarray(distances)
     tol = result.config.contact_tolerance
-    fig, (ax_all, ax_zoom) = _new_figure(6.5, 2)
+    tl = _timeline(result, event_kinds, zoom)
+    title = f"Smallest signed distance over the tested pairs\n({_title(result)})"
+    tf = _TimeFigure(tl, (2.3, 2.0), title)
+    ax_all, ax_zoom = tf.panels
     k = int(np.argmin(d))
     for ax in (ax_all, ax_zoom):
         ax.plot(result.t, d, color="tab:blue", lw=1.5, label="min signed distance")
@@ -318,28 +619,27 @@ def plot_distance(
         ax.axhline(-tol, color="black", ls=":", lw=1.3, label=f"-tol = {-tol:g} m")
         ax.axhline(0.0, color="black", lw=0.6)
         ax.plot([result.t[k]], [d[k]], "v", color="tab:blue", ms=7)
-        ax.set_xlim(float(result.t[0]), float(result.t[-1]))
-        ax.grid(True, alpha=0.3)
-    drawn = _mark_events(ax_all, result, event_kinds, label=True)
-    _mark_events(ax_zoom, result, event_kinds, label=False)
-    right = result.t[k] > 0.5 * (result.t[0] + result.t[-1])
-    ax_all.annotate(
-        f"min {d[k]:.3g} m at {result.t[k]:.3f} s",
-        (float(result.t[k]), float(d[k])),
-        xytext=(-8 if right else 8, 8),
-        textcoords="offset points",
-        ha="right" if right else "left",
-        fontsize="small",
-    )
+    tf.mark_events(result, event_kinds)
+    shown = _in_window(result, tl)
+    _fit_y(ax_all, [d, np.where(shown, tol, np.nan), np.where(shown, -tol, np.nan)], shown)
+    if tl.x0 <= result.t[k] <= tl.x1:
+        right = result.t[k] > 0.5 * (tl.x0 + tl.x1)
+        ax_all.annotate(
+            f"min {d[k]:.3g} m at {result.t[k]:.3f} s",
+            (float(result.t[k]), float(d[k])),
+            xytext=(-8 if right else 8, 8),
+            textcoords="offset points",
+            ha="right" if right else "left",
+            fontsize="small",
+        )
     lo = min(-3.0 * tol, float(d.min()) - tol) if d.min() > -10 * tol else -3.0 * tol
     ax_zoom.set_ylim(lo, 6.0 * tol)
     ax_all.set_ylabel("min signed distance [m]")
     ax_zoom.set_ylabel("zoom on the tolerance [m]")
-    ax_zoom.set_xlabel("time [s]")
-    ax_all.set_title(f"Smallest signed distance over the tested pairs\n({_title(result)})")
-    _event_legend(ax_all, drawn, result)
-    _save(fig, path, formats, dpi)
-    return fig
+    ax_all.legend(loc="best", fontsize="small", framealpha=0.85)
+    tf.context(result, [(d, "tab:blue")], event_kinds)
+    _save(tf.fig, path, formats, dpi)
+    return tf.fig
 
 
 def plot_energy(
@@ -350,53 +650,58 @@ def plot_energy(
     jump_threshold: float = 1e-3,
     formats: Sequence[str] = _FORMATS,
     dpi: int = 120,
+    zoom: bool = True,
 ) -> Figure:
     """Total mechanical energy [J] against time [s], with the events' energy jumps.
 
     Every event that logs its energy before and after (impacts, limit stops, secondary
     intersections) and changes it by more than ``jump_threshold`` is drawn as a vertical
-    segment from the energy before (circle) to after (triangle), labelled with the change:
-    a jump up is energy the impact law added.
+    segment from the energy before (circle) to after (triangle), and its label gives the
+    change: a jump up is energy the impact law added. The time axis is zoomed to the events
+    (:func:`time_window`), the whole run in a strip below.
 
     Args:
         result: A simulation result.
         path: Where to save, without suffix; None saves nothing.
         event_kinds: Event kinds to mark with vertical lines.
-        jump_threshold: Smallest |energy change| annotated [J].
+        jump_threshold: Smallest |energy change| labelled [J].
         formats: File formats written when ``path`` is given ("png", "svg").
         dpi: Resolution of the PNG [dots per inch].
+        zoom: Zoom the time axis to the events (False: the whole run, no strip).
 
     Returns:
         The figure.
     """
-    fig, (ax,) = _new_figure(4.5)
-    ax.plot(result.t, result.energy, color="tab:blue", lw=1.5, label="total energy")
-    drawn = _mark_events(ax, result, event_kinds, label=True)
-    for ev in result.events:
+    jumps: dict[int, str] = {}
+    for i, ev in enumerate(result.events):
         e0, e1 = ev.energy_before, ev.energy_after
-        if not (np.isfinite(e0) and np.isfinite(e1)) or abs(e1 - e0) <= jump_threshold:
-            continue
+        if np.isfinite(e0) and np.isfinite(e1) and abs(e1 - e0) > jump_threshold:
+            jumps[i] = f" {e1 - e0:+.3g} J"
+    tl = _timeline(result, event_kinds, zoom, jumps)
+    tf = _TimeFigure(tl, (3.0,), f"Total energy, kinetic + potential\n({_title(result)})")
+    (ax,) = tf.panels
+    ax.plot(result.t, result.energy, color="tab:blue", lw=1.5, label="total energy")
+    tf.mark_events(result, event_kinds)
+    ends = []
+    for i in jumps:
+        ev = result.events[i]
+        e0, e1 = ev.energy_before, ev.energy_after
         color = EVENT_COLORS.get(ev.kind, "black")
         ax.plot([ev.t, ev.t], [e0, e1], color=color, lw=2.5)
         ax.plot([ev.t], [e0], "o", color=color, ms=5, mfc="white")
         ax.plot([ev.t], [e1], "^" if e1 > e0 else "v", color=color, ms=6)
-        ax.annotate(
-            f"{e1 - e0:+.3g} J",
-            (ev.t, 0.5 * (e0 + e1)),
-            xytext=(5, 0),
-            textcoords="offset points",
-            fontsize="small",
-            color=color,
-            va="center",
-        )
-    ax.set_xlabel("time [s]")
+        if tl.x0 <= ev.t <= tl.x1:
+            ends.append(np.array([e0, e1]))
+    _fit_y(ax, [result.energy], _in_window(result, tl))
+    if ends:
+        lo, hi = ax.get_ylim()
+        e = np.concatenate(ends)
+        ax.set_ylim(min(lo, float(e.min())), max(hi, float(e.max())))
     ax.set_ylabel("total energy [J]")
-    ax.set_title(f"Total energy, kinetic + potential\n({_title(result)})")
-    ax.set_xlim(float(result.t[0]), float(result.t[-1]))
-    ax.grid(True, alpha=0.3)
-    _event_legend(ax, drawn, result)
-    _save(fig, path, formats, dpi)
-    return fig
+    ax.legend(loc="best", fontsize="small", framealpha=0.85)
+    tf.context(result, [(result.energy, "tab:blue")], event_kinds)
+    _save(tf.fig, path, formats, dpi)
+    return tf.fig
 
 
 def _joint_columns(result: SimResult, joints: Sequence[str]) -> list[int]:
@@ -408,6 +713,18 @@ def _joint_columns(result: SimResult, joints: Sequence[str]) -> list[int]:
     return idx
 
 
+def _runs_beyond(values: NDArray[np.float64], edge: float) -> list[tuple[int, int]]:
+    """(start, end) index ranges (end exclusive) where |values| > edge (NaN: not beyond)."""
+    out = np.abs(np.nan_to_num(values, nan=0.0)) > edge
+    if not out.any():
+        return []
+    d = np.diff(np.concatenate([[0], out.astype(np.int8), [0]]))
+    return [
+        (int(a), int(b))
+        for a, b in zip(np.flatnonzero(d == 1), np.flatnonzero(d == -1), strict=True)
+    ]
+
+
 def plot_torques(
     result: SimResult,
     joints: Sequence[str] = PLANAR_JOINTS,
@@ -417,22 +734,28 @@ def plot_torques(
     event_kinds: Iterable[str] = MARKED_EVENTS,
     formats: Sequence[str] = _FORMATS,
     dpi: int = 120,
+    zoom: bool = True,
 ) -> Figure:
-    """Applied joint torques [N*m] against time [s], one axis per joint, with their limits.
+    """Applied joint torques [N*m] against time [s], one axis per joint, scaled to its limits.
 
-    The applied torque (``result.tau``) is solid; the commanded one (``result.tau_cmd``, when
-    the result has it) dashed; the effort limits +/- (``result.effort`` per sample when the
-    result has it, else the constant ``effort``) are grey bands' edges.
+    The applied torque (``result.tau``) is solid; the commanded one (``result.tau_cmd``) dashed;
+    the effort limits +/- (``result.effort`` per sample, else the constant ``effort``) are
+    dash-dotted grey lines. Each axis spans :data:`TORQUE_AXIS` times the joint's largest
+    effort limit: a command beyond is clipped at the axis' edge and marked there (a triangle at
+    its peak, the largest peak given in numbers). The time axis is zoomed to the events
+    (:func:`time_window`), the whole run's applied torques in a strip below.
 
     Args:
         result: A simulation result.
         joints: Joint names to plot.
         path: Where to save, without suffix; None saves nothing.
         effort: Constant effort limits [N*m], shape (nv,) (e.g. ``robot.params.effort``), used
-            when the result has no per-sample ``effort``; None: no limit lines.
+            when the result has no per-sample ``effort``; None and no ``result.effort``: no
+            limit lines, the axes fit the torques.
         event_kinds: Event kinds to mark.
         formats: File formats written when ``path`` is given ("png", "svg").
         dpi: Resolution of the PNG [dots per inch].
+        zoom: Zoom the time axis to the events (False: the whole run, no strip).
 
     Returns:
         The figure.
@@ -441,33 +764,88 @@ def plot_torques(
         UnknownNameError: A joint name that the result does not have.
     """
     idx = _joint_columns(result, joints)
-    fig, axes = _new_figure(1.0 + 2.0 * len(idx), len(idx))
+    tl = _timeline(result, event_kinds, zoom)
+    tf = _TimeFigure(tl, [1.7] * len(idx), f"Joint torques\n({_title(result)})")
     tau_cmd = getattr(result, "tau_cmd", None)
     limits = getattr(result, "effort", None)
     if limits is None and effort is not None:
         limits = np.broadcast_to(np.asarray(effort, dtype=float), result.tau.shape)
-    drawn: list[tuple[str, str]] = []
-    for k, (ax, name, j) in enumerate(zip(axes, joints, idx, strict=True)):
-        color = _JOINT_COLORS[k % len(_JOINT_COLORS)]
-        if limits is not None:
-            lim = np.asarray(limits)[:, j]
+    shown = _in_window(result, tl)
+    colors = [_JOINT_COLORS[k % len(_JOINT_COLORS)] for k in range(len(idx))]
+    for ax, name, j, color in zip(tf.panels, joints, idx, colors, strict=True):
+        lim = None if limits is None else np.asarray(limits, dtype=float)[:, j]
+        if lim is not None:
             ax.plot(result.t, lim, color="tab:gray", lw=1.0, ls="-.", label="effort limit")
             ax.plot(result.t, -lim, color="tab:gray", lw=1.0, ls="-.")
-        if tau_cmd is not None:
-            ax.plot(
-                result.t, np.asarray(tau_cmd)[:, j], color=color, lw=1.0, ls="--", label="commanded"
-            )
+        cmd = None if tau_cmd is None else np.asarray(tau_cmd, dtype=float)[:, j]
+        if cmd is not None:
+            ax.plot(result.t, cmd, color=color, lw=1.0, ls="--", label="commanded")
         ax.plot(result.t, result.tau[:, j], color=color, lw=1.5, label="applied")
-        found = _mark_events(ax, result, event_kinds, label=k == 0)
-        drawn = drawn or found
+        top = float(np.max(np.abs(lim))) if lim is not None and len(lim) else 0.0
+        if top > 0.0 and math.isfinite(top):
+            edge = TORQUE_AXIS * top
+            ax.set_ylim(-edge, edge)
+            if cmd is not None:
+                _mark_clipped(ax, result, cmd, edge, color)
+        else:
+            _fit_y(ax, [result.tau[:, j]] + ([] if cmd is None else [cmd]), shown)
         ax.set_ylabel(f"{name} [N*m]")
-        ax.grid(True, alpha=0.3)
-        ax.set_xlim(float(result.t[0]), float(result.t[-1]))
-    axes[-1].set_xlabel("time [s]")
-    axes[0].set_title(f"Joint torques\n({_title(result)})")
-    _event_legend(axes[0], drawn, result)
-    _save(fig, path, formats, dpi)
-    return fig
+    tf.mark_events(result, event_kinds)
+    tf.panels[0].legend(loc="best", fontsize="small", framealpha=0.85)
+    tf.context(
+        result, [(result.tau[:, j], c) for j, c in zip(idx, colors, strict=True)], event_kinds
+    )
+    _save(tf.fig, path, formats, dpi)
+    return tf.fig
+
+
+def _mark_clipped(
+    ax: Axes, result: SimResult, cmd: NDArray[np.float64], edge: float, color: str
+) -> None:
+    """Triangles at the axis' edge at each peak of a command beyond it (in the shown time).
+
+    The largest peak is also given in words.
+    """
+    t = np.asarray(result.t)
+    x0, x1 = ax.get_xlim()
+    shown = np.where((t >= x0) & (t <= x1), cmd, np.nan)
+    runs = _runs_beyond(shown, edge)
+    if not runs:
+        return
+    peaks = np.array([a + int(np.argmax(np.abs(cmd[a:b]))) for a, b in runs])
+    style: dict[str, Any] = {
+        "ls": "none",
+        "ms": 7,
+        "color": color,
+        "mec": "black",
+        "mew": 0.6,
+        "zorder": 5,
+    }
+    for sign, marker, label in ((1, "^", "commanded, beyond the axis"), (-1, "v", None)):
+        ks = peaks[np.sign(cmd[peaks]) == sign]
+        if len(ks) or label:
+            ax.plot(
+                t[ks],
+                np.full(len(ks), sign * edge),
+                marker=marker,
+                clip_on=False,
+                label=label,
+                **style,
+            )
+    k = peaks[int(np.argmax(np.abs(cmd[peaks])))]
+    x0, x1 = ax.get_xlim()
+    right = t[k] > 0.5 * (x0 + x1)  # the words go toward the middle
+    ax.annotate(
+        f"commanded {cmd[k]:+.4g} N*m at {t[k]:.3f} s, beyond the axis",
+        (float(t[k]), float(np.sign(cmd[k]) * edge)),
+        xytext=(-8 if right else 8, -9 if cmd[k] > 0 else 9),
+        textcoords="offset points",
+        ha="right" if right else "left",
+        va="top" if cmd[k] > 0 else "bottom",
+        fontsize="x-small",
+        bbox={"facecolor": "white", "edgecolor": "none", "alpha": 0.8, "pad": 1.0},
+        zorder=6,
+    )
 
 
 def plot_tracking(
@@ -479,8 +857,12 @@ def plot_tracking(
     event_kinds: Iterable[str] = MARKED_EVENTS,
     formats: Sequence[str] = _FORMATS,
     dpi: int = 120,
+    zoom: bool = True,
 ) -> Figure:
     """Joint positions against their reference [rad], and the tracking error q - q_ref [rad].
+
+    The time axis is zoomed to the events (:func:`time_window`), the whole run's errors in a
+    strip below.
 
     Args:
         result: A simulation result.
@@ -490,6 +872,7 @@ def plot_tracking(
         event_kinds: Event kinds to mark.
         formats: File formats written when ``path`` is given ("png", "svg").
         dpi: Resolution of the PNG [dots per inch].
+        zoom: Zoom the time axis to the events (False: the whole run, no strip).
 
     Returns:
         The figure.
@@ -502,22 +885,42 @@ def plot_tracking(
     ref = np.asarray(q_ref, dtype=float)
     if ref.shape != result.q.shape:
         raise ConfigurationError("q_ref", ref.shape, f"shape {result.q.shape} (as result.q)")
-    fig, (ax_q, ax_e) = _new_figure(6.5, 2)
-    for k, (name, j) in enumerate(zip(joints, idx, strict=True)):
-        color = _JOINT_COLORS[k % len(_JOINT_COLORS)]
+    tl = _timeline(result, event_kinds, zoom)
+    tf = _TimeFigure(tl, (2.3, 2.3), f"Tracking\n({_title(result)})")
+    ax_q, ax_e = tf.panels
+    colors = [_JOINT_COLORS[k % len(_JOINT_COLORS)] for k in range(len(idx))]
+    for name, j, color in zip(joints, idx, colors, strict=True):
         ax_q.plot(result.t, result.q[:, j], color=color, lw=1.5, label=name)
         ax_q.plot(result.t, ref[:, j], color=color, lw=1.0, ls="--")
         ax_e.plot(result.t, result.q[:, j] - ref[:, j], color=color, lw=1.5, label=name)
     ax_q.plot([], [], color="black", lw=1.0, ls="--", label="reference")
-    drawn = _mark_events(ax_q, result, event_kinds, label=True)
-    _mark_events(ax_e, result, event_kinds, label=False)
+    tf.mark_events(result, event_kinds)
     ax_e.axhline(0.0, color="black", lw=0.6)
+    shown = _in_window(result, tl)
+    _fit_y(ax_q, [result.q[:, j] for j in idx] + [ref[:, j] for j in idx], shown)
+    _fit_y(ax_e, [result.q[:, j] - ref[:, j] for j in idx] + [np.zeros(len(shown))], shown)
     ax_q.set_ylabel("joint position [rad]")
     ax_e.set_ylabel("error q - q_ref [rad]")
-    ax_e.set_xlabel("time [s]")
-    ax_q.set_title(f"Tracking\n({_title(result)})")
-    _finish_two_panels(fig, ax_q, ax_e, result, drawn, path, formats, dpi)
-    return fig
+    ax_q.legend(loc="best", fontsize="small", framealpha=0.85)
+    errors = [(result.q[:, j] - ref[:, j], c) for j, c in zip(idx, colors, strict=True)]
+    tf.context(result, errors, event_kinds)
+    _save(tf.fig, path, formats, dpi)
+    return tf.fig
+
+
+def _mark_events(ax: Axes, result: SimResult, kinds: Iterable[str]) -> list[tuple[str, str]]:
+    """Vertical lines at the events of the given kinds; returns the (kind, colour) drawn."""
+    drawn: dict[str, str] = {}
+    kinds = tuple(kinds)
+    for ev in result.events:
+        if ev.kind not in kinds:
+            continue
+        color = EVENT_COLORS.get(ev.kind, "black")
+        ax.axvline(ev.t, color=color, lw=0.9, ls="-", alpha=0.55, zorder=0)
+        drawn[ev.kind] = color
+    if result.rest_time is not None:
+        ax.axvline(result.rest_time, color="black", lw=1.1, ls="--", zorder=0)
+    return list(drawn.items())
 
 
 def sample_occlusion(
@@ -609,7 +1012,7 @@ def plot_occlusion(
         clear = float(np.mean([b is None for b in row])) if len(row) else 0.0
         xyz = ", ".join(f"{c:g}" for c in target)
         labels.append(f"({xyz}) m\nclear {100 * clear:.0f}%")
-    drawn = _mark_events(ax, result, event_kinds, label=True)
+    drawn = _mark_events(ax, result, event_kinds)
     handles = [Line2D([], [], color="tab:green", alpha=0.4, lw=6, label="clear view")]
     handles += [Line2D([], [], color=c, lw=6, label=f"blocked by {n}") for n, c in colors.items()]
     for kind, color in drawn:

@@ -7,6 +7,7 @@ import json
 import os
 import tempfile
 import zipfile
+from collections.abc import Mapping
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Literal
@@ -15,7 +16,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from packbot.config import SimConfig
-from packbot.errors import PackbotError, ResultFileError, UnknownNameError
+from packbot.errors import ConfigurationError, PackbotError, ResultFileError, UnknownNameError
 from packbot.failures import Failure
 
 if TYPE_CHECKING:
@@ -230,7 +231,7 @@ class SimResult:
             raise UnknownNameError("joint", name, self.joint_names)
         return self.joint_names.index(name)
 
-    def save(self, path: str | Path) -> Path:
+    def save(self, path: str | Path, *, extra: Mapping[str, str] | None = None) -> Path:
         """Write the whole result to one compressed ``.npz`` file, atomically.
 
         The file (see docs/simulator.md, "Saving and loading results") holds the arrays as
@@ -244,9 +245,14 @@ class SimResult:
 
         Args:
             path: The file to write (written as given: no suffix is added).
+            extra: Further plain text entries, name -> text (``packbot run`` adds
+                ``scenario_name``); :meth:`load` ignores them.
 
         Returns:
             The path written.
+
+        Raises:
+            ConfigurationError: An ``extra`` name that the file's own entries use.
         """
         from packbot import __version__
 
@@ -294,6 +300,12 @@ class SimResult:
             "config_json": np.array(json.dumps(meta["config"])),
             "rest_time": np.array(np.nan if self.rest_time is None else self.rest_time),
         }
+        for name, text in (extra or {}).items():
+            if name in arrays or name.startswith("event_"):
+                raise ConfigurationError(
+                    f"extra[{name!r}]", name, "a name the file's own entries do not use"
+                )
+            arrays[name] = np.array(str(text))
         buf = io.BytesIO()
         np.savez_compressed(buf, **arrays)
         out.parent.mkdir(parents=True, exist_ok=True)
@@ -301,6 +313,9 @@ class SimResult:
         try:
             with os.fdopen(fd, "wb") as fh:
                 fh.write(buf.getvalue())
+            umask = os.umask(0o022)  # mkstemp makes the file private: give it the usual mode
+            os.umask(umask)
+            os.chmod(tmp, 0o666 & ~umask)
             os.replace(tmp, out)
         except BaseException:
             Path(tmp).unlink(missing_ok=True)

@@ -35,7 +35,6 @@ from __future__ import annotations
 import csv
 import dataclasses
 import io
-import json
 import logging
 import math
 import os
@@ -849,8 +848,6 @@ _EVENT_COLUMNS = (
     "energy_after_J",
     "energy_change_J",
 )
-#: Optional per-sample arrays of a result saved when present, (N, nv) each.
-_OPTIONAL_ARRAYS = ("tau_cmd", "tau_friction", "effort")
 
 
 def _atomic_write(path: Path, write: Callable[[Any], None], binary: bool) -> None:
@@ -869,31 +866,18 @@ def _atomic_write(path: Path, write: Callable[[Any], None], binary: bool) -> Non
         raise
 
 
-def _jsonable(x: Any) -> Any:
-    if dataclasses.is_dataclass(x) and not isinstance(x, type):
-        return {f.name: _jsonable(getattr(x, f.name)) for f in dataclasses.fields(x)}
-    if isinstance(x, (list, tuple)):
-        return [_jsonable(v) for v in x]
-    if isinstance(x, dict):
-        return {str(k): _jsonable(v) for k, v in x.items()}
-    if isinstance(x, np.ndarray):
-        return x.tolist()
-    if isinstance(x, float) and not math.isfinite(x):
-        return str(x)
-    if isinstance(x, (str, int, float, bool)) or x is None:
-        return x
-    return repr(x)
-
-
 def save_run(
     result: SimResult, scenario: Scenario, out_dir: str | Path, stem: str | None = None
 ) -> dict[str, Path]:
     """Write a run's trajectory and event log, each atomically (temp file + rename).
 
-    - ``<stem>.npz``: ``t`` [s] (N,), ``q`` [rad], ``v`` [rad/s], ``tau`` [N*m] (N, nv),
-      ``energy`` [J] (N,), ``joint_names``; ``tau_cmd``, ``tau_friction``, ``effort`` when the
-      result has them; ``scenario_name``, ``scenario_text`` (the file's text),
-      ``packbot_version``, ``config_json`` (the settings) and ``rest_time`` [s] (NaN: none);
+    - ``<stem>.npz``: the whole result, by :meth:`SimResult.save` (compressed; read it back
+      with :meth:`SimResult.load`), with the scenario's text (when the result has none) and
+      name: for a reader with NumPy alone, ``t`` [s] (N,), ``q`` [rad], ``v`` [rad/s], ``tau``
+      [N*m] (N, nv), ``energy`` [J] (N,), ``joint_names``, ``tau_cmd``, ``tau_friction``,
+      ``effort``, ``scenario_name``, ``scenario_text`` (the file's text),
+      ``packbot_version``, ``config_json`` (the settings) and ``rest_time`` [s] (NaN: none).
+      The diagnostics' wall time is stored as 0, so that a rerun writes the same bytes;
     - ``<stem>_events.csv``: one row per event (time, kind, pair, distance, relevant joints,
       energy before, after and change).
 
@@ -906,33 +890,17 @@ def save_run(
     Returns:
         ``{"trajectory": path, "events": path}``.
     """
-    from packbot import __version__
-
     out = Path(out_dir)
     if out.exists() and not out.is_dir():
         raise ConfigurationError("out_dir", str(out), "a directory (this is a file)")
     stem = scenario.name if stem is None else stem
-    arrays: dict[str, Any] = {
-        "t": result.t,
-        "q": result.q,
-        "v": result.v,
-        "tau": result.tau,
-        "energy": result.energy,
-        "joint_names": np.array(result.joint_names),
-    }
-    for key in _OPTIONAL_ARRAYS:
-        val = getattr(result, key, None)
-        if val is not None:
-            arrays[key] = np.asarray(val)
-    arrays |= {
-        "scenario_name": np.array(scenario.name),
-        "scenario_text": np.array(scenario.source_text),
-        "packbot_version": np.array(__version__),
-        "config_json": np.array(json.dumps(_jsonable(result.config))),
-        "rest_time": np.array(np.nan if result.rest_time is None else result.rest_time),
-    }
-    traj = out / f"{stem}.npz"
-    _atomic_write(traj, lambda fh: np.savez(fh, **arrays), binary=True)
+    if not result.scenario_text:  # a partial result, or one made outside run_scenario
+        result = dataclasses.replace(result, scenario_text=scenario.source_text)
+    # The wall time is left out (0): the file is then a function of the run's inputs, so a
+    # rerun writes the same bytes (the batch compares files by their hash).
+    diagnostics = dataclasses.replace(result.diagnostics, wall_time=0.0)
+    result = dataclasses.replace(result, diagnostics=diagnostics)
+    traj = result.save(out / f"{stem}.npz", extra={"scenario_name": scenario.name})
 
     def write_events(fh: io.TextIOBase) -> None:
         w = csv.writer(fh)
@@ -1031,7 +999,7 @@ def write_outputs(
         elif kind == "energy":
             P.plot_energy(result, path=base, formats=fmts)
         elif kind == "torques":
-            P.plot_torques(result, joints, path=base, effort=robot.params.effort, formats=fmts)
+            P.plot_torques(result, joints, path=base, formats=fmts)  # limits: result.effort
         elif kind == "tracking":
             q_ref = _reference(scenario, robot, result)
             if q_ref is None:

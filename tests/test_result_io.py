@@ -201,6 +201,18 @@ def test_save_to_a_directory_is_an_error(rich_run, tmp_path):
         rich_run[0].save(tmp_path)
 
 
+def test_save_extra_entries(rich_run, tmp_path):
+    res = rich_run[0]
+    p = res.save(tmp_path / "r.npz", extra={"scenario_name": "mine"})
+    with np.load(p) as data:
+        assert str(data["scenario_name"]) == "mine"
+    _assert_same(SimResult.load(p), res)  # load ignores them
+    for taken in ("t", "meta_json", "event_t", "event_new"):
+        with pytest.raises(ConfigurationError, match="extra"):
+            res.save(tmp_path / "bad.npz", extra={taken: "x"})
+    assert not (tmp_path / "bad.npz").exists()
+
+
 def test_to_dataframe_columns_and_values(rich_run):
     pd = pytest.importorskip("pandas")
     res = rich_run[0]

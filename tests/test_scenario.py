@@ -5,6 +5,7 @@ import csv
 import dataclasses
 import itertools
 import math
+import os
 
 import numpy as np
 import pytest
@@ -248,6 +249,19 @@ def test_save_run_stores_trajectory_text_version_and_events(robot, tmp_path):
         "collapse.npz",
         "collapse_events.csv",
     ]  # no temporary file left
+    # the trajectory is the whole result (SimResult.save), its wall time stored as 0
+    back = packbot.SimResult.load(paths["trajectory"])
+    np.testing.assert_array_equal(back.v, res.v)
+    assert back.environment == res.environment and back.config == res.config
+    assert [e.t for e in back.events] == [e.t for e in res.events]
+    assert back.scenario_text == scenario_path("collapse").read_text()
+    assert back.diagnostics == dataclasses.replace(res.diagnostics, wall_time=0.0)
+    umask = os.umask(0o022)
+    os.umask(umask)
+    assert paths["trajectory"].stat().st_mode & 0o777 == 0o666 & ~umask  # not private
+    first = paths["trajectory"].read_bytes()
+    save_run(res, sc, tmp_path / "out")
+    assert paths["trajectory"].read_bytes() == first  # the same run: the same bytes
 
 
 def test_occlusion_table_matches_line_of_sight(robot, tmp_path):

@@ -26,6 +26,7 @@ from tornado.websocket import websocket_connect
 
 import packbot
 from packbot.errors import ConfigurationError
+from packbot.labels import event_label
 from packbot.result import Event
 from packbot.viz import (
     CONTACT_COLOR,
@@ -36,6 +37,7 @@ from packbot.viz import (
     write_html,
 )
 from packbot.viz.html import screenshot_command
+from packbot.viz.scene import CAMERA_FOV, CAMERA_OFFSET, _camera_offset
 
 LOCKED = ("camera_tilt", "camera_pan", "gripper_roll", "gripper_jaw")
 
@@ -52,12 +54,16 @@ def page(robot: packbot.Robot, collapse: packbot.SimResult, tmp_path_factory) ->
     return write_html(robot, collapse, tmp_path_factory.mktemp("html") / "collapse.html")
 
 
-def _commands(html: str) -> list[dict[str, Any]]:
-    """The meshcat commands embedded in a page, decoded."""
+def _settings(html: str) -> dict[str, Any]:
+    """The page's embedded settings (``var packbot = {...}``)."""
     m = re.search(r"var packbot = (\{.*?\});\n", html)
     assert m is not None, "no embedded command list"
-    data = json.loads(m.group(1))
-    return [umsgpack.unpackb(base64.b64decode(c)) for c in data["commands"]]
+    return json.loads(m.group(1))
+
+
+def _commands(html: str) -> list[dict[str, Any]]:
+    """The meshcat commands embedded in a page, decoded."""
+    return [umsgpack.unpackb(base64.b64decode(c)) for c in _settings(html)["commands"]]
 
 
 def _clips(cmds: list[dict[str, Any]]) -> dict[str, dict[str, Any]]:
@@ -224,6 +230,71 @@ def test_obstacles_drawn(robot: packbot.Robot, collapse: packbot.SimResult, tmp_
     assert props[("/meshcat/packbot/visuals", "visible")] is False
 
 
+def test_obstacles_come_with_the_result(
+    robot: packbot.Robot, collapse: packbot.SimResult, tmp_path: Path
+) -> None:
+    """The result carries its environment: the page draws it without being told again."""
+    box = packbot.Obstacle(name="crate", kind="box", size=(0.3, 0.2, 0.1), xyz=(0.8, 0, 0.05))
+    env = packbot.Environment().with_obstacles(box)
+    res = dataclasses.replace(collapse, environment=env)
+    cmds = _commands(write_html(robot, res, tmp_path / "env.html").read_text(encoding="utf-8"))
+    objects = {c["path"] for c in cmds if c["type"] == "set_object"}
+    assert {"/meshcat/environment/crate", "/meshcat/environment/floor"} <= objects
+    # an environment passed explicitly still wins
+    other = write_html(robot, res, tmp_path / "bare.html", environment=packbot.Environment())
+    cmds = _commands(other.read_text(encoding="utf-8"))
+    assert "/meshcat/environment/crate" not in {c.get("path") for c in cmds}
+
+
+def test_page_has_controls_and_the_event_list(collapse: packbot.SimResult, page: Path) -> None:
+    html = page.read_text(encoding="utf-8")
+    for control in ("packbot-play", "packbot-speed", "packbot-slider", "packbot-event-list"):
+        assert f'id="{control}"' in html
+    data = _settings(html)
+    assert (data["t0"], data["t1"], data["speed"]) == (collapse.t[0], collapse.t[-1], 1.0)
+    assert [(e["t"], e["label"]) for e in data["events"]] == [
+        (e.t, event_label(e)) for e in collapse.events
+    ]
+    assert "impact link3\u2013link1" in {e["label"] for e in data["events"]}
+
+
+def test_camera_frames_the_motion(
+    robot: packbot.Robot, collapse: packbot.SimResult, page: Path
+) -> None:
+    """The scene is centred on the motion's box; the camera backs off until it fits."""
+    html = page.read_text(encoding="utf-8")
+    cmds = _commands(html)
+    cam = _settings(html)["camera"]
+    # the last of each command wins (the scene's defaults come first)
+    shift = [c for c in cmds if c["type"] == "set_transform" and c["path"] == "/meshcat"][-1]
+    centre = -np.array(shift["matrix"]).reshape(4, 4).T[:3, 3]
+    radius = cam["radius"]
+    # every piece's origin stays inside the sphere over the whole clip, and the sphere is
+    # snug: the pieces reach near its edge (within the pieces' own size, 0.35 m)
+    clips = _clips(cmds)
+    far = 0.0
+    for go in robot.visual_model.geometryObjects:
+        tracks = clips.get(f"/meshcat/packbot/visuals/{go.name}")
+        if tracks is None:
+            continue
+        d = np.linalg.norm(np.array(tracks[".position"][1]) - centre, axis=1)
+        assert d.max() <= radius
+        far = max(far, float(d.max()))
+    assert far > radius - 0.35
+    # the recorded camera (a 4:3 window) at the distance where the sphere fits
+    pos = [
+        c["value"]
+        for c in cmds
+        if c["type"] == "set_property" and c["path"] == "/Cameras/default/rotated/<object>"
+    ][-1]
+    expect = _camera_offset(radius, 4.0 / 3.0)
+    np.testing.assert_allclose(pos, [expect[0], expect[2], -expect[1]], rtol=1e-6)  # float32
+    half = np.radians(CAMERA_FOV) / 2
+    assert np.linalg.norm(pos) == pytest.approx(radius / np.sin(half))
+    u = np.asarray(CAMERA_OFFSET) / np.linalg.norm(CAMERA_OFFSET)
+    np.testing.assert_allclose(cam["direction"], u)
+
+
 # --------------------------------------------------------------------------- live viewer
 def _listening_sockets() -> list[tuple[str, int]]:
     """(address, port) of this process's listening TCP sockets, from /proc."""
@@ -353,6 +424,12 @@ def _red(img: np.ndarray) -> np.ndarray:
     return (r > 0.5) & (g < 0.25) & (b < 0.25)
 
 
+def _scene(img: np.ndarray) -> np.ndarray:
+    """The 3D view of a page's screenshot, less the event list (left) and the bar (bottom)."""
+    h, w = img.shape[:2]
+    return img[: h - 70, int(0.3 * w) :]
+
+
 def test_browser_draws_the_animation(
     chromium: str, collapse: packbot.SimResult, page: Path, tmp_path: Path
 ) -> None:
@@ -360,13 +437,54 @@ def test_browser_draws_the_animation(
     start = _screenshot(chromium, f"{page.as_uri()}#t=0", tmp_path / "start.png")
     contact = _screenshot(chromium, f"{page.as_uri()}#t={t_contact:.3f}", tmp_path / "c.png")
     end = _screenshot(chromium, f"{page.as_uri()}#t={collapse.t[-1]:.3f}", tmp_path / "end.png")
+    start, contact, end = _scene(start), _scene(contact), _scene(end)
     n_pixels = start.shape[0] * start.shape[1]
     for img in (start, contact, end):
-        assert _arm(img).sum() > 0.002 * n_pixels  # the arm is drawn
+        assert _arm(img).sum() > 0.004 * n_pixels  # the arm is drawn, in the view
+        # framed: the arm's pixels do not touch the view's top or right edge
+        assert not _arm(img)[:3].any() and not _arm(img)[:, -3:].any()
     # The arm moved between the two times; no contact at the start, red pieces during one.
     assert (_arm(start) ^ _arm(end)).sum() > 0.001 * n_pixels
     assert _red(start).sum() < 50
     assert _red(contact).sum() > 0.0005 * n_pixels
+
+
+def _dom(chromium: str, url: str, tmp_path: Path, budget_ms: int) -> str:
+    """The page's DOM after ``budget_ms`` of virtual time in a headless Chromium."""
+    cmd = [
+        c
+        for c in screenshot_command(chromium, url, tmp_path / "x.png", tmp_path / "profile-dom")
+        if not c.startswith(("--screenshot", "--virtual-time-budget"))
+    ]
+    cmd[-1:-1] = ["--dump-dom", f"--virtual-time-budget={budget_ms}"]
+    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    return proc.stdout
+
+
+def _body_data(dom: str) -> dict[str, str]:
+    m = re.search(r"<body([^>]*)>", dom)
+    assert m is not None
+    return dict(re.findall(r'data-([a-z]+)="([^"]*)"', m.group(1)))
+
+
+def test_browser_page_opens_at_the_start_and_plays(
+    chromium: str, robot: packbot.Robot, collapse: packbot.SimResult, tmp_path: Path
+) -> None:
+    """Played at 1/20 of real time (the 1 s run lasts 20 s), a few seconds after opening it is
+    a little past the start, playing; the event list is built, one entry per event; a fragment
+    shows its time, paused."""
+    slow = write_html(robot, collapse, tmp_path / "slow.html", speed=0.05)
+    dom = _dom(chromium, slow.as_uri(), tmp_path, 3000)
+    body = _body_data(dom)
+    assert body["playing"] == "true"
+    # the budget's 3 s of virtual time (Chromium runs a little past it) at 0.05x: well under
+    # 0.5 s of the run, which a page opening on its last pose would show (1 s)
+    assert 0.0 < float(body["time"]) < 0.5
+    assert dom.count('title="jump to ') == len(collapse.events)
+    assert f"Events ({len(collapse.events)})" in dom
+    body = _body_data(_dom(chromium, f"{slow.as_uri()}#t=0.4", tmp_path, 1000))
+    assert body == {"time": "0.400000", "playing": "false"}
 
 
 def test_browser_draws_the_live_viewer(chromium: str, robot: packbot.Robot, tmp_path: Path) -> None:

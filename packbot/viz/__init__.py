@@ -12,7 +12,9 @@ touching pieces turned red. A result plays as one meshcat animation clip: keyfra
   viewer (three.js) is inlined, the scene and the clip are embedded as the viewer's own msgpack
   commands, recorded in-process by :class:`SceneRecorder` (meshcat 0.3.2's
   ``Visualizer.static_html()`` would ask a running server for them). Open it with
-  ``file://...``; a fragment ``#t=0.4`` shows the pose at 0.4 s of simulated time, paused.
+  ``file://...``: it plays the run from its start, with play/pause, speed, a time slider and
+  the list of events to jump to, the camera fitted to the motion; a fragment ``#t=0.4`` shows
+  the pose at 0.4 s of simulated time, paused.
 - :func:`start_viewer` serves the live viewer on 127.0.0.1 only (meshcat's bridge binds its
   web server to every interface whatever its ``host``; ours passes the loopback address to
   tornado) and returns a :class:`LiveViewer`.

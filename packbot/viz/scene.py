@@ -9,6 +9,7 @@ and the touching pieces turned red while a contact is active.
 
 from __future__ import annotations
 
+import itertools
 import logging
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -31,6 +32,7 @@ from packbot.viz.contacts import ContactSpan, _merge, contact_spans
 from packbot.viz.keyframes import FPS, _keyframes
 
 __all__ = [
+    "CAMERA_FOV",
     "CAMERA_OFFSET",
     "CAMERA_TARGET",
     "COLLISION_RGBA",
@@ -60,9 +62,12 @@ SLAB_GAP = 0.002
 #: Contact marker radius [m].
 MARKER_RADIUS = 0.025
 #: Camera: the point it orbits, in the world [m] (the scene is shifted to put it at meshcat's
-#: origin), and the camera's offset from it [m].
+#: origin), and the camera's offset from it [m] (the live viewer's; a page fits its camera to
+#: the motion, looking from the same direction: :meth:`_Scene.frame`).
 CAMERA_TARGET = (0.0, 0.0, 0.5)
 CAMERA_OFFSET = (1.05, -1.3, 0.5)
+#: meshcat's camera: vertical field of view [deg].
+CAMERA_FOV = 75.0
 
 _ROOT = "packbot"  # meshcat node of the robot: /meshcat/packbot/{visuals,collisions}
 _ENV = "environment"
@@ -109,6 +114,19 @@ def _obstacle_color(ob: Obstacle) -> tuple[float, float, float]:
     return FLOOR_COLOR if ob.kind == "halfspace" else OBSTACLE_COLOR
 
 
+def _camera_offset(radius: float, aspect: float) -> NDArray[np.float64]:
+    """The camera's offset [m] from the centre of a sphere of ``radius`` [m] that it frames.
+
+    Along :data:`CAMERA_OFFSET`, at the distance where the sphere fits the narrower of the
+    vertical field of view (:data:`CAMERA_FOV`) and the horizontal one at ``aspect`` (width /
+    height) [-]. The page redoes this for its window (the same formula in JavaScript).
+    """
+    half = np.radians(CAMERA_FOV) / 2
+    half = min(half, float(np.arctan(np.tan(half) * aspect)))
+    direction = np.asarray(CAMERA_OFFSET, dtype=float)
+    return direction / np.linalg.norm(direction) * (radius / np.sin(half))
+
+
 @dataclass
 class _Scene:
     """The robot, its environment and where each piece is drawn in a meshcat visualizer."""
@@ -147,6 +165,50 @@ class _Scene:
         x, y, z = CAMERA_OFFSET
         viewer["/Cameras/default/rotated/<object>"].set_property("position", [x, z, -y])
         return cls(robot, env, viewer, pviz)
+
+    def motion_bounds(
+        self, q_keys: NDArray[np.float64]
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """The world box [m] holding every visual piece at every configuration of ``q_keys``.
+
+        Each piece's local bounding box (of its mesh as loaded, scale included) placed at each
+        configuration: its eight corners.
+
+        Returns:
+            ``(lo, hi)``, each shape (3,).
+        """
+        gm, gd = self.pviz.visual_model, self.pviz.visual_data
+        corners = []
+        for go in gm.geometryObjects:
+            go.geometry.computeLocalAABB()
+            box = go.geometry.aabb_local
+            corners.append(np.array(list(itertools.product(*zip(box.min_, box.max_, strict=True)))))
+        data = self.robot.model.createData()
+        pts = []
+        for q in np.atleast_2d(q_keys):
+            pin.updateGeometryPlacements(self.robot.model, data, gm, gd, q)
+            for k, c in enumerate(corners):
+                M = gd.oMg[k]
+                pts.append(c @ M.rotation.T + M.translation)
+        allpts = np.concatenate(pts)
+        return allpts.min(axis=0), allpts.max(axis=0)
+
+    def frame(self, lo: NDArray[np.float64], hi: NDArray[np.float64], aspect: float) -> float:
+        """Aim the camera at the box [lo, hi] [m], from :data:`CAMERA_OFFSET`'s direction.
+
+        The scene is shifted to put the box's centre at the point the camera orbits, and the
+        camera backed off until the box's bounding sphere fits its field of view at the given
+        width/height ``aspect`` [-].
+
+        Returns:
+            The sphere's radius [m].
+        """
+        centre = 0.5 * (np.asarray(lo) + np.asarray(hi))
+        radius = max(0.5 * float(np.linalg.norm(np.asarray(hi) - np.asarray(lo))), 0.05)
+        self.viewer.set_transform(pin.SE3(np.eye(3), -centre).homogeneous)
+        x, y, z = _camera_offset(radius, aspect)
+        self.viewer["/Cameras/default/rotated/<object>"].set_property("position", [x, z, -y])
+        return radius
 
     def geometry_nodes(self) -> list[tuple[pin.GeometryModel, pin.GeometryData, str]]:
         """(model, data, meshcat group) of the visual and the collision geometry."""
