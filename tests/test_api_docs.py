@@ -68,6 +68,7 @@ INTERNAL_MODULES = {
     "packbot.drive",
     "packbot.geometry",
     "packbot.inputs",
+    "packbot.labels",
     "packbot.mujoco_model",
     "packbot.ode",
     "packbot.recorder",
