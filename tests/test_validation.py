@@ -146,7 +146,7 @@ def test_max_events_and_motor_lag_are_bounded():
 def test_final_state_is_a_sample_when_sample_dt_exceeds_the_duration(robot):
     """sample_dt = 100 s over a 0.3 s collapse ended at the last event (0.17 s): now at 0.3 s."""
     q0 = load_scenario("collapse").initial_state(robot)[0]
-    cfg = SimConfig(locked_joints=WRIST, sample_dt=100.0)
+    cfg = SimConfig(contact_mode="joint_clamp", locked_joints=WRIST, sample_dt=100.0)
     res = packbot.simulate(robot, q0, np.zeros(8), 0.3, config=cfg)
     fine = packbot.simulate(
         robot, q0, np.zeros(8), 0.3, config=dataclasses.replace(cfg, sample_dt=0.01)
