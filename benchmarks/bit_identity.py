@@ -79,7 +79,13 @@ def runs(robot):
     v0 = np.zeros(8)
     v0[0], v0[1] = 0.15, -0.3
     for flag in (False, True):
-        cfg = packbot.SimConfig(locked_joints=locked, clamp_rule="velocity", handoff=flag)
+        cfg = packbot.SimConfig(
+            contact_mode="joint_clamp",
+            locked_joints=locked,
+            clamp_rule="velocity",
+            mu=0.0,  # frictionless: the handed-off finger slides down the ramp
+            handoff=flag,
+        )
         out[f"x_ramp_handoff{int(flag)}"] = lambda cfg=cfg: sim(
             robot,
             robot.pose("stand"),
@@ -90,18 +96,27 @@ def runs(robot):
             config=cfg,
         )
         cfg = packbot.SimConfig(
-            locked_joints=WRIST, reset_rule="momentum", restitution=0.3, mu=0.5, handoff=flag
+            contact_mode="joint_clamp",
+            locked_joints=WRIST,
+            reset_rule="momentum",
+            restitution=0.3,
+            mu=0.5,
+            handoff=flag,
         )
         out[f"x_collapse_handoff{int(flag)}"] = lambda cfg=cfg: sim(
             robot, drive, np.zeros(8), 2.4, config=cfg
         )
     brake = [packbot.Failure(joint="elbow1", t=0.3, kind="brake")]
-    cfg = packbot.SimConfig(locked_joints=WRIST, joint_friction=True)
+    cfg = packbot.SimConfig(contact_mode="joint_clamp", locked_joints=WRIST, joint_friction=True)
     out["x_clamp_friction"] = lambda: sim(
         robot, drive, np.zeros(8), 2.0, config=cfg, failures=brake
     )
     cfg2 = packbot.SimConfig(
-        locked_joints=WRIST, joint_friction=True, restitution=0.5, reset_rule="momentum"
+        contact_mode="joint_clamp",
+        locked_joints=WRIST,
+        joint_friction=True,
+        restitution=0.5,
+        reset_rule="momentum",
     )
     out["x_clamp_friction_e05"] = lambda: sim(
         robot, robot.pose("stand"), np.zeros(8), 2.0, config=cfg2
@@ -119,11 +134,12 @@ def runs(robot):
             robot, robot.pose(pose), np.zeros(8), d, config=c, failures=fl
         )
     for name, kw, duration, ctrl in [
-        ("x_maxev_clamp", {"max_events": 2}, 1.0, None),
+        ("x_maxev_clamp", {"contact_mode": "joint_clamp", "max_events": 2}, 1.0, None),
         ("x_maxev_normal", {"contact_mode": "normal", "mu": 0.5, "max_events": 40}, 2.0, None),
         (
             "x_maxev_handoff",
             {
+                "contact_mode": "joint_clamp",
                 "reset_rule": "momentum",
                 "restitution": 0.3,
                 "mu": 0.5,
@@ -134,7 +150,12 @@ def runs(robot):
             None,
         ),
         ("x_maxev_none", {"contact_mode": "none", "restitution": 0.5, "max_events": 6}, 3.0, None),
-        ("x_lag_fn", {"motor_lag": 0.02, "joint_friction": True}, 1.5, lambda t, q, v: -20.0 * v),
+        (
+            "x_lag_fn",
+            {"contact_mode": "joint_clamp", "motor_lag": 0.02, "joint_friction": True},
+            1.5,
+            lambda t, q, v: -20.0 * v,
+        ),
     ]:
         c = packbot.SimConfig(locked_joints=WRIST, **kw)
         out[name] = lambda c=c, d=duration, ctrl=ctrl: sim(

@@ -617,7 +617,11 @@ def _cmd_run(args: argparse.Namespace) -> int:
 
 
 def _cmd_collapse(args: argparse.Namespace) -> int:
-    name = "collapse" if args.mode == "joint_clamp" else "collapse_no_collisions"
+    name = {
+        "joint_clamp": "collapse",
+        "normal": "collapse_physical",
+        "none": "collapse_no_collisions",
+    }[args.mode]
     return _run(
         name, args.out, args.duration, plot=True, html=True, view=False, overwrite=args.overwrite
     )
@@ -874,9 +878,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--overwrite", action="store_true", help=overwrite_help)
     p.add_argument(
         "--mode",
-        choices=("joint_clamp", "none"),
+        choices=("joint_clamp", "normal", "none"),
         default="joint_clamp",
-        help="contact mode: the report's law, or no collisions (joint_clamp)",
+        help="contact mode: the report's law (sims/collapse.toml, link 3 propped upright), the "
+        "contact-normal mode with friction 0.5 (collapse_physical, link 3 folded back), or no "
+        "collisions (joint_clamp)",
     )
     p.add_argument("--duration", type=float, default=None, help="simulated time [s] (5)")
     p.set_defaults(func=_cmd_collapse)

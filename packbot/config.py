@@ -56,10 +56,18 @@ class SimConfig:
     :class:`~packbot.errors.ConfigurationError` naming the field, the value and the range.
 
     Attributes:
-        contact_mode: ``"joint_clamp"`` (the 2010 report's law: stop and clamp the joints between
-            the colliding bodies), ``"normal"`` (contact-normal constraints on contact patches,
-            complementarity and Coulomb friction; see docs/contact.md), or ``"none"`` (no
-            collisions; joint limit stops still act if ``joint_limits``).
+        contact_mode: ``"normal"`` (the default: contact-normal constraints on contact patches,
+            complementarity and Coulomb friction, time-stepping windows where events pile up;
+            see docs/contact.md), ``"joint_clamp"`` (the 2010 report's law: stop and clamp the
+            joints between the colliding bodies), or ``"none"`` (no collisions; joint limit
+            stops still act if ``joint_limits``). The contact-normal mode is the default because
+            it is the physical one: on the report's collapse it rests within 0.02 rad of MuJoCo
+            (its settings without sliding lift) and Drake on shoulder and elbow1, link 3 folded
+            back (elbow2 +0.89 rad), penetrating 1e-5 m at most (docs/contact.md, "Collapse
+            side by side"). The report's law is kept to reproduce the report
+            (``sims/collapse.toml``; ``sims/collapse_physical.toml`` is the same start in the
+            default mode): it props link 3 upright on the shoulder casing (elbow2 -0.48 rad), a
+            rest pose no physics engine reaches, and runs the collapse 47x faster.
         restitution: Coefficient of restitution e in [0, 1] (0: perfectly inelastic).
         contact_tolerance: Contact tolerance [m]: a contact event fires when a pair's signed
             distance falls to +tol; the simulation keeps every distance >= -tol. In (0, 0.5].
@@ -73,11 +81,12 @@ class SimConfig:
             duration (the last interval is then shorter).
         gravity: Gravity vector in the world frame [m/s^2] (tilt it for a robot on a slope);
             each component within +/-100 m/s^2.
-        clamp_rule: Direction in which a clamped joint may not accelerate: ``"velocity"`` (the
-            report's, the default: the joint's velocity at impact) or ``"jacobian"`` (the sign
-            of the joint's own contribution to closing the gap, J_n,i).
-        reset_rule: Impact velocity reset: ``"zero"`` (the report's, the default:
-            v_i <- -e v_i on the relevant joints; can add energy on a coupled arm) or
+        clamp_rule: ``"joint_clamp"`` only. Direction in which a clamped joint may not
+            accelerate: ``"velocity"`` (the report's, the default: the joint's velocity at
+            impact) or ``"jacobian"`` (the sign of the joint's own contribution to closing the
+            gap, J_n,i).
+        reset_rule: Impact velocity reset of ``"joint_clamp"``: ``"zero"`` (the report's, the
+            default: v_i <- -e v_i on the relevant joints; can add energy on a coupled arm) or
             ``"momentum"`` (an impulse stops the relevant joints; the others keep their
             generalized momentum). It applies to link contacts; a joint-limit stop always uses
             the momentum law on its joint (a hard stop never adds energy).
@@ -105,7 +114,10 @@ class SimConfig:
             motor torque [s]; 0: no lag, else >= 1e-5 s (a shorter lag makes the explicit
             integrator take at least 1 / (3.3 T) steps per simulated second).
         mu: Coulomb friction coefficient of every contact pair [-] (``contact_mode="normal"``
-            only; 0: frictionless), in [0, 10].
+            and the pairs handed off with ``handoff``; the report's law has no friction), in
+            [0, 10]. Default 0.5 (metal on metal or hard plastic, the value of every comparison
+            with MuJoCo and Drake in docs/contact.md); 0 is frictionless, which on faceted
+            pieces can chatter and keep the arm from resting (``simulate`` warns).
         zeno_speed: Impacts whose fastest approaching point is slower than this are perfectly
             inelastic [m/s] (``"normal"`` only): ends a Zeno sequence of ever closer bounces
             in resting contact.
@@ -120,7 +132,7 @@ class SimConfig:
             ``handoff`` event. See docs/contact.md, "Hand-off".
     """
 
-    contact_mode: ContactMode = "joint_clamp"
+    contact_mode: ContactMode = "normal"
     restitution: float = 0.0
     contact_tolerance: float = 1e-3
     proximity_tolerance: float = 5e-3
@@ -140,7 +152,7 @@ class SimConfig:
     joint_friction: bool = False
     effort_saturation: bool = True
     motor_lag: float = 0.0
-    mu: float = 0.0
+    mu: float = 0.5
     zeno_speed: float = 1e-2
     handoff: bool = False
 
@@ -251,7 +263,8 @@ class SimConfig:
                 "handoff",
                 self.handoff,
                 f"False with contact_mode={self.contact_mode!r} (a hand-off goes from the "
-                "'joint_clamp' law to the contact-normal machinery)",
+                "'joint_clamp' law to the contact-normal machinery: set "
+                "contact_mode='joint_clamp', the default is 'normal')",
             )
         if self.handoff and self.joint_friction:
             raise ConfigurationError(

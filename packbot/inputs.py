@@ -181,9 +181,9 @@ def warn_settings(config: SimConfig) -> None:
     """Warn of settings that run but may not do what one expects."""
     if config.contact_mode == "normal" and config.mu == 0.0:
         log.warning(
-            "contact_mode='normal' with mu = 0: frictionless contact on faceted pieces can chatter "
-            "(an impact every few ms) and an arm may never come to rest (docs/contact.md, "
-            "'Open problems')"
+            "contact_mode='normal' with mu = 0 (the default is 0.5): frictionless contact on "
+            "faceted pieces can chatter (an impact every few ms) and an arm may never come to "
+            "rest (docs/contact.md, 'Open problems')"
         )
 
 

@@ -11,6 +11,7 @@ controller and its parameters, the environment and the outputs::
     pose = "drive"                       # a named pose; q / v: lists or joint = value tables
 
     [config]                             # any SimConfig field
+    contact_mode = "joint_clamp"         # the report's law (the default: "normal")
     locked_joints = ["camera_tilt", "camera_pan", "gripper_roll", "gripper_jaw"]
 
     [[failures]]                         # packbot.failures.Failure fields
@@ -42,6 +43,7 @@ import sys
 import tempfile
 import types
 import typing
+import warnings
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from functools import partial
@@ -71,6 +73,7 @@ if TYPE_CHECKING:
 
 __all__ = [
     "PLOT_KINDS",
+    "RENAMED_SCENARIOS",
     "TOP_LEVEL_KEYS",
     "OcclusionCheck",
     "Outputs",
@@ -717,6 +720,12 @@ def _sims_dir() -> Path:
     return data_dir("sims")
 
 
+#: Former names of shipped scenarios -> their current name. A former name still loads the
+#: scenario (its results are named after the current one) with a ``FutureWarning`` (shown by
+#: default, also on the command line).
+RENAMED_SCENARIOS: dict[str, str] = {"collapse_normal": "collapse_physical"}
+
+
 def list_scenarios() -> dict[str, Path]:
     """The shipped scenarios: name -> file (``sims/*.toml``), sorted by name."""
     return {p.stem: p for p in sorted(_sims_dir().glob("*.toml"))}
@@ -724,6 +733,9 @@ def list_scenarios() -> dict[str, Path]:
 
 def scenario_path(name_or_path: str | Path) -> Path:
     """The file of a scenario: a name in ``sims/`` (``"collapse"``) or a path to a TOML file.
+
+    A former name (:data:`RENAMED_SCENARIOS`) gives the renamed scenario's file, with a
+    ``FutureWarning``.
 
     Raises:
         UnknownNameError: A name that is not a shipped scenario (lists them).
@@ -739,6 +751,14 @@ def scenario_path(name_or_path: str | Path) -> Path:
             "scenario", text, f"an existing file, or one of: {', '.join(list_scenarios())}"
         )
     shipped = list_scenarios()
+    if text not in shipped and RENAMED_SCENARIOS.get(text) in shipped:
+        current = RENAMED_SCENARIOS[text]
+        warnings.warn(
+            f"scenario {text!r} is now called {current!r}; the old name will be removed",
+            FutureWarning,
+            stacklevel=3,  # the caller of load_scenario / read_scenario_dict
+        )
+        text = current
     if text not in shipped:
         raise UnknownNameError("scenario", text, shipped)
     return shipped[text]

@@ -75,12 +75,20 @@ def test_collapse_alias_without_contact(tmp_path):
     assert '"contact_mode": "none"' in cfg
 
 
+def test_collapse_alias_in_the_contact_normal_mode(tmp_path):
+    out = tmp_path / "physical"
+    assert main(["collapse", "--out", str(out), "--mode", "normal", "--duration", "0.2"]) == 0
+    assert (out / "collapse_physical_joints.png").is_file()
+    cfg = str(np.load(out / "collapse_physical.npz")["config_json"])
+    assert '"contact_mode": "normal"' in cfg and '"mu": 0.5' in cfg
+
+
 def test_collapse_bad_mode_names_the_choices(tmp_path, capsys):
     with pytest.raises(SystemExit) as exc:
         main(["collapse", "--out", str(tmp_path), "--mode", "bogus"])
     assert exc.value.code == 2
     err = capsys.readouterr().err
-    assert "bogus" in err and "joint_clamp" in err and "none" in err
+    assert "bogus" in err and "joint_clamp" in err and "normal" in err and "none" in err
 
 
 @pytest.mark.parametrize("duration", ["0", "-1", "nan", "inf"])

@@ -221,8 +221,9 @@ def test_sensor_quantises_and_is_seeded() -> None:
 # ---------------------------------------------------------------- closed loop (simulate)
 @pytest.mark.parametrize("pose", ["drive", "stow", "stand", "high", "low"])
 def test_gravity_comp_holds_every_pose_for_5s(robot, pose) -> None:
+    cfg = SimConfig(contact_mode="joint_clamp")  # no contact: the cheaper law
     res = packbot.simulate(
-        robot, robot.pose(pose), np.zeros(8), 5.0, controller=GravityCompensation()
+        robot, robot.pose(pose), np.zeros(8), 5.0, controller=GravityCompensation(), config=cfg
     )
     assert res.t[-1] == pytest.approx(5.0)
     assert np.max(np.abs(res.q - res.q[0])) < 1e-9
@@ -239,7 +240,12 @@ def test_pd_converges_with_quantised_noisy_encoders(robot) -> None:
         sensor=Sensor(resolution=1e-4, noise_q=1e-5, noise_v=1e-4, seed=1),
     )
     res = packbot.simulate(
-        robot, q0, np.zeros(8), 1.5, controller=c, config=SimConfig(locked_joints=("gripper_jaw",))
+        robot,
+        q0,
+        np.zeros(8),
+        1.5,
+        controller=c,
+        config=SimConfig(contact_mode="joint_clamp", locked_joints=("gripper_jaw",)),
     )
     err = np.abs(res.q[-1] - target)[:7]
     assert err.max() < 2e-3  # quantisation 0.1 mrad, noise: within 2 mrad
@@ -256,7 +262,7 @@ def test_computed_torque_tracks_within_1_mrad(robot) -> None:
         np.zeros(8),
         2.0,
         controller=c,
-        config=SimConfig(locked_joints=("gripper_jaw",)),
+        config=SimConfig(contact_mode="joint_clamp", locked_joints=("gripper_jaw",)),
     )
     qd = np.array([traj(t)[0] for t in res.t])
     err = np.abs(res.q - qd).max()
@@ -274,7 +280,7 @@ def test_cartesian_reaches_target(robot) -> None:
         np.zeros(8),
         3.0,
         controller=c,
-        config=SimConfig(locked_joints=("gripper_jaw",)),
+        config=SimConfig(contact_mode="joint_clamp", locked_joints=("gripper_jaw",)),
     )
     p = tool_positions(robot, res.q)
     assert np.linalg.norm(p[0] - target) > 0.4
@@ -294,7 +300,9 @@ def _reconfig_run(robot, **kw):
         3.5,
         controller=c,
         failures=[Failure(joint="elbow1", kind="frozen", t=1.0)],
-        config=SimConfig(joint_friction=True, locked_joints=("gripper_jaw",)),
+        config=SimConfig(
+            contact_mode="joint_clamp", joint_friction=True, locked_joints=("gripper_jaw",)
+        ),
     )
     return c, res
 

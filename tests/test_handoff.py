@@ -46,7 +46,13 @@ def ramp_runs(robot):
     v0[0], v0[1] = 0.15, -0.3
     out = []
     for flag in (False, True):
-        cfg = packbot.SimConfig(locked_joints=locked, clamp_rule="velocity", handoff=flag)
+        cfg = packbot.SimConfig(
+            contact_mode="joint_clamp",
+            locked_joints=locked,
+            clamp_rule="velocity",
+            mu=0.0,  # frictionless: the handed-off finger slides down the ramp
+            handoff=flag,
+        )
         out.append(
             packbot.simulate(
                 robot,
@@ -67,7 +73,12 @@ def collapse_runs(robot):
     out = []
     for flag in (False, True):
         cfg = packbot.SimConfig(
-            locked_joints=WRIST, reset_rule="momentum", restitution=0.3, mu=0.5, handoff=flag
+            contact_mode="joint_clamp",
+            locked_joints=WRIST,
+            reset_rule="momentum",
+            restitution=0.3,
+            mu=0.5,
+            handoff=flag,
         )
         out.append(packbot.simulate(robot, robot.pose("drive"), np.zeros(8), 1.7, config=cfg))
     return tuple(out)
@@ -235,14 +246,19 @@ def test_validation_names_the_field():
     with pytest.raises(packbot.errors.ConfigurationError) as exc:
         packbot.SimConfig(handoff="yes").validate()  # type: ignore[arg-type]
     assert exc.value.field == "handoff"
-    with pytest.raises(packbot.errors.ConfigurationError) as exc:
-        packbot.SimConfig(handoff=True, joint_friction=True).validate()
+    with pytest.raises(packbot.errors.ConfigurationError, match="joint_friction") as exc:
+        packbot.SimConfig(contact_mode="joint_clamp", handoff=True, joint_friction=True).validate()
     assert exc.value.field == "handoff"
-    packbot.SimConfig(handoff=True).validate()  # joint_clamp: fine
+    with pytest.raises(
+        packbot.errors.ConfigurationError, match="contact_mode='joint_clamp'"
+    ) as exc:
+        packbot.SimConfig(handoff=True)  # the default mode is "normal": say which to set
+    assert exc.value.field == "handoff"
+    packbot.SimConfig(contact_mode="joint_clamp", handoff=True).validate()  # fine
 
 
 def test_brake_failure_with_hand_off_is_refused(robot):
-    cfg = packbot.SimConfig(locked_joints=WRIST, handoff=True)
+    cfg = packbot.SimConfig(contact_mode="joint_clamp", locked_joints=WRIST, handoff=True)
     brake = packbot.Failure(joint="elbow1", t=0.1, kind="brake")
     with pytest.raises(packbot.errors.ConfigurationError) as exc:
         packbot.simulate(robot, robot.pose("drive"), np.zeros(8), 0.2, config=cfg, failures=[brake])
@@ -253,7 +269,12 @@ def test_released_pair_comes_back_under_the_report_law(robot):
     """The collapse to 2.4 s: the tube, handed off at 1.565 s, leaves the casing; its next
     impact is a joint_clamp impact (reset, clamps), and its next penetration a new hand-off."""
     cfg = packbot.SimConfig(
-        locked_joints=WRIST, reset_rule="momentum", restitution=0.3, mu=0.5, handoff=True
+        contact_mode="joint_clamp",
+        locked_joints=WRIST,
+        reset_rule="momentum",
+        restitution=0.3,
+        mu=0.5,
+        handoff=True,
     )
     res = packbot.simulate(robot, robot.pose("drive"), np.zeros(8), 2.4, config=cfg)
     returned = 0

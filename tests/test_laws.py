@@ -70,6 +70,7 @@ def _pair_index(world, event):
         ({"contact_mode": "joint_clamp"}, contact.JointClampLaw),
         ({"contact_mode": "normal"}, contact.NormalLaw),
         ({"contact_mode": "joint_clamp", "handoff": True}, contact.HandoffLaw),
+        ({}, contact.NormalLaw),  # the default
     ],
 )
 def test_make_law_builds_the_configured_law_with_the_whole_protocol(robot, fields, cls):
@@ -171,7 +172,12 @@ def test_the_hand_off_law_hands_a_penetrating_clamped_pair_over(robot):
     """At the collapse's first secondary intersection, the law alone: the clamped pair is
     handed to the contact-normal rows (its clamps released), logged as a ``handoff``."""
     cfg = packbot.SimConfig(
-        locked_joints=WRIST, reset_rule="momentum", restitution=0.3, mu=0.5, handoff=True
+        contact_mode="joint_clamp",
+        locked_joints=WRIST,
+        reset_rule="momentum",
+        restitution=0.3,
+        mu=0.5,
+        handoff=True,
     )
     res = packbot.simulate(robot, robot.pose("drive"), np.zeros(8), 1.7, config=cfg)
     (h, *_) = res.events_of("handoff")

@@ -169,7 +169,7 @@ def test_collapse_rebuilds_sliding_patches_far_less_often_than_it_steps(robot):
 # ------------------------------------------------------------------ impacts and resting
 def test_box_dropped_flat_rests_still_with_long_steps():
     robot = box_robot(("PX", "PZ", "RY"))
-    cfg = packbot.SimConfig(contact_mode="normal", restitution=0.0)
+    cfg = packbot.SimConfig(contact_mode="normal", mu=0.0, restitution=0.0)
     q0 = np.array([0.0, HALF_Z + 0.01, 0.0])
     res = packbot.simulate(robot, q0, np.zeros(3), 2.0, config=cfg)
     land = res.events_of("impact")[0].t
@@ -186,7 +186,7 @@ def test_tilted_box_lands_without_penetration_or_energy_gain():
     """Dropped on a corner edge: impact, rotation onto the face, rest; e = 0 then e = 0.5."""
     robot = box_robot(("PX", "PZ", "RY"))
     for e in (0.0, 0.5):
-        cfg = packbot.SimConfig(contact_mode="normal", restitution=e)
+        cfg = packbot.SimConfig(contact_mode="normal", mu=0.0, restitution=e)
         q0 = np.array([0.0, 0.08, 0.4])
         res = packbot.simulate(robot, q0, np.zeros(3), 1.5, config=cfg)
         impacts = res.events_of("impact")
@@ -201,7 +201,7 @@ def test_tilted_box_lands_without_penetration_or_energy_gain():
 
 def test_inelastic_impact_leaves_zero_normal_speed():
     robot = box_robot(("PZ",))
-    cfg = packbot.SimConfig(contact_mode="normal", restitution=0.0)
+    cfg = packbot.SimConfig(contact_mode="normal", mu=0.0, restitution=0.0)
     res = packbot.simulate(robot, np.array([0.1]), np.array([-1.0]), 0.2, config=cfg)
     (hit,) = res.events_of("impact")[:1]
     assert hit.v_before[0] < -1.0
@@ -211,7 +211,7 @@ def test_inelastic_impact_leaves_zero_normal_speed():
 @pytest.mark.parametrize("e", [0.5, 1.0])
 def test_restitution_reverses_normal_speed_and_zeno_ends_in_rest(e):
     robot = box_robot(("PZ",))
-    cfg = packbot.SimConfig(contact_mode="normal", restitution=e)
+    cfg = packbot.SimConfig(contact_mode="normal", mu=0.0, restitution=e)
     res = packbot.simulate(robot, np.array([HALF_Z + 0.05]), np.zeros(1), 1.0, config=cfg)
     impacts = res.events_of("impact")
     first = impacts[0]
@@ -232,7 +232,7 @@ def test_joint_limit_is_a_row_of_the_same_problem():
     robot = box_robot(("PZ",))
     robot.model.lowerPositionLimit[0] = HALF_Z + 0.01
     robot.params.lower[0] = HALF_Z + 0.01
-    cfg = packbot.SimConfig(contact_mode="normal")
+    cfg = packbot.SimConfig(contact_mode="normal", mu=0.0)
     res = packbot.simulate(robot, np.array([HALF_Z + 0.05]), np.zeros(1), 0.5, config=cfg)
     (lim,) = res.events_of("limit")
     assert lim.v_after[0] == pytest.approx(0.0, abs=1e-12)
@@ -243,7 +243,7 @@ def test_joint_limit_is_a_row_of_the_same_problem():
 # ------------------------------------------------------------------ the arm
 def test_arm_collapse_normal_mode_keeps_every_distance_above_tolerance(robot):
     wrist = ("camera_tilt", "camera_pan", "gripper_roll", "gripper_jaw")
-    cfg = packbot.SimConfig(contact_mode="normal", locked_joints=wrist)
+    cfg = packbot.SimConfig(contact_mode="normal", mu=0.0, locked_joints=wrist)
     res = packbot.simulate(robot, robot.pose("drive"), np.zeros(8), 0.4, config=cfg)
     assert res.events_of("impact")
     assert res.diagnostics.min_distance > -cfg.contact_tolerance
@@ -303,7 +303,7 @@ def test_slip_against_a_driven_residual_slide_advances_time(robot):
 
 # ------------------------------------------------------------------ drift projection
 def _contacts(robot: Robot, q: np.ndarray, env: packbot.Environment | None = None):
-    cfg = packbot.SimConfig(contact_mode="normal")
+    cfg = packbot.SimConfig(contact_mode="normal", mu=0.0)
     sysm = System(robot, q, cfg, env)
     assert sysm.world is not None
     nc = NormalContacts.from_config(sysm.model, sysm.data, sysm.world, cfg)  # mu = 0

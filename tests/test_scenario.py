@@ -11,9 +11,11 @@ import numpy as np
 import pytest
 
 import packbot
-from packbot.config import SimConfig
+from packbot.config import CONTACT_MODES, SimConfig
+from packbot.matrix import load_matrix, matrix_names
 from packbot.plots import sample_distances
 from packbot.scenario import (
+    RENAMED_SCENARIOS,
     list_scenarios,
     load_scenario,
     read_scenario_dict,
@@ -73,11 +75,55 @@ def test_collapse_file_is_the_reports_collapse(robot):
         robot.pose("drive"),
         np.zeros(8),
         0.8,
-        config=SimConfig(locked_joints=sc.config.locked_joints),
+        config=SimConfig(contact_mode="joint_clamp", locked_joints=sc.config.locked_joints),
     )
     res = run_scenario(sc, robot, duration=0.8)
     np.testing.assert_allclose(res.q, ref.q)
     assert [e.kind for e in res.events] == [e.kind for e in ref.events]
+
+
+@pytest.mark.parametrize("name", SHIPPED)
+def test_shipped_scenario_states_its_contact_mode(name):
+    """A file without [config] contact_mode takes SimConfig's default, which has changed once
+    (the report's law -> the contact-normal mode): each shipped one says which it means."""
+    config = read_scenario_dict(name).get("config", {})
+    assert config.get("contact_mode") in CONTACT_MODES
+    if config["contact_mode"] == "normal":
+        assert "mu" in config
+
+
+@pytest.mark.parametrize("name", matrix_names())
+def test_shipped_matrix_states_its_contact_mode(name):
+    matrix = load_matrix(name)
+    stated = "config.contact_mode" in matrix.axes or "config.contact_mode" in matrix.fixed
+    config = read_scenario_dict(matrix.base_path()).get("config", {})
+    assert stated or "contact_mode" in config
+    modes = matrix.axes.get("config.contact_mode", [config.get("contact_mode")])
+    if "normal" in modes:
+        assert "config.mu" in matrix.axes or "config.mu" in matrix.fixed or "mu" in config
+
+
+def test_collapse_physical_is_the_collapse_in_the_default_mode():
+    """The same start as the report's collapse, in SimConfig's default mode and friction."""
+    report, physical = load_scenario("collapse"), load_scenario("collapse_physical")
+    assert physical.config.contact_mode == SimConfig().contact_mode == "normal"
+    assert physical.config.mu == SimConfig().mu == 0.5
+    assert report.config.contact_mode == "joint_clamp"
+    assert physical.pose == report.pose and physical.controller == report.controller == "zero"
+    assert physical.config.locked_joints == report.config.locked_joints
+    assert physical.config.restitution == report.config.restitution
+    assert not physical.failures and not report.failures
+
+
+def test_a_renamed_scenario_still_loads_under_its_former_name():
+    with pytest.warns(FutureWarning, match="'collapse_normal' is now called 'collapse_physical'"):
+        sc = load_scenario("collapse_normal")
+    assert sc.name == "collapse_physical" and sc.source_path == scenario_path("collapse_physical")
+    assert "collapse_normal" not in list_scenarios()
+    with pytest.warns(FutureWarning):
+        assert read_scenario_dict("collapse_normal") == read_scenario_dict("collapse_physical")
+    assert all(new in list_scenarios() for new in RENAMED_SCENARIOS.values())
+    assert not set(RENAMED_SCENARIOS) & set(list_scenarios())
 
 
 def test_collapse_without_collisions_falls_through_the_chassis(robot):

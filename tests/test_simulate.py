@@ -23,7 +23,7 @@ def only(robot, joint):
 
 @pytest.fixture(scope="module")
 def collapse(robot):
-    cfg = packbot.SimConfig(locked_joints=WRIST)
+    cfg = packbot.SimConfig(contact_mode="joint_clamp", locked_joints=WRIST)  # the report's law
     return packbot.simulate(robot, robot.pose("drive"), np.zeros(8), 5.0, config=cfg)
 
 
@@ -86,7 +86,9 @@ def block_drop(robot):
     """The shoulder alone, falling from 'stand' onto a box in front of the robot."""
     box = packbot.Obstacle(name="block", kind="box", size=(0.6, 0.6, 0.5), xyz=(1.3, 0.0, 0.25))
     env = packbot.Environment().with_obstacles(box)
-    cfg = packbot.SimConfig(locked_joints=only(robot, "shoulder"), rtol=1e-10, atol=1e-12)
+    cfg = packbot.SimConfig(
+        contact_mode="joint_clamp", locked_joints=only(robot, "shoulder"), rtol=1e-10, atol=1e-12
+    )
     v0 = np.zeros(8)
     v0[1] = -0.3
     res = packbot.simulate(robot, robot.pose("stand"), v0, 2.0, environment=env, config=cfg)
@@ -177,7 +179,7 @@ def test_collapse_without_collisions_falls_through_the_chassis(robot):
 
 
 def test_collapse_is_deterministic(robot, collapse):
-    cfg = packbot.SimConfig(locked_joints=WRIST)
+    cfg = packbot.SimConfig(contact_mode="joint_clamp", locked_joints=WRIST)
     again = packbot.simulate(robot, robot.pose("drive"), np.zeros(8), 5.0, config=cfg)
     np.testing.assert_array_equal(again.q, collapse.q)
     assert [e.t for e in again.events] == [e.t for e in collapse.events]
@@ -223,7 +225,7 @@ def test_overwhelmed_joint_is_self_diagnosed_and_fixed_by_the_jacobian_rule(robo
 
     runs = {}
     for rule in ("velocity", "jacobian"):
-        cfg = packbot.SimConfig(locked_joints=locked, clamp_rule=rule)
+        cfg = packbot.SimConfig(contact_mode="joint_clamp", locked_joints=locked, clamp_rule=rule)
         runs[rule] = packbot.simulate(
             robot, robot.pose("stand"), v0, 1.0, environment=env, controller=push_back, config=cfg
         )
@@ -245,7 +247,11 @@ def test_overwhelmed_joint_is_self_diagnosed_and_fixed_by_the_jacobian_rule(robo
 @pytest.mark.parametrize("e", [0.0, 0.3])
 def test_momentum_resets_never_add_energy(robot, clamp, e):
     cfg = packbot.SimConfig(
-        locked_joints=WRIST, reset_rule="momentum", clamp_rule=clamp, restitution=e
+        contact_mode="joint_clamp",
+        locked_joints=WRIST,
+        reset_rule="momentum",
+        clamp_rule=clamp,
+        restitution=e,
     )
     res = packbot.simulate(robot, robot.pose("drive"), np.zeros(8), 2.0, config=cfg)
     impacts = res.events_of("impact", "limit", "secondary_intersection")

@@ -142,11 +142,37 @@ def test_max_events_and_motor_lag_are_bounded():
     assert SimConfig(motor_lag=0).motor_lag == 0.0
 
 
+# ---------------------------------------------------------------------------- defaults
+def test_the_default_is_the_contact_normal_mode_with_friction():
+    cfg = SimConfig()
+    assert (cfg.contact_mode, cfg.mu) == ("normal", 0.5)
+    assert (cfg.reset_rule, cfg.clamp_rule, cfg.handoff) == ("zero", "velocity", False)
+
+
+@pytest.mark.parametrize(
+    ("fields", "warned"),
+    [
+        ({}, False),  # the default: mu = 0.5
+        ({"mu": 0.0}, True),  # frictionless contact-normal mode: it may never rest
+        ({"contact_mode": "joint_clamp"}, False),  # the report's law has no friction
+        ({"contact_mode": "joint_clamp", "mu": 0.0}, False),
+        ({"contact_mode": "none", "mu": 0.0}, False),
+    ],
+)
+def test_simulate_warns_of_a_frictionless_contact_normal_mode(robot, caplog, fields, warned):
+    cfg = SimConfig(locked_joints=WRIST, **fields)
+    with caplog.at_level("WARNING", logger="packbot.integrator"):
+        packbot.simulate(robot, robot.pose("drive"), np.zeros(8), 0.01, config=cfg)
+    assert ("mu = 0" in caplog.text) == warned
+    if warned:
+        assert "the default is 0.5" in caplog.text
+
+
 # ---------------------------------------------------------------------------- final sample
 def test_final_state_is_a_sample_when_sample_dt_exceeds_the_duration(robot):
     """sample_dt = 100 s over a 0.3 s collapse ended at the last event (0.17 s): now at 0.3 s."""
     q0 = load_scenario("collapse").initial_state(robot)[0]
-    cfg = SimConfig(locked_joints=WRIST, sample_dt=100.0)
+    cfg = SimConfig(contact_mode="joint_clamp", locked_joints=WRIST, sample_dt=100.0)
     res = packbot.simulate(robot, q0, np.zeros(8), 0.3, config=cfg)
     fine = packbot.simulate(
         robot, q0, np.zeros(8), 0.3, config=dataclasses.replace(cfg, sample_dt=0.01)

@@ -45,7 +45,7 @@ LOCKED = ("camera_tilt", "camera_pan", "gripper_roll", "gripper_jaw")
 @pytest.fixture(scope="module")
 def collapse(robot: packbot.Robot) -> packbot.SimResult:
     """One second of the report's collapse: two impacts before 0.2 s, at rest by 0.6 s."""
-    config = packbot.SimConfig(locked_joints=LOCKED)
+    config = packbot.SimConfig(contact_mode="joint_clamp", locked_joints=LOCKED)
     return packbot.simulate(robot, robot.pose("drive"), np.zeros(robot.nq), 1.0, config=config)
 
 
