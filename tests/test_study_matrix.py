@@ -430,3 +430,80 @@ def test_a_study_matrix_is_not_run_as_simulations(tmp_path: Path) -> None:
         "study" not in parse_matrix('name = "p"\nbase = "collapse"\n[axes]\nx = [1]\n').canonical()
     )
     assert isinstance(StudyMatrix.from_matrix(sm.matrix), StudyMatrix)
+
+
+# --------------------------------------------------------------------------- aggregation
+def _fake_study(joint: str, t: float, kind: str, recovered: bool, errors: tuple[float, float]):
+    runs = {
+        "healthy": {"status": "ok", "reason": "", "final_task_error_m": 0.0},
+        "failed": {"status": "ok", "reason": "", "final_task_error_m": errors[0]},
+        "reconfigured": {"status": "ok", "reason": "", "final_task_error_m": errors[1]},
+    }
+    for entry in runs.values():
+        entry |= {"rms_task_error_m": entry["final_task_error_m"], "recovered": recovered}
+    runs["reconfigured"] |= {"detect_time_s": t + 0.02, "recover_time_s": t if recovered else None}
+    return {
+        "duration_s": 2.0,
+        "failures": [{"joint": joint, "kind": kind, "t_s": t}],
+        "recovery": {"possible": recovered, "reasons": [] if recovered else ["out of reach"]},
+        "runs": runs,
+    }
+
+
+def test_bins_aggregate_the_other_axes(tmp_path: Path) -> None:
+    from packbot.batch import BatchReport, RunRecord
+    from packbot.study_matrix import study_matrix_summary
+    from packbot.viz.study_matrix_report import write_matrix_report
+
+    text = (
+        'name = "agg"\nbase = "frozen_elbow_reach"\n[axes]\n'
+        '"failures.0.joint" = ["elbow1", "shoulder"]\n"failures.0.kind" = ["frozen", "loose"]\n'
+        '"failures.0.t" = [0.5]\n[study]\n'
+    )
+    sm = StudyMatrix.from_matrix(parse_matrix(text))
+    runs = sm.runs()
+    assert len(runs) == 4
+    outcome = {  # (joint, kind) -> recovered, (failed, reconfigured) final errors [m]
+        ("elbow1", "frozen"): (True, (0.05, 0.002)),
+        ("elbow1", "loose"): (False, (0.30, 0.100)),
+        ("shoulder", "frozen"): (True, (0.02, 0.004)),
+    }  # shoulder loose: the cell failed
+    records = {}
+    for run in runs:
+        f = sm.failure_of(run)
+        key = (f["joint"], f["kind"])
+        if key not in outcome:
+            records[run.id] = RunRecord(
+                id=run.id, index=run.index, params=run.params, digest=run.digest,
+                status="failed", error="CellTimeout: wall-time limit of 1 s exceeded",
+            )  # fmt: skip
+            continue
+        (tmp_path / run.id).mkdir()
+        data = _fake_study(f["joint"], f["t"], f["kind"], *outcome[key])
+        (tmp_path / run.id / "study.json").write_text(json.dumps(data))
+        records[run.id] = RunRecord(
+            id=run.id, index=run.index, params=run.params, digest=run.digest, status="ok",
+            files={"study.json": f"{run.id}/study.json"},
+        )  # fmt: skip
+    batch = BatchReport(out_dir=tmp_path, runs=runs, records=records)
+    summary = study_matrix_summary(sm, tmp_path, runs, batch)
+    hm = summary["heat_map"]
+    assert hm["joints"] == ["elbow1", "shoulder"] and hm["failure_times_s"] == [0.5]
+    assert hm["studied"] == [[2], [1]] and hm["recovered"] == [[1], [1]]
+    assert hm["recovery_rate"] == [[0.5], [1.0]]
+    assert hm["recovery_possible"] == [[1], [1]]
+    assert hm["reconfigured_final_task_error_m"] == [[pytest.approx(0.051)], [0.004]]
+    assert hm["failed_final_task_error_m"] == [[pytest.approx(0.175)], [0.02]]
+    assert len(hm["cells"][1][0]) == 2  # the failed cell is in its bin, not studied
+    c = summary["counts"]
+    assert (c["cells"], c["studied"], c["failed"], c["recovered"]) == (4, 3, 1, 2)
+    files = write_matrix_report(summary, tmp_path)
+    page = files["report.html"].read_text()
+    # no report.html in these cells: the links go to their study.json, labelled by the kind
+    for run in runs:
+        if run.id in records and records[run.id].status == "ok":
+            assert f'href="{run.id}/study.json">kind {sm.failure_of(run)["kind"]}</a>' in page
+    assert "CellTimeout: wall-time limit of 1 s exceeded" in page
+    assert "other parameters" in page and "1 cell failed" in page
+    svg = files[f"{HEAT_MAP}.svg"].read_text()
+    assert 'xlink:href="report.html#bin-0-0"' in svg and 'id="bin-0-0"' in page

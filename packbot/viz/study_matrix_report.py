@@ -121,10 +121,12 @@ def heat_map_figure(summary: Mapping[str, Any]) -> Figure:
                 value = hm[key][r][k]
                 if value is None:
                     face: Any = _EMPTY
-                    text = ("failed" if hm["studied"][r][k] == 0 else "") if ids else ""
+                    text = ("not studied" if hm["studied"][r][k] == 0 else "") if ids else ""
                 elif is_rate:
                     face = cmap(norm(value))
                     text = f"{hm['recovered'][r][k]}/{hm['studied'][r][k]}"
+                    if len(ids) > hm["studied"][r][k]:
+                        text += f"\n({len(ids) - hm['studied'][r][k]} not studied)"
                 else:
                     face = cmap(norm(1000.0 * value))
                     text = f"{1000.0 * value:.3g} mm"
@@ -232,14 +234,23 @@ def _hex(rgba: Sequence[float]) -> str:
     return "#" + "".join(f"{round(255 * c):02x}" for c in rgba[:3])
 
 
+def _count(n: int, noun: str) -> str:
+    return f"{n} {noun}{'' if n == 1 else 's'}"
+
+
 def _verdict(possible: bool | None) -> str:
     return {True: "possible", False: "not possible", None: "not assessed"}[possible]
 
 
-def _cell_label(cell: Mapping[str, Any], axis_keys: Sequence[str]) -> str:
-    """A cell's distinguishing parameters besides its joint and time (or its id's slug)."""
-    skip = {k for k in axis_keys if k.endswith((".joint", ".t"))}
-    extra = [f"{k.split('.')[-1]} {v}" for k, v in cell["params"].items() if k not in skip]
+def _other_params(cell: Mapping[str, Any], failure: str) -> dict[str, Any]:
+    """A cell's parameters besides the failed joint and the failure time (the heat map's)."""
+    skip = (f"{failure}.joint", f"{failure}.t")
+    return {k: v for k, v in cell["params"].items() if k not in skip}
+
+
+def _cell_label(cell: Mapping[str, Any], failure: str) -> str:
+    """A cell's link text: its other parameters, or "report"."""
+    extra = [f"{k.split('.')[-1]} {v}" for k, v in _other_params(cell, failure).items()]
     return ", ".join(extra) if extra else "report"
 
 
@@ -275,7 +286,8 @@ def matrix_page(summary: Mapping[str, Any], heat_map_png: bytes | None = None) -
     m, c = summary["matrix"], summary["counts"]
     tol_mm = 1000.0 * summary["tolerance_m"]
     cells = {cell["id"]: cell for cell in summary["cells"]}
-    axis_keys = list(summary["axes"])
+    failure = summary["failure"]
+    show_other = any(_other_params(cell, failure) for cell in summary["cells"])
     rate_cmap = colormaps[_RATE_CMAP]
 
     # the bins: one square per failed joint x failure time, its cells linked
@@ -309,7 +321,7 @@ def matrix_page(summary: Mapping[str, Any], heat_map_png: bytes | None = None) -
             for cid in ids:
                 cell = cells[cid]
                 target = cell["report"] or cell["study_json"]
-                label = esc(_cell_label(cell, axis_keys))
+                label = esc(_cell_label(cell, failure))
                 if target:
                     links.append(f'<a href="{esc(target)}">{label}</a>')
                 else:
@@ -326,7 +338,8 @@ def matrix_page(summary: Mapping[str, Any], heat_map_png: bytes | None = None) -
     # every cell
     crow = [
         "<tr><th>#</th><th>cell</th><th>failed joint</th><th>kind</th><th>failure time</th>"
-        "<th>other parameters</th><th>status</th><th>recovery</th><th>recovered</th>"
+        + ("<th>other parameters</th>" if show_other else "")
+        + "<th>status</th><th>recovery</th><th>recovered</th>"
         "<th>final error failed</th><th>final error reconfigured</th><th>detected at</th>"
         "<th>within tolerance from</th><th>why / error</th></tr>"
     ]
@@ -348,14 +361,14 @@ def matrix_page(summary: Mapping[str, Any], heat_map_png: bytes | None = None) -
         )
         r = joints.index(cell["joint"])
         k = times.index(cell["failure_time_s"])
-        skip = {key for key in axis_keys if key.endswith((".joint", ".t"))}
         other = ", ".join(
-            f"{key} = {json.dumps(v)}" for key, v in cell["params"].items() if key not in skip
+            f"{key} = {json.dumps(v)}" for key, v in _other_params(cell, failure).items()
         )
+        other_td = f"<td>{esc(other)}</td>" if show_other else ""
         crow.append(
             f'<tr id="cell-{name}"><td><a href="#bin-{r}-{k}">{cell["index"]}</a></td>'
             f"<td>{link}</td><td>{esc(str(cell['joint']))}</td><td>{esc(str(cell['kind']))}</td>"
-            f"<td>{cell['failure_time_s']:g} s</td><td>{esc(other)}</td>"
+            f"<td>{cell['failure_time_s']:g} s</td>{other_td}"
             f"<td>{esc(cell['status'])}</td>"
             f"<td>{_verdict(cell['recovery_possible']) if cell['status'] == 'ok' else '&mdash;'}"
             f"</td><td>{rec_text}</td><td>{_mm(failed)}</td><td>{_mm(reconf)}</td>"
@@ -370,11 +383,14 @@ def matrix_page(summary: Mapping[str, Any], heat_map_png: bytes | None = None) -
         for k, vs in summary["axes"].items()
     )
     missing = (
-        f" <b>{c['missing']} cells not studied yet</b> (rerun the same command to finish)."
+        f" <b>{_count(c['missing'], 'cell')} not studied yet</b> (rerun the same command to "
+        "finish)."
         if c["missing"]
         else ""
     )
-    failed_text = f" <b>{c['failed']} cells failed</b> (table below)." if c["failed"] else ""
+    failed_text = (
+        f" <b>{_count(c['failed'], 'cell')} failed</b> (table below)." if c["failed"] else ""
+    )
     body = f"""<h1>Failure study over a matrix: {esc(m["name"])}</h1>
 <p>{esc(m["description"])}<br>base scenario <b>{esc(m["base"])}</b>; axes: {axes}.<br>
 Each cell is a failure study (a healthy, a failed and a reconfigured run of {durations} s; the task
