@@ -11,6 +11,11 @@ directory::
     trajectories/<id>_events.csv
     summary.csv                 one row per run (and summary.parquet with pyarrow)
 
+A run function other than the default (:data:`Runner`, e.g. the failure study's cells of
+:mod:`packbot.study_matrix`) may name its files ``"<run id>/<name>"``: they go into the run's own
+folder ``<out>/<run id>/`` instead of ``trajectories/``; it may return named scalar results
+(``metrics``, written in the record and as columns of the summary) and no final state.
+
 Nothing finished is lost: each run's files, then its record, are written atomically (temporary
 file, then rename) by this process as soon as the run finishes; the record comes last, so a run
 counts as finished only when all its files are there. Each record holds the SHA-256 of each of
@@ -147,11 +152,14 @@ SINGLE_THREAD_ENV: Mapping[str, str] = {
 RunFiles = dict[str, tuple[str, bytes]]
 #: A run function: ``runner(run, progress) -> (quantities, files)``. ``progress`` must be called
 #: with the simulated time [s] now and then (it raises when the wall-time limit is exceeded);
-#: ``quantities`` are :class:`RunRecord` fields (see :func:`summarize`). Must be picklable (a
-#: module-level function) to run on workers.
+#: ``quantities`` are :class:`RunRecord` fields (see :func:`summarize`; without ``final_q`` the
+#: run is not checked for divergence). Files are named ``"<name>"`` (written to
+#: ``trajectories/``) or ``"<run id>/<name>"`` (the run's own folder). Must be picklable (a
+#: module-level function, or a ``functools.partial`` of one) to run on workers.
 Runner = Callable[[Run, Callable[[float], None]], tuple[dict[str, Any], RunFiles]]
 
 _FLOAT_FIELDS = ("rest_time", "min_distance", "energy_change", "t_end", "wall_time")
+_NON_FINITE = ("inf", "-inf", "nan")
 
 
 @dataclass(kw_only=True)
@@ -179,8 +187,12 @@ class RunRecord:
         t_end: Last simulated time [s].
         wall_time: Wall-clock time of the run, scenario building and saving included [s].
         worker: Where it ran: ``"main"``, ``"local:<pid>"`` or ``"dask:<address>"``.
-        files: Role -> path of the run's files, relative to the output directory.
+        files: Role -> path of the run's files, relative to the output directory
+            (``trajectories/<name>``, or ``<id>/<name>`` in the run's own folder).
         file_sha256: Role -> SHA-256 (hex) of that file's bytes.
+        metrics: Named scalar results of a run function other than the default (name ->
+            number, string, bool or None; e.g. a failure study's final task errors); written
+            only when there are some, so a simulation's record is unchanged.
 
     The record file also holds ``record_sha256``, the SHA-256 of the canonical JSON of the rest
     of the record (:func:`_record_bytes`): a resume reruns a run whose record does not match it.
@@ -208,6 +220,7 @@ class RunRecord:
     worker: str = ""
     files: dict[str, str] = field(default_factory=dict)
     file_sha256: dict[str, str] = field(default_factory=dict)
+    metrics: dict[str, Any] = field(default_factory=dict)
 
     def validate(self) -> None:
         """Raise :class:`ConfigurationError` naming the first inconsistent field."""
@@ -221,6 +234,13 @@ class RunRecord:
             raise ConfigurationError(
                 "event_times", self.event_times, "one time per entry of event_kinds"
             )
+        for key, value in self.metrics.items():
+            if not isinstance(key, str) or not (
+                value is None or isinstance(value, (str, bool, int, float))
+            ):
+                raise ConfigurationError(
+                    f"metrics.{key}", value, "a number, a string, a bool or None"
+                )
 
     def quantities(self) -> dict[str, Any]:
         """The deterministic part: what must be identical whenever and wherever the run is made.
@@ -234,7 +254,7 @@ class RunRecord:
 
     def to_json(self) -> dict[str, Any]:
         """The record as a JSON-ready dict (non-finite floats as ``"inf"``, ``"nan"``)."""
-        return {
+        out = {
             "format": RECORD_FORMAT,
             "id": self.id,
             "index": self.index,
@@ -259,6 +279,11 @@ class RunRecord:
             "files": dict(self.files),
             "file_sha256": dict(self.file_sha256),
         }
+        if self.metrics:
+            out["metrics"] = {
+                k: _enc(v) if isinstance(v, float) else v for k, v in self.metrics.items()
+            }
+        return out
 
     @classmethod
     def from_json(cls, data: Mapping[str, Any]) -> RunRecord:
@@ -299,6 +324,10 @@ class RunRecord:
                 worker=str(data.get("worker", "")),
                 files={str(k): str(v) for k, v in dict(data.get("files", {})).items()},
                 file_sha256={str(k): str(v) for k, v in dict(data.get("file_sha256", {})).items()},
+                metrics={
+                    str(k): _dec(v) if isinstance(v, str) and v in _NON_FINITE else v
+                    for k, v in dict(data.get("metrics", {})).items()
+                },
             )
         except (KeyError, TypeError, ValueError) as exc:
             raise ConfigurationError(
@@ -523,7 +552,7 @@ def execute(
         record.event_kinds = tuple(str(k) for k in record.event_kinds)
         record.validate()
         finite = [*record.final_q, record.energy_change]
-        if not all(math.isfinite(x) for x in finite):
+        if record.final_q and not all(math.isfinite(x) for x in finite):
             raise SimulationError("diverged: non-finite final state or energy", record.t_end)
     except Exception as exc:  # a failed run is recorded, and the batch goes on
         log.debug("run %s failed", run.id, exc_info=True)
@@ -573,7 +602,8 @@ def run_batch(
         ConfigurationError: A bad argument (names it), dask.distributed missing, an
             ``out_dir`` that cannot be created, or one that holds another matrix's runs
             (:func:`check_matrix`; nothing written); with the default runner, a run whose
-            scenario is bad (:func:`check_runs`; nothing run or written).
+            scenario is bad (:func:`check_runs`; nothing run or written), or a study matrix
+            (its ``[study]`` table: :mod:`packbot.study_matrix` runs those).
     """
     if workers is not None and (
         not isinstance(workers, int) or isinstance(workers, bool) or workers < 0
@@ -586,6 +616,13 @@ def run_batch(
     out = Path(out_dir)
     if out.exists() and not out.is_dir():
         raise ConfigurationError("out_dir", str(out), "a directory (this is a file)")
+    if matrix.study is not None and runner is scenario_runner:
+        raise ConfigurationError(
+            "matrix",
+            matrix.name,
+            "a matrix of simulations (this one has a [study] table: its cells are failure "
+            "studies, run by packbot.study_matrix.run_study_matrix or `packbot study`)",
+        )
     runs = list(matrix.runs() if runs is None else runs)
     if runner is scenario_runner:  # a bad value in the matrix is refused before anything runs
         check_runs(runs)
@@ -611,12 +648,14 @@ def _run_locked(
 ) -> BatchReport:
     """:func:`run_batch` once the folder is locked."""
     check_matrix(out, matrix)
-    for sub in ("runs", "trajectories"):
-        (out / sub).mkdir(parents=True, exist_ok=True)
+    runs = list(matrix.runs() if runs is None else runs)  # (given by run_batch)
+    if runner is scenario_runner:
+        (out / "trajectories").mkdir(exist_ok=True)
+    (out / "runs").mkdir(exist_ok=True)
+    for sub in ("runs", "trajectories", *(r.id for r in runs)):
         for stale in (out / sub).glob(".*.tmp"):  # left by a killed batch (none runs: locked)
             stale.unlink(missing_ok=True)
     write_matrix(out, matrix)
-    runs = list(matrix.runs() if runs is None else runs)  # (given by run_batch)
     report = BatchReport(out_dir=out, runs=runs, records={})
     todo: list[Run] = []
     old_files: dict[str, tuple[Path, ...]] = {}  # verified files of the runs to redo
@@ -1177,16 +1216,33 @@ def _store(out: Path, record: RunRecord, files: RunFiles) -> None:
     record.files = {}
     record.file_sha256 = {}
     for role, (name, data) in files.items():
-        if not _plain_name(name):
-            raise ConfigurationError(f"files.{role}", name, "a plain file name")
-        atomic_write(out / "trajectories" / name, data)
-        record.files[role] = f"trajectories/{name}"
+        rel = _file_path(record.id, name)
+        if rel is None:
+            raise ConfigurationError(
+                f"files.{role}", name, f"a plain file name, or {record.id}/<plain file name>"
+            )
+        (out / rel).parent.mkdir(parents=True, exist_ok=True)
+        atomic_write(out / rel, data)
+        record.files[role] = rel
         record.file_sha256[role] = hashlib.sha256(data).hexdigest()
     atomic_write(out / "runs" / f"{record.id}.json", _record_bytes(record))
 
 
 def _plain_name(name: str) -> bool:
     return bool(name) and Path(name).name == name and not name.startswith(".")
+
+
+def _file_path(rid: str, name: str) -> str | None:
+    """Where a run's file goes, relative to the output folder (None: a name not allowed).
+
+    A plain name goes to ``trajectories/<name>``; ``"<run id>/<name>"`` to the run's folder.
+    """
+    if _plain_name(name):
+        return f"trajectories/{name}"
+    folder, _, rest = name.partition("/")
+    if folder == rid and _plain_name(rest):
+        return name
+    return None
 
 
 def _record_bytes(record: RunRecord) -> bytes:
@@ -1257,8 +1313,17 @@ def _check_record(out: Path, run: Run) -> _Check:
     paths: list[Path] = []
     for role, rel in rec.files.items():
         parts = Path(rel).parts
-        if len(parts) != 2 or parts[0] != "trajectories" or not _plain_name(parts[1]):
-            return _Check(None, RERUN_EDITED, f"files.{role} = {rel!r} is not trajectories/<name>")
+        if (
+            len(parts) != 2
+            or parts[0] not in ("trajectories", run.id)
+            or not _plain_name(parts[1])
+            or rel != "/".join(parts)
+        ):
+            return _Check(
+                None,
+                RERUN_EDITED,
+                f"files.{role} = {rel!r} is not trajectories/<name> or {run.id}/<name>",
+            )
         if role not in rec.file_sha256:
             return _Check(None, RERUN_EDITED, f"no checksum of files.{role}")
         paths.append(out / rel)
@@ -1337,15 +1402,20 @@ def summary_rows(runs: Sequence[Run], records: Mapping[str, RunRecord]) -> list[
     Columns: ``id``, ``index``, the parameters (lists and tables as JSON), ``status``,
     ``q.<joint>`` [rad], ``rest_time`` [s], ``n_impacts``, ``n_limits``, ``n_events``,
     ``min_distance`` [m], ``energy_change`` [J], ``t_end`` [s], ``wall_time`` [s], ``worker``,
-    ``error``. Missing values are None.
+    ``error``; then ``metrics.<name>`` for each name of the records' :attr:`RunRecord.metrics`.
+    Records with metrics and none with a final state (a failure study's cells) have no
+    simulation columns (``q.<joint>`` to ``t_end``). Missing values are None.
     """
     param_names: list[str] = []
     joints: list[str] = []
+    metric_names: list[str] = []
     for run in runs:
         param_names += [k for k in run.params if k not in param_names]
         rec = records.get(run.id)
         if rec is not None:
             joints += [j for j in rec.joint_names if j not in joints]
+            metric_names += [k for k in rec.metrics if k not in metric_names]
+    simulation = bool(joints) or not metric_names
     rows = []
     for run in runs:
         rec = records.get(run.id)
@@ -1357,13 +1427,14 @@ def summary_rows(runs: Sequence[Run], records: Mapping[str, RunRecord]) -> list[
         q = dict(zip(rec.joint_names, rec.final_q, strict=True)) if rec is not None else {}
         for j in joints:
             row[f"q.{j}"] = q.get(j)
-        for key in ("rest_time", "n_impacts", "n_limits", "n_events", "min_distance"):
-            row[key] = None if rec is None or rec.status != "ok" else getattr(rec, key)
-        for key in ("energy_change", "t_end"):
+        keys = ("rest_time", "n_impacts", "n_limits", "n_events", "min_distance")
+        for key in (*keys, "energy_change", "t_end") if simulation else ():
             row[key] = None if rec is None or rec.status != "ok" else getattr(rec, key)
         row["wall_time"] = None if rec is None else rec.wall_time
         row["worker"] = None if rec is None else rec.worker
         row["error"] = None if rec is None else rec.error
+        for key in metric_names:
+            row[f"metrics.{key}"] = None if rec is None else rec.metrics.get(key)
         rows.append(row)
     return rows
 

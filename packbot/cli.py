@@ -727,12 +727,96 @@ def _cmd_regress(args: argparse.Namespace) -> int:
     return EXIT_FAILED if drift else EXIT_OK
 
 
+#: ``packbot study`` options for one scenario (a study matrix sets these in its file).
+_SCENARIO_STUDY_OPTIONS = {
+    "duration": "--duration",
+    "tolerance": "--tolerance",
+    "contact_mode": "--contact-mode",
+    "no_html": "--no-html",
+    "overwrite": "--overwrite",
+}
+#: ``packbot study`` options for a study matrix (its batch).
+_MATRIX_STUDY_OPTIONS = {
+    "workers": "--workers",
+    "scheduler": "--scheduler",
+    "timeout": "--timeout",
+    "no_progress": "--no-progress",
+}
+
+
+def _is_study_matrix(text: str) -> bool:
+    """Whether ``packbot study``'s argument is a matrix (a file with a base, or a matrix name).
+
+    A file is a matrix if its TOML has ``base``, ``axes`` or ``study`` (a scenario has none of
+    them); a name is a shipped scenario's first, else a shipped matrix's.
+    """
+    if sys.version_info >= (3, 11):
+        import tomllib
+    else:  # pragma: no cover
+        import tomli as tomllib
+
+    from packbot.matrix import matrix_names
+    from packbot.scenario import list_scenarios
+
+    path = Path(text)
+    if path.is_file():
+        try:
+            data = tomllib.loads(path.read_text(encoding="utf-8"))
+        except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError):
+            return False  # the scenario reader reports it
+        return any(k in data for k in ("base", "axes", "study"))
+    if path.parent != Path(".") or text in list_scenarios():
+        return False
+    return path.name.removesuffix(".toml") in matrix_names()
+
+
+def _cmd_study_matrix(args: argparse.Namespace) -> int:
+    from packbot.batch import ProgressBar
+    from packbot.study_matrix import load_study_matrix, run_study_matrix
+
+    for dest, flag in _SCENARIO_STUDY_OPTIONS.items():
+        if getattr(args, dest) not in (None, False):
+            raise _UsageError(
+                f"{flag} applies to one scenario: a study matrix sets it in its file ([set] "
+                'duration, "config.contact_mode"; [study] tolerance, html); its --out folder '
+                "is resumed"
+            )
+    matrix = load_study_matrix(args.scenario)
+    bar = None if args.no_progress else ProgressBar()
+    try:
+        report = run_study_matrix(
+            matrix,
+            args.out or f"out/{matrix.name}",
+            workers=args.workers,
+            scheduler=args.scheduler,
+            timeout=args.timeout,
+            progress=bar,
+        )
+    except KeyboardInterrupt:
+        _interrupted_line(
+            "interrupted: the finished cells are kept; rerun the same command to finish"
+        )
+        return EXIT_INTERRUPTED
+    print(f"study matrix {matrix.name}: {report.describe()}")
+    return EXIT_FAILED if report.batch.failed else EXIT_OK
+
+
 def _cmd_study(args: argparse.Namespace) -> int:
     from packbot.scenario import list_scenarios, load_scenario
-    from packbot.study import study
+    from packbot.study import DEFAULT_TOLERANCE, study
     from packbot.viz.study_report import write_study
 
+    if _is_study_matrix(args.scenario):
+        return _cmd_study_matrix(args)
+    for dest, flag in _MATRIX_STUDY_OPTIONS.items():
+        if getattr(args, dest) not in (None, False):
+            raise _UsageError(
+                f"{flag} applies to a study matrix (sims/matrices/ or a matrix file with "
+                f"[study]), not to one scenario ({args.scenario!r})"
+            )
     _duration(args.duration)
+    if args.tolerance is None:
+        args.tolerance = DEFAULT_TOLERANCE
     if not (math.isfinite(args.tolerance) and args.tolerance > 0):
         raise _UsageError(f"invalid --tolerance {args.tolerance}: expected a distance > 0 [m]")
     scenario = load_scenario(args.scenario)
@@ -887,23 +971,36 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--duration", type=float, default=None, help="simulated time [s] (5)")
     p.set_defaults(func=_cmd_collapse)
 
+    scheduler_help = "Dask scheduler SCHEME://HOST:PORT (e.g. tcp://127.0.0.1:8786), or 'local'"
     p = sub.add_parser(
         "study",
         help="failure study of a scenario with [[failures]]: healthy, failed and reconfigured "
-        "runs, study.json, figures and report.html",
+        "runs, study.json, figures and report.html; of a study matrix: one study per cell "
+        "(resumable, local pool or Dask) and the heat maps",
+        epilog="A study matrix (a matrix file with a [study] table, docs/study.md) writes "
+        "DIR/<cell>/ (each cell's study), DIR/report.html, DIR/study-matrix.json and "
+        "DIR/study_heat_map.png/svg; rerun to resume. Exit codes: 0 done; 1 a cell failed; "
+        "2 bad input; 130 Ctrl-C.",
     )
     p.add_argument(
-        "scenario", metavar="SCENARIO", help="scenario name (see `packbot list`) or path"
+        "scenario",
+        metavar="SCENARIO|MATRIX",
+        help="scenario name (see `packbot list`) or path; or a study matrix: a name in "
+        "sims/matrices/ or a matrix file with [study]",
     )
     p.add_argument(
-        "--out", type=_folder, default=None, help=out_help.format("./out/<scenario name>_study")
+        "--out",
+        type=_folder,
+        default=None,
+        help=out_help.format("./out/<scenario name>_study")
+        + "; a study matrix's: resumed if it exists (./out/<matrix name>)",
     )
     p.add_argument("--overwrite", action="store_true", help=overwrite_help)
     p.add_argument("--duration", type=float, default=None, help="simulated time [s] instead")
     p.add_argument(
         "--tolerance",
         type=float,
-        default=0.01,
+        default=None,
         help="recovery tolerance on the gripper's task error [m] (0.01)",
     )
     p.add_argument(
@@ -914,9 +1011,23 @@ def build_parser() -> argparse.ArgumentParser:
         "reported per run)",
     )
     p.add_argument("--no-html", action="store_true", help="no report.html (JSON and figures)")
+    p.add_argument(
+        "--workers", type=int, default=None, help="a matrix: processes (CPUs; 0: this one)"
+    )
+    p.add_argument(
+        "--scheduler",
+        "--dask",
+        dest="scheduler",
+        type=_scheduler,
+        default=None,
+        help="a matrix: " + scheduler_help,
+    )
+    p.add_argument(
+        "--timeout", type=float, default=None, help="a matrix: wall-time limit per cell [s]"
+    )
+    p.add_argument("--no-progress", action="store_true", help="a matrix: no progress bar")
     p.set_defaults(func=_cmd_study)
 
-    scheduler_help = "Dask scheduler SCHEME://HOST:PORT (e.g. tcp://127.0.0.1:8786), or 'local'"
     p = sub.add_parser(
         "batch",
         help="run a scenario matrix (sims/matrices/) in parallel; rerun to resume",

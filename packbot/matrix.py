@@ -26,6 +26,9 @@ sweep; every field of the scenario is addressed by its dotted name (``config.res
     [tolerances]                       # regression tolerances (see packbot.tolerances.Tolerances)
     q = 1e-6
 
+    [study]                            # a study matrix: each run is a failure study
+    tolerance = 0.01                   # (packbot.study_matrix.StudyOptions; docs/study.md)
+
 Keys may be quoted dotted names or TOML's bare dotted keys (``config.restitution = [...]``, which
 TOML reads as nested tables); both mean the same field. Tables are merged, never replaced: an
 override sets the leaves it names. A list index may address the next item of a list
@@ -36,8 +39,13 @@ their canonical JSON (sorted keys, no spaces). It depends on the parameters only
 axes or adding values to them keeps the ids of the existing runs. TOML's ``0`` and ``0.0`` are
 different values (an integer and a float) and give different ids.
 
+A ``[study]`` table makes it a *study matrix*: each run is a failure study of its scenario
+(:mod:`packbot.study_matrix`, ``packbot study MATRIX``); this module only checks that the table's
+values are JSON values (:mod:`packbot.study_matrix` checks its keys and values).
+
 A matrix's identity is its :meth:`Matrix.canonical` form (name, base, ``[set]``, the axes in
-their order, includes, excludes; not the description, the tolerances, comments or layout): a
+their order, includes, excludes, a ``[study]`` table; not the description, the tolerances,
+comments or layout): a
 batch folder holds the runs of one matrix, and :func:`packbot.batch.run_batch` refuses another.
 """
 
@@ -90,6 +98,7 @@ MATRIX_KEYS: tuple[str, ...] = (
     "include",
     "exclude",
     "tolerances",
+    "study",
 )
 
 #: Format tag of a matrix's canonical form (:meth:`Matrix.canonical`).
@@ -143,6 +152,9 @@ class Matrix:
             them is dropped.
         tolerances: Regression tolerances, name -> value (see
             :class:`packbot.tolerances.Tolerances`).
+        study: The ``[study]`` table of a study matrix (its cells are failure studies: see
+            :class:`packbot.study_matrix.StudyOptions`; an empty ``[study]`` table: the default
+            options); None for a matrix of simulations.
         path: The file it was read from, if any (a relative ``base`` is resolved beside it).
         source_text: The file's text.
     """
@@ -155,6 +167,7 @@ class Matrix:
     include: list[dict[str, Any]] = field(default_factory=list)
     exclude: list[dict[str, Any]] = field(default_factory=list)
     tolerances: dict[str, float] = field(default_factory=dict)
+    study: dict[str, Any] | None = None
     path: Path | None = None
     source_text: str = ""
 
@@ -195,6 +208,11 @@ class Matrix:
         if not isinstance(self.tolerances, dict):
             raise ConfigurationError("tolerances", self.tolerances, "a table")
         Tolerances.from_mapping(self.tolerances)  # known names, finite numbers >= 0 (no bools)
+        if self.study is not None:
+            if not isinstance(self.study, dict):
+                raise ConfigurationError("study", self.study, "a table")
+            for key, value in self.study.items():
+                _check_json(f"study.{key}", value)
         # Like [set] and the axes: values that the JSON of the run records can hold.
         for title, group in (("include", self.include), ("exclude", self.exclude)):
             for i, overrides in enumerate(group):
@@ -205,11 +223,12 @@ class Matrix:
         """What defines the matrix's runs, as a JSON-ready dict.
 
         The name, the base, ``[set]``, the axes in their order (it sets the runs' order), the
-        includes and the excludes. Not the description or the tolerances (they change no run),
-        nor the file's comments, layout or key quoting. Two matrices with the same canonical
-        form expand into the same runs over the same base scenario.
+        includes and the excludes; a study matrix's ``[study]`` table (only if it has one,
+        so a matrix of simulations keeps its identity). Not the description or the tolerances
+        (they change no run), nor the file's comments, layout or key quoting. Two matrices with
+        the same canonical form expand into the same runs over the same base scenario.
         """
-        return {
+        out: dict[str, Any] = {
             "format": MATRIX_FORMAT,
             "name": self.name,
             "base": self.base,
@@ -218,6 +237,9 @@ class Matrix:
             "include": [dict(sorted(t.items())) for t in self.include],
             "exclude": [dict(sorted(t.items())) for t in self.exclude],
         }
+        if self.study is not None:
+            out["study"] = dict(sorted(self.study.items()))
+        return out
 
     def content_digest(self) -> str:
         """SHA-256 (hex) of the canonical JSON of :meth:`canonical`."""
@@ -325,7 +347,7 @@ def parse_matrix(text: str, *, path: Path | None = None, default_name: str = "")
     for key in data:
         if key not in MATRIX_KEYS:
             raise UnknownNameError("matrix key", key, MATRIX_KEYS)
-    for key in ("set", "axes", "tolerances"):
+    for key in ("set", "axes", "tolerances", "study"):
         if key in data and not isinstance(data[key], dict):
             raise ConfigurationError(key, data[key], "a table")
     for key in ("include", "exclude"):
@@ -340,6 +362,7 @@ def parse_matrix(text: str, *, path: Path | None = None, default_name: str = "")
         include=[_flatten(t) if isinstance(t, dict) else t for t in data.get("include", [])],
         exclude=[_flatten(t) if isinstance(t, dict) else t for t in data.get("exclude", [])],
         tolerances=data.get("tolerances", {}),
+        study=data.get("study"),
         path=path,
         source_text=text,
     )

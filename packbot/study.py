@@ -392,6 +392,7 @@ def study(
     workspace_samples: int = 2000,
     seed: int = 0,
     progress: Callable[[str], None] | None = None,
+    step: Callable[[float], None] | None = None,
 ) -> StudyResult:
     """Run a failure study of a scenario with ``[[failures]]``: healthy, failed, reconfigured.
 
@@ -406,6 +407,10 @@ def study(
         workspace_samples: Samples of the frozen arm's workspace seeding the reach test.
         seed: Seed of the workspace sampler.
         progress: Called with a line of text as each step starts.
+        step: Called with the simulated time [s] after every accepted integration step of each
+            run (e.g. to enforce a wall-time limit). A :class:`SimulationError` it raises stops
+            that run (its status ``"error"``); any other :class:`PackbotError` stops the study
+            (it propagates).
 
     Returns:
         The three runs, their metrics, whether recovery is possible and, for a loose joint,
@@ -424,7 +429,7 @@ def study(
     cm = scenario.config.contact_mode if contact_mode is None else contact_mode
 
     say(f"{scenario.name}: healthy run")
-    healthy = _run(scenario, robot, "healthy", T, contact_mode, None)
+    healthy = _run(scenario, robot, "healthy", T, contact_mode, None, step)
     task_t = np.zeros(0)
     task_x = np.zeros((0, 3))
     if healthy.result is not None and healthy.status == "ok":
@@ -433,10 +438,10 @@ def study(
             _tool_path(robot, healthy.result),
         )
     say(f"{scenario.name}: failed run")
-    failed = _run(scenario, robot, "failed", T, contact_mode, None)
+    failed = _run(scenario, robot, "failed", T, contact_mode, None, step)
     say(f"{scenario.name}: reconfigured run")
     if len(task_t) >= 2:
-        reconf = _run(scenario, robot, "reconfigured", T, contact_mode, (task_t, task_x))
+        reconf = _run(scenario, robot, "reconfigured", T, contact_mode, (task_t, task_x), step)
     else:
         reconf = StudyRun(
             name="reconfigured",
@@ -490,6 +495,7 @@ def _run(
     T: float,
     contact_mode: str | None,
     task: tuple[FloatArray, FloatArray] | None,
+    step: Callable[[float], None] | None = None,
 ) -> StudyRun:
     """One run; a refusal (ConfigurationError) or a stop (SimulationError) becomes its status."""
     from packbot.control import build_controller
@@ -532,6 +538,8 @@ def _run(
             kwargs["failures"] = failures
         if scenario.payload is not None:
             kwargs["payload"] = scenario.payload
+        if step is not None:
+            kwargs["progress"] = step
         result = simulate(robot, q0, v0, T, **kwargs)
         result.scenario_text = scenario.source_text
     except ConfigurationError as exc:

@@ -51,6 +51,7 @@ PUBLIC_MODULES = {
     "packbot.control": "control.md",
     "packbot.analysis": "analysis.md",
     "packbot.study": "study.md",
+    "packbot.study_matrix": "study_matrix.md",
     "packbot.scenario": "scenario.md",
     "packbot.matrix": "matrix.md",
     "packbot.batch": "batch.md",
