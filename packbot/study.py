@@ -21,8 +21,8 @@ no stable equilibrium puts the gripper on the task. For a loose joint, :class:`L
 compares where the arm comes to rest with the equilibria :func:`packbot.analysis.
 loose_joint_equilibria` predicts for the other joints' final angles.
 
-A run the simulator refuses (a combination of contact mode and failure kind it does not solve
-yet, e.g. a brake with ``contact_mode="normal"``) or that stops with an error is reported with
+A run the simulator refuses (a combination of settings it does not solve, e.g. a hand-off
+scenario studied with ``contact_mode="normal"``) or that stops with an error is reported with
 its reason (``status`` ``"refused"`` or ``"error"``), not raised.
 
 This module computes; writing the report (JSON, figures, HTML) is :mod:`packbot.viz.study_report`.
