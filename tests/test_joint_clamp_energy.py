@@ -137,3 +137,21 @@ def test_rebounding_collapse_runs_and_its_clamps_do_no_work(robot, rule, clamp, 
     if rule == "momentum":
         assert gain <= 1e-9
     assert res.diagnostics.min_distance > -1e-6
+
+
+@pytest.mark.parametrize("e", [0.0, 0.5])
+def test_limit_stops_never_hold_a_joint_leaving_them(robot, e) -> None:
+    """The collapse without collisions, 1 s: the arm falls onto its limit stops. A stop's
+    clamp on a joint that an impulse turned away from it lets go at once, and a joint
+    bouncing off its stop that comes back is a new ``limit`` event (its impulse), not the old
+    stop found again at the step's start. Before, with e = 0.5, a stop held a leaving joint
+    for a whole step (+0.29 J) and elbow1 ended 3.8 mrad beyond its upper stop."""
+    cfg = packbot.SimConfig(contact_mode="none", restitution=e, locked_joints=WRIST)
+    res = packbot.simulate(robot, robot.poses["drive"], np.zeros(robot.nq), 1.0, config=cfg)
+    assert len(res.events_of("limit")) >= 3
+    assert max(_work_between_events(res)) < 1e-4
+    for e_ in res.events_of("limit"):
+        assert e_.energy_after <= e_.energy_before + 1e-9  # the stops' momentum impulse
+    upper = robot.model.upperPositionLimit[None, :]
+    lower = robot.model.lowerPositionLimit[None, :]
+    assert (res.q - upper).max() < 1e-8 and (lower - res.q).max() < 1e-8

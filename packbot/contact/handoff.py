@@ -53,7 +53,7 @@ from numpy.typing import NDArray
 
 from packbot.collision import PairInfo
 from packbot.contact.base import Active, Crossing, Key
-from packbot.contact.joint_clamp import STILL_SPEED, JointClampLaw
+from packbot.contact.joint_clamp import JointClampLaw
 from packbot.contact.lcp import lcp_residual, lemke, solve_lcp_psd
 from packbot.contact.locks import ACCEL_BAND, TORQUE_BAND
 from packbot.contact.normal import (
@@ -63,6 +63,7 @@ from packbot.contact.normal import (
     PatchEvents,
     _Eval,
 )
+from packbot.contact.stops import RECEDE_SPEED
 from packbot.ode import DenseSegment
 from packbot.system import System
 
@@ -439,7 +440,7 @@ class HandoffLaw(JointClampLaw, PatchEvents):
 
         The rule of the report's law (:mod:`packbot.contact.joint_clamp`: a clamp never does
         positive work) on the clamp rows of the mixed problem: an engaged row holds its joint at
-        a_j = 0, so on a joint moving away from its contact (s v_j < -STILL_SPEED) its torque
+        a_j = 0, so on a joint moving away from its contact (s v_j < -RECEDE_SPEED) its torque
         would do positive work. Such a clamp is released (a ``release`` naming the pair and the
         joint) until its joint turns.
         """
@@ -450,14 +451,13 @@ class HandoffLaw(JointClampLaw, PatchEvents):
             away = [
                 (key, cl)
                 for key, act in self.active.items()
-                if key[0] == "pair"
                 for cl in act.clamps
-                if cl in engaged and cl[1] * v[cl[0]] < -STILL_SPEED
+                if cl in engaged and cl[1] * v[cl[0]] < -RECEDE_SPEED
             ]
             if not away:
                 return
             for key, cl in away:
-                self._recede(t, y, key, cl)
+                self._let_go(t, y, key, cl)
             self.apply_clamps()
             mixed.select_modes(q, v, self.free_accel(t, y), self.sys.minv(q))
 

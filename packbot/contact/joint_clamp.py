@@ -152,11 +152,9 @@ class JointClampLaw(PairLaw):
         return out
 
     def _solve_engaged(self, t: float, y: FloatArray, minv: FloatArray, flip: int | None) -> None:
-        """The engaged set, with every pair clamp on a receding joint released (logged).
+        """The engaged set, released clamps whose joint an impulse stopped or turned back first.
 
-        A clamp (j, s) whose joint j the locks engage (or hold both ways) while it moves away
-        from the contact, ``s v_j < -STILL_SPEED``, would do positive work: it is released, and
-        the engaged set chosen again without it.
+        Then the base rule: an engaged clamp on a receding joint lets go (:meth:`_let_go`).
         """
         n = self.n
         q, v = y[:n], y[n : 2 * n]
@@ -172,23 +170,14 @@ class JointClampLaw(PairLaw):
             self.log_event(t, "engage", q, v, v, None, joints=(self.sys.names[cl[0]],), joint=cl[0])
         if back:
             self.locks.set_clamps(cl for a in self.active.values() for cl in a.clamps)
-        a_free = self.free_accel(t, y)
-        self.locks.solve_engaged(a_free, minv, flip=flip)
-        for _ in range(n + 1):
-            engaged = set(self.locks.engaged) - set(self.locks.held)
-            away = [
-                (key, cl)
-                for key, act in self.active.items()
-                if key[0] == "pair"
-                for cl in act.clamps
-                if cl[0] in engaged and cl[1] * v[cl[0]] < -STILL_SPEED
-            ]
-            if not away:
-                return
-            for key, cl in away:
-                self._recede(t, y, key, cl)
-            self.locks.set_clamps(cl for a in self.active.values() for cl in a.clamps)
-            self.locks.solve_engaged(a_free, minv, flip=flip)
+        super()._solve_engaged(t, y, minv, flip)
+
+    def _let_go(self, t: float, y: FloatArray, key: Key, clamp: tuple[int, int]) -> None:
+        """A pair's clamp on a receding joint is released until the joint turns."""
+        if key[0] == "pair":
+            self._recede(t, y, key, clamp)
+        else:
+            super()._let_go(t, y, key, clamp)
 
     def _recede(self, t: float, y: FloatArray, key: Key, clamp: tuple[int, int]) -> None:
         """Release clamp (j, s) of the active pair ``key``: its joint moves away (logged).

@@ -45,11 +45,21 @@ from packbot.recorder import EventLog
 from packbot.result import Diagnostics, Event
 from packbot.system import System
 
-__all__ = ["RETURN_DT", "STICK_SPEED", "JointStops", "impact_reset", "return_crossing"]
+__all__ = [
+    "RECEDE_SPEED",
+    "RETURN_DT",
+    "STICK_SPEED",
+    "JointStops",
+    "impact_reset",
+    "return_crossing",
+]
 
 FloatArray = NDArray[np.float64]
 #: Joint speed below which a joint with Coulomb friction counts as stopped (it may stick) [rad/s].
 STICK_SPEED = 1e-9
+#: A clamped joint moving away from its contact or stop faster than this [rad/s] is receding: an
+#: engaged clamp on it lets go (it would do positive work).
+RECEDE_SPEED = 1e-9
 #: Resolution [s] of :func:`return_crossing`'s search (the event loop locates events to 1e-10 s).
 RETURN_DT = 1e-10
 
@@ -441,10 +451,36 @@ class JointStops:
     def _solve_engaged(self, t: float, y: FloatArray, minv: FloatArray, flip: int | None) -> None:
         """Choose the engaged clamps at (t, y) (the locks' complementarity problem).
 
-        A hook: the report's law releases here the clamps that would hold a receding joint
-        (:class:`~packbot.contact.joint_clamp.JointClampLaw`: a clamp never does positive work).
+        A clamp never does positive work: an engaged clamp holds its joint at a_j = 0 with a
+        torque pushing away from its contact or stop, so on a joint moving away from it
+        (``s v_j < -RECEDE_SPEED``, after a rebound or an impulse on the joints it is coupled
+        to) it would keep that speed against the forces that slow it. Such a clamp lets go
+        (:meth:`_let_go`: a limit stop is released, its joint's return is a new ``limit``
+        event) and the engaged set is chosen again without it.
         """
-        self.locks.solve_engaged(self.free_accel(t, y), minv, flip=flip)
+        n = self.n
+        v = y[n : 2 * n]
+        a_free = self.free_accel(t, y)
+        self.locks.solve_engaged(a_free, minv, flip=flip)
+        for _ in range(n + 1):
+            engaged = set(self.locks.engaged) - set(self.locks.held)
+            away = [
+                (key, cl)
+                for key, act in self.active.items()
+                for cl in act.clamps
+                if cl[0] in engaged and cl[1] * v[cl[0]] < -RECEDE_SPEED
+            ]
+            if not away:
+                return
+            for key, cl in away:
+                self._let_go(t, y, key, cl)
+            self.locks.set_clamps(cl for a in self.active.values() for cl in a.clamps)
+            self.locks.solve_engaged(a_free, minv, flip=flip)
+
+    def _let_go(self, t: float, y: FloatArray, key: Key, clamp: tuple[int, int]) -> None:
+        """An engaged clamp on a receding joint lets go: a limit stop is released (logged)."""
+        if key[0] == "limit" and key in self.active:
+            self._release_limit(t, y, key[1], key[2])
 
     # ------------------------------------------------------------------ stops
     def reset(
@@ -529,32 +565,37 @@ class JointStops:
 
     def release_limits(self, t: float, y: FloatArray) -> None:
         """Limit stops let go when the joint has left the stop (moving away)."""
-        n = self.n
         for key in [k for k in self.active if k[0] == "limit"]:
             _, j, side = key
             lim = self.sys.upper[j] if side > 0 else self.sys.lower[j]
             # Left the stop (an engaged lock would keep a receding joint's speed: work done).
             held = self._limit_held(j, side)
             if side * (lim - y[j]) > 1e-6 and not held:
-                self._drop_limit(j, side)
-                self.active.pop(key)
-                energy = self.energy(y[:n], y[n : 2 * n])
-                self.events.log(
-                    Event(
-                        t,
-                        "release",
-                        self.sys.names[j],
-                        "upper" if side > 0 else "lower",
-                        distance=float(side * (lim - y[j])),
-                        relevant_joints=(self.sys.names[j],),
-                        v_before=self.sys.v_full(y[n : 2 * n]),
-                        v_after=self.sys.v_full(y[n : 2 * n]),
-                        energy_before=energy,
-                        energy_after=energy,
-                    ),
-                    count=False,
-                )
+                self._release_limit(t, y, j, side)
                 self.apply_clamps()
+
+    def _release_limit(self, t: float, y: FloatArray, j: int, side: int) -> None:
+        """Drop the stop of joint j (side +1 upper, -1 lower); a ``release`` event."""
+        n = self.n
+        lim = self.sys.upper[j] if side > 0 else self.sys.lower[j]
+        self._drop_limit(j, side)
+        self.active.pop(("limit", j, side))
+        energy = self.energy(y[:n], y[n : 2 * n])
+        self.events.log(
+            Event(
+                t,
+                "release",
+                self.sys.names[j],
+                "upper" if side > 0 else "lower",
+                distance=float(side * (lim - y[j])),
+                relevant_joints=(self.sys.names[j],),
+                v_before=self.sys.v_full(y[n : 2 * n]),
+                v_after=self.sys.v_full(y[n : 2 * n]),
+                energy_before=energy,
+                energy_after=energy,
+            ),
+            count=False,
+        )
 
     def log_event(
         self,
