@@ -23,14 +23,22 @@ Clamp directions (the direction in which a clamped joint may not accelerate):
 
 A clamp never does positive work. An engaged clamp holds its joint at a_j = 0 with a torque
 lambda_j that pushes away from the contact (s_j lambda_j <= 0); if the joint is then moving
-*away* from the contact (s_j v_j < 0: after a rebound, e > 0, or a free clamped joint that drifted
-away and turns back), the lock would keep that speed and its power lambda_j v_j would be
-positive: the joint climbs against gravity. So a clamp whose joint recedes
-(``s_j v_j < -STILL_SPEED``) is not engaged: it is *released* (a ``release`` event naming the
-joint; the pair stays active) whenever the locks' engaged set is chosen. It comes back into
-force when its joint turns toward the contact again (``s_j v_j`` through 0: an ``engage`` event,
-at zero speed, where the lock does no work), unless the pair has separated beyond the proximity
-tolerance first. The same rule as a limit stop's: a joint bouncing off its stop is not clamped.
+*away* from the contact (s_j v_j < 0: after a rebound, e > 0, or an impulse on the joints it is
+coupled to), the lock would keep that speed and its power lambda_j v_j would be positive: the
+joint climbs against gravity (a shoulder dropped on the floor with e = 1 gained 0.37 J in 1.5 s).
+So whenever the locks' engaged set is chosen, an engaged clamp on a receding joint
+(``s_j v_j < -RECEDE_SPEED``) is *released* (a ``release`` event naming the pair and, in
+``relevant_joints``, the joint; the pair stays active) and the set chosen again
+(:meth:`~packbot.contact.stops.JointStops._solve_engaged`). It comes back into force when its
+joint turns toward the contact again (``s_j v_j`` through 0: an ``engage`` event, at zero speed,
+where the lock does no work), unless the pair has separated beyond the proximity tolerance
+first; a pair whose clamps are all released that comes back to the contact tolerance is an
+``impact`` again. The same rule as a limit stop's: a joint leaving its stop is not clamped.
+
+A pair restarted at d = 0 exactly (a secondary intersection located on its event side: Coal's
+distance of touching pieces) that rebounds is not found again at the step's start: its next
+``secondary_intersection`` is its return to d = 0, approaching, where the law applies its reset
+(:func:`~packbot.contact.stops.return_crossing`).
 """
 
 from __future__ import annotations
