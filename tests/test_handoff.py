@@ -281,3 +281,29 @@ def test_released_pair_comes_back_under_the_report_law(robot, collapse_runs):
         returned += 1
     assert returned, "no handed-off pair came back"
     assert res.diagnostics.min_distance > -1.01 * PENETRATION_TOL
+
+
+def test_clamp_rows_never_do_positive_work(robot):
+    """A clamp never does positive work, as a row of the hand-off problem too: the collapse
+    with the ``jacobian`` rule, e = 0.5, mu = 0.5, 3 s, a pair handed off from 0.971 s. An
+    engaged clamp row on a joint moving away from its contact is released (a ``release`` naming
+    the joint). Held as a locked row, elbow1 kept +1.21 rad/s for 0.43 s from 2.003 s (+1.86 J)
+    and the run gained up to +8.0 J between two events; what is left is the normal mode's
+    re-patching of the sliding handed-off pair (a few mJ)."""
+    cfg = packbot.SimConfig(
+        locked_joints=WRIST,
+        reset_rule="momentum",
+        restitution=0.5,
+        mu=0.5,
+        clamp_rule="jacobian",
+        handoff=True,
+    )
+    res = packbot.simulate(robot, robot.pose("drive"), np.zeros(8), 3.0, config=cfg)
+    assert res.events_of("handoff")
+    assert [e for e in res.events_of("release") if e.relevant_joints and e.piece1]
+    work, prev, t_prev = [], res.energy[0], 0.0
+    for e in res.events:
+        if e.t > t_prev:
+            work.append(e.energy_before - prev)
+        prev, t_prev = e.energy_after, e.t
+    assert max(work) < 0.01, max(work)
