@@ -60,11 +60,14 @@ EventKind = Literal[
 EVENT_KINDS: tuple[str, ...] = (
     "impact",  # a pair's signed distance fell to the contact tolerance: impact law applied
     "limit",  # a joint reached a position limit: the same impact law and clamp
-    "release",  # an active contact or limit stop let go (separated, or its clamp would pull)
+    "release",  # an active contact or limit stop let go (separated, or its clamp would pull);
+    # with relevant_joints: the clamp of that joint let go (the report's law: the joint moves
+    # away from the contact, a clamp would do positive work), the pair stays in contact
     "secondary_intersection",  # an active, clamped pair penetrated anyway (report's self-diagnosis)
     "handoff",  # the same with SimConfig.handoff: its clamps released, the pair handed to the
     # contact-normal machinery (velocities before/after its restart's impulse)
-    "engage",  # a clamped joint started to accelerate toward its contact: its lock engaged
+    "engage",  # a clamped joint started to accelerate toward its contact: its lock engaged;
+    # or a released clamp's joint turned toward its contact: the clamp is back in force
     "disengage",  # a locked joint's constraint torque would pull: its lock let go
     "slip",  # a joint held by static friction or a brake needed more than its holding torque;
     # normal mode: a sticking contact's friction force reached the cone (link1/link2: the pair)

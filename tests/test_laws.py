@@ -175,11 +175,11 @@ def test_the_hand_off_law_hands_a_penetrating_clamped_pair_over(robot):
         contact_mode="joint_clamp",
         locked_joints=WRIST,
         reset_rule="momentum",
-        restitution=0.3,
+        restitution=0.5,
         mu=0.5,
         handoff=True,
     )
-    res = packbot.simulate(robot, robot.pose("drive"), np.zeros(8), 1.7, config=cfg)
+    res = packbot.simulate(robot, robot.pose("drive"), np.zeros(8), 0.8, config=cfg)
     (h, *_) = res.events_of("handoff")
     law, sys, events = _law(robot, cfg, robot.pose("drive"))
     y, _ = _state(sys, res, h.t)

@@ -104,9 +104,11 @@ def test_contact_spans_follow_the_event_log(collapse: packbot.SimResult) -> None
         assert s.end == collapse.t[-1]
     # A release closes its pair's span; a later impact of the pair opens a new one.
     e0 = impacts[0]
-    rel = dataclasses.replace(e0, t=e0.t + 0.05, kind="release")
+    rel = dataclasses.replace(e0, t=e0.t + 0.05, kind="release", relevant_joints=())
     again = dataclasses.replace(e0, t=e0.t + 0.1)
-    events: list[Event] = sorted([*collapse.events, rel, again], key=lambda e: e.t)
+    # a clamp's release (it names its joint) leaves the pair in contact: it ends no span
+    clamp = dataclasses.replace(e0, t=e0.t + 0.02, kind="release", relevant_joints=("elbow1",))
+    events: list[Event] = sorted([*collapse.events, clamp, rel, again], key=lambda e: e.t)
     spans2 = [s for s in contact_spans(dataclasses.replace(collapse, events=events))]
     mine = [s for s in spans2 if s.key == (e0.link1, e0.link2, e0.piece1, e0.piece2)]
     assert [(s.start, s.end) for s in mine] == [

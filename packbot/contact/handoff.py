@@ -63,6 +63,7 @@ from packbot.contact.normal import (
     PatchEvents,
     _Eval,
 )
+from packbot.contact.stops import RECEDE_SPEED
 from packbot.ode import DenseSegment
 from packbot.system import System
 
@@ -431,6 +432,34 @@ class HandoffLaw(JointClampLaw, PatchEvents):
         if not mixed.pairs:  # the refresh dropped the last pair: the locks take the clamps
             self.apply_clamps()
             self.settle_modes(t, np.concatenate([q, v, tail]))
+            return
+        self._release_receding_rows(t, y)
+
+    def _release_receding_rows(self, t: float, y: FloatArray) -> None:
+        """Engaged clamp rows on receding joints released, the modes selected again (logged).
+
+        The rule of the report's law (:mod:`packbot.contact.joint_clamp`: a clamp never does
+        positive work) on the clamp rows of the mixed problem: an engaged row holds its joint at
+        a_j = 0, so on a joint moving away from its contact (s v_j < -RECEDE_SPEED) its torque
+        would do positive work. Such a clamp is released (a ``release`` naming the pair and the
+        joint) until its joint turns.
+        """
+        n, mixed = self.n, self.mixed
+        q, v = y[:n], y[n : 2 * n]
+        for _ in range(n + 1):
+            engaged = {cl for r in mixed.engaged if (cl := mixed.clamp_of_row(r)) is not None}
+            away = [
+                (key, cl)
+                for key, act in self.active.items()
+                for cl in act.clamps
+                if cl in engaged and cl[1] * v[cl[0]] < -RECEDE_SPEED
+            ]
+            if not away:
+                return
+            for key, cl in away:
+                self._let_go(t, y, key, cl)
+            self.apply_clamps()
+            mixed.select_modes(q, v, self.free_accel(t, y), self.sys.minv(q))
 
     def _handle(self, t: float, y: FloatArray, crossings: Sequence[Crossing]) -> FloatArray:
         """Events with a handed-off pair in contact, or at a secondary intersection.
@@ -505,4 +534,6 @@ class HandoffLaw(JointClampLaw, PatchEvents):
             if any(me.kind == k and me.pair == i for k, i, _, _, _ in logged):
                 continue
             self.log_event(t, me.kind, q, v_new, v_new, me.pair)
-        return np.concatenate([q, v_new, tail])
+        y_new = np.concatenate([q, v_new, tail])
+        self._release_receding_rows(t, y_new)
+        return y_new

@@ -30,7 +30,7 @@ Velocity reset of an impact or a stop, on the acted joints R (e = restitution):
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
 import numpy as np
 from numpy.typing import NDArray
@@ -45,11 +45,58 @@ from packbot.recorder import EventLog
 from packbot.result import Diagnostics, Event
 from packbot.system import System
 
-__all__ = ["STICK_SPEED", "JointStops", "impact_reset"]
+__all__ = [
+    "RECEDE_SPEED",
+    "RETURN_DT",
+    "STICK_SPEED",
+    "JointStops",
+    "impact_reset",
+    "return_crossing",
+]
 
 FloatArray = NDArray[np.float64]
 #: Joint speed below which a joint with Coulomb friction counts as stopped (it may stick) [rad/s].
 STICK_SPEED = 1e-9
+#: A clamped joint moving away from its contact or stop faster than this [rad/s] is receding: an
+#: engaged clamp on it lets go (it would do positive work).
+RECEDE_SPEED = 1e-9
+#: Resolution [s] of :func:`return_crossing`'s search (the event loop locates events to 1e-10 s).
+RETURN_DT = 1e-10
+
+
+def return_crossing(
+    g: Callable[[float], float], t0: float, t1: float
+) -> tuple[Callable[[float], float], float] | None:
+    """An event function that starts a step on its event side: the event is its return.
+
+    A step that restarts on an event (a stop or a contact surface just reached, g(t0) <= 0: the
+    event loop locates events on their event side) may leave it first: a joint bouncing off its
+    stop, a pair rebounding from d = 0. The event of that step is then the function's *return*
+    to zero, not its value at t0. This looks for a time t_m in (t0, t1) with g(t_m) > 0 by
+    halving the step from its start (down to ``RETURN_DT``).
+
+    Args:
+        g: The event function on the step's dense output.
+        t0: The step's start [s].
+        t1: The step's end [s].
+
+    Returns:
+        ``(g_late, g(t_m))`` with ``g_late(t) = g(max(t, t_m))`` (positive up to t_m, so the
+        loop's root finding on [t0, t1] finds the return), or None if g is not positive that
+        close to t0 (it goes on to the event side at once: the event is at t0).
+    """
+    h = t1 - t0
+    while h > RETURN_DT:
+        h *= 0.5
+        t_m = t0 + h
+        g_m = g(t_m)
+        if g_m > 0.0:
+
+            def g_late(t: float, t_m: float = t_m) -> float:
+                return g(max(t, t_m))
+
+            return g_late, g_m
+    return None
 
 
 def impact_reset(
@@ -266,8 +313,11 @@ class JointStops:
             def g(t: float, j: int = j, side: int = side, lim: float = lim) -> float:
                 return float(side * (lim - seg(t)[j]))
 
+            fn: Callable[[float], float] = g
             g0 = side * (lim - seg.y0[j])
-            out.append(Crossing("limit", ("limit", j, side), g, g0, side * (lim - q1[j])))
+            if g0 <= 0.0 and (late := return_crossing(g, seg.t0, seg.t1)) is not None:
+                fn, g0 = late  # it left the stop (a bounce): the event is its return
+            out.append(Crossing("limit", ("limit", j, side), fn, g0, side * (lim - q1[j])))
         return out
 
     def _hold_crossings(self, seg: DenseSegment, y1: FloatArray) -> list[Crossing]:
@@ -409,30 +459,69 @@ class JointStops:
     def _solve_engaged(self, t: float, y: FloatArray, minv: FloatArray, flip: int | None) -> None:
         """Choose the engaged clamps at (t, y) (the locks' complementarity problem).
 
-        A hook: a law may release clamps here (issue 16, item 4: a clamp holding a receding
-        joint does positive work; /work/notes/issue16-item4-clamp-release.patch).
+        A clamp never does positive work: an engaged clamp holds its joint at a_j = 0 with a
+        torque pushing away from its contact or stop, so on a joint moving away from it
+        (``s v_j < -RECEDE_SPEED``, after a rebound or an impulse on the joints it is coupled
+        to) it would keep that speed against the forces that slow it. Such a clamp lets go
+        (:meth:`_let_go`: a limit stop is released, its joint's return is a new ``limit``
+        event) and the engaged set is chosen again without it.
         """
-        self.locks.solve_engaged(self.free_accel(t, y), minv, flip=flip)
+        n = self.n
+        v = y[n : 2 * n]
+        a_free = self.free_accel(t, y)
+        self.locks.solve_engaged(a_free, minv, flip=flip)
+        for _ in range(n + 1):
+            engaged = set(self.locks.engaged) - set(self.locks.held)
+            away = [
+                (key, cl)
+                for key, act in self.active.items()
+                for cl in act.clamps
+                if cl[0] in engaged and cl[1] * v[cl[0]] < -RECEDE_SPEED
+            ]
+            if not away:
+                return
+            for key, cl in away:
+                self._let_go(t, y, key, cl)
+            self.locks.set_clamps(cl for a in self.active.values() for cl in a.clamps)
+            self.locks.solve_engaged(a_free, minv, flip=flip)
+
+    def _let_go(self, t: float, y: FloatArray, key: Key, clamp: tuple[int, int]) -> None:
+        """An engaged clamp on a receding joint lets go: a limit stop is released (logged)."""
+        if key[0] == "limit" and key in self.active:
+            self._release_limit(t, y, key[1], key[2])
 
     # ------------------------------------------------------------------ stops
     def reset(
-        self, q: FloatArray, v: FloatArray, rel: NDArray[np.intp], rule: str | None = None
+        self,
+        q: FloatArray,
+        v: FloatArray,
+        rel: NDArray[np.intp],
+        rule: str | None = None,
+        restitution: float | None = None,
     ) -> tuple[FloatArray, NDArray[np.intp]]:
         """Apply the reset rule on ``rel``, widened where it would push a clamped joint.
 
         The widening takes in every clamped joint that the impulse would set moving toward its
         own contact: one simultaneous impact, not a cascade of secondary ones.
 
+        Args:
+            q: Configuration.
+            v: Velocities before [rad/s].
+            rel: The joints to act on.
+            rule: ``"zero"`` or ``"momentum"``; default ``SimConfig.reset_rule``.
+            restitution: e in [0, 1]; default ``SimConfig.restitution``.
+
         Returns:
             The new velocities and the joints acted on.
         """
         cfg = self.cfg
         rule = cfg.reset_rule if rule is None else rule
+        e = cfg.restitution if restitution is None else restitution
         minv = self.sys.minv(q) if rule == "momentum" else None
         acted = np.array(sorted(set(rel.tolist())), dtype=np.intp)
         clamps = self._widening_clamps()
         for _ in range(self.n + 1):
-            v_new = impact_reset(v, acted, cfg.restitution, rule, minv)
+            v_new = impact_reset(v, acted, e, rule, minv)
             tiny = 1e-12 * (1.0 + float(np.abs(v).max()))
             more = {j for j, s in clamps if s * v_new[j] > tiny and j not in set(acted.tolist())}
             if not more:
@@ -455,6 +544,11 @@ class JointStops:
             v_new, acted = self.reset(q, v, np.array([j]), rule="momentum")
             if side * v_new[j] < 0.0:  # it bounced (e > 0): it leaves the stop, nothing to clamp
                 self.active.pop(("limit", j, side))
+        elif side * v[j] < 0.0:
+            # On its stop and leaving it, but too slowly to get off it (the step restarted here
+            # found no time with the joint off the stop: the accumulation point of its bounces):
+            # it comes to rest on the stop, the clamp then holds it at zero speed (no work).
+            v_new, acted = self.reset(q, v, np.array([j]), rule="momentum", restitution=0.0)
         lim = self.sys.upper[j] if side > 0 else self.sys.lower[j]
         ev_before, ev_after = self.energy(q, v), self.energy(q, v_new)
         self.note_reset(ev_before, ev_after)
@@ -479,32 +573,37 @@ class JointStops:
 
     def release_limits(self, t: float, y: FloatArray) -> None:
         """Limit stops let go when the joint has left the stop (moving away)."""
-        n = self.n
         for key in [k for k in self.active if k[0] == "limit"]:
             _, j, side = key
             lim = self.sys.upper[j] if side > 0 else self.sys.lower[j]
             # Left the stop (an engaged lock would keep a receding joint's speed: work done).
             held = self._limit_held(j, side)
             if side * (lim - y[j]) > 1e-6 and not held:
-                self._drop_limit(j, side)
-                self.active.pop(key)
-                energy = self.energy(y[:n], y[n : 2 * n])
-                self.events.log(
-                    Event(
-                        t,
-                        "release",
-                        self.sys.names[j],
-                        "upper" if side > 0 else "lower",
-                        distance=float(side * (lim - y[j])),
-                        relevant_joints=(self.sys.names[j],),
-                        v_before=self.sys.v_full(y[n : 2 * n]),
-                        v_after=self.sys.v_full(y[n : 2 * n]),
-                        energy_before=energy,
-                        energy_after=energy,
-                    ),
-                    count=False,
-                )
+                self._release_limit(t, y, j, side)
                 self.apply_clamps()
+
+    def _release_limit(self, t: float, y: FloatArray, j: int, side: int) -> None:
+        """Drop the stop of joint j (side +1 upper, -1 lower); a ``release`` event."""
+        n = self.n
+        lim = self.sys.upper[j] if side > 0 else self.sys.lower[j]
+        self._drop_limit(j, side)
+        self.active.pop(("limit", j, side))
+        energy = self.energy(y[:n], y[n : 2 * n])
+        self.events.log(
+            Event(
+                t,
+                "release",
+                self.sys.names[j],
+                "upper" if side > 0 else "lower",
+                distance=float(side * (lim - y[j])),
+                relevant_joints=(self.sys.names[j],),
+                v_before=self.sys.v_full(y[n : 2 * n]),
+                v_after=self.sys.v_full(y[n : 2 * n]),
+                energy_before=energy,
+                energy_after=energy,
+            ),
+            count=False,
+        )
 
     def log_event(
         self,

@@ -40,7 +40,8 @@ def contact_spans(result: SimResult) -> list[ContactSpan]:
     """The contact spans of a result's event log, in order of start.
 
     Each runs from an ``impact`` of a pair of pieces to the next ``release`` of that pair, or
-    to the end of the result.
+    to the end of the result. A ``release`` that names joints is a clamp's (the report's law
+    released the clamp of a joint moving away; the pair stays in contact): it ends no span.
     """
     end = float(result.t[-1]) if len(result.t) else 0.0
     open_: dict[tuple[str, str, str, str], float] = {}
@@ -49,7 +50,7 @@ def contact_spans(result: SimResult) -> list[ContactSpan]:
         key = (e.link1, e.link2, e.piece1, e.piece2)
         if e.kind == "impact" and e.piece1 and e.piece2:
             open_.setdefault(key, e.t)
-        elif e.kind == "release" and key in open_:
+        elif e.kind == "release" and key in open_ and not e.relevant_joints:
             spans.append(ContactSpan(*key, start=open_.pop(key), end=e.t))
     spans += [ContactSpan(*key, start=t, end=end) for key, t in open_.items()]
     return sorted(spans, key=lambda s: s.start)
