@@ -95,8 +95,10 @@ STEP_ANGLE = 5e-3
 ACTIVE_GAP = 1e-4
 #: Joints closer than this (plus the step's travel) to a limit take part [rad].
 LIMIT_GAP = 1e-4
-#: A step that leaves a pair deeper than this is projected out [m].
+#: A step that leaves a pair deeper than this is projected out [m], in up to PROJECT_PASSES
+#: passes (each from patches at the corrected q: a curved piece's contact point moves).
 PROJECT_DEPTH = 5e-6
+PROJECT_PASSES = 3
 #: The law leaves a window once a step's signature has held this many steps.
 QUIET_STEPS = 20
 #: A contact point pushes when its normal impulse exceeds this [N*s] (signatures).
@@ -252,19 +254,22 @@ class MoreauJeanStepper:
 
         projected = False
         world = contacts.world
-        if world is not None:
+        for _ in range(PROJECT_PASSES if world is not None else 0):
+            assert world is not None
             sw = world.sweep(q1, margin=PROJECT_DEPTH)
             deep = [
                 int(k)
                 for k, d in zip(sw.pairs.tolist(), sw.distances.tolist(), strict=True)
                 if d < -PROJECT_DEPTH
             ]
-            if deep:
-                contacts.refresh(q1)
-                for k in deep:
-                    contacts.add_pair(q1, k)
-                q1 = contacts.project(q1, v1, sys.minv(q1))
-                projected = True
+            if not deep:
+                break
+            # patches at q1 (a curved piece's contact moves): a pass corrects to first order
+            contacts.refresh(q1)
+            for k in deep:
+                contacts.add_pair(q1, k)
+            q1 = contacts.project(q1, v1, sys.minv(q1))
+            projected = True
 
         # the energy guard
         e0 = energy(q, v)
