@@ -17,7 +17,7 @@ import packbot
 from packbot.contact import normal as normal_mod
 from packbot.contact.lcp import box_residual, solve_mixed_admm
 from packbot.contact.normal import PENETRATION_TOL
-from packbot.contact.timestep import WINDOW_STEP, StepSegment
+from packbot.contact.timestep import WINDOW_STEP, MoreauJeanStepper, StepSegment
 from tests.test_normal_cascade import GAIN_TOL, start_pose
 
 LOCKED = ["camera_tilt", "camera_pan", "gripper_roll", "gripper_jaw"]
@@ -154,14 +154,15 @@ def test_a_brake_holds_its_joint_in_the_contact_normal_mode(robot):
     assert abs(res.q[-1, s] - res.q[0, s]) > 0.1
 
 
-@pytest.mark.parametrize(("start", "duration"), [(6, 0.8), (1, 0.5)])
+@pytest.mark.parametrize(("start", "duration"), [(1, 0.5), (23, 0.62)])
 def test_frictionless_windows_stay_out_and_remove_little_energy(robot, start, duration):
-    """mu = 0, wrist free: two steps that went wrong before their fixes.
+    """mu = 0, wrist free: steps that went wrong before their fixes.
 
-    Start 6 at 0.66 s: an unconverged ADMM answer (residual 5e-3) turned 11 rad/s into
-    30 rad/s and the energy guard removed 6.7 J; such an answer is no longer used (a retry,
-    then the frictionless rows alone). Start 1 at 0.43 s: the wrist spinning at 36 rad/s left
+    Start 1 at 0.43 s: the wrist spinning at 36 rad/s left
     21 um of penetration after 0.5 ms steps; a step now turns no body more than STEP_ANGLE.
+    Start 23 at 0.61 s: Coal's patch of the camera head 24 um into link 1's tube put its points
+    33 mm deep and 12 mm out, and the arm sank 1.4 mm; such a patch is now replaced by the
+    witness point (NormalContacts.add_pair).
     """
     q0 = start_pose(robot, start)
     cfg = packbot.SimConfig(contact_mode="normal", mu=0.0, restitution=0.0)
@@ -171,3 +172,42 @@ def test_frictionless_windows_stay_out_and_remove_little_energy(robot, start, du
     assert d.window_energy_removed < 0.05
     assert -d.min_distance <= PENETRATION_TOL
     assert _event_gain(res) <= GAIN_TOL
+
+
+def test_an_unconverged_step_falls_back_to_the_frictionless_rows(robot, monkeypatch):
+    """A step whose ADMM answer has a large residual does not use it (measured once, mu = 0:
+    a residual of 5e-3 turned 11 rad/s into 30 rad/s): the frictionless LCP of its normal rows
+    is used instead, and the run keeps its physical properties."""
+    from packbot.contact import timestep
+
+    real = timestep.solve_mixed_admm
+
+    def bad(*args, **kwargs):
+        x, _ = real(*args, **kwargs)
+        return x * 3.0, 1.0  # a wrong answer, and its (honest) residual
+
+    monkeypatch.setattr(timestep, "solve_mixed_admm", bad)
+    monkeypatch.setattr(normal_mod, "CASCADE_EVENTS", 1)
+    cfg = packbot.SimConfig(contact_mode="normal", mu=0.5, restitution=0.0, locked_joints=LOCKED)
+    res = packbot.simulate(robot, robot.pose("drive"), np.zeros(robot.nq), 0.4, config=cfg)
+    assert res.diagnostics.window_steps > 100
+    assert -res.diagnostics.min_distance <= PENETRATION_TOL
+    assert _event_gain(res) <= GAIN_TOL
+    assert res.diagnostics.window_energy_removed < 1e-3  # the LCP steps gain nothing
+
+
+def test_the_primal_projection_is_the_nearest_admissible_velocity():
+    """The last fallback: min (v - v_f)^T M (v - v_f) / 2 subject to J_n v + b >= 0."""
+    rng = np.random.default_rng(3)
+    A = rng.normal(size=(4, 4))
+    M = A @ A.T + 4.0 * np.eye(4)
+    Jn = rng.normal(size=(3, 4))
+    b = np.array([0.0, 0.1, 0.0])
+    v_f = rng.normal(size=4) * 2.0
+    v = MoreauJeanStepper._project(v_f, Jn, b, M)
+    assert (Jn @ v + b).min() >= -1e-9
+    # KKT: M (v - v_f) = Jn^T lam with lam >= 0, complementary with the rows
+    lam, *_ = np.linalg.lstsq(Jn.T, M @ (v - v_f), rcond=None)
+    assert np.allclose(Jn.T @ lam, M @ (v - v_f), atol=1e-6)
+    assert lam.min() >= -1e-6
+    assert abs(lam @ (Jn @ v + b)) < 1e-6
