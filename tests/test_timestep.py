@@ -12,13 +12,13 @@ contact-normal mode.
 import numpy as np
 import pinocchio as pin
 import pytest
+from test_normal_cascade import GAIN_TOL, start_pose
 
 import packbot
 from packbot.contact import normal as normal_mod
 from packbot.contact.lcp import box_residual, solve_mixed_admm
 from packbot.contact.normal import PENETRATION_TOL
 from packbot.contact.timestep import WINDOW_STEP, MoreauJeanStepper, StepSegment
-from test_normal_cascade import GAIN_TOL, start_pose
 
 LOCKED = ["camera_tilt", "camera_pan", "gripper_roll", "gripper_jaw"]
 
