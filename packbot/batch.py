@@ -394,10 +394,28 @@ class BatchReport:
         return "\n".join(lines)
 
 
+def _duration_text(seconds: float) -> str:
+    """A time left or taken, to the second: ``"42 s"``, ``"12 min 05 s"``, ``"3 h 07 min"``."""
+    s = max(0, round(seconds))
+    if s < 60:
+        return f"{s} s"
+    if s < 3600:
+        return f"{s // 60} min {s % 60:02d} s"
+    return f"{s // 3600} h {s % 3600 // 60:02d} min"
+
+
 class ProgressBar:
     """A text progress bar counting finished runs: ``progress(done, failed, total)``.
 
-    On a terminal it redraws one line; otherwise it prints a line every 5 % of the runs.
+    On a terminal it redraws one line, cut to the terminal's width and blanked past its end
+    (a shorter line leaves nothing of the longer one before it); otherwise (a file, a pipe, a
+    CI log) it writes a whole line, ended by a newline, every 5 % of the runs and at the end:
+    at most 21 lines, whatever the number of runs or their pace. The rate and the time left
+    count the runs finished since the bar's first call (a resumed batch's earlier runs do not
+    inflate them); a slow pace is given as minutes per run. While the bar is drawn on a terminal,
+    a log record sent by a handler of the root logger to the same stream (a failed run's warning)
+    first blanks the bar's line, so the message stands on a line of its own and the bar is
+    redrawn under it. docs/batch.md says why this and not tqdm or rich.
 
     Args:
         stream: Where to write (default: standard error).
@@ -411,23 +429,71 @@ class ProgressBar:
         self._t0 = time.perf_counter()
         self._first: int | None = None
         self._last_line = -1
+        self._drawn = 0  # characters of the line on the terminal
+        self._handlers: list[logging.Handler] = []
 
-    def __call__(self, done: int, failed: int, total: int) -> None:
-        """Show ``done`` of ``total`` runs finished, ``failed`` of them failed."""
+    def filter(self, record: logging.LogRecord) -> bool:
+        """A logging filter: blank the bar's line before a record is written; keep the record."""
+        if self._drawn:
+            self.stream.write("\r" + " " * self._drawn + "\r")
+            self._drawn = 0
+        return True
+
+    def _attach(self) -> None:
+        for handler in logging.getLogger().handlers:
+            if getattr(handler, "stream", None) is self.stream and handler not in self._handlers:
+                handler.addFilter(self)
+                self._handlers.append(handler)
+
+    def close(self) -> None:
+        """Stop blanking the line for log records (done by the call that shows the last run)."""
+        for handler in self._handlers:
+            handler.removeFilter(self)
+        self._handlers.clear()
+
+    def _columns(self) -> int:
+        """The terminal's width [characters] (80 if it cannot be asked)."""
+        try:
+            return os.get_terminal_size(self.stream.fileno()).columns or 80
+        except (AttributeError, OSError, ValueError):  # no descriptor, not a terminal
+            return 80
+
+    def text(self, done: int, failed: int, total: int) -> str:
+        """The bar's line for ``done`` of ``total`` runs finished, ``failed`` of them failed."""
         if self._first is None:
             self._first, self._t0 = done, time.perf_counter()
         elapsed = time.perf_counter() - self._t0
         new = done - self._first
-        rate = new / elapsed * 60.0 if elapsed > 0 and new > 0 else 0.0
-        eta = f", ETA {(total - done) / rate * 60.0:.0f} s" if rate > 0 and done < total else ""
-        frac = done / total if total else 1.0
+        per_min = new / elapsed * 60.0 if elapsed > 0 and new > 0 else 0.0
+        pace = ""
+        if per_min >= 1.0:
+            pace = f", {per_min:.0f} runs/min"
+        elif per_min > 0:
+            pace = f", {_duration_text(60.0 / per_min)}/run"
+        eta = ""
+        if per_min > 0 and done < total:
+            eta = f", {_duration_text((total - done) / per_min * 60.0)} left"
+        frac = min(done / total, 1.0) if total else 1.0
         fill = round(frac * self.width)
-        text = (
+        return (
             f"[{'#' * fill}{'.' * (self.width - fill)}] {done}/{total} runs"
-            f"{f' ({failed} failed)' if failed else ''}, {rate:.0f} runs/min{eta}"
+            f"{f' ({failed} failed)' if failed else ''}{pace}{eta}"
         )
+
+    def __call__(self, done: int, failed: int, total: int) -> None:
+        """Show ``done`` of ``total`` runs finished, ``failed`` of them failed."""
+        text = self.text(done, failed, total)
         if self.tty:
-            self.stream.write("\r" + text + ("\n" if done >= total else ""))
+            text = text[: max(self._columns() - 1, 1)]  # a wrapped line cannot be redrawn
+            pad = " " * max(self._drawn - len(text), 0)
+            self._drawn = len(text)
+            self.stream.write("\r" + text + pad)
+            if done >= total:
+                self.stream.write("\n")
+                self._drawn = 0
+                self.close()
+            elif not self._handlers:
+                self._attach()
         else:
             step = max(1, total // 20)
             if done >= total or done // step != self._last_line:

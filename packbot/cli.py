@@ -627,6 +627,29 @@ def _cmd_collapse(args: argparse.Namespace) -> int:
     )
 
 
+def _cmd_schema(args: argparse.Namespace) -> int:
+    from packbot.scenario_schema import schema_text
+
+    text = schema_text()
+    if args.out is None:
+        sys.stdout.write(text)
+        return EXIT_OK
+    out = Path(args.out)
+    if out.is_dir():
+        from packbot.scenario_schema import SCHEMA_FILE
+
+        out = out / SCHEMA_FILE
+    if args.check:
+        if not out.is_file() or out.read_text(encoding="utf-8") != text:
+            print(f"out of date: {out} (run `packbot schema --out {args.out}`)")
+            return EXIT_FAILED
+        print(f"{out} is up to date")
+        return EXIT_OK
+    out.write_text(text, encoding="utf-8")
+    print(f"wrote {out}")
+    return EXIT_OK
+
+
 def _cmd_list(args: argparse.Namespace) -> int:
     import numpy as np
 
@@ -944,6 +967,20 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("list", help="list the shipped scenarios and the named poses")
     p.set_defaults(func=_cmd_list)
+
+    p = sub.add_parser(
+        "schema",
+        help="print the JSON Schema of scenario files (for editors: docs/scenarios.md)",
+    )
+    p.add_argument(
+        "--out",
+        default=None,
+        help="write it to this file, or to DIR/scenario.schema.json (the shipped copy: sims/)",
+    )
+    p.add_argument(
+        "--check", action="store_true", help="with --out: exit 1 if the file is out of date"
+    )
+    p.set_defaults(func=_cmd_schema)
 
     p = sub.add_parser("show", help="show a named pose in a live viewer (meshcat)")
     p.add_argument("pose", nargs="?", default="drive", help="pose name (drive)")

@@ -78,6 +78,7 @@ __all__ = [
     "OcclusionCheck",
     "Outputs",
     "Scenario",
+    "json_schema",
     "list_scenarios",
     "load_scenario",
     "read_scenario_dict",
@@ -711,6 +712,21 @@ def scenario_from_dict(data: Mapping[str, Any], *, name: str, source_text: str =
     )
     scenario.validate()
     return scenario
+
+
+def json_schema(robot: Robot | None = None) -> dict[str, Any]:
+    """The JSON Schema (draft 7) of scenario files, for editors (docs/scenarios.md).
+
+    Generated from the dataclasses, choice lists and robot names this module loads into
+    (:mod:`packbot.scenario_schema`); ``packbot schema`` prints it, and
+    ``sims/scenario.schema.json`` is the shipped copy.
+
+    Args:
+        robot: The model whose joint, pose and frame names it lists (default: the shipped one).
+    """
+    from packbot.scenario_schema import json_schema as _json_schema
+
+    return _json_schema(robot)
 
 
 # ---------------------------------------------------------------------------------- files

@@ -73,6 +73,7 @@ INTERNAL_MODULES = {
     "packbot.mujoco_model",
     "packbot.ode",
     "packbot.recorder",
+    "packbot.scenario_schema",
     "packbot.schedule",
     "packbot.srdfgen",
     "packbot.system",
