@@ -26,7 +26,8 @@ theta = 1, i.e. symplectic Euler with impulses):
    - per contact point, blocks (t1, t2, n): x in the Coulomb cone of friction mu, the De
      Saxce-shifted u + b in the dual cone, complementary. b_n = max(g, 0) / h lets an open gap
      g close within the step but not beyond; a touching point approaching faster than the Zeno
-     speed gets Newton's law, b_n = e min(u_n-, 0) (u_n- its normal velocity before);
+     speed gets Newton's law, b_n = e min(u_n-, 0) (u_n- its normal velocity before), unless
+     that impulse would add kinetic energy (then the inelastic one);
    - per limit row: x >= 0 (a cone of friction 0), the same b;
    - per joint with Coulomb friction or a brake (holding torque F_j [N*m]): |x_j| <= h F_j;
      v_j+ = 0 strictly inside (the joint sticks), v_j+ against x_j at the bound (it slips).
@@ -236,13 +237,24 @@ class MoreauJeanStepper:
         x = np.zeros(len(J))
         residual = 0.0
         if len(J):
-            g = J @ v_f
+            gf = J @ v_f
+            g = gf.copy()
             b = np.maximum(gap, 0.0) / h
             bounce = (gap <= TOUCH_GAP) & (vn < -cfg.zeno_speed)
-            b = b + np.where(bounce, cfg.restitution * np.minimum(vn, 0.0), 0.0)
             g[2 : 3 * m : 3] += b
             G = J @ minv @ J.T
-            x, residual = self._solve(G, g, mus, cj, h * coul[cj], m)
+            if cfg.restitution > 0.0 and bool(bounce.any()):
+                # Newton's law row by row over a patch can add energy (as at an event): the
+                # impulse's kinetic energy change x . J v_f + x . G x / 2 is checked, and an
+                # impulse that gains is replaced by the inelastic one (which cannot, up to its
+                # residual: with e = 0 every row's x . u = 0 and b >= 0).
+                gb = g.copy()
+                gb[2 : 3 * m : 3] += np.where(bounce, cfg.restitution * np.minimum(vn, 0.0), 0.0)
+                x, residual = self._solve(G, gb, mus, cj, h * coul[cj], m)
+                if float(x @ gf) + 0.5 * float(x @ (G @ x)) > 0.0:
+                    x, residual = self._solve(G, g, mus, cj, h * coul[cj], m)
+            else:
+                x, residual = self._solve(G, g, mus, cj, h * coul[cj], m)
         v1 = v_f + minv @ (J.T @ x) if len(J) else v_f
         if residual > RESIDUAL_OK:  # no dual solution to trust: the primal problem instead
             v1 = self._project(v_f, Jn, np.maximum(gap, 0.0) / h, sys.mass_matrix(q))
