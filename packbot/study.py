@@ -526,6 +526,8 @@ def _run(
                 loose_options=opts,
                 environment=scenario.environment,
                 gravity=tuple(config.gravity),
+                joint_friction=bool(config.joint_friction),
+                locked=tuple(config.locked_joints),
             )
             ctrl = recovery
         q0, v0 = scenario.initial_state(robot)

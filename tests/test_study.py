@@ -334,3 +334,29 @@ def test_browser_shows_three_animations(
         assert a.sum() > 0.002 * a.size, (name, RUN_NAMES[k])
     # at the end the failed arm is not where the healthy one is
     assert (arm[0] ^ arm[1]).sum() > 0.0005 * arm[0].size
+
+
+@pytest.mark.parametrize("kind", ["cartesian", "pd"])
+def test_every_controller_is_studied(robot: packbot.Robot, kind: str) -> None:
+    """A Cartesian or PD hold of the high pose, elbow1 frozen at 0.5 s (the scenario has joint
+    friction and a locked jaw): the observer flags elbow1 alone, after the failure (it knows
+    the joints' friction and the locked joints: before, the jaw and a camera joint driven past
+    its speed limit were flagged at 0.05 s), and the reconfigured run ends within the tolerance,
+    nearer the task than the failed one where the failure moved the tool."""
+    sc = load_scenario("reconfig_elbow1")
+    v = dataclasses.replace(
+        sc,
+        controller=kind,
+        controller_params={"target": "high"},
+        failures=(Failure(joint="elbow1", kind="frozen", t=0.5),),
+    )
+    res = study(v, robot=robot, duration=1.2, workspace_samples=300)
+    assert all(r.status == "ok" for r in res.runs.values())
+    detections = [e for e in res.reconfigured.controller_log if e.kind == "detect"]
+    assert [e.joint for e in detections] == ["elbow1"]
+    assert detections[0].t >= 0.5
+    failed = res.failed.metrics.final_task_error_m
+    reconf = res.reconfigured.metrics.final_task_error_m
+    assert reconf <= res.tolerance_m
+    if failed > res.tolerance_m:
+        assert reconf < failed

@@ -68,6 +68,11 @@ class MomentumObserver:
         threshold: Detection threshold per joint [N*m], shape (nv,).
         persistence: Time the residual must stay above the threshold [s].
         frozen_speed: Speed below which a detected joint is classified frozen [rad/s].
+        viscous: Known viscous friction b_j [N*m*s/rad] (None: none); the observer adds
+            -b_j v_j to the motor torque.
+        coulomb: Known sliding Coulomb friction F_j [N*m] (None: none); -F_j sign(v_j) on a
+            joint sliding faster than ``frozen_speed`` (a held joint's static friction is left
+            to the threshold).
     """
 
     def __init__(
@@ -79,6 +84,8 @@ class MomentumObserver:
         threshold: FloatArray,
         persistence: float = 0.02,
         frozen_speed: float = 1e-3,
+        viscous: FloatArray | None = None,
+        coulomb: FloatArray | None = None,
     ) -> None:
         for name, x, unit in (
             ("gain", gain, "1/s"),
@@ -104,6 +111,21 @@ class MomentumObserver:
             raise ConfigurationError("observer.threshold", threshold, f"{n} thresholds > 0 [N*m]")
         self.persistence = float(persistence)
         self.frozen_speed = float(frozen_speed)
+        self.viscous = (
+            np.zeros(n)
+            if viscous is None
+            else real_array(
+                "observer.viscous", viscous, shape=(n,), expected=f"{n} viscous coefficients"
+            )
+        )
+        self.coulomb = (
+            np.zeros(n)
+            if coulomb is None
+            else real_array(
+                "observer.coulomb", coulomb, shape=(n,), expected=f"{n} Coulomb torques [N*m]"
+            )
+        )
+        self._v_prev = np.zeros(n)
         self.residual = np.zeros(n)
         self.ignored = np.zeros(n, dtype=bool)
         self._integral = np.zeros(n)
@@ -118,6 +140,7 @@ class MomentumObserver:
         self._p0 = self._momentum(q, v)
         self._f_prev = self._drift(q, v)
         self._integral[:] = 0.0
+        self._v_prev = np.array(v, dtype=float)
         self.residual[:] = 0.0
         self._t_prev = t
         self._onset[:] = np.nan
@@ -155,6 +178,12 @@ class MomentumObserver:
         h = t - self._t_prev
         self._t_prev = t
         tau_m = np.clip(tau_prev, -self.effort, self.effort)
+        if self.viscous.any() or self.coulomb.any():
+            # the known joint friction of a sliding joint, at the period's mean speed
+            vm = 0.5 * (self._v_prev + v)
+            sliding = np.abs(vm) > self.frozen_speed
+            tau_m = tau_m - self.viscous * vm - np.where(sliding, self.coulomb * np.sign(vm), 0.0)
+        self._v_prev = np.array(v, dtype=float)
         f = self._drift(q, v)
         # The held torque is exact over the period; the drift by the trapezoidal rule.
         self._integral += h * (tau_m + 0.5 * (f + self._f_prev) + self.residual)

@@ -124,6 +124,13 @@ class TaskRecovery(ModelBasedController):
         threshold: Detection threshold [N*m] per joint (a number, nv numbers or {joint: value});
             None: coulomb + viscous * velocity limit + 0.01 * effort limit.
         persistence: Time the residual must stay above the threshold [s].
+        joint_friction: The arm's joints have the parameter table's viscous and sliding Coulomb
+            friction (``SimConfig.joint_friction``): the observer counts it as a known torque
+            (without it, a joint driven past its speed limit reads its viscous torque as a
+            failure: a PD hold drove camera_tilt at 7.6 rad/s and it was flagged "loose").
+        locked: Joints held rigid by the arm's configuration (``SimConfig.locked_joints``):
+            never judged by the observer (they look frozen from the start) and never moved by
+            the tracking.
         frozen_speed: A flagged joint slower than this is frozen [rad/s].
         loose_options: Settings of the loose-joint :class:`ReconfigurableController` (keys of
             :data:`LOOSE_OPTIONS`).
@@ -157,6 +164,8 @@ class TaskRecovery(ModelBasedController):
         loose_options: Mapping[str, Any] | None = None,
         environment: Environment | None = None,
         gravity: Sequence[float] = DEFAULT_GRAVITY,
+        joint_friction: bool = False,
+        locked: Sequence[str] = (),
     ) -> None:
         if nominal is not None and not isinstance(nominal, Controller):
             raise ConfigurationError("nominal", nominal, "None or a packbot.control.Controller")
@@ -164,6 +173,10 @@ class TaskRecovery(ModelBasedController):
         sensor = None if nominal is None else nominal.sensor
         super().__init__(dt=dt, sensor=sensor, gravity=gravity)
         self.nominal = nominal
+        if not isinstance(joint_friction, bool):
+            raise ConfigurationError("joint_friction", joint_friction, "True or False")
+        self.joint_friction = joint_friction
+        self.locked = tuple(str(x) for x in locked)
         t = real_array("task_t", task_t, expected="task times [s], shape (N,)")
         if t.ndim != 1 or len(t) < 2 or np.any(np.diff(t) < 0):
             raise ConfigurationError("task_t", task_t, "N >= 2 non-decreasing times [s]")
@@ -259,8 +272,12 @@ class TaskRecovery(ModelBasedController):
             threshold=self.threshold,
             persistence=self.persistence,
             frozen_speed=self.frozen_speed,
+            viscous=robot.params.viscous if self.joint_friction else None,
+            coulomb=robot.params.coulomb if self.joint_friction else None,
         )
         self.observer.reset(t0, q0, v0)
+        for name in self.locked:
+            self.observer.ignored[robot.params.index(name)] = True
         self.log, self.failed, self.mode = [], {}, "nominal"
         self.loose_controller = None
         self._loose_seen = 0
@@ -328,7 +345,10 @@ class TaskRecovery(ModelBasedController):
             return
         # frozen: track the task with the joints that still move the frame
         self.mode = "track"
-        self._movers = np.array([i for i in self._frame_joints if i not in self.failed], dtype=int)
+        rigid = {self.robot.params.index(x) for x in self.locked}
+        self._movers = np.array(
+            [i for i in self._frame_joints if i not in self.failed and i not in rigid], dtype=int
+        )
         self._q_ref = np.array(q, dtype=float)
         self._v_ref = np.array(v, dtype=float)
         for i in self.failed:
