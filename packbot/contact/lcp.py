@@ -225,26 +225,10 @@ def solve_ncp_admm(
     Returns:
         x (shape (3K,)) and its true residual (:func:`ncp_residual`).
     """
-    K = len(mus)
-    cms = pin.StdVec_ConstraintModel()
-    cds = pin.StdVec_ConstraintData()
-    eye = pin.SE3.Identity()
-    for mu in mus:
-        cm = pin.PointContactConstraintModel(model, 0, eye, 0, eye)
-        cm.setFriction(float(mu))
-        gcm = pin.ConstraintModel(cm)
-        cms.append(gcm)
-        cds.append(gcm.createData())
-    D = pin.DelassusOperatorDense(np.ascontiguousarray(0.5 * (G3 + G3.T)))  # fresh: see above
-    solver = pin.ADMMConstraintSolver(3 * K)
-    res = pin.ADMMSolverResult()
-    st = pin.ADMMSolverSettings()
-    st.absolute_feasibility_tol = st.relative_feasibility_tol = tol
-    st.absolute_complementarity_tol = st.relative_complementarity_tol = tol
-    st.max_iterations = max_iterations
-    solver.solve(D, np.ascontiguousarray(g3), cms, cds, st, res)
-    x = np.array(res.retrieveConstraintImpulses(), dtype=np.float64)
-    return x, ncp_residual(G3, g3, x, np.asarray(mus, dtype=float))
+    none = np.zeros(0, dtype=np.intp)
+    return solve_mixed_admm(
+        model, data, G3, g3, mus, none, np.zeros(0), tol=tol, max_iterations=max_iterations
+    )
 
 
 def box_residual(G: FloatArray, g: FloatArray, x: FloatArray, bound: FloatArray) -> float:

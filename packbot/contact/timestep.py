@@ -193,12 +193,7 @@ class MoreauJeanStepper:
         self.joint_torque = np.zeros(self.n)
         #: Steps whose combined problem fell back to the frictionless normal rows.
         self.fallbacks = 0
-        # model joint of each velocity index (revolute arm: one dof per joint)
-        self.joint_of = np.zeros(self.n, dtype=np.intp)
-        for j in range(1, system.model.njoints):
-            iv = system.model.idx_vs[j]
-            for k in range(system.model.nvs[j]):
-                self.joint_of[iv + k] = j
+        self.joint_of = contacts._joint_of  # model joint of each velocity index
 
     def step(
         self,

@@ -26,6 +26,7 @@ parameter table at the joint's speed limit plus 1 % of its effort limit, does).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 import pinocchio as pin
@@ -34,7 +35,7 @@ from numpy.typing import NDArray
 from packbot.errors import ConfigurationError
 from packbot.validation import finite_number, real_array
 
-__all__ = ["Detection", "MomentumObserver"]
+__all__ = ["Detection", "MomentumObserver", "default_threshold"]
 
 FloatArray = NDArray[np.float64]
 
@@ -56,6 +57,20 @@ class Detection:
     t: float
     t_onset: float
     residual: float
+
+
+def default_threshold(params: Any) -> FloatArray:
+    """The default detection threshold per joint [N*m].
+
+    The friction torque of the parameter table at the joint's speed limit plus 1 % of its
+    effort limit.
+
+    Args:
+        params: The robot's joint parameters (``robot.params``).
+    """
+    return np.asarray(
+        params.coulomb + params.viscous * params.velocity + 0.01 * params.effort, dtype=np.float64
+    )
 
 
 class MomentumObserver:

@@ -59,7 +59,7 @@ from packbot.control._common import (
     resolve_vector3,
 )
 from packbot.control.base import Sensor
-from packbot.control.detector import Detection, MomentumObserver
+from packbot.control.detector import Detection, MomentumObserver, default_threshold
 from packbot.control.ik import solve_position_ik
 from packbot.control.model_based import ModelBasedController
 from packbot.control.trajectory import MIN_JERK_PEAK_SPEED, QuinticSegment
@@ -263,7 +263,7 @@ class ReconfigurableController(ModelBasedController):
                 self.target_spec, "controller.target", "3 finite coordinates [m] or a pose name"
             )
         pp = robot.params
-        default = pp.coulomb + pp.viscous * pp.velocity + 0.01 * pp.effort
+        default = default_threshold(pp)
         self.threshold = resolve_gains(robot, self.threshold_spec, "controller.threshold", default)
         if np.any(self.threshold <= 0):
             raise ConfigurationError("controller.threshold", self.threshold_spec, "values > 0")

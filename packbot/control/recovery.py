@@ -50,7 +50,7 @@ from packbot.control._common import (
     resolve_gains,
 )
 from packbot.control.base import Controller
-from packbot.control.detector import MomentumObserver
+from packbot.control.detector import MomentumObserver, default_threshold
 from packbot.control.model_based import ModelBasedController
 from packbot.control.reconfig import ReconfigurableController
 from packbot.environment import Environment
@@ -252,7 +252,7 @@ class TaskRecovery(ModelBasedController):
         parent = model.frames[self._fid].parentJoint
         self._frame_joints = sorted(model.joints[j].idx_q for j in model.supports[parent] if j > 0)
         pp = robot.params
-        default = pp.coulomb + pp.viscous * pp.velocity + 0.01 * pp.effort
+        default = default_threshold(pp)
         self.threshold = resolve_gains(robot, self.threshold_spec, "threshold", default)
         if np.any(self.threshold <= 0):
             raise ConfigurationError("threshold", self.threshold_spec, "values > 0 [N*m]")
