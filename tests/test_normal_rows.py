@@ -114,3 +114,46 @@ def test_collapse_passes_the_stick_slip_restart_that_repeated(robot):
     assert res.t[-1] == pytest.approx(0.4)
     same_time = np.unique([ev.t for ev in res.events_of("stick")], return_counts=True)[1]
     assert same_time.max(initial=0) <= 10  # before: until max_events
+
+
+@pytest.mark.parametrize("mu", [0.0, 0.5])
+def test_the_compiled_dynamics_equal_the_numpy_ones_along_a_collapse(robot, monkeypatch, mu):
+    """At every accepted step of a collapse, the compiled constrained dynamics (one kernel:
+    rows, slipping columns, sticking rows, Delassus solve) give the numpy path's a, lambda, gaps,
+    normal and tangential velocities, over stick, slip and limit rows."""
+    from packbot import ode
+
+    seen = {"slip": 0, "stick": 0, "limit": 0, "states": 0}
+    worst = 0.0
+    step = ode.RK45Stepper.step
+
+    def checked(self, t_end):
+        nonlocal worst
+        seg = step(self, t_end)
+        run = self._rhs.__self__
+        nc, n = run.law.normal, run.n
+        if nc.resting or not nc.engaged:
+            return seg
+        q, v = seg.y1[:n], seg.y1[n : 2 * n]
+        a_free, minv = run.sys.aba(q, v, np.zeros(n)), run.sys.minv(q)
+        plan = nc._plan()
+        fast = nc._evaluate_compiled(q, v, a_free, minv, plan)
+        ref = nc._evaluate_rows(q, v, a_free, minv, plan)
+        for x, y in ((fast.a, ref.a), (fast.lam, ref.lam), (fast.gap, ref.gap)):
+            scale = 1.0 + np.abs(y).max(initial=0.0)
+            worst = max(worst, float(np.abs(x - y).max(initial=0.0)) / scale)
+        np.testing.assert_allclose(fast.vn, ref.vn, rtol=1e-9, atol=1e-12)
+        np.testing.assert_allclose(fast.vt, ref.vt, rtol=1e-9, atol=1e-12)
+        seen["states"] += 1
+        seen["slip"] += len(plan.slips) > 0
+        seen["stick"] += len(plan.sticks) > 0
+        seen["limit"] += any(r >= sum(len(p.local1) for p in nc.pairs.values()) for r in nc.engaged)
+        return seg
+
+    monkeypatch.setattr(ode.RK45Stepper, "step", checked)
+    cfg = packbot.SimConfig(contact_mode="normal", mu=mu, locked_joints=WRIST)
+    packbot.simulate(robot, robot.pose("drive"), np.zeros(8), 1.2, config=cfg)
+    assert seen["states"] > 100 and seen["limit"] > 10
+    assert worst < 1e-9
+    if mu > 0.0:
+        assert seen["slip"] > 10 and seen["stick"] > 10

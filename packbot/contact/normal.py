@@ -205,7 +205,7 @@ class _Layout:
     """
 
     joints: list[int]  # the joints of the bodies involved
-    masks: FloatArray  # (bodies, 1, nv) 1 on the velocities moving each body
+    masks: FloatArray  # (bodies, nv) 1 on the velocities moving each body
     body: NDArray[np.intp]  # (2h,) index into joints of each point's body
     local: FloatArray  # (2h, 4) point in its joint frame, homogeneous [m]
     pair: NDArray[np.intp]  # (h,) pair of each point (position in the contact set)
@@ -214,6 +214,11 @@ class _Layout:
     normal_body: NDArray[np.intp]  # (pairs,) index into joints of body 2
     frame2: FloatArray  # (pairs, 3, 3) rows t1, t2, n in body 2's joint frame
     points: list[slice]  # per pair, its patch points among the h
+    lim_joint: NDArray[np.intp]  # (limits,) velocity index of each limit row
+    lim_side: FloatArray  # (limits,) +1 upper, -1 lower
+    lim_value: FloatArray  # (limits,) the limit [rad]
+    no_bodies: FloatArray  # (0, 4, 4), the placements when no pair is in contact
+    no_jacobian: FloatArray  # (6, nv) zeros, the Jacobians when no pair is in contact
 
 
 @dataclass
@@ -232,6 +237,18 @@ class ModeEvent:
 
 
 @dataclass
+class _Plan:
+    """The constrained problem's rows for the current modes (see ``NormalContacts._plan``)."""
+
+    engaged: NDArray[np.intp]  # (e,) the engaged rows E
+    # per slipping pair with engaged rows: its position in the contact set, the positions of
+    # its rows in E, their points in its patch
+    slips: list[tuple[int, Any, Any]]
+    sticks: NDArray[np.intp]  # the positions of the sticking pairs with engaged rows
+    row_slip: NDArray[np.intp]  # (e,) the slipping pair of each engaged row, or -1
+
+
+@dataclass
 class _Eval:
     """The constrained dynamics at one state with the modes fixed."""
 
@@ -239,7 +256,7 @@ class _Eval:
     lam: FloatArray  # forces of the engaged normal rows then the stick rows
     gap: FloatArray  # every row
     vn: FloatArray  # every row
-    vt: list[FloatArray]  # per pair: relative tangential velocity at the centre (world)
+    vt: FloatArray  # (pairs, 3): relative tangential velocity at each patch centre (world)
     rest: tuple[FloatArray, FloatArray, FloatArray] | None = None  # (q, a_free, M^-1) at rest
 
 
@@ -321,7 +338,8 @@ class NormalContacts:
         for j in range(1, model.njoints):
             self._joint_of[model.idx_vs[j] : model.idx_vs[j] + model.nvs[j]] = j
         self._plan_key: tuple[Any, ...] | None = None
-        self._plan_val: tuple[NDArray[np.intp], list[tuple[int, Any, Any]], list[int]]
+        self._plan_val: _Plan
+        self._no_slip_dirs = np.zeros((0, 3))
 
     # ------------------------------------------------------------------ set
     @property
@@ -438,91 +456,22 @@ class NormalContacts:
     ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray, list[dict[str, Any]]]:
         """Rows of every contact: J_n (m, nv), drift (m,), gap (m,), v_n (m,).
 
-        And per pair the tangential rows and the velocities at the patch centre. Every patch
-        point of every pair is computed in one batch of numpy operations (the contact set has
-        a few pairs of a few points: the cost is the number of operations, not their size).
-        The result depends only on (q, v) and the contact set, so it is cached (a few states:
-        the right-hand side, the mode conditions and the restart's problems ask for the same
-        state several times); the cache is emptied whenever the contact set changes. The
-        arrays returned are read-only.
+        And per pair the tangential rows and the velocities at the patch centre
+        (:func:`packbot.contact.kernels.contact_rows`, compiled: every patch point of every
+        pair at once). The result depends only on (q, v) and the contact set, so it is cached
+        (a few states: the mode conditions and the restart's problems ask for the same state
+        several times); the cache is emptied whenever the contact set changes. The arrays
+        returned are read-only.
         """
         key = (q.tobytes(), v.tobytes())
         hit = self._kin_cache.get(key)
         if hit is not None:
             return hit
-        rows = np.zeros((0, self.nv))
-        drift = gap = vn = np.zeros(0)
-        extra: list[dict[str, Any]] = []
-        if self.pairs:
-            rows, drift, gap, vn, extra = self._pair_rows(q, v)
-        if self.limits:
-            lim = np.zeros((len(self.limits), self.nv))
-            lgap, lvn = np.empty(len(self.limits)), np.empty(len(self.limits))
-            for i, ((j, side), value) in enumerate(self.limits.items()):
-                lim[i, j] = -side
-                lgap[i] = side * (value - q[j])
-                lvn[i] = -side * v[j]
-            rows = np.vstack([rows, lim])
-            drift = np.concatenate([drift, np.zeros(len(lgap))])
-            gap = np.concatenate([gap, lgap])
-            vn = np.concatenate([vn, lvn])
-        out = (rows, drift, gap, vn, extra)
-        for arr in out[:4]:
-            arr.setflags(write=False)
-        if len(self._kin_cache) >= 8:
-            self._kin_cache.clear()
-        self._kin_cache[key] = out
-        return out
+        from packbot.contact import kernels  # lazy: numba is imported by contact runs only
 
-    def _pair_rows(
-        self, q: FloatArray, v: FloatArray
-    ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray, list[dict[str, Any]]]:
-        """The pairs' part of :meth:`_kinematics`, all points at once (world frame).
-
-        From the joint Jacobians in the world frame and their time variation (one Pinocchio
-        call): per body the spatial velocity (v_0, w) = J v and drift acceleration (a_0,
-        alpha) = J' v (q'' = 0) at the world origin; per point P: J_p = Jv - skew(P) Jw,
-        v_p = J_p v, a_p = a_0 + alpha x P + w x v_p. Body 2 minus body 1.
-        """
-        model, data = self.model, self.data
-        lay = self._layout()
-        pin.computeJointJacobiansTimeVariation(model, data, q, v)
-        H = np.array([data.oMi[j].homogeneous if j else _I4 for j in lay.joints])
-        nv = self.nv
-        Jb = data.J.reshape(6, nv) * lay.masks  # (bodies, 6, nv) (nv = 1: data.J is (6,))
-        Vb = Jb @ v
-        Ab = (data.dJ.reshape(6, nv) * lay.masks) @ v
-        B = lay.body
-        h = len(B) // 2
-        P = (H[B] @ lay.local[:, :, None])[:, :3, 0]  # (2h, 3)
-        JB = Jb[B]
-        SP = (P @ _E9).reshape(-1, 3, 3)  # skew(P)
-        Jp = JB[:, :3] - SP @ JB[:, 3:]  # (2h, 3, nv)
-        vp = Jp @ v
-        Sw = (Vb[:, 3:] @ _E9).reshape(-1, 3, 3)[B]  # skew(w)
-        ap = Ab[B, :3] - (SP @ Ab[B, 3:, None])[:, :, 0] + (Sw @ vp[:, :, None])[:, :, 0]
-        dJ = Jp[h:] - Jp[:h]
-        vrel = vp[h:] - vp[:h]
-        arel = ap[h:] - ap[:h]
-        # contact frames (t1, t2, n) in the world, rows: the frame in body 2 turned with it
-        F = lay.frame2 @ H[lay.normal_body, :3, :3].transpose(0, 2, 1)  # (pairs, 3, 3)
-        nw = F[:, 2]
-        T = F[:, :2]
-        n = nw[lay.pair]  # (h, 3)
-        wxn = (Sw[h:] @ n[:, :, None])[:, :, 0]  # w2 x n
-        pts = lay.rows
-        rows = (n[:, None, :] @ dJ)[pts, 0]
-        dP = P[h:] - P[:h]  # p2 - p1 (world)
-        gap = np.einsum("ij,ij->i", dP, n)[pts]
-        vn = np.einsum("ij,ij->i", vrel, n)[pts]
-        drift = (np.einsum("ij,ij->i", arel, n) + 2.0 * np.einsum("ij,ij->i", vrel, wxn))[pts]
-        c = lay.centre
-        JT = T @ dJ[c]
-        vc, ac = vrel[c], arel[c]
-        bT = (T @ ac[:, :, None])[:, :, 0]
-        Fv = (F @ vc[:, :, None])[:, :, 0]
-        vT = Fv[:, :2]
-        vt = vc - nw * Fv[:, 2:]
+        rows, drift, gap, vn, JT, bT, vT, vt, nw, T, dJp, dP = kernels.contact_rows(
+            *self._kernel_args(q, v)
+        )
         extra = [
             {
                 "n": nw[i],
@@ -531,12 +480,53 @@ class NormalContacts:
                 "bT": bT[i],
                 "vT": vT[i],
                 "vt": vt[i],
-                "dJ": dJ[sl],
+                "dJ": dJp[sl],
                 "dp": dP[sl],
             }
-            for i, sl in enumerate(lay.points)
+            for i, sl in enumerate(self._layout().points)
         ]
-        return rows, drift, gap, vn, extra
+        out = (rows, drift, gap, vn, extra)
+        for arr in out[:4]:
+            arr.setflags(write=False)
+        if len(self._kin_cache) >= 8:
+            self._kin_cache.clear()
+        self._kin_cache[key] = out
+        return out
+
+    def _kernel_args(self, q: FloatArray, v: FloatArray) -> tuple[Any, ...]:
+        """The arguments of :func:`packbot.contact.kernels.contact_rows` at (q, v).
+
+        With pairs in contact, one Pinocchio call: the joint Jacobians in the world frame and
+        their time variation (``data.J``, ``data.dJ``: per body, the spatial velocity J v and
+        the drift acceleration J' v at the world origin).
+        """
+        lay = self._layout()
+        if lay.joints:
+            model, data = self.model, self.data
+            pin.computeJointJacobiansTimeVariation(model, data, q, v)
+            H = np.array([data.oMi[j].homogeneous if j else _I4 for j in lay.joints])
+            J = data.J.reshape(6, self.nv)  # (nv = 1: data.J is (6,))
+            dJ = data.dJ.reshape(6, self.nv)
+        else:
+            H, J, dJ = lay.no_bodies, lay.no_jacobian, lay.no_jacobian
+        return (
+            H,
+            J,
+            dJ,
+            lay.masks,
+            q,
+            v,
+            lay.body,
+            lay.local,
+            lay.pair,
+            lay.rows,
+            lay.centre,
+            lay.normal_body,
+            lay.frame2,
+            lay.lim_joint,
+            lay.lim_side,
+            lay.lim_value,
+        )
 
     def _layout(self) -> _Layout:
         """The point layout of the current contact set (cached until it changes)."""
@@ -565,17 +555,27 @@ class NormalContacts:
             points.append(slice(k, k + K))
             centre.append(k + K)
             k += K + 1
+        limits = list(self.limits.items())
         self._lay = _Layout(
             joints=joints,
-            masks=self._masks[joints],
+            masks=np.ascontiguousarray(self._masks[joints][:, 0, :]),
             body=np.array(body1 + body2, dtype=np.intp),
-            local=np.hstack([np.vstack(local1 + local2), np.ones((2 * k, 1))]),
+            local=np.hstack([np.vstack(local1 + local2), np.ones((2 * k, 1))])
+            if pairs
+            else np.zeros((0, 4)),
             pair=np.array(pair, dtype=np.intp),
             rows=np.array(rows, dtype=np.intp),
             centre=np.array(centre, dtype=np.intp),
             normal_body=np.array([index[p.info.joint2] for p in pairs], dtype=np.intp),
-            frame2=np.array([np.vstack([*_tangents(p.normal2), p.normal2]) for p in pairs]),
+            frame2=np.array([np.vstack([*_tangents(p.normal2), p.normal2]) for p in pairs])
+            if pairs
+            else np.zeros((0, 3, 3)),
             points=points,
+            lim_joint=np.array([j for (j, _), _ in limits], dtype=np.intp),
+            lim_side=np.array([side for (_, side), _ in limits], dtype=np.float64),
+            lim_value=np.array([value for _, value in limits], dtype=np.float64),
+            no_bodies=np.zeros((0, 4, 4)),
+            no_jacobian=np.asfortranarray(np.zeros((6, self.nv))),
         )
         return self._lay
 
@@ -649,14 +649,8 @@ class NormalContacts:
             k += K
         return False
 
-    def _plan(self) -> tuple[NDArray[np.intp], list[tuple[int, Any, Any]], list[int]]:
-        """The rows of the constrained problem for the current modes (cached while they hold).
-
-        Returns:
-            The engaged rows E; per slipping pair with engaged rows (its position in the
-            contact set, the positions of its rows in E, their points in its patch); the
-            positions of the sticking pairs with engaged rows.
-        """
+    def _plan(self) -> _Plan:
+        """The rows of the constrained problem for the current modes (cached while they hold)."""
         pairs = self._pair_list
         key = (self._version, tuple(self.engaged), tuple(p.stick for p in pairs))
         if self._plan_key == key:
@@ -664,6 +658,7 @@ class NormalContacts:
         pos = {r: i for i, r in enumerate(self.engaged)}
         slips: list[tuple[int, Any, Any]] = []
         sticks: list[int] = []
+        row_slip = np.full(len(self.engaged), -1, dtype=np.intp)
         k = 0
         for i, p in enumerate(pairs):
             K = len(p.local1)
@@ -676,8 +671,11 @@ class NormalContacts:
             else:
                 at = np.array([m[0] for m in mine], dtype=np.intp)
                 slips.append((i, at, np.array([m[1] for m in mine], dtype=np.intp)))
+                row_slip[at] = i
         self._plan_key = key
-        self._plan_val = (np.array(self.engaged, dtype=np.intp), slips, sticks)
+        self._plan_val = _Plan(
+            np.array(self.engaged, dtype=np.intp), slips, np.array(sticks, dtype=np.intp), row_slip
+        )
         return self._plan_val
 
     @property
@@ -696,35 +694,79 @@ class NormalContacts:
             a_free: Unconstrained accelerations [rad/s^2].
             minv: M^-1 at q.
         """
-        Jn, drift, gap, vn, extra = self._problem(q, v)
-        vt = [ex["vt"] for ex in extra]
         if self.resting:  # captured: at rest while the rest condition holds
+            _, _, gap, vn, extra = self._problem(q, v)
+            vt = _centre_velocities(extra)
             return _Eval(np.zeros(self.nv), np.zeros(0), gap, vn, vt, (q, a_free, minv))
-        E, slips, sticks = self._plan()
-        if not len(E):
-            return _Eval(a_free, np.zeros(0), gap, vn, vt)
+        plan = self._plan()
+        if not len(plan.engaged):
+            _, _, gap, vn, extra = self._problem(q, v)
+            return _Eval(a_free, np.zeros(0), gap, vn, _centre_velocities(extra))
+        if type(self)._problem is _OWN_PROBLEM:
+            return self._evaluate_compiled(q, v, a_free, minv, plan)
+        return self._evaluate_rows(q, v, a_free, minv, plan)
+
+    def _evaluate_rows(
+        self, q: FloatArray, v: FloatArray, a_free: FloatArray, minv: FloatArray, plan: _Plan
+    ) -> _Eval:
+        """:meth:`evaluate` on the rows of :meth:`_problem`, in numpy.
+
+        The same problem as :meth:`_evaluate_compiled`, on any subclass's rows (the hand-off's
+        clamps).
+        """
+        Jn, drift, gap, vn, extra = self._problem(q, v)
+        vt = _centre_velocities(extra)
+        E = plan.engaged
         A = Jn[E]  # the engaged rows, then the sticking pairs' tangential rows
         Cm = A  # their force columns (J_n - mu J_s on slipping pairs' rows)
-        if slips:
+        if plan.slips:
             Cm = A.copy()
-            for i, pos, loc in slips:
+            for i, pos, loc in plan.slips:
                 ex = extra[i]
                 s = self._slip_direction(self._pair_list[i], ex)
                 Cm[pos] -= self.mu * (s @ ex["dJ"][loc])
         target = -2.0 * BAUMGARTE * vn[E] - BAUMGARTE**2 * gap[E]
         b = drift[E]
-        if sticks:
-            JT = [extra[i]["JT"] for i in sticks]
+        if len(plan.sticks):
+            JT = [extra[i]["JT"] for i in plan.sticks]
             A = np.vstack([A, *JT])
             Cm = np.vstack([Cm, *JT])
-            vT = np.concatenate([extra[i]["vT"] for i in sticks])
+            vT = np.concatenate([extra[i]["vT"] for i in plan.sticks])
             target = np.concatenate([target, -BAUMGARTE * vT])
-            b = np.concatenate([b, *(extra[i]["bT"] for i in sticks)])
+            b = np.concatenate([b, *(extra[i]["bT"] for i in plan.sticks)])
         b = A @ a_free + b
         MC = minv @ Cm.T
         Gm = A @ MC
         lam = _solve(Gm, target - b)
         return _Eval(a_free + MC @ lam, lam, gap, vn, vt)
+
+    def _evaluate_compiled(
+        self, q: FloatArray, v: FloatArray, a_free: FloatArray, minv: FloatArray, plan: _Plan
+    ) -> _Eval:
+        """:meth:`evaluate` in one compiled call (``kernels.constrained_accel``)."""
+        from packbot.contact import kernels  # lazy: numba is imported by contact runs only
+
+        if plan.slips:
+            slip_dir = np.array([p.slip_dir for p in self._pair_list])
+        else:
+            slip_dir = self._no_slip_dirs
+        args = (
+            *self._kernel_args(q, v),
+            plan.engaged,
+            plan.row_slip,
+            plan.sticks,
+            slip_dir,
+            a_free,
+            minv,
+            self.mu,
+            STICK_SPEED,
+            BAUMGARTE,
+        )
+        a, lam, gap, vn, vt, ok, G, r, MC = kernels.constrained_accel(*args)
+        if not ok:  # a singular Delassus matrix: least squares
+            lam = _solve(G, r)
+            a = a_free + MC @ lam
+        return _Eval(a, lam, gap, vn, vt)
 
     def conditions(self, ev: _Eval) -> dict[tuple[Any, ...], tuple[str, float]]:
         """Mode conditions g >= 0 (a negative one is an event) with the event kind.
@@ -1404,6 +1446,10 @@ class NormalContacts:
         return out
 
 
+#: The contact set's own rows: a subclass adding rows (the hand-off) takes the numpy path.
+_OWN_PROBLEM = NormalContacts._problem
+
+
 def _energy_change(P: FloatArray, w: FloatArray, dw: FloatArray) -> float:
     """Kinetic energy change [J] of an impulse: P . w + P . dw / 2.
 
@@ -1412,6 +1458,13 @@ def _energy_change(P: FloatArray, w: FloatArray, dw: FloatArray) -> float:
     """
     gain = float(P @ w) + 0.5 * float(P @ dw)
     return gain - 1e-12 * (abs(float(P @ w)) + abs(float(P @ dw)))
+
+
+def _centre_velocities(extra: list[dict[str, Any]]) -> FloatArray:
+    """The pairs' tangential velocities at their patch centres, shape (pairs, 3) [m/s]."""
+    if not extra:
+        return np.zeros((0, 3))
+    return np.array([ex["vt"] for ex in extra])
 
 
 def _solve(G: FloatArray, r: FloatArray) -> FloatArray:
@@ -1494,19 +1547,7 @@ def _tangents(n: FloatArray) -> tuple[FloatArray, FloatArray]:
     return t1, _cross(n, t1)
 
 
-#: Levi-Civita symbol: skew(w)[i, k] = eps[i, j, k] w[j].
-_EPS = np.zeros((3, 3, 3))
-_EPS[0, 1, 2] = _EPS[1, 2, 0] = _EPS[2, 0, 1] = 1.0
-_EPS[0, 2, 1] = _EPS[2, 1, 0] = _EPS[1, 0, 2] = -1.0
-#: skew(w) = (w @ _E9).reshape(3, 3), batched over the rows of w.
-_E9 = _EPS.transpose(1, 0, 2).reshape(3, 9)
 _I4 = np.eye(4)
-
-
-def _skew(a: FloatArray) -> FloatArray:
-    """The cross-product matrix of a 3-vector: skew(a) b = a x b."""
-    a0, a1, a2 = a.tolist()
-    return np.array([[0.0, -a2, a1], [a2, 0.0, -a0], [-a1, a0, 0.0]])
 
 
 def _cross(a: FloatArray, b: FloatArray) -> FloatArray:

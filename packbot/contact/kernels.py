@@ -1,0 +1,400 @@
+"""Compiled kernels of the contact-normal mode: contact rows and constrained accelerations.
+
+The right-hand side of the contact-normal mode with its modes fixed is a few Pinocchio calls
+(free accelerations, M^-1, the joint Jacobians and their time variation) and small dense
+algebra on a few contact points: the rows J_n, their drift, gaps and normal velocities, the
+tangential rows of the sticking pairs, then the Delassus system of the engaged rows. That
+algebra works on arrays of 2 to 20 rows, where numpy's per-call overhead (a few microseconds
+per operation, some 40 operations) cost 60 % of a run (docs/performance.md). Here it is one
+compiled function per purpose, with plain loops:
+
+- :func:`contact_rows`: every contact row of the contact set (patch points of the pairs, then
+  the joint limits) and the pairs' tangential data, from Pinocchio's world-frame Jacobians;
+- :func:`constrained_accel`: the accelerations of the current modes (engaged rows, slipping
+  pairs' force columns J_n - mu J_s, sticking pairs' tangential rows, Baumgarte
+  stabilisation), calling :func:`contact_rows` itself.
+
+Compiled with numba (``@njit(cache=True)``): the machine code is cached beside this file
+(``__pycache__``), so only the first run on a machine pays the compilation (measured in
+``benchmarks/peers.py``). This module is imported only when a contact-normal run evaluates its
+first contact, so ``import packbot`` does not import numba.
+
+Conventions (as :class:`packbot.contact.normal.NormalContacts`): world frame, SI; a row's
+gap and normal velocity are body 2 minus body 1 along the normal carried by body 2; the
+tangential rows are (t1, t2) of the contact frame at the pair's patch centre.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+from numba import njit
+
+__all__ = ["constrained_accel", "contact_rows"]
+
+
+@njit(cache=True)
+def _cross(a: Any, b: Any) -> Any:  # pragma: no cover - compiled
+    """The cross product a x b of 3-vectors."""
+    out = np.empty(3)
+    out[0] = a[1] * b[2] - a[2] * b[1]
+    out[1] = a[2] * b[0] - a[0] * b[2]
+    out[2] = a[0] * b[1] - a[1] * b[0]
+    return out
+
+
+@njit(cache=True)
+def contact_rows(  # pragma: no cover - compiled
+    H: Any,
+    J: Any,
+    dJ: Any,
+    masks: Any,
+    q: Any,
+    v: Any,
+    body: Any,
+    local: Any,
+    pair: Any,
+    rows: Any,
+    centre: Any,
+    normal_body: Any,
+    frame2: Any,
+    lim_joint: Any,
+    lim_side: Any,
+    lim_value: Any,
+) -> Any:
+    """Every contact row of a contact set at (q, v), and the pairs' tangential data.
+
+    Args:
+        H: (bodies, 4, 4) world placements of the bodies' joints (homogeneous).
+        J: (6, nv) Pinocchio's joint Jacobians in the world frame (``data.J``), at the world
+            origin, linear over angular.
+        dJ: (6, nv) their time variation (``data.dJ``).
+        masks: (bodies, nv) 1 on the velocities that move each body.
+        q: (nv,) configuration [rad].
+        v: (nv,) velocity [rad/s].
+        body: (2h,) body of each point (first h on body 1, then h on body 2).
+        local: (2h, 4) the points in their joints' frames, homogeneous [m].
+        pair: (h,) pair of each point.
+        rows: (m_p,) the patch points (point index) of the pair rows, in row order.
+        centre: (pairs,) the patch centres (point index).
+        normal_body: (pairs,) body carrying each pair's normal (its body 2).
+        frame2: (pairs, 3, 3) rows t1, t2, n of each pair's contact frame in body 2's frame.
+        lim_joint: (m_l,) joint (velocity index) of each limit row.
+        lim_side: (m_l,) +1 upper limit, -1 lower limit.
+        lim_value: (m_l,) the limit [rad].
+
+    Returns:
+        Jn (m, nv) rows (pairs' points, then limits), drift (m,) = J_n' v [m/s^2], gap (m,)
+        [m or rad], vn (m,) [m/s or rad/s]; per pair JT (pairs, 2, nv) tangential rows at the
+        centre, bT (pairs, 2) their drift, vT (pairs, 2) tangential velocities, vt (pairs, 3)
+        the world tangential velocity, nw (pairs, 3) the normal, T (pairs, 2, 3) the tangents;
+        per point dJp (h, 3, nv) = J_p2 - J_p1 and dP (h, 3) = p2 - p1 [m].
+    """
+    nv = v.shape[0]
+    nb = H.shape[0]
+    n2h = body.shape[0]
+    h = n2h // 2
+    npairs = centre.shape[0]
+    mp = rows.shape[0]
+    ml = lim_joint.shape[0]
+    # per body: spatial velocity and drift acceleration at the world origin
+    Vb = np.zeros((nb, 6))
+    Ab = np.zeros((nb, 6))
+    for b in range(nb):
+        for r in range(6):
+            sv = 0.0
+            sa = 0.0
+            for c in range(nv):
+                if masks[b, c] != 0.0:
+                    sv += J[r, c] * v[c]
+                    sa += dJ[r, c] * v[c]
+            Vb[b, r] = sv
+            Ab[b, r] = sa
+    # per point: position, Jacobian, velocity, drift acceleration
+    P = np.empty((n2h, 3))
+    Jp = np.empty((n2h, 3, nv))
+    vp = np.empty((n2h, 3))
+    ap = np.empty((n2h, 3))
+    for i in range(n2h):
+        b = body[i]
+        for r in range(3):
+            P[i, r] = (
+                H[b, r, 0] * local[i, 0]
+                + H[b, r, 1] * local[i, 1]
+                + H[b, r, 2] * local[i, 2]
+                + H[b, r, 3]
+            )
+        px, py, pz = P[i, 0], P[i, 1], P[i, 2]
+        for c in range(nv):
+            m = masks[b, c]
+            wx, wy, wz = J[3, c] * m, J[4, c] * m, J[5, c] * m
+            # J_p = J_v - skew(P) J_w = J_v - P x J_w
+            Jp[i, 0, c] = J[0, c] * m - (py * wz - pz * wy)
+            Jp[i, 1, c] = J[1, c] * m - (pz * wx - px * wz)
+            Jp[i, 2, c] = J[2, c] * m - (px * wy - py * wx)
+        for r in range(3):
+            s = 0.0
+            for c in range(nv):
+                s += Jp[i, r, c] * v[c]
+            vp[i, r] = s
+        al = Ab[b, 3:6]
+        w = Vb[b, 3:6]
+        pa = _cross(P[i], al)
+        wv = _cross(w, vp[i])
+        for r in range(3):
+            ap[i, r] = Ab[b, r] - pa[r] + wv[r]
+    dJp = np.empty((h, 3, nv))
+    vrel = np.empty((h, 3))
+    arel = np.empty((h, 3))
+    dP = np.empty((h, 3))
+    for k in range(h):
+        for r in range(3):
+            for c in range(nv):
+                dJp[k, r, c] = Jp[h + k, r, c] - Jp[k, r, c]
+            vrel[k, r] = vp[h + k, r] - vp[k, r]
+            arel[k, r] = ap[h + k, r] - ap[k, r]
+            dP[k, r] = P[h + k, r] - P[k, r]
+    # contact frames in the world: F = frame2 R^T (rows t1, t2, n)
+    F = np.empty((npairs, 3, 3))
+    for p in range(npairs):
+        b = normal_body[p]
+        for r in range(3):
+            for c in range(3):
+                F[p, r, c] = (
+                    frame2[p, r, 0] * H[b, c, 0]
+                    + frame2[p, r, 1] * H[b, c, 1]
+                    + frame2[p, r, 2] * H[b, c, 2]
+                )
+    m = mp + ml
+    Jn = np.zeros((m, nv))
+    drift = np.zeros(m)
+    gap = np.empty(m)
+    vn = np.empty(m)
+    for r in range(mp):
+        k = rows[r]
+        p = pair[k]
+        n = F[p, 2]
+        wxn = _cross(Vb[body[h + k], 3:6], n)
+        for c in range(nv):
+            Jn[r, c] = n[0] * dJp[k, 0, c] + n[1] * dJp[k, 1, c] + n[2] * dJp[k, 2, c]
+        g = 0.0
+        vv = 0.0
+        dd = 0.0
+        for i in range(3):
+            g += dP[k, i] * n[i]
+            vv += vrel[k, i] * n[i]
+            dd += arel[k, i] * n[i] + 2.0 * vrel[k, i] * wxn[i]
+        gap[r] = g
+        vn[r] = vv
+        drift[r] = dd
+    for i in range(ml):
+        j = lim_joint[i]
+        s = lim_side[i]
+        Jn[mp + i, j] = -s
+        gap[mp + i] = s * (lim_value[i] - q[j])
+        vn[mp + i] = -s * v[j]
+    JT = np.empty((npairs, 2, nv))
+    bT = np.empty((npairs, 2))
+    vT = np.empty((npairs, 2))
+    vt = np.empty((npairs, 3))
+    nw = np.empty((npairs, 3))
+    T = np.empty((npairs, 2, 3))
+    for p in range(npairs):
+        c0 = centre[p]
+        for r in range(2):
+            for c in range(nv):
+                JT[p, r, c] = (
+                    F[p, r, 0] * dJp[c0, 0, c]
+                    + F[p, r, 1] * dJp[c0, 1, c]
+                    + F[p, r, 2] * dJp[c0, 2, c]
+                )
+            bT[p, r] = (
+                F[p, r, 0] * arel[c0, 0] + F[p, r, 1] * arel[c0, 1] + F[p, r, 2] * arel[c0, 2]
+            )
+            vT[p, r] = (
+                F[p, r, 0] * vrel[c0, 0] + F[p, r, 1] * vrel[c0, 1] + F[p, r, 2] * vrel[c0, 2]
+            )
+            for i in range(3):
+                T[p, r, i] = F[p, r, i]
+        vnc = F[p, 2, 0] * vrel[c0, 0] + F[p, 2, 1] * vrel[c0, 1] + F[p, 2, 2] * vrel[c0, 2]
+        for i in range(3):
+            nw[p, i] = F[p, 2, i]
+            vt[p, i] = vrel[c0, i] - F[p, 2, i] * vnc
+    return Jn, drift, gap, vn, JT, bT, vT, vt, nw, T, dJp, dP
+
+
+@njit(cache=True)
+def _solve_small(G: Any, r: Any) -> Any:  # pragma: no cover - compiled
+    """Solve G x = r: 1 x 1 and 2 x 2 in closed form, else Gaussian elimination.
+
+    Returns:
+        (x, ok); ok is False when G is singular (a zero pivot, or a 2 x 2 whose determinant
+        vanishes to rounding), for the caller's least-squares fallback.
+    """
+    m = r.shape[0]
+    x = np.zeros(m)
+    if m == 1 and G[0, 0] != 0.0:
+        x[0] = r[0] / G[0, 0]
+        return x, True
+    if m == 2:
+        a, b, c, d = G[0, 0], G[0, 1], G[1, 0], G[1, 1]
+        det = a * d - b * c
+        if abs(det) > 1e-12 * (abs(a * d) + abs(b * c)):
+            x[0] = (d * r[0] - b * r[1]) / det
+            x[1] = (a * r[1] - c * r[0]) / det
+            return x, True
+    A = G.copy()
+    y = r.copy()
+    for k in range(m):
+        piv = k
+        best = abs(A[k, k])
+        for i in range(k + 1, m):
+            if abs(A[i, k]) > best:
+                best = abs(A[i, k])
+                piv = i
+        if best == 0.0 or not math.isfinite(best):
+            return x, False
+        if piv != k:
+            for c in range(m):
+                A[k, c], A[piv, c] = A[piv, c], A[k, c]
+            y[k], y[piv] = y[piv], y[k]
+        for i in range(k + 1, m):
+            f = A[i, k] / A[k, k]
+            if f != 0.0:
+                for c in range(k, m):
+                    A[i, c] -= f * A[k, c]
+                y[i] -= f * y[k]
+    for k in range(m - 1, -1, -1):
+        s = y[k]
+        for c in range(k + 1, m):
+            s -= A[k, c] * x[c]
+        x[k] = s / A[k, k]
+    return x, True
+
+
+@njit(cache=True)
+def constrained_accel(  # noqa: D417 (contact_rows documents H ... lim_value)  # pragma: no cover
+    H: Any,
+    J: Any,
+    dJ: Any,
+    masks: Any,
+    q: Any,
+    v: Any,
+    body: Any,
+    local: Any,
+    pair: Any,
+    rows: Any,
+    centre: Any,
+    normal_body: Any,
+    frame2: Any,
+    lim_joint: Any,
+    lim_side: Any,
+    lim_value: Any,
+    engaged: Any,
+    row_slip: Any,
+    sticks: Any,
+    slip_dir: Any,
+    a_free: Any,
+    minv: Any,
+    mu: float,
+    stick_speed: float,
+    baumgarte: float,
+) -> Any:
+    """Accelerations of the current contact modes, with the rows the mode conditions need.
+
+    The problem (see ``NormalContacts.evaluate``): engaged rows A = J_n[E] with force columns
+    C = J_n - mu s^T (J_p2 - J_p1) on slipping pairs' rows (s the unit sliding direction at the
+    patch centre, blended with the onset direction below ``stick_speed``), then two
+    tangential rows per sticking pair (force columns = rows); target accelerations
+    -2 B v_n - B^2 gap (normal rows) and -B v_T (tangential rows); forces from
+    (A M^-1 C^T) lambda = target - (A a_free + drift), accelerations a_free + M^-1 C^T lambda.
+
+    Args:
+        H: As :func:`contact_rows` (and J, dJ, masks, q, v, body, local, pair, rows, centre,
+            normal_body, frame2, lim_joint, lim_side, lim_value).
+        engaged: (e,) the engaged rows (row indices).
+        row_slip: (e,) the slipping pair of each engaged row, or -1.
+        sticks: (s,) the sticking pairs with engaged rows.
+        slip_dir: (pairs, 3) each pair's sliding direction at onset (world).
+        a_free: (nv,) accelerations without contact forces [rad/s^2].
+        minv: (nv, nv) M^-1 (symmetric).
+        mu: Coulomb friction coefficient [-].
+        stick_speed: Below this sliding speed the direction blends with the onset's [m/s].
+        baumgarte: Stabilisation rate B [1/s].
+
+    Returns:
+        (a, lam, gap, vn, vt, ok, G, rhs, MC): ok is False when the Delassus matrix G is
+        singular; then a and lam are unset and the caller solves G lam = rhs by least squares
+        and sets a = a_free + MC lam.
+    """
+    Jn, drift, gap, vn, JT, bT, vT, vt, _, _, dJp, _ = contact_rows(
+        H, J, dJ, masks, q, v, body, local, pair, rows, centre, normal_body, frame2,
+        lim_joint, lim_side, lim_value,
+    )  # fmt: skip
+    nv = v.shape[0]
+    ne = engaged.shape[0]
+    ns = sticks.shape[0]
+    n = ne + 2 * ns
+    A = np.empty((n, nv))
+    C = np.empty((n, nv))
+    target = np.empty(n)
+    b = np.empty(n)
+    for e in range(ne):
+        r = engaged[e]
+        for c in range(nv):
+            A[e, c] = Jn[r, c]
+            C[e, c] = Jn[r, c]
+        p = row_slip[e]
+        if p >= 0:
+            w0 = vt[p, 0] + stick_speed * slip_dir[p, 0]
+            w1 = vt[p, 1] + stick_speed * slip_dir[p, 1]
+            w2 = vt[p, 2] + stick_speed * slip_dir[p, 2]
+            nrm = math.sqrt(w0 * w0 + w1 * w1 + w2 * w2)
+            if nrm > 0.0:
+                s0, s1, s2 = w0 / nrm, w1 / nrm, w2 / nrm
+            else:
+                s0, s1, s2 = slip_dir[p, 0], slip_dir[p, 1], slip_dir[p, 2]
+            k = rows[r]
+            for c in range(nv):
+                C[e, c] -= mu * (s0 * dJp[k, 0, c] + s1 * dJp[k, 1, c] + s2 * dJp[k, 2, c])
+        target[e] = -2.0 * baumgarte * vn[r] - baumgarte * baumgarte * gap[r]
+        b[e] = drift[r]
+    for i in range(ns):
+        p = sticks[i]
+        for j in range(2):
+            e = ne + 2 * i + j
+            for c in range(nv):
+                A[e, c] = JT[p, j, c]
+                C[e, c] = JT[p, j, c]
+            target[e] = -baumgarte * vT[p, j]
+            b[e] = bT[p, j]
+    MC = np.zeros((nv, n))  # M^-1 C^T
+    for i in range(nv):
+        for e in range(n):
+            s = 0.0
+            for c in range(nv):
+                s += minv[i, c] * C[e, c]
+            MC[i, e] = s
+    G = np.empty((n, n))
+    rhs = np.empty(n)
+    for e in range(n):
+        s = b[e]
+        for c in range(nv):
+            s += A[e, c] * a_free[c]
+        rhs[e] = target[e] - s
+        for f in range(n):
+            s = 0.0
+            for c in range(nv):
+                s += A[e, c] * MC[c, f]
+            G[e, f] = s
+    lam, ok = _solve_small(G, rhs)
+    a = a_free.copy()
+    if ok:
+        for i in range(nv):
+            s = 0.0
+            for e in range(n):
+                s += MC[i, e] * lam[e]
+            a[i] += s
+    return a, lam, gap, vn, vt, ok, G, rhs, MC
