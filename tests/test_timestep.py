@@ -56,6 +56,30 @@ def test_mixed_problem_cones_and_boxes_solved_together():
     assert box_residual(G[3:, 3:], g[3:] + G[3:, :3] @ x[:3], x[3:], bound) < 1e-8
 
 
+def test_a_warm_start_from_the_answer_needs_no_iterations():
+    """The window's steps start the ADMM from the previous step's impulses (same rows): a
+    guess is used (one iteration from the answer converges, from zero it does not), in the
+    caller's row order (box rows permuted), and a guess of another size is ignored."""
+    model = pin.buildSampleModelManipulator()
+    data = model.createData()
+    rng = np.random.default_rng(3)
+    A = rng.standard_normal((9, 6))
+    G = A @ A.T + 0.1 * np.eye(9)  # two cone blocks, then three box rows
+    g = rng.standard_normal(9) - np.array([0, 0, 2.0, 0, 0, 2.0, 0, 0, 0])
+    mus, joints, bound = np.array([0.5, 0.8]), np.array([4, 2, 1]), np.array([0.3, 0.2, 0.1])
+    x, res = solve_mixed_admm(model, data, G, g, mus, joints, bound)
+    assert res < 1e-8
+    x1, res1 = solve_mixed_admm(model, data, G, g, mus, joints, bound, max_iterations=1, guess=x)
+    assert res1 < 1e-6
+    np.testing.assert_allclose(x1, x, atol=1e-6)
+    _, cold = solve_mixed_admm(model, data, G, g, mus, joints, bound, max_iterations=1)
+    assert cold > 1e-3
+    _, other = solve_mixed_admm(
+        model, data, G, g, mus, joints, bound, max_iterations=1, guess=np.ones(4)
+    )
+    assert other == pytest.approx(cold)
+
+
 def test_box_residual_flags_a_wrong_solution():
     G, g = np.eye(1), np.array([-5.0])
     assert box_residual(G, g, np.array([2.0]), np.array([2.0])) < 1e-12  # slips at the bound

@@ -259,6 +259,7 @@ def solve_mixed_admm(
     *,
     tol: float = 1e-10,
     max_iterations: int = 5000,
+    guess: FloatArray | None = None,
 ) -> tuple[FloatArray, float]:
     """Contact cones and joint friction boxes in one problem, on Pinocchio's ADMM solver.
 
@@ -279,6 +280,8 @@ def solve_mixed_admm(
         box_bound: Bound of each box row, shape (B,) (> 0).
         tol: Solver tolerance.
         max_iterations: Iteration limit.
+        guess: Impulses to start from, shape (3K + B,) (a warm start: the previous time
+            step's answer on the same rows); None: from zero.
 
     Returns:
         x and its true residual (the larger of :func:`ncp_residual` on the cone rows and
@@ -317,6 +320,9 @@ def solve_mixed_admm(
     D = pin.DelassusOperatorDense(np.ascontiguousarray(0.5 * (Gs + Gs.T)))
     solver = pin.ADMMConstraintSolver(len(gs))
     res = pin.ADMMSolverResult()
+    if guess is not None and len(guess) == len(gs):
+        res.resize(len(gs))
+        res.setConstraintImpulseGuess(np.ascontiguousarray(guess if perm is None else guess[perm]))
     st = pin.ADMMSolverSettings()
     st.absolute_feasibility_tol = st.relative_feasibility_tol = tol
     st.absolute_complementarity_tol = st.relative_complementarity_tol = tol

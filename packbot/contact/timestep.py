@@ -53,7 +53,7 @@ import logging
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import pinocchio as pin
@@ -194,6 +194,9 @@ class MoreauJeanStepper:
         #: Steps whose combined problem fell back to the frictionless normal rows.
         self.fallbacks = 0
         self.joint_of = contacts._joint_of  # model joint of each velocity index
+        # the last accepted ADMM answer and its rows (a warm start for the next step)
+        self._last_rows: tuple[Any, ...] | None = None
+        self._last_x: FloatArray | None = None
 
     def step(
         self,
@@ -325,21 +328,34 @@ class MoreauJeanStepper:
         joints = self.joint_of[cj]
         if not len(cj) and not np.any(mus):  # frictionless, no joint boxes: an LCP
             return self._frictionless(G, g, m)
+        rows = self._rows_key(len(cj))
+        guess = self._last_x if rows == self._last_rows else None
         x, res = solve_mixed_admm(
             sys.model, sys.data, G, g, mus, joints, bound,
-            tol=ADMM_TOL, max_iterations=ADMM_ITERATIONS,
+            tol=ADMM_TOL, max_iterations=ADMM_ITERATIONS, guess=guess,
         )  # fmt: skip
         if res <= RESIDUAL_OK:
+            self._last_rows, self._last_x = rows, x
             return x, res
         x2, res2 = solve_mixed_admm(
             sys.model, sys.data, G, g, mus, joints, bound,
             tol=0.1 * ADMM_TOL, max_iterations=ADMM_RETRY_ITERATIONS,
         )  # fmt: skip
         if res2 <= RESIDUAL_OK:
+            self._last_rows, self._last_x = rows, x2
             return x2, res2
         self.fallbacks += 1
         log.debug("window step: ADMM residual %.3g; frictionless normal rows used", res2)
         return self._frictionless(G, g, m)
+
+    def _rows_key(self, boxes: int) -> tuple[Any, ...]:
+        """What makes two steps' rows the same rows (a warm start's condition).
+
+        The pairs and their point counts, the limits, the joint boxes: the points themselves
+        move from step to step.
+        """
+        c = self.contacts
+        return (tuple((k, len(p.local1)) for k, p in c.pairs.items()), tuple(c.limits), boxes)
 
     @staticmethod
     def _frictionless(G: FloatArray, g: FloatArray, m: int) -> tuple[FloatArray, float]:
