@@ -23,8 +23,8 @@ once, in order), real-time factor (simulated / wall), deepest penetration [m] (p
 max(0, -diagnostics.min_distance) of the timed run; MuJoCo: max(0, -contact dist) over every
 step, read in a SEPARATE untimed run, :func:`packbot.mujoco_model.run_collapse`, so that the
 timed run stays bare), the rest pose (shoulder, elbow1, elbow2 at the end [rad]), and for the
-packbot rows the ratio of its median wall to MuJoCo Euler 1 ms's, with the target of issue
-"speed" (normal <= 1.0x, joint_clamp <= 0.5x).
+packbot rows the ratio of its median wall to MuJoCo Euler 1 ms's, with its speed target
+(docs/performance.md: normal <= 1.0x, joint_clamp <= 0.5x).
 
 Table 2, a controlled run: ``reconfig_elbow1`` (sims/reconfig_elbow1.toml: the reconfigurable
 controller reaches from "stand", elbow1 freezes at 1 s, the controller detects it and

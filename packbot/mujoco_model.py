@@ -138,7 +138,9 @@ class MujocoRun:
             (checked at every step), or None if still moving at the end.
         max_penetration: Deepest penetration over the run, max(0, -contact dist) [m].
         steps: MuJoCo steps taken.
-        wall_time: Wall-clock time of the stepping loop [s].
+        wall_time: Wall-clock time of the stepping loop [s], the Python work of reading every
+            step (contacts, speeds, samples) included: not MuJoCo's stepping speed (a bare
+            ``mj_step`` loop is several times faster; docs/performance.md).
     """
 
     t: NDArray[np.float64]
