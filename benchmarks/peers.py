@@ -30,8 +30,10 @@ Table 2, a controlled run: ``reconfig_elbow1`` (sims/reconfig_elbow1.toml: the r
 controller reaches from "stand", elbow1 freezes at 1 s, the controller detects it and
 re-plans; joint_clamp, joint friction, gripper_jaw locked) for ``--control-duration`` (60) s.
 
-- ``packbot``: :func:`packbot.scenario.run_scenario` with that duration (what ``packbot run``
-  does, without the output files); the robot is loaded once, outside the timing.
+- ``packbot``: the scenario's controller built and :func:`packbot.simulate` run with the
+  scenario's start, environment, config and failures for that duration (what
+  :func:`packbot.scenario.run_scenario` and ``packbot run`` do, without the checks of the file
+  and the output files); the robot is loaded once, outside the timing.
 - ``MuJoCo Euler 1 ms + same controller``: the scenario's own controller object
   (``scenario.build_controller(robot)``, built and reset inside the timing), called in Python
   at every tick (its ``dt``, 1 ms) with the full q, v (MuJoCo qpos/qvel mapped by joint name;
@@ -45,7 +47,8 @@ re-plans; joint_clamp, joint friction, gripper_jaw locked) for ``--control-durat
   controller's observer calls frozen, 1e-3 rad/s, and the controller then sees a loose joint).
   MuJoCo's contacts (mu 0.5) stand in for packbot's joint-clamp law (the reach does not touch).
 
-Ratio packbot / MuJoCo, targets: >= 20x real time and within 2x of MuJoCo.
+Ratio packbot / MuJoCo, targets: >= 20x real time and within 2x of MuJoCo. The time spent in
+the controller's ``step`` (the same code in both) is measured in both rows and printed.
 
 ``--json PATH`` writes every row (medians, every repeat's wall, the columns above) and the
 machine. ``--profile`` prints a cProfile of one packbot normal-mode collapse (top functions by
@@ -107,6 +110,7 @@ class Row:
     simulated: float
     status: str = "ok"  # "ok", "not installed", "error: ..."
     walls: list[float] = field(default_factory=list)
+    controller_wall: float | None = None  # of the median wall, in the controller [s]
     penetration: float | None = None
     rest_pose: dict[str, float] | None = None
     note: str = ""
@@ -357,10 +361,57 @@ def _freeze(mujoco: Any, model: Any, data: Any, dof: int) -> None:
     model.dof_armature[dof] = FROZEN_ARMATURE
 
 
+def _timed_step(ctrl: Any) -> list[float]:
+    """Wrap ``ctrl.step`` to add its wall time [s] to the returned one-item list."""
+    spent = [0.0]
+    step = ctrl.step
+    clock = time.perf_counter
+
+    def timed(t: float, q: Any, v: Any) -> Any:
+        c0 = clock()
+        try:
+            return step(t, q, v)
+        finally:
+            spent[0] += clock() - c0
+
+    ctrl.step = timed
+    return spent
+
+
+def _packbot_controlled(
+    robot: packbot.Robot, scenario: Any, T: float
+) -> tuple[float, float, packbot.SimResult]:
+    """The scenario as :func:`packbot.scenario.run_scenario` runs it, for T [s].
+
+    Returns:
+        (wall [s], of which in the controller's ``step`` [s], the result).
+    """
+    t0 = time.perf_counter()
+    q0, v0 = scenario.initial_state(robot)
+    ctrl = scenario.build_controller(robot)
+    spent = _timed_step(ctrl)
+    res = packbot.simulate(
+        robot,
+        q0,
+        v0,
+        T,
+        controller=ctrl,
+        environment=scenario.environment,
+        config=scenario.config,
+        failures=list(scenario.failures),
+        inform_controller=scenario.inform_controller,
+    )
+    return time.perf_counter() - t0, spent[0], res
+
+
 def _mujoco_controlled(
     robot: packbot.Robot, scenario: Any, arm: MujocoArm, T: float
-) -> tuple[float, dict[str, float], int]:
-    """The scenario's controller on MuJoCo; returns (wall [s], final pose, ticks)."""
+) -> tuple[float, float, dict[str, float], int]:
+    """The scenario's controller on MuJoCo.
+
+    Returns:
+        (wall [s], of which in ``ctrl.step`` [s], final pose [rad] by joint, ticks).
+    """
     import mujoco
 
     model, names = arm.model, robot.joint_names
@@ -390,6 +441,8 @@ def _mujoco_controlled(
     ctrl.reset(robot, 0.0, q0.copy(), v0.copy())
     nstep = max(1, round(ctrl.dt / arm.timestep))
     ticks = round(T / (nstep * arm.timestep))
+    in_ctrl = 0.0
+    clock = time.perf_counter
     for k in range(ticks):
         t = k * nstep * arm.timestep
         while freezes and freezes[0][0] <= t + 1e-12:
@@ -397,7 +450,9 @@ def _mujoco_controlled(
             _freeze(mujoco, model, data, int(model.jnt_dofadr[jid]))
         qf[free] = data.qpos[qadr]
         vf[free] = data.qvel[dadr]
+        c0 = clock()
         tau = np.asarray(ctrl.step(t, qf, vf), dtype=float)
+        in_ctrl += clock() - c0
         if saturate:
             tau = np.clip(tau, -effort, effort)
         data.qfrc_applied[dadr] = tau[free]
@@ -405,7 +460,8 @@ def _mujoco_controlled(
     wall = time.perf_counter() - t0
     model.dof_armature[:] = armature0
     q = arm.from_qpos(data.qpos)
-    return wall, {n: float(q[robot.joint_names.index(n)]) for n in ("turret", *ARM)}, ticks
+    pose = {n: float(q[robot.joint_names.index(n)]) for n in ("turret", *ARM)}
+    return wall, in_ctrl, pose, ticks
 
 
 def control_table(robot: packbot.Robot, args: argparse.Namespace) -> list[Row]:
@@ -425,14 +481,17 @@ def control_table(robot: packbot.Robot, args: argparse.Namespace) -> list[Row]:
     ours = Row("packbot reconfig_elbow1", T)
     peer = Row("MuJoCo Euler 1 ms + same controller", T)
     run_scenario(scenario, robot, duration=min(T, 0.2))  # warm-up
+    ctrl_walls: list[float] = []
+    ours_ctrl: list[float] = []
     for _ in range(args.control_repeats):
-        t0 = time.perf_counter()
-        res = run_scenario(scenario, robot, duration=T)
-        ours.walls.append(time.perf_counter() - t0)
+        wall, in_ctrl, res = _packbot_controlled(robot, scenario, T)
+        ours.walls.append(wall)
+        ours_ctrl.append(in_ctrl)
         ours.rest_pose = {n: float(res.q[-1][res.joint(n)]) for n in ("turret", *ARM)}
         ours.note = f"{res.control_ticks} ticks, {res.diagnostics.steps} steps"
-        wall, pose, ticks = _mujoco_controlled(robot, scenario, arm, T)
+        wall, in_ctrl, pose, ticks = _mujoco_controlled(robot, scenario, arm, T)
         peer.walls.append(wall)
+        ctrl_walls.append(in_ctrl)
         peer.rest_pose = pose
         peer.note = f"{ticks} ticks; elbow1 frozen at 1 s (speed 0, armature 1e8)"
     print(
@@ -455,6 +514,13 @@ def control_table(robot: packbot.Robot, args: argparse.Namespace) -> list[Row]:
             + f"  ({r.note})"
         )
     ratio = ours.wall / peer.wall
+    for r, spent in ((ours, ours_ctrl), (peer, ctrl_walls)):
+        r.controller_wall = statistics.median(spent)
+        print(
+            f"{r.label}: in the controller's step() {r.controller_wall:.3f} s (median; "
+            f"{r.controller_wall / r.wall:.0%} of its wall, {r.controller_wall / ticks * 1e6:.0f} "
+            f"us per tick): the controller alone runs at {T / r.controller_wall:.1f}x real time"
+        )
     print(
         f"packbot / MuJoCo: {ratio:.2f}x (target <= {CONTROL_RATIO_TARGET:g}x: "
         f"{'met' if ratio <= CONTROL_RATIO_TARGET else 'not met'}); packbot real-time factor "
