@@ -15,8 +15,9 @@ same URDF, mu = 0.5, the same armature. Rows:
 - ``PyBullet 240 Hz`` and ``Drake discrete 1 ms``: run only if ``pybullet`` / ``pydrake`` is
   importable (neither is a packbot dependency), otherwise printed as "not installed". PyBullet:
   the same URDF with the locked joints welded, ``p.stepSimulation()`` in a loop, motors off,
-  mu 0.5, SRDF pairs filtered (PyBullet has no armature); Drake: ``drake_reference.collapse``
-  (discrete point contact, lagged approximation, ``AdvanceTo`` every 2 ms).
+  mu 0.5, SRDF pairs filtered (PyBullet has no armature; this code is untested: PyBullet is not
+  installed where the tables were made); Drake: ``drake_reference.collapse`` (discrete point
+  contact, lagged approximation, ``AdvanceTo`` every 2 ms).
 
 Columns: wall time [s] (median over ``--repeats`` rounds, interleaved: round r runs every row
 once, in order), real-time factor (simulated / wall), deepest penetration [m] (packbot:
@@ -442,10 +443,15 @@ def _mujoco_controlled(
     )
     effort = np.asarray(robot.params.effort, dtype=float)
     saturate = scenario.config.effort_saturation
+    other = [f.kind for f in scenario.failures if f.kind != "frozen"]
+    if other:  # only a frozen joint has a simple MuJoCo equivalent here
+        raise NotImplementedError(f"failure kinds {other} on MuJoCo")
     freezes = sorted(
-        (f.t, mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, f.joint), f.joint)
-        for f in scenario.failures
-        if f.kind == "frozen"
+        (
+            (f.t, mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, f.joint), f)
+            for f in scenario.failures
+        ),
+        key=lambda x: x[0],
     )
     armature0 = model.dof_armature.copy()
     qf, vf = arm.q_locked.copy(), np.zeros(robot.nq)
@@ -459,8 +465,10 @@ def _mujoco_controlled(
     for k in range(ticks):
         t = k * nstep * arm.timestep
         while freezes and freezes[0][0] <= t + 1e-12:
-            _, jid, _ = freezes.pop(0)
+            _, jid, failure = freezes.pop(0)
             _freeze(mujoco, model, data, int(model.jnt_dofadr[jid]))
+            if scenario.inform_controller:
+                ctrl.on_failure(failure, t)
         qf[free] = data.qpos[qadr]
         vf[free] = data.qvel[dadr]
         c0 = clock()
