@@ -10,7 +10,7 @@ same URDF, mu = 0.5, the same armature. Rows:
   config, run for the same 5 s);
 - ``MuJoCo Euler 1 ms``, ``MuJoCo Euler 2 ms``, ``MuJoCo RK4 1 ms``: the model of
   :func:`packbot.mujoco_model.build_mujoco_model` (stiff ``solref``: two steps), stepped bare
-  with ``mujoco.mj_step(model, data, nstep=n)`` (one call: MuJoCo >= 3 steps n times in C, no
+  with ``mujoco.mj_step(model, data, nstep=n)`` (one call: the binding steps n times in C, no
   Python between the steps); the model compile and ``MjData`` set-up are not timed;
 - ``PyBullet 240 Hz`` and ``Drake discrete 1 ms``: run only if ``pybullet`` / ``pydrake`` is
   importable (neither is a packbot dependency), otherwise printed as "not installed". PyBullet:
