@@ -7,13 +7,15 @@ camera and gripper joints locked (the report's model had them as solid parts). R
 median of REPEATS runs; the other columns come from the last run, which is deterministic), then
 a cProfile of the default rule (zero + velocity), top 15 functions by cumulative time.
 
-Then the collapse side by side (issue 5): ``joint_clamp`` (zero and momentum reset),
+Then the collapse side by side: ``joint_clamp`` (zero and momentum reset) and
 ``contact_mode="normal"`` with mu = 0 and mu = 0.5 (one run each, stopped after
-``--normal-timeout`` wall seconds; ``--normal-duration`` shortens them), and MuJoCo
-(:mod:`packbot.mujoco_model`, same URDF, mu = 0.5, stiff solref) at 0.5, 1 and 2 ms with its default
-Euler integrator and with RK4, and at 0.1 ms with a 1 ms contact time constant: wall time,
-real-time factor, rest time, rest pose and deepest penetration (ours: max(0, -min signed
-distance); MuJoCo: max(0, -contact dist)). Skipped without ``mujoco`` or with ``--no-compare``.
+``--normal-timeout`` wall seconds; ``--normal-duration`` shortens them): wall time, real-time
+factor, rest time, rest pose and deepest penetration (max(0, -min signed distance)).
+Skipped with ``--no-compare``.
+
+MuJoCo is not timed here: benchmarks/peers.py times it stepped bare (``mj_step`` with no
+Python between the steps) next to packbot, interleaved, as docs/performance.md quotes;
+benchmarks/mujoco_reference.py compares MuJoCo settings as references of the rest pose.
 
 Run: python benchmarks/simulate.py [--repeats N] [--duration S] [--normal-duration S]
     [--normal-timeout S] [--no-compare] [--no-profile]
@@ -33,7 +35,6 @@ import time
 import numpy as np
 
 import packbot
-from packbot.mujoco_model import build_mujoco_model, run_collapse
 
 LOCKED = ("camera_tilt", "camera_pan", "gripper_roll", "gripper_jaw")
 CASES: tuple[tuple[str, dict[str, str]], ...] = (
@@ -166,7 +167,7 @@ def _ours(
 
 
 def compare(robot: packbot.Robot, args: argparse.Namespace) -> None:
-    """The collapse side by side: joint_clamp, normal, MuJoCo (see the module docstring)."""
+    """The collapse side by side: joint_clamp and normal (see the module docstring)."""
     dur = args.duration
     ndur = dur if args.normal_duration is None else args.normal_duration
     head = (
@@ -209,28 +210,10 @@ def compare(robot: packbot.Robot, args: argparse.Namespace) -> None:
             continue
         pen = max(0.0, -res.diagnostics.min_distance)
         row(label, d, wall, res.rest_time, res.q[-1], pen)
-    try:
-        mj_cases = [
-            (f"MuJoCo {dt * 1e3:g} ms {integ}", {"timestep": dt, "integrator": integ})
-            for integ in ("euler", "rk4")
-            for dt in (5e-4, 1e-3, 2e-3)
-        ]
-        mj_cases.append(("MuJoCo 0.1 ms tau 1 ms", {"timestep": 1e-4, "solref": (1e-3, 1.0)}))
-        for label, mj in mj_cases:
-            arm = build_mujoco_model(robot, mu=0.5, locked_joints=LOCKED, **mj)  # type: ignore[arg-type]
-            walls = []
-            for _ in range(args.repeats):
-                t0 = time.perf_counter()
-                run = run_collapse(arm, robot.pose("drive"), dur)
-                walls.append(time.perf_counter() - t0)
-            row(
-                label, dur, statistics.median(walls), run.rest_time, run.q_rest, run.max_penetration
-            )
-    except packbot.ModelError as exc:
-        print(f"MuJoCo rows skipped: {exc}")
     print(
-        "\npen: deepest penetration over the run [m] (ours: max(0, -diagnostics.min_distance); "
-        "MuJoCo: max(0, -contact.dist)); rest: every joint speed below 1e-3 rad/s from then on."
+        "\npen: deepest penetration over the run [m] (max(0, -diagnostics.min_distance)); "
+        "rest: every joint speed below 1e-3 rad/s from then on.\nMuJoCo, stepped bare: "
+        "benchmarks/peers.py."
     )
 
 

@@ -138,7 +138,9 @@ class MujocoRun:
             (checked at every step), or None if still moving at the end.
         max_penetration: Deepest penetration over the run, max(0, -contact dist) [m].
         steps: MuJoCo steps taken.
-        wall_time: Wall-clock time of the stepping loop [s].
+        wall_time: Wall-clock time of the stepping loop [s], the Python work of reading every
+            step (contacts, speeds, samples) included: not MuJoCo's stepping speed (a bare
+            ``mj_step`` loop is several times faster; docs/performance.md).
     """
 
     t: NDArray[np.float64]
@@ -212,6 +214,7 @@ def build_mujoco_model(
     integrator: MujocoIntegrator = "euler",
     environment: Environment | None = None,
     srdf: Path | str | None = None,
+    joint_dynamics: bool = False,
 ) -> MujocoArm:
     """Build a MuJoCo model of the arm from ``robot.urdf_path``.
 
@@ -235,6 +238,9 @@ def build_mujoco_model(
         environment: Static obstacles; only halfspaces are supported (each becomes a plane);
             None: the floor z = 0.
         srdf: SRDF of link pairs never to test; None: the one beside the URDF.
+        joint_dynamics: Keep the joints' friction (``SimConfig.joint_friction``): each hinge's
+            viscous friction ``robot.params.viscous`` [N*m*s/rad] as MuJoCo ``damping`` and its
+            Coulomb friction ``robot.params.coulomb`` [N*m] as ``frictionloss``; False: none.
 
     Returns:
         The compiled model and the coordinate map.
@@ -256,6 +262,7 @@ def build_mujoco_model(
         integrator=integrator,
         environment=environment,
         srdf=srdf,
+        joint_dynamics=joint_dynamics,
     )
     urdf = Path(robot.urdf_path)
     try:

@@ -8,8 +8,10 @@ run's :class:`~packbot.result.Diagnostics`: the log is a list, not a call back i
 
 :class:`Recorder` keeps the samples: the regular ones at multiples of ``sample_dt`` (taken on
 each accepted step's dense output), the states just before and after every event and
-scheduled action, and the final state. What one sample holds is measured by the function it is
-built with (full q and v, the torques, the energy: :func:`measure`).
+scheduled action, and the final state, in arrays allocated up front (the regular samples'
+number is known from the duration; events add a few and enlarge the arrays by halves). What
+one sample holds is measured by the function it is built with (full q and v, the torques, the
+energy: :func:`measure`).
 """
 
 from __future__ import annotations
@@ -103,7 +105,12 @@ def measure(
 
 
 class Recorder:
-    """The samples of one run.
+    """The samples of one run, in preallocated arrays.
+
+    The regular samples number ``duration / sample_dt + 1``, known up front: the arrays are
+    allocated for them (and a few event samples) at the first sample, one array per column
+    (t, q, v, tau_cmd, tau, tau_friction, effort, E), and grow by half their size when events
+    add more. No Python object is kept per sample; :meth:`arrays` hands back the filled rows.
 
     Args:
         sample_dt: Interval of the regular samples [s].
@@ -111,15 +118,29 @@ class Recorder:
         measure: The sample at (t, y).
     """
 
+    #: Rows allocated beyond the regular samples and the final state (event samples).
+    EXTRA_ROWS = 64
+
     def __init__(
         self, sample_dt: float, duration: float, measure: Callable[[float, FloatArray], Sample]
     ) -> None:
         self.dt = sample_dt
         self.duration = duration
         self.measure = measure
-        self.samples: list[Sample] = []  # (q, v, tau_cmd, tau, tau_friction, effort, E)
-        self.samples_t: list[float] = []
         self.next_sample = 0
+        self._n = 0  # rows filled
+        self._capacity = int(duration / sample_dt) + 2 + self.EXTRA_ROWS
+        self._t: FloatArray = np.empty(0)
+        self._cols: list[FloatArray] = []  # (q, v, tau_cmd, tau, tau_friction, effort, E)
+
+    def __len__(self) -> int:
+        """The number of samples kept."""
+        return self._n
+
+    @property
+    def samples_t(self) -> list[float]:
+        """The times of the samples kept so far [s] (a copy, in order)."""
+        return self._t[: self._n].tolist()
 
     def record(self, seg: DenseSegment, t_end: float) -> None:
         """Keep the regular samples due up to t_end from a step's dense output."""
@@ -146,16 +167,43 @@ class Recorder:
         kept here, at t = duration (the last interval is then shorter). A run whose duration
         is a multiple of ``sample_dt`` already ends on a sample and is unchanged.
         """
-        if not self.samples_t or self.samples_t[-1] < self.duration - 1e-12:
+        if self._n == 0 or self._t[self._n - 1] < self.duration - 1e-12:
             self.point(self.duration, y)
 
     def point(self, t: float, y: FloatArray) -> None:
         """Keep the sample of state y at t (nothing kept if measuring it raises)."""
         sample = self.measure(t, y)
-        self.samples_t.append(t)
-        self.samples.append(sample)
+        n = self._n
+        if n == len(self._t):
+            self._grow(sample)
+        self._t[n] = t
+        for col, value in zip(self._cols, sample, strict=True):
+            col[n] = value
+        self._n = n + 1
+
+    def _grow(self, sample: Sample) -> None:
+        """Allocate the arrays (first sample: their row shapes from it), or enlarge them."""
+        if not self._cols:
+            size = self._capacity
+            self._t = np.empty(size)
+            self._cols = [np.empty((size, *np.shape(x))) for x in sample]
+            return
+        size = len(self._t) + max(len(self._t) // 2, self.EXTRA_ROWS)
+        old = [self._t, *self._cols]
+        new = [np.empty((size, *a.shape[1:])) for a in old]
+        for a, b in zip(old, new, strict=True):
+            b[: self._n] = a[: self._n]
+        self._t, self._cols = new[0], new[1:]
 
     def arrays(self) -> list[FloatArray]:
-        """t, then the columns of the samples: q, v, tau_cmd, tau, tau_friction, effort, E."""
-        t = np.array(self.samples_t)
-        return [t] + [np.array([s[k] for s in self.samples], dtype=float) for k in range(7)]
+        """t, then the columns of the samples: q, v, tau_cmd, tau, tau_friction, effort, E.
+
+        Each has one row per sample: the filled rows of its allocation (a view when the rows
+        left over are few, a copy otherwise, so that a run stopped early does not keep its whole
+        allocation); with no sample, each is empty, shape (0,). Rows kept later are not in it.
+        """
+        n = self._n
+        if not self._cols:
+            return [np.zeros(0) for _ in range(8)]
+        few = len(self._t) - n <= n // 4 + self.EXTRA_ROWS
+        return [a[:n] if few else a[:n].copy() for a in (self._t, *self._cols)]

@@ -58,6 +58,23 @@ def test_joints_map_by_name_with_armature_limits_and_no_damping(robot, arm) -> N
         assert arm.qpos_index[robot.joint_names.index(name)] == -1
 
 
+def test_joint_dynamics_keep_the_joint_friction(robot) -> None:
+    """joint_dynamics=True: the URDF's viscous friction as damping, Coulomb as frictionloss."""
+    q = robot.pose("stand")
+    arm = build_mujoco_model(
+        robot, q_locked=q, locked_joints=("gripper_jaw",), timestep=1e-3, joint_dynamics=True
+    )
+    m = arm.model
+    assert m.nv == robot.nq - 1
+    for i, name in enumerate(robot.joint_names):
+        if name == "gripper_jaw":
+            continue
+        dof = m.jnt_dofadr[mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, name)]
+        assert m.dof_damping[dof] == pytest.approx(robot.params.viscous[i], rel=1e-12)
+        assert m.dof_frictionloss[dof] == pytest.approx(robot.params.coulomb[i], rel=1e-12)
+    assert np.any(m.dof_damping > 0) and np.any(m.dof_frictionloss > 0)
+
+
 def test_masses_and_inertias_match_pinocchio(robot, arm) -> None:
     m, model = arm.model, robot.model
     total = 0.0
