@@ -157,3 +157,22 @@ def test_the_compiled_dynamics_equal_the_numpy_ones_along_a_collapse(robot, monk
     assert worst < 1e-9
     if mu > 0.0:
         assert seen["slip"] > 10 and seen["stick"] > 10
+
+
+def test_small_solves_in_closed_form_match_lapack(rng):
+    """solve_small (Cramer's rule up to 3 x 3, the locks' and the engaged rows' systems)
+    agrees with numpy's LU solve, and falls back to least squares on a singular matrix."""
+    from packbot.contact.lcp import solve_small
+
+    for n in (1, 2, 3, 4):
+        for _ in range(300):
+            A = rng.standard_normal((n, n))
+            G = A @ A.T + 1e-2 * np.eye(n)  # a Delassus block or a block of M^-1
+            r = rng.standard_normal(n)
+            ref = np.linalg.solve(G, r)
+            np.testing.assert_allclose(
+                solve_small(G, r), ref, rtol=1e-9, atol=1e-12 * abs(ref).max()
+            )
+    G = np.array([[1.0, 2.0, 3.0], [2.0, 4.0, 6.0], [1.0, 0.0, 1.0]])  # rank 2
+    r = np.array([1.0, 2.0, 0.5])
+    np.testing.assert_allclose(solve_small(G, r), np.linalg.lstsq(G, r, rcond=None)[0])

@@ -36,6 +36,7 @@ __all__ = [
     "solve_lcp_psd",
     "solve_mixed_admm",
     "solve_ncp_admm",
+    "solve_small",
 ]
 
 FloatArray = NDArray[np.float64]
@@ -340,3 +341,41 @@ def solve_mixed_admm(
         gb = g[b] + G[b, c] @ x[c]
         r = max(r, box_residual(G[b, b], gb, x[b], np.asarray(box_bound, dtype=float)))
     return x, r
+
+
+def solve_small(G: FloatArray, r: FloatArray) -> FloatArray:
+    """Solve G x = r (least squares if G is singular); up to 3 x 3 in closed form.
+
+    The right-hand side's systems are this small most of the time (the locked joints of the
+    report's law, the contact-normal mode's engaged rows), and numpy's solver costs several
+    microseconds of call overhead on them. The closed forms (Cramer's rule) are used when the
+    determinant is not lost to rounding (above 1e-12 of its terms' scale); otherwise numpy's
+    LU solve, and least squares for an exactly singular G.
+    """
+    m = len(r)
+    if m == 1 and G[0, 0] != 0.0:
+        return r / G[0, 0]
+    if m == 2:
+        (a, b), (c, d) = G.tolist()
+        det = a * d - b * c
+        if abs(det) > 1e-12 * (abs(a * d) + abs(b * c)):
+            r0, r1 = r.tolist()
+            return np.array([(d * r0 - b * r1) / det, (a * r1 - c * r0) / det])
+    if m == 3:
+        (a, b, c), (d, e, f), (g, h, i) = G.tolist()
+        c0, c1, c2 = e * i - f * h, f * g - d * i, d * h - e * g  # cofactors of row 0
+        det = a * c0 + b * c1 + c * c2
+        scale = abs(a * c0) + abs(b * c1) + abs(c * c2)
+        if abs(det) > 1e-12 * scale:
+            r0, r1, r2 = r.tolist()
+            return np.array(
+                [
+                    (c0 * r0 + (c * h - b * i) * r1 + (b * f - c * e) * r2) / det,
+                    (c1 * r0 + (a * i - c * g) * r1 + (c * d - a * f) * r2) / det,
+                    (c2 * r0 + (b * g - a * h) * r1 + (a * e - b * d) * r2) / det,
+                ]
+            )
+    try:
+        return np.asarray(np.linalg.solve(G, r), dtype=np.float64)
+    except np.linalg.LinAlgError:
+        return np.asarray(np.linalg.lstsq(G, r, rcond=None)[0], dtype=np.float64)

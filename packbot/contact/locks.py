@@ -29,6 +29,8 @@ from itertools import combinations
 import numpy as np
 from numpy.typing import NDArray
 
+from packbot.contact.lcp import solve_small
+
 __all__ = ["ACCEL_BAND", "TORQUE_BAND", "JointLocks"]
 
 #: Hysteresis of the sign conditions: a free clamped joint engages only once it accelerates
@@ -99,7 +101,7 @@ class JointLocks:
         if len(idx) == 1:
             j = int(idx[0])
             return a_free - minv[:, j] * (a_free[j] / minv[j, j])
-        lam = np.linalg.solve(minv[self._grid], -a_free[idx])
+        lam = solve_small(minv[self._grid], -a_free[idx])
         return np.asarray(a_free + minv[:, idx] @ lam, dtype=np.float64)
 
     @staticmethod
@@ -108,8 +110,7 @@ class JointLocks:
     ) -> tuple[FloatArray, FloatArray]:
         if len(idx) == 0 or minv is None:
             return a_free, np.zeros(0)
-        W = minv[np.ix_(idx, idx)]
-        lam = np.asarray(np.linalg.solve(W, -a_free[idx]), dtype=np.float64)
+        lam = solve_small(minv[np.ix_(idx, idx)], -a_free[idx])
         return a_free + minv[:, idx] @ lam, lam
 
     def conditions(

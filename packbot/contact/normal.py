@@ -75,6 +75,7 @@ from packbot.contact.lcp import (
     solve_lcp_psd,
     solve_mixed_admm,
     solve_ncp_admm,
+    solve_small,
 )
 from packbot.contact.locks import JointLocks
 from packbot.contact.pairs import PairLaw
@@ -737,7 +738,7 @@ class NormalContacts:
         b = A @ a_free + b
         MC = minv @ Cm.T
         Gm = A @ MC
-        lam = _solve(Gm, target - b)
+        lam = solve_small(Gm, target - b)
         return _Eval(a_free + MC @ lam, lam, gap, vn, vt)
 
     def _evaluate_compiled(
@@ -764,7 +765,7 @@ class NormalContacts:
         )
         a, lam, gap, vn, vt, ok, G, r, MC = kernels.constrained_accel(*args)
         if not ok:  # a singular Delassus matrix: least squares
-            lam = _solve(G, r)
+            lam = solve_small(G, r)
             a = a_free + MC @ lam
         return _Eval(a, lam, gap, vn, vt)
 
@@ -1465,27 +1466,6 @@ def _centre_velocities(extra: list[dict[str, Any]]) -> FloatArray:
     if not extra:
         return np.zeros((0, 3))
     return np.array([ex["vt"] for ex in extra])
-
-
-def _solve(G: FloatArray, r: FloatArray) -> FloatArray:
-    """Solve G x = r (least squares if G is singular); 1 x 1 and 2 x 2 in closed form.
-
-    The right-hand side's systems are this small most of the time, and numpy's solver costs
-    several microseconds of call overhead on them.
-    """
-    m = len(r)
-    if m == 1 and G[0, 0] != 0.0:
-        return r / G[0, 0]
-    if m == 2:
-        (a, b), (c, d) = G.tolist()
-        det = a * d - b * c
-        if abs(det) > 1e-12 * (abs(a * d) + abs(b * c)):
-            r0, r1 = r.tolist()
-            return np.array([(d * r0 - b * r1) / det, (a * r1 - c * r0) / det])
-    try:
-        return np.asarray(np.linalg.solve(G, r), dtype=np.float64)
-    except np.linalg.LinAlgError:
-        return np.asarray(np.linalg.lstsq(G, r, rcond=None)[0], dtype=np.float64)
 
 
 def _planes(shape: Any) -> tuple[FloatArray, FloatArray] | None:
