@@ -22,7 +22,9 @@ machine hits them alike):
   within 2x of one C++ call on the same candidate pairs");
 - ``unpruned``: that call with every pair active (the answer without pruning);
 - the same sweep with each of Pinocchio's broadphase manager types, and with the broadphase's
-  candidates sent one by one to ``pin.computeDistance`` (no activation, a Python loop).
+  candidates sent one by one to ``pin.computeDistance`` (no activation, a Python loop);
+- the sweep among 0 to 200 box obstacles with three manager types (the choice of the manager
+  by the number of pieces).
 
 Every variant is checked to test the same pairs and return the same distances as ``sweep``.
 A breakdown of the sweep, each stage timed alone, follows the tables.
@@ -45,7 +47,7 @@ from numpy.typing import NDArray
 
 import packbot
 from packbot import CollisionWorld, load_robot
-from packbot.collision import BOX_PAD, GJK_TOLERANCE
+from packbot.collision import BOX_PAD, GJK_TOLERANCE, NAIVE_MAX_PIECES
 
 Array = NDArray[np.float64]
 POSES = ("drive", "stow", "stand", "high", "low")
@@ -204,12 +206,42 @@ def loop_sweep(world: CollisionWorld) -> Callable[[Array, float], tuple[NDArray[
     return run
 
 
-def world_with(robot: packbot.Robot, manager: str) -> CollisionWorld:
-    """A collision world whose sweep prunes with another of Pinocchio's manager types."""
+def world_with(
+    robot: packbot.Robot, manager: str, environment: packbot.Environment | None = None
+) -> CollisionWorld:
+    """A collision world whose sweep prunes with the given one of Pinocchio's manager types."""
     kind = getattr(pin, f"BroadPhaseManager_{manager}")
     cls = type(f"World{manager}", (CollisionWorld,), {"_broadphase_type": kind})
-    world: CollisionWorld = cls(robot)
+    world: CollisionWorld = cls(robot, environment)
     return world
+
+
+def clutter(n: int, seed: int) -> packbot.Environment:
+    """The floor and n boxes of 20 cm on the ground, 0.8 to 3 m from the robot."""
+    rng = np.random.default_rng(seed)
+    boxes = []
+    for i in range(n):
+        a, r = rng.uniform(0.0, 2 * np.pi), rng.uniform(0.8, 3.0)
+        xyz = (r * np.cos(a), r * np.sin(a), 0.1)
+        boxes.append(packbot.Obstacle(name=f"box{i}", kind="box", size=(0.2,) * 3, xyz=xyz))
+    return packbot.Environment().with_obstacles(*boxes)
+
+
+def clutter_table(robot: packbot.Robot, q: Array, repeat: int, seed: int) -> None:
+    """The sweep's cost with 0 to 200 box obstacles, for three manager types."""
+    kinds = ("NaiveCollisionManager", "SSaPCollisionManager", "DynamicAABBTreeCollisionManager")
+    print("| obstacles | pieces | pairs | tests | " + " | ".join(k[:-16] for k in kinds) + " |")
+    print("|---|---|---|---|" + "---|" * len(kinds))
+    for n in (0, 25, 50, 100, 150, 200):
+        env = clutter(n, seed)
+        worlds = {k: world_with(robot, k, env) for k in kinds}
+        w0 = worlds[kinds[0]]
+        tests = len(w0.sweep(q).pairs)
+        for w in worlds.values():
+            assert np.array_equal(w.sweep(q).pairs, w0.sweep(q).pairs)
+        t = interleaved({k: (lambda w=w: w.sweep(q)) for k, w in worlds.items()}, repeat)
+        row = " | ".join(f"{t[k]:.1f}" for k in kinds)
+        print(f"| {n} | {w0.geom_model.ngeoms} | {len(w0.pairs)} | {tests} | {row} |")
 
 
 # ------------------------------------------------------------------------------ configurations
@@ -374,6 +406,10 @@ def main() -> None:
         print(f"| {group} | {vals} |")
 
     collapse = [(label, q) for g, label, q in configs if g == "collapse"]
+    label, q_mid = collapse[len(collapse) // 2]
+    print(f"\nThe sweep among box obstacles at {label} (us; {NAIVE_MAX_PIECES} pieces at most for")
+    print("the brute-force box test, the AABB tree beyond):\n")
+    clutter_table(robot, q_mid, args.repeat, args.seed)
     for label, q in [("the drive pose", robot.pose("drive")), *collapse[len(collapse) // 2 :][:1]]:
         print(f"\nBreakdown of the sweep at {label} (each stage timed alone):\n")
         print("| stage | us |\n|---|---|")
