@@ -57,9 +57,8 @@ MANAGERS = (
     "NaiveCollisionManager",
     "SSaPCollisionManager",
     "DynamicAABBTreeCollisionManager",
-    "DynamicAABBTreeArrayCollisionManager",
     "IntervalTreeCollisionManager",
-)
+)  # not DynamicAABBTreeArrayCollisionManager: wrong pairs with these boxes (Coal 3.0.3)
 
 
 # ------------------------------------------------------------------------------ timing

@@ -62,9 +62,9 @@ GJK_TOLERANCE = 1e-10
 #: Padding of every piece's bounding box [m]: covers the rounding of the box arithmetic, so
 #: that the pruned sweep never drops a pair that the unpruned one finds within the margin.
 BOX_PAD = 1e-9
-#: Half extent [m] of the box that stands for a halfspace in the broadphase (the halfspace's
-#: solid within this distance of its obstacle frame's origin; Coal's broadphase does not
-#: inflate a halfspace, a box it does).
+#: A halfspace's infinite box sides are clipped to +-HALFSPACE_BOX [m] in the broadphase (Coal's
+#: broadphase inflates a box, not a halfspace; 1e6 m keeps the rounding of the finite face
+#: under BOX_PAD).
 HALFSPACE_BOX = 1e6
 #: Up to this many pieces (robot and obstacles) the broadphase tests every pair of boxes
 #: (Coal's NaiveCollisionManager); beyond, it uses Coal's dynamic AABB tree (faster from about
@@ -318,35 +318,36 @@ class CollisionWorld:
     def _build_broadphase(self) -> None:
         """The broadphase: its own geometry model, data, manager and pair collector.
 
-        The broadphase model has the same pieces (copies) and the same pairs in the same order
-        as :attr:`geom_model`, so that its pair indices are the world's; a halfspace is a box
-        there (half extent :data:`HALFSPACE_BOX`), because Coal's broadphase inflates a box but
-        not a halfspace. Its data keeps every pair active; Pinocchio inflates each piece's box
-        by half the largest ``security_margin + break_distance`` of its pairs' collision
-        requests, which :meth:`_place_broadphase` sets to the query margin and
-        ``2 * BOX_PAD``.
-
-        Raises:
-            ConfigurationError: A piece whose bounding box has no volume (the broadphase would
-                silently skip it).
+        The broadphase model has one box per piece and the same pairs in the same order as
+        :attr:`geom_model`, so that its pair indices are the world's. A moving piece's box is
+        the box of its vertices in its joint's frame, a static piece's (chassis, obstacles) in
+        the world frame, padded by ``BOX_PAD``; a halfspace's is infinite on its open sides
+        (clipped to :data:`HALFSPACE_BOX`) and on all sides unless it is axis-aligned. Coal
+        takes the world box of that box (``R c + t +- |R| h``). Its data keeps every pair
+        active; Pinocchio inflates each piece's world box by half the largest
+        ``security_margin + break_distance`` of its pairs' collision requests:
+        :meth:`_place_broadphase` sets the security margins to the query margin, and the break
+        distances are 0.
         """
         gm = self.geom_model
         bp_model = pin.GeometryModel()
-        z = np.array([0.0, 0.0, 1.0])
-        for go in gm.geometryObjects:
-            shape, placement = go.geometry, go.placement
-            if isinstance(shape, coal.Halfspace):  # n . x <= d: the box's top face is the plane
-                n, L = np.asarray(shape.n, dtype=float), HALFSPACE_BOX
-                R = pin.Quaternion.FromTwoVectors(z, n).matrix()
-                placement = placement * pin.SE3(R, n * (shape.d - L))
-                shape = coal.Box(2 * L, 2 * L, 2 * L)
+        bodies = self._body_of_geom
+        for g, go in enumerate(gm.geometryObjects):
+            b = int(bodies[g])
+            if b >= 0:  # the joint frame (the world frame for the chassis, on joint 0)
+                M = go.placement
+                pts = np.asarray(go.geometry.points(), dtype=float) @ M.rotation.T + M.translation
+                lo, hi = pts.min(axis=0), pts.max(axis=0)
             else:
-                shape = shape.clone()
-            shape.computeLocalAABB()
-            if not shape.aabb_local.volume() > 0.0:
-                raise ConfigurationError("piece", go.name, "a solid with a positive volume")
+                lo, hi = self.environment.obstacles[-1 - b].world_aabb()
+                lo = np.clip(lo, -HALFSPACE_BOX, HALFSPACE_BOX)
+                hi = np.clip(hi, -HALFSPACE_BOX, HALFSPACE_BOX)
+            lo, hi = lo - BOX_PAD, hi + BOX_PAD  # covers rounding: the boxes stay conservative
+            box = coal.Box(*(hi - lo))  # a positive volume: the manager would skip a flat one
+            box.computeLocalAABB()
+            centre = pin.SE3(np.eye(3), (lo + hi) / 2)
             bp_model.addGeometryObject(
-                pin.GeometryObject(go.name, go.parentJoint, go.parentFrame, placement, shape)
+                pin.GeometryObject(go.name, go.parentJoint, go.parentFrame, centre, box)
             )
         for cp in gm.collisionPairs:
             bp_model.addCollisionPair(pin.CollisionPair(int(cp.first), int(cp.second)))
@@ -357,7 +358,7 @@ class CollisionWorld:
             raise RuntimeError("the broadphase pairs are not the world's")
         bp_data = bp_model.createData()
         for creq in bp_data.collisionRequests:
-            creq.break_distance = 2 * BOX_PAD  # the pad of every box (half of it each)
+            creq.break_distance = 0.0  # (Coal's default 1e-3 m would inflate every box)
         self._bp_model, self._bp_data = bp_model, bp_data
         kind = self._broadphase_type
         if kind is None:
@@ -400,9 +401,9 @@ class CollisionWorld:
     ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """Lower and upper world-box corners of every piece at q [m], shape (G, 3) each.
 
-        The boxes the pruning uses (Coal's: the world box of a piece's box in its own frame),
-        padded by ``BOX_PAD``, not inflated by the margin: conservative, each contains its
-        piece. A halfspace's box is the broadphase's: :data:`HALFSPACE_BOX` from its frame.
+        The boxes the pruning uses: conservative (each contains its piece), padded by
+        ``BOX_PAD``, not inflated by the margin; halfspaces' infinite sides are clipped to
+        +-``HALFSPACE_BOX``.
         """
         self._fk(q)
         self._place_broadphase(0.0)

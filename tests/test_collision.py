@@ -639,12 +639,15 @@ def test_pairs_just_inside_the_margin_are_kept_and_just_outside_pruned(robot, rn
     [
         "SSaPCollisionManager",
         "DynamicAABBTreeCollisionManager",
-        "DynamicAABBTreeArrayCollisionManager",
         "IntervalTreeCollisionManager",
     ],
 )
 def test_every_broadphase_manager_type_prunes_alike(robot, rng, manager):
-    """Pinocchio's other manager types find the same pairs (a halfspace is a box to them all)."""
+    """Pinocchio's other manager types find the same pairs (a halfspace is a box to them all).
+
+    Not DynamicAABBTreeArrayCollisionManager: with these boxes it misses pairs and adds others
+    at random configurations (Coal 3.0.3); the world never uses it.
+    """
     kind = getattr(pin, f"BroadPhaseManager_{manager}")
     cls = type(f"World{manager}", (CollisionWorld,), {"_broadphase_type": kind})
     env = obstacle_env()
