@@ -16,10 +16,10 @@ Pairs that are never tested: pieces of one body, bodies joined by a joint (adjac
 bodies, and link pairs listed in ``urdf/packbot/packbot_eod.srdf`` (never within 5 cm of each other
 over a sampling of the joint space; regenerate with ``packbot generate-srdf``).
 
-Pruning: Pinocchio's broadphase manager over Coal's (``NaiveCollisionManager``; the dynamic AABB
-tree beyond ``NAIVE_MAX_PIECES`` pieces) keeps, in C++, the pairs whose world boxes, each
-inflated by half the query margin, overlap; the narrowphase then runs on those pairs only, in
-one C++ call (``pin.computeDistances`` with only those pairs active).
+Pruning: Pinocchio's broadphase manager over Coal's ``SSaPCollisionManager`` (sweep and prune)
+keeps, in C++, the pairs whose world boxes, each inflated by half the query margin, overlap;
+the narrowphase then runs on those pairs only, in one C++ call (``pin.computeDistances`` with
+only those pairs active).
 """
 
 from __future__ import annotations
@@ -66,10 +66,6 @@ BOX_PAD = 1e-9
 #: broadphase inflates a box, not a halfspace; 1e6 m keeps the rounding of the finite face
 #: under BOX_PAD).
 HALFSPACE_BOX = 1e6
-#: Up to this many pieces (robot and obstacles) the broadphase tests every pair of boxes
-#: (Coal's NaiveCollisionManager); beyond, it uses Coal's dynamic AABB tree (faster from about
-#: 100 obstacles on, see benchmarks/collision.py).
-NAIVE_MAX_PIECES = 128
 #: The line of sight stops this short of the target [m], so that a target on a surface is seen.
 LOS_SHORTEN = 1e-3
 
@@ -310,10 +306,10 @@ class CollisionWorld:
         )
 
     # ------------------------------------------------------------------ broadphase
-    #: Pinocchio's wrapper of the Coal broadphase manager the sweep prunes with; None: chosen by
-    #: the number of pieces (measured in benchmarks/collision.py: Coal's brute-force box test
-    #: up to NAIVE_MAX_PIECES pieces, its dynamic AABB tree beyond).
-    _broadphase_type: type | None = None
+    #: Pinocchio's wrapper of the Coal broadphase manager the sweep prunes with: sweep and
+    #: prune, chosen by measurement (benchmarks/collision.py: as fast as testing every pair of
+    #: boxes for the robot and the floor, faster than any other type among obstacles).
+    _broadphase_type: type = pin.BroadPhaseManager_SSaPCollisionManager
 
     def _build_broadphase(self) -> None:
         """The broadphase: its own geometry model, data, manager and pair collector.
@@ -360,15 +356,7 @@ class CollisionWorld:
         for creq in bp_data.collisionRequests:
             creq.break_distance = 0.0  # (Coal's default 1e-3 m would inflate every box)
         self._bp_model, self._bp_data = bp_model, bp_data
-        kind = self._broadphase_type
-        if kind is None:
-            naive = gm.ngeoms <= NAIVE_MAX_PIECES
-            kind = (
-                pin.BroadPhaseManager_NaiveCollisionManager
-                if naive
-                else pin.BroadPhaseManager_DynamicAABBTreeCollisionManager
-            )
-        self._bp = kind(self.robot.model, bp_model, bp_data)
+        self._bp = self._broadphase_type(self.robot.model, bp_model, bp_data)
         self._bp_callback = pin.CollisionCallBackCollect(bp_model, bp_data)
         # a live proxy of the callback's C++ vector of pair indices (cleared by every collide)
         self._bp_pairs = self._bp_callback.pair_indexes
