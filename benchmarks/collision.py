@@ -23,7 +23,8 @@ machine hits them alike):
 - ``unpruned``: that call with every pair active (the answer without pruning);
 - the same sweep with each of Pinocchio's broadphase manager types, and with the broadphase's
   candidates sent one by one to ``pin.computeDistance`` (no activation, a Python loop);
-- the sweep among 0 to 200 box obstacles with three manager types.
+- the sweep among 0 to 200 box obstacles with three manager types;
+- the sweeps of one collapse, timed in the run (:func:`in_run`).
 
 Every variant is checked to test the same pairs and return the same distances as ``sweep``.
 A breakdown of the sweep, each stage timed alone, follows the tables.
@@ -336,6 +337,61 @@ def breakdown(world: CollisionWorld, q: Array, repeat: int) -> list[tuple[str, f
     return list(times.items())
 
 
+def in_run(robot: packbot.Robot) -> None:
+    """The sweeps of one contact-normal collapse (3 s), timed where the simulator calls them.
+
+    Every call of :meth:`CollisionWorld.sweep` during the run is timed, and so is one
+    ``pin.computeDistances`` (forward kinematics included) on its candidates, on a separate
+    Data and GeometryData; the two alternate in order from call to call (whichever runs second
+    finds warmer caches). Caches are colder than in the loops above: everything costs more.
+    """
+    cfg = packbot.SimConfig(contact_mode="normal", mu=0.5, locked_joints=LOCKED)
+    inner = CollisionWorld.sweep
+    rows: list[tuple[float, float, int]] = []
+    extra: dict[int, tuple[pin.Data, pin.GeometryData, list[int]]] = {}
+
+    def timed(self: CollisionWorld, q: Array, margin: float | None = None) -> object:
+        if id(self) not in extra:
+            extra[id(self)] = (self.robot.model.createData(), distance_data(self), [])
+        data, gd, active = extra[id(self)]
+
+        def cpp(pairs: NDArray[np.intp]) -> float:
+            if pairs.tolist() != active:
+                activate(self, gd, pairs)
+                active[:] = pairs.tolist()
+            t0 = time.perf_counter()
+            pin.computeDistances(self.robot.model, data, self.geom_model, gd, q)
+            return time.perf_counter() - t0
+
+        first = len(rows) % 2 == 0 and active  # the C++ call first, on the last candidates
+        t_cpp = cpp(np.array(active, dtype=np.intp)) if first else 0.0
+        t0 = time.perf_counter()
+        sw = inner(self, q, margin)
+        t_sweep = time.perf_counter() - t0
+        if not first or sw.pairs.tolist() != active:
+            t_cpp = cpp(sw.pairs)
+        rows.append((t_sweep * 1e6, t_cpp * 1e6, len(sw.pairs)))
+        return sw
+
+    CollisionWorld.sweep = timed  # type: ignore[method-assign,assignment]
+    try:
+        packbot.simulate(robot, robot.pose("drive"), np.zeros(robot.nq), 3.0, config=cfg)
+    finally:
+        CollisionWorld.sweep = inner  # type: ignore[method-assign]
+    a = np.array(rows)
+    print(
+        f"\nIn the run (contact-normal collapse, mu 0.5, 3 s): {len(a)} sweeps, "
+        f"{a[:, 2].mean():.1f} candidates on average\n"
+    )
+    print("| | sweep | C++ same pairs | sweep / C++ |\n|---|---|---|---|")
+    med_s, med_c = float(np.median(a[:, 0])), float(np.median(a[:, 1]))
+    print(f"| median per call [us] | {med_s:.1f} | {med_c:.1f} | {med_s / med_c:.2f} |")
+    print(
+        f"| total [ms] | {a[:, 0].sum() / 1e3:.1f} | {a[:, 1].sum() / 1e3:.1f} | "
+        f"{a[:, 0].sum() / a[:, 1].sum():.2f} |"
+    )
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeat", type=int, default=21, help="interleaved batches per variant")
@@ -403,6 +459,7 @@ def main() -> None:
         vals = " | ".join(f"{med(group, lambda r, c=c: r[c]):.1f}" for c in cols)
         print(f"| {group} | {vals} |")
 
+    in_run(robot)
     collapse = [(label, q) for g, label, q in configs if g == "collapse"]
     label, q_mid = collapse[len(collapse) // 2]
     print(f"\nThe sweep among 20 cm box obstacles on the ground at {label} (us):\n")
