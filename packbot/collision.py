@@ -347,11 +347,9 @@ class CollisionWorld:
             )
         for cp in gm.collisionPairs:
             bp_model.addCollisionPair(pin.CollisionPair(int(cp.first), int(cp.second)))
-        same = [(c.first, c.second) for c in bp_model.collisionPairs] == [
+        assert [(c.first, c.second) for c in bp_model.collisionPairs] == [
             (c.first, c.second) for c in gm.collisionPairs
-        ]
-        if not same:  # pragma: no cover - Pinocchio appends pairs in order
-            raise RuntimeError("the broadphase pairs are not the world's")
+        ]  # Pinocchio appends pairs in order: a pair index means the same in both models
         bp_data = bp_model.createData()
         for creq in bp_data.collisionRequests:
             creq.break_distance = 0.0  # (Coal's default 1e-3 m would inflate every box)
@@ -364,7 +362,10 @@ class CollisionWorld:
         self._bp_margin = math.nan  # the margin set in bp_data's requests (nan: none yet)
 
     def _place_broadphase(self, margin: float) -> None:
-        """Place the broadphase pieces at the last forward kinematics, boxes inflated by m/2 [m]."""
+        """Place the broadphase pieces at the last forward kinematics.
+
+        Each piece's world box is inflated by ``margin / 2`` [m].
+        """
         pin.updateGeometryPlacements(self.robot.model, self._data, self._bp_model, self._bp_data)
         if margin != self._bp_margin:
             self._bp_margins.fill(margin)
