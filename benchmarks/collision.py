@@ -47,7 +47,7 @@ from numpy.typing import NDArray
 
 import packbot
 from packbot import CollisionWorld, load_robot
-from packbot.collision import BOX_PAD, GJK_TOLERANCE
+from packbot.collision import BOX_PAD, GJK_TOLERANCE, SweepCounts, SweepResult
 
 Array = NDArray[np.float64]
 POSES = ("drive", "stow", "stand", "high", "low")
@@ -337,20 +337,37 @@ def breakdown(world: CollisionWorld, q: Array, repeat: int) -> list[tuple[str, f
     return list(times.items())
 
 
-def in_run(robot: packbot.Robot) -> None:
+def numpy_sweep() -> Callable[..., SweepResult]:
+    """A drop-in for :meth:`CollisionWorld.sweep` that prunes like before (numpy boxes)."""
+    refs: dict[int, NumpyBoxSweep] = {}
+
+    def sweep(self: CollisionWorld, q: Array, margin: float | None = None) -> SweepResult:
+        ref = refs.get(id(self))
+        if ref is None:
+            ref = refs[id(self)] = NumpyBoxSweep(self)
+        self._fk(q)  # the world's own placements, as its sweep leaves them
+        d_min, k, cand, d = ref.sweep(q, self.margin if margin is None else margin)
+        n, n_all = len(cand), len(self.pairs)
+        return SweepResult(d_min, k, cand, d, SweepCounts(n_all, n_all - n, n))
+
+    return sweep
+
+
+def in_run(robot: packbot.Robot, inner: Callable[..., SweepResult]) -> Array:
     """The sweeps of one contact-normal collapse (3 s), timed where the simulator calls them.
 
-    Every call of :meth:`CollisionWorld.sweep` during the run is timed, and so is one
-    ``pin.computeDistances`` (forward kinematics included) on its candidates, on a separate
-    Data and GeometryData; the two alternate in order from call to call (whichever runs second
-    finds warmer caches). Caches are colder than in the loops above: everything costs more.
+    Every call of the sweep (``inner`` in place of :meth:`CollisionWorld.sweep`) during the
+    run is timed, and so is one ``pin.computeDistances`` (forward kinematics included) on its
+    candidates, on a separate Data and GeometryData; the two alternate in order from call to
+    call (whichever runs second finds warmer caches). Caches are colder than in the loops
+    above: everything costs more. Returns (sweep [us], C++ call [us], candidates) per call.
     """
     cfg = packbot.SimConfig(contact_mode="normal", mu=0.5, locked_joints=LOCKED)
-    inner = CollisionWorld.sweep
+    original = CollisionWorld.sweep
     rows: list[tuple[float, float, int]] = []
     extra: dict[int, tuple[pin.Data, pin.GeometryData, list[int]]] = {}
 
-    def timed(self: CollisionWorld, q: Array, margin: float | None = None) -> object:
+    def timed(self: CollisionWorld, q: Array, margin: float | None = None) -> SweepResult:
         if id(self) not in extra:
             extra[id(self)] = (self.robot.model.createData(), distance_data(self), [])
         data, gd, active = extra[id(self)]
@@ -373,23 +390,33 @@ def in_run(robot: packbot.Robot) -> None:
         rows.append((t_sweep * 1e6, t_cpp * 1e6, len(sw.pairs)))
         return sw
 
-    CollisionWorld.sweep = timed  # type: ignore[method-assign,assignment]
+    CollisionWorld.sweep = timed  # type: ignore[method-assign]
     try:
         packbot.simulate(robot, robot.pose("drive"), np.zeros(robot.nq), 3.0, config=cfg)
     finally:
-        CollisionWorld.sweep = inner  # type: ignore[method-assign]
-    a = np.array(rows)
+        CollisionWorld.sweep = original  # type: ignore[method-assign]
+    return np.array(rows)
+
+
+def in_run_table(robot: packbot.Robot) -> None:
+    """The in-run timings of the sweep and of the numpy sweep before it."""
+    runs = {
+        "sweep (broadphase)": in_run(robot, CollisionWorld.sweep),
+        "before (numpy boxes)": in_run(robot, numpy_sweep()),
+    }
+    print("\nIn the run (contact-normal collapse, mu 0.5, 3 s; medians per call in us):\n")
     print(
-        f"\nIn the run (contact-normal collapse, mu 0.5, 3 s): {len(a)} sweeps, "
-        f"{a[:, 2].mean():.1f} candidates on average\n"
+        "| sweep | calls | candidates (mean) | median | C++ same pairs (median) | ratio "
+        "| total [ms] | C++ total [ms] | ratio |"
     )
-    print("| | sweep | C++ same pairs | sweep / C++ |\n|---|---|---|---|")
-    med_s, med_c = float(np.median(a[:, 0])), float(np.median(a[:, 1]))
-    print(f"| median per call [us] | {med_s:.1f} | {med_c:.1f} | {med_s / med_c:.2f} |")
-    print(
-        f"| total [ms] | {a[:, 0].sum() / 1e3:.1f} | {a[:, 1].sum() / 1e3:.1f} | "
-        f"{a[:, 0].sum() / a[:, 1].sum():.2f} |"
-    )
+    print("|---|---|---|---|---|---|---|---|---|")
+    for name, a in runs.items():
+        med_s, med_c = float(np.median(a[:, 0])), float(np.median(a[:, 1]))
+        tot_s, tot_c = a[:, 0].sum() / 1e3, a[:, 1].sum() / 1e3
+        print(
+            f"| {name} | {len(a)} | {a[:, 2].mean():.1f} | {med_s:.1f} | {med_c:.1f} | "
+            f"{med_s / med_c:.2f} | {tot_s:.1f} | {tot_c:.1f} | {tot_s / tot_c:.2f} |"
+        )
 
 
 def main() -> None:
@@ -459,7 +486,7 @@ def main() -> None:
         vals = " | ".join(f"{med(group, lambda r, c=c: r[c]):.1f}" for c in cols)
         print(f"| {group} | {vals} |")
 
-    in_run(robot)
+    in_run_table(robot)
     collapse = [(label, q) for g, label, q in configs if g == "collapse"]
     label, q_mid = collapse[len(collapse) // 2]
     print(f"\nThe sweep among 20 cm box obstacles on the ground at {label} (us):\n")
