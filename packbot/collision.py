@@ -308,7 +308,7 @@ class CollisionWorld:
     # ------------------------------------------------------------------ broadphase
     #: Pinocchio's wrapper of the Coal broadphase manager the sweep prunes with: sweep and
     #: prune, chosen by measurement (benchmarks/collision.py: as fast as testing every pair of
-    #: boxes for the robot and the floor, faster than any other type among obstacles).
+    #: boxes for the robot and the floor, the fastest type from 100 box obstacles on).
     _broadphase_type: type = pin.BroadPhaseManager_SSaPCollisionManager
 
     def _build_broadphase(self) -> None:
