@@ -16,15 +16,16 @@ Pairs that are never tested: pieces of one body, bodies joined by a joint (adjac
 bodies, and link pairs listed in ``urdf/packbot/packbot_eod.srdf`` (never within 5 cm of each other
 over a sampling of the joint space; regenerate with ``packbot generate-srdf``).
 
-Pruning (the report's bounding-volume hierarchy, one level finer): each piece has a bounding box
-in its joint frame; per query the world boxes follow the joints' placements, are inflated by the
-query margin, and only the pairs whose boxes overlap go to the narrowphase, all in one C++ call
-(``pin.computeDistances`` with only those pairs active).
+Pruning: Pinocchio's broadphase manager over Coal's ``SSaPCollisionManager`` (sweep and prune)
+keeps, in C++, the pairs whose world boxes, each inflated by half the query margin, overlap;
+the narrowphase then runs on those pairs only, in one C++ call (``pin.computeDistances`` with
+only those pairs active).
 """
 
 from __future__ import annotations
 
 import logging
+import math
 from dataclasses import dataclass
 from pathlib import Path
 from typing import NamedTuple
@@ -61,6 +62,10 @@ GJK_TOLERANCE = 1e-10
 #: Padding of every piece's bounding box [m]: covers the rounding of the box arithmetic, so
 #: that the pruned sweep never drops a pair that the unpruned one finds within the margin.
 BOX_PAD = 1e-9
+#: A halfspace's infinite box sides are clipped to +-HALFSPACE_BOX [m] in the broadphase (Coal's
+#: broadphase inflates a box, not a halfspace; 1e6 m keeps the rounding of the finite face
+#: under BOX_PAD).
+HALFSPACE_BOX = 1e6
 #: The line of sight stops this short of the target [m], so that a target on a surface is seen.
 LOS_SHORTEN = 1e-3
 
@@ -245,12 +250,19 @@ class CollisionWorld:
             dreq.gjk_convergence_criterion_type = coal.GJKConvergenceCriterionType.Absolute
             dreq.gjk_tolerance = GJK_TOLERANCE
             dreq.epa_tolerance = GJK_TOLERANCE
-        # Live proxies into the C++ vectors (valid while _data and geom_data live): indexing
-        # them costs 0.1 us against 0.45 us through data.oMi[j] or distanceResults[k].
+        # Live proxies into the C++ vector (valid while geom_data lives): indexing it costs
+        # 0.1 us against 0.45 us through distanceResults[k].
         self._results = list(self.geom_data.distanceResults)
-        self._oMi = list(self._data.oMi)
         self._n_pairs = len(self.pairs)
-        self._build_bounds()
+        G = gm.ngeoms
+        first = np.array([p.geom1 for p in self.pairs], dtype=np.intp)
+        second = np.array([p.geom2 for p in self.pairs], dtype=np.intp)
+        # Activation map of pin.GeometryData.setActiveCollisionPairs (upper triangle).
+        self._active = np.zeros((G, G), dtype=bool)
+        self._pair_flat = np.minimum(first, second) * G + np.maximum(first, second)
+        self._all_pairs = np.arange(len(self.pairs), dtype=np.intp)
+        self._active_list: list[int] | None = None  # the pairs active in geom_data (None: other)
+        self._build_broadphase()
 
     # ------------------------------------------------------------------ pairs
     def _is_static(self, body: int) -> bool:
@@ -293,92 +305,119 @@ class CollisionWorld:
             joint2=int(max(self._body_of_geom[g2], 0)),
         )
 
-    # ------------------------------------------------------------------ bounds
-    def _build_bounds(self) -> None:
-        """Per-piece boxes: moving pieces in their joint frame, static ones in the world.
+    # ------------------------------------------------------------------ broadphase
+    #: Pinocchio's wrapper of the Coal broadphase manager the sweep prunes with: sweep and
+    #: prune, chosen by measurement (benchmarks/collision.py: as fast as testing every pair of
+    #: boxes for the robot and the floor, the fastest type from 100 box obstacles on).
+    _broadphase_type: type = pin.BroadPhaseManager_SSaPCollisionManager
 
-        The world boxes live in one flat array ``_F``: for the moving pieces a view of the
-        output of one batched matrix product per query (see :meth:`_update_boxes`), for the
-        static pieces constants. A piece's box is stored as ``lo`` and ``-hi``; the pair test
-        takes, for every pair, ``[lo1; lo2] + [-hi2; -hi1]`` (shape (6, P)) from ``_F`` with
-        two precomputed index arrays: the boxes overlap within m iff every entry is <= m.
+    def _build_broadphase(self) -> None:
+        """The broadphase: its own geometry model, data, manager and pair collector.
+
+        The broadphase model has one box per piece and the same pairs in the same order as
+        :attr:`geom_model`, so that its pair indices are the world's. A moving piece's box is
+        the box of its vertices in its joint's frame, a static piece's (chassis, obstacles) in
+        the world frame, padded by ``BOX_PAD``; a halfspace's is infinite on its open sides
+        (clipped to :data:`HALFSPACE_BOX`) and on all sides unless it is axis-aligned. Coal
+        takes the world box of that box (``R c + t +- |R| h``). Its data keeps every pair
+        active; Pinocchio inflates each piece's world box by half the largest
+        ``security_margin + break_distance`` of its pairs' collision requests:
+        :meth:`_place_broadphase` sets the security margins to the query margin, and the break
+        distances are 0.
         """
         gm = self.geom_model
-        G = gm.ngeoms
+        bp_model = pin.GeometryModel()
         bodies = self._body_of_geom
-        lo_all, hi_all = np.zeros((G, 3)), np.zeros((G, 3))
         for g, go in enumerate(gm.geometryObjects):
             b = int(bodies[g])
-            if b >= 0:  # joint frame (the world frame for the chassis, on joint 0)
+            if b >= 0:  # the joint frame (the world frame for the chassis, on joint 0)
                 M = go.placement
                 pts = np.asarray(go.geometry.points(), dtype=float) @ M.rotation.T + M.translation
                 lo, hi = pts.min(axis=0), pts.max(axis=0)
             else:
                 lo, hi = self.environment.obstacles[-1 - b].world_aabb()
+                lo = np.clip(lo, -HALFSPACE_BOX, HALFSPACE_BOX)
+                hi = np.clip(hi, -HALFSPACE_BOX, HALFSPACE_BOX)
             lo, hi = lo - BOX_PAD, hi + BOX_PAD  # covers rounding: the boxes stay conservative
-            # halfspaces have unbounded boxes, clipped to +-1e9 m to keep the arithmetic finite
-            lo_all[g], hi_all[g] = np.clip(lo, -1e9, 1e9), np.clip(hi, -1e9, 1e9)
-        self._moving_joints = sorted({int(b) for b in bodies if b > 0})
-        groups = [np.flatnonzero(bodies == j) for j in self._moving_joints]
-        J = len(groups)
-        n = max((len(gr) for gr in groups), default=1)
-        # A[j] columns: slot s -> [c; 1; -h; 0] (gives lo), slot n + s -> [-c; -1; -h; 0] (-hi)
-        # with K[j] = [H_j | |H_j|] (4 x 8): K @ [c; 1; -h; 0] = R c + t - |R| h (row 3 unused).
-        A = np.zeros((max(J, 1), 8, 2 * n))
-        base = max(J, 1) * 4 * 2 * n
-        F = np.zeros(base + 6 * G)
-        lo_idx = np.zeros((G, 3), dtype=np.intp)
-        nhi_idx = np.zeros((G, 3), dtype=np.intp)
-        axes = np.arange(3)
-        for g in range(G):  # static layout for all; moving pieces re-indexed below
-            lo_idx[g] = base + 6 * g + axes
-            nhi_idx[g] = base + 6 * g + 3 + axes
-            F[lo_idx[g]], F[nhi_idx[g]] = lo_all[g], -hi_all[g]
-        for i, gr in enumerate(groups):
-            for s, g in enumerate(gr.tolist()):
-                c, h = (lo_all[g] + hi_all[g]) / 2, (hi_all[g] - lo_all[g]) / 2
-                A[i, :3, s], A[i, 3, s], A[i, 4:7, s] = c, 1.0, -h
-                A[i, :3, n + s], A[i, 3, n + s], A[i, 4:7, n + s] = -c, -1.0, -h
-                lo_idx[g] = i * 8 * n + axes * 2 * n + s
-                nhi_idx[g] = i * 8 * n + axes * 2 * n + n + s
-        self._A = A
-        self._F = F
-        self._F_moving = F[:base].reshape(max(J, 1), 4, 2 * n)
-        self._oMi_moving = [self._oMi[j] for j in self._moving_joints]
-        self._lo_idx, self._nhi_idx = lo_idx, nhi_idx
-        g1 = np.array([p.geom1 for p in self.pairs], dtype=np.intp)
-        g2 = np.array([p.geom2 for p in self.pairs], dtype=np.intp)
-        # rows 0-5: [lo1; lo2], rows 6-11: [-hi2; -hi1]; the pair's gaps are their sum
-        self._I = np.vstack([lo_idx[g1].T, lo_idx[g2].T, nhi_idx[g2].T, nhi_idx[g1].T])
-        # Activation map of pin.GeometryData.setActiveCollisionPairs (upper triangle).
-        self._active = np.zeros((G, G), dtype=bool)
-        self._pair_flat = np.minimum(g1, g2) * G + np.maximum(g1, g2)
-        self._all_pairs = np.arange(len(self.pairs), dtype=np.intp)
-        self._boxes_valid = False
+            box = coal.Box(*(hi - lo))  # a positive volume: the manager would skip a flat one
+            box.computeLocalAABB()
+            centre = pin.SE3(np.eye(3), (lo + hi) / 2)
+            bp_model.addGeometryObject(
+                pin.GeometryObject(go.name, go.parentJoint, go.parentFrame, centre, box)
+            )
+        for cp in gm.collisionPairs:
+            bp_model.addCollisionPair(pin.CollisionPair(int(cp.first), int(cp.second)))
+        assert [(c.first, c.second) for c in bp_model.collisionPairs] == [
+            (c.first, c.second) for c in gm.collisionPairs
+        ]  # Pinocchio appends pairs in order: a pair index means the same in both models
+        bp_data = bp_model.createData()
+        for creq in bp_data.collisionRequests:
+            creq.break_distance = 0.0  # (Coal's default 1e-3 m would inflate every box)
+        self._bp_model, self._bp_data = bp_model, bp_data
+        self._bp = self._broadphase_type(self.robot.model, bp_model, bp_data)
+        self._bp_callback = pin.CollisionCallBackCollect(bp_model, bp_data)
+        # a live proxy of the callback's C++ vector of pair indices (cleared by every collide)
+        self._bp_pairs = self._bp_callback.pair_indexes
+        self._bp_margins = np.zeros((gm.ngeoms, gm.ngeoms))
+        self._bp_margin = math.nan  # the margin set in bp_data's requests (nan: none yet)
 
-    def _update_boxes(self) -> None:
-        """World boxes of the moving pieces, from their joints' placements (one matmul)."""
-        if self._moving_joints:  # (numpy is much faster on contiguous operands here)
-            H = np.array([M.homogeneous for M in self._oMi_moving])
-            np.matmul(np.concatenate((H, np.abs(H)), axis=2), self._A, out=self._F_moving)
-        self._boxes_valid = True
+    def _place_broadphase(self, margin: float) -> None:
+        """Place the broadphase pieces at the last forward kinematics.
+
+        Each piece's world box is inflated by ``margin / 2`` [m].
+        """
+        pin.updateGeometryPlacements(self.robot.model, self._data, self._bp_model, self._bp_data)
+        if margin != self._bp_margin:
+            self._bp_margins.fill(margin)
+            self._bp_data.setSecurityMargins(self._bp_model, self._bp_margins, True, False)
+            self._bp_margin = margin
+        self._bp.update(False)
+
+    def _collect(self, margin: float) -> NDArray[np.intp]:
+        """Indices (ascending) of the pairs whose boxes, inflated by ``margin`` [m], overlap.
+
+        At the last forward kinematics; all in C++ but the read-back of the indices.
+        """
+        self._place_broadphase(margin)
+        self._bp.collide(self._bp_callback)
+        pairs = self._bp_pairs
+        out = np.fromiter(pairs, np.intp, len(pairs))
+        out.sort()
+        return out
 
     def world_boxes(
         self, q: NDArray[np.float64]
     ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """Lower and upper world-box corners of every piece at q [m], shape (G, 3) each.
 
-        The boxes the pruning uses: conservative (each contains its piece), not inflated by the
-        margin; halfspaces' infinite sides are clipped to +-1e9 m.
+        The boxes the pruning uses: conservative (each contains its piece), padded by
+        ``BOX_PAD``, not inflated by the margin; halfspaces' infinite sides are clipped to
+        +-``HALFSPACE_BOX``.
         """
-        self.update(q)
-        return self._F[self._lo_idx], -self._F[self._nhi_idx]
+        self._fk(q)
+        self._place_broadphase(0.0)
+        boxes = [co.getAABB() for co in self._bp.getCollisionObjects()]
+        lo = np.array([np.asarray(b.min_, dtype=float) for b in boxes])
+        hi = np.array([np.asarray(b.max_, dtype=float) for b in boxes])
+        return lo, hi
 
     # ------------------------------------------------------------------ queries
+    def _query_margin(self, margin: float | None) -> float:
+        """The world's margin for None; else a checked query margin [m].
+
+        Raises:
+            ConfigurationError: Not a finite number >= 0.
+        """
+        if margin is None:
+            return self.margin
+        m = float(margin)
+        if not 0.0 <= m < math.inf:
+            raise ConfigurationError("margin", margin, "a finite distance >= 0 [m]")
+        return m
+
     def _place(self, q: NDArray[np.float64]) -> None:
-        """Forward kinematics and piece placements only (the boxes are updated on demand)."""
+        """Forward kinematics and piece placements (the broadphase is placed on demand)."""
         self._fk(q)
-        self._boxes_valid = False
 
     def _fk(self, q: NDArray[np.float64]) -> None:
         """Forward kinematics and piece placements; a wrong-size q is a ConfigurationError."""
@@ -391,64 +430,62 @@ class CollisionWorld:
             raise ConfigurationError("q", np.shape(q), f"a vector of shape ({nq},) [rad]") from exc
 
     def update(self, q: NDArray[np.float64]) -> None:
-        """Place every piece at configuration q [rad] (forward kinematics) and its world box."""
-        self._place(q)
-        self._update_boxes()
-
-    def _pair_gaps(self) -> NDArray[np.float64]:
-        """Per pair, the largest axis gap between the two world boxes [m] (negative: overlap)."""
-        if not self._boxes_valid:
-            self._update_boxes()
-        t = self._F.take(self._I)
-        gap = t[:6]
-        gap += t[6:]
-        out: NDArray[np.float64] = np.maximum.reduce(gap, axis=0)
-        return out
+        """Place every piece at configuration q [rad] (forward kinematics)."""
+        self._fk(q)
 
     def candidate_pairs(self, margin: float | None = None) -> NDArray[np.intp]:
         """Indices of the pairs whose piece boxes, inflated by ``margin`` [m], overlap.
 
-        At the configuration of the last query.
+        At the configuration of the last query: the pairs a :meth:`sweep` there tests.
+
+        Raises:
+            ConfigurationError: A margin that is not a finite number >= 0.
         """
-        m = self.margin if margin is None else margin
-        return np.flatnonzero(self._pair_gaps() <= m)
+        return self._collect(self._query_margin(margin))
 
     def sweep(self, q: NDArray[np.float64], margin: float | None = None) -> SweepResult:
         """Signed distances of the pairs that the bounding boxes leave, the smallest and its pair.
 
-        Costs one forward kinematics, the box update and test in numpy (about ten array
-        operations), and one C++ call (``pin.computeDistances``) over the candidate pairs
-        only, which also returns the closest one; then one read per candidate.
+        Every pair within the margin is among them (with others whose boxes overlap). Costs
+        one forward kinematics, one broadphase in C++ (Pinocchio's manager: the pieces' world
+        boxes, inflated by half the margin, and their overlaps), and one C++ call
+        (``pin.computeDistances``) over the candidate pairs only, which also returns the
+        closest; then one read per candidate.
 
         Args:
             q: Configuration [rad].
             margin: Query margin [m] (default: the world's).
+
+        Raises:
+            ConfigurationError: A wrong-size q, or a margin that is not a finite number >= 0.
         """
-        m = self.margin if margin is None else margin
+        m = self._query_margin(margin)
         self._fk(q)
-        self._update_boxes()
-        t = self._F.take(self._I)
-        gap = t[:6]
-        gap += t[6:]
-        ok = np.maximum.reduce(gap, axis=0) <= m
-        cand = ok.nonzero()[0]
+        cand = self._collect(m)
         n_all, n = self._n_pairs, len(cand)
         counts = SweepCounts(n_all, n_all - n, n)
         if n == 0:
             return SweepResult(np.inf, -1, cand, np.zeros(0), counts)
-        self._active.put(self._pair_flat, ok)
-        self.geom_data.setActiveCollisionPairs(self.geom_model, self._active)
+        pairs = cand.tolist()
+        if pairs != self._active_list:  # the set changes rarely from one step to the next
+            self._activate(cand)
+            self._active_list = pairs
         k = pin.computeDistances(self.geom_model, self.geom_data)
         res = self._results
-        d = np.array([res[p].min_distance for p in cand.tolist()])
+        d = np.array([res[p].min_distance for p in pairs])
         return SweepResult(res[k].min_distance, k, cand, d, counts)
 
-    def _distances_of(self, pairs: NDArray[np.intp]) -> int:
-        """Compute the distances of ``pairs`` (one C++ call); returns the closest pair's index."""
+    def _activate(self, pairs: NDArray[np.intp]) -> None:
+        """Make exactly ``pairs`` the active pairs of geom_data."""
         active = self._active
         active.fill(False)
         active.put(self._pair_flat[pairs], True)
         self.geom_data.setActiveCollisionPairs(self.geom_model, active)
+
+    def _distances_of(self, pairs: NDArray[np.intp]) -> int:
+        """Compute the distances of ``pairs`` (one C++ call); returns the closest pair's index."""
+        self._activate(pairs)
+        self._active_list = None
         return int(pin.computeDistances(self.geom_model, self.geom_data))
 
     def all_distances(self, q: NDArray[np.float64]) -> NDArray[np.float64]:

@@ -528,6 +528,199 @@ def test_sweep_counts_and_empty_candidates(robot):
     assert w.contacts(q, margin=1e-6) == []
 
 
+LOCKED = ["camera_tilt", "camera_pan", "gripper_roll", "gripper_jaw"]
+
+
+@pytest.fixture(scope="module")
+def collapse_states(robot) -> Array:
+    """Configurations along the contact-normal collapse (mu 0.5, the wrist locked, 3 s)."""
+    cfg = packbot.SimConfig(contact_mode="normal", mu=0.5, locked_joints=LOCKED)
+    res = packbot.simulate(robot, robot.pose("drive"), np.zeros(robot.nq), 3.0, config=cfg)
+    return np.asarray(res.q)
+
+
+def _check_against_brute_force(sweep_world, brute_world, q, margin) -> tuple[int, int]:
+    """The sweep at q against every pair's distance from another world; (within, touching)."""
+    sw = sweep_world.sweep(q, margin)
+    full = brute_world.all_distances(q)
+    pairs = sw.pairs.tolist()
+    assert pairs == sorted(set(pairs))  # ascending, no pair twice
+    assert sw.counts == (len(full), len(full) - len(pairs), len(pairs))
+    within = np.flatnonzero(full <= margin).tolist()
+    assert set(within) <= set(pairs)  # no pair within the margin is pruned
+    # the same distances: one pin.computeDistances either way (1e-12 m: the two worlds' GJK
+    # support hints differ; measured at most 5e-13 m over 4000 configurations)
+    np.testing.assert_allclose(sw.distances, full[sw.pairs], rtol=0.0, atol=1e-12)
+    if pairs:
+        assert sw.min_distance == pytest.approx(full[sw.pairs].min(), abs=1e-12)
+        assert sw.min_pair in pairs
+        assert full[sw.min_pair] == pytest.approx(full[sw.pairs].min(), abs=1e-12)
+    else:
+        assert (sw.min_distance, sw.min_pair) == (math.inf, -1)
+    if within:
+        assert sw.min_distance == pytest.approx(full.min(), abs=1e-12)
+    return len(within), int(np.sum(np.abs(full) < 1e-6))
+
+
+@pytest.mark.parametrize("obstacles", [False, True])
+def test_sweep_equals_brute_force_on_contact_and_random_configurations(
+    robot, collapse_states, rng, obstacles
+):
+    """The broadphase-pruned sweep against all pairs, computed by a second world, to 1e-12 m."""
+    env = obstacle_env() if obstacles else None
+    w, brute = CollisionWorld(robot, env), CollisionWorld(robot, env)
+    qs = list(collapse_states[::3]) + [random_q(robot, rng) for _ in range(300)]
+    n_within = n_touching = 0
+    for q in qs:
+        a, b = _check_against_brute_force(w, brute, q, w.margin)
+        n_within, n_touching = n_within + a, n_touching + b
+    for margin in (0.0, 1e-9, 0.003, 0.2):
+        for q in qs[::7]:
+            _check_against_brute_force(w, brute, q, margin)
+    assert n_within > 2000  # pairs within the margin were compared
+    assert n_touching > 100  # and pairs in contact (|d| < 1 um: the collapse's rest)
+
+
+@pytest.mark.parametrize("obstacles", [False, True])
+def test_candidates_are_the_pairs_whose_inflated_boxes_overlap(robot, rng, obstacles):
+    """The pairs the sweep tests: their world boxes (world_boxes), inflated by the margin."""
+    w = CollisionWorld(robot, obstacle_env() if obstacles else None)
+    i1 = np.array([p.geom1 for p in w.pairs])
+    i2 = np.array([p.geom2 for p in w.pairs])
+    for margin in (1e-9, 0.01, 0.05, 0.2):
+        for _ in range(40):
+            q = random_q(robot, rng)
+            lo, hi = w.world_boxes(q)
+            gap = np.maximum(lo[i1] - hi[i2], lo[i2] - hi[i1]).max(axis=1)
+            expected = np.flatnonzero(gap <= margin)
+            np.testing.assert_array_equal(w.sweep(q, margin).pairs, expected)
+            np.testing.assert_array_equal(w.candidate_pairs(margin), expected)
+
+
+def _tight_world(robot, q, piece, side, d):
+    """A world whose only obstacle faces a box-shaped piece at distance d along a world axis.
+
+    side: "floor" (a halfspace below the piece) or (axis, sign) for a 0.6 m crate beside it.
+    The piece's world box and the crate (or floor) are tight there: their box gap is d.
+    """
+    w0 = CollisionWorld(robot)
+    w0.update(q)
+    v = world_vertices(w0, w0.geom_model.getGeometryId(piece))
+    if side == "floor":
+        ob = Obstacle(name="ground", kind="halfspace", normal=(0, 0, 1), offset=v[:, 2].min() - d)
+    else:
+        axis, sign = side
+        extreme = v[np.argmax(sign * v[:, axis])]
+        centre = extreme.copy()
+        centre[axis] += sign * (d + 0.3)
+        ob = Obstacle(name="ground", kind="box", size=(0.6, 0.6, 0.6), xyz=tuple(centre))
+    w = CollisionWorld(robot, Environment.empty().with_obstacles(ob))
+    [k] = w.pair_index(piece.split("/")[0], "ground", piece)
+    return w, k
+
+
+@pytest.mark.parametrize("margin", [0.003, 0.05, 0.2])
+@pytest.mark.parametrize("piece", ["gripper_link/palm", "camera_head/head", "link3/camera_wrist"])
+def test_pairs_just_inside_the_margin_are_kept_and_just_outside_pruned(robot, rng, piece, margin):
+    """Broadphase boxes are inflated by exactly the margin (half on each piece), floor too."""
+    for q in (robot.pose("stand"), robot.pose("high"), random_q(robot, rng)):
+        for side in ("floor", (0, 1), (1, -1), (2, 1)):
+            for d, kept in ((margin - 1e-7, True), (margin, True), (margin + 1e-7, False)):
+                w, k = _tight_world(robot, q, piece, side, d)
+                sw = w.sweep(q, margin)
+                assert (k in sw.pairs) == kept, (piece, side, d)
+                if kept:
+                    got = dict(zip(sw.pairs.tolist(), sw.distances.tolist(), strict=True))[k]
+                    assert got == pytest.approx(d, abs=1e-9)
+
+
+@pytest.mark.parametrize(
+    "manager",
+    [
+        "NaiveCollisionManager",
+        "DynamicAABBTreeCollisionManager",
+        "IntervalTreeCollisionManager",
+    ],
+)
+def test_every_broadphase_manager_type_prunes_alike(robot, rng, manager):
+    """Pinocchio's other manager types find the same pairs (a halfspace is a box to them all).
+
+    Not DynamicAABBTreeArrayCollisionManager: with these boxes it misses pairs and adds others
+    at random configurations (Coal 3.0.3); the world never uses it.
+    """
+    kind = getattr(pin, f"BroadPhaseManager_{manager}")
+    cls = type(f"World{manager}", (CollisionWorld,), {"_broadphase_type": kind})
+    env = obstacle_env()
+    w, ref = cls(robot, env), CollisionWorld(robot, env)
+    for margin in (0.003, 0.05):
+        for _ in range(30):
+            q = random_q(robot, rng)
+            np.testing.assert_array_equal(w.sweep(q, margin).pairs, ref.sweep(q, margin).pairs)
+    # the floor just inside the margin: Coal's tree managers do not inflate a halfspace
+    q = robot.pose("stand")
+    for d, kept in ((0.05 - 1e-7, True), (0.05 + 1e-7, False)):
+        w0, k = _tight_world(robot, q, "gripper_link/palm", "floor", d)
+        assert (k in cls(robot, w0.environment).sweep(q, 0.05).pairs) == kept
+
+
+def test_a_cluttered_world_finds_every_pair(robot, rng):
+    """110 boxes in the arm's reach (136 pieces): still every pair within the margin."""
+    boxes = [
+        Obstacle(name=f"b{i}", kind="box", size=(0.1, 0.1, 0.1), xyz=tuple(x))
+        for i, x in enumerate(rng.uniform((-1.0, -1.0, 0.05), (1.0, 1.0, 1.2), size=(110, 3)))
+    ]
+    env = Environment().with_obstacles(*boxes)
+    w, brute = CollisionWorld(robot, env), CollisionWorld(robot, env)
+    assert w.geom_model.ngeoms == 136  # 25 robot pieces, the floor, 110 boxes
+    n_within = 0
+    for _ in range(40):
+        n_within += _check_against_brute_force(w, brute, random_q(robot, rng), w.margin)[0]
+    assert n_within > 100
+
+
+def test_tilted_halfspace_pairs_within_the_margin_are_kept(robot, rng):
+    """A halfspace that is not axis-aligned has an unbounded box: all its pairs are tested."""
+    wall = Obstacle(name="slope", kind="halfspace", normal=(0.3, 0.2, 1.0), offset=0.05)
+    w = CollisionWorld(robot, Environment.empty().with_obstacles(wall))
+    brute = CollisionWorld(robot, Environment.empty().with_obstacles(wall))
+    slope = set(w.pair_index("link1", "slope") + w.pair_index("link3", "slope"))
+    for _ in range(100):
+        q = random_q(robot, rng)
+        _check_against_brute_force(w, brute, q, w.margin)
+        assert slope <= set(w.sweep(q).pairs.tolist())
+
+
+def test_sweep_after_queries_that_activate_other_pairs(robot, world, rng):
+    """all_distances and closest activate every pair; the next sweep tests its own pairs only."""
+    for i in range(40):
+        q0, q1 = random_q(robot, rng), random_q(robot, rng)
+        margin = 1e-9 if i % 2 else world.margin  # few candidates: the closest pair is often not
+        first = world.sweep(q0, margin)
+        if i % 4 < 2:
+            world.all_distances(q1)
+        else:
+            world.closest(q1)
+        again = world.sweep(q0, margin)
+        assert again.min_pair in again.pairs or again.min_pair == -1
+        np.testing.assert_array_equal(again.pairs, first.pairs)
+        # (GJK's support hints, warm from the queries between, move a distance by ~1e-18 m)
+        np.testing.assert_allclose(again.distances, first.distances, rtol=0.0, atol=1e-12)
+        assert again.min_distance == pytest.approx(first.min_distance, abs=1e-12)
+        assert again.min_pair == first.min_pair
+
+
+@pytest.mark.parametrize("margin", [-0.01, math.nan, math.inf])
+def test_a_bad_query_margin_is_a_configuration_error(world, robot, margin):
+    q = robot.pose("drive")
+    for call in (
+        lambda: world.sweep(q, margin),
+        lambda: world.contacts(q, margin),
+        lambda: world.candidate_pairs(margin),
+    ):
+        with pytest.raises(ConfigurationError, match="margin"):
+            call()
+
+
 # ------------------------------------------------------------------------- poses
 @pytest.mark.parametrize("pose", ["drive", "stow", "stand", "high", "low"])
 def test_named_poses_are_collision_free(robot, world, pose):
