@@ -140,6 +140,8 @@ class MomentumObserver:
                 "observer.coulomb", coulomb, shape=(n,), expected=f"{n} Coulomb torques [N*m]"
             )
         )
+        self._lower = np.tril_indices(n, -1)
+        self._rubs = bool(self.viscous.any() or self.coulomb.any())
         self._v_prev = np.zeros(n)
         self.residual = np.zeros(n)
         self.ignored = np.zeros(n, dtype=bool)
@@ -168,8 +170,8 @@ class MomentumObserver:
         return np.asarray(C.T @ v - g)
 
     def _momentum(self, q: FloatArray, v: FloatArray) -> FloatArray:
-        M = pin.crba(self.model, self.data, q)
-        M = np.triu(M) + np.triu(M, 1).T
+        M = np.array(pin.crba(self.model, self.data, q))
+        M[self._lower] = M.T[self._lower]  # Pinocchio fills the upper triangle
         return np.asarray(M @ v)
 
     def update(
@@ -193,7 +195,7 @@ class MomentumObserver:
         h = t - self._t_prev
         self._t_prev = t
         tau_m = np.clip(tau_prev, -self.effort, self.effort)
-        if self.viscous.any() or self.coulomb.any():
+        if self._rubs:
             # the known joint friction of a sliding joint, at the period's mean speed
             vm = 0.5 * (self._v_prev + v)
             sliding = np.abs(vm) > self.frozen_speed

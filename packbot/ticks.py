@@ -1,0 +1,133 @@
+"""The ticks of a sampled-data controller inside the loop's steps: a held command costs no step.
+
+A :class:`~packbot.control.Controller` ticks every ``dt``: it is called once per tick, in order,
+on the state at the tick, and its command is held until the next tick (zero-order hold). A tick
+whose command is the held one does not change the dynamics, so the integration step need not end
+there and the stepper need not restart (its step size and its last derivative stay valid).
+
+The loop therefore ends its steps at the ticks only while the command changes from tick to tick
+(:attr:`Ticks.cut`: the last tick changed it). Otherwise it takes the stepper's natural step (up
+to the next failure or payload change, the run's end, ``max_step``) and visits the ticks inside
+it in order (:meth:`Ticks.inside`), each on the step's dense output, and only those before the
+step's first event. The first tick whose command differs from the held one ends the step there:
+the loop keeps the step up to that tick (the state there is the dense output's, as at an event),
+applies the new command and restarts. So the controller is never called for a tick that is later
+discarded, and never on a state past an event.
+
+"The held one" means equal to rounding: every component within :data:`HOLD_ULPS` units of
+rounding of the held command's largest torque. An arm at rest changes the command of a
+computed-torque law by one or two units of rounding from tick to tick (the state drifts in its
+last bits); such a change is below the rounding of the torques themselves and is not applied.
+A change of a zero command is always applied (the bound is then 0).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+from numpy.typing import NDArray
+
+from packbot.control.base import Controller
+from packbot.drive import Drive
+from packbot.errors import ControllerError
+from packbot.ode import DenseSegment
+from packbot.schedule import Schedule
+
+__all__ = ["HOLD_ULPS", "Ticks"]
+
+FloatArray = NDArray[np.float64]
+
+#: A new command is the held one when no component differs by more than this many units of
+#: rounding (machine epsilon times the held command's largest |torque|) [-].
+HOLD_ULPS = 4.0
+_EPS = float(np.finfo(np.float64).eps)
+#: Times closer than this are the same instant [s] (as in the loop).
+_SAME_T = 1e-12
+
+
+class Ticks:
+    """The controller's ticks of one run.
+
+    Args:
+        schedule: The run's scheduled actions (the next tick's time, the tick count).
+        drive: The run's torques (the held command).
+        full_state: (q, v, tau_m) in full coordinates from an integrated state.
+
+    Attributes:
+        cut: Whether the next tick ends the step (the last tick changed the command).
+    """
+
+    def __init__(
+        self,
+        schedule: Schedule,
+        drive: Drive,
+        full_state: Callable[[FloatArray], tuple[FloatArray, FloatArray, FloatArray]],
+    ) -> None:
+        self.schedule = schedule
+        self.drive = drive
+        self.controller: Controller | None = drive.ctrl_obj
+        self.full_state = full_state
+        self.cut = True
+
+    def command(self, t: float, y: FloatArray) -> FloatArray:
+        """Call the controller on state y at t; its command [N*m], full coordinates, checked.
+
+        Raises:
+            ControllerError: The controller raised or returned bad torques.
+        """
+        assert self.controller is not None
+        qf, vf, _ = self.full_state(y)
+        try:
+            raw = self.controller.step(t, qf.copy(), vf.copy())
+        except ControllerError:
+            raise
+        except Exception as exc:
+            raise ControllerError(f"raised {type(exc).__name__}: {exc}", t) from exc
+        return self.drive.check_torque(raw, t)
+
+    def same(self, tau: FloatArray) -> bool:
+        """Whether a new command is the held one (to rounding, see :data:`HOLD_ULPS`)."""
+        held = self.drive.hold_full
+        bound = HOLD_ULPS * _EPS * float(np.abs(held).max())
+        return bool(float(np.abs(tau - held).max()) <= bound)
+
+    def apply(self, t: float, tau: FloatArray) -> None:
+        """The command of the tick at t changes: hold it from t on; the next tick is due."""
+        self.drive.hold(tau, t)
+        self.schedule.ticked()
+        self.cut = True
+
+    def tick(self, t: float, y: FloatArray) -> bool:
+        """The tick due at t on state y; whether it changed the command (the loop restarts)."""
+        tau = self.command(t, y)
+        if self.same(tau):
+            self.schedule.ticked()
+            self.cut = False
+            return False
+        self.apply(t, tau)
+        return True
+
+    def inside(self, seg: DenseSegment, t_stop: float) -> tuple[float, FloatArray] | None:
+        """The ticks strictly inside a step, before t_stop, in order, on its dense output.
+
+        Each tick whose command is the held one is counted and passed. The first tick whose
+        command changes stops the visit: it is returned, not yet applied (:meth:`apply`).
+
+        Args:
+            seg: The step.
+            t_stop: The step's first event, or its end [s]; a tick at it (within 1e-12 s) or
+                after it is left to the loop.
+
+        Returns:
+            (t, new command) of the first tick that changes the command, or None.
+        """
+        sched = self.schedule
+        while sched.next_tick < t_stop - _SAME_T:
+            t = sched.next_tick
+            tau = self.command(t, seg(t))
+            if not self.same(tau):
+                return t, tau
+            sched.ticked()
+            self.cut = False
+        return None
