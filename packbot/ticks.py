@@ -14,15 +14,24 @@ the loop keeps the step up to that tick (the state there is the dense output's, 
 applies the new command and restarts. So the controller is never called for a tick that is later
 discarded, and never on a state past an event.
 
-"The held one" means equal to rounding: every component within :data:`HOLD_ULPS` units of
-rounding of the held command's largest torque. An arm at rest changes the command of a
-computed-torque law by one or two units of rounding from tick to tick (the state drifts in its
-last bits); such a change is below the rounding of the torques themselves and is not applied.
-A change of a zero command is always applied (the bound is then 0).
+"The held one" means: equal, or so close that holding it changes the state by less than
+:data:`HOLD_FRACTION` of the stepper's absolute tolerance ``atol`` over a step. A command that
+differs by du [N*m] changes the accelerations by |da| <= |du| / lambda_min(M) (2-norms; a lock
+or a contact constraint is an M-orthogonal projection, which does not lengthen da in the M-norm),
+and lambda_min(M) >= the smallest armature of the integrated joints (M is the rigid body's
+positive semi-definite mass matrix plus the diagonal armature). Over a step of h <= ``max_step``
+that moves v by at most |du| h / lambda and q by |du| h^2 / (2 lambda); the motor torques (with
+a motor lag) by at most |du|. So |du| <= HOLD_FRACTION * atol * lambda / max(h, h^2 / 2) (and
+<= HOLD_FRACTION * atol with a motor lag) keeps the change of every component within
+HOLD_FRACTION * atol per step, a thousandth of what the stepper's error control allows. An arm at
+rest under a high-gain law changes its command by about 1e-13 N*m from tick to tick (the state's
+last bits, amplified by the gains); a moving arm by millinewton-metres or more. With no armature
+(lambda = 0) or ``atol`` = 0 only an identical command is held.
 """
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 
 import numpy as np
@@ -34,14 +43,13 @@ from packbot.errors import ControllerError
 from packbot.ode import DenseSegment
 from packbot.schedule import Schedule
 
-__all__ = ["HOLD_ULPS", "Ticks"]
+__all__ = ["HOLD_FRACTION", "Ticks"]
 
 FloatArray = NDArray[np.float64]
 
-#: A new command is the held one when no component differs by more than this many units of
-#: rounding (machine epsilon times the held command's largest |torque|) [-].
-HOLD_ULPS = 4.0
-_EPS = float(np.finfo(np.float64).eps)
+#: A new command is the held one when holding it instead changes the state by less than this
+#: fraction of ``atol`` over a step (see the module docstring) [-].
+HOLD_FRACTION = 1e-3
 #: Times closer than this are the same instant [s] (as in the loop).
 _SAME_T = 1e-12
 
@@ -69,6 +77,8 @@ class Ticks:
         self.controller: Controller | None = drive.ctrl_obj
         self.full_state = full_state
         self.cut = True
+        self._sys: object = None  # the phase whose bound on a command change is _bound
+        self._bound = 0.0
 
     def command(self, t: float, y: FloatArray) -> FloatArray:
         """Call the controller on state y at t; its command [N*m], full coordinates, checked.
@@ -77,9 +87,9 @@ class Ticks:
             ControllerError: The controller raised or returned bad torques.
         """
         assert self.controller is not None
-        qf, vf, _ = self.full_state(y)
+        qf, vf, _ = self.full_state(y)  # fresh arrays: the controller may keep them
         try:
-            raw = self.controller.step(t, qf.copy(), vf.copy())
+            raw = self.controller.step(t, qf, vf)
         except ControllerError:
             raise
         except Exception as exc:
@@ -87,10 +97,21 @@ class Ticks:
         return self.drive.check_torque(raw, t)
 
     def same(self, tau: FloatArray) -> bool:
-        """Whether a new command is the held one (to rounding, see :data:`HOLD_ULPS`)."""
-        held = self.drive.hold_full
-        bound = HOLD_ULPS * _EPS * float(np.abs(held).max())
-        return bool(float(np.abs(tau - held).max()) <= bound)
+        """Whether a new command is the held one (see :data:`HOLD_FRACTION`)."""
+        du = tau - self.drive.hold_full
+        if not du.any():
+            return True
+        sys = self.drive.sys
+        if sys is not self._sys:  # a new phase: its smallest armature
+            self._sys = sys
+            cfg = self.drive.cfg
+            lam = float(np.min(sys.model.armature, initial=np.inf))
+            h = cfg.max_step
+            bound = HOLD_FRACTION * cfg.atol * lam / max(h, 0.5 * h * h)
+            if self.drive.lag:
+                bound = min(bound, HOLD_FRACTION * cfg.atol)
+            self._bound = bound
+        return math.sqrt(float(du @ du)) <= self._bound
 
     def apply(self, t: float, tau: FloatArray) -> None:
         """The command of the tick at t changes: hold it from t on; the next tick is due."""

@@ -150,6 +150,7 @@ class MomentumObserver:
         self._f_prev = np.zeros(n)
         self._t_prev: float | None = None
         self._onset = np.full(n, np.nan)
+        self._pending = False  # some onset is set
         self._max_speed = np.zeros(n)
 
     def reset(self, t: float, q: FloatArray, v: FloatArray) -> None:
@@ -161,6 +162,7 @@ class MomentumObserver:
         self.residual[:] = 0.0
         self._t_prev = t
         self._onset[:] = np.nan
+        self._pending = False
         self._max_speed[:] = 0.0
 
     def _drift(self, q: FloatArray, v: FloatArray) -> FloatArray:
@@ -207,6 +209,12 @@ class MomentumObserver:
         self._f_prev = f
         self.residual = self.gain * (self._momentum(q, v) - self._p0 - self._integral)
         over = (np.abs(self.residual) > self.threshold) & ~self.ignored
+        if not over.any():  # nothing over its threshold: no onset pending, nothing due
+            if self._pending:
+                self._onset[:] = np.nan
+                self._pending = False
+            return None
+        self._pending = True
         fresh = over & np.isnan(self._onset)
         self._onset[fresh] = t
         self._max_speed[fresh] = 0.0
