@@ -12,8 +12,9 @@ released, sliding patches refreshed).
 What the events are and what happens at each is the law's (:mod:`packbot.contact`: ``none``,
 ``joint_clamp``, ``normal``, ``handoff``); the loop never asks which law it holds. The scheduled
 actions (:mod:`packbot.schedule`) cut the steps at their times: failure injections (``failure``,
-and ``freeze`` for the impulse that stops a freezing joint), payload ``pick`` / ``drop``, and
-the ticks of a sampled-data :class:`~packbot.control.Controller` (not logged). A frozen joint or
+and ``freeze`` for the impulse that stops a freezing joint), payload ``pick`` / ``drop``. The
+ticks of a sampled-data :class:`~packbot.control.Controller` (not logged) cut a step only when
+they change the held command (:mod:`packbot.ticks`). A frozen joint or
 a payload change starts a new *phase*: the integrated model is rebuilt (``pin.buildReducedModel``,
 the payload's inertia added), the law rebuilt on it and the contacts found again; the result
 stays in full coordinates. Samples and events are kept by :mod:`packbot.recorder`; the torques
@@ -178,8 +179,7 @@ class _Run:
                 if self.run_scheduled(self.t):
                     self.restart()
                 continue
-            # A time-stepping window lands on every tick; the stepper only on those that change
-            # the command (see packbot.ticks).
+            # A window lands on every tick, the stepper on those that change the command.
             t_far = min(self.duration, self.schedule.horizon(self.ticks.cut))
             try:
                 seg = self.law.advance(self.t, self.y, min(self.duration, t_sched))
@@ -225,8 +225,8 @@ class _Run:
     def cut_at_tick(self, seg: DenseSegment, t: float, tau: FloatArray) -> None:
         """The tick at t inside the step changes the command: the step is kept up to t.
 
-        The law sees the step it keeps (an event of the cut part that the whole step did not
-        show, a double crossing, comes at the next step's start, as after any step).
+        The law watches the part kept (an event there that the whole step hid, a double
+        crossing, comes at the next step's start, as after any step).
         """
         kept = seg.truncated(t)
         self.law.watch(kept)
@@ -278,8 +278,7 @@ class _Run:
             record: Keep samples of the states before and after a failure or payload change.
 
         Returns:
-            Whether the dynamics changed (the stepper restarts): a failure, a payload change or
-            a tick that changed the held command.
+            Whether the dynamics changed: a failure, a payload change, a new held command.
         """
         due = self.schedule.due(t)
         if due and record:
