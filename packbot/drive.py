@@ -115,6 +115,10 @@ class Drive:
             ControllerError: Anything else (says when, and which joint).
         """
         nq = self.robot.nq
+        if type(raw) is np.ndarray and raw.dtype == np.float64 and raw.shape == (nq,):
+            total = float(raw.sum())
+            if total - total == 0.0:  # finite: no inf or nan among them (fast path)
+                return raw.copy()
         try:
             tau = np.asarray(raw)
         except Exception as exc:  # a ragged list, an object numpy cannot take

@@ -6,27 +6,31 @@ whose command is the held one does not change the dynamics, so the integration s
 there and the stepper need not restart (its step size and its last derivative stay valid).
 
 The loop therefore ends its steps at the ticks only while the command changes from tick to tick
-(:attr:`Ticks.cut`: the last tick changed it). Otherwise it takes the stepper's natural step (up
-to the next failure or payload change, the run's end, ``max_step``) and visits the ticks inside
-it in order (:meth:`Ticks.inside`), each on the step's dense output, and only those before the
-step's first event. The first tick whose command differs from the held one ends the step there:
-the loop keeps the step up to that tick (the state there is the dense output's, as at an event),
-applies the new command and restarts. So the controller is never called for a tick that is later
-discarded, and never on a state past an event.
+(:attr:`Ticks.cut`: the last two ticks changed it; a single change after held ticks, an arm at
+rest drifting in its last bits, is more likely followed by held ticks again). Otherwise it takes
+the stepper's natural step (up to the next failure or payload change, the run's end,
+``max_step``) and visits the ticks inside it in order (:meth:`Ticks.inside`), each on the step's
+dense output, and only those before the step's first event. The first tick whose command differs
+from the held one ends the step there: the loop keeps the step up to that tick (the state there
+is the dense output's, as at an event), applies the new command and restarts. So the controller
+is never called for a tick that is later discarded, and never on a state past an event.
 
 "The held one" means: equal, or so close that holding it changes the state by less than
 :data:`HOLD_FRACTION` of the stepper's absolute tolerance ``atol`` over a step. A command that
-differs by du [N*m] changes the accelerations by |da| <= |du| / lambda_min(M) (2-norms; a lock
-or a contact constraint is an M-orthogonal projection, which does not lengthen da in the M-norm),
-and lambda_min(M) >= the smallest armature of the integrated joints (M is the rigid body's
-positive semi-definite mass matrix plus the diagonal armature). Over a step of h <= ``max_step``
-that moves v by at most |du| h / lambda and q by |du| h^2 / (2 lambda); the motor torques (with
-a motor lag) by at most |du|. So |du| <= HOLD_FRACTION * atol * lambda / max(h, h^2 / 2) (and
-<= HOLD_FRACTION * atol with a motor lag) keeps the change of every component within
-HOLD_FRACTION * atol per step, a thousandth of what the stepper's error control allows. An arm at
-rest under a high-gain law changes its command by about 1e-13 N*m from tick to tick (the state's
-last bits, amplified by the gains); a moving arm by millinewton-metres or more. With no armature
-(lambda = 0) or ``atol`` = 0 only an identical command is held.
+differs by du [N*m] changes the accelerations by |da| <= |du| / lambda (2-norms), lambda the
+smallest eigenvalue of the mass matrix M, which is at least the smallest armature of the
+integrated joints (M is the rigid body's positive semi-definite mass matrix plus the diagonal
+armature). A lock or a contact constraint projects da M-orthogonally, which does not lengthen it
+in the M-norm, so the bound holds with them (|da|_2 <= |da|_M / sqrt(lambda) <= |du| / lambda);
+a sliding contact's friction row is no projection: the factor 1000 below is the margin there.
+Over a step of h <= ``max_step`` that moves v by at most |du| h / lambda and q by at most
+|du| h^2 / (2 lambda), the motor torques (with a motor lag) by at most |du|. So
+|du| <= HOLD_FRACTION * atol * lambda / max(h, h^2 / 2) (and <= HOLD_FRACTION * atol with a motor
+lag) keeps the change of every component within HOLD_FRACTION * atol per step, a thousandth of
+what the stepper's error control allows. An arm at rest under a high-gain law changes its
+command by about 1e-13 N*m from tick to tick (the state's last bits, amplified by the gains); a
+moving arm by millinewton-metres or more. With no armature (lambda = 0) or ``atol`` = 0 only an
+identical command is held.
 """
 
 from __future__ import annotations
@@ -63,7 +67,7 @@ class Ticks:
         full_state: (q, v, tau_m) in full coordinates from an integrated state.
 
     Attributes:
-        cut: Whether the next tick ends the step (the last tick changed the command).
+        cut: Whether the next tick ends the step (the last two ticks changed the command).
     """
 
     def __init__(
@@ -77,6 +81,7 @@ class Ticks:
         self.controller: Controller | None = drive.ctrl_obj
         self.full_state = full_state
         self.cut = True
+        self._changed = True  # the last tick changed the command
         self._sys: object = None  # the phase whose bound on a command change is _bound
         self._bound = 0.0
 
@@ -117,14 +122,15 @@ class Ticks:
         """The command of the tick at t changes: hold it from t on; the next tick is due."""
         self.drive.hold(tau, t)
         self.schedule.ticked()
-        self.cut = True
+        self.cut = self._changed
+        self._changed = True
 
     def tick(self, t: float, y: FloatArray) -> bool:
         """The tick due at t on state y; whether it changed the command (the loop restarts)."""
         tau = self.command(t, y)
         if self.same(tau):
             self.schedule.ticked()
-            self.cut = False
+            self.cut = self._changed = False
             return False
         self.apply(t, tau)
         return True
@@ -150,5 +156,5 @@ class Ticks:
             if not self.same(tau):
                 return t, tau
             sched.ticked()
-            self.cut = False
+            self.cut = self._changed = False
         return None

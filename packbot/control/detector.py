@@ -141,6 +141,7 @@ class MomentumObserver:
             )
         )
         self._lower = np.tril_indices(n, -1)
+        self._neg_effort = -self.effort
         self._rubs = bool(self.viscous.any() or self.coulomb.any())
         self._v_prev = np.zeros(n)
         self.residual = np.zeros(n)
@@ -196,7 +197,7 @@ class MomentumObserver:
             return None
         h = t - self._t_prev
         self._t_prev = t
-        tau_m = np.clip(tau_prev, -self.effort, self.effort)
+        tau_m = np.minimum(np.maximum(tau_prev, self._neg_effort), self.effort)  # np.clip
         if self._rubs:
             # the known joint friction of a sliding joint, at the period's mean speed
             vm = 0.5 * (self._v_prev + v)
