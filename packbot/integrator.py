@@ -190,7 +190,7 @@ class _Run:
                 continue  # the law integrates the stiff stretch itself
             crossings = self.law.watch(seg)
             t_star, at = self.locate(seg, crossings) if crossings else (seg.t1, [])
-            changed = self.ticks.inside(seg, t_star)
+            changed = self.ticks.inside(seg, t_star, self.rec.record)
             if changed is not None:
                 self.cut_at_tick(seg, *changed)
             elif not crossings:

@@ -135,7 +135,9 @@ class Ticks:
         self.apply(t, tau)
         return True
 
-    def inside(self, seg: DenseSegment, t_stop: float) -> tuple[float, FloatArray] | None:
+    def inside(
+        self, seg: DenseSegment, t_stop: float, keep: Callable[[DenseSegment, float], None]
+    ) -> tuple[float, FloatArray] | None:
         """The ticks strictly inside a step, before t_stop, in order, on its dense output.
 
         Each tick whose command is the held one is counted and passed. The first tick whose
@@ -145,6 +147,8 @@ class Ticks:
             seg: The step.
             t_stop: The step's first event, or its end [s]; a tick at it (within 1e-12 s) or
                 after it is left to the loop.
+            keep: Keeps the step's samples up to a time [s] (``Recorder.record``): called up to
+                just before a tick whose controller call raises (the partial result ends there).
 
         Returns:
             (t, new command) of the first tick that changes the command, or None.
@@ -152,7 +156,11 @@ class Ticks:
         sched = self.schedule
         while sched.next_tick < t_stop - _SAME_T:
             t = sched.next_tick
-            tau = self.command(t, seg(t))
+            try:
+                tau = self.command(t, seg(t))
+            except ControllerError:
+                keep(seg, t - 1e-11)
+                raise
             if not self.same(tau):
                 return t, tau
             sched.ticked()

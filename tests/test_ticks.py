@@ -145,3 +145,26 @@ def test_a_change_below_the_bound_is_held_and_above_it_applied(robot):
     # elbow2's armature, the smallest of the integrated joints (the wrist is locked)
     assert lam == pytest.approx(0.01584)
     assert bound == pytest.approx(1e-3 * 1e-8 * 0.01584 / 0.05)
+
+
+class Fails(Hold):
+    """The zero command, held, until the tick at ``t_fail``, where it raises."""
+
+    def __init__(self, t_fail: float, **kw):
+        super().__init__(every=0, **kw)
+        self.t_fail = t_fail
+
+    def compute(self, t, q, v):
+        if t >= self.t_fail - 1e-12:
+            raise RuntimeError("sensor lost")
+        return super().compute(t, q, v)
+
+
+def test_a_controller_error_inside_a_long_step_keeps_the_samples_before_its_tick(robot):
+    ctrl = Fails(0.237, dt=1e-3)
+    with pytest.raises(packbot.ControllerError) as info:
+        run(robot, ctrl, 0.5, contact_mode="none")
+    assert info.value.t == pytest.approx(0.237, abs=1e-12)
+    assert len(ctrl.calls) == 237
+    part = info.value.result
+    assert part is not None and part.t[-1] == pytest.approx(0.23)  # sample_dt is 0.01 s
