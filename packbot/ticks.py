@@ -110,7 +110,7 @@ class Ticks:
         if sys is not self._sys:  # a new phase: its smallest armature
             self._sys = sys
             cfg = self.drive.cfg
-            lam = float(np.min(sys.model.armature, initial=np.inf))
+            lam = float(np.min(sys.model.armature)) if sys.nv else 0.0
             h = cfg.max_step
             bound = HOLD_FRACTION * cfg.atol * lam / max(h, 0.5 * h * h)
             if self.drive.lag:
