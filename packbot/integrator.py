@@ -91,7 +91,7 @@ class _Run:
         self.failures_in: list[Failure] = []
         self.frozen: list[str] = []
         self.schedule = Schedule(failures, payload, self.ctrl_obj)
-        self.ticks = Ticks(self.schedule, self.drive, self.full_state)
+        self.ticks = Ticks(self.schedule, self.drive)
         self.events = EventLog(config.max_events)
         self.diag = Diagnostics()
         self.rec = Recorder(config.sample_dt, duration, self.measure)

@@ -64,22 +64,15 @@ class Ticks:
     Args:
         schedule: The run's scheduled actions (the next tick's time, the tick count).
         drive: The run's torques (the held command).
-        full_state: (q, v, tau_m) in full coordinates from an integrated state.
 
     Attributes:
         cut: Whether the next tick ends the step (the last two ticks changed the command).
     """
 
-    def __init__(
-        self,
-        schedule: Schedule,
-        drive: Drive,
-        full_state: Callable[[FloatArray], tuple[FloatArray, FloatArray, FloatArray]],
-    ) -> None:
+    def __init__(self, schedule: Schedule, drive: Drive) -> None:
         self.schedule = schedule
         self.drive = drive
         self.controller: Controller | None = drive.ctrl_obj
-        self.full_state = full_state
         self.cut = True
         self._changed = True  # the last tick changed the command
         self._sys: object = None  # the phase whose bound on a command change is _bound
@@ -92,7 +85,9 @@ class Ticks:
             ControllerError: The controller raised or returned bad torques.
         """
         assert self.controller is not None
-        qf, vf, _ = self.full_state(y)  # fresh arrays: the controller may keep them
+        sys = self.drive.sys
+        n = sys.nv
+        qf, vf = sys.q_full(y[:n]), sys.v_full(y[n : 2 * n])  # fresh: the controller may keep them
         try:
             raw = self.controller.step(t, qf, vf)
         except ControllerError:
