@@ -149,7 +149,7 @@ class Drive:
             target, applied = self._cached[2], self._cached[3]
         else:
             target = path.target(cmd)
-            applied = path.applied(target)
+            applied = target if self.lag else path.applied(target)  # with a lag: from y below
             self._cached = (cmd, path, target, applied)
         if self.lag:
             applied = path.applied(y[2 * n :])
