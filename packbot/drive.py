@@ -67,6 +67,14 @@ class Drive:
         self.ctrl_fn = None if isinstance(controller, Controller) else controller
         self.lag = config.motor_lag > 0.0
         self.hold_full = np.zeros(robot.nq)
+        # (command, torque path, its target, its applied torque) of the last call: the held
+        # command of a sampled-data controller is the same array between ticks.
+        self._cached: tuple[Any, Any, FloatArray, FloatArray] = (
+            None,
+            None,
+            self.hold_full,
+            self.hold_full,
+        )
 
     def phase(self, sys: System, failures: Sequence[Failure]) -> None:
         """Start a phase on ``sys``: torque path built, every joint's friction direction 0."""
@@ -107,6 +115,10 @@ class Drive:
             ControllerError: Anything else (says when, and which joint).
         """
         nq = self.robot.nq
+        if type(raw) is np.ndarray and raw.dtype == np.float64 and raw.shape == (nq,):
+            total = float(raw.sum())
+            if total - total == 0.0:  # finite: no inf or nan among them (fast path)
+                return raw.copy()
         try:
             tau = np.asarray(raw)
         except Exception as exc:  # a ragged list, an object numpy cannot take
@@ -133,9 +145,15 @@ class Drive:
         path = self.path
         if cmd is self.tau_zero and not self.lag and path.passive:  # the collapse: fast path
             return cmd, cmd, cmd, path.friction(v, self.fdir) if path.rubs else cmd
-        target = self.path.target(cmd)
-        tau_m = y[2 * n :] if self.lag else target
-        return cmd, target, self.path.applied(tau_m), self.path.friction(v, self.fdir)
+        if cmd is self._cached[0] and path is self._cached[1]:  # a held command: computed once
+            target, applied = self._cached[2], self._cached[3]
+        else:
+            target = path.target(cmd)
+            applied = target if self.lag else path.applied(target)  # with a lag: from y below
+            self._cached = (cmd, path, target, applied)
+        if self.lag:
+            applied = path.applied(y[2 * n :])
+        return cmd, target, applied, path.friction(v, self.fdir)
 
     def free_accel(self, t: float, y: FloatArray) -> FloatArray:
         """Accelerations [rad/s^2] of the unconstrained arm at (t, y) (no lock, no contact)."""

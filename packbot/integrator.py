@@ -12,8 +12,9 @@ released, sliding patches refreshed).
 What the events are and what happens at each is the law's (:mod:`packbot.contact`: ``none``,
 ``joint_clamp``, ``normal``, ``handoff``); the loop never asks which law it holds. The scheduled
 actions (:mod:`packbot.schedule`) cut the steps at their times: failure injections (``failure``,
-and ``freeze`` for the impulse that stops a freezing joint), payload ``pick`` / ``drop``, and
-the ticks of a sampled-data :class:`~packbot.control.Controller` (not logged). A frozen joint or
+and ``freeze`` for the impulse that stops a freezing joint), payload ``pick`` / ``drop``. The
+ticks of a sampled-data :class:`~packbot.control.Controller` (not logged) cut a step only when
+they change the held command (:mod:`packbot.ticks`). A frozen joint or
 a payload change starts a new *phase*: the integrated model is rebuilt (``pin.buildReducedModel``,
 the payload's inertia added), the law rebuilt on it and the contacts found again; the result
 stays in full coordinates. Samples and events are kept by :mod:`packbot.recorder`; the torques
@@ -36,7 +37,7 @@ from packbot.contact.base import Crossing
 from packbot.control.base import Controller
 from packbot.drive import Drive, TorqueFunction
 from packbot.environment import Environment
-from packbot.errors import ControllerError, PackbotError, SimulationError
+from packbot.errors import PackbotError, SimulationError
 from packbot.failures import Failure
 from packbot.inputs import check_inputs, warn_settings
 from packbot.model import Robot
@@ -46,6 +47,7 @@ from packbot.recorder import EventLog, Recorder, Sample, measure
 from packbot.result import Diagnostics, Event, SimResult, rest_time
 from packbot.schedule import Schedule, freeze_impulse, momentum_kept
 from packbot.system import System
+from packbot.ticks import Ticks
 
 __all__ = ["EVENT_XTOL", "TorqueFunction", "simulate"]
 
@@ -89,6 +91,7 @@ class _Run:
         self.failures_in: list[Failure] = []
         self.frozen: list[str] = []
         self.schedule = Schedule(failures, payload, self.ctrl_obj)
+        self.ticks = Ticks(self.schedule, self.drive)
         self.events = EventLog(config.max_events)
         self.diag = Diagnostics()
         self.rec = Recorder(config.sample_dt, duration, self.measure)
@@ -173,18 +176,25 @@ class _Run:
             self.stepper.h_max = self.law.step_bound(self.y)
             t_sched = self.schedule.next_time()
             if t_sched <= self.t + 1e-12:  # an event landed on a scheduled time
-                self.run_scheduled(self.t)
-                self.restart()
+                if self.run_scheduled(self.t):
+                    self.restart()
                 continue
-            t_end = min(self.duration, t_sched)
+            # A window lands on every tick, the stepper on those that change the command.
+            t_far = min(self.duration, self.schedule.horizon(self.ticks.cut))
             try:
-                seg = self.law.advance(self.t, self.y, t_end) or self.stepper.step(t_end)
+                seg = self.law.advance(self.t, self.y, min(self.duration, t_sched))
+                seg = seg or self.stepper.step(t_far)
             except StepSizeUnderflow:
                 if not self.law.rescue(self.t, self.y):
                     raise
                 continue  # the law integrates the stiff stretch itself
             crossings = self.law.watch(seg)
-            if not crossings:
+            t_star, at = self.locate(seg, crossings) if crossings else (seg.t1, [])
+            changed = self.ticks.inside(seg, t_star, self.rec.record)
+            if changed is not None:
+                self.cut_at_tick(seg, *changed)
+            elif not crossings:
+                t_sched = self.schedule.next_time()
                 on_schedule = seg.t1 >= t_sched - 1e-12 and seg.t1 < self.duration - 1e-12
                 # A sample on a scheduled time shows the state after the action (a new held
                 # command applies from its tick on).
@@ -196,11 +206,11 @@ class _Run:
                     self.diag.restarts += 1
                     self.restart()
                 if on_schedule:
-                    self.run_scheduled(self.t)
+                    restart = self.run_scheduled(self.t)
                     self.rec.record_due(self.t, self.y)
-                    self.restart()
+                    if restart:
+                        self.restart()
             else:
-                t_star, at = self.locate(seg, crossings)
                 y_star = seg(t_star)
                 self.rec.record(seg, t_star)
                 self.rec.point(t_star, y_star)
@@ -211,6 +221,24 @@ class _Run:
                 self.restart()
             self.report_progress()
         self.rec.record_final(self.y)
+
+    def cut_at_tick(self, seg: DenseSegment, t: float, tau: FloatArray) -> None:
+        """The tick at t inside the step changes the command: the step is kept up to t.
+
+        The law watches the part kept (an event there that the whole step hid, a double
+        crossing, comes at the next step's start, as after any step).
+        """
+        kept = seg.truncated(t)
+        self.law.watch(kept)
+        self.rec.record(seg, t - 1e-11)
+        self.t, self.y = t, kept.y1
+        y_new = self.law.after_step(t, self.y)
+        if y_new is not None:
+            self.y = y_new
+            self.diag.restarts += 1
+        self.ticks.apply(t, tau)
+        self.rec.record_due(t, self.y)
+        self.restart()
 
     def report_progress(self) -> None:
         """Call the progress callback; an error it raises stops the run as a SimulationError.
@@ -242,12 +270,15 @@ class _Run:
         return t_star, at
 
     # ------------------------------------------------------------------ scheduled actions
-    def run_scheduled(self, t: float, record: bool = True) -> None:
+    def run_scheduled(self, t: float, record: bool = True) -> bool:
         """Apply every action scheduled at t (within 1e-12 s): failures, payload, a tick.
 
         Args:
             t: Time [s].
             record: Keep samples of the states before and after a failure or payload change.
+
+        Returns:
+            Whether the dynamics changed: a failure, a payload change, a new held command.
         """
         due = self.schedule.due(t)
         if due and record:
@@ -257,19 +288,12 @@ class _Run:
                 self.inject(t, what)
             else:
                 self.payload_change(t, what)
+        changed = bool(due)
         if self.schedule.tick_due(t):
-            assert self.ctrl_obj is not None
-            qf, vf, _ = self.full_state(self.y)
-            try:
-                raw = self.ctrl_obj.step(t, qf.copy(), vf.copy())
-            except ControllerError:
-                raise
-            except Exception as exc:
-                raise ControllerError(f"raised {type(exc).__name__}: {exc}", t) from exc
-            self.drive.hold(raw, t)
-            self.schedule.ticked()
+            changed = self.ticks.tick(t, self.y) or changed
         if due and record:
             self.rec.point(t, self.y)
+        return changed
 
     def inject(self, t: float, failure: Failure) -> None:
         """A joint fails at t: log it; a frozen joint is stopped by an impulse and merged."""

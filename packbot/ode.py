@@ -174,7 +174,7 @@ class DenseSegment:
         y1: State at ``t1``, shape (n,) (do not modify).
     """
 
-    __slots__ = ("_Q", "_Z", "h", "t0", "t1", "y0", "y1")
+    __slots__ = ("_Q", "_Z", "_hz", "h", "t0", "t1", "y0", "y1")
 
     def __init__(
         self, t0: float, t1: float, h: float, y0: FloatArray, y1: FloatArray, Z: FloatArray
@@ -195,7 +195,22 @@ class DenseSegment:
         self.y0 = y0
         self.y1 = y1
         self._Z = Z
+        self._hz = h  # the step the interpolant was built on (longer in a truncated segment)
         self._Q: FloatArray | None = None
+
+    def truncated(self, t: float) -> DenseSegment:
+        """The step cut at t: the same interpolant on [t0, t] (y1 = y(t)).
+
+        For a step the loop keeps only up to t (a controller tick inside it changed the
+        command).
+
+        Args:
+            t: Time [s] in (t0, t1].
+        """
+        seg = DenseSegment(self.t0, t, t - self.t0, self.y0, self(t), self._Z)
+        seg._hz = self._hz
+        seg._Q = self._Q
+        return seg
 
     def _coefficients(self) -> FloatArray:
         """Polynomial coefficients of the interpolant, shape (5, n), computed on first use."""
@@ -220,7 +235,7 @@ class DenseSegment:
         Q = self._Q
         if Q is None:
             Q = self._coefficients()
-        h = self.h
+        h = self._hz
         th = (t - self.t0) / h
         x = h * th
         x2 = x * th
@@ -239,7 +254,7 @@ class DenseSegment:
         Q = self._Q
         if Q is None:
             Q = self._coefficients()
-        th = (t - self.t0) / self.h
+        th = (t - self.t0) / self._hz
         th2 = th * th
         return np.dot(np.array((0.0, 1.0, 2.0 * th, 3.0 * th2, 4.0 * th2 * th)), Q)
 
@@ -252,10 +267,10 @@ class DenseSegment:
         Returns:
             Array of shape (m, n): row i is y(ts[i]).
         """
-        th = (np.asarray(ts, dtype=np.float64).reshape(-1) - self.t0) / self.h
+        th = (np.asarray(ts, dtype=np.float64).reshape(-1) - self.t0) / self._hz
         V = np.empty((th.size, 5))
         V[:, 0] = 1.0
-        V[:, 1] = self.h * th
+        V[:, 1] = self._hz * th
         for m in range(2, 5):
             V[:, m] = V[:, m - 1] * th
         return V @ self._coefficients()

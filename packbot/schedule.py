@@ -1,10 +1,12 @@
 """The actions scheduled at given times: failures, payload pick and drop, controller ticks.
 
-The loop cuts its integration steps at :meth:`Schedule.next_time` and, once there, applies what
-:meth:`Schedule.due` returns, in order: the failures due (in the order given), then the payload
-change, then the controller's tick. Two small pieces of physics that those actions need and that
-belong to no contact law are here too: the impulse that stops a freezing joint
-(:func:`freeze_impulse`) and the velocities after picking up a payload
+The loop cuts its integration steps at the failures and payload changes
+(:meth:`Schedule.horizon`) and, once there, applies what :meth:`Schedule.due` returns, in order:
+the failures due (in the order given), then the payload change, then the controller's tick. The
+controller's ticks cut a step only while the command changes from tick to tick; the ticks inside
+a longer step are taken on its dense output (:mod:`packbot.ticks`). Two small pieces of physics
+that those actions need and that belong to no contact law are here too: the impulse that stops a
+freezing joint (:func:`freeze_impulse`) and the velocities after picking up a payload
 (:func:`momentum_kept`).
 """
 
@@ -59,6 +61,15 @@ class Schedule:
         """Time of the next scheduled action (failure, payload, control tick) [s]."""
         t_next = self.queue[0][0] if self.queue else math.inf
         return min(t_next, self.next_tick)
+
+    def horizon(self, ticks: bool) -> float:
+        """Time [s] the next step must end at: the next failure or payload change.
+
+        Args:
+            ticks: Whether the next controller tick ends it too.
+        """
+        t_next = self.queue[0][0] if self.queue else math.inf
+        return min(t_next, self.next_tick) if ticks else t_next
 
     def due(self, t: float) -> list[Failure | str]:
         """The failures and payload changes ("pick", "drop") due at t (within 1e-12 s).

@@ -77,6 +77,7 @@ INTERNAL_MODULES = {
     "packbot.schedule",
     "packbot.srdfgen",
     "packbot.system",
+    "packbot.ticks",
     "packbot.tolerances",
     "packbot.urdfgen",
     "packbot.validation",

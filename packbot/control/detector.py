@@ -140,6 +140,9 @@ class MomentumObserver:
                 "observer.coulomb", coulomb, shape=(n,), expected=f"{n} Coulomb torques [N*m]"
             )
         )
+        self._lower = np.tril_indices(n, -1)
+        self._neg_effort = -self.effort
+        self._rubs = bool(self.viscous.any() or self.coulomb.any())
         self._v_prev = np.zeros(n)
         self.residual = np.zeros(n)
         self.ignored = np.zeros(n, dtype=bool)
@@ -148,6 +151,7 @@ class MomentumObserver:
         self._f_prev = np.zeros(n)
         self._t_prev: float | None = None
         self._onset = np.full(n, np.nan)
+        self._pending = False  # some onset is set
         self._max_speed = np.zeros(n)
 
     def reset(self, t: float, q: FloatArray, v: FloatArray) -> None:
@@ -159,6 +163,7 @@ class MomentumObserver:
         self.residual[:] = 0.0
         self._t_prev = t
         self._onset[:] = np.nan
+        self._pending = False
         self._max_speed[:] = 0.0
 
     def _drift(self, q: FloatArray, v: FloatArray) -> FloatArray:
@@ -168,8 +173,8 @@ class MomentumObserver:
         return np.asarray(C.T @ v - g)
 
     def _momentum(self, q: FloatArray, v: FloatArray) -> FloatArray:
-        M = pin.crba(self.model, self.data, q)
-        M = np.triu(M) + np.triu(M, 1).T
+        M = np.array(pin.crba(self.model, self.data, q))
+        M[self._lower] = M.T[self._lower]  # Pinocchio fills the upper triangle
         return np.asarray(M @ v)
 
     def update(
@@ -192,8 +197,8 @@ class MomentumObserver:
             return None
         h = t - self._t_prev
         self._t_prev = t
-        tau_m = np.clip(tau_prev, -self.effort, self.effort)
-        if self.viscous.any() or self.coulomb.any():
+        tau_m = np.minimum(np.maximum(tau_prev, self._neg_effort), self.effort)  # np.clip
+        if self._rubs:
             # the known joint friction of a sliding joint, at the period's mean speed
             vm = 0.5 * (self._v_prev + v)
             sliding = np.abs(vm) > self.frozen_speed
@@ -205,6 +210,12 @@ class MomentumObserver:
         self._f_prev = f
         self.residual = self.gain * (self._momentum(q, v) - self._p0 - self._integral)
         over = (np.abs(self.residual) > self.threshold) & ~self.ignored
+        if not over.any():  # nothing over its threshold: no onset pending, nothing due
+            if self._pending:
+                self._onset[:] = np.nan
+                self._pending = False
+            return None
+        self._pending = True
         fresh = over & np.isnan(self._onset)
         self._onset[fresh] = t
         self._max_speed[fresh] = 0.0

@@ -62,6 +62,10 @@ class QuinticSegment:
     a0: ArrayLike | None = None
     a1: ArrayLike | None = None
     _c: FloatArray = field(init=False, repr=False)
+    # (q, 0, 0) after the end, computed once (a controller holding the end pose asks each tick)
+    _end: tuple[FloatArray, FloatArray, FloatArray] | None = field(
+        init=False, repr=False, compare=False, default=None
+    )
 
     def __post_init__(self) -> None:
         self.validate()
@@ -113,13 +117,18 @@ class QuinticSegment:
         if t <= self.t0:
             s, moving = 0.0, t == self.t0
         elif t >= self.t1:
+            if t > self.t1 and self._end is not None:
+                q, v, a = self._end
+                return q.copy(), v.copy(), a.copy()
             s, moving = 1.0, t == self.t1
         else:
             s, moving = (t - self.t0) / T, True
         c = self._c
         q = c[0] + s * (c[1] + s * (c[2] + s * (c[3] + s * (c[4] + s * c[5]))))
         if not moving:
-            return q, np.zeros_like(q), np.zeros_like(q)
+            if s == 1.0:
+                self._end = (q, np.zeros_like(q), np.zeros_like(q))
+            return q.copy(), np.zeros_like(q), np.zeros_like(q)
         v = c[1] + s * (2 * c[2] + s * (3 * c[3] + s * (4 * c[4] + s * 5 * c[5])))
         a = 2 * c[2] + s * (6 * c[3] + s * (12 * c[4] + s * 20 * c[5]))
         return q, v / T, a / T**2
