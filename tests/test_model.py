@@ -246,3 +246,21 @@ def test_cli_info_and_help(capsys):
 
 def test_cli_generate_model_check():
     assert main(["generate-model", "--check", "--root", str(REPO)]) == 0
+
+
+def test_system_energy_is_half_v_m_v_plus_potential(robot, rng):
+    """System.energy (Pinocchio's O(n) kinetic energy) is 0.5 v^T M v with the armature in M,
+    plus the potential energy, on the full and on a reduced model."""
+    from packbot.system import System
+
+    lo, hi = robot.model.lowerPositionLimit, robot.model.upperPositionLimit
+    for locked in ((), ("gripper_jaw", "camera_pan")):
+        cfg = packbot.SimConfig(locked_joints=locked)
+        sysm = System(robot, robot.pose("drive"), cfg, None)
+        assert float(np.abs(sysm.model.armature).max()) > 0.0
+        for _ in range(20):
+            q = sysm.reduce(rng.uniform(lo, hi))
+            v = rng.standard_normal(sysm.nv)
+            M = sysm.mass_matrix(q)
+            ref = 0.5 * v @ M @ v + pin.computePotentialEnergy(sysm.model, sysm.data, q)
+            assert sysm.energy(q, v) == pytest.approx(ref, rel=1e-12, abs=1e-12)
