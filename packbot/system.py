@@ -123,13 +123,9 @@ class System:
         return out
 
     def energy(self, q: FloatArray, v: FloatArray) -> float:
-        """Kinetic (with armature) plus gravitational potential energy [J].
-
-        The kinetic energy 0.5 v^T M(q) v from Pinocchio's recursion over the bodies (O(n), the
-        armature's 0.5 sum(I_a v^2) included), not from M.
-        """
-        kinetic = pin.computeKineticEnergy(self.model, self.data, q, v)
-        return float(kinetic) + float(pin.computePotentialEnergy(self.model, self.data, q))
+        """Kinetic (with armature) plus gravitational potential energy [J]."""
+        kinetic = 0.5 * float(v @ self.mass_matrix(q) @ v)
+        return kinetic + float(pin.computePotentialEnergy(self.model, self.data, q))
 
     def point_jacobian(self, q: FloatArray, joint: int, point: FloatArray) -> FloatArray:
         """3 x nv Jacobian of the velocity of a world point fixed to a joint's body.
