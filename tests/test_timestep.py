@@ -117,7 +117,10 @@ def test_a_run_stepped_in_windows_rests_where_the_event_driven_mode_rests(robot,
 
     Sampled at the step ends, its energy never rises from one step to the next (zero torque:
     the steps' contacts and the guard only dissipate), and it rests within 0.03 rad of the
-    event-driven run (time-stepping at 0.5 ms against exact events: the same physics).
+    event-driven run on the joints that fold the arm (time-stepping at 0.5 ms against exact
+    events: the same physics). Not on the turret: its yaw ends where a slow sideways slide
+    happens to stick, which the last bits decide (measured: 0.001 or 0.059 rad from the
+    event-driven run, depending on a 1e-16 J rounding of the energy guard's input).
     """
     q0 = robot.pose("drive")
     base = {"contact_mode": "normal", "mu": 0.5, "restitution": 0.0, "locked_joints": LOCKED}
@@ -134,7 +137,8 @@ def test_a_run_stepped_in_windows_rests_where_the_event_driven_mode_rests(robot,
     rises = np.diff(stepped.energy[after])
     assert rises.max() <= 1e-9, rises.max()
     assert -d.min_distance <= PENETRATION_TOL
-    assert np.abs(stepped.q[-1] - exact.q[-1]).max() < 0.03
+    fold = [robot.joint_names.index(j) for j in ("shoulder", "elbow1", "elbow2")]
+    assert np.abs(stepped.q[-1, fold] - exact.q[-1, fold]).max() < 0.03
 
 
 # ------------------------------------------------------------------ joint friction, brakes
