@@ -15,6 +15,8 @@ per run [s].
     python benchmarks/robustness.py                      # the contact-normal mode, full grid
     python benchmarks/robustness.py --law joint_clamp --mu 0 --e 0 0.3
     python benchmarks/robustness.py --starts 20 --mu 0.5 --wrist locked --workers 2
+    python benchmarks/robustness.py --law joint_clamp --handoff --joint-friction \
+        --reset-rule momentum --mu 0.5 --starts 40     # the hand-off with joint friction
 
 The full grid (200 starts x 5 mu x 2 e x 2 wrist settings = 4,000 runs of 3 s) takes hours on 2
 cores; ``--starts`` and the filters pick a slice. Issue 16's goal: 0 errors, 0 energy gained at
@@ -60,6 +62,7 @@ class Outcome:
     wall: float = 0.0
     windows: int = 0
     removed: float = 0.0
+    handoffs: int = 0
 
 
 class _Timeout(Exception):
@@ -111,6 +114,7 @@ def one_run(args: tuple[np.ndarray, dict[str, Any], float, float]) -> Outcome:
         out.at_rest = res.rest_time is not None and not out.error
         out.windows = res.diagnostics.windows
         out.removed = res.diagnostics.window_energy_removed
+        out.handoffs = len(res.events_of("handoff"))
     return out
 
 
@@ -136,12 +140,22 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--duration", type=float, default=3.0, help="simulated time per run [s]")
     ap.add_argument("--timeout", type=float, default=120.0, help="wall limit per run [s]")
     ap.add_argument("--workers", type=int, default=os.cpu_count() or 1)
+    ap.add_argument("--handoff", action="store_true", help="SimConfig.handoff (joint_clamp)")
+    ap.add_argument("--joint-friction", action="store_true", help="SimConfig.joint_friction")
+    ap.add_argument("--reset-rule", default=None, help="SimConfig.reset_rule (joint_clamp)")
     args = ap.parse_args(argv)
     robot = _robot()
     tol = packbot.SimConfig().contact_tolerance
     poses = start_poses(robot, args.starts, args.seed, 2 * tol)
+    extra: dict[str, Any] = {}
+    if args.handoff:
+        extra["handoff"] = True
+    if args.joint_friction:
+        extra["joint_friction"] = True
+    if args.reset_rule is not None:
+        extra["reset_rule"] = args.reset_rule
     print(
-        f"{args.law}: collapse from {args.starts} random starts (seed {args.seed}), "
+        f"{args.law} {extra or ''}: collapse from {args.starts} random starts (seed {args.seed}), "
         f"{args.duration:g} s each, load {os.getloadavg()[0]:.2f}"
     )
     print(
@@ -153,8 +167,8 @@ def main(argv: list[str] | None = None) -> None:
     ctx = mp.get_context("spawn")
     with ctx.Pool(args.workers) as pool:
         for mu, e, wrist in itertools.product(args.mu, args.e, args.wrist):
-            kw: dict[str, Any] = {"contact_mode": args.law, "restitution": e}
-            if args.law == "normal":
+            kw: dict[str, Any] = {"contact_mode": args.law, "restitution": e, **extra}
+            if args.law == "normal" or args.handoff:  # the handed-off pairs' friction
                 kw["mu"] = mu
             if wrist == "locked":
                 kw["locked_joints"] = WRIST_JOINTS
@@ -171,6 +185,8 @@ def main(argv: list[str] | None = None) -> None:
                 f"{statistics.median(walls):.2f} | {max(walls):.2f} |",
                 flush=True,
             )
+            if args.handoff:
+                print(f"    runs with a hand-off: {sum(o.handoffs > 0 for o in outs)}")
             for o in errors[:3]:
                 print(f"    error: {o.error[:150]}")
 

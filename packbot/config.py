@@ -129,7 +129,9 @@ class SimConfig:
             report's law again; the other pairs' clamps become one-sided joint rows of the same
             complementarity problem while a handed-off pair is in contact. The pair returns to
             the report's law once it separates beyond ``proximity_tolerance``. Logged as a
-            ``handoff`` event. See docs/contact.md, "Hand-off".
+            ``handoff`` event. Joints held by friction or a brake are locked in the same problem
+            (their holding torques include the contact forces). See docs/contact.md,
+            "Hand-off".
     """
 
     contact_mode: ContactMode = "normal"
@@ -265,11 +267,4 @@ class SimConfig:
                 f"False with contact_mode={self.contact_mode!r} (a hand-off goes from the "
                 "'joint_clamp' law to the contact-normal machinery: set "
                 "contact_mode='joint_clamp', the default is 'normal')",
-            )
-        if self.handoff and self.joint_friction:
-            raise ConfigurationError(
-                "handoff",
-                self.handoff,
-                "False with joint_friction=True (joint stick/slip and contact forces are not "
-                "yet solved as one problem)",
             )

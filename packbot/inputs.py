@@ -107,13 +107,6 @@ def check_inputs(
             "below this bound every contact has a relevant joint)",
         )
     for f in failures:
-        if f.kind == "brake" and config.handoff:
-            raise ConfigurationError(
-                "failures",
-                f"{f.joint}: brake",
-                "no brake failure with handoff=True (joint holds and contact forces are not yet "
-                "solved as one problem)",
-            )
         if f.joint in locked:
             raise ConfigurationError(
                 "failures", f.joint, "a joint that is not in config.locked_joints"

@@ -412,11 +412,6 @@ _cfg_cases: list[tuple[str, dict[str, Any], str]] = [
     ("mu-100", {"mu": 100.0}, "mu"),
     ("zeno_speed-negative", {"zeno_speed": -1.0}, "zeno_speed"),
     ("handoff-with-mode-none", {"contact_mode": "none", "handoff": True}, "handoff"),
-    (
-        "handoff-with-friction",
-        {"contact_mode": "joint_clamp", "handoff": True, "joint_friction": True},
-        "handoff",
-    ),
     ("handoff-with-the-default-mode", {"handoff": True}, "handoff"),
     ("handoff-int", {"handoff": 1}, "handoff"),
 ]

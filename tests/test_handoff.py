@@ -258,23 +258,14 @@ def test_validation_names_the_field():
     with pytest.raises(packbot.errors.ConfigurationError) as exc:
         packbot.SimConfig(handoff="yes").validate()  # type: ignore[arg-type]
     assert exc.value.field == "handoff"
-    with pytest.raises(packbot.errors.ConfigurationError, match="joint_friction") as exc:
-        packbot.SimConfig(contact_mode="joint_clamp", handoff=True, joint_friction=True).validate()
-    assert exc.value.field == "handoff"
     with pytest.raises(
         packbot.errors.ConfigurationError, match="contact_mode='joint_clamp'"
     ) as exc:
         packbot.SimConfig(handoff=True)  # the default mode is "normal": say which to set
     assert exc.value.field == "handoff"
     packbot.SimConfig(contact_mode="joint_clamp", handoff=True).validate()  # fine
-
-
-def test_brake_failure_with_hand_off_is_refused(robot):
-    cfg = packbot.SimConfig(contact_mode="joint_clamp", locked_joints=WRIST, handoff=True)
-    brake = packbot.Failure(joint="elbow1", t=0.1, kind="brake")
-    with pytest.raises(packbot.errors.ConfigurationError) as exc:
-        packbot.simulate(robot, robot.pose("drive"), np.zeros(8), 0.2, config=cfg, failures=[brake])
-    assert exc.value.field == "failures"
+    # joint friction and brakes too (tests/test_handoff_holds.py)
+    packbot.SimConfig(contact_mode="joint_clamp", handoff=True, joint_friction=True).validate()
 
 
 def test_released_pair_comes_back_under_the_report_law(robot, collapse_runs):

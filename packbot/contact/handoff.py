@@ -36,6 +36,21 @@ rest) and then eliminated exactly, every problem being solved in the subspace a_
 and the free accelerations replaced by their constrained versions, the Schur complement of the
 locked joints: M^-1_c = M^-1 - M^-1 S^T (S M^-1 S^T)^-1 S M^-1).
 
+Joints *held* by Coulomb friction or a brake (:class:`~packbot.contact.locks.JointLocks`'s
+``held``) are locked the same way while a handed-off pair is in contact: they join the
+eliminated set S (a_S = 0), so the contact forces and the holding torques are one problem. At
+the solution, M a = M a_free + Q_c + S^T tau_S with Q_c = C^T lambda the rows' generalized force
+(C their force columns), so the holding torque is
+
+    tau_S = -(M^-1_SS)^-1 (a_free + M^-1 Q_c)_S          (:meth:`HandoffContacts.hold_torques`)
+
+and the hold lasts while |tau_j| <= F_j (or a one-sided clamp on the joint pushes). A held
+joint's clamps are not rows (the joint is locked anyway): its hold condition takes them in, as
+:class:`~packbot.contact.locks.JointLocks` does. A bounded torque does nothing in an instant: at
+an impulse the held joints are free (an impact may set a braked joint moving; it then slides,
+its friction opposing), and the holds are chosen again after it
+(:meth:`HandoffLaw.settle_mixed`).
+
 When the last handed-off pair leaves the contact set (its distance beyond the proximity
 tolerance) the clamps go back to :class:`~packbot.contact.locks.JointLocks` and that pair's next
 impact is a ``joint_clamp`` impact again.
@@ -43,6 +58,7 @@ impact is a ``joint_clamp`` impact again.
 
 from __future__ import annotations
 
+import logging
 import math
 from collections.abc import Iterable, Iterator, Sequence
 from contextlib import contextmanager
@@ -54,7 +70,7 @@ from numpy.typing import NDArray
 from packbot.collision import PairInfo
 from packbot.contact.base import Active, Crossing, Key
 from packbot.contact.joint_clamp import JointClampLaw
-from packbot.contact.lcp import lcp_residual, lemke, solve_lcp_psd
+from packbot.contact.lcp import lcp_residual, lemke, solve_lcp_psd, solve_small
 from packbot.contact.locks import ACCEL_BAND, TORQUE_BAND
 from packbot.contact.normal import (
     RESIDUAL_TOL,
@@ -63,19 +79,25 @@ from packbot.contact.normal import (
     PatchEvents,
     _Eval,
 )
-from packbot.contact.stops import RECEDE_SPEED
+from packbot.contact.stops import RECEDE_SPEED, STICK_SPEED, friction_share
 from packbot.ode import DenseSegment
 from packbot.system import System
 
 __all__ = ["HandoffContacts", "HandoffLaw"]
 
 FloatArray = NDArray[np.float64]
+log = logging.getLogger(__name__)
 
 #: A row is frozen by the bilateral joints when its largest entry on the other joints is below
 #: NULL_ROW times its largest entry [-] (rounding: the two bodies' Jacobians cancel there).
 NULL_ROW = 1e-9
 #: The gap reported for such a row [m]: far from touching.
 NULL_GAP = 1.0
+#: An engaged clamp row whose joint the restart's impulse leaves receding slower than this
+#: [rad/s] stays engaged, its joint stopped (:meth:`HandoffLaw._stop_creeping_clamps`): the
+#: Zeno end of a clamp's release and return at one instant, as ``SimConfig.zeno_speed`` ends a
+#: contact's bounces. Faster, the clamp is released (it would do positive work).
+CLAMP_ZENO = 1e-6
 
 
 class HandoffContacts(NormalContacts):
@@ -87,19 +109,36 @@ class HandoffContacts(NormalContacts):
         clamps: The one-sided clamps in force, (joint index, forbidden acceleration direction
             s = +1 or -1), sorted; their rows follow the patch and limit rows in this order.
         bilateral: Joints clamped in both directions (locked: eliminated, not rows), sorted.
+        held: Joints held by Coulomb friction or a brake (locked like the bilateral ones while
+            a handed-off pair is in contact), sorted; set by :class:`HandoffLaw`.
+        held_signs: Held joint -> the directions s of its clamps (its hold condition's).
     """
 
     def __init__(self, *args: Any, **kwargs: Any) -> None:
         super().__init__(*args, **kwargs)
         self.clamps: list[tuple[int, int]] = []
         self.bilateral: list[int] = []
+        self.held: list[int] = []
+        self.held_signs: dict[int, set[int]] = {}
         self._velocity_level = False  # clamp rows report their true velocity (impulse level)
         self._reduced = False  # inside a call already working in the bilateral-locked subspace
 
     @property
     def constrained(self) -> bool:
-        """Whether the dynamics differ from the free ones (engaged rows or bilateral joints)."""
-        return bool(self.engaged) or bool(self.bilateral)
+        """Whether the dynamics differ from the free ones (engaged rows or locked joints)."""
+        return bool(self.engaged) or bool(self.bilateral) or bool(self.held)
+
+    @property
+    def locked_joints(self) -> list[int]:
+        """The eliminated joints S: the bilateral and the held ones, sorted."""
+        if not self.held:
+            return self.bilateral
+        return sorted(set(self.bilateral) | set(self.held))
+
+    def set_held(self, held: Iterable[int], signs: dict[int, set[int]]) -> None:
+        """Replace the held joints and their clamps' directions (see ``held_signs``)."""
+        self.held = sorted(int(j) for j in held)
+        self.held_signs = {j: set(signs.get(j, set())) for j in self.held}
 
     # ------------------------------------------------------------------ clamp rows
     def _base_rows(self) -> int:
@@ -176,7 +215,7 @@ class HandoffContacts(NormalContacts):
         row sits out of every problem (not touching, no event) while the joints stay locked.
         """
         free = np.ones(self.nv, dtype=bool)
-        free[self.bilateral] = False
+        free[self.locked_joints] = False
         scale = np.abs(Jn).max(axis=1, initial=0.0)
         null = np.abs(Jn[:, free]).max(axis=1, initial=0.0) <= NULL_ROW * scale
         if not null.any():
@@ -187,8 +226,8 @@ class HandoffContacts(NormalContacts):
         return gap, vn
 
     def _lock(self, a_free: FloatArray, minv: FloatArray) -> tuple[FloatArray, FloatArray]:
-        """Free accelerations and M^-1 with the bilateral joints locked (a_j = 0)."""
-        idx = np.array(self.bilateral, dtype=np.intp)
+        """Free accelerations and M^-1 with the locked joints S fixed (a_j = 0)."""
+        idx = np.array(self.locked_joints, dtype=np.intp)
         K = minv[:, idx]
         W = minv[np.ix_(idx, idx)]
         minv_c = minv - K @ np.linalg.solve(W, K.T)
@@ -207,8 +246,8 @@ class HandoffContacts(NormalContacts):
             self._reduced = False
 
     def _bypass(self) -> bool:
-        """No bilateral joint, or already in the locked subspace: call the base method."""
-        return self._reduced or not self.bilateral
+        """No locked joint, or already in the locked subspace: call the base method."""
+        return self._reduced or not self.locked_joints
 
     def evaluate(self, q: FloatArray, v: FloatArray, a_free: FloatArray, minv: FloatArray) -> _Eval:
         """The normal mode's constrained dynamics, bilateral joints locked."""
@@ -246,17 +285,51 @@ class HandoffContacts(NormalContacts):
     ) -> tuple[FloatArray, FloatArray, list[ModeEvent]]:
         """The normal mode's restart, after stopping every clamped joint that approaches.
 
-        Bilateral joints are stopped here (with the full M^-1) and locked from then on.
+        Bilateral joints are stopped here (with the full M^-1) and locked from then on. The
+        held joints are not held through it (a bounded friction or brake torque does nothing
+        in an instant): the caller chooses the holds again after it.
         """
-        both = [(j, s) for j in self.bilateral for s in (-1, 1)]
-        v = self.stop_clamped(v, minv, sorted(set(self.clamps) | set(both)))
-        if self._bypass():
-            return super().restart(q, v, a_free_fn, minv)
-        v = v.copy()
-        v[self.bilateral] = 0.0  # stopped to rounding: exactly
-        minv_c = self._lock(np.zeros(self.nv), minv)[1]
-        with self._locked():
-            return super().restart(q, v, self._locked_fn(a_free_fn, minv), minv_c)
+        held, signs = self.held, self.held_signs
+        self.held, self.held_signs = [], {}
+        try:
+            both = [(j, s) for j in self.bilateral for s in (-1, 1)]
+            v = self.stop_clamped(v, minv, sorted(set(self.clamps) | set(both)))
+            if self._bypass():
+                return super().restart(q, v, a_free_fn, minv)
+            v = v.copy()
+            v[self.bilateral] = 0.0  # stopped to rounding: exactly
+            minv_c = self._lock(np.zeros(self.nv), minv)[1]
+            with self._locked():
+                return super().restart(q, v, self._locked_fn(a_free_fn, minv), minv_c)
+        finally:
+            self.held, self.held_signs = held, signs
+
+    def hold_torques(
+        self, q: FloatArray, v: FloatArray, a_free: FloatArray, minv: FloatArray
+    ) -> dict[int, float]:
+        """The torques [N*m] holding the held joints, with the contact forces of the modes.
+
+        tau_S = -(M^-1_SS)^-1 (a_free + M^-1 Q_c)_S on the locked joints S (module docstring),
+        the same sign convention as :meth:`JointLocks.torques
+        <packbot.contact.locks.JointLocks.torques>` (a torque added on the joint).
+
+        Args:
+            q: Configuration [rad].
+            v: Velocity [rad/s].
+            a_free: Unconstrained accelerations [rad/s^2] (the full arm's).
+            minv: M^-1 at q (the full arm's).
+
+        Returns:
+            Held joint -> its holding torque; empty when nothing is held or the arm rests.
+        """
+        if not self.held or self.resting:
+            return {}
+        ev = self.evaluate(q, v, a_free, minv)
+        rhs = a_free if ev.qc is None else a_free + minv @ ev.qc
+        idx = np.array(self.locked_joints, dtype=np.intp)
+        tau = solve_small(minv[np.ix_(idx, idx)], -rhs[idx])
+        pos = {int(j): k for k, j in enumerate(idx)}
+        return {j: float(tau[pos[j]]) for j in self.held}
 
     def _locked_fn(self, a_free_fn: Any, minv: FloatArray) -> Any:
         def fn(qq: FloatArray, vv: FloatArray) -> FloatArray:
@@ -370,11 +443,56 @@ class HandoffLaw(JointClampLaw, PatchEvents):
         return bool(self.mixed.pairs)
 
     def accel(self, q: FloatArray, v: FloatArray, a_free: FloatArray) -> FloatArray:
-        """Accelerations with the locks, then the mixed problem's rows, of the current mode."""
-        a = super().accel(q, v, a_free)
-        if self.mixed.constrained:
-            a = self.mixed.evaluate(q, v, a, self.sys.minv(q)).a
-        return a
+        """Accelerations of the current mode: the mixed problem's while it has a pair.
+
+        The mixed problem holds the clamps (rows or bilateral joints) and the held joints
+        itself; otherwise the joint locks do.
+        """
+        if self.mixed_on:
+            if self.mixed.constrained:
+                return self.mixed.evaluate(q, v, a_free, self.sys.minv(q)).a
+            return a_free
+        return super().accel(q, v, a_free)
+
+    def lock_conditions(self, t: float, y: FloatArray) -> dict[tuple[str, int], float]:
+        """The holds' conditions; while the mixed problem is on, with its contact forces.
+
+        Keys ``("hold", j)``: g = F_j + TORQUE_BAND - |tau_j| with tau_j from
+        :meth:`HandoffContacts.hold_torques`, or the push of the joint's one-sided clamp (as in
+        :meth:`JointLocks.conditions <packbot.contact.locks.JointLocks.conditions>`); a joint
+        clamped both ways never slips. Negative: a ``slip`` event.
+        """
+        if not self.mixed_on:
+            return super().lock_conditions(t, y)
+        n = self.n
+        q, v = y[:n], y[n : 2 * n]
+        tau = self.mixed.hold_torques(q, v, self.free_accel(t, y), self.sys.minv(q))
+        out: dict[tuple[str, int], float] = {}
+        for j, tj in tau.items():
+            signs = self.mixed.held_signs.get(j, set())
+            g = self.locks.held[j] + TORQUE_BAND - abs(tj)
+            if len(signs) == 1:
+                (s,) = signs
+                g = max(g, -s * tj + TORQUE_BAND)
+            out[("hold", j)] = g if len(signs) != 2 else 1.0
+        return out
+
+    def friction(
+        self, q: FloatArray, v: FloatArray, applied: FloatArray, friction: FloatArray
+    ) -> FloatArray:
+        """The friction torques [N*m], each held joint's holding torque in place.
+
+        While the mixed problem is on, the holding torques with its contact forces (the part
+        within the bound: :func:`~packbot.contact.stops.friction_share`).
+        """
+        if not (self.mixed_on and self.locks.held):
+            return super().friction(q, v, applied, friction)
+        a_free = self.sys.aba(q, v, applied + friction)
+        tau = self.mixed.hold_torques(q, v, a_free, self.sys.minv(q))
+        friction = friction.copy()
+        for j, tj in tau.items():
+            friction[j] = friction_share(tj, self.locks.held[j])
+        return friction
 
     def _pair_crossings(
         self, key: Key, p_idx: int, seg: DenseSegment, d0: float, d1: float
@@ -399,11 +517,18 @@ class HandoffLaw(JointClampLaw, PatchEvents):
     def apply_clamps(self) -> None:
         """Give the clamps of the active contacts to the hand-off rows or to the joint locks."""
         clamps = [cl for a in self.active.values() for cl in a.clamps]
-        if self.mixed_on:
-            self.mixed.set_clamps(clamps)
+        if self.mixed_on:  # a held joint is locked: its clamps are in its hold condition
+            held = self.locks.held
+            signs: dict[int, set[int]] = {}
+            for j, s in clamps:
+                if j in held:
+                    signs.setdefault(j, set()).add(s)
+            self.mixed.set_clamps(cl for cl in clamps if cl[0] not in held)
+            self.mixed.set_held(held, signs)
             self.locks.set_clamps(())
         else:
             self.mixed.set_clamps(())
+            self.mixed.set_held((), {})
             self.locks.set_clamps(clamps)
 
     def settle_modes(
@@ -417,23 +542,118 @@ class HandoffLaw(JointClampLaw, PatchEvents):
     ) -> None:
         """The locks' modes (the report's law), or the mixed problem's while it has a pair."""
         if self.mixed_on:  # the clamps are rows of the hand-off problem
-            self.settle_mixed(t, y)
+            self.settle_mixed(t, y, candidates=candidates, log_stick=log_stick)
             return
         super().settle_modes(t, y, flip=flip, candidates=candidates, log_stick=log_stick)
 
-    def settle_mixed(self, t: float, y: FloatArray) -> None:
-        """The modes of the mixed problem at (t, y) (no impulse: v is kept)."""
+    def settle_mixed(
+        self, t: float, y: FloatArray, *, candidates: Sequence[int] = (), log_stick: bool = False
+    ) -> None:
+        """The modes of the mixed problem at (t, y) (no impulse: v is kept), holds included.
+
+        Args:
+            t: Time [s].
+            y: State.
+            candidates: Joints with Coulomb friction that just stopped (see
+                :meth:`_settle_holds`).
+            log_stick: Log a ``stick`` event for each candidate that sticks.
+        """
         mixed = self.mixed
         n, tail = self.n, y[2 * self.n :]
         q, v = y[:n], y[n : 2 * n]
+        coul = self.drive.path.coulomb  # a failure may have changed the bounds (a brake)
+        mixed.joint_coulomb = coul if coul.any() else None
+        mixed.joint_fdir = self.drive.fdir
+        if mixed.resting:  # the rest capture holds every joint; its rest condition is watched
+            self.locks.set_held({})
+            self.drive.fdir[:] = 0.0
+            self.apply_clamps()
+            return
         self.apply_clamps()
         mixed.refresh(q)
-        mixed.select_modes(q, v, self.free_accel(t, y), self.sys.minv(q))
+        if coul.any():
+            self._settle_holds(t, y, candidates, log_stick)
+        else:
+            mixed.select_modes(q, v, self.free_accel(t, y), self.sys.minv(q))
         if not mixed.pairs:  # the refresh dropped the last pair: the locks take the clamps
             self.apply_clamps()
-            self.settle_modes(t, np.concatenate([q, v, tail]))
+            y_new = np.concatenate([q, v, tail])
+            self.settle_modes(t, y_new, candidates=candidates, log_stick=log_stick)
             return
         self._release_receding_rows(t, y)
+
+    def _settle_holds(
+        self, t: float, y: FloatArray, candidates: Sequence[int], log_stick: bool
+    ) -> None:
+        """The holds (Coulomb friction, brakes) and the mixed problem's modes, together.
+
+        The rules of :meth:`JointStops.settle_modes <packbot.contact.stops.JointStops.
+        settle_modes>` with the contact forces in the holding torques
+        (:meth:`HandoffContacts.hold_torques`):
+
+        - a held joint that moves (an impulse, which a bounded torque cannot resist, set it
+          moving) slides in the direction of its speed;
+        - a joint with Coulomb friction at rest that is not held, and each candidate, tries to
+          hold (bound F_j);
+        - the modes are selected with the holds locked; the hold whose torque exceeds its bound
+          the most (a one-sided clamp that pushes supplies any torque, a joint clamped both
+          ways never slips) slides in the direction opposite to that torque, and the modes are
+          selected again, until every hold is within its bound.
+
+        Logs a ``slip`` for each hold lost and, with ``log_stick``, a ``stick`` for each
+        candidate held.
+        """
+        mixed, n = self.mixed, self.n
+        q, v = y[:n], y[n : 2 * n]
+        bound = self.drive.path.coulomb
+        fdir = self.drive.fdir
+        held = {j: b for j, b in self.locks.held.items() if bound[j] > 0}
+        slipped: list[int] = []
+        for j in list(held):
+            if abs(v[j]) > STICK_SPEED:  # set moving by an impulse: it slides
+                del held[j]
+                fdir[j] = math.copysign(1.0, v[j])
+                slipped.append(j)
+        trial: list[int] = []
+        for j in np.flatnonzero(bound > 0).tolist():
+            if j in held:
+                continue
+            if abs(v[j]) > STICK_SPEED:  # sliding (a stopped candidate the impulse moved too)
+                fdir[j] = math.copysign(1.0, v[j])
+            elif fdir[j] == 0.0 or j in candidates:
+                trial.append(j)
+        for j in trial:
+            fdir[j] = 0.0
+            held[j] = float(bound[j])
+        minv = self.sys.minv(q)
+        for _ in range(len(held) + 1):
+            self.locks.set_held(held)
+            self.apply_clamps()
+            a_free = self.free_accel(t, y)  # the sliding joints' friction as now directed
+            mixed.select_modes(q, v, a_free, minv)
+            tau = mixed.hold_torques(q, v, a_free, minv)
+            worst, excess = -1, 0.0
+            for j, tj in tau.items():
+                signs = mixed.held_signs.get(j, set())
+                if len(signs) == 2 or (len(signs) == 1 and -next(iter(signs)) * tj >= 0.0):
+                    continue  # the contact supplies the torque
+                over = abs(tj) - held[j] - 0.5 * TORQUE_BAND
+                if over > excess:
+                    worst, excess = j, over
+            if worst < 0:
+                break
+            del held[worst]
+            fdir[worst] = -math.copysign(1.0, tau[worst])
+            slipped.append(worst)
+        for j in slipped:
+            if abs(v[j]) <= STICK_SPEED:
+                self._slip_direction(t, y, j, minv)
+        for j in slipped:
+            self.log_event(t, "slip", q, v, v, None, joints=(self.sys.names[j],), joint=j)
+        if log_stick:
+            for j in trial:
+                if j in held:
+                    self.log_event(t, "stick", q, v, v, None, joints=(self.sys.names[j],), joint=j)
 
     def _release_receding_rows(self, t: float, y: FloatArray) -> None:
         """Engaged clamp rows on receding joints released, the modes selected again (logged).
@@ -477,6 +697,7 @@ class HandoffLaw(JointClampLaw, PatchEvents):
         tail = y[2 * n :]
         handed: list[tuple[PairInfo, float]] = []
         logged: list[tuple[str, PairInfo | None, float, tuple[str, ...], int | None]] = []
+        stick: list[int] = []
         order = {"release": 0, "secondary_intersection": 1}
         for c in sorted(crossings, key=lambda c: order.get(c.kind, 2)):
             key = c.key
@@ -514,6 +735,13 @@ class HandoffLaw(JointClampLaw, PatchEvents):
                     logged.append((c.kind, mixed.pairs[key[2]].info, math.nan, (), None))
                 else:  # nrest: the resting arm starts moving again
                     logged.append((c.kind, None, math.nan, (), None))
+            elif key[0] == "stick":  # a sliding joint stopped: it holds or slides on (below)
+                j = key[1]
+                v[j] = 0.0
+                self.drive.fdir[j] = 0.0
+                stick.append(j)
+            elif c.kind == "slip":  # a held joint's torque beyond its bound
+                self._slip(t, self.with_v(y, v), key[1])
             else:  # a lock's engage/disengage at the instant of a hand-off: re-solved below
                 j = key[1]
                 logged.append((c.kind, None, math.nan, (self.sys.names[j],), j))
@@ -522,18 +750,102 @@ class HandoffLaw(JointClampLaw, PatchEvents):
             for kind, who, d, joints, jnt in logged:
                 self.log_event(t, kind, q, v, v, who, d=d, joints=joints, joint=jnt)
             y_new = self.with_v(y, v)
-            self.settle_modes(t, y_new)
+            self.settle_modes(t, y_new, candidates=stick, log_stick=True)
             return y_new
+        before = {k: p.stick for k, p in mixed.pairs.items()}
         q, v_new, mode_events = self._restart(mixed, t, q, v, tail)
+        v_new = self._stop_creeping_clamps(q, v_new)
+        y_new = np.concatenate([q, v_new, tail])
         for pair, d in handed:
             joints = tuple(self.sys.names[i] for i in np.flatnonzero(v_new != v))
             self.log_event(t, "handoff", q, v, v_new, pair, d=d, joints=joints)
         for kind, who, d, joints, jnt in logged:
             self.log_event(t, kind, q, v, v_new, who, d=d, joints=joints, joint=jnt)
+        if mixed.resting:  # the rest capture holds every joint (friction included)
+            self.locks.set_held({})
+            self.drive.fdir[:] = 0.0
+            self.apply_clamps()
+        elif self.drive.path.coulomb.any():  # the holds chosen with the modes: the net change
+            self._settle_holds(t, y_new, stick, True)
+            for j in self.locks.held:  # held: at rest (the impulse's rounding residue dropped)
+                y_new[n + j] = 0.0
+            mode_events = [me for me in mode_events if me.kind not in ("stick", "slip")]
+            mode_events += [
+                ModeEvent("stick" if p.stick else "slip", p.info)
+                for k, p in mixed.pairs.items()
+                if p.stick != before.get(k, True)
+            ]
         for me in mode_events:
             if any(me.kind == k and me.pair == i for k, i, _, _, _ in logged):
                 continue
             self.log_event(t, me.kind, q, v_new, v_new, me.pair)
-        y_new = np.concatenate([q, v_new, tail])
         self._release_receding_rows(t, y_new)
         return y_new
+
+    def _stop_creeping_clamps(self, q: FloatArray, v: FloatArray) -> FloatArray:
+        """Engaged clamp rows that the restart's impulse left receding slower than CLAMP_ZENO.
+
+        Their joints are stopped by the least (M-weighted) joint impulse on those rows (a
+        projection: it only takes energy out), so the clamp stays engaged. Without it, a light
+        joint (the wrist's) that the impulse sets receding at rounding-level speeds (1e-9 to
+        1e-8 rad/s, within the impulse solver's tolerance) has its clamp released, turns at
+        once, is clamped again, and so on at one instant (measured on random wrist-free starts).
+
+        Args:
+            q: Configuration [rad].
+            v: Velocities after the restart [rad/s].
+
+        Returns:
+            The velocities [rad/s] (v itself when no engaged clamp creeps away).
+        """
+        mixed = self.mixed
+        creep = [
+            cl
+            for r in mixed.engaged
+            if (cl := mixed.clamp_of_row(r)) is not None
+            and -CLAMP_ZENO <= cl[1] * v[cl[0]] < -RECEDE_SPEED
+        ]
+        if not creep:
+            return v
+        minv = self.sys.minv(q)
+        J = mixed._rows(creep)
+        P = np.linalg.solve(J @ minv @ J.T, -(J @ v))
+        out = np.asarray(v + minv @ J.T @ P, dtype=np.float64)
+        out[[j for j, _ in creep]] = 0.0
+        return out
+
+    def _slip_direction(self, t: float, y: FloatArray, j: int, minv: FloatArray) -> None:
+        """A joint slipping from rest takes a direction its acceleration follows.
+
+        The direction opposite to the holding torque is the one its acceleration takes when
+        the joint's mobility is positive, which a sliding contact's friction (not derived
+        from a potential) can reverse. If joint j's acceleration does not follow ``fdir_j``
+        (beyond ACCEL_BAND), the other direction is tried with the modes selected again, and
+        kept if consistent (else the first stays: neither is, a Painleve-type case, logged).
+        """
+        n, mixed, fdir = self.n, self.mixed, self.drive.fdir
+        q, v = y[:n], y[n : 2 * n]
+        for attempt in range(2):
+            a_free = self.free_accel(t, y)
+            if attempt:
+                mixed.select_modes(q, v, a_free, minv)
+            a = mixed.evaluate(q, v, a_free, minv).a
+            if fdir[j] * a[j] >= -ACCEL_BAND:
+                return
+            fdir[j] = -fdir[j]
+        log.debug("t=%.9f: joint %s slips inconsistently in both directions", t, j)
+        mixed.select_modes(q, v, self.free_accel(t, y), minv)
+
+    def _slip(self, t: float, y: FloatArray, j: int) -> None:
+        """Held joint j slips: it slides against the torque its hold needed (logged)."""
+        n = self.n
+        q, v = y[:n], y[n : 2 * n]
+        if self.mixed_on:
+            tau = self.mixed.hold_torques(q, v, self.free_accel(t, y), self.sys.minv(q))
+            lam = tau.get(j, 0.0)
+        else:
+            lam = self.hold_torque(t, y, j)
+        self.locks.set_held({k: b for k, b in self.locks.held.items() if k != j})
+        self.drive.fdir[j] = -math.copysign(1.0, lam)
+        self.apply_clamps()
+        self.log_event(t, "slip", q, v, v, None, joints=(self.sys.names[j],), joint=j)

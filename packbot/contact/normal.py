@@ -259,6 +259,8 @@ class _Eval:
     vn: FloatArray  # every row
     vt: FloatArray  # (pairs, 3): relative tangential velocity at each patch centre (world)
     rest: tuple[FloatArray, FloatArray, FloatArray] | None = None  # (q, a_free, M^-1) at rest
+    # the rows' generalized force C^T lambda [N*m] (numpy path only; None: not computed)
+    qc: FloatArray | None = None
 
 
 class NormalContacts:
@@ -742,7 +744,7 @@ class NormalContacts:
         MC = minv @ Cm.T
         Gm = A @ MC
         lam = solve_small(Gm, target - b)
-        return _Eval(a_free + MC @ lam, lam, gap, vn, vt)
+        return _Eval(a_free + MC @ lam, lam, gap, vn, vt, qc=Cm.T @ lam)
 
     def _evaluate_compiled(
         self, q: FloatArray, v: FloatArray, a_free: FloatArray, minv: FloatArray, plan: _Plan

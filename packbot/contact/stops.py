@@ -46,10 +46,12 @@ from packbot.result import Diagnostics, Event
 from packbot.system import System
 
 __all__ = [
+    "HOLD_KICK",
     "RECEDE_SPEED",
     "RETURN_DT",
     "STICK_SPEED",
     "JointStops",
+    "friction_share",
     "impact_reset",
     "return_crossing",
 ]
@@ -60,6 +62,13 @@ STICK_SPEED = 1e-9
 #: A clamped joint moving away from its contact or stop faster than this [rad/s] is receding: an
 #: engaged clamp on it lets go (it would do positive work).
 RECEDE_SPEED = 1e-9
+#: A held joint (Coulomb friction, a brake) that an impulse on its coupled joints sets moving
+#: slower than this [rad/s] stays held: the impulse is solved with the joint acted on too (its
+#: speed kept at zero, never adding energy). Faster, it slides, its friction opposing (a bounded
+#: torque does nothing in an instant). A modelling choice: it ends the Zeno sequence of a stop's
+#: bounces under a brake (each bounce kicking the braked joint, which sticks again before the
+#: next), as ``SimConfig.zeno_speed`` ends a contact's.
+HOLD_KICK = 1e-3
 #: Resolution [s] of :func:`return_crossing`'s search (the event loop locates events to 1e-10 s).
 RETURN_DT = 1e-10
 
@@ -97,6 +106,19 @@ def return_crossing(
 
             return g_late, g_m
     return None
+
+
+def friction_share(torque: float, bound: float) -> float:
+    """The part [N*m] of a held joint's holding torque that its friction or brake carries.
+
+    Within the bound F_j all of it; beyond it (a contact's clamp on the joint pushes too, which
+    may supply any torque) the friction carries F_j and the contact the rest.
+
+    Args:
+        torque: The torque holding the joint [N*m].
+        bound: The joint's friction or brake bound F_j [N*m].
+    """
+    return float(math.copysign(min(abs(torque), bound), torque))
 
 
 def impact_reset(
@@ -237,13 +259,18 @@ class JointStops:
     def friction(
         self, q: FloatArray, v: FloatArray, applied: FloatArray, friction: FloatArray
     ) -> FloatArray:
-        """The friction torques with each held joint's holding torque in place."""
+        """The friction torques [N*m] with each held joint's holding torque in place.
+
+        A held joint that a contact's clamp also pushes (its lock torque beyond the bound F_j,
+        :class:`~packbot.contact.locks.JointLocks`) is reported with its friction at the bound,
+        the rest being the contact's (:func:`friction_share`).
+        """
         if self.locks.held:
             friction = friction.copy()
             a_free = self.sys.aba(q, v, applied + friction)
             _, lam = self.locks.torques(a_free, self.sys.minv(q))
-            for j in self.locks.held:
-                friction[j] = lam[j]
+            for j, bound in self.locks.held.items():
+                friction[j] = friction_share(lam[j], bound)
         return friction
 
     # ------------------------------------------------------------------ hooks (no contacts)
@@ -346,7 +373,18 @@ class JointStops:
                 return float(fdir[j] * seg(t)[n + j])
 
             g0 = float(fdir[j] * seg.y0[n + j])
-            out.append(Crossing("stick", ("stick", j), gs, g0, float(fdir[j] * y1[n + j])))
+            g1 = float(fdir[j] * y1[n + j])
+            fn: Callable[[float], float] = gs
+            if g0 <= 0.0:  # it slipped from rest at the step's start (v = 0)
+                if (late := return_crossing(gs, seg.t0, seg.t1)) is not None:
+                    fn, g0 = late  # it moved the way it slips, then turned: its return
+                else:  # it turns at once (its mobility ~0): it sticks at STICK_SPEED the other way
+
+                    def gt(t: float, j: int = j) -> float:
+                        return gs(t, j) + STICK_SPEED
+
+                    fn, g0, g1 = gt, STICK_SPEED, g1 + STICK_SPEED
+            out.append(Crossing("stick", ("stick", j), fn, g0, g1))
         return out
 
     def _handle(self, t: float, y: FloatArray, crossings: Sequence[Crossing]) -> FloatArray:
@@ -420,6 +458,12 @@ class JointStops:
         self.locks.set_clamps(cl for a in self.active.values() for cl in a.clamps)
         bound = self.drive.path.coulomb
         held = {j: b for j, b in self.locks.held.items() if bound[j] > 0}
+        for j in [j for j in held if abs(v[j]) > STICK_SPEED]:
+            # An impulse (a limit stop's, a momentum reset's) set a held joint moving: a bounded
+            # torque does nothing in an instant, so it slides now, its friction opposing.
+            del held[j]
+            fdir[j] = math.copysign(1.0, v[j])
+            self.log_event(t, "slip", q, v, v, None, joints=(self.sys.names[j],), joint=j)
         self.locks.set_held(held)
         for j in np.flatnonzero(bound > 0).tolist():  # directions of the sliding joints
             if j not in held and j not in candidates:
@@ -502,7 +546,9 @@ class JointStops:
         """Apply the reset rule on ``rel``, widened where it would push a clamped joint.
 
         The widening takes in every clamped joint that the impulse would set moving toward its
-        own contact: one simultaneous impact, not a cascade of secondary ones.
+        own contact: one simultaneous impact, not a cascade of secondary ones; and every held
+        joint (friction, a brake) that it would set moving slower than :data:`HOLD_KICK`
+        (acted on, a held joint keeps v = 0: -e times its speed before).
 
         Args:
             q: Configuration.
@@ -520,10 +566,15 @@ class JointStops:
         minv = self.sys.minv(q) if rule == "momentum" else None
         acted = np.array(sorted(set(rel.tolist())), dtype=np.intp)
         clamps = self._widening_clamps()
+        held = self.locks.held
         for _ in range(self.n + 1):
             v_new = impact_reset(v, acted, e, rule, minv)
             tiny = 1e-12 * (1.0 + float(np.abs(v).max()))
-            more = {j for j, s in clamps if s * v_new[j] > tiny and j not in set(acted.tolist())}
+            done = set(acted.tolist())
+            more = {j for j, s in clamps if s * v_new[j] > tiny and j not in done}
+            more |= {  # a held joint barely kicked stays held: the impulse acts on it too
+                j for j in held if STICK_SPEED < abs(v_new[j]) <= HOLD_KICK and j not in done
+            }
             if not more:
                 return v_new, acted
             acted = np.array(sorted(set(acted.tolist()) | more), dtype=np.intp)
