@@ -79,7 +79,7 @@ from packbot.contact.normal import (
     PatchEvents,
     _Eval,
 )
-from packbot.contact.stops import RECEDE_SPEED, STICK_SPEED, friction_share
+from packbot.contact.stops import HOLD_KICK, RECEDE_SPEED, STICK_SPEED, friction_share
 from packbot.ode import DenseSegment
 from packbot.system import System
 
@@ -287,22 +287,39 @@ class HandoffContacts(NormalContacts):
 
         Bilateral joints are stopped here (with the full M^-1) and locked from then on. The
         held joints are not held through it (a bounded friction or brake torque does nothing
-        in an instant): the caller chooses the holds again after it.
+        in an instant): the caller chooses the holds again after it. A held joint that it would
+        set moving slower than :data:`~packbot.contact.stops.HOLD_KICK` stays held: the
+        restart is solved again with it locked (as a stop's impulse under the report's law:
+        :meth:`~packbot.contact.stops.JointStops.reset`); without that, each restart's impulse
+        kicks a light held joint (the wrist's) at rounding-level speeds, it slides, sticks
+        nanoseconds later, and the next restart kicks it again.
         """
         held, signs = self.held, self.held_signs
         self.held, self.held_signs = [], {}
         try:
-            both = [(j, s) for j in self.bilateral for s in (-1, 1)]
-            v = self.stop_clamped(v, minv, sorted(set(self.clamps) | set(both)))
-            if self._bypass():
-                return super().restart(q, v, a_free_fn, minv)
-            v = v.copy()
-            v[self.bilateral] = 0.0  # stopped to rounding: exactly
-            minv_c = self._lock(np.zeros(self.nv), minv)[1]
-            with self._locked():
-                return super().restart(q, v, self._locked_fn(a_free_fn, minv), minv_c)
+            out = self._restart_with_locks(q, v, a_free_fn, minv)
+            kicked = [j for j in held if 0.0 < abs(out[1][j]) <= HOLD_KICK]
+            if kicked:
+                self.held = sorted(j for j in held if abs(out[1][j]) <= HOLD_KICK)
+                self.held_signs = {j: signs.get(j, set()) for j in self.held}
+                out = self._restart_with_locks(q, v, a_free_fn, minv)
+            return out
         finally:
             self.held, self.held_signs = held, signs
+
+    def _restart_with_locks(
+        self, q: FloatArray, v: FloatArray, a_free_fn: Any, minv: FloatArray
+    ) -> tuple[FloatArray, FloatArray, list[ModeEvent]]:
+        """:meth:`restart` with the current locked joints (bilateral, and ``held``)."""
+        both = [(j, s) for j in self.bilateral for s in (-1, 1)]
+        v = self.stop_clamped(v, minv, sorted(set(self.clamps) | set(both)))
+        if self._bypass():
+            return super().restart(q, v, a_free_fn, minv)
+        v = v.copy()
+        v[self.locked_joints] = 0.0  # stopped (bilateral) or held: exactly at rest
+        minv_c = self._lock(np.zeros(self.nv), minv)[1]
+        with self._locked():
+            return super().restart(q, v, self._locked_fn(a_free_fn, minv), minv_c)
 
     def hold_torques(
         self, q: FloatArray, v: FloatArray, a_free: FloatArray, minv: FloatArray
