@@ -176,3 +176,51 @@ def test_small_solves_in_closed_form_match_lapack(rng):
     G = np.array([[1.0, 2.0, 3.0], [2.0, 4.0, 6.0], [1.0, 0.0, 1.0]])  # rank 2
     r = np.array([1.0, 2.0, 0.5])
     np.testing.assert_allclose(solve_small(G, r), np.linalg.lstsq(G, r, rcond=None)[0])
+
+
+def test_step_end_reuses_the_last_stage_and_violated_agrees_with_the_conditions(
+    robot, monkeypatch
+):
+    """At a step's end the mode conditions reuse the stepper's last-stage evaluation (the
+    same inputs by value: the result is what a fresh evaluation gives, bit for bit), and
+    ``violated`` says exactly whether a condition of ``conditions`` is negative, on the
+    run's evaluations and on copies with one row's gap or force pushed negative."""
+    from dataclasses import replace
+
+    from packbot.contact import normal
+
+    seen = {"hits": 0, "states": 0, "flagged": 0}
+    again = normal.NormalContacts.evaluate_again
+
+    def checked(self, q, v, a_free, minv):
+        ev = again(self, q, v, a_free, minv)
+        last = self._last_eval
+        hit = last is not None and ev is last[6]
+        self._last_eval = None
+        fresh = self.evaluate(q, v, a_free, minv)
+        for x, y in ((ev.a, fresh.a), (ev.lam, fresh.lam), (ev.gap, fresh.gap)):
+            np.testing.assert_array_equal(x, y)
+        np.testing.assert_array_equal(ev.vt, fresh.vt)
+        seen["hits"] += hit
+        seen["states"] += 1
+        cond = self.conditions(ev)
+        assert self.violated(ev) == any(g < 0.0 for _, g in cond.values())
+        if len(ev.gap):  # a row pushed across its condition
+            for r in range(len(ev.gap)):
+                gap = ev.gap.copy()
+                gap[r] = -1.0
+                lam = ev.lam.copy()
+                if len(lam):
+                    lam[:] = -1.0
+                bad = replace(ev, gap=gap, lam=lam)
+                negative = any(g < 0.0 for _, g in self.conditions(bad).values())
+                assert self.violated(bad) == negative
+                seen["flagged"] += negative
+        return ev
+
+    monkeypatch.setattr(normal.NormalContacts, "evaluate_again", checked)
+    cfg = packbot.SimConfig(contact_mode="normal", mu=0.5, locked_joints=WRIST)
+    packbot.simulate(robot, robot.pose("drive"), np.zeros(8), 1.2, config=cfg)
+    assert seen["states"] > 100
+    assert seen["hits"] > 0.8 * seen["states"]
+    assert seen["flagged"] > 100

@@ -195,6 +195,16 @@ class _Pair:
     slip_dir: FloatArray = field(default_factory=lambda: np.zeros(3))  # world, at onset
     # (2, K) tangential offsets (t1, t2 of the contact frame) of p2 - p1 when built [m]
     offset0: FloatArray = field(default_factory=lambda: np.zeros((2, 0)))
+    # the patch centres (means of the points) in the joint frames [m] and the contact frame
+    # (rows t1, t2, n) in body 2's joint frame: computed once, for the point layout
+    centre1: FloatArray = field(init=False)
+    centre2: FloatArray = field(init=False)
+    frame2: FloatArray = field(init=False)
+
+    def __post_init__(self) -> None:
+        self.centre1 = self.local1.mean(axis=0)[None, :]
+        self.centre2 = self.local2.mean(axis=0)[None, :]
+        self.frame2 = np.vstack([*_tangents(self.normal2), self.normal2])
 
 
 @dataclass
@@ -247,6 +257,8 @@ class _Plan:
     slips: list[tuple[int, Any, Any]]
     sticks: NDArray[np.intp]  # the positions of the sticking pairs with engaged rows
     row_slip: NDArray[np.intp]  # (e,) the slipping pair of each engaged row, or -1
+    # per sticking pair with engaged rows (as sticks): the positions of its rows in E
+    stick_at: list[NDArray[np.intp]] = field(default_factory=list)
 
 
 @dataclass
@@ -327,6 +339,7 @@ class NormalContacts:
         self.resting = False  # captured at rest (see capture)
         self.bounced = False  # the last impulse had restitution
         self._kin_cache: dict[tuple[bytes, bytes], Any] = {}  # see _kinematics
+        self._planes_cache: dict[int, tuple[FloatArray, FloatArray] | None] = {}
         self._lay: _Layout | None = None
         self._pairs_cache: list[_Pair] | None = None
         self._version = 0  # of the contact set, see _invalidate
@@ -341,8 +354,8 @@ class NormalContacts:
         self._plan_key: tuple[Any, ...] | None = None
         self._plan_val: _Plan
         self._no_slip_dirs = np.zeros((0, 3))
-        # (q, v, v_t at the patch centres) of the last compiled evaluation
-        self._last_vt: tuple[FloatArray, FloatArray, FloatArray] | None = None
+        # the last compiled evaluation and its inputs: see evaluate_again
+        self._last_eval: tuple[Any, ...] | None = None
 
     # ------------------------------------------------------------------ set
     @property
@@ -368,13 +381,9 @@ class NormalContacts:
         M1 = self._placement(info.joint1)
         M2 = self._placement(info.joint2)
         mid = 0.5 * (patch.points1 + patch.points2)
-        gm, gd = self.world.geom_model, self.world.geom_data
-        pts1 = _lift(
-            gm.geometryObjects[info.geom1].geometry, gd.oMg[info.geom1], mid, patch.normal, 1.0
-        )
-        pts2 = _lift(
-            gm.geometryObjects[info.geom2].geometry, gd.oMg[info.geom2], mid, patch.normal, -1.0
-        )
+        gd = self.world.geom_data
+        pts1 = _lift(self._planes_of(info.geom1), gd.oMg[info.geom1], mid, patch.normal, 1.0)
+        pts2 = _lift(self._planes_of(info.geom2), gd.oMg[info.geom2], mid, patch.normal, -1.0)
         if pts1 is None or pts2 is None or not _consistent(pts1, pts2, patch):
             pts1, pts2 = patch.points1, patch.points2
         if not _consistent(pts1, pts2, patch):
@@ -392,14 +401,23 @@ class NormalContacts:
         local1 = (pts1 - M1.translation) @ M1.rotation
         local2 = (pts2 - M2.translation) @ M2.rotation
         normal2 = M2.rotation.T @ patch.normal
-        t1, t2 = _tangents(normal2)
-        offset0 = np.vstack([t1, t2]) @ (M2.rotation.T @ (pts2 - pts1).T)
-        p = _Pair(info, local1, local2, normal2, offset0=offset0)
+        p = _Pair(info, local1, local2, normal2)
+        p.offset0 = p.frame2[:2] @ (M2.rotation.T @ (pts2 - pts1).T)
         if old is not None:
             p.stick, p.slip_dir = old.stick, old.slip_dir
         self.pairs[pair] = p
         self._invalidate()
         return True
+
+    def _planes_of(self, geom: int) -> tuple[FloatArray, FloatArray] | None:
+        """The face planes of a piece (see :func:`_planes`), kept per piece."""
+        try:
+            return self._planes_cache[geom]
+        except KeyError:
+            assert self.world is not None
+            shape = self.world.geom_model.geometryObjects[geom].geometry
+            planes = self._planes_cache[geom] = _planes(shape)
+            return planes
 
     def remove_pair(self, pair: int) -> None:
         """Take a pair out of the contact set."""
@@ -472,9 +490,8 @@ class NormalContacts:
             return hit
         from packbot.contact import kernels  # lazy: numba is imported by contact runs only
 
-        rows, drift, gap, vn, JT, bT, vT, vt, nw, T, dJp, dP = kernels.contact_rows(
-            *self._kernel_args(q, v)
-        )
+        raw = kernels.contact_rows(*self._kernel_args(q, v))
+        rows, drift, gap, vn, JT, bT, vT, vt, nw, T, dJp, dP = raw
         extra = [
             {
                 "n": nw[i],
@@ -549,8 +566,8 @@ class NormalContacts:
         k = 0
         for i, p in enumerate(pairs):
             K = len(p.local1)
-            local1 += [p.local1, p.local1.mean(axis=0)[None, :]]
-            local2 += [p.local2, p.local2.mean(axis=0)[None, :]]
+            local1 += [p.local1, p.centre1]
+            local2 += [p.local2, p.centre2]
             body1 += [index[p.info.joint1]] * (K + 1)
             body2 += [index[p.info.joint2]] * (K + 1)
             pair += [i] * (K + 1)
@@ -570,9 +587,7 @@ class NormalContacts:
             rows=np.array(rows, dtype=np.intp),
             centre=np.array(centre, dtype=np.intp),
             normal_body=np.array([index[p.info.joint2] for p in pairs], dtype=np.intp),
-            frame2=np.array([np.vstack([*_tangents(p.normal2), p.normal2]) for p in pairs])
-            if pairs
-            else np.zeros((0, 3, 3)),
+            frame2=np.array([p.frame2 for p in pairs]) if pairs else np.zeros((0, 3, 3)),
             points=points,
             lim_joint=np.array([j for (j, _), _ in limits], dtype=np.intp),
             lim_side=np.array([side for (_, side), _ in limits], dtype=np.float64),
@@ -585,7 +600,7 @@ class NormalContacts:
     def _invalidate(self) -> None:
         """The contact set changed: forget the cached kinematics and point layout."""
         self._kin_cache.clear()
-        self._last_vt = None
+        self._last_eval = None
         self._lay = None
         self._pairs_cache = None
         self._version += 1
@@ -662,6 +677,7 @@ class NormalContacts:
         pos = {r: i for i, r in enumerate(self.engaged)}
         slips: list[tuple[int, Any, Any]] = []
         sticks: list[int] = []
+        stick_at: list[NDArray[np.intp]] = []
         row_slip = np.full(len(self.engaged), -1, dtype=np.intp)
         k = 0
         for i, p in enumerate(pairs):
@@ -672,13 +688,18 @@ class NormalContacts:
                 continue
             if p.stick:
                 sticks.append(i)
+                stick_at.append(np.array([m[0] for m in mine], dtype=np.intp))
             else:
                 at = np.array([m[0] for m in mine], dtype=np.intp)
                 slips.append((i, at, np.array([m[1] for m in mine], dtype=np.intp)))
                 row_slip[at] = i
         self._plan_key = key
         self._plan_val = _Plan(
-            np.array(self.engaged, dtype=np.intp), slips, np.array(sticks, dtype=np.intp), row_slip
+            np.array(self.engaged, dtype=np.intp),
+            slips,
+            np.array(sticks, dtype=np.intp),
+            row_slip,
+            stick_at,
         )
         return self._plan_val
 
@@ -767,11 +788,41 @@ class NormalContacts:
             BAUMGARTE,
         )
         a, lam, gap, vn, vt, ok, G, r, MC = kernels.constrained_accel(*args)
-        self._last_vt = (q, v, vt)  # for sliding() at the same state (the step's end)
         if not ok:  # a singular Delassus matrix: least squares
             lam = solve_small(G, r)
             a = a_free + MC @ lam
-        return _Eval(a, lam, gap, vn, vt)
+        ev = _Eval(a, lam, gap, vn, vt)
+        # Kept for the same state asked again (the step's end: the stepper's last stage, then
+        # the mode conditions and the sliding check): references, compared by value.
+        self._last_eval = (q, v, a_free, minv, slip_dir, self._plan_key, ev)
+        return ev
+
+    def evaluate_again(
+        self, q: FloatArray, v: FloatArray, a_free: FloatArray, minv: FloatArray
+    ) -> _Eval:
+        """:meth:`evaluate`, reusing the last compiled evaluation when it was at these inputs.
+
+        The mode conditions at a step's end ask for the state of the stepper's last stage,
+        which the right-hand side has just evaluated (same q, v, free accelerations, M^-1,
+        modes and sliding directions: compared by value, so the result is the one
+        :meth:`evaluate` would compute).
+        """
+        last = self._last_eval
+        if last is not None and not self.resting and type(self).evaluate is _OWN_EVALUATE:
+            plan = self._plan()  # (brings _plan_key up to the current modes)
+            if (
+                last[5] == self._plan_key
+                and _same(last[0], q)
+                and _same(last[1], v)
+                and _same(last[2], a_free)
+                and _same(last[3], minv)
+                and (
+                    not plan.slips
+                    or _same(last[4], np.array([p.slip_dir for p in self._pair_list]))
+                )
+            ):
+                return last[6]
+        return self.evaluate(q, v, a_free, minv)
 
     def conditions(self, ev: _Eval) -> dict[tuple[Any, ...], tuple[str, float]]:
         """Mode conditions g >= 0 (a negative one is an event) with the event kind.
@@ -811,6 +862,40 @@ class NormalContacts:
                     g = float(vt @ w) / max(float(np.linalg.norm(w)), 1e-300)
                     out[("nfric", key)] = ("stick", g + STICK_BAND)
         return out
+
+    def violated(self, ev: _Eval) -> bool:
+        """Whether a mode condition of :meth:`conditions` is negative (an event).
+
+        The same values as :meth:`conditions`, without building its dictionary (the step's
+        end asks this once per step; the conditions themselves only when one is negative).
+        """
+        if ev.rest is not None or type(self).conditions is not _OWN_CONDITIONS:
+            return any(g < 0.0 for _, g in self.conditions(ev).values())
+        plan = self._plan()
+        E = plan.engaged
+        ne = len(E)
+        if len(ev.gap):
+            g = ev.gap + POINT_TOL
+            if ne:
+                g[E] = ev.lam[:ne] + FORCE_BAND
+            if bool((g < 0.0).any()):
+                return True
+        if self.mu > 0.0:
+            k_t = ne
+            for at in plan.stick_at:
+                lt = ev.lam[k_t : k_t + 2]
+                k_t += 2
+                gs = self.mu * float(ev.lam[at].sum()) - float(np.linalg.norm(lt))
+                if gs + FORCE_BAND < 0.0:
+                    return True
+            pairs = self._pair_list
+            for i, _, _ in plan.slips:
+                vt = ev.vt[i]
+                w = vt + STICK_SPEED * pairs[i].slip_dir
+                gs = float(vt @ w) / max(float(np.linalg.norm(w)), 1e-300)
+                if gs + STICK_BAND < 0.0:
+                    return True
+        return False
 
     # ------------------------------------------------------------------ restart
     def restart(
@@ -981,9 +1066,9 @@ class NormalContacts:
         """Whether a pair with engaged rows slides (its material points drift off the patch)."""
         if not self.engaged or not self.pairs or self.resting:
             return False
-        last = self._last_vt  # the step end's mode conditions computed them (same kernel)
-        if last is not None and np.array_equal(last[0], q) and np.array_equal(last[1], v):
-            vts: Any = last[2]
+        last = self._last_eval  # the step end's mode conditions computed them (same kernel)
+        if last is not None and _same(last[0], q) and _same(last[1], v):
+            vts: Any = last[6].vt
         else:
             vts = _centre_velocities(self._problem(q, v)[4])
         for p, vt in zip(self.pairs.values(), vts, strict=True):
@@ -1137,7 +1222,7 @@ class NormalContacts:
         """
         if self.world is None:
             return {}
-        sw = self.world.sweep(q)
+        sw = self.world.sweep(q, reuse=True)
         dist = dict(zip(sw.pairs.tolist(), sw.distances.tolist(), strict=True))
         for k in self.pairs:
             if k not in dist:
@@ -1457,6 +1542,8 @@ class NormalContacts:
 
 #: The contact set's own rows: a subclass adding rows (the hand-off) takes the numpy path.
 _OWN_PROBLEM = NormalContacts._problem
+_OWN_EVALUATE = NormalContacts.evaluate
+_OWN_CONDITIONS = NormalContacts.conditions
 
 
 def _energy_change(P: FloatArray, w: FloatArray, dw: FloatArray) -> float:
@@ -1467,6 +1554,11 @@ def _energy_change(P: FloatArray, w: FloatArray, dw: FloatArray) -> float:
     """
     gain = float(P @ w) + 0.5 * float(P @ dw)
     return gain - 1e-12 * (abs(float(P @ w)) + abs(float(P @ dw)))
+
+
+def _same(a: FloatArray, b: FloatArray) -> bool:
+    """Whether two float arrays are the same object or hold the same bits (same shape)."""
+    return a is b or (a.shape == b.shape and a.tobytes() == b.tobytes())
 
 
 def _centre_velocities(extra: list[dict[str, Any]]) -> FloatArray:
@@ -1504,15 +1596,19 @@ def _consistent(pts1: FloatArray, pts2: FloatArray, patch: Any) -> bool:
 
 
 def _lift(
-    shape: Any, oMg: pin.SE3, mid: FloatArray, n: FloatArray, sign: float
+    planes: tuple[FloatArray, FloatArray] | None,
+    oMg: pin.SE3,
+    mid: FloatArray,
+    n: FloatArray,
+    sign: float,
 ) -> FloatArray | None:
     """Patch points moved along n onto the shape's face most aligned with sign * n.
 
     Coal puts every patch point at the patch's one depth; on two faces meeting at a small angle
     the points' true gaps differ (by up to Coal's patch tolerance, 1 mm). The face whose
-    outward normal is closest to sign * n carries them.
+    outward normal is closest to sign * n carries them. ``planes``: the shape's face planes
+    (:func:`_planes`), None if it has none.
     """
-    planes = _planes(shape)
     if planes is None:
         return None
     N, o = planes
@@ -1589,20 +1685,26 @@ class PatchEvents(PairLaw):
             ]
         return []
 
+    def _contact_eval(self, contacts: NormalContacts, t: float, y: FloatArray) -> _Eval:
+        """The contact problem's evaluation at state y (the last one if it was at y)."""
+        n = self.n
+        q, v = y[:n], y[n : 2 * n]
+        return contacts.evaluate_again(q, v, self.free_accel(t, y), self.sys.minv(q))
+
     def _contact_conditions(
         self, contacts: NormalContacts, t: float, y: FloatArray
     ) -> dict[tuple[Any, ...], tuple[str, float]]:
         """Mode conditions of a contact problem at state y."""
-        n = self.n
-        q, v = y[:n], y[n : 2 * n]
-        ev = contacts.evaluate(q, v, self.free_accel(t, y), self.sys.minv(q))
-        return contacts.conditions(ev)
+        return contacts.conditions(self._contact_eval(contacts, t, y))
 
     def _problem_crossings(
         self, contacts: NormalContacts, seg: DenseSegment, y1: FloatArray
     ) -> list[Crossing]:
         """Mode conditions of a contact problem that changed sign over the step."""
-        cond1 = self._contact_conditions(contacts, seg.t1, y1)
+        ev1 = self._contact_eval(contacts, seg.t1, y1)
+        if not contacts.violated(ev1):
+            return []
+        cond1 = contacts.conditions(ev1)
         bad = [k for k, (_, g) in cond1.items() if g < 0.0]
         if not bad:
             return []

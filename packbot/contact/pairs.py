@@ -96,7 +96,7 @@ class PairLaw(JointStops):
 
     def _contact_crossings(self, seg: DenseSegment, y1: FloatArray) -> list[Crossing]:
         out: list[Crossing] = []
-        sw = self.world.sweep(y1[: self.n])
+        sw = self.world.sweep(y1[: self.n], reuse=True)
         self.diag.sweeps += 1
         self.pending_min = (sw.min_distance, sw.min_pair)
         d_now = dict(zip(sw.pairs.tolist(), sw.distances.tolist(), strict=True))
@@ -108,7 +108,7 @@ class PairLaw(JointStops):
         return out
 
     def _after_event(self, y: FloatArray) -> None:
-        sw = self.world.sweep(y[: self.n])
+        sw = self.world.sweep(y[: self.n], reuse=True)
         self.diag.sweeps += 1
         self.last_d = dict(zip(sw.pairs.tolist(), sw.distances.tolist(), strict=True))
         self.note_min(sw.min_distance, sw.min_pair)
