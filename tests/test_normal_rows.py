@@ -178,9 +178,7 @@ def test_small_solves_in_closed_form_match_lapack(rng):
     np.testing.assert_allclose(solve_small(G, r), np.linalg.lstsq(G, r, rcond=None)[0])
 
 
-def test_step_end_reuses_the_last_stage_and_violated_agrees_with_the_conditions(
-    robot, monkeypatch
-):
+def test_step_end_reuses_the_last_stage_and_violated_agrees(robot, monkeypatch):
     """At a step's end the mode conditions reuse the stepper's last-stage evaluation (the
     same inputs by value: the result is what a fresh evaluation gives, bit for bit), and
     ``violated`` says exactly whether a condition of ``conditions`` is negative, on the
