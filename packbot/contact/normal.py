@@ -229,6 +229,9 @@ class _Layout:
     lim_side: FloatArray  # (limits,) +1 upper, -1 lower
     lim_value: FloatArray  # (limits,) the limit [rad]
     no_bodies: FloatArray  # (0, 4, 4), the placements when no pair is in contact
+    # (position in joints, Pinocchio's live reference to data.oMi[joint]) of the moving joints
+    placements: list[tuple[int, Any]]
+    H: FloatArray  # (bodies, 4, 4) buffer of the placements (the world's: identity)
     no_jacobian: FloatArray  # (6, nv) zeros, the Jacobians when no pair is in contact
 
 
@@ -524,7 +527,9 @@ class NormalContacts:
         if lay.joints:
             model, data = self.model, self.data
             pin.computeJointJacobiansTimeVariation(model, data, q, v)
-            H = np.array([data.oMi[j].homogeneous if j else _I4 for j in lay.joints])
+            H = lay.H  # (filled here, read by the kernel only)
+            for i, M in lay.placements:
+                H[i] = M.homogeneous
             J = data.J.reshape(6, self.nv)  # (nv = 1: data.J is (6,))
             dJ = data.dJ.reshape(6, self.nv)
         else:
@@ -594,6 +599,8 @@ class NormalContacts:
             lim_value=np.array([value for _, value in limits], dtype=np.float64),
             no_bodies=np.zeros((0, 4, 4)),
             no_jacobian=np.asfortranarray(np.zeros((6, self.nv))),
+            placements=[(i, self.data.oMi[j]) for i, j in enumerate(joints) if j],
+            H=np.array([_I4 for _ in joints]) if joints else np.zeros((0, 4, 4)),
         )
         return self._lay
 
