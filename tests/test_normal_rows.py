@@ -180,14 +180,16 @@ def test_small_solves_in_closed_form_match_lapack(rng):
 
 def test_step_end_reuses_the_last_stage_and_violated_agrees(robot, monkeypatch):
     """At a step's end the mode conditions reuse the stepper's last-stage evaluation (the
-    same inputs by value: the result is what a fresh evaluation gives, bit for bit), and
+    same inputs by value: the result is what a fresh evaluation gives, bit for bit);
     ``violated`` says exactly whether a condition of ``conditions`` is negative, on the
-    run's evaluations and on copies with one row's gap or force pushed negative."""
+    run's evaluations (the kernel's smallest condition) and on copies with one row's gap or
+    force pushed negative; the patch check from the kernel's slides finds the pairs the
+    rows' own slides find."""
     from dataclasses import replace
 
     from packbot.contact import normal
 
-    seen = {"hits": 0, "states": 0, "flagged": 0}
+    seen = {"hits": 0, "states": 0, "flagged": 0, "kernel": 0, "slid": 0}
     again = normal.NormalContacts.evaluate_again
 
     def checked(self, q, v, a_free, minv):
@@ -203,6 +205,20 @@ def test_step_end_reuses_the_last_stage_and_violated_agrees(robot, monkeypatch):
         seen["states"] += 1
         cond = self.conditions(ev)
         assert self.violated(ev) == any(g < 0.0 for _, g in cond.values())
+        if ev.cond is not None:  # the kernel's smallest condition
+            values = [g for _, g in cond.values()]
+            assert ev.cond == pytest.approx(min(values), rel=1e-12, abs=1e-15)
+            seen["kernel"] += 1
+        if ev.slide2 is not None:  # the patch check from the kernel's slides, and without
+            self._last_eval = (q, v, a_free, minv, None, None, ev)
+            distance, k = {}, 0  # the pairs' distances at their patches' gaps: slides decide
+            for key, p in self.pairs.items():
+                distance[key] = float(ev.gap[k : k + len(p.local1)].min())
+                k += len(p.local1)
+            fast = self.stale_pairs(q, v, distance)
+            self._last_eval = None
+            assert fast == self.stale_pairs(q, v, distance)
+            seen["slid"] += len(fast)
         if len(ev.gap):  # a row pushed across its condition
             for r in range(len(ev.gap)):
                 gap = ev.gap.copy()
@@ -210,7 +226,7 @@ def test_step_end_reuses_the_last_stage_and_violated_agrees(robot, monkeypatch):
                 lam = ev.lam.copy()
                 if len(lam):
                     lam[:] = -1.0
-                bad = replace(ev, gap=gap, lam=lam)
+                bad = replace(ev, gap=gap, lam=lam, cond=None)
                 negative = any(g < 0.0 for _, g in self.conditions(bad).values())
                 assert self.violated(bad) == negative
                 seen["flagged"] += negative
@@ -221,4 +237,4 @@ def test_step_end_reuses_the_last_stage_and_violated_agrees(robot, monkeypatch):
     packbot.simulate(robot, robot.pose("drive"), np.zeros(8), 1.2, config=cfg)
     assert seen["states"] > 100
     assert seen["hits"] > 0.8 * seen["states"]
-    assert seen["flagged"] > 100
+    assert seen["flagged"] > 100 and seen["kernel"] > 100 and seen["slid"] > 10

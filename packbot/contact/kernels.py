@@ -301,6 +301,10 @@ def constrained_accel(  # noqa: D417 (contact_rows documents H ... lim_value)  #
     mu: float,
     stick_speed: float,
     baumgarte: float,
+    offset0: Any,
+    force_band: float,
+    point_tol: float,
+    stick_band: float,
 ) -> Any:
     """Accelerations of the current contact modes, with the rows the mode conditions need.
 
@@ -323,13 +327,23 @@ def constrained_accel(  # noqa: D417 (contact_rows documents H ... lim_value)  #
         mu: Coulomb friction coefficient [-].
         stick_speed: Below this sliding speed the direction blends with the onset's [m/s].
         baumgarte: Stabilisation rate B [1/s].
+        offset0: (m_p, 2) per pair row, the tangential offset (t1, t2) of its points p2 - p1
+            when the patch was built [m].
+        force_band: Hysteresis of the force conditions [N].
+        point_tol: A free row is an impact below -point_tol [m].
+        stick_band: Hysteresis of the stick condition [m/s].
 
     Returns:
-        (a, lam, gap, vn, vt, ok, G, rhs, MC): ok is False when the Delassus matrix G is
-        singular; then a and lam are unset and the caller solves G lam = rhs by least squares
-        and sets a = a_free + MC lam.
+        (a, lam, gap, vn, vt, ok, cond, slide2): ok is False when the Delassus matrix is
+        singular (a and lam are then unset: the caller solves the problem otherwise). cond is
+        the smallest mode condition of ``NormalContacts.conditions`` (an event when
+        negative): per row lam + force_band (engaged) or gap + point_tol (free); per sticking
+        pair with engaged rows mu sum(lam_n) - |lam_t| + force_band; per slipping one
+        v_t . w / |w| + stick_band (w = v_t + stick_speed s0). slide2 (pairs,): the largest
+        squared tangential slide [m^2] of a pair's points since its patch was built,
+        |T (p2 - p1) - offset0|^2.
     """
-    Jn, drift, gap, vn, JT, bT, vT, vt, _, _, dJp, _ = contact_rows(
+    Jn, drift, gap, vn, JT, bT, vT, vt, _, T, dJp, dP = contact_rows(
         H, J, dJ, masks, q, v, body, local, pair, rows, centre, normal_body, frame2,
         lim_joint, lim_side, lim_value,
     )  # fmt: skip
@@ -397,4 +411,53 @@ def constrained_accel(  # noqa: D417 (contact_rows documents H ... lim_value)  #
             for e in range(n):
                 s += MC[i, e] * lam[e]
             a[i] += s
-    return a, lam, gap, vn, vt, ok, G, rhs, MC
+    # the mode conditions' smallest value
+    m = gap.shape[0]
+    mp = rows.shape[0]
+    npairs = centre.shape[0]
+    pos = np.full(m, -1)
+    for e in range(ne):
+        pos[engaged[e]] = e
+    cond = math.inf
+    for r in range(m):
+        g = lam[pos[r]] + force_band if pos[r] >= 0 else gap[r] + point_tol
+        if g < cond:
+            cond = g
+    if mu > 0.0:
+        for i in range(ns):
+            p = sticks[i]
+            fn = 0.0
+            for r in range(mp):
+                if pos[r] >= 0 and pair[rows[r]] == p:
+                    fn += lam[pos[r]]
+            l0 = lam[ne + 2 * i]
+            l1 = lam[ne + 2 * i + 1]
+            g = mu * fn - math.sqrt(l0 * l0 + l1 * l1) + force_band
+            if g < cond:
+                cond = g
+        slipping = np.zeros(npairs, dtype=np.bool_)
+        for e in range(ne):
+            if row_slip[e] >= 0:
+                slipping[row_slip[e]] = True
+        for p in range(npairs):
+            if slipping[p]:
+                w0 = vt[p, 0] + stick_speed * slip_dir[p, 0]
+                w1 = vt[p, 1] + stick_speed * slip_dir[p, 1]
+                w2 = vt[p, 2] + stick_speed * slip_dir[p, 2]
+                nw = max(math.sqrt(w0 * w0 + w1 * w1 + w2 * w2), 1e-300)
+                g = (vt[p, 0] * w0 + vt[p, 1] * w1 + vt[p, 2] * w2) / nw + stick_band
+                if g < cond:
+                    cond = g
+    # the patches' slides
+    slide2 = np.zeros(npairs)
+    for r in range(mp):
+        k = rows[r]
+        p = pair[k]
+        s2 = 0.0
+        for j in range(2):
+            d = T[p, j, 0] * dP[k, 0] + T[p, j, 1] * dP[k, 1] + T[p, j, 2] * dP[k, 2]
+            d -= offset0[r, j]
+            s2 += d * d
+        if s2 > slide2[p]:
+            slide2[p] = s2
+    return a, lam, gap, vn, vt, ok, cond, slide2

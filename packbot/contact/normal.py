@@ -228,6 +228,7 @@ class _Layout:
     lim_joint: NDArray[np.intp]  # (limits,) velocity index of each limit row
     lim_side: FloatArray  # (limits,) +1 upper, -1 lower
     lim_value: FloatArray  # (limits,) the limit [rad]
+    offset0: FloatArray  # (m_p, 2) per pair row, its tangential offset when built [m]
     no_bodies: FloatArray  # (0, 4, 4), the placements when no pair is in contact
     # (position in joints, Pinocchio's live reference to data.oMi[joint]) of the moving joints
     placements: list[tuple[int, Any]]
@@ -274,6 +275,8 @@ class _Eval:
     vn: FloatArray  # every row
     vt: FloatArray  # (pairs, 3): relative tangential velocity at each patch centre (world)
     rest: tuple[FloatArray, FloatArray, FloatArray] | None = None  # (q, a_free, M^-1) at rest
+    cond: float | None = None  # the smallest mode condition (compiled path; see violated)
+    slide2: FloatArray | None = None  # (pairs,) largest squared slide (compiled; see stale)
 
 
 class NormalContacts:
@@ -597,6 +600,9 @@ class NormalContacts:
             lim_joint=np.array([j for (j, _), _ in limits], dtype=np.intp),
             lim_side=np.array([side for (_, side), _ in limits], dtype=np.float64),
             lim_value=np.array([value for _, value in limits], dtype=np.float64),
+            offset0=np.ascontiguousarray(np.vstack([p.offset0.T for p in pairs]))
+            if pairs
+            else np.zeros((0, 2)),
             no_bodies=np.zeros((0, 4, 4)),
             no_jacobian=np.asfortranarray(np.zeros((6, self.nv))),
             placements=[(i, self.data.oMi[j]) for i, j in enumerate(joints) if j],
@@ -793,12 +799,15 @@ class NormalContacts:
             self.mu,
             STICK_SPEED,
             BAUMGARTE,
+            self._layout().offset0,
+            FORCE_BAND,
+            POINT_TOL,
+            STICK_BAND,
         )
-        a, lam, gap, vn, vt, ok, G, r, MC = kernels.constrained_accel(*args)
-        if not ok:  # a singular Delassus matrix: least squares
-            lam = solve_small(G, r)
-            a = a_free + MC @ lam
-        ev = _Eval(a, lam, gap, vn, vt)
+        a, lam, gap, vn, vt, ok, cond, slide2 = kernels.constrained_accel(*args)
+        if not ok:  # a singular Delassus matrix: numpy's path (least squares)
+            return self._evaluate_rows(q, v, a_free, minv, plan)
+        ev = _Eval(a, lam, gap, vn, vt, cond=cond, slide2=slide2)
         # Kept for the same state asked again (the step's end: the stepper's last stage, then
         # the mode conditions and the sliding check): references, compared by value.
         self._last_eval = (q, v, a_free, minv, slip_dir, self._plan_key, ev)
@@ -878,6 +887,8 @@ class NormalContacts:
         """
         if ev.rest is not None or type(self).conditions is not _OWN_CONDITIONS:
             return any(g < 0.0 for _, g in self.conditions(ev).values())
+        if ev.cond is not None:  # the kernel's smallest condition
+            return ev.cond < 0.0
         plan = self._plan()
         E = plan.engaged
         ne = len(E)
@@ -1121,10 +1132,15 @@ class NormalContacts:
         """
         if not self.pairs:
             return []
-        _, _, gap, _, extra = self._problem(q, v)
+        last = self._last_eval  # the step's end: the kernel computed the slides
+        slide2: Any = None
+        if last is not None and _same(last[0], q) and _same(last[1], v):
+            gap, slide2 = last[6].gap, last[6].slide2
+        if slide2 is None:
+            _, _, gap, _, extra = self._problem(q, v)
         out: list[int] = []
         k = 0
-        for (key, p), ex in zip(self.pairs.items(), extra, strict=True):
+        for i, (key, p) in enumerate(self.pairs.items()):
             K = len(p.local1)
             g = gap[k : k + K]
             k += K
@@ -1136,8 +1152,13 @@ class NormalContacts:
                 if engaged_only:
                     return out
                 continue
-            slide = ex["T"] @ ex["dp"].T - p.offset0  # (2, K)
-            if float(np.max(slide[0] ** 2 + slide[1] ** 2)) > SLIDE_TOL**2:
+            if slide2 is not None:
+                s2 = float(slide2[i])
+            else:
+                ex = extra[i]
+                slide = ex["T"] @ ex["dp"].T - p.offset0  # (2, K)
+                s2 = float(np.max(slide[0] ** 2 + slide[1] ** 2))
+            if s2 > SLIDE_TOL**2:
                 out.append(key)
                 if engaged_only:
                     return out
