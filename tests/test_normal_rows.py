@@ -238,3 +238,31 @@ def test_step_end_reuses_the_last_stage_and_violated_agrees(robot, monkeypatch):
     assert seen["states"] > 100
     assert seen["hits"] > 0.8 * seen["states"]
     assert seen["flagged"] > 100 and seen["kernel"] > 100 and seen["slid"] > 10
+
+
+@pytest.mark.parametrize("mu", [0.0, 0.5])
+def test_the_pairs_skipped_at_a_step_end_have_no_event(robot, monkeypatch, mu):
+    """NormalLaw._pairs_to_check leaves out only swept pairs whose pair events are empty (the
+    same crossings as checking every pair), and leaves out most of them."""
+    from packbot.contact import normal
+
+    seen = {"skipped": 0, "checked": 0}
+    pick = normal.NormalLaw._pairs_to_check
+
+    def checked(self, pairs, distances):
+        out = pick(self, pairs, distances)
+        for i, (p, d1) in enumerate(zip(pairs, distances.tolist(), strict=True)):
+            if i in out:
+                seen["checked"] += 1
+                continue
+            seen["skipped"] += 1
+            d0 = self.last_d.get(p, np.inf)
+            assert self._pair_crossings(("pair", p), p, None, d0, d1) == []
+        assert list(out) == sorted(out)
+        return out
+
+    monkeypatch.setattr(normal.NormalLaw, "_pairs_to_check", checked)
+    cfg = packbot.SimConfig(contact_mode="normal", mu=mu, locked_joints=WRIST)
+    res = packbot.simulate(robot, robot.pose("drive"), np.zeros(8), 1.0, config=cfg)
+    assert res.diagnostics.steps > 100 and len(res.events) > 5
+    assert seen["skipped"] > 5 * seen["checked"] > 0

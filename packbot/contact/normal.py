@@ -58,7 +58,7 @@ from __future__ import annotations
 import logging
 import math
 from collections import deque
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
@@ -684,7 +684,7 @@ class NormalContacts:
     def _plan(self) -> _Plan:
         """The rows of the constrained problem for the current modes (cached while they hold)."""
         pairs = self._pair_list
-        key = (self._version, tuple(self.engaged), tuple(p.stick for p in pairs))
+        key = (self._version, tuple(self.engaged), tuple([p.stick for p in pairs]))
         if self._plan_key == key:
             return self._plan_val
         pos = {r: i for i, r in enumerate(self.engaged)}
@@ -1091,9 +1091,9 @@ class NormalContacts:
             vts = _centre_velocities(self._problem(q, v)[4])
         for p, vt in zip(self.pairs.values(), vts, strict=True):
             if (
-                self._pair_engaged(p)
-                and not (self.mu > 0.0 and p.stick)
+                not (self.mu > 0.0 and p.stick)
                 and float(np.linalg.norm(vt)) > STICK_SPEED
+                and self._pair_engaged(p)
             ):
                 return True
         return False
@@ -1914,6 +1914,20 @@ class NormalLaw(PatchEvents):
         self, key: Key, p_idx: int, seg: DenseSegment, d0: float, d1: float
     ) -> list[Crossing]:
         return self._patch_pair_crossings(key, p_idx, seg, d0, d1)
+
+    def _pairs_to_check(self, pairs: list[int], distances: FloatArray) -> Iterable[int]:
+        """The pairs that can have an event (see :meth:`_patch_pair_crossings`).
+
+        A pair at 0 < d <= the proximity tolerance has none (outside the contact set: no
+        impact; in it: neither release nor re-patch), nor one farther outside the set.
+        """
+        near = self.cfg.proximity_tolerance
+        active = {k[1] for k in self.active if k[0] == "pair"}
+        return [
+            i
+            for i in np.flatnonzero((distances <= 0.0) | (distances > near)).tolist()
+            if distances[i] <= 0.0 or pairs[i] in active
+        ]
 
     def _mode_crossings(self, seg: DenseSegment, y1: FloatArray) -> list[Crossing]:
         if self.normal.empty:
