@@ -266,3 +266,59 @@ def test_the_pairs_skipped_at_a_step_end_have_no_event(robot, monkeypatch, mu):
     res = packbot.simulate(robot, robot.pose("drive"), np.zeros(8), 1.0, config=cfg)
     assert res.diagnostics.steps > 100 and len(res.events) > 5
     assert seen["skipped"] > 5 * seen["checked"] > 0
+
+
+def test_compiled_patches_equal_the_numpy_construction(contacts, rng):
+    """kernels.patch_material (the patch's points lifted onto each body's face, then as
+    material points in the joints' frames, the contact frame, the centres and the offsets)
+    gives normal.py's numpy construction (_lift, _consistent, _tangents) at the collapse's
+    pairs and at states around them, and add_pair stores it."""
+    from packbot.contact import kernels
+    from packbot.contact.normal import PATCH_TOL, _consistent, _lift, _tangents
+
+    sysm, nc, q0 = contacts
+    world, data = sysm.world, sysm.data
+    checked = lifted = 0
+    for trial in range(12):
+        q = q0 + (0.0 if trial == 0 else 2e-4) * rng.standard_normal(len(q0))
+        for k in list(nc.pairs):
+            patch = world.contact_patch(q, k, nc.tol)
+            if patch is None:
+                continue
+            pin.forwardKinematics(sysm.model, data, q)
+            info = patch.pair
+            M1 = data.oMi[info.joint1] if info.joint1 else pin.SE3.Identity()
+            M2 = data.oMi[info.joint2] if info.joint2 else pin.SE3.Identity()
+            G1, G2 = world.geom_data.oMg[info.geom1], world.geom_data.oMg[info.geom2]
+            planes1, planes2 = nc._planes_of(info.geom1), nc._planes_of(info.geom2)
+            ok, l1, l2, n2, F, c1, c2, off = kernels.patch_material(
+                patch.points1, patch.points2, patch.normal, float(patch.distance),
+                *planes1, G1.rotation, G1.translation, *planes2, G2.rotation, G2.translation,
+                M1.rotation, M1.translation, M2.rotation, M2.translation, PATCH_TOL, True,
+            )  # fmt: skip
+            mid = 0.5 * (patch.points1 + patch.points2)
+            p1 = _lift(planes1 if len(planes1[0]) else None, G1, mid, patch.normal, 1.0)
+            p2 = _lift(planes2 if len(planes2[0]) else None, G2, mid, patch.normal, -1.0)
+            if p1 is None or p2 is None or not _consistent(p1, p2, patch):
+                p1, p2 = patch.points1, patch.points2
+            else:
+                lifted += 1
+            assert ok == _consistent(p1, p2, patch)
+            if not ok:
+                continue
+            np.testing.assert_allclose(l1, (p1 - M1.translation) @ M1.rotation, atol=1e-13)
+            np.testing.assert_allclose(l2, (p2 - M2.translation) @ M2.rotation, atol=1e-13)
+            n_ref = M2.rotation.T @ patch.normal
+            np.testing.assert_allclose(n2, n_ref, atol=1e-14)
+            np.testing.assert_allclose(F, np.vstack([*_tangents(n_ref), n_ref]), atol=1e-14)
+            np.testing.assert_allclose(c1, l1.mean(axis=0)[None, :], atol=1e-14)
+            np.testing.assert_allclose(c2, l2.mean(axis=0)[None, :], atol=1e-14)
+            np.testing.assert_allclose(off, F[:2] @ (M2.rotation.T @ (p2 - p1).T), atol=1e-13)
+            assert nc.add_pair(q, k)
+            stored = nc.pairs[k]
+            np.testing.assert_array_equal(stored.local1, l1)
+            np.testing.assert_array_equal(stored.offset0, off)
+            checked += 1
+    for k in list(nc.pairs):  # the module's contact set back at its state
+        nc.add_pair(q0, k)
+    assert checked >= 12 and lifted >= 6

@@ -201,11 +201,6 @@ class _Pair:
     centre2: FloatArray = field(init=False)
     frame2: FloatArray = field(init=False)
 
-    def __post_init__(self) -> None:
-        self.centre1 = self.local1.mean(axis=0)[None, :]
-        self.centre2 = self.local2.mean(axis=0)[None, :]
-        self.frame2 = np.vstack([*_tangents(self.normal2), self.normal2])
-
 
 @dataclass
 class _Layout:
@@ -345,7 +340,7 @@ class NormalContacts:
         self.resting = False  # captured at rest (see capture)
         self.bounced = False  # the last impulse had restitution
         self._kin_cache: dict[tuple[bytes, bytes], Any] = {}  # see _kinematics
-        self._planes_cache: dict[int, tuple[FloatArray, FloatArray] | None] = {}
+        self._planes_cache: dict[int, tuple[FloatArray, FloatArray]] = {}
         self._lay: _Layout | None = None
         self._pairs_cache: list[_Pair] | None = None
         self._version = 0  # of the contact set, see _invalidate
@@ -382,47 +377,55 @@ class NormalContacts:
         pin.forwardKinematics(self.model, self.data, q)
         if patch is None:
             return False
+        from packbot.contact import kernels  # lazy: numba is imported by contact runs only
+
         old = self.pairs.get(pair)
         info = patch.pair
         M1 = self._placement(info.joint1)
         M2 = self._placement(info.joint2)
-        mid = 0.5 * (patch.points1 + patch.points2)
+        R1, t1, R2, t2 = M1.rotation, M1.translation, M2.rotation, M2.translation
         gd = self.world.geom_data
-        pts1 = _lift(self._planes_of(info.geom1), gd.oMg[info.geom1], mid, patch.normal, 1.0)
-        pts2 = _lift(self._planes_of(info.geom2), gd.oMg[info.geom2], mid, patch.normal, -1.0)
-        if pts1 is None or pts2 is None or not _consistent(pts1, pts2, patch):
-            pts1, pts2 = patch.points1, patch.points2
-        if not _consistent(pts1, pts2, patch):
+        G1, G2 = gd.oMg[info.geom1], gd.oMg[info.geom2]
+        N1, o1 = self._planes_of(info.geom1)
+        N2, o2 = self._planes_of(info.geom2)
+        n, d = patch.normal, float(patch.distance)
+        ok, *made = kernels.patch_material(
+            patch.points1, patch.points2, n, d, N1, o1, G1.rotation, G1.translation,
+            N2, o2, G2.rotation, G2.translation, R1, t1, R2, t2, PATCH_TOL, True,
+        )  # fmt: skip
+        if not ok:
             # Coal's patch of a deep or grazing penetration can place its points far off the
             # pair's distance (measured: gaps of -33 mm and +12 mm for a pair 24 um deep, the
             # camera head spinning into link 1's tube): one point, the witness pair, instead.
             c = self.world.pair_contact(q, pair)
-            pts1, pts2 = c.p1[None, :], c.p2[None, :]
+            ok, *made = kernels.patch_material(
+                c.p1[None, :], c.p2[None, :], n, d, N1, o1, G1.rotation, G1.translation,
+                N2, o2, G2.rotation, G2.translation, R1, t1, R2, t2, PATCH_TOL, False,
+            )  # fmt: skip
             log.debug(
                 "pair %s / %s: patch off its distance %.3g m: witness point used",
                 info.piece1,
                 info.piece2,
                 patch.distance,
             )
-        local1 = (pts1 - M1.translation) @ M1.rotation
-        local2 = (pts2 - M2.translation) @ M2.rotation
-        normal2 = M2.rotation.T @ patch.normal
-        p = _Pair(info, local1, local2, normal2)
-        p.offset0 = p.frame2[:2] @ (M2.rotation.T @ (pts2 - pts1).T)
+        local1, local2, normal2, frame2, centre1, centre2, offset0 = made
+        p = _Pair(info, local1, local2, normal2, offset0=offset0)
+        p.frame2, p.centre1, p.centre2 = frame2, centre1, centre2
         if old is not None:
             p.stick, p.slip_dir = old.stick, old.slip_dir
         self.pairs[pair] = p
         self._invalidate()
         return True
 
-    def _planes_of(self, geom: int) -> tuple[FloatArray, FloatArray] | None:
-        """The face planes of a piece (see :func:`_planes`), kept per piece."""
+    def _planes_of(self, geom: int) -> tuple[FloatArray, FloatArray]:
+        """The face planes of a piece (see :func:`_planes`; none: 0 rows), kept per piece."""
         try:
             return self._planes_cache[geom]
         except KeyError:
             assert self.world is not None
             shape = self.world.geom_model.geometryObjects[geom].geometry
-            planes = self._planes_cache[geom] = _planes(shape)
+            planes = _planes(shape) or (np.zeros((0, 3)), np.zeros(0))
+            self._planes_cache[geom] = planes
             return planes
 
     def remove_pair(self, pair: int) -> None:
@@ -1612,6 +1615,7 @@ def _planes(shape: Any) -> tuple[FloatArray, FloatArray] | None:
     return (N, o) if len(N) else None
 
 
+# The patch construction in numpy (the reference of kernels.patch_material: tests).
 def _consistent(pts1: FloatArray, pts2: FloatArray, patch: Any) -> bool:
     """Whether a patch's points have gaps (along its normal) within PATCH_TOL of its distance.
 
