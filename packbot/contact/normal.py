@@ -229,6 +229,7 @@ class _Layout:
     placements: list[tuple[int, Any]]
     H: FloatArray  # (bodies, 4, 4) buffer of the placements (the world's: identity)
     no_jacobian: FloatArray  # (6, nv) zeros, the Jacobians when no pair is in contact
+    fixed: tuple[Any, ...] = ()  # body ... lim_value: the kernels' arguments after q, v
 
 
 @dataclass
@@ -530,34 +531,21 @@ class NormalContacts:
         the drift acceleration J' v at the world origin).
         """
         lay = self._layout()
-        if lay.joints:
-            model, data = self.model, self.data
-            pin.computeJointJacobiansTimeVariation(model, data, q, v)
-            H = lay.H  # (filled here, read by the kernel only)
-            for i, M in lay.placements:
-                H[i] = M.homogeneous
-            J = data.J.reshape(6, self.nv)  # (nv = 1: data.J is (6,))
-            dJ = data.dJ.reshape(6, self.nv)
-        else:
-            H, J, dJ = lay.no_bodies, lay.no_jacobian, lay.no_jacobian
-        return (
-            H,
-            J,
-            dJ,
-            lay.masks,
-            q,
-            v,
-            lay.body,
-            lay.local,
-            lay.pair,
-            lay.rows,
-            lay.centre,
-            lay.normal_body,
-            lay.frame2,
-            lay.lim_joint,
-            lay.lim_side,
-            lay.lim_value,
-        )
+        return (*self._bodies(lay, q, v), lay.masks, q, v, *lay.fixed)
+
+    def _bodies(
+        self, lay: _Layout, q: FloatArray, v: FloatArray
+    ) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """The bodies' placements H, the joint Jacobians J and their time variation dJ."""
+        if not lay.joints:
+            return lay.no_bodies, lay.no_jacobian, lay.no_jacobian
+        model, data = self.model, self.data
+        pin.computeJointJacobiansTimeVariation(model, data, q, v)
+        H = lay.H  # (filled here, read by the kernel only)
+        for i, M in lay.placements:
+            H[i] = M.homogeneous
+        nv = self.nv
+        return H, data.J.reshape(6, nv), data.dJ.reshape(6, nv)  # (nv = 1: data.J is (6,))
 
     def _layout(self) -> _Layout:
         """The point layout of the current contact set (cached until it changes)."""
@@ -611,7 +599,20 @@ class NormalContacts:
             placements=[(i, self.data.oMi[j]) for i, j in enumerate(joints) if j],
             H=np.array([_I4 for _ in joints]) if joints else np.zeros((0, 4, 4)),
         )
-        return self._lay
+        lay = self._lay
+        lay.fixed = (
+            lay.body,
+            lay.local,
+            lay.pair,
+            lay.rows,
+            lay.centre,
+            lay.normal_body,
+            lay.frame2,
+            lay.lim_joint,
+            lay.lim_side,
+            lay.lim_value,
+        )
+        return lay
 
     def _invalidate(self) -> None:
         """The contact set changed: forget the cached kinematics and point layout."""
@@ -791,23 +792,12 @@ class NormalContacts:
             slip_dir = np.array([p.slip_dir for p in self._pair_list])
         else:
             slip_dir = self._no_slip_dirs
-        args = (
-            *self._kernel_args(q, v),
-            plan.engaged,
-            plan.row_slip,
-            plan.sticks,
-            slip_dir,
-            a_free,
-            minv,
-            self.mu,
-            STICK_SPEED,
-            BAUMGARTE,
-            self._layout().offset0,
-            FORCE_BAND,
-            POINT_TOL,
-            STICK_BAND,
-        )
-        a, lam, gap, vn, vt, ok, cond, slide2 = kernels.constrained_accel(*args)
+        lay = self._layout()
+        a, lam, gap, vn, vt, ok, cond, slide2 = kernels.constrained_accel(
+            *self._bodies(lay, q, v), lay.masks, q, v, *lay.fixed,
+            plan.engaged, plan.row_slip, plan.sticks, slip_dir, a_free, minv,
+            self.mu, STICK_SPEED, BAUMGARTE, lay.offset0, FORCE_BAND, POINT_TOL, STICK_BAND,
+        )  # fmt: skip
         if not ok:  # a singular Delassus matrix: numpy's path (least squares)
             return self._evaluate_rows(q, v, a_free, minv, plan)
         ev = _Eval(a, lam, gap, vn, vt, cond=cond, slide2=slide2)
