@@ -793,11 +793,12 @@ class NormalContacts:
         else:
             slip_dir = self._no_slip_dirs
         lay = self._layout()
-        a, lam, gap, vn, vt, ok, cond, slide2 = kernels.constrained_accel(
+        args: tuple[Any, ...] = (
             *self._bodies(lay, q, v), lay.masks, q, v, *lay.fixed,
             plan.engaged, plan.row_slip, plan.sticks, slip_dir, a_free, minv,
             self.mu, STICK_SPEED, BAUMGARTE, lay.offset0, FORCE_BAND, POINT_TOL, STICK_BAND,
         )  # fmt: skip
+        a, lam, gap, vn, vt, ok, cond, slide2 = kernels.constrained_accel(*args)
         if not ok:  # a singular Delassus matrix: numpy's path (least squares)
             return self._evaluate_rows(q, v, a_free, minv, plan)
         ev = _Eval(a, lam, gap, vn, vt, cond=cond, slide2=slide2)
