@@ -356,3 +356,27 @@ def test_the_projection_solver_gives_the_least_squares_correction(rng):
         else:
             assert residual(G, g, z) <= residual(G, g, ref) + 1e-15
     assert exact > 300
+
+
+def test_compiled_small_lemke_reproduces_the_python_pivots_to_the_last_bit(rng):
+    """kernels.lemke_small (the contact-normal mode's small LCPs) returns what lcp.lemke's
+    Python-float pivots return, bit for bit: solutions, ray terminations (None) alike."""
+    from packbot.contact.lcp import SMALL_LCP, lemke
+    from packbot.contact.normal import _lemke
+
+    solved = failed = 0
+    for trial in range(600):
+        n = int(rng.integers(1, SMALL_LCP + 1))
+        A = rng.standard_normal((n, n + 1))
+        M = A @ A.T + (0.5 * rng.standard_normal((n, n)) if trial % 2 else 0.0)
+        if trial % 5 == 0:
+            M = -M  # often no solution: ray termination
+        q = rng.standard_normal(n)
+        ref, z = lemke(M, q), _lemke(M, q)
+        assert (z is None) == (ref is None)
+        if z is not None:
+            np.testing.assert_array_equal(z, ref)
+            solved += 1
+        else:
+            failed += 1
+    assert solved > 300 and failed > 10

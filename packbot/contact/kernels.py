@@ -32,7 +32,7 @@ from typing import Any
 import numpy as np
 from numba import njit
 
-__all__ = ["constrained_accel", "contact_rows", "patch_material"]
+__all__ = ["constrained_accel", "contact_rows", "lemke_small", "patch_material"]
 
 
 @njit(cache=True)
@@ -632,3 +632,81 @@ def patch_material(  # noqa: D417 (pairs of arguments documented together)  # pr
         for r in range(2):
             offset0[r, k] = frame2[r, 0] * d[0] + frame2[r, 1] * d[1] + frame2[r, 2] * d[2]
     return ok, local1, local2, n2, frame2, centre1, centre2, offset0
+
+
+@njit(cache=True)
+def lemke_small(  # pragma: no cover - compiled
+    M: Any, q: Any, max_iter: int, tol: float
+) -> Any:
+    """:func:`packbot.contact.lcp.lemke` compiled: the same pivots and floating-point operations.
+
+    Line for line the Python-float version of ``lcp._lemke_small`` (same tableau, same order of
+    operations, no fused multiply-adds), so the same result to the last bit.
+
+    Returns:
+        (z, ok): ok False on ray termination or the pivot limit.
+    """
+    n = q.shape[0]
+    w = 2 * n + 2
+    T = np.zeros((n, w))
+    for i in range(n):
+        T[i, i] = 1.0
+        for j in range(n):
+            T[i, n + j] = -M[i, j]
+        T[i, 2 * n] = -1.0
+        T[i, 2 * n + 1] = q[i]
+    basis = np.arange(n)
+    r = 0
+    for i in range(1, n):
+        if q[i] < q[r]:
+            r = i
+    entering = 2 * n
+    Tr = np.empty(w)
+    ratios = np.empty(n)
+    for _ in range(max_iter):
+        piv = T[r, entering]
+        for j in range(w):
+            Tr[j] = T[r, j] / piv
+        for i in range(n):
+            c = 0.0 if i == r else T[i, entering]
+            if i == r:
+                for j in range(w):
+                    T[i, j] = Tr[j] - c * Tr[j]
+            else:
+                for j in range(w):
+                    T[i, j] = T[i, j] - c * Tr[j]
+        leaving = basis[r]
+        basis[r] = entering
+        if leaving == 2 * n:
+            z = np.zeros(2 * n + 1)
+            for i in range(n):
+                z[basis[i]] = T[i, w - 1]
+            out = np.empty(n)
+            for i in range(n):
+                out[i] = max(z[n + i], 0.0)
+            return out, True
+        entering = leaving + n if leaving < n else leaving - n
+        blocked = True
+        for i in range(n):
+            if T[i, entering] > tol:
+                ratios[i] = T[i, w - 1] / T[i, entering]
+                blocked = False
+            else:
+                ratios[i] = math.inf
+        if blocked:
+            return np.zeros(n), False
+        rmin = ratios[0]
+        for i in range(1, n):
+            rmin = min(rmin, ratios[i])
+        bound = rmin + 1e-12 * (1.0 + abs(rmin))
+        first = -1
+        r = -1
+        for i in range(n):
+            if ratios[i] <= bound:
+                if first < 0:
+                    first = i
+                if basis[i] == 2 * n and r < 0:
+                    r = i
+        if r < 0:
+            r = first
+    return np.zeros(n), False

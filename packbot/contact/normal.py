@@ -70,6 +70,7 @@ from numpy.typing import NDArray
 from packbot.collision import CollisionWorld, PairInfo
 from packbot.contact.base import Active, Crossing, Key
 from packbot.contact.lcp import (
+    SMALL_LCP,
     lcp_residual,
     lemke,
     solve_lcp_psd,
@@ -1054,7 +1055,7 @@ class NormalContacts:
         w0 = vn[touch] + GEI.T @ y0
         lam = solve_lcp_psd(S, w0)
         if lcp_residual(S, w0, lam) > RESIDUAL_TOL:
-            lam2 = lemke(S, w0)
+            lam2 = _lemke(S, w0)
             if lam2 is None or lcp_residual(S, w0, lam2) > RESIDUAL_TOL:
                 log.debug("stop_slow: LCP unsolved, velocity kept")
                 return v
@@ -1318,7 +1319,7 @@ class NormalContacts:
         P = solve_lcp_psd(G, target)
         res = lcp_residual(G, target, P)
         if res > RESIDUAL_TOL:
-            P2 = lemke(G, target)
+            P2 = _lemke(G, target)
             if P2 is not None and lcp_residual(G, target, P2) < res:
                 P, res = P2, lcp_residual(G, target, P2)
         if res > RESIDUAL_TOL:
@@ -1517,11 +1518,11 @@ class NormalContacts:
             z = solve_lcp_psd(Ml, ql)
             res = lcp_residual(Ml, ql, z)
             if res > RESIDUAL_TOL:
-                z2 = lemke(Ml, ql)
+                z2 = _lemke(Ml, ql)
                 if z2 is not None and lcp_residual(Ml, ql, z2) < res:
                     z, res = z2, lcp_residual(Ml, ql, z2)
         else:
-            z2 = lemke(Ml, ql)
+            z2 = _lemke(Ml, ql)
             if z2 is None:
                 return {}, False
             z, res = z2, lcp_residual(Ml, ql, z2)
@@ -1568,6 +1569,23 @@ _OWN_EVALUATE = NormalContacts.evaluate
 _OWN_CONDITIONS = NormalContacts.conditions
 
 
+def _lemke(M: FloatArray, q: FloatArray) -> FloatArray | None:
+    """:func:`packbot.contact.lcp.lemke`, small problems on the compiled kernel (bit for bit).
+
+    Up to :data:`packbot.contact.lcp.SMALL_LCP` rows, ``kernels.lemke_small``: the same pivots
+    and operations as the Python-float version, without its interpreter overhead.
+    """
+    n = len(q)
+    if n == 0 or n > SMALL_LCP or bool(np.all(q >= 0.0)):
+        return lemke(M, q)
+    from packbot.contact import kernels  # lazy: numba is imported by contact runs only
+
+    z, ok = kernels.lemke_small(
+        np.ascontiguousarray(M, dtype=np.float64), np.asarray(q, dtype=np.float64), 200, 1e-12
+    )
+    return z if ok else None
+
+
 def _solve_projection(G: FloatArray, g: FloatArray) -> FloatArray:
     """The drift projection's LCP(G, g) (G = J M^-1 J^T, positive semi-definite).
 
@@ -1577,7 +1595,7 @@ def _solve_projection(G: FloatArray, g: FloatArray) -> FloatArray:
     solution has the same G z and the same correction M^-1 J^T z: the solver changes the
     projection by rounding only.
     """
-    z = lemke(G, g)
+    z = _lemke(G, g)
     if z is None or lcp_residual(G, g, z) > RESIDUAL_TOL:
         return solve_lcp_psd(G, g)
     return z
