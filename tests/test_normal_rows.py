@@ -251,7 +251,7 @@ def test_the_pairs_skipped_at_a_step_end_have_no_event(robot, monkeypatch, mu):
 
     def checked(self, pairs, distances):
         out = pick(self, pairs, distances)
-        for i, (p, d1) in enumerate(zip(pairs, distances.tolist(), strict=True)):
+        for i, (p, d1) in enumerate(zip(pairs, distances, strict=True)):
             if i in out:
                 seen["checked"] += 1
                 continue

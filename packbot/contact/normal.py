@@ -499,9 +499,7 @@ class NormalContacts:
         hit = self._kin_cache.get(key)
         if hit is not None:
             return hit
-        from packbot.contact import kernels  # lazy: numba is imported by contact runs only
-
-        raw = kernels.contact_rows(*self._kernel_args(q, v))
+        raw = _kernels().contact_rows(*self._kernel_args(q, v))
         rows, drift, gap, vn, JT, bT, vT, vt, nw, T, dJp, dP = raw
         extra = [
             {
@@ -787,8 +785,7 @@ class NormalContacts:
         self, q: FloatArray, v: FloatArray, a_free: FloatArray, minv: FloatArray, plan: _Plan
     ) -> _Eval:
         """:meth:`evaluate` in one compiled call (``kernels.constrained_accel``)."""
-        from packbot.contact import kernels  # lazy: numba is imported by contact runs only
-
+        kernels = _kernels()
         if plan.slips:
             slip_dir = np.array([p.slip_dir for p in self._pair_list])
         else:
@@ -1087,7 +1084,7 @@ class NormalContacts:
         for p, vt in zip(self.pairs.values(), vts, strict=True):
             if (
                 not (self.mu > 0.0 and p.stick)
-                and float(np.linalg.norm(vt)) > STICK_SPEED
+                and math.sqrt(float(vt @ vt)) > STICK_SPEED  # (np.linalg.norm's own formula)
                 and self._pair_engaged(p)
             ):
                 return True
@@ -1569,6 +1566,22 @@ _OWN_EVALUATE = NormalContacts.evaluate
 _OWN_CONDITIONS = NormalContacts.conditions
 
 
+_KERNELS: list[Any] = []  # packbot.contact.kernels once imported (see _kernels)
+
+
+def _kernels() -> Any:
+    """:mod:`packbot.contact.kernels`, imported at the first call, then kept.
+
+    Numba is imported by contact runs only, not by ``import packbot``; an import statement in
+    the right-hand side costs a microsecond a call.
+    """
+    if not _KERNELS:
+        from packbot.contact import kernels
+
+        _KERNELS.append(kernels)
+    return _KERNELS[0]
+
+
 def _lemke(M: FloatArray, q: FloatArray) -> FloatArray | None:
     """:func:`packbot.contact.lcp.lemke`, small problems on the compiled kernel (bit for bit).
 
@@ -1943,18 +1956,18 @@ class NormalLaw(PatchEvents):
     ) -> list[Crossing]:
         return self._patch_pair_crossings(key, p_idx, seg, d0, d1)
 
-    def _pairs_to_check(self, pairs: list[int], distances: FloatArray) -> Iterable[int]:
+    def _pairs_to_check(self, pairs: list[int], distances: list[float]) -> Iterable[int]:
         """The pairs that can have an event (see :meth:`_patch_pair_crossings`).
 
         A pair at 0 < d <= the proximity tolerance has none (outside the contact set: no
         impact; in it: neither release nor re-patch), nor one farther outside the set.
         """
         near = self.cfg.proximity_tolerance
-        active = {k[1] for k in self.active if k[0] == "pair"}
+        active = self.active
         return [
             i
-            for i in np.flatnonzero((distances <= 0.0) | (distances > near)).tolist()
-            if distances[i] <= 0.0 or pairs[i] in active
+            for i, d in enumerate(distances)
+            if d <= 0.0 or (d > near and ("pair", pairs[i]) in active)
         ]
 
     def _mode_crossings(self, seg: DenseSegment, y1: FloatArray) -> list[Crossing]:

@@ -75,7 +75,7 @@ class PairLaw(JointStops):
         """A pair's events over the step, from its distances at the start (d0) and end (d1)."""
         raise NotImplementedError
 
-    def _pairs_to_check(self, pairs: list[int], distances: FloatArray) -> Iterable[int]:
+    def _pairs_to_check(self, pairs: list[int], distances: list[float]) -> Iterable[int]:
         """Positions (ascending) of the swept pairs whose events ``_pair_crossings`` checks.
 
         All of them; a law whose pairs have no event in some band of distances skips those.
@@ -112,7 +112,7 @@ class PairLaw(JointStops):
         self.pending_min = (sw.min_distance, sw.min_pair)
         pairs, dist = sw.pairs.tolist(), sw.distances.tolist()
         d_now = dict(zip(pairs, dist, strict=True))
-        for i in self._pairs_to_check(pairs, sw.distances):
+        for i in self._pairs_to_check(pairs, dist):
             p_idx, d1 = pairs[i], dist[i]
             d0 = self.last_d.get(p_idx, math.inf)
             out.extend(self._pair_crossings(("pair", p_idx), p_idx, seg, d0, d1))
