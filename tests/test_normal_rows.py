@@ -324,40 +324,6 @@ def test_compiled_patches_equal_the_numpy_construction(contacts, rng):
     assert checked >= 12 and lifted >= 6
 
 
-def test_the_projection_solver_gives_the_least_squares_correction(rng):
-    """_solve_projection (Lemke's pivots, NNLS as the fallback) solves the drift projection's
-    LCP: where solve_lcp_psd's NNLS solves it exactly, the same correction G z (unique for a
-    symmetric PSD G), also on rank-deficient G (more rows than joints: a 4-point patch on a
-    4-dof arm); where the gaps are out of G's range and NNLS only approximates, a solution at
-    least as exact."""
-    from packbot.contact.lcp import solve_lcp_psd
-    from packbot.contact.normal import _solve_projection
-
-    def residual(G, g, z):  # absolute [m]
-        w = G @ z + g
-        return max(-float(z.min()), -float(w.min()), abs(float(z @ w)), 0.0)
-
-    exact = 0
-    for trial in range(600):
-        nv = int(rng.integers(1, 6))
-        m = int(rng.integers(1, 9))
-        J = rng.standard_normal((m, nv))
-        A = rng.standard_normal((nv, nv))
-        Minv = A @ A.T + 0.1 * np.eye(nv)
-        G = J @ Minv @ J.T
-        g = 1e-5 * (J @ rng.standard_normal(nv) if trial % 2 else rng.standard_normal(m))
-        z = _solve_projection(G, g)
-        ref = solve_lcp_psd(G, g)
-        if residual(G, g, ref) < 1e-15:
-            exact += 1
-            assert residual(G, g, z) < 1e-15
-            np.testing.assert_allclose(G @ z, G @ ref, atol=1e-14)
-            np.testing.assert_allclose(Minv @ J.T @ z, Minv @ J.T @ ref, atol=1e-13)
-        else:
-            assert residual(G, g, z) <= residual(G, g, ref) + 1e-15
-    assert exact > 300
-
-
 def test_compiled_small_lemke_reproduces_the_python_pivots_to_the_last_bit(rng):
     """kernels.lemke_small (the contact-normal mode's small LCPs) returns what lcp.lemke's
     Python-float pivots return, bit for bit: solutions, ray terminations (None) alike."""

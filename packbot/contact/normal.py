@@ -1216,7 +1216,7 @@ class NormalContacts:
             touch = np.flatnonzero(gap <= TOUCH_GAP)
             J = Jn[touch]
             G = J @ minv @ J.T
-            mu = _solve_projection(G, gap[touch])
+            mu = solve_lcp_psd(G, gap[touch])
             q = np.asarray(q + minv @ J.T @ mu, dtype=np.float64)
             if not self.check_others or self.world is None:
                 return q
@@ -1597,21 +1597,6 @@ def _lemke(M: FloatArray, q: FloatArray) -> FloatArray | None:
         np.ascontiguousarray(M, dtype=np.float64), np.asarray(q, dtype=np.float64), 200, 1e-12
     )
     return z if ok else None
-
-
-def _solve_projection(G: FloatArray, g: FloatArray) -> FloatArray:
-    """The drift projection's LCP(G, g) (G = J M^-1 J^T, positive semi-definite).
-
-    Lemke's pivots first (a few microseconds on the usual 2 to 8 rows); the non-negative
-    least squares of :func:`packbot.contact.lcp.solve_lcp_psd` when they end on a ray or
-    their solution's residual is above :data:`RESIDUAL_TOL`. G is symmetric PSD, so every
-    solution has the same G z and the same correction M^-1 J^T z: the solver changes the
-    projection by rounding only.
-    """
-    z = _lemke(G, g)
-    if z is None or lcp_residual(G, g, z) > RESIDUAL_TOL:
-        return solve_lcp_psd(G, g)
-    return z
 
 
 def _energy_change(P: FloatArray, w: FloatArray, dw: FloatArray) -> float:
