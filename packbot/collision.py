@@ -253,6 +253,7 @@ class CollisionWorld:
         # Live proxies into the C++ vector (valid while geom_data lives): indexing it costs
         # 0.1 us against 0.45 us through distanceResults[k].
         self._results = list(self.geom_data.distanceResults)
+        self._last_sweep: tuple[tuple[bytes, float], SweepResult] | None = None  # see sweep
         self._n_pairs = len(self.pairs)
         G = gm.ngeoms
         first = np.array([p.geom1 for p in self.pairs], dtype=np.intp)
@@ -443,7 +444,9 @@ class CollisionWorld:
         """
         return self._collect(self._query_margin(margin))
 
-    def sweep(self, q: NDArray[np.float64], margin: float | None = None) -> SweepResult:
+    def sweep(
+        self, q: NDArray[np.float64], margin: float | None = None, *, reuse: bool = False
+    ) -> SweepResult:
         """Signed distances of the pairs that the bounding boxes leave, the smallest and its pair.
 
         Every pair within the margin is among them (with others whose boxes overlap). Costs
@@ -455,25 +458,42 @@ class CollisionWorld:
         Args:
             q: Configuration [rad].
             margin: Query margin [m] (default: the world's).
+            reuse: Return the last sweep's result (its arrays are read-only) when it was made
+                with ``reuse`` at the same q and margin, bit for bit (the event loop sweeps
+                the same state more than once). The pieces are placed at q either way, but
+                then ``geom_data``'s distance results are not recomputed: a caller that reads
+                them (``contacts``) must not reuse.
 
         Raises:
             ConfigurationError: A wrong-size q, or a margin that is not a finite number >= 0.
         """
         m = self._query_margin(margin)
         self._fk(q)
+        key = None
+        if reuse:
+            key = (np.asarray(q, dtype=np.float64).tobytes(), m)
+            last = self._last_sweep
+            if last is not None and last[0] == key:
+                return last[1]
         cand = self._collect(m)
         n_all, n = self._n_pairs, len(cand)
         counts = SweepCounts(n_all, n_all - n, n)
         if n == 0:
-            return SweepResult(np.inf, -1, cand, np.zeros(0), counts)
-        pairs = cand.tolist()
-        if pairs != self._active_list:  # the set changes rarely from one step to the next
-            self._activate(cand)
-            self._active_list = pairs
-        k = pin.computeDistances(self.geom_model, self.geom_data)
-        res = self._results
-        d = np.array([res[p].min_distance for p in pairs])
-        return SweepResult(res[k].min_distance, k, cand, d, counts)
+            out = SweepResult(np.inf, -1, cand, np.zeros(0), counts)
+        else:
+            pairs = cand.tolist()
+            if pairs != self._active_list:  # the set changes rarely from one step to the next
+                self._activate(cand)
+                self._active_list = pairs
+            k = pin.computeDistances(self.geom_model, self.geom_data)
+            res = self._results
+            d = np.array([res[p].min_distance for p in pairs])
+            out = SweepResult(res[k].min_distance, k, cand, d, counts)
+        if key is not None:
+            out.pairs.setflags(write=False)
+            out.distances.setflags(write=False)
+            self._last_sweep = (key, out)
+        return out
 
     def _activate(self, pairs: NDArray[np.intp]) -> None:
         """Make exactly ``pairs`` the active pairs of geom_data."""

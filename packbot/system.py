@@ -82,6 +82,10 @@ class System:
         self.upper = self.robot.params.upper
         self.nv = int(self.model.nv)
         self._lower = np.tril_indices(self.nv, -1)
+        # the strict lower triangle's flat indices in an (nv, nv) C-ordered matrix, and those
+        # of the upper entries mirroring them
+        self._lower_flat = self._lower[0] * self.nv + self._lower[1]
+        self._upper_flat = self._lower[1] * self.nv + self._lower[0]
         self.world: CollisionWorld | None = None
         if config.contact_mode != "none":
             self.world = CollisionWorld(self.robot, environment, margin=config.margin)
@@ -118,8 +122,9 @@ class System:
 
     def _symmetric(self, upper: FloatArray) -> FloatArray:
         """Fill the strict lower triangle from the upper one (Pinocchio fills the upper)."""
-        out = np.array(upper, dtype=float)
-        out[self._lower] = out.T[self._lower]
+        out = np.array(upper, dtype=float, order="C")
+        flat = out.reshape(-1)  # a view (out is a fresh C-ordered copy)
+        flat[self._lower_flat] = flat[self._upper_flat]
         return out
 
     def energy(self, q: FloatArray, v: FloatArray) -> float:

@@ -709,6 +709,27 @@ def test_sweep_after_queries_that_activate_other_pairs(robot, world, rng):
         assert again.min_pair == first.min_pair
 
 
+def test_a_reused_sweep_is_the_last_one_at_the_same_q_and_margin(robot, world, rng):
+    """sweep(..., reuse=True) returns the last reusable sweep when q and the margin are the
+    same bit for bit (read-only arrays; the pieces placed at q), and sweeps again otherwise."""
+    for _ in range(20):
+        q0, q1 = random_q(robot, rng), random_q(robot, rng)
+        first = world.sweep(q0, reuse=True)
+        world.pair_contact(q1, 0)  # another query between: the pieces elsewhere
+        again = world.sweep(q0.copy(), reuse=True)
+        assert again is first
+        assert not again.distances.flags.writeable and not again.pairs.flags.writeable
+        np.testing.assert_array_equal(world.candidate_pairs(), first.pairs)  # placed at q0
+        fresh = world.sweep(q0)  # not reusing: computed
+        assert fresh is not first
+        np.testing.assert_array_equal(fresh.pairs, first.pairs)
+        np.testing.assert_allclose(fresh.distances, first.distances, rtol=0.0, atol=1e-12)
+        assert world.sweep(q0, 0.5 * world.margin, reuse=True) is not first  # other margin
+        q2 = q0.copy()
+        q2[0] = np.nextafter(q2[0], np.inf)
+        assert world.sweep(q2, reuse=True) is not first  # one ulp away
+
+
 @pytest.mark.parametrize("margin", [-0.01, math.nan, math.inf])
 def test_a_bad_query_margin_is_a_configuration_error(world, robot, margin):
     q = robot.pose("drive")

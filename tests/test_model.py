@@ -264,3 +264,23 @@ def test_system_energy_is_half_v_m_v_plus_potential(robot, rng):
             M = sysm.mass_matrix(q)
             ref = 0.5 * v @ M @ v + pin.computePotentialEnergy(sysm.model, sysm.data, q)
             assert sysm.energy(q, v) == pytest.approx(ref, rel=1e-12, abs=1e-12)
+
+
+def test_system_mass_matrix_and_inverse_are_full_symmetric_matrices(robot, rng):
+    """System.mass_matrix and System.minv fill the lower triangle that Pinocchio leaves out,
+    from the upper one: M^T = M, M^-1 M = I, on the full and on reduced models (nv 8, 6, 1)."""
+    from packbot.system import System
+
+    lo, hi = robot.model.lowerPositionLimit, robot.model.upperPositionLimit
+    names = robot.joint_names
+    for locked in ((), ("gripper_jaw", "camera_pan"), tuple(names[1:])):
+        sysm = System(robot, robot.pose("drive"), packbot.SimConfig(locked_joints=locked), None)
+        for _ in range(10):
+            q = sysm.reduce(rng.uniform(lo, hi))
+            M, Mi = sysm.mass_matrix(q), sysm.minv(q)
+            upper = pin.crba(sysm.model, sysm.data, q)
+            iu = np.triu_indices(sysm.nv)
+            np.testing.assert_array_equal(M[iu], np.asarray(upper).reshape(sysm.nv, -1)[iu])
+            np.testing.assert_array_equal(M, M.T)
+            np.testing.assert_array_equal(Mi, Mi.T)
+            np.testing.assert_allclose(Mi @ M, np.eye(sysm.nv), atol=1e-9)

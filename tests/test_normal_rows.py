@@ -176,3 +176,173 @@ def test_small_solves_in_closed_form_match_lapack(rng):
     G = np.array([[1.0, 2.0, 3.0], [2.0, 4.0, 6.0], [1.0, 0.0, 1.0]])  # rank 2
     r = np.array([1.0, 2.0, 0.5])
     np.testing.assert_allclose(solve_small(G, r), np.linalg.lstsq(G, r, rcond=None)[0])
+
+
+def test_step_end_reuses_the_last_stage_and_violated_agrees(robot, monkeypatch):
+    """At a step's end the mode conditions reuse the stepper's last-stage evaluation (the
+    same inputs by value: the result is what a fresh evaluation gives, bit for bit);
+    ``violated`` says exactly whether a condition of ``conditions`` is negative, on the
+    run's evaluations (the kernel's smallest condition) and on copies with one row's gap or
+    force pushed negative; the patch check from the kernel's slides finds the pairs the
+    rows' own slides find."""
+    from dataclasses import replace
+
+    from packbot.contact import normal
+
+    seen = {"hits": 0, "states": 0, "flagged": 0, "kernel": 0, "slid": 0}
+    again = normal.NormalContacts.evaluate_again
+
+    def checked(self, q, v, a_free, minv):
+        ev = again(self, q, v, a_free, minv)
+        last = self._last_eval
+        hit = last is not None and ev is last[6]
+        self._last_eval = None
+        fresh = self.evaluate(q, v, a_free, minv)
+        for x, y in ((ev.a, fresh.a), (ev.lam, fresh.lam), (ev.gap, fresh.gap)):
+            np.testing.assert_array_equal(x, y)
+        np.testing.assert_array_equal(ev.vt, fresh.vt)
+        seen["hits"] += hit
+        seen["states"] += 1
+        cond = self.conditions(ev)
+        assert self.violated(ev) == any(g < 0.0 for _, g in cond.values())
+        if ev.cond is not None:  # the kernel's smallest condition
+            values = [g for _, g in cond.values()]
+            assert ev.cond == pytest.approx(min(values), rel=1e-12, abs=1e-15)
+            seen["kernel"] += 1
+        if ev.slide2 is not None:  # the patch check from the kernel's slides, and without
+            self._last_eval = (q, v, a_free, minv, None, None, ev)
+            distance, k = {}, 0  # the pairs' distances at their patches' gaps: slides decide
+            for key, p in self.pairs.items():
+                distance[key] = float(ev.gap[k : k + len(p.local1)].min())
+                k += len(p.local1)
+            fast = self.stale_pairs(q, v, distance)
+            self._last_eval = None
+            assert fast == self.stale_pairs(q, v, distance)
+            seen["slid"] += len(fast)
+        if len(ev.gap):  # a row pushed across its condition
+            for r in range(len(ev.gap)):
+                gap = ev.gap.copy()
+                gap[r] = -1.0
+                lam = ev.lam.copy()
+                if len(lam):
+                    lam[:] = -1.0
+                bad = replace(ev, gap=gap, lam=lam, cond=None)
+                negative = any(g < 0.0 for _, g in self.conditions(bad).values())
+                assert self.violated(bad) == negative
+                seen["flagged"] += negative
+        return ev
+
+    monkeypatch.setattr(normal.NormalContacts, "evaluate_again", checked)
+    cfg = packbot.SimConfig(contact_mode="normal", mu=0.5, locked_joints=WRIST)
+    packbot.simulate(robot, robot.pose("drive"), np.zeros(8), 1.2, config=cfg)
+    assert seen["states"] > 100
+    assert seen["hits"] > 0.8 * seen["states"]
+    assert seen["flagged"] > 100 and seen["kernel"] > 100 and seen["slid"] > 10
+
+
+@pytest.mark.parametrize("mu", [0.0, 0.5])
+def test_the_pairs_skipped_at_a_step_end_have_no_event(robot, monkeypatch, mu):
+    """NormalLaw._pairs_to_check leaves out only swept pairs whose pair events are empty (the
+    same crossings as checking every pair), and leaves out most of them."""
+    from packbot.contact import normal
+
+    seen = {"skipped": 0, "checked": 0}
+    pick = normal.NormalLaw._pairs_to_check
+
+    def checked(self, pairs, distances):
+        out = pick(self, pairs, distances)
+        for i, (p, d1) in enumerate(zip(pairs, distances, strict=True)):
+            if i in out:
+                seen["checked"] += 1
+                continue
+            seen["skipped"] += 1
+            d0 = self.last_d.get(p, np.inf)
+            assert self._pair_crossings(("pair", p), p, None, d0, d1) == []
+        assert list(out) == sorted(out)
+        return out
+
+    monkeypatch.setattr(normal.NormalLaw, "_pairs_to_check", checked)
+    cfg = packbot.SimConfig(contact_mode="normal", mu=mu, locked_joints=WRIST)
+    res = packbot.simulate(robot, robot.pose("drive"), np.zeros(8), 1.0, config=cfg)
+    assert res.diagnostics.steps > 100 and len(res.events) > 5
+    assert seen["skipped"] > 5 * seen["checked"] > 0
+
+
+def test_compiled_patches_equal_the_numpy_construction(contacts, rng):
+    """kernels.patch_material (the patch's points lifted onto each body's face, then as
+    material points in the joints' frames, the contact frame, the centres and the offsets)
+    gives normal.py's numpy construction (_lift, _consistent, _tangents) at the collapse's
+    pairs and at states around them, and add_pair stores it."""
+    from packbot.contact import kernels
+    from packbot.contact.normal import PATCH_TOL, _consistent, _lift, _tangents
+
+    sysm, nc, q0 = contacts
+    world, data = sysm.world, sysm.data
+    checked = lifted = 0
+    for trial in range(12):
+        q = q0 + (0.0 if trial == 0 else 2e-4) * rng.standard_normal(len(q0))
+        for k in list(nc.pairs):
+            patch = world.contact_patch(q, k, nc.tol)
+            if patch is None:
+                continue
+            pin.forwardKinematics(sysm.model, data, q)
+            info = patch.pair
+            M1 = data.oMi[info.joint1] if info.joint1 else pin.SE3.Identity()
+            M2 = data.oMi[info.joint2] if info.joint2 else pin.SE3.Identity()
+            G1, G2 = world.geom_data.oMg[info.geom1], world.geom_data.oMg[info.geom2]
+            planes1, planes2 = nc._planes_of(info.geom1), nc._planes_of(info.geom2)
+            ok, l1, l2, n2, F, c1, c2, off = kernels.patch_material(
+                patch.points1, patch.points2, patch.normal, float(patch.distance),
+                *planes1, G1.rotation, G1.translation, *planes2, G2.rotation, G2.translation,
+                M1.rotation, M1.translation, M2.rotation, M2.translation, PATCH_TOL, True,
+            )  # fmt: skip
+            mid = 0.5 * (patch.points1 + patch.points2)
+            p1 = _lift(planes1 if len(planes1[0]) else None, G1, mid, patch.normal, 1.0)
+            p2 = _lift(planes2 if len(planes2[0]) else None, G2, mid, patch.normal, -1.0)
+            if p1 is None or p2 is None or not _consistent(p1, p2, patch):
+                p1, p2 = patch.points1, patch.points2
+            else:
+                lifted += 1
+            assert ok == _consistent(p1, p2, patch)
+            if not ok:
+                continue
+            np.testing.assert_allclose(l1, (p1 - M1.translation) @ M1.rotation, atol=1e-13)
+            np.testing.assert_allclose(l2, (p2 - M2.translation) @ M2.rotation, atol=1e-13)
+            n_ref = M2.rotation.T @ patch.normal
+            np.testing.assert_allclose(n2, n_ref, atol=1e-14)
+            np.testing.assert_allclose(F, np.vstack([*_tangents(n_ref), n_ref]), atol=1e-14)
+            np.testing.assert_allclose(c1, l1.mean(axis=0)[None, :], atol=1e-14)
+            np.testing.assert_allclose(c2, l2.mean(axis=0)[None, :], atol=1e-14)
+            np.testing.assert_allclose(off, F[:2] @ (M2.rotation.T @ (p2 - p1).T), atol=1e-13)
+            assert nc.add_pair(q, k)
+            stored = nc.pairs[k]
+            np.testing.assert_array_equal(stored.local1, l1)
+            np.testing.assert_array_equal(stored.offset0, off)
+            checked += 1
+    for k in list(nc.pairs):  # the module's contact set back at its state
+        nc.add_pair(q0, k)
+    assert checked >= 12 and lifted >= 6
+
+
+def test_compiled_small_lemke_reproduces_the_python_pivots_to_the_last_bit(rng):
+    """kernels.lemke_small (the contact-normal mode's small LCPs) returns what lcp.lemke's
+    Python-float pivots return, bit for bit: solutions, ray terminations (None) alike."""
+    from packbot.contact.lcp import SMALL_LCP, lemke
+    from packbot.contact.normal import _lemke
+
+    solved = failed = 0
+    for trial in range(600):
+        n = int(rng.integers(1, SMALL_LCP + 1))
+        A = rng.standard_normal((n, n + 1))
+        M = A @ A.T + (0.5 * rng.standard_normal((n, n)) if trial % 2 else 0.0)
+        if trial % 5 == 0:
+            M = -M  # often no solution: ray termination
+        q = rng.standard_normal(n)
+        ref, z = lemke(M, q), _lemke(M, q)
+        assert (z is None) == (ref is None)
+        if z is not None:
+            np.testing.assert_array_equal(z, ref)
+            solved += 1
+        else:
+            failed += 1
+    assert solved > 300 and failed > 10

@@ -32,7 +32,7 @@ from typing import Any
 import numpy as np
 from numba import njit
 
-__all__ = ["constrained_accel", "contact_rows"]
+__all__ = ["constrained_accel", "contact_rows", "lemke_small", "patch_material"]
 
 
 @njit(cache=True)
@@ -301,6 +301,10 @@ def constrained_accel(  # noqa: D417 (contact_rows documents H ... lim_value)  #
     mu: float,
     stick_speed: float,
     baumgarte: float,
+    offset0: Any,
+    force_band: float,
+    point_tol: float,
+    stick_band: float,
 ) -> Any:
     """Accelerations of the current contact modes, with the rows the mode conditions need.
 
@@ -323,13 +327,23 @@ def constrained_accel(  # noqa: D417 (contact_rows documents H ... lim_value)  #
         mu: Coulomb friction coefficient [-].
         stick_speed: Below this sliding speed the direction blends with the onset's [m/s].
         baumgarte: Stabilisation rate B [1/s].
+        offset0: (m_p, 2) per pair row, the tangential offset (t1, t2) of its points p2 - p1
+            when the patch was built [m].
+        force_band: Hysteresis of the force conditions [N].
+        point_tol: A free row is an impact below -point_tol [m].
+        stick_band: Hysteresis of the stick condition [m/s].
 
     Returns:
-        (a, lam, gap, vn, vt, ok, G, rhs, MC): ok is False when the Delassus matrix G is
-        singular; then a and lam are unset and the caller solves G lam = rhs by least squares
-        and sets a = a_free + MC lam.
+        (a, lam, gap, vn, vt, ok, cond, slide2): ok is False when the Delassus matrix is
+        singular (a and lam are then unset: the caller solves the problem otherwise). cond is
+        the smallest mode condition of ``NormalContacts.conditions`` (an event when
+        negative): per row lam + force_band (engaged) or gap + point_tol (free); per sticking
+        pair with engaged rows mu sum(lam_n) - |lam_t| + force_band; per slipping one
+        v_t . w / |w| + stick_band (w = v_t + stick_speed s0). slide2 (pairs,): the largest
+        squared tangential slide [m^2] of a pair's points since its patch was built,
+        |T (p2 - p1) - offset0|^2.
     """
-    Jn, drift, gap, vn, JT, bT, vT, vt, _, _, dJp, _ = contact_rows(
+    Jn, drift, gap, vn, JT, bT, vT, vt, _, T, dJp, dP = contact_rows(
         H, J, dJ, masks, q, v, body, local, pair, rows, centre, normal_body, frame2,
         lim_joint, lim_side, lim_value,
     )  # fmt: skip
@@ -397,4 +411,302 @@ def constrained_accel(  # noqa: D417 (contact_rows documents H ... lim_value)  #
             for e in range(n):
                 s += MC[i, e] * lam[e]
             a[i] += s
-    return a, lam, gap, vn, vt, ok, G, rhs, MC
+    # the mode conditions' smallest value
+    m = gap.shape[0]
+    mp = rows.shape[0]
+    npairs = centre.shape[0]
+    pos = np.full(m, -1)
+    for e in range(ne):
+        pos[engaged[e]] = e
+    cond = math.inf
+    for r in range(m):
+        g = lam[pos[r]] + force_band if pos[r] >= 0 else gap[r] + point_tol
+        if g < cond:
+            cond = g
+    if mu > 0.0:
+        for i in range(ns):
+            p = sticks[i]
+            fn = 0.0
+            for r in range(mp):
+                if pos[r] >= 0 and pair[rows[r]] == p:
+                    fn += lam[pos[r]]
+            l0 = lam[ne + 2 * i]
+            l1 = lam[ne + 2 * i + 1]
+            g = mu * fn - math.sqrt(l0 * l0 + l1 * l1) + force_band
+            if g < cond:
+                cond = g
+        slipping = np.zeros(npairs, dtype=np.bool_)
+        for e in range(ne):
+            if row_slip[e] >= 0:
+                slipping[row_slip[e]] = True
+        for p in range(npairs):
+            if slipping[p]:
+                w0 = vt[p, 0] + stick_speed * slip_dir[p, 0]
+                w1 = vt[p, 1] + stick_speed * slip_dir[p, 1]
+                w2 = vt[p, 2] + stick_speed * slip_dir[p, 2]
+                nw = max(math.sqrt(w0 * w0 + w1 * w1 + w2 * w2), 1e-300)
+                g = (vt[p, 0] * w0 + vt[p, 1] * w1 + vt[p, 2] * w2) / nw + stick_band
+                if g < cond:
+                    cond = g
+    # the patches' slides
+    slide2 = np.zeros(npairs)
+    for r in range(mp):
+        k = rows[r]
+        p = pair[k]
+        s2 = 0.0
+        for j in range(2):
+            d = T[p, j, 0] * dP[k, 0] + T[p, j, 1] * dP[k, 1] + T[p, j, 2] * dP[k, 2]
+            d -= offset0[r, j]
+            s2 += d * d
+        if s2 > slide2[p]:
+            slide2[p] = s2
+    return a, lam, gap, vn, vt, ok, cond, slide2
+
+
+@njit(cache=True)
+def _lift_points(  # pragma: no cover - compiled
+    N: Any, o: Any, R: Any, t: Any, mid: Any, n: Any, sign: float
+) -> Any:
+    """Points ``mid`` moved along n onto the face most aligned with sign * n.
+
+    The faces: planes N x + o = 0 in the piece's frame (placement R, t). Returns (points, ok),
+    ok False when that face is too oblique (|N_f . n| < 0.5).
+    """
+    K = mid.shape[0]
+    nl = np.empty(3)
+    for i in range(3):
+        nl[i] = R[0, i] * n[0] + R[1, i] * n[1] + R[2, i] * n[2]
+    f = 0
+    best = -math.inf
+    for j in range(N.shape[0]):
+        s = sign * (N[j, 0] * nl[0] + N[j, 1] * nl[1] + N[j, 2] * nl[2])
+        if s > best:
+            best = s
+            f = j
+    den = N[f, 0] * nl[0] + N[f, 1] * nl[1] + N[f, 2] * nl[2]
+    out = np.empty((K, 3))
+    if abs(den) < 0.5:
+        return out, False
+    for k in range(K):
+        s = o[f]
+        for i in range(3):
+            pl = (
+                (mid[k, 0] - t[0]) * R[0, i]
+                + (mid[k, 1] - t[1]) * R[1, i]
+                + (mid[k, 2] - t[2]) * R[2, i]
+            )
+            s += pl * N[f, i]
+        s = -s / den
+        for i in range(3):
+            out[k, i] = mid[k, i] + s * n[i]
+    return out, True
+
+
+@njit(cache=True)
+def _consistent_points(  # pragma: no cover - compiled
+    p1: Any, p2: Any, n: Any, distance: float, patch_tol: float
+) -> bool:
+    """Whether the points' gaps along n are consistent with the pair's distance.
+
+    The smallest within patch_tol of the distance, none beyond distance + 1 mm.
+    """
+    lo = math.inf
+    hi = -math.inf
+    for k in range(p1.shape[0]):
+        g = (p2[k, 0] - p1[k, 0]) * n[0] + (p2[k, 1] - p1[k, 1]) * n[1]
+        g += (p2[k, 2] - p1[k, 2]) * n[2]
+        lo = min(lo, g)
+        hi = max(hi, g)
+    return abs(lo - distance) <= patch_tol and hi <= distance + 1e-3
+
+
+@njit(cache=True)
+def patch_material(  # noqa: D417 (pairs of arguments documented together)  # pragma: no cover
+    p1: Any,
+    p2: Any,
+    n: Any,
+    distance: float,
+    N1: Any,
+    o1: Any,
+    Rg1: Any,
+    tg1: Any,
+    N2: Any,
+    o2: Any,
+    Rg2: Any,
+    tg2: Any,
+    RM1: Any,
+    tM1: Any,
+    RM2: Any,
+    tM2: Any,
+    patch_tol: float,
+    check: bool,
+) -> Any:
+    """A contact patch as material points: its points on each body, in the joints' frames.
+
+    Coal puts every patch point at the patch's one depth; each body's points are moved along
+    the normal onto that body's face most aligned with the normal (planes N x + o = 0 in the
+    piece's frame; none: zero rows), unless a face is too oblique or the lifted points' gaps
+    are off the pair's distance (then Coal's points are kept).
+
+    Args:
+        p1: (K, 3) Coal's patch points on body 1, world [m] (p2: on body 2).
+        n: (3,) the patch normal, world, from body 1 to body 2.
+        distance: The pair's signed distance [m].
+        N1: (F, 3) face normals of piece 1 (its frame), o1 (F,) their offsets; Rg1, tg1 the
+            piece's world placement (N2, o2, Rg2, tg2: piece 2).
+        RM1: (3, 3) world rotation of body 1's joint, tM1 (3,) its translation (RM2, tM2:
+            body 2).
+        patch_tol: Largest distance of the smallest gap from the pair's distance [m].
+        check: Lift and check the points (False: take p1, p2 as they are).
+
+    Returns:
+        (ok, local1, local2, normal2, frame2, centre1, centre2, offset0): ok False when even
+        Coal's points are off the distance (the caller takes the witness points); local1 and
+        local2 (K, 3) the points in their joints' frames, normal2 (3,) the normal in body 2's
+        frame, frame2 (3, 3) rows t1, t2, n2 of the contact frame there, centre1 and centre2
+        (1, 3) the points' means, offset0 (2, K) the tangential offsets (t1, t2) of the points
+        p2 - p1 in body 2's frame.
+    """
+    K = p1.shape[0]
+    pts1 = p1
+    pts2 = p2
+    ok = True
+    if check:
+        mid = 0.5 * (p1 + p2)
+        lifted = N1.shape[0] > 0 and N2.shape[0] > 0
+        if lifted:
+            l1, ok1 = _lift_points(N1, o1, Rg1, tg1, mid, n, 1.0)
+            l2, ok2 = _lift_points(N2, o2, Rg2, tg2, mid, n, -1.0)
+            lifted = ok1 and ok2 and _consistent_points(l1, l2, n, distance, patch_tol)
+            if lifted:
+                pts1 = l1
+                pts2 = l2
+        if not lifted:
+            ok = _consistent_points(p1, p2, n, distance, patch_tol)
+    local1 = np.empty((K, 3))
+    local2 = np.empty((K, 3))
+    centre1 = np.zeros((1, 3))
+    centre2 = np.zeros((1, 3))
+    for k in range(K):
+        for i in range(3):
+            a = 0.0
+            b = 0.0
+            for j in range(3):
+                a += (pts1[k, j] - tM1[j]) * RM1[j, i]
+                b += (pts2[k, j] - tM2[j]) * RM2[j, i]
+            local1[k, i] = a
+            local2[k, i] = b
+            centre1[0, i] += a
+            centre2[0, i] += b
+    for i in range(3):
+        centre1[0, i] /= K
+        centre2[0, i] /= K
+    n2 = np.empty(3)
+    for i in range(3):
+        n2[i] = RM2[0, i] * n[0] + RM2[1, i] * n[1] + RM2[2, i] * n[2]
+    # tangents: t1 = a x n2 / |a x n2|, t2 = n2 x t1 (a: the x axis unless n2 is near it)
+    ax = np.zeros(3)
+    if abs(n2[0]) < 0.9:
+        ax[0] = 1.0
+    else:
+        ax[1] = 1.0
+    t1 = _cross(ax, n2)
+    nt = math.sqrt(t1[0] * t1[0] + t1[1] * t1[1] + t1[2] * t1[2])
+    for i in range(3):
+        t1[i] /= nt
+    t2 = _cross(n2, t1)
+    frame2 = np.empty((3, 3))
+    for i in range(3):
+        frame2[0, i] = t1[i]
+        frame2[1, i] = t2[i]
+        frame2[2, i] = n2[i]
+    offset0 = np.empty((2, K))
+    for k in range(K):
+        d = np.empty(3)
+        for i in range(3):
+            d[i] = (
+                RM2[0, i] * (pts2[k, 0] - pts1[k, 0])
+                + RM2[1, i] * (pts2[k, 1] - pts1[k, 1])
+                + RM2[2, i] * (pts2[k, 2] - pts1[k, 2])
+            )
+        for r in range(2):
+            offset0[r, k] = frame2[r, 0] * d[0] + frame2[r, 1] * d[1] + frame2[r, 2] * d[2]
+    return ok, local1, local2, n2, frame2, centre1, centre2, offset0
+
+
+@njit(cache=True)
+def lemke_small(  # pragma: no cover - compiled
+    M: Any, q: Any, max_iter: int, tol: float
+) -> Any:
+    """:func:`packbot.contact.lcp.lemke` compiled: the same pivots and floating-point operations.
+
+    Line for line the Python-float version of ``lcp._lemke_small`` (same tableau, same order of
+    operations, no fused multiply-adds), so the same result to the last bit.
+
+    Returns:
+        (z, ok): ok False on ray termination or the pivot limit.
+    """
+    n = q.shape[0]
+    w = 2 * n + 2
+    T = np.zeros((n, w))
+    for i in range(n):
+        T[i, i] = 1.0
+        for j in range(n):
+            T[i, n + j] = -M[i, j]
+        T[i, 2 * n] = -1.0
+        T[i, 2 * n + 1] = q[i]
+    basis = np.arange(n)
+    r = 0
+    for i in range(1, n):
+        if q[i] < q[r]:
+            r = i
+    entering = 2 * n
+    Tr = np.empty(w)
+    ratios = np.empty(n)
+    for _ in range(max_iter):
+        piv = T[r, entering]
+        for j in range(w):
+            Tr[j] = T[r, j] / piv
+        for i in range(n):
+            c = 0.0 if i == r else T[i, entering]
+            if i == r:
+                for j in range(w):
+                    T[i, j] = Tr[j] - c * Tr[j]
+            else:
+                for j in range(w):
+                    T[i, j] = T[i, j] - c * Tr[j]
+        leaving = basis[r]
+        basis[r] = entering
+        if leaving == 2 * n:
+            z = np.zeros(2 * n + 1)
+            for i in range(n):
+                z[basis[i]] = T[i, w - 1]
+            out = np.empty(n)
+            for i in range(n):
+                out[i] = max(z[n + i], 0.0)
+            return out, True
+        entering = leaving + n if leaving < n else leaving - n
+        blocked = True
+        for i in range(n):
+            if T[i, entering] > tol:
+                ratios[i] = T[i, w - 1] / T[i, entering]
+                blocked = False
+            else:
+                ratios[i] = math.inf
+        if blocked:
+            return np.zeros(n), False
+        rmin = ratios[0]
+        for i in range(1, n):
+            rmin = min(rmin, ratios[i])
+        bound = rmin + 1e-12 * (1.0 + abs(rmin))
+        first = -1
+        r = -1
+        for i in range(n):
+            if ratios[i] <= bound:
+                if first < 0:
+                    first = i
+                if basis[i] == 2 * n and r < 0:
+                    r = i
+        if r < 0:
+            r = first
+    return np.zeros(n), False

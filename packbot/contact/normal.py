@@ -58,7 +58,7 @@ from __future__ import annotations
 import logging
 import math
 from collections import deque
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
@@ -70,6 +70,7 @@ from numpy.typing import NDArray
 from packbot.collision import CollisionWorld, PairInfo
 from packbot.contact.base import Active, Crossing, Key
 from packbot.contact.lcp import (
+    SMALL_LCP,
     lcp_residual,
     lemke,
     solve_lcp_psd,
@@ -195,6 +196,11 @@ class _Pair:
     slip_dir: FloatArray = field(default_factory=lambda: np.zeros(3))  # world, at onset
     # (2, K) tangential offsets (t1, t2 of the contact frame) of p2 - p1 when built [m]
     offset0: FloatArray = field(default_factory=lambda: np.zeros((2, 0)))
+    # the patch centres (means of the points) in the joint frames [m] and the contact frame
+    # (rows t1, t2, n) in body 2's joint frame: computed once, for the point layout
+    centre1: FloatArray = field(init=False)
+    centre2: FloatArray = field(init=False)
+    frame2: FloatArray = field(init=False)
 
 
 @dataclass
@@ -218,8 +224,13 @@ class _Layout:
     lim_joint: NDArray[np.intp]  # (limits,) velocity index of each limit row
     lim_side: FloatArray  # (limits,) +1 upper, -1 lower
     lim_value: FloatArray  # (limits,) the limit [rad]
+    offset0: FloatArray  # (m_p, 2) per pair row, its tangential offset when built [m]
     no_bodies: FloatArray  # (0, 4, 4), the placements when no pair is in contact
+    # (position in joints, Pinocchio's live reference to data.oMi[joint]) of the moving joints
+    placements: list[tuple[int, Any]]
+    H: FloatArray  # (bodies, 4, 4) buffer of the placements (the world's: identity)
     no_jacobian: FloatArray  # (6, nv) zeros, the Jacobians when no pair is in contact
+    fixed: tuple[Any, ...] = ()  # body ... lim_value: the kernels' arguments after q, v
 
 
 @dataclass
@@ -247,6 +258,8 @@ class _Plan:
     slips: list[tuple[int, Any, Any]]
     sticks: NDArray[np.intp]  # the positions of the sticking pairs with engaged rows
     row_slip: NDArray[np.intp]  # (e,) the slipping pair of each engaged row, or -1
+    # per sticking pair with engaged rows (as sticks): the positions of its rows in E
+    stick_at: list[NDArray[np.intp]] = field(default_factory=list)
 
 
 @dataclass
@@ -261,6 +274,8 @@ class _Eval:
     rest: tuple[FloatArray, FloatArray, FloatArray] | None = None  # (q, a_free, M^-1) at rest
     # the rows' generalized force C^T lambda [N*m] (numpy path only; None: not computed)
     qc: FloatArray | None = None
+    cond: float | None = None  # the smallest mode condition (compiled path; see violated)
+    slide2: FloatArray | None = None  # (pairs,) largest squared slide (compiled; see stale)
 
 
 class NormalContacts:
@@ -329,6 +344,7 @@ class NormalContacts:
         self.resting = False  # captured at rest (see capture)
         self.bounced = False  # the last impulse had restitution
         self._kin_cache: dict[tuple[bytes, bytes], Any] = {}  # see _kinematics
+        self._planes_cache: dict[int, tuple[FloatArray, FloatArray]] = {}
         self._lay: _Layout | None = None
         self._pairs_cache: list[_Pair] | None = None
         self._version = 0  # of the contact set, see _invalidate
@@ -343,8 +359,8 @@ class NormalContacts:
         self._plan_key: tuple[Any, ...] | None = None
         self._plan_val: _Plan
         self._no_slip_dirs = np.zeros((0, 3))
-        # (q, v, v_t at the patch centres) of the last compiled evaluation
-        self._last_vt: tuple[FloatArray, FloatArray, FloatArray] | None = None
+        # the last compiled evaluation and its inputs: see evaluate_again
+        self._last_eval: tuple[Any, ...] | None = None
 
     # ------------------------------------------------------------------ set
     @property
@@ -365,43 +381,56 @@ class NormalContacts:
         pin.forwardKinematics(self.model, self.data, q)
         if patch is None:
             return False
+        from packbot.contact import kernels  # lazy: numba is imported by contact runs only
+
         old = self.pairs.get(pair)
         info = patch.pair
         M1 = self._placement(info.joint1)
         M2 = self._placement(info.joint2)
-        mid = 0.5 * (patch.points1 + patch.points2)
-        gm, gd = self.world.geom_model, self.world.geom_data
-        pts1 = _lift(
-            gm.geometryObjects[info.geom1].geometry, gd.oMg[info.geom1], mid, patch.normal, 1.0
-        )
-        pts2 = _lift(
-            gm.geometryObjects[info.geom2].geometry, gd.oMg[info.geom2], mid, patch.normal, -1.0
-        )
-        if pts1 is None or pts2 is None or not _consistent(pts1, pts2, patch):
-            pts1, pts2 = patch.points1, patch.points2
-        if not _consistent(pts1, pts2, patch):
+        R1, t1, R2, t2 = M1.rotation, M1.translation, M2.rotation, M2.translation
+        gd = self.world.geom_data
+        G1, G2 = gd.oMg[info.geom1], gd.oMg[info.geom2]
+        N1, o1 = self._planes_of(info.geom1)
+        N2, o2 = self._planes_of(info.geom2)
+        n, d = patch.normal, float(patch.distance)
+        ok, *made = kernels.patch_material(
+            patch.points1, patch.points2, n, d, N1, o1, G1.rotation, G1.translation,
+            N2, o2, G2.rotation, G2.translation, R1, t1, R2, t2, PATCH_TOL, True,
+        )  # fmt: skip
+        if not ok:
             # Coal's patch of a deep or grazing penetration can place its points far off the
             # pair's distance (measured: gaps of -33 mm and +12 mm for a pair 24 um deep, the
             # camera head spinning into link 1's tube): one point, the witness pair, instead.
             c = self.world.pair_contact(q, pair)
-            pts1, pts2 = c.p1[None, :], c.p2[None, :]
+            ok, *made = kernels.patch_material(
+                c.p1[None, :], c.p2[None, :], n, d, N1, o1, G1.rotation, G1.translation,
+                N2, o2, G2.rotation, G2.translation, R1, t1, R2, t2, PATCH_TOL, False,
+            )  # fmt: skip
             log.debug(
                 "pair %s / %s: patch off its distance %.3g m: witness point used",
                 info.piece1,
                 info.piece2,
                 patch.distance,
             )
-        local1 = (pts1 - M1.translation) @ M1.rotation
-        local2 = (pts2 - M2.translation) @ M2.rotation
-        normal2 = M2.rotation.T @ patch.normal
-        t1, t2 = _tangents(normal2)
-        offset0 = np.vstack([t1, t2]) @ (M2.rotation.T @ (pts2 - pts1).T)
+        local1, local2, normal2, frame2, centre1, centre2, offset0 = made
         p = _Pair(info, local1, local2, normal2, offset0=offset0)
+        p.frame2, p.centre1, p.centre2 = frame2, centre1, centre2
         if old is not None:
             p.stick, p.slip_dir = old.stick, old.slip_dir
         self.pairs[pair] = p
         self._invalidate()
         return True
+
+    def _planes_of(self, geom: int) -> tuple[FloatArray, FloatArray]:
+        """The face planes of a piece (see :func:`_planes`; none: 0 rows), kept per piece."""
+        try:
+            return self._planes_cache[geom]
+        except KeyError:
+            assert self.world is not None
+            shape = self.world.geom_model.geometryObjects[geom].geometry
+            planes = _planes(shape) or (np.zeros((0, 3)), np.zeros(0))
+            self._planes_cache[geom] = planes
+            return planes
 
     def remove_pair(self, pair: int) -> None:
         """Take a pair out of the contact set."""
@@ -472,11 +501,8 @@ class NormalContacts:
         hit = self._kin_cache.get(key)
         if hit is not None:
             return hit
-        from packbot.contact import kernels  # lazy: numba is imported by contact runs only
-
-        rows, drift, gap, vn, JT, bT, vT, vt, nw, T, dJp, dP = kernels.contact_rows(
-            *self._kernel_args(q, v)
-        )
+        raw = _kernels().contact_rows(*self._kernel_args(q, v))
+        rows, drift, gap, vn, JT, bT, vT, vt, nw, T, dJp, dP = raw
         extra = [
             {
                 "n": nw[i],
@@ -506,32 +532,21 @@ class NormalContacts:
         the drift acceleration J' v at the world origin).
         """
         lay = self._layout()
-        if lay.joints:
-            model, data = self.model, self.data
-            pin.computeJointJacobiansTimeVariation(model, data, q, v)
-            H = np.array([data.oMi[j].homogeneous if j else _I4 for j in lay.joints])
-            J = data.J.reshape(6, self.nv)  # (nv = 1: data.J is (6,))
-            dJ = data.dJ.reshape(6, self.nv)
-        else:
-            H, J, dJ = lay.no_bodies, lay.no_jacobian, lay.no_jacobian
-        return (
-            H,
-            J,
-            dJ,
-            lay.masks,
-            q,
-            v,
-            lay.body,
-            lay.local,
-            lay.pair,
-            lay.rows,
-            lay.centre,
-            lay.normal_body,
-            lay.frame2,
-            lay.lim_joint,
-            lay.lim_side,
-            lay.lim_value,
-        )
+        return (*self._bodies(lay, q, v), lay.masks, q, v, *lay.fixed)
+
+    def _bodies(
+        self, lay: _Layout, q: FloatArray, v: FloatArray
+    ) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """The bodies' placements H, the joint Jacobians J and their time variation dJ."""
+        if not lay.joints:
+            return lay.no_bodies, lay.no_jacobian, lay.no_jacobian
+        model, data = self.model, self.data
+        pin.computeJointJacobiansTimeVariation(model, data, q, v)
+        H = lay.H  # (filled here, read by the kernel only)
+        for i, M in lay.placements:
+            H[i] = M.homogeneous
+        nv = self.nv
+        return H, data.J.reshape(6, nv), data.dJ.reshape(6, nv)  # (nv = 1: data.J is (6,))
 
     def _layout(self) -> _Layout:
         """The point layout of the current contact set (cached until it changes)."""
@@ -551,8 +566,8 @@ class NormalContacts:
         k = 0
         for i, p in enumerate(pairs):
             K = len(p.local1)
-            local1 += [p.local1, p.local1.mean(axis=0)[None, :]]
-            local2 += [p.local2, p.local2.mean(axis=0)[None, :]]
+            local1 += [p.local1, p.centre1]
+            local2 += [p.local2, p.centre2]
             body1 += [index[p.info.joint1]] * (K + 1)
             body2 += [index[p.info.joint2]] * (K + 1)
             pair += [i] * (K + 1)
@@ -572,22 +587,38 @@ class NormalContacts:
             rows=np.array(rows, dtype=np.intp),
             centre=np.array(centre, dtype=np.intp),
             normal_body=np.array([index[p.info.joint2] for p in pairs], dtype=np.intp),
-            frame2=np.array([np.vstack([*_tangents(p.normal2), p.normal2]) for p in pairs])
-            if pairs
-            else np.zeros((0, 3, 3)),
+            frame2=np.array([p.frame2 for p in pairs]) if pairs else np.zeros((0, 3, 3)),
             points=points,
             lim_joint=np.array([j for (j, _), _ in limits], dtype=np.intp),
             lim_side=np.array([side for (_, side), _ in limits], dtype=np.float64),
             lim_value=np.array([value for _, value in limits], dtype=np.float64),
+            offset0=np.ascontiguousarray(np.vstack([p.offset0.T for p in pairs]))
+            if pairs
+            else np.zeros((0, 2)),
             no_bodies=np.zeros((0, 4, 4)),
             no_jacobian=np.asfortranarray(np.zeros((6, self.nv))),
+            placements=[(i, self.data.oMi[j]) for i, j in enumerate(joints) if j],
+            H=np.array([_I4 for _ in joints]) if joints else np.zeros((0, 4, 4)),
         )
-        return self._lay
+        lay = self._lay
+        lay.fixed = (
+            lay.body,
+            lay.local,
+            lay.pair,
+            lay.rows,
+            lay.centre,
+            lay.normal_body,
+            lay.frame2,
+            lay.lim_joint,
+            lay.lim_side,
+            lay.lim_value,
+        )
+        return lay
 
     def _invalidate(self) -> None:
         """The contact set changed: forget the cached kinematics and point layout."""
         self._kin_cache.clear()
-        self._last_vt = None
+        self._last_eval = None
         self._lay = None
         self._pairs_cache = None
         self._version += 1
@@ -658,12 +689,13 @@ class NormalContacts:
     def _plan(self) -> _Plan:
         """The rows of the constrained problem for the current modes (cached while they hold)."""
         pairs = self._pair_list
-        key = (self._version, tuple(self.engaged), tuple(p.stick for p in pairs))
+        key = (self._version, tuple(self.engaged), tuple([p.stick for p in pairs]))
         if self._plan_key == key:
             return self._plan_val
         pos = {r: i for i, r in enumerate(self.engaged)}
         slips: list[tuple[int, Any, Any]] = []
         sticks: list[int] = []
+        stick_at: list[NDArray[np.intp]] = []
         row_slip = np.full(len(self.engaged), -1, dtype=np.intp)
         k = 0
         for i, p in enumerate(pairs):
@@ -674,13 +706,18 @@ class NormalContacts:
                 continue
             if p.stick:
                 sticks.append(i)
+                stick_at.append(np.array([m[0] for m in mine], dtype=np.intp))
             else:
                 at = np.array([m[0] for m in mine], dtype=np.intp)
                 slips.append((i, at, np.array([m[1] for m in mine], dtype=np.intp)))
                 row_slip[at] = i
         self._plan_key = key
         self._plan_val = _Plan(
-            np.array(self.engaged, dtype=np.intp), slips, np.array(sticks, dtype=np.intp), row_slip
+            np.array(self.engaged, dtype=np.intp),
+            slips,
+            np.array(sticks, dtype=np.intp),
+            row_slip,
+            stick_at,
         )
         return self._plan_val
 
@@ -750,30 +787,52 @@ class NormalContacts:
         self, q: FloatArray, v: FloatArray, a_free: FloatArray, minv: FloatArray, plan: _Plan
     ) -> _Eval:
         """:meth:`evaluate` in one compiled call (``kernels.constrained_accel``)."""
-        from packbot.contact import kernels  # lazy: numba is imported by contact runs only
-
+        kernels = _kernels()
         if plan.slips:
             slip_dir = np.array([p.slip_dir for p in self._pair_list])
         else:
             slip_dir = self._no_slip_dirs
-        args = (
-            *self._kernel_args(q, v),
-            plan.engaged,
-            plan.row_slip,
-            plan.sticks,
-            slip_dir,
-            a_free,
-            minv,
-            self.mu,
-            STICK_SPEED,
-            BAUMGARTE,
-        )
-        a, lam, gap, vn, vt, ok, G, r, MC = kernels.constrained_accel(*args)
-        self._last_vt = (q, v, vt)  # for sliding() at the same state (the step's end)
-        if not ok:  # a singular Delassus matrix: least squares
-            lam = solve_small(G, r)
-            a = a_free + MC @ lam
-        return _Eval(a, lam, gap, vn, vt)
+        lay = self._layout()
+        args: tuple[Any, ...] = (
+            *self._bodies(lay, q, v), lay.masks, q, v, *lay.fixed,
+            plan.engaged, plan.row_slip, plan.sticks, slip_dir, a_free, minv,
+            self.mu, STICK_SPEED, BAUMGARTE, lay.offset0, FORCE_BAND, POINT_TOL, STICK_BAND,
+        )  # fmt: skip
+        a, lam, gap, vn, vt, ok, cond, slide2 = kernels.constrained_accel(*args)
+        if not ok:  # a singular Delassus matrix: numpy's path (least squares)
+            return self._evaluate_rows(q, v, a_free, minv, plan)
+        ev = _Eval(a, lam, gap, vn, vt, cond=cond, slide2=slide2)
+        # Kept for the same state asked again (the step's end: the stepper's last stage, then
+        # the mode conditions and the sliding check): references, compared by value.
+        self._last_eval = (q, v, a_free, minv, slip_dir, self._plan_key, ev)
+        return ev
+
+    def evaluate_again(
+        self, q: FloatArray, v: FloatArray, a_free: FloatArray, minv: FloatArray
+    ) -> _Eval:
+        """:meth:`evaluate`, reusing the last compiled evaluation when it was at these inputs.
+
+        The mode conditions at a step's end ask for the state of the stepper's last stage,
+        which the right-hand side has just evaluated (same q, v, free accelerations, M^-1,
+        modes and sliding directions: compared by value, so the result is the one
+        :meth:`evaluate` would compute).
+        """
+        last = self._last_eval
+        if last is not None and not self.resting and type(self).evaluate is _OWN_EVALUATE:
+            plan = self._plan()  # (brings _plan_key up to the current modes)
+            if (
+                last[5] == self._plan_key
+                and _same(last[0], q)
+                and _same(last[1], v)
+                and _same(last[2], a_free)
+                and _same(last[3], minv)
+                and (
+                    not plan.slips
+                    or _same(last[4], np.array([p.slip_dir for p in self._pair_list]))
+                )
+            ):
+                return last[6]
+        return self.evaluate(q, v, a_free, minv)
 
     def conditions(self, ev: _Eval) -> dict[tuple[Any, ...], tuple[str, float]]:
         """Mode conditions g >= 0 (a negative one is an event) with the event kind.
@@ -813,6 +872,42 @@ class NormalContacts:
                     g = float(vt @ w) / max(float(np.linalg.norm(w)), 1e-300)
                     out[("nfric", key)] = ("stick", g + STICK_BAND)
         return out
+
+    def violated(self, ev: _Eval) -> bool:
+        """Whether a mode condition of :meth:`conditions` is negative (an event).
+
+        The same values as :meth:`conditions`, without building its dictionary (the step's
+        end asks this once per step; the conditions themselves only when one is negative).
+        """
+        if ev.rest is not None or type(self).conditions is not _OWN_CONDITIONS:
+            return any(g < 0.0 for _, g in self.conditions(ev).values())
+        if ev.cond is not None:  # the kernel's smallest condition
+            return ev.cond < 0.0
+        plan = self._plan()
+        E = plan.engaged
+        ne = len(E)
+        if len(ev.gap):
+            g = ev.gap + POINT_TOL
+            if ne:
+                g[E] = ev.lam[:ne] + FORCE_BAND
+            if bool((g < 0.0).any()):
+                return True
+        if self.mu > 0.0:
+            k_t = ne
+            for at in plan.stick_at:
+                lt = ev.lam[k_t : k_t + 2]
+                k_t += 2
+                gs = self.mu * float(ev.lam[at].sum()) - float(np.linalg.norm(lt))
+                if gs + FORCE_BAND < 0.0:
+                    return True
+            pairs = self._pair_list
+            for i, _, _ in plan.slips:
+                vt = ev.vt[i]
+                w = vt + STICK_SPEED * pairs[i].slip_dir
+                gs = float(vt @ w) / max(float(np.linalg.norm(w)), 1e-300)
+                if gs + STICK_BAND < 0.0:
+                    return True
+        return False
 
     # ------------------------------------------------------------------ restart
     def restart(
@@ -959,7 +1054,7 @@ class NormalContacts:
         w0 = vn[touch] + GEI.T @ y0
         lam = solve_lcp_psd(S, w0)
         if lcp_residual(S, w0, lam) > RESIDUAL_TOL:
-            lam2 = lemke(S, w0)
+            lam2 = _lemke(S, w0)
             if lam2 is None or lcp_residual(S, w0, lam2) > RESIDUAL_TOL:
                 log.debug("stop_slow: LCP unsolved, velocity kept")
                 return v
@@ -983,16 +1078,16 @@ class NormalContacts:
         """Whether a pair with engaged rows slides (its material points drift off the patch)."""
         if not self.engaged or not self.pairs or self.resting:
             return False
-        last = self._last_vt  # the step end's mode conditions computed them (same kernel)
-        if last is not None and np.array_equal(last[0], q) and np.array_equal(last[1], v):
-            vts: Any = last[2]
+        last = self._last_eval  # the step end's mode conditions computed them (same kernel)
+        if last is not None and _same(last[0], q) and _same(last[1], v):
+            vts: Any = last[6].vt
         else:
             vts = _centre_velocities(self._problem(q, v)[4])
         for p, vt in zip(self.pairs.values(), vts, strict=True):
             if (
-                self._pair_engaged(p)
-                and not (self.mu > 0.0 and p.stick)
-                and float(np.linalg.norm(vt)) > STICK_SPEED
+                not (self.mu > 0.0 and p.stick)
+                and math.sqrt(float(vt @ vt)) > STICK_SPEED  # (np.linalg.norm's own formula)
+                and self._pair_engaged(p)
             ):
                 return True
         return False
@@ -1031,10 +1126,15 @@ class NormalContacts:
         """
         if not self.pairs:
             return []
-        _, _, gap, _, extra = self._problem(q, v)
+        last = self._last_eval  # the step's end: the kernel computed the slides
+        slide2: Any = None
+        if last is not None and _same(last[0], q) and _same(last[1], v):
+            gap, slide2 = last[6].gap, last[6].slide2
+        if slide2 is None:
+            _, _, gap, _, extra = self._problem(q, v)
         out: list[int] = []
         k = 0
-        for (key, p), ex in zip(self.pairs.items(), extra, strict=True):
+        for i, (key, p) in enumerate(self.pairs.items()):
             K = len(p.local1)
             g = gap[k : k + K]
             k += K
@@ -1046,8 +1146,13 @@ class NormalContacts:
                 if engaged_only:
                     return out
                 continue
-            slide = ex["T"] @ ex["dp"].T - p.offset0  # (2, K)
-            if float(np.max(slide[0] ** 2 + slide[1] ** 2)) > SLIDE_TOL**2:
+            if slide2 is not None:
+                s2 = float(slide2[i])
+            else:
+                ex = extra[i]
+                slide = ex["T"] @ ex["dp"].T - p.offset0  # (2, K)
+                s2 = float(np.max(slide[0] ** 2 + slide[1] ** 2))
+            if s2 > SLIDE_TOL**2:
                 out.append(key)
                 if engaged_only:
                     return out
@@ -1139,7 +1244,7 @@ class NormalContacts:
         """
         if self.world is None:
             return {}
-        sw = self.world.sweep(q)
+        sw = self.world.sweep(q, reuse=True)
         dist = dict(zip(sw.pairs.tolist(), sw.distances.tolist(), strict=True))
         for k in self.pairs:
             if k not in dist:
@@ -1213,7 +1318,7 @@ class NormalContacts:
         P = solve_lcp_psd(G, target)
         res = lcp_residual(G, target, P)
         if res > RESIDUAL_TOL:
-            P2 = lemke(G, target)
+            P2 = _lemke(G, target)
             if P2 is not None and lcp_residual(G, target, P2) < res:
                 P, res = P2, lcp_residual(G, target, P2)
         if res > RESIDUAL_TOL:
@@ -1412,11 +1517,11 @@ class NormalContacts:
             z = solve_lcp_psd(Ml, ql)
             res = lcp_residual(Ml, ql, z)
             if res > RESIDUAL_TOL:
-                z2 = lemke(Ml, ql)
+                z2 = _lemke(Ml, ql)
                 if z2 is not None and lcp_residual(Ml, ql, z2) < res:
                     z, res = z2, lcp_residual(Ml, ql, z2)
         else:
-            z2 = lemke(Ml, ql)
+            z2 = _lemke(Ml, ql)
             if z2 is None:
                 return {}, False
             z, res = z2, lcp_residual(Ml, ql, z2)
@@ -1459,6 +1564,41 @@ class NormalContacts:
 
 #: The contact set's own rows: a subclass adding rows (the hand-off) takes the numpy path.
 _OWN_PROBLEM = NormalContacts._problem
+_OWN_EVALUATE = NormalContacts.evaluate
+_OWN_CONDITIONS = NormalContacts.conditions
+
+
+_KERNELS: list[Any] = []  # packbot.contact.kernels once imported (see _kernels)
+
+
+def _kernels() -> Any:
+    """:mod:`packbot.contact.kernels`, imported at the first call, then kept.
+
+    Numba is imported by contact runs only, not by ``import packbot``; an import statement in
+    the right-hand side costs a microsecond a call.
+    """
+    if not _KERNELS:
+        from packbot.contact import kernels
+
+        _KERNELS.append(kernels)
+    return _KERNELS[0]
+
+
+def _lemke(M: FloatArray, q: FloatArray) -> FloatArray | None:
+    """:func:`packbot.contact.lcp.lemke`, small problems on the compiled kernel (bit for bit).
+
+    Up to :data:`packbot.contact.lcp.SMALL_LCP` rows, ``kernels.lemke_small``: the same pivots
+    and operations as the Python-float version, without its interpreter overhead.
+    """
+    n = len(q)
+    if n == 0 or n > SMALL_LCP or bool(np.all(q >= 0.0)):
+        return lemke(M, q)
+    from packbot.contact import kernels  # lazy: numba is imported by contact runs only
+
+    z, ok = kernels.lemke_small(
+        np.ascontiguousarray(M, dtype=np.float64), np.asarray(q, dtype=np.float64), 200, 1e-12
+    )
+    return z if ok else None
 
 
 def _energy_change(P: FloatArray, w: FloatArray, dw: FloatArray) -> float:
@@ -1469,6 +1609,11 @@ def _energy_change(P: FloatArray, w: FloatArray, dw: FloatArray) -> float:
     """
     gain = float(P @ w) + 0.5 * float(P @ dw)
     return gain - 1e-12 * (abs(float(P @ w)) + abs(float(P @ dw)))
+
+
+def _same(a: FloatArray, b: FloatArray) -> bool:
+    """Whether two float arrays are the same object or hold the same bits (same shape)."""
+    return a is b or (a.shape == b.shape and a.tobytes() == b.tobytes())
 
 
 def _centre_velocities(extra: list[dict[str, Any]]) -> FloatArray:
@@ -1494,6 +1639,7 @@ def _planes(shape: Any) -> tuple[FloatArray, FloatArray] | None:
     return (N, o) if len(N) else None
 
 
+# The patch construction in numpy (the reference of kernels.patch_material: tests).
 def _consistent(pts1: FloatArray, pts2: FloatArray, patch: Any) -> bool:
     """Whether a patch's points have gaps (along its normal) within PATCH_TOL of its distance.
 
@@ -1506,15 +1652,19 @@ def _consistent(pts1: FloatArray, pts2: FloatArray, patch: Any) -> bool:
 
 
 def _lift(
-    shape: Any, oMg: pin.SE3, mid: FloatArray, n: FloatArray, sign: float
+    planes: tuple[FloatArray, FloatArray] | None,
+    oMg: pin.SE3,
+    mid: FloatArray,
+    n: FloatArray,
+    sign: float,
 ) -> FloatArray | None:
     """Patch points moved along n onto the shape's face most aligned with sign * n.
 
     Coal puts every patch point at the patch's one depth; on two faces meeting at a small angle
     the points' true gaps differ (by up to Coal's patch tolerance, 1 mm). The face whose
-    outward normal is closest to sign * n carries them.
+    outward normal is closest to sign * n carries them. ``planes``: the shape's face planes
+    (:func:`_planes`), None if it has none.
     """
-    planes = _planes(shape)
     if planes is None:
         return None
     N, o = planes
@@ -1591,20 +1741,26 @@ class PatchEvents(PairLaw):
             ]
         return []
 
+    def _contact_eval(self, contacts: NormalContacts, t: float, y: FloatArray) -> _Eval:
+        """The contact problem's evaluation at state y (the last one if it was at y)."""
+        n = self.n
+        q, v = y[:n], y[n : 2 * n]
+        return contacts.evaluate_again(q, v, self.free_accel(t, y), self.sys.minv(q))
+
     def _contact_conditions(
         self, contacts: NormalContacts, t: float, y: FloatArray
     ) -> dict[tuple[Any, ...], tuple[str, float]]:
         """Mode conditions of a contact problem at state y."""
-        n = self.n
-        q, v = y[:n], y[n : 2 * n]
-        ev = contacts.evaluate(q, v, self.free_accel(t, y), self.sys.minv(q))
-        return contacts.conditions(ev)
+        return contacts.conditions(self._contact_eval(contacts, t, y))
 
     def _problem_crossings(
         self, contacts: NormalContacts, seg: DenseSegment, y1: FloatArray
     ) -> list[Crossing]:
         """Mode conditions of a contact problem that changed sign over the step."""
-        cond1 = self._contact_conditions(contacts, seg.t1, y1)
+        ev1 = self._contact_eval(contacts, seg.t1, y1)
+        if not contacts.violated(ev1):
+            return []
+        cond1 = contacts.conditions(ev1)
         bad = [k for k, (_, g) in cond1.items() if g < 0.0]
         if not bad:
             return []
@@ -1786,6 +1942,20 @@ class NormalLaw(PatchEvents):
         self, key: Key, p_idx: int, seg: DenseSegment, d0: float, d1: float
     ) -> list[Crossing]:
         return self._patch_pair_crossings(key, p_idx, seg, d0, d1)
+
+    def _pairs_to_check(self, pairs: list[int], distances: list[float]) -> Iterable[int]:
+        """The pairs that can have an event (see :meth:`_patch_pair_crossings`).
+
+        A pair at 0 < d <= the proximity tolerance has none (outside the contact set: no
+        impact; in it: neither release nor re-patch), nor one farther outside the set.
+        """
+        near = self.cfg.proximity_tolerance
+        active = self.active
+        return [
+            i
+            for i, d in enumerate(distances)
+            if d <= 0.0 or (d > near and ("pair", pairs[i]) in active)
+        ]
 
     def _mode_crossings(self, seg: DenseSegment, y1: FloatArray) -> list[Crossing]:
         if self.normal.empty:

@@ -13,7 +13,7 @@ contact within one step unseen. A law says what the distances mean: its ``_pair_
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 
 import numpy as np
 from numpy.typing import NDArray
@@ -75,6 +75,17 @@ class PairLaw(JointStops):
         """A pair's events over the step, from its distances at the start (d0) and end (d1)."""
         raise NotImplementedError
 
+    def _pairs_to_check(self, pairs: list[int], distances: list[float]) -> Iterable[int]:
+        """Positions (ascending) of the swept pairs whose events ``_pair_crossings`` checks.
+
+        All of them; a law whose pairs have no event in some band of distances skips those.
+
+        Args:
+            pairs: The swept pairs' indices.
+            distances: Their signed distances at the step's end [m].
+        """
+        return range(len(pairs))
+
     def _mode_crossings(self, seg: DenseSegment, y1: FloatArray) -> list[Crossing]:
         """The law's contact modes that changed over the step (after the pairs')."""
         return []
@@ -96,11 +107,13 @@ class PairLaw(JointStops):
 
     def _contact_crossings(self, seg: DenseSegment, y1: FloatArray) -> list[Crossing]:
         out: list[Crossing] = []
-        sw = self.world.sweep(y1[: self.n])
+        sw = self.world.sweep(y1[: self.n], reuse=True)
         self.diag.sweeps += 1
         self.pending_min = (sw.min_distance, sw.min_pair)
-        d_now = dict(zip(sw.pairs.tolist(), sw.distances.tolist(), strict=True))
-        for p_idx, d1 in d_now.items():
+        pairs, dist = sw.pairs.tolist(), sw.distances.tolist()
+        d_now = dict(zip(pairs, dist, strict=True))
+        for i in self._pairs_to_check(pairs, dist):
+            p_idx, d1 = pairs[i], dist[i]
             d0 = self.last_d.get(p_idx, math.inf)
             out.extend(self._pair_crossings(("pair", p_idx), p_idx, seg, d0, d1))
         self.pending_d = d_now
@@ -108,7 +121,7 @@ class PairLaw(JointStops):
         return out
 
     def _after_event(self, y: FloatArray) -> None:
-        sw = self.world.sweep(y[: self.n])
+        sw = self.world.sweep(y[: self.n], reuse=True)
         self.diag.sweeps += 1
         self.last_d = dict(zip(sw.pairs.tolist(), sw.distances.tolist(), strict=True))
         self.note_min(sw.min_distance, sw.min_pair)
