@@ -60,6 +60,9 @@ class Outcome:
     wall: float = 0.0
     windows: int = 0
     removed: float = 0.0
+    window_steps: int = 0
+    steps: int = 0
+    events: int = 0
 
 
 class _Timeout(Exception):
@@ -111,6 +114,9 @@ def one_run(args: tuple[np.ndarray, dict[str, Any], float, float]) -> Outcome:
         out.at_rest = res.rest_time is not None and not out.error
         out.windows = res.diagnostics.windows
         out.removed = res.diagnostics.window_energy_removed
+        out.window_steps = res.diagnostics.window_steps
+        out.steps = res.diagnostics.steps
+        out.events = len(res.events)
     return out
 
 
@@ -136,6 +142,12 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--duration", type=float, default=3.0, help="simulated time per run [s]")
     ap.add_argument("--timeout", type=float, default=120.0, help="wall limit per run [s]")
     ap.add_argument("--workers", type=int, default=os.cpu_count() or 1)
+    ap.add_argument(
+        "--per-run",
+        action="store_true",
+        help="also print every run: start, wall [s], steps, window steps, windows, events, "
+        "energy removed by the windows [J]",
+    )
     args = ap.parse_args(argv)
     robot = _robot()
     tol = packbot.SimConfig().contact_tolerance
@@ -173,6 +185,14 @@ def main(argv: list[str] | None = None) -> None:
             )
             for o in errors[:3]:
                 print(f"    error: {o.error[:150]}")
+            if args.per_run:
+                for i, o in enumerate(outs):
+                    print(
+                        f"    start {i}: wall {o.wall:.3f} s, {o.steps} steps "
+                        f"({o.window_steps} in {o.windows} windows), {o.events} events, "
+                        f"removed {o.removed:.2g} J{', ' + o.error[:60] if o.error else ''}",
+                        flush=True,
+                    )
 
 
 if __name__ == "__main__":

@@ -16,9 +16,11 @@ theta = 1, i.e. symplectic Euler with impulses):
    point, as the event-driven mode builds them) and, with joint limits on, every joint within
    ``h |v_j| +`` :data:`LIMIT_GAP` of a limit. ``d_act`` = :data:`ACTIVE_GAP` plus twice the
    distance any point can travel in the step.
-2. **Free velocity**: v_f = v + h a_free(t, q, v) (applied torques, gravity, Coriolis, viscous
-   joint friction). Joint Coulomb friction and brakes are not in a_free: they are rows of the
-   problem below.
+2. **Free velocity**: v_f = v + h a_free(t + h/2, q_m, v_m) (applied torques, gravity,
+   Coriolis, viscous joint friction), at the explicit midpoint q_m = q (+) (h/2) v,
+   v_m = v + (h/2) a_free(t, q, v): an Euler step v + h a_free(t, q, v) gains energy where a
+   light joint spins (its gyroscopic terms; measured in docs/contact.md). Joint Coulomb
+   friction and brakes are not in a_free: they are rows of the problem below.
 3. **One complementarity problem** for the impulses x [N*s, N*m*s] (Pinocchio's ADMM,
    :func:`packbot.contact.lcp.solve_mixed_admm`), with u = J v+ the rows' velocities after the
    step and v+ = v_f + M^-1 J^T x:
@@ -109,6 +111,12 @@ IMPULSE_BAND = 1e-9
 #: 5,000 iterations, a few degenerate problems took 250 ms each for no visible difference).
 ADMM_TOL = 1e-9
 ADMM_ITERATIONS = 1000
+#: The compiled solver's tolerance (the true scaled residual) and iteration limit: measured
+#: on 1,684 window problems of a wrist-free start (mu 0.8, 24 to 66 rows of rank 8, each
+#: warm-started from the previous step's answer on the same rows): 98 % within 1,000
+#: iterations, 0.27 ms a solve on average against Pinocchio's 0.87 ms.
+CONIC_TOL = 1e-9
+CONIC_ITERATIONS = 1000
 #: A solution with a larger scaled residual is not used (see :meth:`MoreauJeanStepper._solve`);
 #: the retry's iteration limit.
 RESIDUAL_OK = 1e-6
@@ -170,6 +178,10 @@ class StepInfo:
 class MoreauJeanStepper:
     """Fixed time steps with one complementarity problem each (see the module docstring).
 
+    ``MoreauJeanStepper.midpoint`` (class attribute, True) evaluates the free accelerations at
+    the step's explicit midpoint; False gives the Euler step the windows used before (kept to
+    measure the difference: docs/contact.md, tests/test_timestep.py).
+
     Args:
         system: The phase's integrated system (model, mass matrix, energy, collision world).
         drive: The run's torques (its ``fdir`` must be zero: Coulomb friction is a row here).
@@ -177,6 +189,9 @@ class MoreauJeanStepper:
         config: Simulation settings (mu, restitution, zeno_speed, joint_limits, motor_lag).
         h: Time step [s].
     """
+
+    #: Free accelerations at the step's midpoint (False: at its start, the Euler step).
+    midpoint: bool = True
 
     def __init__(
         self,
@@ -193,6 +208,8 @@ class MoreauJeanStepper:
         self.joint_torque = np.zeros(self.n)
         #: Steps whose combined problem fell back to the frictionless normal rows.
         self.fallbacks = 0
+        #: Problems the compiled solver left above RESIDUAL_OK (Pinocchio's ADMM then).
+        self.conic_fallbacks = 0
         self.joint_of = contacts._joint_of  # model joint of each velocity index
         # the last accepted ADMM answer and its rows (a warm start for the next step)
         self._last_rows: tuple[Any, ...] | None = None
@@ -218,8 +235,16 @@ class MoreauJeanStepper:
         # no body turns more than STEP_ANGLE in a step (the scheme is first order in it)
         h = min(self.h, STEP_ANGLE / max(float(np.abs(v).sum()), 1e-300), t_end - t)
         _, target, applied, _ = self.drive.torques(t, y)
-        a_free = self.drive.free_accel(t, y)
-        v_f = v + h * a_free
+        # the free accelerations at the step's midpoint (explicit midpoint rule): an Euler step
+        # v + h a_free(q, v) gains energy where a light joint spins (its gyroscopic terms)
+        a0 = self.drive.free_accel(t, y)
+        if self.midpoint:
+            y_mid = y.copy()
+            y_mid[:n] = pin.integrate(sys.model, q, 0.5 * h * v)
+            y_mid[n : 2 * n] = v + 0.5 * h * a0
+            v_f = v + h * self.drive.free_accel(t + 0.5 * h, y_mid)
+        else:  # the Euler step (measurements only)
+            v_f = v + h * a0
         minv = sys.minv(q)
 
         closest = self._update_set(q, v, v_f, h)
@@ -240,7 +265,9 @@ class MoreauJeanStepper:
             b = np.maximum(gap, 0.0) / h
             bounce = (gap <= TOUCH_GAP) & (vn < -cfg.zeno_speed)
             g[2 : 3 * m : 3] += b
-            G = J @ minv @ J.T
+            # G = A A^T with A = J C, C C^T = M^-1: the compiled solver works on the factor
+            A = np.ascontiguousarray(J @ np.linalg.cholesky(minv))
+            G = A @ A.T
             if cfg.restitution > 0.0 and bool(bounce.any()):
                 # Newton's law row by row over a patch can add energy (as at an event): the
                 # impulse's kinetic energy change x . J v_f + x . G x / 2 is checked, and an
@@ -248,11 +275,11 @@ class MoreauJeanStepper:
                 # residual: with e = 0 every row's x . u = 0 and b >= 0).
                 gb = g.copy()
                 gb[2 : 3 * m : 3] += np.where(bounce, cfg.restitution * np.minimum(vn, 0.0), 0.0)
-                x, residual = self._solve(G, gb, mus, cj, h * coul[cj], m)
+                x, residual = self._solve(A, G, gb, mus, cj, h * coul[cj], m)
                 if float(x @ gf) + 0.5 * float(x @ (G @ x)) > 0.0:
-                    x, residual = self._solve(G, g, mus, cj, h * coul[cj], m)
+                    x, residual = self._solve(A, G, g, mus, cj, h * coul[cj], m)
             else:
-                x, residual = self._solve(G, g, mus, cj, h * coul[cj], m)
+                x, residual = self._solve(A, G, g, mus, cj, h * coul[cj], m)
         v1 = v_f + minv @ (J.T @ x) if len(J) else v_f
         if residual > RESIDUAL_OK:  # no dual solution to trust: the primal problem instead
             v1 = self._project(v_f, Jn, np.maximum(gap, 0.0) / h, sys.mass_matrix(q))
@@ -302,6 +329,7 @@ class MoreauJeanStepper:
 
     def _solve(
         self,
+        A: FloatArray,
         G: FloatArray,
         g: FloatArray,
         mus: FloatArray,
@@ -313,8 +341,10 @@ class MoreauJeanStepper:
 
         Frictionless without joint boxes (mu = 0): the LCP of the normal rows directly (ADMM
         on cones of friction 0 converges slowly: measured 28 ms a step against 0.5). Otherwise
-        Pinocchio's ADMM at :data:`ADMM_TOL`; if its residual is above :data:`RESIDUAL_OK`,
-        again with :data:`ADMM_RETRY_ITERATIONS` at a tighter tolerance; if still above, the
+        the compiled low-rank ADMM (:func:`packbot.contact.conic.solve_conic`, on the factor
+        A of G = A A^T, to a true residual of :data:`CONIC_TOL`); if its residual is above
+        :data:`RESIDUAL_OK`, Pinocchio's ADMM at :data:`ADMM_TOL`, then again with
+        :data:`ADMM_RETRY_ITERATIONS` at a tighter tolerance; if still above, the
         frictionless problem of the normal rows alone (an LCP on their Delassus block, solved
         exactly by :func:`~packbot.contact.lcp.solve_lcp_psd`; friction and the joints' boxes
         left out of that step, which can only drop dissipation). An unconverged ADMM answer
@@ -328,8 +358,18 @@ class MoreauJeanStepper:
         joints = self.joint_of[cj]
         if not len(cj) and not np.any(mus):  # frictionless, no joint boxes: an LCP
             return self._frictionless(G, g, m)
+        from packbot.contact.conic import solve_conic  # lazy: numba is imported by windows only
+
         rows = self._rows_key(len(cj))
         guess = self._last_x if rows == self._last_rows else None
+        x, res, _ = solve_conic(
+            A, g, np.asarray(mus, dtype=np.float64), np.asarray(bound, dtype=np.float64),
+            np.zeros(len(g)) if guess is None else guess, CONIC_TOL, CONIC_ITERATIONS,
+        )  # fmt: skip
+        if res <= RESIDUAL_OK:
+            self._last_rows, self._last_x = rows, x
+            return x, res
+        self.conic_fallbacks += 1
         x, res = solve_mixed_admm(
             sys.model, sys.data, G, g, mus, joints, bound,
             tol=ADMM_TOL, max_iterations=ADMM_ITERATIONS, guess=guess,
