@@ -55,7 +55,7 @@ def test_a_window_problem_of_a_wrist_free_start_is_solved_cold(name):
     data = np.load(WINDOW_PROBLEMS)
     A, g, mus = data[f"{name}_A"], data[f"{name}_g"], data[f"{name}_mus"]
     bound = np.zeros(0)
-    x, res, it = solve_conic(A, g, mus, bound, np.zeros(len(g)), 1e-9, 1000)
+    x, res, it, _ = solve_conic(A, g, mus, bound, np.zeros(len(g)), 1e-9, 1000)
     assert res <= 1e-9 and it < 1000
     assert _true_residual(A, g, x, mus, bound) == pytest.approx(res, rel=1e-6, abs=1e-15)
     X = x.reshape(-1, 3)
@@ -74,7 +74,7 @@ def test_a_rank_deficient_problem_is_solved_to_its_tolerance(seed, blocks, boxes
     Pinocchio's ADMM: tests/test_timestep.py.)
     """
     A, g, mus, bound = _problem(seed, blocks, boxes, rank)
-    x, res, it = solve_conic(A, g, mus, bound, np.zeros(len(g)), 1e-9, 5000)
+    x, res, it, _ = solve_conic(A, g, mus, bound, np.zeros(len(g)), 1e-9, 5000)
     assert 0 < it < 5000
     assert res <= 1e-9
     assert _true_residual(A, g, x, mus, bound) == pytest.approx(res, rel=1e-6, abs=1e-15)
@@ -91,7 +91,7 @@ def test_the_answer_moves_the_arm_as_pinocchios_does():
     mus = np.full(6, 0.3)
     model = pin.buildSampleModelManipulator()
     data = model.createData()
-    x, res, _ = solve_conic(A, g, mus, bound, np.zeros(len(g)), 1e-10, 20000)
+    x, res, _, _ = solve_conic(A, g, mus, bound, np.zeros(len(g)), 1e-10, 20000)
     xp, resp = solve_mixed_admm(
         model, data, A @ A.T, g, mus, np.array([1, 3]), bound, tol=1e-11, max_iterations=20000
     )
@@ -115,11 +115,26 @@ def test_the_residual_matches_the_lcp_modules_definition():
 def test_a_warm_start_from_the_answer_needs_no_iteration():
     """The window's steps start from the previous step's impulses on the same rows."""
     A, g, mus, bound = _problem(7, 5, 1, 6)
-    x, res, it = solve_conic(A, g, mus, bound, np.zeros(len(g)), 1e-9, 5000)
+    x, res, it, _ = solve_conic(A, g, mus, bound, np.zeros(len(g)), 1e-9, 5000)
     assert res <= 1e-9 and it > 0
-    x2, res2, it2 = solve_conic(A, g, mus, bound, x, 1e-9, 5000)
+    x2, res2, it2, _ = solve_conic(A, g, mus, bound, x, 1e-9, 5000)
     assert it2 == 0 and res2 == res
     np.testing.assert_array_equal(x2, x)
+
+
+def test_the_previous_rho_warm_starts_the_next_solve():
+    """The window's steps pass the last rho on (with the impulses): a nearby problem from the
+    previous answer and its rho takes fewer iterations than from the spectral rule's rho."""
+    data = np.load(WINDOW_PROBLEMS)
+    A, g, mus = data["mu08_start4_A"], data["mu08_start4_g"], data["mu08_start4_mus"]
+    bound = np.zeros(0)
+    x, res, _, rho = solve_conic(A, g, mus, bound, np.zeros(len(g)), 1e-9, 1000)
+    assert res <= 1e-9 and rho > 0.0
+    g2 = g + 1e-3 * np.abs(g).max() * np.sin(np.arange(len(g)))  # the next step's problem
+    _, res_spec, it_spec, _ = solve_conic(A, g2, mus, bound, x, 1e-9, 1000)
+    _, res_warm, it_warm, _ = solve_conic(A, g2, mus, bound, x, 1e-9, 1000, rho)
+    assert res_spec <= 1e-9 and res_warm <= 1e-9
+    assert it_warm < it_spec
 
 
 def test_separating_rows_get_no_impulse():
@@ -127,6 +142,6 @@ def test_separating_rows_get_no_impulse():
     A, g, mus, bound = _problem(8, 4, 0, 5)
     g = np.zeros(len(g))
     g[2::3] = 0.1  # every point leaving, no sliding
-    x, res, it = solve_conic(A, g, mus, bound, np.zeros(len(g)), 1e-9, 100)
+    x, res, it, _ = solve_conic(A, g, mus, bound, np.zeros(len(g)), 1e-9, 100)
     assert it == 0 and res == 0.0
     assert not x.any()

@@ -217,8 +217,8 @@ def test_an_unconverged_step_falls_back_to_the_frictionless_rows(robot, monkeypa
         return x * 3.0, 1.0  # a wrong answer, and its (honest) residual
 
     def bad_conic(*args):
-        x, _, it = real_conic(*args)
-        return x * 3.0, 1.0, it
+        x, _, it, rho = real_conic(*args)
+        return x * 3.0, 1.0, it, rho
 
     monkeypatch.setattr(timestep, "solve_mixed_admm", bad)
     monkeypatch.setattr(conic, "solve_conic", bad_conic)
@@ -272,8 +272,8 @@ def test_an_unconverged_compiled_answer_falls_back_to_pinocchios_admm(robot, mon
     calls = {"pinocchio": 0}
 
     def unconverged(*args):
-        x, _, it = real_conic(*args)
-        return x, 10.0 * RESIDUAL_OK, it
+        x, _, it, rho = real_conic(*args)
+        return x, 10.0 * RESIDUAL_OK, it, rho
 
     from packbot.contact import timestep
 

@@ -254,6 +254,7 @@ def solve_conic(  # pragma: no cover - compiled
     guess: Any,
     tol: float,
     max_iterations: int,
+    rho0: float = 0.0,
 ) -> Any:
     """Solve the window step's problem (see the module docstring) by low-rank ADMM.
 
@@ -265,9 +266,12 @@ def solve_conic(  # pragma: no cover - compiled
         guess: (m,) impulses to start from (zeros: a cold start).
         tol: Stop once the true scaled residual (:func:`conic_residual`) is at most this.
         max_iterations: Iteration limit.
+        rho0: The ADMM's initial rho (a warm start: the previous step's last rho); 0: its
+            spectral rule.
 
     Returns:
-        x (m,) inside the cones and boxes, its true residual, and the iterations taken.
+        x (m,) inside the cones and boxes, its true residual, the iterations taken and the
+        last rho.
     """
     m, r = A.shape
     K = mus.shape[0]
@@ -290,14 +294,14 @@ def solve_conic(  # pragma: no cover - compiled
         w = w2 / lam
     lam = max(lam, 1e-300)
     # the spectral rule of the initial rho (Pinocchio's ADMM: mu_prox (L / mu_prox)^0.2)
-    rho = PROX * (lam / PROX) ** RHO_POWER
+    rho = PROX * (lam / PROX) ** RHO_POWER if rho0 <= 0.0 else rho0
     L = _factor(AtA, PROX + rho)
     z = guess.copy()
     _project(z, mus, bound)
     best = z.copy()
     best_res = conic_residual(A, g, z, mus, bound)
     if best_res <= tol:
-        return best, best_res, 0
+        return best, best_res, 0, rho
     u = np.empty(m)
     _velocity(A, z, g, u)
     # the multiplier of the guess: y = -(u + s), its shifted velocity negated
@@ -345,4 +349,4 @@ def solve_conic(  # pragma: no cover - compiled
             if (prim > RATIO * dual or dual > RATIO * prim) and prim > 0.0 and dual > 0.0:
                 rho = min(max(rho * math.sqrt(prim / dual), RHO_MIN * lam), RHO_MAX * lam)
                 L = _factor(AtA, PROX + rho)
-    return best, best_res, it
+    return best, best_res, it, rho

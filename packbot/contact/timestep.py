@@ -214,6 +214,7 @@ class MoreauJeanStepper:
         # the last accepted ADMM answer and its rows (a warm start for the next step)
         self._last_rows: tuple[Any, ...] | None = None
         self._last_x: FloatArray | None = None
+        self._last_rho = 0.0  # the compiled ADMM's last rho (0: its spectral rule)
 
     def step(
         self,
@@ -252,10 +253,7 @@ class MoreauJeanStepper:
         m = len(gap)
         coul = self.drive.path.coulomb
         cj = np.flatnonzero(coul > 0.0)
-        if m:
-            J3, mus = contacts._frictional_rows(np.arange(m, dtype=np.intp), Jn, extra)
-        else:
-            J3, mus = np.zeros((0, n)), np.zeros(0)
+        J3, mus = self._cone_rows(Jn, extra, m)
         J = np.vstack([J3, np.eye(n)[cj]]) if len(cj) else J3
         x = np.zeros(len(J))
         residual = 0.0
@@ -327,6 +325,27 @@ class MoreauJeanStepper:
         info = StepInfo(sig, m, residual, removed, projected, closest)
         return StepSegment(t, t + h, y, y1), info
 
+    def _cone_rows(
+        self, Jn: FloatArray, extra: list[dict[str, Any]], m: int
+    ) -> tuple[FloatArray, FloatArray]:
+        """Blocks (t1, t2, n) of every contact row, (3m, nv), and each block's friction.
+
+        The pairs' points (tangents t1, t2 of the pair's contact frame), then the limits (no
+        tangential part, friction 0): the rows of ``NormalContacts._frictional_rows`` on every
+        row, one array operation per pair.
+        """
+        c = self.contacts
+        blocks = np.zeros((m, 3, self.n))
+        mus = np.zeros(m)
+        k = 0
+        for p, ex in zip(c.pairs.values(), extra, strict=True):
+            K = len(p.local1)
+            blocks[k : k + K, :2] = ex["T"] @ ex["dJ"]  # (2, 3) @ (K, 3, nv)
+            mus[k : k + K] = c.mu
+            k += K
+        blocks[:, 2] = Jn
+        return blocks.reshape(3 * m, self.n), mus
+
     def _solve(
         self,
         A: FloatArray,
@@ -362,12 +381,13 @@ class MoreauJeanStepper:
 
         rows = self._rows_key(len(cj))
         guess = self._last_x if rows == self._last_rows else None
-        x, res, _ = solve_conic(
+        x, res, _, rho = solve_conic(
             A, g, np.asarray(mus, dtype=np.float64), np.asarray(bound, dtype=np.float64),
             np.zeros(len(g)) if guess is None else guess, CONIC_TOL, CONIC_ITERATIONS,
+            self._last_rho if guess is not None else 0.0,
         )  # fmt: skip
         if res <= RESIDUAL_OK:
-            self._last_rows, self._last_x = rows, x
+            self._last_rows, self._last_x, self._last_rho = rows, x, rho
             return x, res
         self.conic_fallbacks += 1
         x, res = solve_mixed_admm(
@@ -375,14 +395,14 @@ class MoreauJeanStepper:
             tol=ADMM_TOL, max_iterations=ADMM_ITERATIONS, guess=guess,
         )  # fmt: skip
         if res <= RESIDUAL_OK:
-            self._last_rows, self._last_x = rows, x
+            self._last_rows, self._last_x, self._last_rho = rows, x, 0.0
             return x, res
         x2, res2 = solve_mixed_admm(
             sys.model, sys.data, G, g, mus, joints, bound,
             tol=0.1 * ADMM_TOL, max_iterations=ADMM_RETRY_ITERATIONS,
         )  # fmt: skip
         if res2 <= RESIDUAL_OK:
-            self._last_rows, self._last_x = rows, x2
+            self._last_rows, self._last_x, self._last_rho = rows, x2, 0.0
             return x2, res2
         self.fallbacks += 1
         log.debug("window step: ADMM residual %.3g; frictionless normal rows used", res2)
