@@ -316,3 +316,27 @@ def test_the_midpoint_step_removes_less_energy_where_the_wrist_spins(robot, monk
         removed[midpoint] = res.diagnostics.window_energy_removed
     assert removed[False] > 1e-4
     assert removed[True] < 0.2 * removed[False]
+
+
+def test_a_relapse_after_a_window_opens_the_next_one_within_a_few_restarts(robot):
+    """Start 4, wrist free, mu 0.8: from 1.5 s the gripper grinds on the camera lens and the
+    floor; each window's end was followed by 24 stick/slip restarts within 0.5 ms before the
+    20th opened the next window. Within RELAPSE_SPAN of an end, RELAPSE_EVENTS restarts open it.
+    """
+    q0 = start_pose(robot, 4)
+    cfg = packbot.SimConfig(contact_mode="normal", mu=0.8, restitution=0.0)
+    res = packbot.simulate(robot, q0, np.zeros(robot.nq), 1.8, config=cfg)
+    ev = res.events
+    relapses = 0
+    for k, e in enumerate(ev):
+        if e.kind != "resume":
+            continue
+        nxt = next((j for j in range(k + 1, len(ev)) if ev[j].kind == "timestep"), None)
+        if nxt is None or ev[nxt].t - e.t > normal_mod.RELAPSE_SPAN:
+            continue
+        relapses += 1
+        restarts = {x.t for x in ev[k + 1 : nxt]}  # the events of one restart share its t
+        assert len(restarts) <= normal_mod.RELAPSE_EVENTS
+    assert relapses >= 2
+    assert _event_gain(res) <= GAIN_TOL
+    assert -res.diagnostics.min_distance <= PENETRATION_TOL
