@@ -340,3 +340,27 @@ def test_a_relapse_after_a_window_opens_the_next_one_within_a_few_restarts(robot
     assert relapses >= 2
     assert _event_gain(res) <= GAIN_TOL
     assert -res.diagnostics.min_distance <= PENETRATION_TOL
+
+
+def test_frictionless_steps_are_solved_by_the_compiled_solver(robot, monkeypatch):
+    """mu = 0: the compiled ADMM on cones of friction 0 solves the steps (the LCP of the
+    normal rows, eight times slower, is only its fallback) and the window still stops the
+    arm at its contacts."""
+    calls = {"lcp": 0}
+    real = MoreauJeanStepper._frictionless
+
+    def counted(G, g, m):
+        calls["lcp"] += 1
+        return real(G, g, m)
+
+    monkeypatch.setattr(MoreauJeanStepper, "_frictionless", staticmethod(counted))
+    monkeypatch.setattr(normal_mod, "CASCADE_EVENTS", 1)
+    monkeypatch.setattr(normal_mod, "WINDOW_MIN", 10.0)
+    cfg = packbot.SimConfig(contact_mode="normal", mu=0.0, restitution=0.0, locked_joints=LOCKED)
+    res = packbot.simulate(robot, robot.pose("drive"), np.zeros(robot.nq), 0.4, config=cfg)
+    d = res.diagnostics
+    assert d.windows == 1 and d.window_steps > 100
+    assert calls["lcp"] == 0
+    assert -d.min_distance <= PENETRATION_TOL
+    assert _event_gain(res) <= GAIN_TOL
+    assert d.window_energy_removed < 1e-3
