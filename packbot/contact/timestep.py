@@ -98,6 +98,10 @@ STEP_ANGLE = 5e-3
 ACTIVE_GAP = 1e-4
 #: Joints closer than this (plus the step's travel) to a limit take part [rad].
 LIMIT_GAP = 1e-4
+#: The sweep at a step's end, which the next step's contact set reuses, has the margin of that
+#: step's reach at this many times the current speeds (the next step's free velocity adds
+#: h a_free; a reach beyond the margin sweeps again).
+SWEEP_SLACK = 1.5
 #: A step that leaves a pair deeper than this is projected out [m], in up to PROJECT_PASSES
 #: passes (each from patches at the corrected q: a curved piece's contact point moves).
 PROJECT_DEPTH = 5e-6
@@ -217,6 +221,8 @@ class MoreauJeanStepper:
         self._last_rows: tuple[Any, ...] | None = None
         self._last_x: FloatArray | None = None
         self._last_rho = 0.0  # the compiled ADMM's last rho (0: its spectral rule)
+        # the last step's sweep at its end: (q bytes, margin [m], result), or None
+        self._next_sweep: tuple[bytes, float, Any] | None = None
 
     def step(
         self,
@@ -291,9 +297,15 @@ class MoreauJeanStepper:
 
         projected = False
         world = contacts.world
-        for _ in range(PROJECT_PASSES if world is not None else 0):
+        # the first pass's sweep at q1 also serves the next step's contact set (it starts at
+        # q1 unless a pass moves it): its margin covers that step's reach at the speeds now
+        reach = ACTIVE_GAP + 2.0 * self.h * REACH_BOUND * SWEEP_SLACK * float(np.abs(v1).sum())
+        self._next_sweep = None
+        for npass in range(PROJECT_PASSES if world is not None else 0):
             assert world is not None
-            sw = world.sweep(q1, margin=PROJECT_DEPTH)
+            sw = world.sweep(q1, margin=reach if npass == 0 else PROJECT_DEPTH)
+            if npass == 0:
+                self._next_sweep = (q1.tobytes(), reach, sw)
             deep = [
                 int(k)
                 for k, d in zip(sw.pairs.tolist(), sw.distances.tolist(), strict=True)
@@ -307,6 +319,7 @@ class MoreauJeanStepper:
                 contacts.add_pair(q1, k)
             q1 = contacts.project(q1, v1, sys.minv(q1))
             projected = True
+            self._next_sweep = None
 
         # the energy guard
         e0 = energy(q, v)
@@ -483,7 +496,11 @@ class MoreauJeanStepper:
         near: dict[int, float] = {}
         closest = (math.inf, -1)
         if contacts.world is not None:
-            sw = contacts.world.sweep(q, margin=max(d_act, 1e-9))
+            cached = self._next_sweep
+            if cached is not None and cached[0] == q.tobytes() and cached[1] >= d_act:
+                sw = cached[2]  # the previous step's sweep at its end, wide enough
+            else:
+                sw = contacts.world.sweep(q, margin=max(d_act, 1e-9))
             closest = (float(sw.min_distance), int(sw.min_pair))
             near = {
                 int(k): float(d)
