@@ -10,7 +10,9 @@ over every event of every run), the largest energy gained over a whole run [J] (
 initial energy), the deepest penetration [m] (``-min_distance``, 0 if none), the runs at rest at
 the end, the runs that used time-stepping windows and the most energy a run's windows removed
 (``Diagnostics.window_energy_removed``, docs/contact.md), and the median and worst wall time
-per run [s].
+and CPU time (the worker process's, which other jobs on a shared machine disturb less) per
+run [s]. Each worker loads the compiled kernels before its first timed run. ``--per-run``
+also lists every run.
 
     python benchmarks/robustness.py                      # the contact-normal mode, full grid
     python benchmarks/robustness.py --law joint_clamp --mu 0 --e 0 0.3
@@ -60,9 +62,13 @@ class Outcome:
     penetration: float = 0.0
     at_rest: bool = False
     wall: float = 0.0
+    cpu: float = 0.0
     windows: int = 0
     removed: float = 0.0
     handoffs: int = 0
+    window_steps: int = 0
+    steps: int = 0
+    events: int = 0
 
 
 class _Timeout(Exception):
@@ -90,6 +96,7 @@ def one_run(args: tuple[np.ndarray, dict[str, Any], float, float]) -> Outcome:
     cfg = packbot.SimConfig(**cfg_kw)
     q = q0.copy()
     t0 = time.perf_counter()
+    c0 = time.process_time()
 
     def guard(t: float) -> None:
         if time.perf_counter() - t0 > timeout:
@@ -106,6 +113,7 @@ def one_run(args: tuple[np.ndarray, dict[str, Any], float, float]) -> Outcome:
     except _Timeout:
         out.timeout = True
     out.wall = time.perf_counter() - t0
+    out.cpu = time.process_time() - c0
     if res is not None and len(res.t):
         gains = [e.energy_after - e.energy_before for e in res.events]
         out.event_gain = max([0.0, *[g for g in gains if np.isfinite(g)]])
@@ -115,10 +123,31 @@ def one_run(args: tuple[np.ndarray, dict[str, Any], float, float]) -> Outcome:
         out.windows = res.diagnostics.windows
         out.removed = res.diagnostics.window_energy_removed
         out.handoffs = len(res.events_of("handoff"))
+        out.window_steps = res.diagnostics.window_steps
+        out.steps = res.diagnostics.steps
+        out.events = len(res.events)
     return out
 
 
 _ROBOT: packbot.Robot | None = None
+
+
+def _warm() -> None:
+    """Load the compiled kernels in a worker before its timed runs (numba's cache).
+
+    The first contact-normal run of a process loads the kernels' machine code (about half a
+    second; ``benchmarks/compile_time.py`` measures it): a one-time cost, not the run's.
+    """
+    logging.getLogger("packbot").setLevel(logging.ERROR)
+    robot = _robot()
+    try:
+        from packbot.contact import conic
+    except ImportError:  # a checkout before the compiled window solver (before/after tables)
+        pass
+    else:
+        conic.solve_conic(np.eye(3), np.zeros(3), np.ones(1), np.zeros(0), np.zeros(3), 1e-9, 1)
+    cfg = packbot.SimConfig(contact_mode="normal", locked_joints=WRIST_JOINTS)
+    packbot.simulate(robot, robot.pose("drive"), np.zeros(robot.nq), 0.2, config=cfg)
 
 
 def _robot() -> packbot.Robot:
@@ -143,6 +172,12 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--handoff", action="store_true", help="SimConfig.handoff (joint_clamp)")
     ap.add_argument("--joint-friction", action="store_true", help="SimConfig.joint_friction")
     ap.add_argument("--reset-rule", default=None, help="SimConfig.reset_rule (joint_clamp)")
+    ap.add_argument(
+        "--per-run",
+        action="store_true",
+        help="also print every run: start, wall [s], steps, window steps, windows, events, "
+        "energy removed by the windows [J]",
+    )
     args = ap.parse_args(argv)
     robot = _robot()
     tol = packbot.SimConfig().contact_tolerance
@@ -161,11 +196,12 @@ def main(argv: list[str] | None = None) -> None:
     print(
         "| mu | e | wrist | runs | errors | max_events | timeouts | max gain at an event [J] | "
         "max gain over a run [J] | deepest penetration [m] | at rest | runs with windows | "
-        "max removed by windows [J] | median wall [s] | worst wall [s] |"
+        "max removed by windows [J] | median wall [s] | worst wall [s] | median CPU [s] | "
+        "worst CPU [s] |"
     )
-    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
     ctx = mp.get_context("spawn")
-    with ctx.Pool(args.workers) as pool:
+    with ctx.Pool(args.workers, initializer=_warm) as pool:
         for mu, e, wrist in itertools.product(args.mu, args.e, args.wrist):
             kw: dict[str, Any] = {"contact_mode": args.law, "restitution": e, **extra}
             if args.law == "normal" or args.handoff:  # the handed-off pairs' friction
@@ -175,6 +211,7 @@ def main(argv: list[str] | None = None) -> None:
             jobs = [(q, kw, args.duration, args.timeout) for q in poses]
             outs = pool.map(one_run, jobs, chunksize=1)
             walls = [o.wall for o in outs]
+            cpus = [o.cpu for o in outs]
             errors = [o for o in outs if o.error]
             print(
                 f"| {mu:g} | {e:g} | {wrist} | {len(outs)} | {len(errors)} | "
@@ -182,13 +219,22 @@ def main(argv: list[str] | None = None) -> None:
                 f"{max(o.event_gain for o in outs):.2g} | {max(o.run_gain for o in outs):.3g} | "
                 f"{max(o.penetration for o in outs):.2g} | {sum(o.at_rest for o in outs)} | "
                 f"{sum(o.windows > 0 for o in outs)} | {max(o.removed for o in outs):.2g} | "
-                f"{statistics.median(walls):.2f} | {max(walls):.2f} |",
+                f"{statistics.median(walls):.2f} | {max(walls):.2f} | "
+                f"{statistics.median(cpus):.2f} | {max(cpus):.2f} |",
                 flush=True,
             )
             if args.handoff:
                 print(f"    runs with a hand-off: {sum(o.handoffs > 0 for o in outs)}")
             for o in errors[:3]:
                 print(f"    error: {o.error[:150]}")
+            if args.per_run:
+                for i, o in enumerate(outs):
+                    print(
+                        f"    start {i}: wall {o.wall:.3f} s, CPU {o.cpu:.3f} s, {o.steps} steps "
+                        f"({o.window_steps} in {o.windows} windows), {o.events} events, "
+                        f"removed {o.removed:.2g} J{', ' + o.error[:60] if o.error else ''}",
+                        flush=True,
+                    )
 
 
 if __name__ == "__main__":

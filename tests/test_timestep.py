@@ -203,18 +203,25 @@ def test_frictionless_windows_stay_out_and_remove_little_energy(robot, start, du
 
 
 def test_an_unconverged_step_falls_back_to_the_frictionless_rows(robot, monkeypatch):
-    """A step whose ADMM answer has a large residual does not use it (measured once, mu = 0:
-    a residual of 5e-3 turned 11 rad/s into 30 rad/s): the frictionless LCP of its normal rows
-    is used instead, and the run keeps its physical properties."""
-    from packbot.contact import timestep
+    """A step whose ADMM answers (the compiled one, then Pinocchio's) have a large residual
+    does not use them (measured once, mu = 0: a residual of 5e-3 turned 11 rad/s into
+    30 rad/s): the frictionless LCP of its normal rows is used instead, and the run keeps its
+    physical properties."""
+    from packbot.contact import conic, timestep
 
     real = timestep.solve_mixed_admm
+    real_conic = conic.solve_conic
 
     def bad(*args, **kwargs):
         x, _ = real(*args, **kwargs)
         return x * 3.0, 1.0  # a wrong answer, and its (honest) residual
 
+    def bad_conic(*args):
+        x, _, it, rho = real_conic(*args)
+        return x * 3.0, 1.0, it, rho
+
     monkeypatch.setattr(timestep, "solve_mixed_admm", bad)
+    monkeypatch.setattr(conic, "solve_conic", bad_conic)
     monkeypatch.setattr(normal_mod, "CASCADE_EVENTS", 1)
     cfg = packbot.SimConfig(contact_mode="normal", mu=0.5, restitution=0.0, locked_joints=LOCKED)
     res = packbot.simulate(robot, robot.pose("drive"), np.zeros(robot.nq), 0.4, config=cfg)
@@ -253,3 +260,107 @@ def test_a_crawling_stepper_opens_a_window(robot):
     assert d.steps < 10_000
     assert -d.min_distance <= PENETRATION_TOL
     assert _event_gain(res) <= GAIN_TOL
+
+
+def test_an_unconverged_compiled_answer_falls_back_to_pinocchios_admm(robot, monkeypatch):
+    """The compiled solver's answer above RESIDUAL_OK is not used: Pinocchio's ADMM solves
+    the step instead (counted in ``conic_fallbacks``), and the run is the usual one."""
+    from packbot.contact import conic
+    from packbot.contact.timestep import RESIDUAL_OK
+
+    real_conic = conic.solve_conic
+    calls = {"pinocchio": 0}
+
+    def unconverged(*args):
+        x, _, it, rho = real_conic(*args)
+        return x, 10.0 * RESIDUAL_OK, it, rho
+
+    from packbot.contact import timestep
+
+    real = timestep.solve_mixed_admm
+
+    def counted(*args, **kwargs):
+        calls["pinocchio"] += 1
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(conic, "solve_conic", unconverged)
+    monkeypatch.setattr(timestep, "solve_mixed_admm", counted)
+    monkeypatch.setattr(normal_mod, "CASCADE_EVENTS", 1)
+    cfg = packbot.SimConfig(contact_mode="normal", mu=0.5, restitution=0.0, locked_joints=LOCKED)
+    res = packbot.simulate(robot, robot.pose("drive"), np.zeros(robot.nq), 0.3, config=cfg)
+    assert res.diagnostics.window_steps > 100
+    assert calls["pinocchio"] >= res.diagnostics.window_steps // 2  # every step with contacts
+    assert -res.diagnostics.min_distance <= PENETRATION_TOL
+    assert _event_gain(res) <= GAIN_TOL
+
+
+def test_the_midpoint_step_removes_less_energy_where_the_wrist_spins(robot, monkeypatch):
+    """The gripper spinning at 80 rad/s and the camera at -40 rad/s, the collapse stepped in
+    one window from its first event. The Euler step (v + h a_free(q, v)) gained energy there
+    through the fast joints' gyroscopic terms and the guard took it out (1.9 mJ in 1 s); the
+    midpoint evaluation of the free accelerations leaves a tenth of it (0.19 mJ)."""
+    monkeypatch.setattr(normal_mod, "CASCADE_EVENTS", 1)
+    monkeypatch.setattr(normal_mod, "WINDOW_MIN", 10.0)
+    q0 = robot.pose("drive")
+    v0 = np.zeros(robot.nq)
+    v0[robot.joint_names.index("gripper_roll")] = 80.0
+    v0[robot.joint_names.index("camera_pan")] = -40.0
+    cfg = packbot.SimConfig(contact_mode="normal", mu=0.8, restitution=0.0)
+    removed = {}
+    for midpoint in (False, True):
+        monkeypatch.setattr(MoreauJeanStepper, "midpoint", midpoint)
+        res = packbot.simulate(robot, q0, v0, 0.6, config=cfg)
+        assert res.diagnostics.windows == 1
+        assert -res.diagnostics.min_distance <= PENETRATION_TOL
+        assert _event_gain(res) <= GAIN_TOL
+        removed[midpoint] = res.diagnostics.window_energy_removed
+    assert removed[False] > 1e-4
+    assert removed[True] < 0.2 * removed[False]
+
+
+def test_a_relapse_after_a_window_opens_the_next_one_within_a_few_restarts(robot):
+    """Start 4, wrist free, mu 0.8: from 1.5 s the gripper grinds on the camera lens and the
+    floor; each window's end was followed by 24 stick/slip restarts within 0.5 ms before the
+    20th opened the next window. Within RELAPSE_SPAN of an end, RELAPSE_EVENTS restarts open it.
+    """
+    q0 = start_pose(robot, 4)
+    cfg = packbot.SimConfig(contact_mode="normal", mu=0.8, restitution=0.0)
+    res = packbot.simulate(robot, q0, np.zeros(robot.nq), 1.8, config=cfg)
+    ev = res.events
+    relapses = 0
+    for k, e in enumerate(ev):
+        if e.kind != "resume":
+            continue
+        nxt = next((j for j in range(k + 1, len(ev)) if ev[j].kind == "timestep"), None)
+        if nxt is None or ev[nxt].t - e.t > normal_mod.RELAPSE_SPAN:
+            continue
+        relapses += 1
+        restarts = {x.t for x in ev[k + 1 : nxt]}  # the events of one restart share its t
+        assert len(restarts) <= normal_mod.RELAPSE_EVENTS
+    assert relapses >= 2
+    assert _event_gain(res) <= GAIN_TOL
+    assert -res.diagnostics.min_distance <= PENETRATION_TOL
+
+
+def test_frictionless_steps_are_solved_by_the_compiled_solver(robot, monkeypatch):
+    """mu = 0: the compiled ADMM on cones of friction 0 solves the steps (the LCP of the
+    normal rows, eight times slower, is only its fallback) and the window still stops the
+    arm at its contacts."""
+    calls = {"lcp": 0}
+    real = MoreauJeanStepper._frictionless
+
+    def counted(G, g, m):
+        calls["lcp"] += 1
+        return real(G, g, m)
+
+    monkeypatch.setattr(MoreauJeanStepper, "_frictionless", staticmethod(counted))
+    monkeypatch.setattr(normal_mod, "CASCADE_EVENTS", 1)
+    monkeypatch.setattr(normal_mod, "WINDOW_MIN", 10.0)
+    cfg = packbot.SimConfig(contact_mode="normal", mu=0.0, restitution=0.0, locked_joints=LOCKED)
+    res = packbot.simulate(robot, robot.pose("drive"), np.zeros(robot.nq), 0.4, config=cfg)
+    d = res.diagnostics
+    assert d.windows == 1 and d.window_steps > 100
+    assert calls["lcp"] == 0
+    assert -d.min_distance <= PENETRATION_TOL
+    assert _event_gain(res) <= GAIN_TOL
+    assert d.window_energy_removed < 1e-3

@@ -16,9 +16,11 @@ theta = 1, i.e. symplectic Euler with impulses):
    point, as the event-driven mode builds them) and, with joint limits on, every joint within
    ``h |v_j| +`` :data:`LIMIT_GAP` of a limit. ``d_act`` = :data:`ACTIVE_GAP` plus twice the
    distance any point can travel in the step.
-2. **Free velocity**: v_f = v + h a_free(t, q, v) (applied torques, gravity, Coriolis, viscous
-   joint friction). Joint Coulomb friction and brakes are not in a_free: they are rows of the
-   problem below.
+2. **Free velocity**: v_f = v + h a_free(t + h/2, q_m, v_m) (applied torques, gravity,
+   Coriolis, viscous joint friction), at the explicit midpoint q_m = q (+) (h/2) v,
+   v_m = v + (h/2) a_free(t, q, v): an Euler step v + h a_free(t, q, v) gains energy where a
+   light joint spins (its gyroscopic terms; measured in docs/contact.md). Joint Coulomb
+   friction and brakes are not in a_free: they are rows of the problem below.
 3. **One complementarity problem** for the impulses x [N*s, N*m*s] (Pinocchio's ADMM,
    :func:`packbot.contact.lcp.solve_mixed_admm`), with u = J v+ the rows' velocities after the
    step and v+ = v_f + M^-1 J^T x:
@@ -96,6 +98,10 @@ STEP_ANGLE = 5e-3
 ACTIVE_GAP = 1e-4
 #: Joints closer than this (plus the step's travel) to a limit take part [rad].
 LIMIT_GAP = 1e-4
+#: The sweep at a step's end, which the next step's contact set reuses, has the margin of that
+#: step's reach at this many times the current speeds (the next step's free velocity adds
+#: h a_free; a reach beyond the margin sweeps again).
+SWEEP_SLACK = 1.5
 #: A step that leaves a pair deeper than this is projected out [m], in up to PROJECT_PASSES
 #: passes (each from patches at the corrected q: a curved piece's contact point moves).
 PROJECT_DEPTH = 5e-6
@@ -109,6 +115,15 @@ IMPULSE_BAND = 1e-9
 #: 5,000 iterations, a few degenerate problems took 250 ms each for no visible difference).
 ADMM_TOL = 1e-9
 ADMM_ITERATIONS = 1000
+#: The compiled solver's tolerance (the true scaled residual) and iteration limit: measured
+#: in two wrist-free runs (mu 0.8, starts 4 and 5: 4,565 problems of 24 to 72 rows of rank 7
+#: or 8, warm-started from the previous step's impulses and rho on the same rows): median 30
+#: and 50 iterations, none left above RESIDUAL_OK; on start 5's problems 0.14 ms a solve
+#: against Pinocchio's 0.87 ms. Frictionless (2,098
+#: problems of start 4, mu 0): median 30 iterations, 0.04 ms a solve against 0.34 ms for the
+#: LCP of the normal rows (eigh, NNLS, Lemke), the same velocities to 4e-7 at the median.
+CONIC_TOL = 1e-9
+CONIC_ITERATIONS = 1000
 #: A solution with a larger scaled residual is not used (see :meth:`MoreauJeanStepper._solve`);
 #: the retry's iteration limit.
 RESIDUAL_OK = 1e-6
@@ -170,6 +185,10 @@ class StepInfo:
 class MoreauJeanStepper:
     """Fixed time steps with one complementarity problem each (see the module docstring).
 
+    ``MoreauJeanStepper.midpoint`` (class attribute, True) evaluates the free accelerations at
+    the step's explicit midpoint; False gives the Euler step the windows used before (kept to
+    measure the difference: docs/contact.md, tests/test_timestep.py).
+
     Args:
         system: The phase's integrated system (model, mass matrix, energy, collision world).
         drive: The run's torques (its ``fdir`` must be zero: Coulomb friction is a row here).
@@ -177,6 +196,9 @@ class MoreauJeanStepper:
         config: Simulation settings (mu, restitution, zeno_speed, joint_limits, motor_lag).
         h: Time step [s].
     """
+
+    #: Free accelerations at the step's midpoint (False: at its start, the Euler step).
+    midpoint: bool = True
 
     def __init__(
         self,
@@ -193,10 +215,15 @@ class MoreauJeanStepper:
         self.joint_torque = np.zeros(self.n)
         #: Steps whose combined problem fell back to the frictionless normal rows.
         self.fallbacks = 0
+        #: Problems the compiled solver left above RESIDUAL_OK (Pinocchio's ADMM then).
+        self.conic_fallbacks = 0
         self.joint_of = contacts._joint_of  # model joint of each velocity index
         # the last accepted ADMM answer and its rows (a warm start for the next step)
         self._last_rows: tuple[Any, ...] | None = None
         self._last_x: FloatArray | None = None
+        self._last_rho = 0.0  # the compiled ADMM's last rho (0: its spectral rule)
+        # the last step's sweep at its end: (q bytes, margin [m], result), or None
+        self._next_sweep: tuple[bytes, float, Any] | None = None
 
     def step(
         self,
@@ -218,8 +245,16 @@ class MoreauJeanStepper:
         # no body turns more than STEP_ANGLE in a step (the scheme is first order in it)
         h = min(self.h, STEP_ANGLE / max(float(np.abs(v).sum()), 1e-300), t_end - t)
         _, target, applied, _ = self.drive.torques(t, y)
-        a_free = self.drive.free_accel(t, y)
-        v_f = v + h * a_free
+        # the free accelerations at the step's midpoint (explicit midpoint rule): an Euler step
+        # v + h a_free(q, v) gains energy where a light joint spins (its gyroscopic terms)
+        a0 = self.drive.free_accel(t, y)
+        if self.midpoint:
+            y_mid = y.copy()
+            y_mid[:n] = pin.integrate(sys.model, q, 0.5 * h * v)
+            y_mid[n : 2 * n] = v + 0.5 * h * a0
+            v_f = v + h * self.drive.free_accel(t + 0.5 * h, y_mid)
+        else:  # the Euler step (measurements only)
+            v_f = v + h * a0
         minv = sys.minv(q)
 
         closest = self._update_set(q, v, v_f, h)
@@ -227,10 +262,7 @@ class MoreauJeanStepper:
         m = len(gap)
         coul = self.drive.path.coulomb
         cj = np.flatnonzero(coul > 0.0)
-        if m:
-            J3, mus = contacts._frictional_rows(np.arange(m, dtype=np.intp), Jn, extra)
-        else:
-            J3, mus = np.zeros((0, n)), np.zeros(0)
+        J3, mus = self._cone_rows(Jn, extra, m)
         J = np.vstack([J3, np.eye(n)[cj]]) if len(cj) else J3
         x = np.zeros(len(J))
         residual = 0.0
@@ -240,7 +272,9 @@ class MoreauJeanStepper:
             b = np.maximum(gap, 0.0) / h
             bounce = (gap <= TOUCH_GAP) & (vn < -cfg.zeno_speed)
             g[2 : 3 * m : 3] += b
-            G = J @ minv @ J.T
+            # G = A A^T with A = J C, C C^T = M^-1: the compiled solver works on the factor
+            A = np.ascontiguousarray(J @ np.linalg.cholesky(minv))
+            G = A @ A.T
             if cfg.restitution > 0.0 and bool(bounce.any()):
                 # Newton's law row by row over a patch can add energy (as at an event): the
                 # impulse's kinetic energy change x . J v_f + x . G x / 2 is checked, and an
@@ -248,11 +282,11 @@ class MoreauJeanStepper:
                 # residual: with e = 0 every row's x . u = 0 and b >= 0).
                 gb = g.copy()
                 gb[2 : 3 * m : 3] += np.where(bounce, cfg.restitution * np.minimum(vn, 0.0), 0.0)
-                x, residual = self._solve(G, gb, mus, cj, h * coul[cj], m)
+                x, residual = self._solve(A, G, gb, mus, cj, h * coul[cj], m)
                 if float(x @ gf) + 0.5 * float(x @ (G @ x)) > 0.0:
-                    x, residual = self._solve(G, g, mus, cj, h * coul[cj], m)
+                    x, residual = self._solve(A, G, g, mus, cj, h * coul[cj], m)
             else:
-                x, residual = self._solve(G, g, mus, cj, h * coul[cj], m)
+                x, residual = self._solve(A, G, g, mus, cj, h * coul[cj], m)
         v1 = v_f + minv @ (J.T @ x) if len(J) else v_f
         if residual > RESIDUAL_OK:  # no dual solution to trust: the primal problem instead
             v1 = self._project(v_f, Jn, np.maximum(gap, 0.0) / h, sys.mass_matrix(q))
@@ -264,9 +298,15 @@ class MoreauJeanStepper:
 
         projected = False
         world = contacts.world
-        for _ in range(PROJECT_PASSES if world is not None else 0):
+        # the first pass's sweep at q1 also serves the next step's contact set (it starts at
+        # q1 unless a pass moves it): its margin covers that step's reach at the speeds now
+        reach = ACTIVE_GAP + 2.0 * self.h * REACH_BOUND * SWEEP_SLACK * float(np.abs(v1).sum())
+        self._next_sweep = None
+        for npass in range(PROJECT_PASSES if world is not None else 0):
             assert world is not None
-            sw = world.sweep(q1, margin=PROJECT_DEPTH)
+            sw = world.sweep(q1, margin=reach if npass == 0 else PROJECT_DEPTH)
+            if npass == 0:
+                self._next_sweep = (q1.tobytes(), reach, sw)
             deep = [
                 int(k)
                 for k, d in zip(sw.pairs.tolist(), sw.distances.tolist(), strict=True)
@@ -280,6 +320,7 @@ class MoreauJeanStepper:
                 contacts.add_pair(q1, k)
             q1 = contacts.project(q1, v1, sys.minv(q1))
             projected = True
+            self._next_sweep = None
 
         # the energy guard
         e0 = energy(q, v)
@@ -300,8 +341,30 @@ class MoreauJeanStepper:
         info = StepInfo(sig, m, residual, removed, projected, closest)
         return StepSegment(t, t + h, y, y1), info
 
+    def _cone_rows(
+        self, Jn: FloatArray, extra: list[dict[str, Any]], m: int
+    ) -> tuple[FloatArray, FloatArray]:
+        """Blocks (t1, t2, n) of every contact row, (3m, nv), and each block's friction.
+
+        The pairs' points (tangents t1, t2 of the pair's contact frame), then the limits (no
+        tangential part, friction 0): the rows of ``NormalContacts._frictional_rows`` on every
+        row, one array operation per pair.
+        """
+        c = self.contacts
+        blocks = np.zeros((m, 3, self.n))
+        mus = np.zeros(m)
+        k = 0
+        for p, ex in zip(c.pairs.values(), extra, strict=True):
+            K = len(p.local1)
+            blocks[k : k + K, :2] = ex["T"] @ ex["dJ"]  # (2, 3) @ (K, 3, nv)
+            mus[k : k + K] = c.mu
+            k += K
+        blocks[:, 2] = Jn
+        return blocks.reshape(3 * m, self.n), mus
+
     def _solve(
         self,
+        A: FloatArray,
         G: FloatArray,
         g: FloatArray,
         mus: FloatArray,
@@ -311,10 +374,14 @@ class MoreauJeanStepper:
     ) -> tuple[FloatArray, float]:
         """The step's impulses: the combined problem, with a fallback that cannot misbehave.
 
-        Frictionless without joint boxes (mu = 0): the LCP of the normal rows directly (ADMM
-        on cones of friction 0 converges slowly: measured 28 ms a step against 0.5). Otherwise
-        Pinocchio's ADMM at :data:`ADMM_TOL`; if its residual is above :data:`RESIDUAL_OK`,
-        again with :data:`ADMM_RETRY_ITERATIONS` at a tighter tolerance; if still above, the
+        First the compiled low-rank ADMM (:func:`packbot.contact.conic.solve_conic`, on the
+        factor A of G = A A^T, to a true residual of :data:`CONIC_TOL`, from the previous
+        step's impulses and rho on the same rows). If its residual is above
+        :data:`RESIDUAL_OK`: frictionless without joint boxes (mu = 0), the LCP of the normal
+        rows (NNLS, then Lemke; Pinocchio's ADMM on cones of friction 0 converged slowly:
+        28 ms a step against 0.5); otherwise Pinocchio's ADMM at :data:`ADMM_TOL`, then again
+        with
+        :data:`ADMM_RETRY_ITERATIONS` at a tighter tolerance; if still above, the
         frictionless problem of the normal rows alone (an LCP on their Delassus block, solved
         exactly by :func:`~packbot.contact.lcp.solve_lcp_psd`; friction and the joints' boxes
         left out of that step, which can only drop dissipation). An unconverged ADMM answer
@@ -326,23 +393,34 @@ class MoreauJeanStepper:
         """
         sys = self.sys
         joints = self.joint_of[cj]
-        if not len(cj) and not np.any(mus):  # frictionless, no joint boxes: an LCP
-            return self._frictionless(G, g, m)
+        from packbot.contact.conic import solve_conic  # lazy: numba is imported by windows only
+
         rows = self._rows_key(len(cj))
         guess = self._last_x if rows == self._last_rows else None
+        x, res, _, rho = solve_conic(
+            A, g, np.asarray(mus, dtype=np.float64), np.asarray(bound, dtype=np.float64),
+            np.zeros(len(g)) if guess is None else guess, CONIC_TOL, CONIC_ITERATIONS,
+            self._last_rho if guess is not None else 0.0,
+        )  # fmt: skip
+        if res <= RESIDUAL_OK:
+            self._last_rows, self._last_x, self._last_rho = rows, x, rho
+            return x, res
+        self.conic_fallbacks += 1
+        if not len(cj) and not np.any(mus):  # frictionless, no joint boxes: an LCP
+            return self._frictionless(G, g, m)
         x, res = solve_mixed_admm(
             sys.model, sys.data, G, g, mus, joints, bound,
             tol=ADMM_TOL, max_iterations=ADMM_ITERATIONS, guess=guess,
         )  # fmt: skip
         if res <= RESIDUAL_OK:
-            self._last_rows, self._last_x = rows, x
+            self._last_rows, self._last_x, self._last_rho = rows, x, 0.0
             return x, res
         x2, res2 = solve_mixed_admm(
             sys.model, sys.data, G, g, mus, joints, bound,
             tol=0.1 * ADMM_TOL, max_iterations=ADMM_RETRY_ITERATIONS,
         )  # fmt: skip
         if res2 <= RESIDUAL_OK:
-            self._last_rows, self._last_x = rows, x2
+            self._last_rows, self._last_x, self._last_rho = rows, x2, 0.0
             return x2, res2
         self.fallbacks += 1
         log.debug("window step: ADMM residual %.3g; frictionless normal rows used", res2)
@@ -419,7 +497,11 @@ class MoreauJeanStepper:
         near: dict[int, float] = {}
         closest = (math.inf, -1)
         if contacts.world is not None:
-            sw = contacts.world.sweep(q, margin=max(d_act, 1e-9))
+            cached = self._next_sweep
+            if cached is not None and cached[0] == q.tobytes() and cached[1] >= d_act:
+                sw = cached[2]  # the previous step's sweep at its end, wide enough
+            else:
+                sw = contacts.world.sweep(q, margin=max(d_act, 1e-9))
             closest = (float(sw.min_distance), int(sw.min_pair))
             near = {
                 int(k): float(d)
