@@ -55,13 +55,13 @@ SUPPORTED_JOINTS = frozenset(
     }
 )
 
+_native: Any
+_IMPORT_ERROR: ImportError | None = None
 try:  # the compiled extension (built by `pip install .`; see CMakeLists.txt)
-    from packbot import _native  # type: ignore[attr-defined]
+    from packbot import _native
 except ImportError as exc:  # pragma: no cover - a build without the extension
     _native = None
-    _IMPORT_ERROR: ImportError | None = exc
-else:
-    _IMPORT_ERROR = None
+    _IMPORT_ERROR = exc
 
 
 def available() -> bool:
