@@ -24,8 +24,12 @@ pytestmark = pytest.mark.skipif(not native.available(), reason="packbot._native 
 WRIST = ("camera_tilt", "camera_pan", "gripper_roll", "gripper_jaw")
 
 
-@pytest.mark.parametrize("mu", [0.0, 0.5])
-def test_every_rhs_of_a_collapse_matches_the_python_path(robot, monkeypatch, mu):
+@pytest.mark.parametrize(
+    ("mu", "locked", "duration"),
+    [(0.0, WRIST, 1.5), (0.5, WRIST, 1.5), (0.5, (), 0.6)],
+    ids=["mu0", "mu0.5", "mu0.5-wrist-free"],
+)
+def test_every_rhs_of_a_collapse_matches_the_python_path(robot, monkeypatch, mu, locked, duration):
     seen = {"calls": 0, "slip": 0, "stick": 0, "limit": 0, "pairs2": 0}
     worst = {"a": 0.0, "a_from_free": 0.0, "lam": 0.0, "rows": 0.0}
     python_path = NormalLaw.torque_accel
@@ -62,13 +66,15 @@ def test_every_rhs_of_a_collapse_matches_the_python_path(robot, monkeypatch, mu)
         return a_py
 
     monkeypatch.setattr(NormalLaw, "torque_accel", both)
-    cfg = packbot.SimConfig(contact_mode="normal", mu=mu, locked_joints=WRIST)
-    packbot.simulate(robot, robot.pose("drive"), np.zeros(8), 1.5, config=cfg)
+    cfg = packbot.SimConfig(contact_mode="normal", mu=mu, locked_joints=locked)
+    packbot.simulate(robot, robot.pose("drive"), np.zeros(8), duration, config=cfg)
     monkeypatch.setattr(NormalLaw, "torque_accel", python_path)
-    assert seen["calls"] > 1000
+    assert seen["calls"] > 500
     assert seen["pairs2"] > 0
     if mu > 0.0:
-        assert seen["slip"] > 0 and seen["stick"] > 0
+        assert seen["slip"] > 0
+        if locked:  # the wrist-locked collapse sticks too (link 3 on the shoulder casing)
+            assert seen["stick"] > 0
     assert worst["a"] <= 1e-12, worst
     assert worst["a_from_free"] <= 1e-12, worst
     assert worst["lam"] <= 1e-10, worst
