@@ -64,6 +64,7 @@ PUBLIC_MODULES = {
 #: the loop's parts, generators, checks and the command line: documented in their source and in
 #: docs/*.md, not in the API reference (packages: their public names are their __init__'s)
 INTERNAL_MODULES = {
+    "packbot._native",
     "packbot.cli",
     "packbot.dh",
     "packbot.drive",

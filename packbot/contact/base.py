@@ -106,6 +106,14 @@ class ContactLaw(Protocol):
         """Accelerations [rad/s^2] of the current mode, from the free ones (fixed in a step)."""
         ...
 
+    def torque_accel(self, q: FloatArray, v: FloatArray, tau: FloatArray) -> FloatArray:
+        """Accelerations [rad/s^2] of the current mode under the joint torques tau [N*m].
+
+        The right-hand side's call: ``accel`` of the free accelerations (Pinocchio's ABA),
+        or a law's own path computing both at once (the contact-normal mode's native call).
+        """
+        ...
+
     def step_bound(self, y: FloatArray) -> float:
         """The longest step [s] from y that the law's event detection allows."""
         ...

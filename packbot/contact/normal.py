@@ -68,6 +68,7 @@ import pinocchio as pin
 from numpy.typing import NDArray
 
 from packbot.collision import CollisionWorld, PairInfo
+from packbot.contact import native
 from packbot.contact.base import Active, Crossing, Key
 from packbot.contact.lcp import (
     SMALL_LCP,
@@ -1852,6 +1853,7 @@ class NormalLaw(PatchEvents):
         """A new phase: an empty contact set on the new system."""
         super().rebuild(system)
         self.normal = NormalContacts.from_config(system.model, system.data, system.world, self.cfg)
+        self._native = native.native_rhs(system.model) if native.ENABLED else None
         self.window: _Window | None = None
         self._recent: deque[float] = deque(maxlen=CHATTER_EVENTS)
         self._steps: deque[float] = deque(maxlen=CRAWL_STEPS)  # the last steps' sizes [s]
@@ -1944,6 +1946,23 @@ class NormalLaw(PatchEvents):
         if self.normal.engaged:
             a = self.normal.evaluate(q, v, a, self.sys.minv(q)).a
         return a
+
+    def torque_accel(self, q: FloatArray, v: FloatArray, tau: FloatArray) -> FloatArray:
+        """:meth:`accel` under the joint torques tau [N*m]; engaged rows: one native call.
+
+        With engaged rows, no lock and no rest capture, the native right-hand side
+        (:mod:`packbot.contact.native`: ABA, M^-1, the Jacobians, the rows and the
+        constrained accelerations in one compiled call) gives the same accelerations as
+        :meth:`accel` (to rounding); a singular Delassus matrix falls back to :meth:`accel`.
+        """
+        nc = self.normal
+        rhs = self._native
+        if rhs is not None and nc.engaged and not nc.resting and not self.locks.any_locked:
+            rhs.load(nc, nc._plan())
+            a = rhs.accel(q, v, tau, True)
+            if a is not None:
+                return a
+        return self.accel(q, v, self.sys.aba(q, v, tau))
 
     def _pair_crossings(
         self, key: Key, p_idx: int, seg: DenseSegment, d0: float, d1: float

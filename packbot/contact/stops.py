@@ -212,6 +212,10 @@ class JointStops:
             return self.locks.accelerations(a_free, self.sys.minv(q))
         return a_free
 
+    def torque_accel(self, q: FloatArray, v: FloatArray, tau: FloatArray) -> FloatArray:
+        """:meth:`accel` of the free accelerations under the joint torques tau [N*m]."""
+        return self.accel(q, v, self.sys.aba(q, v, tau))
+
     def step_bound(self, y: FloatArray) -> float:
         """``max_step``: without a collision world nothing else bounds a step."""
         return self.cfg.max_step

@@ -1,0 +1,56 @@
+"""Type stub of the compiled extension (src/native/contact_rhs.cpp)."""
+
+import numpy as np
+from numpy.typing import NDArray
+
+PINOCCHIO_VERSION: str
+
+class ContactRhs:
+    def __init__(
+        self,
+        types: list[str],
+        parents: NDArray[np.int64],
+        placements: NDArray[np.float64],
+        axes: NDArray[np.float64],
+        masses: NDArray[np.float64],
+        levers: NDArray[np.float64],
+        inertias: NDArray[np.float64],
+        armature: NDArray[np.float64],
+        gravity: NDArray[np.float64],
+    ) -> None: ...
+    @property
+    def nv(self) -> int: ...
+    def set_layout(
+        self,
+        joints: NDArray[np.int64],
+        masks: NDArray[np.float64],
+        body: NDArray[np.int64],
+        local: NDArray[np.float64],
+        pair: NDArray[np.int64],
+        rows: NDArray[np.int64],
+        centre: NDArray[np.int64],
+        normal_body: NDArray[np.int64],
+        frame2: NDArray[np.float64],
+        lim_joint: NDArray[np.int64],
+        lim_side: NDArray[np.float64],
+        lim_value: NDArray[np.float64],
+    ) -> None: ...
+    def set_plan(
+        self,
+        engaged: NDArray[np.int64],
+        row_slip: NDArray[np.int64],
+        sticks: NDArray[np.int64],
+        mu: float,
+        stick_speed: float,
+        baumgarte: float,
+    ) -> None: ...
+    def set_slip_dirs(self, slip_dir: NDArray[np.float64]) -> None: ...
+    def accel(
+        self,
+        q: NDArray[np.float64],
+        v: NDArray[np.float64],
+        x: NDArray[np.float64],
+        from_tau: bool,
+        out: NDArray[np.float64],
+    ) -> bool: ...
+    def last(self) -> tuple[NDArray[np.float64], ...]: ...

@@ -1,0 +1,194 @@
+"""The contact-normal mode's right-hand side in one native call (``packbot._native``).
+
+:class:`NativeRhs` wraps the compiled ``ContactRhs`` (``src/native/contact_rhs.cpp``, nanobind
+against Pinocchio's headers): with the contact set's point layout and the current modes'
+plan loaded, one call takes (q, v, tau) and returns the constrained accelerations, doing
+what the Python path does in a right-hand-side call: Pinocchio's ``aba`` (armature included),
+``computeMinverse`` and ``computeJointJacobiansTimeVariation``, then the contact rows and the
+constrained accelerations of :mod:`packbot.contact.kernels` (ported loop for loop: the two
+agree to rounding, tested in ``tests/test_native.py``).
+
+The extension keeps its own Pinocchio model, rebuilt from the Python model's numbers (joint
+types, parents, placements, inertias, armature, gravity): no object crosses between it and
+the pin wheel, so the extension does not depend on the pin wheel's binary interface. Joints
+other than 1-dof revolute and prismatic ones are not supported: :func:`native_rhs` then
+returns None and the law keeps the Python path.
+
+Conventions as :class:`packbot.contact.normal.NormalContacts` (world frame, SI units).
+"""
+
+from __future__ import annotations
+
+import logging
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+import pinocchio as pin
+from numpy.typing import NDArray
+
+from packbot.errors import ModelError, PackbotError
+
+if TYPE_CHECKING:
+    from packbot.contact.normal import NormalContacts
+
+__all__ = ["ENABLED", "SUPPORTED_JOINTS", "NativeRhs", "available", "native_rhs"]
+
+log = logging.getLogger(__name__)
+
+FloatArray = NDArray[np.float64]
+
+#: Whether the contact-normal mode uses the native right-hand side when it can (read when a
+#: law's phase is built; benchmarks switch it off to time the Python path).
+ENABLED = True
+
+#: The joint types the extension rebuilds (Pinocchio's short names).
+SUPPORTED_JOINTS = frozenset(
+    {
+        "JointModelRX",
+        "JointModelRY",
+        "JointModelRZ",
+        "JointModelRevoluteUnaligned",
+        "JointModelPX",
+        "JointModelPY",
+        "JointModelPZ",
+        "JointModelPrismaticUnaligned",
+    }
+)
+
+_native: Any
+_IMPORT_ERROR: ImportError | None = None
+try:  # the compiled extension (built by `pip install .`; see CMakeLists.txt)
+    from packbot import _native
+except ImportError as exc:  # pragma: no cover - a build without the extension
+    _native = None
+    _IMPORT_ERROR = exc
+
+
+def available() -> bool:
+    """Whether the compiled extension ``packbot._native`` is importable."""
+    return _native is not None
+
+
+def _ints(x: Any) -> NDArray[np.int64]:
+    return np.ascontiguousarray(x, dtype=np.int64)
+
+
+def _reals(x: Any) -> FloatArray:
+    return np.ascontiguousarray(x, dtype=np.float64)
+
+
+class NativeRhs:
+    """The compiled right-hand side of one Pinocchio model's contact-normal mode.
+
+    Args:
+        model: The Pinocchio model integrated (1-dof revolute or prismatic joints only), with
+            its armature and gravity set.
+
+    Raises:
+        PackbotError: The extension is not built.
+        ModelError: A joint type the extension does not rebuild.
+    """
+
+    def __init__(self, model: pin.Model) -> None:
+        if _native is None:
+            raise PackbotError(f"packbot._native is not built ({_IMPORT_ERROR})")
+        types = [j.shortname() for j in model.joints]
+        bad = sorted({t for t in types[1:] if t not in SUPPORTED_JOINTS})
+        if bad:
+            raise ModelError(
+                f"joint types {bad} not supported by the native right-hand side "
+                f"(supported: {sorted(SUPPORTED_JOINTS)})"
+            )
+        nj = len(types)
+        axes = np.zeros((nj, 3))
+        for i, j in enumerate(model.joints):
+            if i and types[i].endswith("Unaligned"):
+                axes[i] = np.asarray(j.extract().axis, dtype=float)
+        inertias = list(model.inertias)
+        self.nv = int(model.nv)
+        self._rhs = _native.ContactRhs(
+            types,
+            _ints(list(model.parents)),
+            _reals([M.homogeneous for M in model.jointPlacements]),
+            _reals(axes),
+            _reals([b.mass for b in inertias]),
+            _reals([b.lever for b in inertias]),
+            _reals([b.inertia for b in inertias]),
+            _reals(model.armature),
+            _reals(model.gravity.linear),
+        )
+        self._out = np.zeros(self.nv)  # the extension writes here
+        self._layout_id: Any = None  # the _Layout loaded
+        self._plan_id: Any = None  # the _Plan loaded
+
+    def load(self, contacts: NormalContacts, plan: Any) -> None:
+        """Load the contact set's layout and the modes' plan (only when they changed)."""
+        lay = contacts._layout()
+        if lay is not self._layout_id:
+            self._rhs.set_layout(
+                _ints(lay.joints),
+                _reals(lay.masks),
+                _ints(lay.body),
+                _reals(lay.local),
+                _ints(lay.pair),
+                _ints(lay.rows),
+                _ints(lay.centre),
+                _ints(lay.normal_body),
+                _reals(lay.frame2),
+                _ints(lay.lim_joint),
+                _reals(lay.lim_side),
+                _reals(lay.lim_value),
+            )
+            self._layout_id = lay
+            self._plan_id = None
+        if plan is not self._plan_id:
+            from packbot.contact.normal import BAUMGARTE, STICK_SPEED
+
+            self._rhs.set_plan(
+                _ints(plan.engaged),
+                _ints(plan.row_slip),
+                _ints(plan.sticks),
+                contacts.mu,
+                STICK_SPEED,
+                BAUMGARTE,
+            )
+            self._plan_id = plan
+        if plan.slips:  # the onset directions (reassigned at restarts)
+            self._rhs.set_slip_dirs(_reals([p.slip_dir for p in contacts._pair_list]))
+
+    def accel(
+        self, q: FloatArray, v: FloatArray, x: FloatArray, from_tau: bool
+    ) -> FloatArray | None:
+        """The accelerations [rad/s^2] at (q, v) of the loaded modes (a new array).
+
+        Args:
+            q: Configuration [rad].
+            v: Velocity [rad/s].
+            x: Joint torques [N*m] (``from_tau``: the free accelerations come from ``aba``)
+                or the free accelerations [rad/s^2].
+            from_tau: What ``x`` is.
+
+        Returns:
+            The accelerations, or None when the Delassus matrix is singular (the Python path
+            solves it by least squares).
+        """
+        out = self._out
+        if not self._rhs.accel(q, v, x, from_tau, out):
+            return None
+        return out.copy()
+
+    def last(self) -> tuple[FloatArray, ...]:
+        """The last call's (a_free, M^-1, lam, gap, v_n, v_t, G, rhs): copies, for tests."""
+        return tuple(self._rhs.last())
+
+
+def native_rhs(model: pin.Model) -> NativeRhs | None:
+    """The native right-hand side of ``model``, or None (no extension, unsupported joints)."""
+    if _native is None:
+        log.info("packbot._native is not built: the contact-normal mode runs its Python path")
+        return None
+    try:
+        return NativeRhs(model)
+    except ModelError as exc:
+        log.debug("native right-hand side not used: %s", exc)
+        return None

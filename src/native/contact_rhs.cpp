@@ -1,0 +1,589 @@
+// The contact-normal mode's right-hand side with its modes fixed, in one native call.
+//
+// Python module ``packbot._native`` (nanobind). One object, ``ContactRhs``, holds its own
+// Pinocchio model (rebuilt from the Python model's numbers: joint types, parents, placements,
+// inertias, armature, gravity; nothing crosses between this module's Pinocchio and the pin
+// wheel's, so the two need not share an ABI), its Data, the contact set's point layout and the
+// current modes' plan, and every work array (sized when the layout or the plan change: no
+// allocation per call). ``accel`` then does what packbot's Python path does per call:
+//
+//   aba (unconstrained accelerations, armature included; or a_free given), computeMinverse,
+//   computeJointJacobiansTimeVariation, then the contact rows and the constrained
+//   accelerations of packbot/contact/kernels.py (contact_rows, constrained_accel), ported loop
+//   for loop (same order of operations), so the two agree to rounding.
+//
+// Conventions as packbot.contact.normal.NormalContacts: world frame, SI units; a row's gap and
+// normal velocity are body 2 minus body 1 along the normal carried by body 2.
+
+#include <nanobind/nanobind.h>
+#include <nanobind/ndarray.h>
+#include <nanobind/stl/string.h>
+#include <nanobind/stl/vector.h>
+
+#include <pinocchio/algorithm/aba.hpp>
+#include <pinocchio/algorithm/jacobian.hpp>
+#include <pinocchio/multibody/data.hpp>
+#include <pinocchio/multibody/model.hpp>
+
+#include <cmath>
+#include <cstdint>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+namespace nb = nanobind;
+namespace pin = pinocchio;
+
+// The joints this module's model may hold: the 1-dof revolute and prismatic ones. Pinocchio's
+// algorithms visit a joint variant; its default collection has 25 types (composite and mimic
+// joints among them), each instantiating every algorithm step: this one (the 1-dof joints, and
+// the mimic joint Pinocchio's model code asks for) compiles in a fraction of the time and memory.
+template <typename _Scalar, int _Options> struct PackbotJointsTpl {
+  typedef _Scalar Scalar;
+  static constexpr int Options = _Options;
+  typedef pin::JointModelRevoluteTpl<Scalar, Options, 0> JointModelRX;
+  typedef pin::JointModelRevoluteTpl<Scalar, Options, 1> JointModelRY;
+  typedef pin::JointModelRevoluteTpl<Scalar, Options, 2> JointModelRZ;
+  typedef pin::JointModelRevoluteUnalignedTpl<Scalar, Options> JointModelRevoluteUnaligned;
+  typedef pin::JointModelPrismaticTpl<Scalar, Options, 0> JointModelPX;
+  typedef pin::JointModelPrismaticTpl<Scalar, Options, 1> JointModelPY;
+  typedef pin::JointModelPrismaticTpl<Scalar, Options, 2> JointModelPZ;
+  typedef pin::JointModelPrismaticUnalignedTpl<Scalar, Options> JointModelPrismaticUnaligned;
+  // Pinocchio's model and data test for mimic joints (boost::get): the variant must hold them
+  typedef pin::JointModelMimicTpl<Scalar, Options, PackbotJointsTpl> JointModelMimic;
+  typedef boost::variant<JointModelRX, JointModelRY, JointModelRZ, JointModelRevoluteUnaligned,
+                         JointModelPX, JointModelPY, JointModelPZ, JointModelPrismaticUnaligned,
+                         boost::recursive_wrapper<JointModelMimic>>
+      JointModelVariant;
+  typedef pin::JointDataRevoluteTpl<Scalar, Options, 0> JointDataRX;
+  typedef pin::JointDataRevoluteTpl<Scalar, Options, 1> JointDataRY;
+  typedef pin::JointDataRevoluteTpl<Scalar, Options, 2> JointDataRZ;
+  typedef pin::JointDataRevoluteUnalignedTpl<Scalar, Options> JointDataRevoluteUnaligned;
+  typedef pin::JointDataPrismaticTpl<Scalar, Options, 0> JointDataPX;
+  typedef pin::JointDataPrismaticTpl<Scalar, Options, 1> JointDataPY;
+  typedef pin::JointDataPrismaticTpl<Scalar, Options, 2> JointDataPZ;
+  typedef pin::JointDataPrismaticUnalignedTpl<Scalar, Options> JointDataPrismaticUnaligned;
+  typedef pin::JointDataMimicTpl<Scalar, Options, PackbotJointsTpl> JointDataMimic;
+  typedef boost::variant<JointDataRX, JointDataRY, JointDataRZ, JointDataRevoluteUnaligned,
+                         JointDataPX, JointDataPY, JointDataPZ, JointDataPrismaticUnaligned,
+                         boost::recursive_wrapper<JointDataMimic>>
+      JointDataVariant;
+};
+using Model = pin::ModelTpl<double, 0, PackbotJointsTpl>;
+using Data = pin::DataTpl<double, 0, PackbotJointsTpl>;
+using JointModel = pin::JointModelTpl<double, 0, PackbotJointsTpl>;
+using J = PackbotJointsTpl<double, 0>;
+
+using F1 = nb::ndarray<const double, nb::ndim<1>, nb::c_contig, nb::device::cpu>;
+using F2 = nb::ndarray<const double, nb::ndim<2>, nb::c_contig, nb::device::cpu>;
+using F3 = nb::ndarray<const double, nb::ndim<3>, nb::c_contig, nb::device::cpu>;
+using I1 = nb::ndarray<const int64_t, nb::ndim<1>, nb::c_contig, nb::device::cpu>;
+using Out1 = nb::ndarray<double, nb::ndim<1>, nb::c_contig, nb::device::cpu>;
+
+namespace {
+
+JointModel make_joint(const std::string &type, const double *axis) {
+  const Eigen::Vector3d ax(axis[0], axis[1], axis[2]);
+  if (type == "JointModelRX") return J::JointModelRX();
+  if (type == "JointModelRY") return J::JointModelRY();
+  if (type == "JointModelRZ") return J::JointModelRZ();
+  if (type == "JointModelRevoluteUnaligned") return J::JointModelRevoluteUnaligned(ax);
+  if (type == "JointModelPX") return J::JointModelPX();
+  if (type == "JointModelPY") return J::JointModelPY();
+  if (type == "JointModelPZ") return J::JointModelPZ();
+  if (type == "JointModelPrismaticUnaligned") return J::JointModelPrismaticUnaligned(ax);
+  throw std::invalid_argument("unsupported joint type " + type);
+}
+
+// Gaussian elimination with partial pivoting (closed form for 1 x 1 and 2 x 2), as
+// kernels._solve_small: G (m x m, row-major) is overwritten; false when singular.
+bool solve_small(int m, double *G, double *y, double *x) {
+  for (int i = 0; i < m; ++i) x[i] = 0.0;
+  if (m == 1 && G[0] != 0.0) {
+    x[0] = y[0] / G[0];
+    return true;
+  }
+  if (m == 2) {
+    const double a = G[0], b = G[1], c = G[2], d = G[3];
+    const double det = a * d - b * c;
+    if (std::abs(det) > 1e-12 * (std::abs(a * d) + std::abs(b * c))) {
+      x[0] = (d * y[0] - b * y[1]) / det;
+      x[1] = (a * y[1] - c * y[0]) / det;
+      return true;
+    }
+  }
+  for (int k = 0; k < m; ++k) {
+    int piv = k;
+    double best = std::abs(G[k * m + k]);
+    for (int i = k + 1; i < m; ++i) {
+      if (std::abs(G[i * m + k]) > best) {
+        best = std::abs(G[i * m + k]);
+        piv = i;
+      }
+    }
+    if (best == 0.0 || !std::isfinite(best)) return false;
+    if (piv != k) {
+      for (int c = 0; c < m; ++c) std::swap(G[k * m + c], G[piv * m + c]);
+      std::swap(y[k], y[piv]);
+    }
+    for (int i = k + 1; i < m; ++i) {
+      const double f = G[i * m + k] / G[k * m + k];
+      if (f != 0.0) {
+        for (int c = k; c < m; ++c) G[i * m + c] -= f * G[k * m + c];
+        y[i] -= f * y[k];
+      }
+    }
+  }
+  for (int k = m - 1; k >= 0; --k) {
+    double s = y[k];
+    for (int c = k + 1; c < m; ++c) s -= G[k * m + c] * x[c];
+    x[k] = s / G[k * m + k];
+  }
+  return true;
+}
+
+template <class A> std::vector<int64_t> ints(const A &a) {
+  return std::vector<int64_t>(a.data(), a.data() + a.size());
+}
+template <class A> std::vector<double> reals(const A &a) {
+  return std::vector<double>(a.data(), a.data() + a.size());
+}
+
+}  // namespace
+
+class ContactRhs {
+ public:
+  ContactRhs(const std::vector<std::string> &types, I1 parents, F3 placements, F2 axes,
+             F1 masses, F2 levers, F3 inertias, F1 armature, F1 gravity) {
+    const size_t nj = types.size();
+    if (parents.shape(0) != nj || placements.shape(0) != nj || axes.shape(0) != nj ||
+        masses.shape(0) != nj || levers.shape(0) != nj || inertias.shape(0) != nj)
+      throw std::invalid_argument("one entry per joint expected in every array");
+    for (size_t j = 1; j < nj; ++j) {
+      const double *H = placements.data() + 16 * j;
+      pin::SE3 M;
+      for (int r = 0; r < 3; ++r) {
+        for (int c = 0; c < 3; ++c) M.rotation()(r, c) = H[4 * r + c];
+        M.translation()(r) = H[4 * r + 3];
+      }
+      const auto parent = static_cast<pin::JointIndex>(parents.data()[j]);
+      const auto id = model_.addJoint(parent, make_joint(types[j], axes.data() + 3 * j), M,
+                                      "joint" + std::to_string(j));
+      const double *I = inertias.data() + 9 * j;
+      Eigen::Matrix3d Im;
+      for (int r = 0; r < 3; ++r)
+        for (int c = 0; c < 3; ++c) Im(r, c) = I[3 * r + c];
+      const double *l = levers.data() + 3 * j;
+      model_.inertias[id] =
+          pin::Inertia(masses.data()[j], Eigen::Vector3d(l[0], l[1], l[2]), pin::Symmetric3(Im));
+    }
+    nv_ = model_.nv;
+    if (armature.shape(0) != static_cast<size_t>(nv_) || model_.nq != nv_)
+      throw std::invalid_argument("armature: nv entries expected (1-dof joints only)");
+    for (int i = 0; i < nv_; ++i) model_.armature[i] = armature.data()[i];
+    model_.gravity.linear(Eigen::Vector3d(gravity.data()[0], gravity.data()[1], gravity.data()[2]));
+    model_.gravity.angular().setZero();
+    data_ = Data(model_);
+    q_.setZero(nv_);
+    v_.setZero(nv_);
+    x_.setZero(nv_);
+    a_free_.setZero(nv_);
+    a_.setZero(nv_);
+    minv_.setZero(nv_, nv_);
+  }
+
+  int nv() const { return nv_; }
+
+  // The contact set's point layout (see packbot.contact.normal._Layout).
+  void set_layout(I1 joints, F2 masks, I1 body, F2 local, I1 pair, I1 rows, I1 centre,
+                  I1 normal_body, F3 frame2, I1 lim_joint, F1 lim_side, F1 lim_value) {
+    joints_ = ints(joints);
+    masks_ = reals(masks);
+    body_ = ints(body);
+    local_ = reals(local);
+    pair_ = ints(pair);
+    rows_ = ints(rows);
+    centre_ = ints(centre);
+    normal_body_ = ints(normal_body);
+    frame2_ = reals(frame2);
+    lim_joint_ = ints(lim_joint);
+    lim_side_ = reals(lim_side);
+    lim_value_ = reals(lim_value);
+    nb_ = static_cast<int>(joints_.size());
+    n2h_ = static_cast<int>(body_.size());
+    h_ = n2h_ / 2;
+    np_ = static_cast<int>(centre_.size());
+    mp_ = static_cast<int>(rows_.size());
+    ml_ = static_cast<int>(lim_joint_.size());
+    m_ = mp_ + ml_;
+    if (static_cast<int>(masks_.size()) != nb_ * nv_ || static_cast<int>(local_.size()) != 4 * n2h_ ||
+        static_cast<int>(pair_.size()) != h_ || static_cast<int>(frame2_.size()) != 9 * np_ ||
+        static_cast<int>(normal_body_.size()) != np_ || static_cast<int>(lim_side_.size()) != ml_ ||
+        static_cast<int>(lim_value_.size()) != ml_)
+      throw std::invalid_argument("inconsistent layout shapes");
+    for (auto j : joints_)
+      if (j < 0 || j >= static_cast<int64_t>(model_.njoints))
+        throw std::invalid_argument("layout joint out of range");
+    const int nv = nv_;
+    H_.assign(nb_ * 16, 0.0);
+    Vb_.assign(nb_ * 6, 0.0);
+    Ab_.assign(nb_ * 6, 0.0);
+    P_.assign(n2h_ * 3, 0.0);
+    Jp_.assign(n2h_ * 3 * nv, 0.0);
+    vp_.assign(n2h_ * 3, 0.0);
+    ap_.assign(n2h_ * 3, 0.0);
+    dJp_.assign(h_ * 3 * nv, 0.0);
+    vrel_.assign(h_ * 3, 0.0);
+    arel_.assign(h_ * 3, 0.0);
+    dP_.assign(h_ * 3, 0.0);
+    F_.assign(np_ * 9, 0.0);
+    Jn_.assign(m_ * nv, 0.0);
+    drift_.assign(m_, 0.0);
+    gap_.assign(m_, 0.0);
+    vn_.assign(m_, 0.0);
+    JT_.assign(np_ * 2 * nv, 0.0);
+    bT_.assign(np_ * 2, 0.0);
+    vT_.assign(np_ * 2, 0.0);
+    vt_.assign(np_ * 3, 0.0);
+    slip_dir_.assign(np_ * 3, 0.0);
+    set_plan_sizes(0, 0);
+  }
+
+  // The current modes (see packbot.contact.normal._Plan) and the law's constants.
+  void set_plan(I1 engaged, I1 row_slip, I1 sticks, double mu, double stick_speed,
+                double baumgarte) {
+    engaged_ = ints(engaged);
+    row_slip_ = ints(row_slip);
+    sticks_ = ints(sticks);
+    if (row_slip_.size() != engaged_.size())
+      throw std::invalid_argument("row_slip: one entry per engaged row expected");
+    for (auto r : engaged_)
+      if (r < 0 || r >= m_) throw std::invalid_argument("engaged row out of range");
+    for (auto p : row_slip_)
+      if (p >= np_) throw std::invalid_argument("row_slip pair out of range");
+    for (auto p : sticks_)
+      if (p < 0 || p >= np_) throw std::invalid_argument("sticking pair out of range");
+    mu_ = mu;
+    stick_speed_ = stick_speed;
+    baumgarte_ = baumgarte;
+    set_plan_sizes(static_cast<int>(engaged_.size()), static_cast<int>(sticks_.size()));
+  }
+
+  // Each pair's sliding direction at onset (pairs, 3), world.
+  void set_slip_dirs(F2 slip_dir) {
+    if (slip_dir.size() != slip_dir_.size())
+      throw std::invalid_argument("slip_dir: (pairs, 3) expected");
+    std::copy(slip_dir.data(), slip_dir.data() + slip_dir.size(), slip_dir_.begin());
+  }
+
+  // Accelerations of the current modes at (q, v) into out; x is tau (from_tau) or a_free.
+  // False when the Delassus matrix is singular (out then holds a_free: the caller solves).
+  bool accel(F1 q, F1 v, F1 x, bool from_tau, Out1 out) {
+    if (q.shape(0) != static_cast<size_t>(nv_) || v.shape(0) != static_cast<size_t>(nv_) ||
+        x.shape(0) != static_cast<size_t>(nv_) || out.shape(0) != static_cast<size_t>(nv_))
+      throw std::invalid_argument("q, v, tau and out: nv entries expected");
+    for (int i = 0; i < nv_; ++i) {
+      q_[i] = q.data()[i];
+      v_[i] = v.data()[i];
+      x_[i] = x.data()[i];
+    }
+    if (from_tau) {
+      pin::aba(model_, data_, q_, v_, x_, pin::Convention::LOCAL);
+      a_free_ = data_.ddq;
+    } else {
+      a_free_ = x_;
+    }
+    const bool ok = compute();
+    double *o = out.data();
+    for (int i = 0; i < nv_; ++i) o[i] = a_[i];
+    return ok;
+  }
+
+  // The last call's unconstrained accelerations, M^-1, forces, gaps, normal velocities,
+  // centre tangential velocities, Delassus matrix and right-hand side (copies).
+  nb::tuple last() const {
+    auto vec = [](const double *p, size_t n) {
+      auto *buf = new double[n];
+      std::copy(p, p + n, buf);
+      nb::capsule owner(buf, [](void *d) noexcept { delete[] static_cast<double *>(d); });
+      return nb::ndarray<nb::numpy, double, nb::ndim<1>>(buf, {n}, owner);
+    };
+    auto mat = [](const double *p, size_t r, size_t c) {
+      auto *buf = new double[r * c];
+      std::copy(p, p + r * c, buf);
+      nb::capsule owner(buf, [](void *d) noexcept { delete[] static_cast<double *>(d); });
+      return nb::ndarray<nb::numpy, double, nb::ndim<2>>(buf, {r, c}, owner);
+    };
+    Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> Mi = minv_;
+    return nb::make_tuple(vec(a_free_.data(), nv_), mat(Mi.data(), nv_, nv_),
+                          vec(lam_.data(), n_), vec(gap_.data(), m_), vec(vn_.data(), m_),
+                          mat(vt_.data(), np_, 3), mat(G0_.data(), n_, n_),
+                          vec(rhs0_.data(), n_));
+  }
+
+ private:
+  void set_plan_sizes(int ne, int ns) {
+    ne_ = ne;
+    ns_ = ns;
+    n_ = ne + 2 * ns;
+    A_.assign(n_ * nv_, 0.0);
+    C_.assign(n_ * nv_, 0.0);
+    target_.assign(n_, 0.0);
+    b_.assign(n_, 0.0);
+    MC_.assign(nv_ * n_, 0.0);
+    G_.assign(n_ * n_, 0.0);
+    G0_.assign(n_ * n_, 0.0);
+    rhs_.assign(n_, 0.0);
+    rhs0_.assign(n_, 0.0);
+    lam_.assign(n_, 0.0);
+  }
+
+  bool compute() {
+    const int nv = nv_;
+    pin::computeMinverse(model_, data_, q_);
+    minv_ = data_.Minv;  // the upper triangle; the lower one mirrored
+    for (int i = 1; i < nv; ++i)
+      for (int c = 0; c < i; ++c) minv_(i, c) = minv_(c, i);
+    if (nb_ > 0) pin::computeJointJacobiansTimeVariation(model_, data_, q_, v_);
+    rows();
+    // ---- constrained_accel
+    const double B = baumgarte_;
+    for (int e = 0; e < ne_; ++e) {
+      const int r = static_cast<int>(engaged_[e]);
+      for (int c = 0; c < nv; ++c) {
+        A_[e * nv + c] = Jn_[r * nv + c];
+        C_[e * nv + c] = Jn_[r * nv + c];
+      }
+      const int p = static_cast<int>(row_slip_[e]);
+      if (p >= 0) {
+        const double *sd = &slip_dir_[3 * p];
+        const double w0 = vt_[3 * p] + stick_speed_ * sd[0];
+        const double w1 = vt_[3 * p + 1] + stick_speed_ * sd[1];
+        const double w2 = vt_[3 * p + 2] + stick_speed_ * sd[2];
+        const double nrm = std::sqrt(w0 * w0 + w1 * w1 + w2 * w2);
+        double s0, s1, s2;
+        if (nrm > 0.0) {
+          s0 = w0 / nrm;
+          s1 = w1 / nrm;
+          s2 = w2 / nrm;
+        } else {
+          s0 = sd[0];
+          s1 = sd[1];
+          s2 = sd[2];
+        }
+        const int k = static_cast<int>(rows_[r]);
+        const double *d = &dJp_[k * 3 * nv];
+        for (int c = 0; c < nv; ++c)
+          C_[e * nv + c] -= mu_ * (s0 * d[c] + s1 * d[nv + c] + s2 * d[2 * nv + c]);
+      }
+      target_[e] = -2.0 * B * vn_[r] - B * B * gap_[r];
+      b_[e] = drift_[r];
+    }
+    for (int i = 0; i < ns_; ++i) {
+      const int p = static_cast<int>(sticks_[i]);
+      for (int j = 0; j < 2; ++j) {
+        const int e = ne_ + 2 * i + j;
+        for (int c = 0; c < nv; ++c) {
+          A_[e * nv + c] = JT_[(p * 2 + j) * nv + c];
+          C_[e * nv + c] = JT_[(p * 2 + j) * nv + c];
+        }
+        target_[e] = -B * vT_[2 * p + j];
+        b_[e] = bT_[2 * p + j];
+      }
+    }
+    const int n = n_;
+    for (int i = 0; i < nv; ++i)
+      for (int e = 0; e < n; ++e) {
+        double s = 0.0;
+        for (int c = 0; c < nv; ++c) s += minv_(i, c) * C_[e * nv + c];
+        MC_[i * n + e] = s;
+      }
+    for (int e = 0; e < n; ++e) {
+      double s = b_[e];
+      for (int c = 0; c < nv; ++c) s += A_[e * nv + c] * a_free_[c];
+      rhs_[e] = target_[e] - s;
+      for (int f = 0; f < n; ++f) {
+        double g = 0.0;
+        for (int c = 0; c < nv; ++c) g += A_[e * nv + c] * MC_[c * n + f];
+        G_[e * n + f] = g;
+      }
+    }
+    G0_ = G_;
+    rhs0_ = rhs_;
+    const bool ok = solve_small(n, G_.data(), rhs_.data(), lam_.data());
+    a_ = a_free_;
+    if (ok) {
+      for (int i = 0; i < nv; ++i) {
+        double s = 0.0;
+        for (int e = 0; e < n; ++e) s += MC_[i * n + e] * lam_[e];
+        a_[i] += s;
+      }
+    }
+    return ok;
+  }
+
+  // kernels.contact_rows, with H, J, dJ from data_.
+  void rows() {
+    const int nv = nv_;
+    for (int b = 0; b < nb_; ++b) {
+      const auto &M = data_.oMi[static_cast<size_t>(joints_[b])];
+      double *H = &H_[16 * b];
+      for (int r = 0; r < 3; ++r) {
+        for (int c = 0; c < 3; ++c) H[4 * r + c] = M.rotation()(r, c);
+        H[4 * r + 3] = M.translation()(r);
+      }
+      H[12] = H[13] = H[14] = 0.0;
+      H[15] = 1.0;
+      const double *mk = &masks_[b * nv];
+      for (int r = 0; r < 6; ++r) {
+        double sv = 0.0, sa = 0.0;
+        for (int c = 0; c < nv; ++c) {
+          if (mk[c] != 0.0) {
+            sv += data_.J(r, c) * v_[c];
+            sa += data_.dJ(r, c) * v_[c];
+          }
+        }
+        Vb_[6 * b + r] = sv;
+        Ab_[6 * b + r] = sa;
+      }
+    }
+    for (int i = 0; i < n2h_; ++i) {
+      const int b = static_cast<int>(body_[i]);
+      const double *H = &H_[16 * b];
+      const double *l = &local_[4 * i];
+      double *P = &P_[3 * i];
+      for (int r = 0; r < 3; ++r)
+        P[r] = H[4 * r] * l[0] + H[4 * r + 1] * l[1] + H[4 * r + 2] * l[2] + H[4 * r + 3];
+      const double px = P[0], py = P[1], pz = P[2];
+      double *Jp = &Jp_[i * 3 * nv];
+      const double *mk = &masks_[b * nv];
+      for (int c = 0; c < nv; ++c) {
+        const double m = mk[c];
+        const double wx = data_.J(3, c) * m, wy = data_.J(4, c) * m, wz = data_.J(5, c) * m;
+        Jp[c] = data_.J(0, c) * m - (py * wz - pz * wy);
+        Jp[nv + c] = data_.J(1, c) * m - (pz * wx - px * wz);
+        Jp[2 * nv + c] = data_.J(2, c) * m - (px * wy - py * wx);
+      }
+      double *vp = &vp_[3 * i];
+      for (int r = 0; r < 3; ++r) {
+        double s = 0.0;
+        for (int c = 0; c < nv; ++c) s += Jp[r * nv + c] * v_[c];
+        vp[r] = s;
+      }
+      const double *al = &Ab_[6 * b + 3];
+      const double *w = &Vb_[6 * b + 3];
+      // pa = P x al, wv = w x vp
+      const double pa0 = P[1] * al[2] - P[2] * al[1];
+      const double pa1 = P[2] * al[0] - P[0] * al[2];
+      const double pa2 = P[0] * al[1] - P[1] * al[0];
+      const double wv0 = w[1] * vp[2] - w[2] * vp[1];
+      const double wv1 = w[2] * vp[0] - w[0] * vp[2];
+      const double wv2 = w[0] * vp[1] - w[1] * vp[0];
+      double *ap = &ap_[3 * i];
+      ap[0] = Ab_[6 * b] - pa0 + wv0;
+      ap[1] = Ab_[6 * b + 1] - pa1 + wv1;
+      ap[2] = Ab_[6 * b + 2] - pa2 + wv2;
+    }
+    const int h = h_;
+    for (int k = 0; k < h; ++k)
+      for (int r = 0; r < 3; ++r) {
+        for (int c = 0; c < nv; ++c)
+          dJp_[(k * 3 + r) * nv + c] = Jp_[((h + k) * 3 + r) * nv + c] - Jp_[(k * 3 + r) * nv + c];
+        vrel_[3 * k + r] = vp_[3 * (h + k) + r] - vp_[3 * k + r];
+        arel_[3 * k + r] = ap_[3 * (h + k) + r] - ap_[3 * k + r];
+        dP_[3 * k + r] = P_[3 * (h + k) + r] - P_[3 * k + r];
+      }
+    for (int p = 0; p < np_; ++p) {
+      const double *H = &H_[16 * normal_body_[p]];
+      const double *f2 = &frame2_[9 * p];
+      double *F = &F_[9 * p];
+      for (int r = 0; r < 3; ++r)
+        for (int c = 0; c < 3; ++c)
+          F[3 * r + c] = f2[3 * r] * H[4 * c] + f2[3 * r + 1] * H[4 * c + 1] +
+                         f2[3 * r + 2] * H[4 * c + 2];
+    }
+    std::fill(Jn_.begin(), Jn_.end(), 0.0);
+    std::fill(drift_.begin(), drift_.end(), 0.0);
+    for (int r = 0; r < mp_; ++r) {
+      const int k = static_cast<int>(rows_[r]);
+      const int p = static_cast<int>(pair_[k]);
+      const double *n = &F_[9 * p + 6];
+      const double *w = &Vb_[6 * body_[h + k] + 3];
+      const double wxn0 = w[1] * n[2] - w[2] * n[1];
+      const double wxn1 = w[2] * n[0] - w[0] * n[2];
+      const double wxn2 = w[0] * n[1] - w[1] * n[0];
+      const double wxn[3] = {wxn0, wxn1, wxn2};
+      const double *d = &dJp_[k * 3 * nv];
+      for (int c = 0; c < nv; ++c)
+        Jn_[r * nv + c] = n[0] * d[c] + n[1] * d[nv + c] + n[2] * d[2 * nv + c];
+      double g = 0.0, vv = 0.0, dd = 0.0;
+      for (int i = 0; i < 3; ++i) {
+        g += dP_[3 * k + i] * n[i];
+        vv += vrel_[3 * k + i] * n[i];
+        dd += arel_[3 * k + i] * n[i] + 2.0 * vrel_[3 * k + i] * wxn[i];
+      }
+      gap_[r] = g;
+      vn_[r] = vv;
+      drift_[r] = dd;
+    }
+    for (int i = 0; i < ml_; ++i) {
+      const int j = static_cast<int>(lim_joint_[i]);
+      const double s = lim_side_[i];
+      Jn_[(mp_ + i) * nv + j] = -s;
+      gap_[mp_ + i] = s * (lim_value_[i] - q_[j]);
+      vn_[mp_ + i] = -s * v_[j];
+    }
+    for (int p = 0; p < np_; ++p) {
+      const int c0 = static_cast<int>(centre_[p]);
+      const double *F = &F_[9 * p];
+      const double *d = &dJp_[c0 * 3 * nv];
+      const double *vr = &vrel_[3 * c0];
+      const double *ar = &arel_[3 * c0];
+      for (int r = 0; r < 2; ++r) {
+        const double *t = F + 3 * r;
+        for (int c = 0; c < nv; ++c)
+          JT_[(p * 2 + r) * nv + c] = t[0] * d[c] + t[1] * d[nv + c] + t[2] * d[2 * nv + c];
+        bT_[2 * p + r] = t[0] * ar[0] + t[1] * ar[1] + t[2] * ar[2];
+        vT_[2 * p + r] = t[0] * vr[0] + t[1] * vr[1] + t[2] * vr[2];
+      }
+      const double *n = F + 6;
+      const double vnc = n[0] * vr[0] + n[1] * vr[1] + n[2] * vr[2];
+      for (int i = 0; i < 3; ++i) vt_[3 * p + i] = vr[i] - n[i] * vnc;
+    }
+  }
+
+  Model model_;
+  Data data_;
+  int nv_ = 0;
+  Eigen::VectorXd q_, v_, x_, a_free_, a_;
+  Eigen::MatrixXd minv_;
+  // layout
+  std::vector<int64_t> joints_, body_, pair_, rows_, centre_, normal_body_, lim_joint_;
+  std::vector<double> masks_, local_, frame2_, lim_side_, lim_value_;
+  int nb_ = 0, n2h_ = 0, h_ = 0, np_ = 0, mp_ = 0, ml_ = 0, m_ = 0;
+  // plan
+  std::vector<int64_t> engaged_, row_slip_, sticks_;
+  double mu_ = 0.0, stick_speed_ = 0.0, baumgarte_ = 0.0;
+  int ne_ = 0, ns_ = 0, n_ = 0;
+  // work
+  std::vector<double> H_, Vb_, Ab_, P_, Jp_, vp_, ap_, dJp_, vrel_, arel_, dP_, F_;
+  std::vector<double> Jn_, drift_, gap_, vn_, JT_, bT_, vT_, vt_, slip_dir_;
+  std::vector<double> A_, C_, target_, b_, MC_, G_, G0_, rhs_, rhs0_, lam_;
+};
+
+NB_MODULE(_native, m) {
+  m.doc() = "packbot's compiled right-hand side of the contact-normal mode (Pinocchio, nanobind).";
+  m.attr("PINOCCHIO_VERSION") = PINOCCHIO_VERSION;
+  nb::class_<ContactRhs>(m, "ContactRhs")
+      .def(nb::init<const std::vector<std::string> &, I1, F3, F2, F1, F2, F3, F1, F1>(),
+           nb::arg("types"), nb::arg("parents"), nb::arg("placements"), nb::arg("axes"),
+           nb::arg("masses"), nb::arg("levers"), nb::arg("inertias"), nb::arg("armature"),
+           nb::arg("gravity"))
+      .def_prop_ro("nv", &ContactRhs::nv)
+      .def("set_layout", &ContactRhs::set_layout)
+      .def("set_plan", &ContactRhs::set_plan)
+      .def("set_slip_dirs", &ContactRhs::set_slip_dirs)
+      .def("accel", &ContactRhs::accel, nb::arg("q"), nb::arg("v"), nb::arg("x"),
+           nb::arg("from_tau"), nb::arg("out"))
+      .def("last", &ContactRhs::last);
+}
