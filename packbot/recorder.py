@@ -99,9 +99,7 @@ def measure(
         cmd_f[free], app_f[free], fr_f[free] = cmd, applied, friction
     if drive.ctrl_obj is not None:
         cmd_f = drive.hold_full.copy()
-    eff = drive.robot.params.effort.copy()
-    eff[free] = drive.path.effort
-    return (qf, vf, cmd_f, app_f, fr_f, eff, sys.energy(q, v))
+    return (qf, vf, cmd_f, app_f, fr_f, drive.effort_full(), sys.energy(q, v))
 
 
 class Recorder:

@@ -81,7 +81,7 @@ class System:
         self.lower = self.robot.params.lower
         self.upper = self.robot.params.upper
         self.nv = int(self.model.nv)
-        self._lower = np.tril_indices(self.nv, -1)
+        self._upper = np.triu(np.ones((self.nv, self.nv), dtype=bool))
         self.world: CollisionWorld | None = None
         if config.contact_mode != "none":
             self.world = CollisionWorld(self.robot, environment, margin=config.margin)
@@ -117,10 +117,8 @@ class System:
         return self._symmetric(pin.crba(self.model, self.data, q))
 
     def _symmetric(self, upper: FloatArray) -> FloatArray:
-        """Fill the strict lower triangle from the upper one (Pinocchio fills the upper)."""
-        out = np.array(upper, dtype=float)
-        out[self._lower] = out.T[self._lower]
-        return out
+        """The symmetric matrix of an upper triangle (Pinocchio fills the upper one): one copy."""
+        return np.where(self._upper, upper, upper.T)
 
     def energy(self, q: FloatArray, v: FloatArray) -> float:
         """Kinetic (with armature) plus gravitational potential energy [J]."""
