@@ -124,6 +124,9 @@ class Drive:
     def check_torque(self, raw: Any, t: float) -> FloatArray:
         """A controller's torques [N*m] as floats, checked: real, shape (nq,), finite.
 
+        A float64 array of that shape is returned as it is (not a copy: the caller copies what
+        it keeps, as :meth:`hold` does).
+
         Raises:
             ControllerError: Anything else (says when, and which joint).
         """
@@ -131,7 +134,7 @@ class Drive:
         if type(raw) is np.ndarray and raw.dtype == np.float64 and raw.shape == (nq,):
             total = float(np.add.reduce(raw))  # (raw.sum() adds a Python layer)
             if total - total == 0.0:  # finite: no inf or nan among them (fast path)
-                return raw.copy()
+                return raw  # (not copied: every caller copies what it keeps)
         try:
             tau = np.asarray(raw)
         except Exception as exc:  # a ragged list, an object numpy cannot take

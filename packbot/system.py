@@ -82,6 +82,9 @@ class System:
         self.upper = self.robot.params.upper
         self.nv = int(self.model.nv)
         self._upper = np.triu(np.ones((self.nv, self.nv), dtype=bool))
+        nq = robot.nq
+        self._qv0 = np.concatenate([self.q_locked, np.zeros(nq)])
+        self._qv_idx = np.concatenate([self.free, nq + self.free])
         self.world: CollisionWorld | None = None
         if config.contact_mode != "none":
             self.world = CollisionWorld(self.robot, environment, margin=config.margin)
@@ -102,6 +105,17 @@ class System:
         out = np.zeros(self.full.nq)
         out[self.free] = v
         return out
+
+    def qv_full(self, y: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """Integrated state (q, v, ...) -> full (q [rad], v [rad/s]), in one fresh buffer.
+
+        The same numbers as :meth:`q_full` and :meth:`v_full` (two views of one new array: one
+        copy and one indexed assignment instead of two of each).
+        """
+        out = self._qv0.copy()
+        out[self._qv_idx] = y[: 2 * self.nv]
+        nq = self.full.nq
+        return out[:nq], out[nq:]
 
     # --------------------------------------------------------------- dynamics
     def aba(self, q: FloatArray, v: FloatArray, tau: FloatArray) -> FloatArray:

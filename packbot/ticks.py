@@ -85,9 +85,7 @@ class Ticks:
             ControllerError: The controller raised or returned bad torques.
         """
         assert self.controller is not None
-        sys = self.drive.sys
-        n = sys.nv
-        qf, vf = sys.q_full(y[:n]), sys.v_full(y[n : 2 * n])  # fresh: the controller may keep them
+        qf, vf = self.drive.sys.qv_full(y)  # fresh: the controller may keep them
         try:
             raw = self.controller.step(t, qf, vf)
         except ControllerError:
