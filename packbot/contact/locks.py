@@ -157,7 +157,8 @@ class JointLocks:
         ``("hold", j)``: g = F_j - |lambda_j| (or the contact pushes). A g below zero is a mode
         change (an event).
         """
-        a, lam = self._current(a_free, minv)
+        a, lam_arr = self._current(a_free, minv)
+        lam = lam_arr.tolist()  # (Python floats: the same numbers, faster to index)
         out: dict[tuple[str, int], float] = {}
         pos = self._pos
         for j, bound in self.held.items():
@@ -182,7 +183,7 @@ class JointLocks:
     ) -> tuple[FloatArray, dict[int, float]]:
         """Accelerations [rad/s^2] and the lock torques lambda_j [N*m] of the locked joints."""
         a, lam = self._current(a_free, minv)
-        return a, {int(j): float(x) for j, x in zip(self._idx, lam, strict=True)}
+        return a, dict(zip(self._idx.tolist(), lam.tolist(), strict=True))
 
     def solve_engaged(
         self, a_free: FloatArray, minv: FloatArray, flip: int | None = None, eps: float = 1e-12
