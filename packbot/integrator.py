@@ -139,7 +139,7 @@ class _Run:
         n = self.n
         q, v = y[:n], y[n : 2 * n]
         _, target, applied, friction = self.drive.torques(t, y)
-        a = self.law.accel(q, v, self.sys.aba(q, v, applied + friction))
+        a = self.law.accel_tau(q, v, applied + friction)
         if self.drive.lag:
             return np.concatenate([v, a, (target - y[2 * n :]) / self.cfg.motor_lag])
         return np.concatenate([v, a])

@@ -122,6 +122,10 @@ class System:
         """Joint accelerations of the unconstrained arm [rad/s^2] (armature included)."""
         return pin.aba(self.model, self.data, q, v, tau)
 
+    def bias(self, q: FloatArray, v: FloatArray) -> FloatArray:
+        """Bias torques C(q, v) v + g(q) [N*m] (Pinocchio's nonLinearEffects)."""
+        return pin.nonLinearEffects(self.model, self.data, q, v)
+
     def minv(self, q: FloatArray) -> FloatArray:
         """Inverse joint-space mass matrix M(q)^-1 (symmetric, armature included)."""
         return self._symmetric(pin.computeMinverse(self.model, self.data, q))

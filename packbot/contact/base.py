@@ -106,6 +106,13 @@ class ContactLaw(Protocol):
         """Accelerations [rad/s^2] of the current mode, from the free ones (fixed in a step)."""
         ...
 
+    def accel_tau(self, q: FloatArray, v: FloatArray, tau: FloatArray) -> FloatArray:
+        """Accelerations [rad/s^2] of the current mode from the joint torques tau [N*m].
+
+        :meth:`accel` of the free accelerations, or the same computed another way.
+        """
+        ...
+
     def step_bound(self, y: FloatArray) -> float:
         """The longest step [s] from y that the law's event detection allows."""
         ...

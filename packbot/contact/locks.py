@@ -56,6 +56,9 @@ _EMPTY = np.zeros(0)
 class JointLocks:
     """The clamps in force and which of them are engaged.
 
+    Args:
+        n: The number of joints (None: not known; then :attr:`unlocked` is None).
+
     Attributes:
         signs: Joint index -> set of forbidden acceleration directions (+1, -1).
         engaged: Joint indices currently locked by their clamps (a_j = 0).
@@ -63,7 +66,8 @@ class JointLocks:
             brake (a_j = 0 while |lambda_j| <= F_j).
     """
 
-    def __init__(self) -> None:
+    def __init__(self, n: int | None = None) -> None:
+        self.n = n
         self.signs: dict[int, set[int]] = {}
         self.held: dict[int, float] = {}
         self._set_engaged(())
@@ -72,6 +76,11 @@ class JointLocks:
     def any_locked(self) -> bool:
         """Whether some joint is engaged or held (the right-hand side's cheap test)."""
         return bool(self._idx.size)
+
+    @property
+    def n_locked(self) -> int:
+        """The number of joints engaged or held."""
+        return len(self._idx)
 
     @property
     def locked(self) -> tuple[int, ...]:
@@ -96,6 +105,11 @@ class JointLocks:
         self._idx = np.array(sorted(set(engaged) | set(self.held)), dtype=int)
         self._grid = np.ix_(self._idx, self._idx)
         self._all = -1  # the number of joints if every joint is locked (set at the first use)
+        #: The joints not locked (None: n unknown) and their block's index grid.
+        self.unlocked: NDArray[np.intp] | None = None
+        if self.n is not None:
+            self.unlocked = np.setdiff1d(np.arange(self.n), self._idx).astype(np.intp)
+            self._ugrid = np.ix_(self.unlocked, self.unlocked)
         self._pos = {int(j): k for k, j in enumerate(self._idx)}
 
     def accelerations(self, a_free: FloatArray, minv: FloatArray | None) -> FloatArray:
@@ -116,6 +130,25 @@ class JointLocks:
             j = int(idx[0])
             return a_free - minv[:, j] * (a_free[j] / minv[j, j])
         return self._solve_locked(a_free, minv)[0]
+
+    def reduced_accelerations(self, mass: FloatArray, force: FloatArray) -> FloatArray:
+        """Accelerations of the current mode from the unlocked joints' own equations.
+
+        With the locked set fixed, a_j = 0 on the locked joints and M_UU a_U = f_U on the others
+        (U: :attr:`unlocked`; the lock torques act on the locked joints' rows only): the same
+        accelerations as :meth:`accelerations` (the Schur complement of M^-1's locked block is
+        M_UU^-1), from one solve of the unlocked block, in closed form up to 3 x 3.
+
+        Args:
+            mass: The joint-space mass matrix M (symmetric, armature included).
+            force: tau - C(q, v) v - g(q): the torques besides the locks [N*m].
+        """
+        assert self.unlocked is not None
+        a = np.zeros(len(force))
+        u = self.unlocked
+        if len(u):
+            a[u] = solve_small(mass[self._ugrid], force[u])
+        return a
 
     def _current(
         self, a_free: FloatArray, minv: FloatArray | None
