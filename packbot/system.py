@@ -130,6 +130,10 @@ class System:
         """Inverse joint-space mass matrix M(q)^-1 (symmetric, armature included)."""
         return self._symmetric(pin.computeMinverse(self.model, self.data, q))
 
+    def mass_upper(self, q: FloatArray) -> FloatArray:
+        """The upper triangle of M(q) [kg m^2] (CRBA's; the strict lower one is not filled)."""
+        return pin.crba(self.model, self.data, q)
+
     def mass_matrix(self, q: FloatArray) -> FloatArray:
         """Joint-space mass matrix M(q) [kg m^2] (armature included)."""
         return self._symmetric(pin.crba(self.model, self.data, q))

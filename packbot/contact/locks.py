@@ -108,8 +108,11 @@ class JointLocks:
         #: The joints not locked (None: n unknown) and their block's index grid.
         self.unlocked: NDArray[np.intp] | None = None
         if self.n is not None:
-            self.unlocked = np.setdiff1d(np.arange(self.n), self._idx).astype(np.intp)
-            self._ugrid = np.ix_(self.unlocked, self.unlocked)
+            u = np.setdiff1d(np.arange(self.n), self._idx).astype(np.intp)
+            self.unlocked = u
+            # M_UU's entries in the upper triangle of M, flat: M_ij at min(i,j) n + max(i,j)
+            lo, hi = np.minimum.outer(u, u), np.maximum.outer(u, u)
+            self._uflat = (lo * self.n + hi).ravel()
         self._pos = {int(j): k for k, j in enumerate(self._idx)}
 
     def accelerations(self, a_free: FloatArray, minv: FloatArray | None) -> FloatArray:
@@ -140,14 +143,16 @@ class JointLocks:
         M_UU^-1), from one solve of the unlocked block, in closed form up to 3 x 3.
 
         Args:
-            mass: The joint-space mass matrix M (symmetric, armature included).
+            mass: The joint-space mass matrix M (armature included); only its upper triangle
+                is read (Pinocchio's CRBA fills that one).
             force: tau - C(q, v) v - g(q): the torques besides the locks [N*m].
         """
         assert self.unlocked is not None
         a = np.zeros(len(force))
         u = self.unlocked
-        if len(u):
-            a[u] = solve_small(mass[self._ugrid], force[u])
+        k = len(u)
+        if k:
+            a[u] = solve_small(mass.take(self._uflat).reshape(k, k), force[u])
         return a
 
     def _current(

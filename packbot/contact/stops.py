@@ -204,7 +204,7 @@ class JointStops:
         u = locks.unlocked
         if self._locks_only and u is not None and len(u) <= 3 and locks.n_locked >= 2:
             sys = self.sys
-            return locks.reduced_accelerations(sys.mass_matrix(q), tau - sys.bias(q, v))
+            return locks.reduced_accelerations(sys.mass_upper(q), tau - sys.bias(q, v))
         return self.accel(q, v, self.sys.aba(q, v, tau))
 
     def step_bound(self, y: FloatArray) -> float:
