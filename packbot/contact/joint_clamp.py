@@ -111,6 +111,16 @@ class JointClampLaw(PairLaw):
         super().rebuild(system)
         self.receding: dict[Key, list[tuple[int, int]]] = {}
 
+    def _locks_now(self) -> bool:
+        """The locks' accelerations alone; the hand-off law's too while its mixed problem is idle.
+
+        The hand-off law adds its rows only while its mixed problem has some: until then its
+        accelerations are this law's, computed the same way (its flag changes nothing before
+        its first use).
+        """
+        mixed = getattr(self, "mixed", None)  # the hand-off's mixed problem (a subclass's)
+        return self._locks_only if mixed is None else not mixed.constrained
+
     def handle(self, t: float, y: FloatArray, crossings: Sequence[Crossing]) -> FloatArray:
         """The events at t; a released clamp whose joint turned is back in force first."""
         for c in crossings:
