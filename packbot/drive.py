@@ -85,6 +85,19 @@ class Drive:
         self.tau_zero = np.zeros(self.n)
         self.zero_full = np.zeros(self.robot.nq)  # shared by torque-free samples, never written
         self.tau_hold = sys.reduce(self.hold_full)
+        self._effort: tuple[Any, FloatArray] = (None, self.zero_full)
+
+    def effort_full(self) -> FloatArray:
+        """The effort limits of the torque path in force [N*m], full coordinates.
+
+        Shared between calls (computed once per torque path): the caller must not modify it.
+        """
+        path = self.path
+        if self._effort[0] is not path:
+            eff = self.robot.params.effort.copy()
+            eff[self.sys.free] = path.effort
+            self._effort = (path, eff)
+        return self._effort[1]
 
     def set_failures(self, failures: Sequence[Failure]) -> None:
         """Rebuild the torque path with the failures now in force (same phase)."""
@@ -111,14 +124,17 @@ class Drive:
     def check_torque(self, raw: Any, t: float) -> FloatArray:
         """A controller's torques [N*m] as floats, checked: real, shape (nq,), finite.
 
+        A float64 array of that shape is returned as it is (not a copy: the caller copies what
+        it keeps, as :meth:`hold` does).
+
         Raises:
             ControllerError: Anything else (says when, and which joint).
         """
         nq = self.robot.nq
         if type(raw) is np.ndarray and raw.dtype == np.float64 and raw.shape == (nq,):
-            total = float(raw.sum())
+            total = float(np.add.reduce(raw))  # (raw.sum() adds a Python layer)
             if total - total == 0.0:  # finite: no inf or nan among them (fast path)
-                return raw.copy()
+                return raw  # (not copied: every caller copies what it keeps)
         try:
             tau = np.asarray(raw)
         except Exception as exc:  # a ragged list, an object numpy cannot take

@@ -378,7 +378,8 @@ class RK45Stepper:
         """
         y = np.array(y, dtype=np.float64)  # a private copy
         n = y.shape[0] if y.ndim == 1 else -1
-        if n < 1 or not np.all(np.isfinite(y)):
+        # (a finite sum: every entry finite, the cheap test; else the exact one)
+        if n < 1 or not (math.isfinite(np.add.reduce(y)) or np.all(np.isfinite(y))):
             raise ConfigurationError("y", y, "a finite 1-d array with at least one element")
         atol = self.atol
         if not isinstance(atol, float) and atol.shape != (n,):

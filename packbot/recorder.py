@@ -89,19 +89,21 @@ def measure(
     q, v = y[:n], y[n : 2 * n]
     cmd, _, applied, friction = drive.torques(t, y)
     friction = held(q, v, applied, friction)
-    qf, vf = sys.q_full(q), sys.v_full(v)
+    qf, vf = sys.qv_full(y)
     zero = drive.zero_full  # shared by the samples of a torque-free run (never written)
     free = sys.free
+    # The arrays may be shared (the recorder copies them into its columns).
     if cmd is drive.tau_zero and applied is cmd and friction is cmd:
         cmd_f = app_f = fr_f = zero
     else:
-        cmd_f, app_f, fr_f = zero.copy(), zero.copy(), zero.copy()
-        cmd_f[free], app_f[free], fr_f[free] = cmd, applied, friction
+        app_f, fr_f = zero.copy(), zero.copy()
+        app_f[free], fr_f[free] = applied, friction
+        if drive.ctrl_obj is None:
+            cmd_f = zero.copy()
+            cmd_f[free] = cmd
     if drive.ctrl_obj is not None:
-        cmd_f = drive.hold_full.copy()
-    eff = drive.robot.params.effort.copy()
-    eff[free] = drive.path.effort
-    return (qf, vf, cmd_f, app_f, fr_f, eff, sys.energy(q, v))
+        cmd_f = drive.hold_full
+    return (qf, vf, cmd_f, app_f, fr_f, drive.effort_full(), sys.energy(q, v))
 
 
 class Recorder:

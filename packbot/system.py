@@ -86,6 +86,9 @@ class System:
         # of the upper entries mirroring them
         self._lower_flat = self._lower[0] * self.nv + self._lower[1]
         self._upper_flat = self._lower[1] * self.nv + self._lower[0]
+        nq = robot.nq
+        self._qv0 = np.concatenate([self.q_locked, np.zeros(nq)])
+        self._qv_idx = np.concatenate([self.free, nq + self.free])
         self.world: CollisionWorld | None = None
         if config.contact_mode != "none":
             self.world = CollisionWorld(self.robot, environment, margin=config.margin)
@@ -107,14 +110,33 @@ class System:
         out[self.free] = v
         return out
 
+    def qv_full(self, y: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """Integrated state (q, v, ...) -> full (q [rad], v [rad/s]), in one fresh buffer.
+
+        The same numbers as :meth:`q_full` and :meth:`v_full` (two views of one new array: one
+        copy and one indexed assignment instead of two of each).
+        """
+        out = self._qv0.copy()
+        out[self._qv_idx] = y[: 2 * self.nv]
+        nq = self.full.nq
+        return out[:nq], out[nq:]
+
     # --------------------------------------------------------------- dynamics
     def aba(self, q: FloatArray, v: FloatArray, tau: FloatArray) -> FloatArray:
         """Joint accelerations of the unconstrained arm [rad/s^2] (armature included)."""
         return pin.aba(self.model, self.data, q, v, tau)
 
+    def bias(self, q: FloatArray, v: FloatArray) -> FloatArray:
+        """Bias torques C(q, v) v + g(q) [N*m] (Pinocchio's nonLinearEffects)."""
+        return pin.nonLinearEffects(self.model, self.data, q, v)
+
     def minv(self, q: FloatArray) -> FloatArray:
         """Inverse joint-space mass matrix M(q)^-1 (symmetric, armature included)."""
         return self._symmetric(pin.computeMinverse(self.model, self.data, q))
+
+    def mass_upper(self, q: FloatArray) -> FloatArray:
+        """The upper triangle of M(q) [kg m^2] (CRBA's; the strict lower one is not filled)."""
+        return pin.crba(self.model, self.data, q)
 
     def mass_matrix(self, q: FloatArray) -> FloatArray:
         """Joint-space mass matrix M(q) [kg m^2] (armature included)."""

@@ -85,9 +85,7 @@ class Ticks:
             ControllerError: The controller raised or returned bad torques.
         """
         assert self.controller is not None
-        sys = self.drive.sys
-        n = sys.nv
-        qf, vf = sys.q_full(y[:n]), sys.v_full(y[n : 2 * n])  # fresh: the controller may keep them
+        qf, vf = self.drive.sys.qv_full(y)  # fresh: the controller may keep them
         try:
             raw = self.controller.step(t, qf, vf)
         except ControllerError:
@@ -99,7 +97,7 @@ class Ticks:
     def same(self, tau: FloatArray) -> bool:
         """Whether a new command is the held one (see :data:`HOLD_FRACTION`)."""
         du = tau - self.drive.hold_full
-        if not du.any():
+        if not np.count_nonzero(du):  # (a C call; ndarray.any goes through Python)
             return True
         sys = self.drive.sys
         if sys is not self._sys:  # a new phase: its smallest armature

@@ -29,6 +29,7 @@ PROTOCOL = (
     "rebuild",
     "start",
     "accel",
+    "torque_accel",
     "step_bound",
     "watch",
     "handle",
@@ -86,6 +87,60 @@ def test_make_law_builds_the_configured_law_with_the_whole_protocol(robot, field
     np.testing.assert_array_equal(law.accel(y[:n], y[n:], a_free), a_free)  # free mode
     assert 0.0 < law.step_bound(y) <= cfg.max_step
     assert law.held() == ()
+
+
+@pytest.mark.parametrize("mode", ["none", "joint_clamp"])
+def test_locked_accelerations_from_the_unlocked_block_equal_those_from_minv(robot, mode):
+    """torque_accel's reduced solve (M_UU a_U = tau_U - h_U, a = 0 on the locked joints) gives the
+    accelerations of the M^-1 path (ABA, then the locked block's solve), every lock set of two
+    joints or more with at most three unlocked, at random states; with one lock it is that path."""
+    from itertools import combinations
+
+    cfg = packbot.SimConfig(locked_joints=WRIST, contact_mode=mode)
+    law, sys, _ = _law(robot, cfg, robot.pose("drive"))
+    n = sys.nv
+    rng = np.random.default_rng(7)
+    used = 0
+    for k in range(1, n + 1):
+        for held in combinations(range(n), k):
+            law.locks.set_held({j: 1e9 for j in held})
+            for _ in range(3):
+                q = rng.uniform(sys.lower, sys.upper)
+                v = rng.normal(size=n)
+                tau = rng.normal(scale=20.0, size=n)
+                via_minv = law.locks.accelerations(sys.aba(q, v, tau), sys.minv(q))
+                a = law.torque_accel(q, v, tau)
+                if k == 1:
+                    np.testing.assert_array_equal(a, via_minv)
+                    continue
+                used += 1
+                assert np.all(a[list(held)] == 0.0)  # exactly: the locked joints stand still
+                np.testing.assert_allclose(a, via_minv, rtol=1e-9, atol=1e-9)
+    assert used > 0
+    law.locks.set_held({})
+    q = robot.pose("drive")[sys.free]
+    np.testing.assert_array_equal(
+        law.torque_accel(q, np.ones(n), np.ones(n)), sys.aba(q, np.ones(n), np.ones(n))
+    )
+
+
+def test_a_law_that_adds_rows_keeps_the_free_accelerations_path(robot):
+    cfg = packbot.SimConfig(locked_joints=WRIST, contact_mode="normal")
+    law, sys, _ = _law(robot, cfg, robot.pose("drive"))
+    n = sys.nv
+    law.locks.set_held({0: 1e9, 1: 1e9, 2: 1e9})
+    q, v, tau = robot.pose("drive")[sys.free], np.ones(n), np.full(n, 3.0)
+    np.testing.assert_array_equal(law.torque_accel(q, v, tau), law.accel(q, v, sys.aba(q, v, tau)))
+
+
+def test_full_state_in_one_buffer_equals_the_two_maps(robot):
+    cfg = packbot.SimConfig(locked_joints=WRIST, contact_mode="joint_clamp")
+    sys = System(robot, robot.pose("stand"), cfg, None)
+    n = sys.nv
+    y = np.arange(1.0, 2 * n + 1.0)
+    qf, vf = sys.qv_full(y)
+    np.testing.assert_array_equal(qf, sys.q_full(y[:n]))
+    np.testing.assert_array_equal(vf, sys.v_full(y[n:]))
 
 
 def test_the_loop_has_no_contact_law_branch_and_no_law_imports_it():

@@ -471,6 +471,14 @@ class HandoffLaw(JointClampLaw, PatchEvents):
             return a_free
         return super().accel(q, v, a_free)
 
+    def _locks_now(self) -> bool:
+        """The locks' accelerations alone while no handed-off pair is in contact.
+
+        Then :meth:`accel` is the report's law's, computed the same way (the flag changes
+        nothing before its first use); while a pair is, the mixed problem holds the joints.
+        """
+        return not self.mixed_on
+
     def lock_conditions(self, t: float, y: FloatArray) -> dict[tuple[str, int], float]:
         """The holds' conditions; while the mixed problem is on, with its contact forces.
 

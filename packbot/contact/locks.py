@@ -25,11 +25,20 @@ from __future__ import annotations
 
 from collections.abc import Iterable
 from itertools import combinations
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
 from packbot.contact.lcp import solve_small
+
+_gesv: Any = None
+try:  # numpy's LU solver itself (LAPACK gesv), without np.linalg.solve's checks (~6 us a call)
+    from numpy.linalg import _umath_linalg
+
+    _gesv = _umath_linalg.solve1
+except (ImportError, AttributeError):  # pragma: no cover - another numpy layout
+    pass
 
 __all__ = ["ACCEL_BAND", "TORQUE_BAND", "JointLocks"]
 
@@ -41,10 +50,14 @@ ACCEL_BAND = 1e-6
 TORQUE_BAND = 1e-6
 
 FloatArray = NDArray[np.float64]
+_EMPTY = np.zeros(0)
 
 
 class JointLocks:
     """The clamps in force and which of them are engaged.
+
+    Args:
+        n: The number of joints (None: not known; then :attr:`unlocked` is None).
 
     Attributes:
         signs: Joint index -> set of forbidden acceleration directions (+1, -1).
@@ -53,7 +66,8 @@ class JointLocks:
             brake (a_j = 0 while |lambda_j| <= F_j).
     """
 
-    def __init__(self) -> None:
+    def __init__(self, n: int | None = None) -> None:
+        self.n = n
         self.signs: dict[int, set[int]] = {}
         self.held: dict[int, float] = {}
         self._set_engaged(())
@@ -62,6 +76,11 @@ class JointLocks:
     def any_locked(self) -> bool:
         """Whether some joint is engaged or held (the right-hand side's cheap test)."""
         return bool(self._idx.size)
+
+    @property
+    def n_locked(self) -> int:
+        """The number of joints engaged or held."""
+        return len(self._idx)
 
     @property
     def locked(self) -> tuple[int, ...]:
@@ -85,24 +104,77 @@ class JointLocks:
         self.engaged = engaged
         self._idx = np.array(sorted(set(engaged) | set(self.held)), dtype=int)
         self._grid = np.ix_(self._idx, self._idx)
+        self._all = -1  # the number of joints if every joint is locked (set at the first use)
+        #: The joints not locked (None: n unknown) and their block's index grid.
+        self.unlocked: NDArray[np.intp] | None = None
+        if self.n is not None:
+            u = np.setdiff1d(np.arange(self.n), self._idx).astype(np.intp)
+            self.unlocked = u
+            # M_UU's entries in the upper triangle of M, flat: M_ij at min(i,j) n + max(i,j)
+            lo, hi = np.minimum.outer(u, u), np.maximum.outer(u, u)
+            self._uflat = (lo * self.n + hi).ravel()
+        self._pos = {int(j): k for k, j in enumerate(self._idx)}
 
     def accelerations(self, a_free: FloatArray, minv: FloatArray | None) -> FloatArray:
         """Accelerations with the engaged joints locked, from the unconstrained ones.
 
-        This is the right-hand side's hot path: the engaged set's index grid is cached.
+        This is the right-hand side's hot path: the engaged set's index grid is cached; with
+        every joint locked (an arm at rest, each joint held by its static friction) the blocks
+        of M^-1 are M^-1 itself (the same numbers, no copy by fancy indexing).
 
         Args:
             a_free: Accelerations of the unconstrained arm [rad/s^2].
             minv: M^-1 (needed only when some joint is engaged).
         """
-        if len(self._idx) == 0 or minv is None:
-            return a_free
         idx = self._idx
+        if len(idx) == 0 or minv is None:
+            return a_free
         if len(idx) == 1:
             j = int(idx[0])
             return a_free - minv[:, j] * (a_free[j] / minv[j, j])
-        lam = solve_small(minv[self._grid], -a_free[idx])
-        return np.asarray(a_free + minv[:, idx] @ lam, dtype=np.float64)
+        return self._solve_locked(a_free, minv)[0]
+
+    def reduced_accelerations(self, mass: FloatArray, force: FloatArray) -> FloatArray:
+        """Accelerations of the current mode from the unlocked joints' own equations.
+
+        With the locked set fixed, a_j = 0 on the locked joints and M_UU a_U = f_U on the others
+        (U: :attr:`unlocked`; the lock torques act on the locked joints' rows only): the same
+        accelerations as :meth:`accelerations` (the Schur complement of M^-1's locked block is
+        M_UU^-1), from one solve of the unlocked block, in closed form up to 3 x 3.
+
+        Args:
+            mass: The joint-space mass matrix M (armature included); only its upper triangle
+                is read (Pinocchio's CRBA fills that one).
+            force: tau - C(q, v) v - g(q): the torques besides the locks [N*m].
+        """
+        assert self.unlocked is not None
+        a = np.zeros(len(force))
+        u = self.unlocked
+        k = len(u)
+        if k:
+            a[u] = solve_small(mass.take(self._uflat).reshape(k, k), force[u])
+        return a
+
+    def _current(
+        self, a_free: FloatArray, minv: FloatArray | None
+    ) -> tuple[FloatArray, FloatArray]:
+        """(accelerations, lock torques) of the current locked set (none: a_free)."""
+        if minv is None or not len(self._idx):
+            return a_free, _EMPTY
+        return self._solve_locked(a_free, minv)
+
+    def _solve_locked(self, a_free: FloatArray, minv: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """(accelerations, lock torques) of the current locked set (at least one joint)."""
+        idx = self._idx
+        if self._all < 0:
+            self._all = len(idx) if len(idx) == len(a_free) else 0
+        if self._all:
+            # minv.T: minv is exactly symmetric, and minv[:, idx] is the Fortran-ordered copy
+            # of it, whose product BLAS sums in another order than minv's: minv.T is that layout.
+            lam = _solve(minv, -a_free)
+            return a_free + minv.T @ lam, lam
+        lam = _solve(minv[self._grid], -a_free[idx])
+        return a_free + minv[:, idx] @ lam, lam
 
     @staticmethod
     def _solve(
@@ -110,7 +182,7 @@ class JointLocks:
     ) -> tuple[FloatArray, FloatArray]:
         if len(idx) == 0 or minv is None:
             return a_free, np.zeros(0)
-        lam = solve_small(minv[np.ix_(idx, idx)], -a_free[idx])
+        lam = _solve(minv[np.ix_(idx, idx)], -a_free[idx])
         return a_free + minv[:, idx] @ lam, lam
 
     def conditions(
@@ -123,9 +195,10 @@ class JointLocks:
         ``("hold", j)``: g = F_j - |lambda_j| (or the contact pushes). A g below zero is a mode
         change (an event).
         """
-        a, lam = self._solve(a_free, minv, self._idx)
+        a, lam_arr = self._current(a_free, minv)
+        lam = lam_arr.tolist()  # (Python floats: the same numbers, faster to index)
         out: dict[tuple[str, int], float] = {}
-        pos = {int(j): k for k, j in enumerate(self._idx)}
+        pos = self._pos
         for j, bound in self.held.items():
             lj = lam[pos[j]]
             g = bound + TORQUE_BAND - abs(lj)
@@ -147,8 +220,8 @@ class JointLocks:
         self, a_free: FloatArray, minv: FloatArray | None
     ) -> tuple[FloatArray, dict[int, float]]:
         """Accelerations [rad/s^2] and the lock torques lambda_j [N*m] of the locked joints."""
-        a, lam = self._solve(a_free, minv, self._idx)
-        return a, {int(j): float(x) for j, x in zip(self._idx, lam, strict=True)}
+        a, lam = self._current(a_free, minv)
+        return a, dict(zip(self._idx.tolist(), lam.tolist(), strict=True))
 
     def solve_engaged(
         self, a_free: FloatArray, minv: FloatArray, flip: int | None = None, eps: float = 1e-12
@@ -194,3 +267,19 @@ class JointLocks:
         engaged = tuple(j for j in choice if j in self.signs)
         self._set_engaged(engaged)
         return engaged
+
+
+def _solve(G: FloatArray, r: FloatArray) -> FloatArray:
+    """:func:`~packbot.contact.lcp.solve_small`, with numpy's LU solve called directly above 3 x 3.
+
+    The same LAPACK routine as ``np.linalg.solve`` (the same numbers), without its argument
+    checks and its error-state context (most of its cost on 4 x 4 to 8 x 8 systems: an arm at
+    rest locks every joint). An exactly singular matrix (a principal block of M^-1 is positive
+    definite: it cannot be, short of a broken model) gives non-finite numbers there (numpy warns
+    of an invalid value), and :func:`solve_small` takes over (numpy's solve, least squares).
+    """
+    if len(r) > 3 and _gesv is not None:
+        x = _gesv(G, r, signature="dd->d")
+        if np.isfinite(x @ x):
+            return x
+    return solve_small(G, r)

@@ -53,7 +53,7 @@ class PairLaw(JointStops):
 
     def step_bound(self, y: FloatArray) -> float:
         """Largest step keeping every point's motion within half the query margin [s]."""
-        speed = REACH_BOUND * float(np.abs(y[self.n : 2 * self.n]).sum())
+        speed = REACH_BOUND * float(np.add.reduce(np.abs(y[self.n : 2 * self.n])))
         return min(self.cfg.max_step, 0.5 * self.cfg.margin / max(speed, 1e-9))
 
     def distance(self, pair: int, y: FloatArray) -> float:

@@ -140,7 +140,7 @@ class MomentumObserver:
                 "observer.coulomb", coulomb, shape=(n,), expected=f"{n} Coulomb torques [N*m]"
             )
         )
-        self._lower = np.tril_indices(n, -1)
+        self._upper = np.triu(np.ones((n, n), dtype=bool))
         self._neg_effort = -self.effort
         self._rubs = bool(self.viscous.any() or self.coulomb.any())
         self._v_prev = np.zeros(n)
@@ -169,13 +169,11 @@ class MomentumObserver:
     def _drift(self, q: FloatArray, v: FloatArray) -> FloatArray:
         """C(q, v)^T v - g(q) [N*m]: the momentum's rate of change besides the torques."""
         C = pin.computeCoriolisMatrix(self.model, self.data, q, v)
-        g = pin.computeGeneralizedGravity(self.model, self.data, q)
-        return np.asarray(C.T @ v - g)
+        return C.T @ v - pin.computeGeneralizedGravity(self.model, self.data, q)
 
     def _momentum(self, q: FloatArray, v: FloatArray) -> FloatArray:
-        M = np.array(pin.crba(self.model, self.data, q))
-        M[self._lower] = M.T[self._lower]  # Pinocchio fills the upper triangle
-        return np.asarray(M @ v)
+        M = pin.crba(self.model, self.data, q)  # Pinocchio fills the upper triangle
+        return np.where(self._upper, M, M.T) @ v
 
     def update(
         self, t: float, q: FloatArray, v: FloatArray, tau_prev: FloatArray
@@ -203,14 +201,21 @@ class MomentumObserver:
             vm = 0.5 * (self._v_prev + v)
             sliding = np.abs(vm) > self.frozen_speed
             tau_m = tau_m - self.viscous * vm - np.where(sliding, self.coulomb * np.sign(vm), 0.0)
-        self._v_prev = np.array(v, dtype=float)
+            self._v_prev = np.array(v, dtype=float)
         f = self._drift(q, v)
         # The held torque is exact over the period; the drift by the trapezoidal rule.
         self._integral += h * (tau_m + 0.5 * (f + self._f_prev) + self.residual)
         self._f_prev = f
-        self.residual = self.gain * (self._momentum(q, v) - self._p0 - self._integral)
-        over = (np.abs(self.residual) > self.threshold) & ~self.ignored
-        if not over.any():  # nothing over its threshold: no onset pending, nothing due
+        self.residual = r = self.gain * (self._momentum(q, v) - self._p0 - self._integral)
+        over = np.abs(r) > self.threshold
+        # (count_nonzero: a C call; ndarray.any goes through Python. The common case, nothing
+        # over its threshold, skips the mask of the ignored joints.)
+        if np.count_nonzero(over):
+            over &= ~self.ignored
+            quiet = not np.count_nonzero(over)
+        else:
+            quiet = True
+        if quiet:  # nothing over its threshold: no onset pending, nothing due
             if self._pending:
                 self._onset[:] = np.nan
                 self._pending = False

@@ -528,14 +528,18 @@ class ReconfigurableController(ModelBasedController):
         assert self._traj is not None and self._track_model is not None
         model, data = self._track_model, self._track_data
         free = self._free
-        qd, vd, ad = self._traj(t)
-        qr, vr = q[free], v[free]
+        qd, vd, ad = self._traj.peek(t)
+        all_free = len(free) == len(q)  # (free is then arange(nq): q[free] is a copy of q)
+        qr, vr = (q, v) if all_free else (q[free], v[free])
         kp, kd = self.omega**2, 2 * self.zeta * self.omega
         a = ad + kp * (qd - qr) + kd * (vd - vr)
-        tau = np.zeros(len(q))
         if len(self._loose) == 0:
+            if all_free:
+                return pin.rnea(model, data, qr, vr, a)
+            tau = np.zeros(len(q))
             tau[free] = pin.rnea(model, data, qr, vr, a)
             return tau
+        tau = np.zeros(len(q))
         # Collocated partial feedback linearisation: the loose joints' accelerations follow
         # from the actuated ones; a swing damper offsets the pivot joints' reference by delta.
         u = np.searchsorted(free, self._loose)

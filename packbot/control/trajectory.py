@@ -111,6 +111,16 @@ class QuinticSegment:
         """End time [s]."""
         return float(self.t0 + self.duration)
 
+    def peek(self, t: float) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """:meth:`__call__` without the copies of the held end (the caller must not modify them).
+
+        For a controller that reads the reference at every tick of a long hold.
+        """
+        end = self._end
+        if end is not None and t > self.t0 + self.duration:
+            return end
+        return self(t)
+
     def __call__(self, t: float) -> tuple[FloatArray, FloatArray, FloatArray]:
         """(q [rad], v [rad/s], a [rad/s^2]) at time t [s]; held constant outside [t0, t1]."""
         T = self.duration

@@ -1,0 +1,144 @@
+"""Where a run's time goes, by the event loop's parts: the joint_clamp collapse, a controlled run.
+
+    python benchmarks/loop_parts.py                  # both, 5 collapses and one 60 s run
+    python benchmarks/loop_parts.py --duration 10    # reconfig_elbow1 for 10 s only
+
+Timers (``time.perf_counter``) are put around the loop's parts of one run object (the stepper's
+steps, the law's end-of-step checks and its collision sweeps, the samples, the event handling,
+the ticks and the controller's ``step``); each part's time includes the parts it calls, so the
+shares of the nested rows (the sweep inside the checks, the controller inside the ticks) are not
+added to their parent's. The timers cost about 0.3 us a call; the table's shares are what
+compares (on a loaded machine the wall times grow, the shares much less). Also printed: the CPU
+time of the run without timers (median of the repeats).
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+
+import packbot
+from packbot import integrator
+from packbot.collision import CollisionWorld
+from packbot.scenario import load_scenario
+
+WRIST = ("camera_tilt", "camera_pan", "gripper_roll", "gripper_jaw")
+#: (label, how to reach the object from the run, method name); nested rows are indented.
+PARTS = (
+    ("building the run", None, "__init__"),
+    ("steps (stepper, right-hand sides)", "stepper", "step"),
+    ("end-of-step checks (watch)", "law", "watch"),
+    ("  the collision sweeps", "CollisionWorld", "sweep"),
+    ("samples", "rec", "record"),
+    ("events' handling", "law", "handle"),
+    ("stepper restarts", "stepper", "reset"),
+    ("ticks inside held steps", "ticks", "inside"),
+    ("  the controller's step()", "ctrl_obj", "step"),
+    ("ticks that change the command", None, "cut_at_tick"),
+    ("scheduled actions (ticks at a step's end)", None, "run_scheduled"),
+)
+
+
+def _timed(acc: dict[str, float], label: str, f: Callable[..., Any]) -> Callable[..., Any]:
+    def w(*a: Any, **k: Any) -> Any:
+        t0 = time.perf_counter()
+        try:
+            return f(*a, **k)
+        finally:
+            acc[label] = acc.get(label, 0.0) + time.perf_counter() - t0
+
+    return w
+
+
+def measured(run_once: Callable[[], Any]) -> tuple[float, dict[str, float]]:
+    """(wall [s], part -> time [s]) of one run with the timers in place."""
+    acc: dict[str, float] = {}
+    orig_init = integrator._Run.__init__
+
+    def init(self: Any, *a: Any, **k: Any) -> None:
+        t0 = time.perf_counter()
+        orig_init(self, *a, **k)
+        acc["building the run"] = time.perf_counter() - t0
+        for label, path, name in PARTS[1:]:
+            if path == "CollisionWorld":
+                continue  # every phase's world: timed at the class (below)
+            obj: Any = self
+            for attr in path.split(".") if path else ():
+                obj = getattr(obj, attr, None)
+            if obj is not None and hasattr(obj, name):
+                setattr(obj, name, _timed(acc, label, getattr(obj, name)))
+        # the stepper keeps its own reference to the right-hand side: nothing to rewire
+
+    integrator._Run.__init__ = init  # type: ignore[method-assign]
+    sweep = CollisionWorld.sweep
+    CollisionWorld.sweep = _timed(acc, "  the collision sweeps", sweep)  # type: ignore[method-assign]
+    try:
+        t0 = time.perf_counter()
+        run_once()
+        wall = time.perf_counter() - t0
+    finally:
+        integrator._Run.__init__ = orig_init  # type: ignore[method-assign]
+        CollisionWorld.sweep = sweep  # type: ignore[method-assign]
+    return wall, acc
+
+
+def cpu_time(run_once: Callable[[], Any], repeats: int) -> float:
+    """Median CPU time [s] of the run without timers."""
+    out = []
+    for _ in range(repeats):
+        c0 = time.process_time()
+        run_once()
+        out.append(time.process_time() - c0)
+    return float(np.median(out))
+
+
+def table(title: str, run_once: Callable[[], Any], repeats: int) -> None:
+    run_once()  # warm: imports, caches
+    cpu = cpu_time(run_once, repeats)
+    wall, acc = measured(run_once)
+    print(f"\n{title}: CPU time without timers {cpu * 1e3:.1f} ms (median of {repeats})")
+    print(f"{'part':48s} {'time [ms]':>10s} {'share':>7s}")
+    for label, _, _ in PARTS:
+        if label in acc:
+            print(f"{label:48s} {acc[label] * 1e3:10.1f} {acc[label] / wall:7.1%}")
+    print(f"{'the whole run (with timers)':48s} {wall * 1e3:10.1f}")
+
+
+def main(argv: list[str] | None = None) -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--duration", type=float, default=60.0, help="reconfig_elbow1: simulated [s]")
+    ap.add_argument("--repeats", type=int, default=5, help="collapse runs (CPU time median)")
+    args = ap.parse_args(argv)
+    robot = packbot.load_robot()
+    cfg = packbot.SimConfig(contact_mode="joint_clamp", locked_joints=WRIST)
+    q0, v0 = robot.pose("drive"), np.zeros(robot.nq)
+
+    def collapse() -> Any:
+        return packbot.simulate(robot, q0, v0, 5.0, config=cfg)
+
+    sc = load_scenario("reconfig_elbow1")
+
+    def reconfig() -> Any:
+        q, v = sc.initial_state(robot)
+        return packbot.simulate(
+            robot,
+            q,
+            v,
+            args.duration,
+            controller=sc.build_controller(robot),
+            environment=sc.environment,
+            config=sc.config,
+            failures=list(sc.failures),
+            inform_controller=sc.inform_controller,
+        )
+
+    table("joint_clamp collapse, 5 s", collapse, args.repeats)
+    table(f"reconfig_elbow1, {args.duration:g} s", reconfig, 1)
+
+
+if __name__ == "__main__":
+    main()
