@@ -262,6 +262,30 @@ def test_a_crawling_stepper_opens_a_window(robot):
     assert _event_gain(res) <= GAIN_TOL
 
 
+def test_the_crawl_detector_opens_a_window_after_crawl_steps(robot, monkeypatch):
+    """The crawl detector itself, on a run that does not depend on a stiff stretch: the
+    collapse from "drive" (wrist locked) takes no window; with CRAWL_STEP raised so that
+    every step counts as a crawl, a window opens (a ``timestep`` event) once CRAWL_STEPS steps
+    are taken, later for a larger count, and the run keeps its guarantees."""
+    cfg = packbot.SimConfig(contact_mode="normal", mu=0.5, restitution=0.0, locked_joints=LOCKED)
+    q0, v0 = robot.pose("drive"), np.zeros(robot.nq)
+    plain = packbot.simulate(robot, q0, v0, 0.6, config=cfg)
+    assert plain.diagnostics.windows == 0
+    monkeypatch.setattr(normal_mod, "CRAWL_STEPS", 50)
+    monkeypatch.setattr(normal_mod, "CRAWL_STEP", 1.0)  # [s]: every step is "slow"
+    res = packbot.simulate(robot, q0, v0, 0.6, config=cfg)
+    d = res.diagnostics
+    assert d.windows >= 1
+    assert -d.min_distance <= PENETRATION_TOL
+    assert _event_gain(res) <= GAIN_TOL
+    # the count: with 100 steps to average, the first window opens later, after more steps
+    monkeypatch.setattr(normal_mod, "CRAWL_STEPS", 100)
+    later = packbot.simulate(robot, q0, v0, 0.6, config=cfg)
+    t50 = res.events_of("timestep")[0].t
+    t100 = later.events_of("timestep")[0].t
+    assert 0.0 < t50 < t100
+
+
 def test_an_unconverged_compiled_answer_falls_back_to_pinocchios_admm(robot, monkeypatch):
     """The compiled solver's answer above RESIDUAL_OK is not used: Pinocchio's ADMM solves
     the step instead (counted in ``conic_fallbacks``), and the run is the usual one."""
