@@ -48,8 +48,8 @@ and the hold lasts while |tau_j| <= F_j (or a one-sided clamp on the joint pushe
 joint's clamps are not rows (the joint is locked anyway): its hold condition takes them in, as
 :class:`~packbot.contact.locks.JointLocks` does. A bounded torque does nothing in an instant: at
 an impulse the held joints are free (an impact may set a braked joint moving; it then slides,
-its friction opposing), and the holds are chosen again after it
-(:meth:`HandoffLaw.settle_mixed`).
+its friction opposing; one it would set moving slower than ``HOLD_KICK`` stays held), and the
+holds are chosen again after it (:meth:`HandoffLaw._settle_holds`).
 
 When the last handed-off pair leaves the contact set (its distance beyond the proximity
 tolerance) the clamps go back to :class:`~packbot.contact.locks.JointLocks` and that pair's next
