@@ -53,4 +53,20 @@ class ContactRhs:
         from_tau: bool,
         out: NDArray[np.float64],
     ) -> bool: ...
+    def set_torque(
+        self,
+        applied: NDArray[np.float64],
+        viscous: NDArray[np.float64],
+        coulomb_dir: NDArray[np.float64],
+    ) -> None: ...
+    def dopri(
+        self,
+        h: float,
+        Z: NDArray[np.float64],
+        ay0: NDArray[np.float64],
+        atol: NDArray[np.float64],
+        rtol: float,
+        y1: NDArray[np.float64],
+        ay1: NDArray[np.float64],
+    ) -> float: ...
     def last(self) -> tuple[NDArray[np.float64], ...]: ...

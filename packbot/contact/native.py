@@ -20,6 +20,7 @@ Conventions as :class:`packbot.contact.normal.NormalContacts` (world frame, SI u
 from __future__ import annotations
 
 import logging
+from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -31,7 +32,7 @@ from packbot.errors import ModelError, PackbotError
 if TYPE_CHECKING:
     from packbot.contact.normal import NormalContacts
 
-__all__ = ["ENABLED", "SUPPORTED_JOINTS", "NativeRhs", "available", "native_rhs"]
+__all__ = ["ENABLED", "STEP_ENABLED", "SUPPORTED_JOINTS", "NativeRhs", "available", "native_rhs"]
 
 log = logging.getLogger(__name__)
 
@@ -40,6 +41,10 @@ FloatArray = NDArray[np.float64]
 #: Whether the contact-normal mode uses the native right-hand side when it can (read when a
 #: law's phase is built; benchmarks switch it off to time the Python path).
 ENABLED = True
+#: Whether the stepper takes its Dormand-Prince stages natively (:meth:`NativeRhs.step`) when
+#: the native right-hand side would serve every stage (read at every step; benchmarks and
+#: tests switch it off to compare with the stages in Python around the native call).
+STEP_ENABLED = True
 
 #: The joint types the extension rebuilds (Pinocchio's short names).
 SUPPORTED_JOINTS = frozenset(
@@ -118,6 +123,10 @@ class NativeRhs:
             _reals(model.gravity.linear),
         )
         self._out = np.zeros(self.nv)  # the extension writes here
+        #: One native Dormand-Prince attempt (:data:`packbot.ode.StepKernel`) on the loaded
+        #: modes and torques: ``step(h, Z, ay0, atol, rtol, y1, ay1) -> err`` (-1: a singular
+        #: Delassus matrix at a stage, the caller takes the Python stages).
+        self.step: Callable[..., float] = self._rhs.dopri
         self._layout_id: Any = None  # the _Layout loaded
         self._plan_id: Any = None  # the _Plan loaded
 
@@ -155,6 +164,10 @@ class NativeRhs:
             self._plan_id = plan
         if plan.slips:  # the onset directions (reassigned at restarts)
             self._rhs.set_slip_dirs(_reals([p.slip_dir for p in contacts._pair_list]))
+
+    def set_torque(self, applied: FloatArray, viscous: FloatArray, coulomb_dir: FloatArray) -> None:
+        """The torques of the steps to come [N*m]: ``applied + (-viscous * v - coulomb_dir)``."""
+        self._rhs.set_torque(_reals(applied), _reals(viscous), _reals(coulomb_dir))
 
     def accel(
         self, q: FloatArray, v: FloatArray, x: FloatArray, from_tau: bool

@@ -82,7 +82,7 @@ from packbot.contact.lcp import (
 from packbot.contact.locks import JointLocks
 from packbot.contact.pairs import PairLaw
 from packbot.contact.timestep import QUIET_STEPS, MoreauJeanStepper
-from packbot.ode import DenseSegment
+from packbot.ode import DenseSegment, StepKernel
 from packbot.system import System
 
 if TYPE_CHECKING:
@@ -1963,6 +1963,34 @@ class NormalLaw(PatchEvents):
             if a is not None:
                 return a
         return self.accel(q, v, self.sys.aba(q, v, tau))
+
+    def step_kernel(self, t: float, y: FloatArray) -> StepKernel | None:
+        """The native Dormand-Prince step of the current modes, or None (the stages call rhs).
+
+        Offered when :meth:`torque_accel` would take the native call at every stage (engaged
+        rows, no lock, no rest capture, no window) and the torques are fixed over the step (a
+        held command, no motor lag: :meth:`~packbot.drive.Drive.step_torques`). The stages,
+        the 5th-order solution and the error norm in one call
+        (:meth:`~packbot.contact.native.NativeRhs.step`); the same numbers as the stages in
+        Python around :meth:`torque_accel`, to rounding.
+        """
+        rhs = self._native
+        nc = self.normal
+        if (
+            rhs is None
+            or not native.STEP_ENABLED
+            or not nc.engaged
+            or nc.resting
+            or self.locks.any_locked
+            or self.window is not None
+        ):
+            return None
+        torques = self.drive.step_torques(t, y)
+        if torques is None:
+            return None
+        rhs.load(nc, nc._plan())
+        rhs.set_torque(*torques)
+        return rhs.step
 
     def _pair_crossings(
         self, key: Key, p_idx: int, seg: DenseSegment, d0: float, d1: float

@@ -25,6 +25,7 @@
 #include <pinocchio/multibody/data.hpp>
 #include <pinocchio/multibody/model.hpp>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <stdexcept>
@@ -79,6 +80,7 @@ using F2 = nb::ndarray<const double, nb::ndim<2>, nb::c_contig, nb::device::cpu>
 using F3 = nb::ndarray<const double, nb::ndim<3>, nb::c_contig, nb::device::cpu>;
 using I1 = nb::ndarray<const int64_t, nb::ndim<1>, nb::c_contig, nb::device::cpu>;
 using Out1 = nb::ndarray<double, nb::ndim<1>, nb::c_contig, nb::device::cpu>;
+using Out2 = nb::ndarray<double, nb::ndim<2>, nb::c_contig, nb::device::cpu>;
 
 namespace {
 
@@ -299,6 +301,70 @@ class ContactRhs {
     return ok;
   }
 
+  // The joint torques of the steps to come: tau = applied + (-viscous * v - coulomb_dir), as
+  // packbot.drive.Drive.torques with a held command and no motor lag (constants in a step).
+  void set_torque(F1 applied, F1 viscous, F1 coulomb_dir) {
+    if (applied.shape(0) != static_cast<size_t>(nv_) ||
+        viscous.shape(0) != static_cast<size_t>(nv_) ||
+        coulomb_dir.shape(0) != static_cast<size_t>(nv_))
+      throw std::invalid_argument("applied, viscous, coulomb_dir: nv entries expected");
+    applied_ = reals(applied);
+    viscous_ = reals(viscous);
+    coulomb_dir_ = reals(coulomb_dir);
+  }
+
+  // One Dormand-Prince 5(4) attempt of size h (packbot.ode.RK45Stepper.step's stages and error
+  // norm) on y = (q, v) with the modes and torques loaded: Z (8, 2 nv) holds [y0, k0] on entry
+  // and [y0, k0, ..., k6] on return (k6 = f(y1), the FSAL stage), y1 the 5th-order solution,
+  // ay1 = |y1|. Returns the scaled RMS error norm, or -1 when a stage's Delassus matrix is
+  // singular (the caller takes the Python stages).
+  double dopri(double h, Out2 Z, F1 ay0, F1 atol, double rtol, Out1 y1, Out1 ay1) {
+    const int nv = nv_, n = 2 * nv_;
+    if (Z.shape(0) != 8 || Z.shape(1) != static_cast<size_t>(n) ||
+        ay0.shape(0) != static_cast<size_t>(n) || atol.shape(0) != static_cast<size_t>(n) ||
+        y1.shape(0) != static_cast<size_t>(n) || ay1.shape(0) != static_cast<size_t>(n))
+      throw std::invalid_argument("Z (8, 2 nv); ay0, atol, y1, ay1 (2 nv,) expected");
+    if (applied_.size() != static_cast<size_t>(nv))
+      throw std::invalid_argument("set_torque was not called");
+    static constexpr double A[7][7] = {
+        {0, 0, 0, 0, 0, 0, 0},
+        {1.0 / 5, 0, 0, 0, 0, 0, 0},
+        {3.0 / 40, 9.0 / 40, 0, 0, 0, 0, 0},
+        {44.0 / 45, -56.0 / 15, 32.0 / 9, 0, 0, 0, 0},
+        {19372.0 / 6561, -25360.0 / 2187, 64448.0 / 6561, -212.0 / 729, 0, 0, 0},
+        {9017.0 / 3168, -355.0 / 33, 46732.0 / 5247, 49.0 / 176, -5103.0 / 18656, 0, 0},
+        {35.0 / 384, 0, 500.0 / 1113, 125.0 / 192, -2187.0 / 6784, 11.0 / 84, 0}};
+    static constexpr double E[7] = {-71.0 / 57600,    0, 71.0 / 16695, -71.0 / 1920,
+                                    17253.0 / 339200, -22.0 / 525, 1.0 / 40};
+    double *z = Z.data();
+    ys_.resize(n);
+    double ah[7];
+    for (int s = 1; s < 7; ++s) {
+      for (int j = 0; j < s; ++j) ah[j] = A[s][j] * h;
+      // the stage's argument y0 + sum_j (h a_sj) k_j (the order of RK45Stepper's np.dot)
+      double *arg = s < 6 ? ys_.data() : y1.data();
+      for (int c = 0; c < n; ++c) {
+        double acc = z[c];
+        for (int j = 0; j < s; ++j) acc += ah[j] * z[(1 + j) * n + c];
+        arg[c] = acc;
+      }
+      if (!stage(arg, z + (1 + s) * n)) return -1.0;
+    }
+    // the scaled RMS norm of h * sum_j e_j k_j
+    const double *a0 = ay0.data(), *at = atol.data(), *yn = y1.data();
+    double *a1 = ay1.data();
+    double ss = 0.0;
+    for (int c = 0; c < n; ++c) {
+      double ev = 0.0;
+      for (int j = 0; j < 7; ++j) ev += E[j] * z[(1 + j) * n + c];
+      a1[c] = std::abs(yn[c]);
+      const double sc = std::max(a0[c], a1[c]) * rtol + at[c];
+      ev /= sc;
+      ss += ev * ev;
+    }
+    return h * std::sqrt(ss * (1.0 / n));
+  }
+
   // The last call's unconstrained accelerations, M^-1, forces, gaps, normal velocities,
   // centre tangential velocities, Delassus matrix and right-hand side (copies).
   nb::tuple last() const {
@@ -336,6 +402,25 @@ class ContactRhs {
     rhs_.assign(n_, 0.0);
     rhs0_.assign(n_, 0.0);
     lam_.assign(n_, 0.0);
+  }
+
+  // One right-hand side dy/dt = (v, a) at y = (q, v) under the loaded torques; false when the
+  // Delassus matrix is singular.
+  bool stage(const double *y, double *f) {
+    const int nv = nv_;
+    for (int i = 0; i < nv; ++i) {
+      q_[i] = y[i];
+      v_[i] = y[nv + i];
+      x_[i] = applied_[i] + (-viscous_[i] * v_[i] - coulomb_dir_[i]);
+    }
+    pin::aba(model_, data_, q_, v_, x_, pin::Convention::LOCAL);
+    a_free_ = data_.ddq;
+    if (!compute()) return false;
+    for (int i = 0; i < nv; ++i) {
+      f[i] = y[nv + i];
+      f[nv + i] = a_[i];
+    }
+    return true;
   }
 
   bool compute() {
@@ -569,6 +654,8 @@ class ContactRhs {
   std::vector<double> H_, Vb_, Ab_, P_, Jp_, vp_, ap_, dJp_, vrel_, arel_, dP_, F_;
   std::vector<double> Jn_, drift_, gap_, vn_, JT_, bT_, vT_, vt_, slip_dir_;
   std::vector<double> A_, C_, target_, b_, MC_, G_, G0_, rhs_, rhs0_, lam_;
+  // the step's torques and its stage argument
+  std::vector<double> applied_, viscous_, coulomb_dir_, ys_;
 };
 
 NB_MODULE(_native, m) {
@@ -585,5 +672,9 @@ NB_MODULE(_native, m) {
       .def("set_slip_dirs", &ContactRhs::set_slip_dirs)
       .def("accel", &ContactRhs::accel, nb::arg("q"), nb::arg("v"), nb::arg("x"),
            nb::arg("from_tau"), nb::arg("out"))
+      .def("set_torque", &ContactRhs::set_torque, nb::arg("applied"), nb::arg("viscous"),
+           nb::arg("coulomb_dir"))
+      .def("dopri", &ContactRhs::dopri, nb::arg("h"), nb::arg("Z"), nb::arg("ay0"),
+           nb::arg("atol"), nb::arg("rtol"), nb::arg("y1"), nb::arg("ay1"))
       .def("last", &ContactRhs::last);
 }
