@@ -1,5 +1,7 @@
 """Type stub of the compiled extension (src/native/contact_rhs.cpp)."""
 
+from typing import Any
+
 import numpy as np
 from numpy.typing import NDArray
 
@@ -69,4 +71,8 @@ class ContactRhs:
         y1: NDArray[np.float64],
         ay1: NDArray[np.float64],
     ) -> float: ...
+    def set_conditions(
+        self, offset0: NDArray[np.float64], force_band: float, point_tol: float, stick_band: float
+    ) -> None: ...
+    def end_eval(self, y1: NDArray[np.float64]) -> tuple[Any, ...] | None: ...
     def last(self) -> tuple[NDArray[np.float64], ...]: ...

@@ -233,3 +233,57 @@ def test_bad_step_arguments_are_refused(robot):
         rhs.step(1e-3, np.zeros((7, n)), z, z + 1e-9, 1e-6, np.zeros(n), np.zeros(n))
     with pytest.raises(ValueError, match="nv entries"):
         rhs.set_torque(np.zeros(3), np.zeros(3), np.zeros(3))
+
+
+@pytest.mark.parametrize(
+    ("mu", "locked", "duration"),
+    [(0.5, WRIST, 1.2), (0.5, (), 0.5)],
+    ids=["mu0.5", "mu0.5-wrist-free"],
+)
+def test_the_step_ends_conditions_are_the_python_evaluations(
+    robot, monkeypatch, mu, locked, duration
+):
+    seen = {"ends": 0, "violated": 0}
+    worst = {"lam": 0.0, "rows": 0.0, "cond": 0.0, "slide2": 0.0}
+    original = native.NativeRhs.end_eval
+
+    def checked(self, contacts, y1):
+        ev = original(self, contacts, y1)
+        if ev is None:
+            return None
+        n = self.nv
+        law = checked.law
+        q, v = y1[:n], y1[n:]
+        # kept as the contact set's last evaluation at (q, v), for sliding() and stale()
+        assert contacts._last_eval[6] is ev
+        np.testing.assert_array_equal(contacts._last_eval[0], q)
+        py = contacts.evaluate(q, v, law.free_accel(0.0, y1), law.sys.minv(q))
+        np.testing.assert_allclose(ev.a, py.a, rtol=1e-12, atol=1e-12)
+        lscale = max(1.0, float(np.abs(py.lam).max()))
+        worst["lam"] = max(worst["lam"], float(np.abs(ev.lam - py.lam).max()) / lscale)
+        rows = np.concatenate([ev.gap - py.gap, ev.vn - py.vn, (ev.vt - py.vt).ravel()])
+        worst["rows"] = max(worst["rows"], float(np.abs(rows).max()))
+        worst["cond"] = max(worst["cond"], abs(ev.cond - py.cond))
+        slides = np.abs(ev.slide2 - py.slide2)  # (no pair: a limit row alone)
+        worst["slide2"] = max(worst["slide2"], float(slides.max(initial=0.0)))
+        assert contacts.violated(ev) == contacts.violated(py)
+        seen["ends"] += 1
+        seen["violated"] += ev.cond < 0.0
+        return ev
+
+    original_rebuild = NormalLaw.rebuild
+
+    def rebuild(self, system):
+        original_rebuild(self, system)
+        checked.law = self
+
+    monkeypatch.setattr(NormalLaw, "rebuild", rebuild)
+    monkeypatch.setattr(native.NativeRhs, "end_eval", checked)
+    cfg = packbot.SimConfig(contact_mode="normal", mu=mu, locked_joints=locked)
+    packbot.simulate(robot, robot.pose("drive"), np.zeros(8), duration, config=cfg)
+    assert seen["ends"] > 100, seen
+    assert seen["violated"] > 0, seen
+    assert worst["lam"] <= 1e-10, worst
+    assert worst["rows"] <= 1e-12, worst
+    assert worst["cond"] <= 1e-10, worst
+    assert worst["slide2"] <= 1e-20, worst

@@ -30,7 +30,7 @@ from numpy.typing import NDArray
 from packbot.errors import ModelError, PackbotError
 
 if TYPE_CHECKING:
-    from packbot.contact.normal import NormalContacts
+    from packbot.contact.normal import NormalContacts, _Eval
 
 __all__ = ["ENABLED", "STEP_ENABLED", "SUPPORTED_JOINTS", "NativeRhs", "available", "native_rhs"]
 
@@ -67,6 +67,10 @@ try:  # the compiled extension (built by `pip install .`; see CMakeLists.txt)
 except ImportError as exc:  # pragma: no cover - a build without the extension
     _native = None
     _IMPORT_ERROR = exc
+
+
+#: The inputs of an evaluation that no caller passes (never equal to an array of theirs).
+_NONE = np.empty(0)
 
 
 def available() -> bool:
@@ -148,6 +152,9 @@ class NativeRhs:
                 _reals(lay.lim_side),
                 _reals(lay.lim_value),
             )
+            from packbot.contact.normal import FORCE_BAND, POINT_TOL, STICK_BAND
+
+            self._rhs.set_conditions(_reals(lay.offset0), FORCE_BAND, POINT_TOL, STICK_BAND)
             self._layout_id = lay
             self._plan_id = None
         if plan is not self._plan_id:
@@ -189,6 +196,33 @@ class NativeRhs:
         if not self._rhs.accel(q, v, x, from_tau, out):
             return None
         return out.copy()
+
+    def end_eval(self, contacts: NormalContacts, y1: FloatArray) -> _Eval | None:
+        """The evaluation at the end of the last native step, if it ended at y1.
+
+        The step's FSAL stage is the right-hand side at y1 with the modes of ``contacts``: its
+        forces, rows, centre velocities, the smallest mode condition (``cond``) and the
+        patches' slides (``slide2``) are those :meth:`NormalContacts.evaluate` computes there
+        (the same kernel, ported), without a call. Kept as the contact set's last evaluation
+        at (q, v) (:meth:`NormalContacts.sliding` and ``stale`` read it).
+
+        Args:
+            contacts: The contact set whose modes the step had (unchanged since).
+            y1: The state the step ended at, (q, v).
+
+        Returns:
+            The evaluation, or None: the last native call was not a step ending at y1.
+        """
+        got = self._rhs.end_eval(y1)
+        if got is None:
+            return None
+        from packbot.contact.normal import _Eval
+
+        cond, a, lam, gap, vn, vt, slide2 = got
+        ev = _Eval(a, lam, gap, vn, vt, cond=cond, slide2=slide2)
+        nv = self.nv
+        contacts._last_eval = (y1[:nv], y1[nv:], _NONE, _NONE, _NONE, contacts._plan_key, ev)
+        return ev
 
     def last(self) -> tuple[FloatArray, ...]:
         """The last call's (a_free, M^-1, lam, gap, v_n, v_t, G, rhs): copies, for tests."""

@@ -2012,9 +2012,15 @@ class NormalLaw(PatchEvents):
         ]
 
     def _mode_crossings(self, seg: DenseSegment, y1: FloatArray) -> list[Crossing]:
-        if self.normal.empty:
+        nc = self.normal
+        if nc.empty:
             return []
-        return self._problem_crossings(self.normal, seg, y1)
+        rhs = self._native
+        if rhs is not None:  # a native step's end: its last stage evaluated the conditions
+            ev = rhs.end_eval(nc, y1)
+            if ev is not None and ev.cond is not None and ev.cond >= 0.0:
+                return []
+        return self._problem_crossings(nc, seg, y1)
 
     def _limit_held(self, j: int, side: int) -> bool:
         return self.normal.limit_engaged(j, side)

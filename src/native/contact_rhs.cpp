@@ -28,6 +28,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <limits>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -211,6 +212,8 @@ class ContactRhs {
     lim_joint_ = ints(lim_joint);
     lim_side_ = reals(lim_side);
     lim_value_ = reals(lim_value);
+    end_valid_ = false;
+    conditions_set_ = false;
     nb_ = static_cast<int>(joints_.size());
     n2h_ = static_cast<int>(body_.size());
     h_ = n2h_ / 2;
@@ -254,6 +257,7 @@ class ContactRhs {
   // The current modes (see packbot.contact.normal._Plan) and the law's constants.
   void set_plan(I1 engaged, I1 row_slip, I1 sticks, double mu, double stick_speed,
                 double baumgarte) {
+    end_valid_ = false;
     engaged_ = ints(engaged);
     row_slip_ = ints(row_slip);
     sticks_ = ints(sticks);
@@ -276,6 +280,79 @@ class ContactRhs {
     if (slip_dir.size() != slip_dir_.size())
       throw std::invalid_argument("slip_dir: (pairs, 3) expected");
     std::copy(slip_dir.data(), slip_dir.data() + slip_dir.size(), slip_dir_.begin());
+    end_valid_ = false;
+  }
+
+  // The mode conditions' constants: each patch row's tangential offset when built (rows, 2)
+  // [m], the force and stick hysteresis bands, the point tolerance (packbot.contact.normal).
+  void set_conditions(F2 offset0, double force_band, double point_tol, double stick_band) {
+    if (offset0.size() != static_cast<size_t>(2 * mp_))
+      throw std::invalid_argument("offset0: (patch rows, 2) expected");
+    offset0_ = reals(offset0);
+    force_band_ = force_band;
+    point_tol_ = point_tol;
+    stick_band_ = stick_band;
+    conditions_set_ = true;
+  }
+
+  // The step end's evaluation: when the last call was a dopri whose FSAL stage was at exactly
+  // y1 (no call or load since), (cond, a, lam, gap, vn, vt, slide2) there, as
+  // kernels.constrained_accel returns them (cond: the smallest mode condition, slide2: each
+  // pair's largest squared slide); else None.
+  nb::object end_eval(F1 y1) {
+    const size_t n = 2 * static_cast<size_t>(nv_);
+    if (!end_valid_ || !conditions_set_ || y1.shape(0) != n ||
+        !std::equal(y_end_.begin(), y_end_.end(), y1.data()))
+      return nb::none();
+    const int nv = nv_;
+    double cond = std::numeric_limits<double>::infinity();
+    pos_.assign(m_, -1);
+    for (int e = 0; e < ne_; ++e) pos_[engaged_[e]] = e;
+    for (int r = 0; r < m_; ++r) {
+      const double g = pos_[r] >= 0 ? lam_[pos_[r]] + force_band_ : gap_[r] + point_tol_;
+      if (g < cond) cond = g;
+    }
+    if (mu_ > 0.0) {
+      for (int i = 0; i < ns_; ++i) {
+        const int64_t p = sticks_[i];
+        double fn = 0.0;
+        for (int r = 0; r < mp_; ++r)
+          if (pos_[r] >= 0 && pair_[rows_[r]] == p) fn += lam_[pos_[r]];
+        const double l0 = lam_[ne_ + 2 * i], l1 = lam_[ne_ + 2 * i + 1];
+        const double g = mu_ * fn - std::sqrt(l0 * l0 + l1 * l1) + force_band_;
+        if (g < cond) cond = g;
+      }
+      slipping_.assign(np_, 0);
+      for (int e = 0; e < ne_; ++e)
+        if (row_slip_[e] >= 0) slipping_[row_slip_[e]] = 1;
+      for (int p = 0; p < np_; ++p) {
+        if (!slipping_[p]) continue;
+        const double *vt = &vt_[3 * p], *sd = &slip_dir_[3 * p];
+        const double w0 = vt[0] + stick_speed_ * sd[0];
+        const double w1 = vt[1] + stick_speed_ * sd[1];
+        const double w2 = vt[2] + stick_speed_ * sd[2];
+        const double nw = std::max(std::sqrt(w0 * w0 + w1 * w1 + w2 * w2), 1e-300);
+        const double g = (vt[0] * w0 + vt[1] * w1 + vt[2] * w2) / nw + stick_band_;
+        if (g < cond) cond = g;
+      }
+    }
+    std::vector<double> slide2(np_, 0.0);
+    for (int r = 0; r < mp_; ++r) {
+      const int k = static_cast<int>(rows_[r]);
+      const int p = static_cast<int>(pair_[k]);
+      double s2 = 0.0;
+      for (int j = 0; j < 2; ++j) {
+        const double *T = &F_[9 * p + 3 * j];
+        double d = T[0] * dP_[3 * k] + T[1] * dP_[3 * k + 1] + T[2] * dP_[3 * k + 2];
+        d -= offset0_[2 * r + j];
+        s2 += d * d;
+      }
+      if (s2 > slide2[p]) slide2[p] = s2;
+    }
+    (void)nv;
+    return nb::make_tuple(cond, vec(a_.data(), nv_), vec(lam_.data(), n_), vec(gap_.data(), m_),
+                          vec(vn_.data(), m_), mat(vt_.data(), np_, 3),
+                          vec(slide2.data(), np_));
   }
 
   // Accelerations of the current modes at (q, v) into out; x is tau (from_tau) or a_free.
@@ -284,6 +361,7 @@ class ContactRhs {
     if (q.shape(0) != static_cast<size_t>(nv_) || v.shape(0) != static_cast<size_t>(nv_) ||
         x.shape(0) != static_cast<size_t>(nv_) || out.shape(0) != static_cast<size_t>(nv_))
       throw std::invalid_argument("q, v, tau and out: nv entries expected");
+    end_valid_ = false;
     for (int i = 0; i < nv_; ++i) {
       q_[i] = q.data()[i];
       v_[i] = v.data()[i];
@@ -308,6 +386,7 @@ class ContactRhs {
         viscous.shape(0) != static_cast<size_t>(nv_) ||
         coulomb_dir.shape(0) != static_cast<size_t>(nv_))
       throw std::invalid_argument("applied, viscous, coulomb_dir: nv entries expected");
+    end_valid_ = false;
     applied_ = reals(applied);
     viscous_ = reals(viscous);
     coulomb_dir_ = reals(coulomb_dir);
@@ -337,6 +416,7 @@ class ContactRhs {
     static constexpr double E[7] = {-71.0 / 57600,    0, 71.0 / 16695, -71.0 / 1920,
                                     17253.0 / 339200, -22.0 / 525, 1.0 / 40};
     double *z = Z.data();
+    end_valid_ = false;
     ys_.resize(n);
     double ah[7];
     for (int s = 1; s < 7; ++s) {
@@ -362,24 +442,14 @@ class ContactRhs {
       ev /= sc;
       ss += ev * ev;
     }
+    y_end_.assign(yn, yn + n);  // the FSAL stage's state: end_eval's
+    end_valid_ = true;
     return h * std::sqrt(ss * (1.0 / n));
   }
 
   // The last call's unconstrained accelerations, M^-1, forces, gaps, normal velocities,
   // centre tangential velocities, Delassus matrix and right-hand side (copies).
   nb::tuple last() const {
-    auto vec = [](const double *p, size_t n) {
-      auto *buf = new double[n];
-      std::copy(p, p + n, buf);
-      nb::capsule owner(buf, [](void *d) noexcept { delete[] static_cast<double *>(d); });
-      return nb::ndarray<nb::numpy, double, nb::ndim<1>>(buf, {n}, owner);
-    };
-    auto mat = [](const double *p, size_t r, size_t c) {
-      auto *buf = new double[r * c];
-      std::copy(p, p + r * c, buf);
-      nb::capsule owner(buf, [](void *d) noexcept { delete[] static_cast<double *>(d); });
-      return nb::ndarray<nb::numpy, double, nb::ndim<2>>(buf, {r, c}, owner);
-    };
     Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> Mi = minv_;
     return nb::make_tuple(vec(a_free_.data(), nv_), mat(Mi.data(), nv_, nv_),
                           vec(lam_.data(), n_), vec(gap_.data(), m_), vec(vn_.data(), m_),
@@ -388,6 +458,20 @@ class ContactRhs {
   }
 
  private:
+  // numpy copies of n (r x c) doubles
+  static nb::ndarray<nb::numpy, double, nb::ndim<1>> vec(const double *p, size_t n) {
+    auto *buf = new double[n];
+    std::copy(p, p + n, buf);
+    nb::capsule owner(buf, [](void *d) noexcept { delete[] static_cast<double *>(d); });
+    return nb::ndarray<nb::numpy, double, nb::ndim<1>>(buf, {n}, owner);
+  }
+  static nb::ndarray<nb::numpy, double, nb::ndim<2>> mat(const double *p, size_t r, size_t c) {
+    auto *buf = new double[r * c];
+    std::copy(p, p + r * c, buf);
+    nb::capsule owner(buf, [](void *d) noexcept { delete[] static_cast<double *>(d); });
+    return nb::ndarray<nb::numpy, double, nb::ndim<2>>(buf, {r, c}, owner);
+  }
+
   void set_plan_sizes(int ne, int ns) {
     ne_ = ne;
     ns_ = ns;
@@ -656,6 +740,12 @@ class ContactRhs {
   std::vector<double> A_, C_, target_, b_, MC_, G_, G0_, rhs_, rhs0_, lam_;
   // the step's torques and its stage argument
   std::vector<double> applied_, viscous_, coulomb_dir_, ys_;
+  // the step end's conditions (end_eval)
+  std::vector<double> offset0_, y_end_;
+  std::vector<int> pos_;
+  std::vector<char> slipping_;
+  double force_band_ = 0.0, point_tol_ = 0.0, stick_band_ = 0.0;
+  bool conditions_set_ = false, end_valid_ = false;
 };
 
 NB_MODULE(_native, m) {
@@ -676,5 +766,8 @@ NB_MODULE(_native, m) {
            nb::arg("coulomb_dir"))
       .def("dopri", &ContactRhs::dopri, nb::arg("h"), nb::arg("Z"), nb::arg("ay0"),
            nb::arg("atol"), nb::arg("rtol"), nb::arg("y1"), nb::arg("ay1"))
+      .def("set_conditions", &ContactRhs::set_conditions, nb::arg("offset0"),
+           nb::arg("force_band"), nb::arg("point_tol"), nb::arg("stick_band"))
+      .def("end_eval", &ContactRhs::end_eval, nb::arg("y1"))
       .def("last", &ContactRhs::last);
 }
