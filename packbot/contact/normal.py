@@ -1955,6 +1955,12 @@ class NormalLaw(PatchEvents):
         constrained accelerations in one compiled call) gives the same accelerations as
         :meth:`accel` (to rounding); a singular Delassus matrix falls back to :meth:`accel`.
         """
+        if self.window is not None:
+            # The window's steps integrate (advance); the loop's right-hand side only gives the
+            # stepper's restart value (a tick inside the window), recomputed when the window
+            # ends. The window's steps re-patch pairs in the contact set, so its engaged rows
+            # (the event-driven modes') may no longer index them: the free accelerations.
+            return self.sys.aba(q, v, tau)
         nc = self.normal
         rhs = self._native
         if rhs is not None and nc.engaged and not nc.resting and not self.locks.any_locked:
