@@ -8,7 +8,10 @@ Two tables (docs/dev/issue17/native.md quotes them):
    wrapper (``NativeRhs.load`` + ``accel``) and the bare extension call; medians over the
    states of the best of 3 timings each.
 2. The collapse (contact-normal, mu 0.5, wrist locked, 5 s): CPU time of the run in a warm
-   process with the native call switched off and on, interleaved, medians.
+   process on the Python path, with the native right-hand side (the stepper's stages in
+   Python around it: ``native.STEP_ENABLED = False``) and with the native Dormand-Prince step
+   (``NormalLaw.step_kernel``: one call per attempt, and the step end's mode conditions from
+   its last stage), interleaved, medians.
 
     python benchmarks/native_rhs.py [--repeats 5] [--duration 5]
 """
@@ -68,11 +71,13 @@ def per_call(robot: packbot.Robot, every: int = 50) -> None:
         return orig(law, q, v, tau)
 
     NormalLaw.torque_accel = spy  # type: ignore[method-assign]
+    native.STEP_ENABLED = False  # every stage through torque_accel
     try:
         cfg = packbot.SimConfig(contact_mode="normal", mu=0.5, locked_joints=WRIST)
         packbot.simulate(robot, robot.pose("drive"), np.zeros(8), 1.0, config=cfg)
     finally:
         NormalLaw.torque_accel = orig  # type: ignore[method-assign]
+        native.STEP_ENABLED = True
     print(f"\nPer right-hand-side call, {len(py_t)} collapse states (us, medians of best-of-3):")
     print("| Python path | native (wrapper) | native (bare call) | ratio |")
     print("|---|---|---|---|")
@@ -84,26 +89,36 @@ def per_call(robot: packbot.Robot, every: int = 50) -> None:
 def collapse(robot: packbot.Robot, repeats: int, duration: float) -> None:
     cfg = packbot.SimConfig(contact_mode="normal", mu=0.5, locked_joints=WRIST)
     q0, tau = robot.pose("drive"), np.zeros(8)
-    packbot.simulate(robot, q0, tau, 0.3, config=cfg)  # warm: numba's cache, imports
-    cpu: dict[bool, list[float]] = {False: [], True: []}
-    runs: dict[bool, Any] = {}
+    ways = {"Python path": (False, False), "native rhs": (True, False), "native step": (True, True)}
+    for on, step in ways.values():  # warm: numba's cache, imports
+        native.ENABLED, native.STEP_ENABLED = on, step
+        packbot.simulate(robot, q0, tau, 0.3, config=cfg)
+    cpu: dict[str, list[float]] = {k: [] for k in ways}
+    runs: dict[str, Any] = {}
     for _ in range(repeats):
-        for enabled in (False, True):
-            native.ENABLED = enabled
+        for k, (on, step) in ways.items():
+            native.ENABLED, native.STEP_ENABLED = on, step
             t0 = time.process_time()
-            runs[enabled] = packbot.simulate(robot, q0, tau, duration, config=cfg)
-            cpu[enabled].append(time.process_time() - t0)
-    native.ENABLED = True
-    off, on = runs[False], runs[True]
+            runs[k] = packbot.simulate(robot, q0, tau, duration, config=cfg)
+            cpu[k].append(time.process_time() - t0)
+    native.ENABLED = native.STEP_ENABLED = True
     print(f"\nCollapse, contact-normal mu 0.5, {duration:g} s, CPU [s], {repeats} interleaved:")
-    print("| | Python path | native rhs |")
-    print("|---|---|---|")
-    print(f"| median | {statistics.median(cpu[False]):.3f} | {statistics.median(cpu[True]):.3f} |")
-    print(f"| runs | {' / '.join(f'{c:.2f}' for c in cpu[False])} | "
-          f"{' / '.join(f'{c:.2f}' for c in cpu[True])} |")  # fmt: skip
-    same = off.q.shape == on.q.shape and float(np.abs(off.q - on.q).max())
-    print(f"samples {len(off.t)} / {len(on.t)}, events {len(off.events)} / {len(on.events)}, "
-          f"largest joint-angle difference {same!r} rad")  # fmt: skip
+    print("| | " + " | ".join(ways) + " |")
+    print("|---" * (len(ways) + 1) + "|")
+    print("| median | " + " | ".join(f"{statistics.median(cpu[k]):.3f}" for k in ways) + " |")
+    print("| runs | " + " | ".join(" / ".join(f"{c:.2f}" for c in cpu[k]) for k in ways) + " |")
+    for k in ways:
+        r = runs[k]
+        d, deep = r.diagnostics, max(0.0, -r.diagnostics.min_distance)
+        print(f"{k}: samples / events / steps / rhs calls {len(r.t)} / {len(r.events)} / "
+              f"{d.steps} / {d.rhs_calls}, deepest penetration {deep:.2e} m")  # fmt: skip
+    ref = runs["Python path"]
+    for k in list(ways)[1:]:
+        r = runs[k]
+        same = r.q.shape == ref.q.shape and float(np.abs(r.q - ref.q).max())
+        rest = float(np.abs(r.q[-1] - ref.q[-1]).max())
+        print(f"{k} against the Python path: largest joint-angle difference {same!r} rad, "
+              f"at the end {rest:.1e} rad")  # fmt: skip
 
 
 def main(argv: list[str] | None = None) -> None:

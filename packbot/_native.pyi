@@ -1,5 +1,7 @@
 """Type stub of the compiled extension (src/native/contact_rhs.cpp)."""
 
+from typing import Any
+
 import numpy as np
 from numpy.typing import NDArray
 
@@ -53,4 +55,24 @@ class ContactRhs:
         from_tau: bool,
         out: NDArray[np.float64],
     ) -> bool: ...
+    def set_torque(
+        self,
+        applied: NDArray[np.float64],
+        viscous: NDArray[np.float64],
+        coulomb_dir: NDArray[np.float64],
+    ) -> None: ...
+    def dopri(
+        self,
+        h: float,
+        Z: NDArray[np.float64],
+        ay0: NDArray[np.float64],
+        atol: NDArray[np.float64],
+        rtol: float,
+        y1: NDArray[np.float64],
+        ay1: NDArray[np.float64],
+    ) -> float: ...
+    def set_conditions(
+        self, offset0: NDArray[np.float64], force_band: float, point_tol: float, stick_band: float
+    ) -> None: ...
+    def end_eval(self, y1: NDArray[np.float64]) -> tuple[Any, ...] | None: ...
     def last(self) -> tuple[NDArray[np.float64], ...]: ...

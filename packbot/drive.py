@@ -171,6 +171,20 @@ class Drive:
             applied = path.applied(y[2 * n :])
         return cmd, target, applied, path.friction(v, self.fdir)
 
+    def step_torques(self, t: float, y: FloatArray) -> tuple[FloatArray, ...] | None:
+        """The torques of a step from (t, y) as constants: (applied, viscous, coulomb_dir).
+
+        With a held command (a sampled-data controller between its ticks, or none) and no
+        motor lag, :meth:`torques` over the step is ``applied + (-viscous * v - coulomb_dir)``
+        [N*m] with these three fixed (``coulomb_dir`` = F_j s_j); None with a torque function
+        or a motor lag (the torques depend on t or on the state's tail).
+        """
+        if self.ctrl_fn is not None or self.lag:
+            return None
+        path = self.path
+        applied = self.torques(t, y)[2]
+        return applied, path.viscous, path.coulomb * self.fdir
+
     def free_accel(self, t: float, y: FloatArray) -> FloatArray:
         """Accelerations [rad/s^2] of the unconstrained arm at (t, y) (no lock, no contact)."""
         n = self.n

@@ -183,7 +183,7 @@ class _Run:
             t_far = min(self.duration, self.schedule.horizon(self.ticks.cut))
             try:
                 seg = self.law.advance(self.t, self.y, min(self.duration, t_sched))
-                seg = seg or self.stepper.step(t_far)
+                seg = seg or self.stepper.step(t_far, self.law.step_kernel(self.t, self.y))
             except StepSizeUnderflow:
                 if not self.law.rescue(self.t, self.y):
                     raise

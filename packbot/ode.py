@@ -44,6 +44,7 @@ from packbot.errors import ConfigurationError, PackbotError
 __all__ = [
     "DenseSegment",
     "RK45Stepper",
+    "StepKernel",
     "StepSizeUnderflow",
     "locate_root",
 ]
@@ -53,6 +54,14 @@ log = logging.getLogger(__name__)
 FloatArray = NDArray[np.float64]
 #: Signature of a right-hand side: ``rhs(t, y) -> dy/dt`` with ``y`` and the result of shape (n,).
 RHS = Callable[[float, FloatArray], ArrayLike]
+#: A compiled attempt of one step, ``kernel(h, Z, ay0, atol, rtol, y1, ay1) -> err``: the six
+#: stages of a Dormand-Prince step of size h on the right-hand side the stepper would call
+#: (``Z`` (8, n) holds ``[y0, f(y0)]`` on entry, ``[y0, k_0, ..., k_6]`` on return), ``y1`` the
+#: 5th-order solution, ``ay1 = |y1|``, and the scaled RMS error norm of :meth:`RK45Stepper.step`
+#: (``atol`` of shape (n,)); a negative return: the kernel could not (the stepper calls ``rhs``).
+StepKernel = Callable[
+    [float, FloatArray, FloatArray, FloatArray, float, FloatArray, FloatArray], float
+]
 
 # --- Dormand-Prince 5(4) tableau ----------------------------------------------------------------
 # Stage times c_i (stage 7 is at t + h: it is f(t + h, y1), the FSAL stage).
@@ -356,6 +365,7 @@ class RK45Stepper:
         self._n = 0
         self._inv_n = 0.0
         self._ay: FloatArray = np.empty(0)  # |y|, reused by the error norm of the next step
+        self._atol_vec: FloatArray = np.empty(0)  # atol of shape (n,), for a step kernel
         self._max_factor = MAX_FACTOR_FIRST
         # Stage-coefficient buffer Ah = [1, h * a_s] and its per-stage row views.
         self._Ah = np.empty((7, 8))
@@ -435,7 +445,7 @@ class RK45Stepper:
             h = h0
         return h
 
-    def step(self, t_end: float) -> DenseSegment:
+    def step(self, t_end: float, kernel: StepKernel | None = None) -> DenseSegment:
         """Take one accepted step, never beyond ``t_end``.
 
         The step tried is the current ``h`` (capped at ``h_max``), shortened to land exactly on
@@ -445,6 +455,10 @@ class RK45Stepper:
 
         Args:
             t_end: Time [s] not to step beyond, > ``t``.
+            kernel: A compiled version of the step's stages on the same right-hand side
+                (:data:`StepKernel`; the contact-normal mode's native step), or None: the
+                stages call ``rhs``. The step-size control stays here; the results agree with
+                the ``rhs`` stages to rounding.
 
         Returns:
             The accepted step; afterwards ``self.t == segment.t1`` and ``self.y is segment.y1``.
@@ -474,6 +488,10 @@ class RK45Stepper:
         rtol = self.rtol
         atol = self.atol
         ay0 = self._ay
+        n = self._n
+        atol_vec = self._atol_vec
+        if kernel is not None and atol_vec.shape[0] != n:
+            atol_vec = self._atol_vec = np.broadcast_to(atol, (n,)).astype(np.float64)
         rejected = False
         while True:
             t_new = t + h
@@ -482,24 +500,30 @@ class RK45Stepper:
                 h_wanted = h
                 t_new = t_end
                 h = t_end - t
-            np.multiply(_A8, h, out=Ah)
-            Ah[:, 0] = 1.0
-            Z[2] = rhs(t + c1 * h, np.dot(r1, Z[:2]))
-            Z[3] = rhs(t + c2 * h, np.dot(r2, Z[:3]))
-            Z[4] = rhs(t + c3 * h, np.dot(r3, Z[:4]))
-            Z[5] = rhs(t + c4 * h, np.dot(r4, Z[:5]))
-            Z[6] = rhs(t + c5 * h, np.dot(r5, Z[:6]))
-            y_new = np.dot(r6, Z[:7])
-            Z[7] = rhs(t_new, y_new)
+            err = -1.0
+            if kernel is not None:
+                y_new = np.empty(n)
+                ay1 = np.empty(n)
+                err = kernel(h, Z, ay0, atol_vec, rtol, y_new, ay1)
+            if err < 0.0:  # (also not: a nan error is a rejection)
+                np.multiply(_A8, h, out=Ah)
+                Ah[:, 0] = 1.0
+                Z[2] = rhs(t + c1 * h, np.dot(r1, Z[:2]))
+                Z[3] = rhs(t + c2 * h, np.dot(r2, Z[:3]))
+                Z[4] = rhs(t + c3 * h, np.dot(r3, Z[:4]))
+                Z[5] = rhs(t + c4 * h, np.dot(r4, Z[:5]))
+                Z[6] = rhs(t + c5 * h, np.dot(r5, Z[:6]))
+                y_new = np.dot(r6, Z[:7])
+                Z[7] = rhs(t_new, y_new)
+                # Scaled RMS norm of the error estimate h * sum_j e_j k_j.
+                ev = np.dot(_E, K)
+                ay1 = np.abs(y_new)
+                sc = np.maximum(ay0, ay1)
+                sc *= rtol
+                sc += atol
+                ev /= sc
+                err = h * math.sqrt(float(np.dot(ev, ev)) * self._inv_n)
             self.n_rhs += 6
-            # Scaled RMS norm of the error estimate h * sum_j e_j k_j.
-            ev = np.dot(_E, K)
-            ay1 = np.abs(y_new)
-            sc = np.maximum(ay0, ay1)
-            sc *= rtol
-            sc += atol
-            ev /= sc
-            err = h * math.sqrt(float(np.dot(ev, ev)) * self._inv_n)
             if err < 1.0:
                 break
             # Rejected (also when err is nan: the rhs returned inf/nan).

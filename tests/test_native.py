@@ -66,6 +66,7 @@ def test_every_rhs_of_a_collapse_matches_the_python_path(robot, monkeypatch, mu,
         return a_py
 
     monkeypatch.setattr(NormalLaw, "torque_accel", both)
+    monkeypatch.setattr(native, "STEP_ENABLED", False)  # every stage through torque_accel
     cfg = packbot.SimConfig(contact_mode="normal", mu=mu, locked_joints=locked)
     packbot.simulate(robot, robot.pose("drive"), np.zeros(8), duration, config=cfg)
     monkeypatch.setattr(NormalLaw, "torque_accel", python_path)
@@ -127,6 +128,7 @@ def test_unsupported_joints_are_refused(caplog):
 
 def test_a_collapse_is_the_same_with_and_without_the_native_rhs(robot, monkeypatch):
     cfg = packbot.SimConfig(contact_mode="normal", mu=0.5, locked_joints=WRIST)
+    monkeypatch.setattr(native, "STEP_ENABLED", False)  # (the native step: test_native_step)
     runs = []
     for enabled in (False, True):
         monkeypatch.setattr(native, "ENABLED", enabled)

@@ -29,7 +29,7 @@ from packbot.contact.joint_clamp import (
 from packbot.contact.locks import JointLocks
 from packbot.contact.none import NoneLaw
 from packbot.contact.normal import NormalLaw
-from packbot.contact.stops import JointStops
+from packbot.contact.pairs import PairLaw
 from packbot.drive import Drive
 from packbot.recorder import EventLog
 from packbot.result import Diagnostics
@@ -50,14 +50,14 @@ __all__ = [
 ]
 
 #: The law of each ``SimConfig.contact_mode`` (``handoff=True``: :class:`HandoffLaw`).
-LAWS: dict[str, type[JointStops]] = {
+LAWS: dict[str, type[NoneLaw | PairLaw]] = {
     "none": NoneLaw,
     "joint_clamp": JointClampLaw,
     "normal": NormalLaw,
 }
 
 
-def law_class(config: SimConfig) -> type[JointStops]:
+def law_class(config: SimConfig) -> type[NoneLaw | PairLaw]:
     """The law a configuration asks for: its ``contact_mode``, with its ``handoff``."""
     if config.handoff:
         return HandoffLaw

@@ -36,7 +36,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from packbot.collision import PairInfo
-from packbot.ode import DenseSegment
+from packbot.ode import DenseSegment, StepKernel
 from packbot.system import System
 
 __all__ = ["Active", "ContactLaw", "Crossing", "Key"]
@@ -111,6 +111,15 @@ class ContactLaw(Protocol):
 
         The right-hand side's call: ``accel`` of the free accelerations (Pinocchio's ABA),
         or a law's own path computing both at once (the contact-normal mode's native call).
+        """
+        ...
+
+    def step_kernel(self, t: float, y: FloatArray) -> StepKernel | None:
+        """A compiled step of the current mode from (t, y), or None: the stages call ``rhs``.
+
+        The stepper's stages (:meth:`packbot.ode.RK45Stepper.step`'s ``kernel``) on the same
+        right-hand side, its modes and torques fixed over the step (the contact-normal mode's
+        native step).
         """
         ...
 

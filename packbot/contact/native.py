@@ -20,6 +20,7 @@ Conventions as :class:`packbot.contact.normal.NormalContacts` (world frame, SI u
 from __future__ import annotations
 
 import logging
+from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -29,9 +30,9 @@ from numpy.typing import NDArray
 from packbot.errors import ModelError, PackbotError
 
 if TYPE_CHECKING:
-    from packbot.contact.normal import NormalContacts
+    from packbot.contact.normal import NormalContacts, _Eval
 
-__all__ = ["ENABLED", "SUPPORTED_JOINTS", "NativeRhs", "available", "native_rhs"]
+__all__ = ["ENABLED", "STEP_ENABLED", "SUPPORTED_JOINTS", "NativeRhs", "available", "native_rhs"]
 
 log = logging.getLogger(__name__)
 
@@ -40,6 +41,10 @@ FloatArray = NDArray[np.float64]
 #: Whether the contact-normal mode uses the native right-hand side when it can (read when a
 #: law's phase is built; benchmarks switch it off to time the Python path).
 ENABLED = True
+#: Whether the stepper takes its Dormand-Prince stages natively (:meth:`NativeRhs.step`) when
+#: the native right-hand side would serve every stage (read at every step; benchmarks and
+#: tests switch it off to compare with the stages in Python around the native call).
+STEP_ENABLED = True
 
 #: The joint types the extension rebuilds (Pinocchio's short names).
 SUPPORTED_JOINTS = frozenset(
@@ -62,6 +67,10 @@ try:  # the compiled extension (built by `pip install .`; see CMakeLists.txt)
 except ImportError as exc:  # pragma: no cover - a build without the extension
     _native = None
     _IMPORT_ERROR = exc
+
+
+#: The inputs of an evaluation that no caller passes (never equal to an array of theirs).
+_NONE = np.empty(0)
 
 
 def available() -> bool:
@@ -118,6 +127,10 @@ class NativeRhs:
             _reals(model.gravity.linear),
         )
         self._out = np.zeros(self.nv)  # the extension writes here
+        #: One native Dormand-Prince attempt (:data:`packbot.ode.StepKernel`) on the loaded
+        #: modes and torques: ``step(h, Z, ay0, atol, rtol, y1, ay1) -> err`` (-1: a singular
+        #: Delassus matrix at a stage, the caller takes the Python stages).
+        self.step: Callable[..., float] = self._rhs.dopri
         self._layout_id: Any = None  # the _Layout loaded
         self._plan_id: Any = None  # the _Plan loaded
 
@@ -139,6 +152,9 @@ class NativeRhs:
                 _reals(lay.lim_side),
                 _reals(lay.lim_value),
             )
+            from packbot.contact.normal import FORCE_BAND, POINT_TOL, STICK_BAND
+
+            self._rhs.set_conditions(_reals(lay.offset0), FORCE_BAND, POINT_TOL, STICK_BAND)
             self._layout_id = lay
             self._plan_id = None
         if plan is not self._plan_id:
@@ -155,6 +171,10 @@ class NativeRhs:
             self._plan_id = plan
         if plan.slips:  # the onset directions (reassigned at restarts)
             self._rhs.set_slip_dirs(_reals([p.slip_dir for p in contacts._pair_list]))
+
+    def set_torque(self, applied: FloatArray, viscous: FloatArray, coulomb_dir: FloatArray) -> None:
+        """The torques of the steps to come [N*m]: ``applied + (-viscous * v - coulomb_dir)``."""
+        self._rhs.set_torque(_reals(applied), _reals(viscous), _reals(coulomb_dir))
 
     def accel(
         self, q: FloatArray, v: FloatArray, x: FloatArray, from_tau: bool
@@ -176,6 +196,33 @@ class NativeRhs:
         if not self._rhs.accel(q, v, x, from_tau, out):
             return None
         return out.copy()
+
+    def end_eval(self, contacts: NormalContacts, y1: FloatArray) -> _Eval | None:
+        """The evaluation at the end of the last native step, if it ended at y1.
+
+        The step's FSAL stage is the right-hand side at y1 with the modes of ``contacts``: its
+        forces, rows, centre velocities, the smallest mode condition (``cond``) and the
+        patches' slides (``slide2``) are those :meth:`NormalContacts.evaluate` computes there
+        (the same kernel, ported), without a call. Kept as the contact set's last evaluation
+        at (q, v) (:meth:`NormalContacts.sliding` and ``stale`` read it).
+
+        Args:
+            contacts: The contact set whose modes the step had (unchanged since).
+            y1: The state the step ended at, (q, v).
+
+        Returns:
+            The evaluation, or None: the last native call was not a step ending at y1.
+        """
+        got = self._rhs.end_eval(y1)
+        if got is None:
+            return None
+        from packbot.contact.normal import _Eval
+
+        cond, a, lam, gap, vn, vt, slide2 = got
+        ev = _Eval(a, lam, gap, vn, vt, cond=cond, slide2=slide2)
+        nv = self.nv
+        contacts._last_eval = (y1[:nv], y1[nv:], _NONE, _NONE, _NONE, contacts._plan_key, ev)
+        return ev
 
     def last(self) -> tuple[FloatArray, ...]:
         """The last call's (a_free, M^-1, lam, gap, v_n, v_t, G, rhs): copies, for tests."""

@@ -7,7 +7,13 @@ clamp, :mod:`packbot.contact.stops`), and joint friction and brakes hold them.
 
 from __future__ import annotations
 
+import numpy as np
+from numpy.typing import NDArray
+
 from packbot.contact.stops import JointStops
+from packbot.ode import StepKernel
+
+FloatArray = NDArray[np.float64]
 
 __all__ = ["NoneLaw"]
 
@@ -17,3 +23,7 @@ class NoneLaw(JointStops):
 
     Same arguments as :class:`~packbot.contact.stops.JointStops`.
     """
+
+    def step_kernel(self, t: float, y: FloatArray) -> StepKernel | None:
+        """No compiled step: the stepper's stages call the right-hand side."""
+        return None

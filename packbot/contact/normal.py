@@ -82,7 +82,7 @@ from packbot.contact.lcp import (
 from packbot.contact.locks import JointLocks
 from packbot.contact.pairs import PairLaw
 from packbot.contact.timestep import QUIET_STEPS, MoreauJeanStepper
-from packbot.ode import DenseSegment
+from packbot.ode import DenseSegment, StepKernel
 from packbot.system import System
 
 if TYPE_CHECKING:
@@ -1955,6 +1955,12 @@ class NormalLaw(PatchEvents):
         constrained accelerations in one compiled call) gives the same accelerations as
         :meth:`accel` (to rounding); a singular Delassus matrix falls back to :meth:`accel`.
         """
+        if self.window is not None:
+            # The window's steps integrate (advance); the loop's right-hand side only gives the
+            # stepper's restart value (a tick inside the window), recomputed when the window
+            # ends. The window's steps re-patch pairs in the contact set, so its engaged rows
+            # (the event-driven modes') may no longer index them: the free accelerations.
+            return self.sys.aba(q, v, tau)
         nc = self.normal
         rhs = self._native
         if rhs is not None and nc.engaged and not nc.resting and not self.locks.any_locked:
@@ -1963,6 +1969,34 @@ class NormalLaw(PatchEvents):
             if a is not None:
                 return a
         return self.accel(q, v, self.sys.aba(q, v, tau))
+
+    def step_kernel(self, t: float, y: FloatArray) -> StepKernel | None:
+        """The native Dormand-Prince step of the current modes, or None (the stages call rhs).
+
+        Offered when :meth:`torque_accel` would take the native call at every stage (engaged
+        rows, no lock, no rest capture, no window) and the torques are fixed over the step (a
+        held command, no motor lag: :meth:`~packbot.drive.Drive.step_torques`). The stages,
+        the 5th-order solution and the error norm in one call
+        (:meth:`~packbot.contact.native.NativeRhs.step`); the same numbers as the stages in
+        Python around :meth:`torque_accel`, to rounding.
+        """
+        rhs = self._native
+        nc = self.normal
+        if (
+            rhs is None
+            or not native.STEP_ENABLED
+            or not nc.engaged
+            or nc.resting
+            or self.locks.any_locked
+            or self.window is not None
+        ):
+            return None
+        torques = self.drive.step_torques(t, y)
+        if torques is None:
+            return None
+        rhs.load(nc, nc._plan())
+        rhs.set_torque(*torques)
+        return rhs.step
 
     def _pair_crossings(
         self, key: Key, p_idx: int, seg: DenseSegment, d0: float, d1: float
@@ -1984,9 +2018,15 @@ class NormalLaw(PatchEvents):
         ]
 
     def _mode_crossings(self, seg: DenseSegment, y1: FloatArray) -> list[Crossing]:
-        if self.normal.empty:
+        nc = self.normal
+        if nc.empty:
             return []
-        return self._problem_crossings(self.normal, seg, y1)
+        rhs = self._native
+        if rhs is not None:  # a native step's end: its last stage evaluated the conditions
+            ev = rhs.end_eval(nc, y1)
+            if ev is not None and ev.cond is not None and ev.cond >= 0.0:
+                return []
+        return self._problem_crossings(nc, seg, y1)
 
     def _limit_held(self, j: int, side: int) -> bool:
         return self.normal.limit_engaged(j, side)

@@ -25,8 +25,10 @@
 #include <pinocchio/multibody/data.hpp>
 #include <pinocchio/multibody/model.hpp>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <limits>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -79,6 +81,7 @@ using F2 = nb::ndarray<const double, nb::ndim<2>, nb::c_contig, nb::device::cpu>
 using F3 = nb::ndarray<const double, nb::ndim<3>, nb::c_contig, nb::device::cpu>;
 using I1 = nb::ndarray<const int64_t, nb::ndim<1>, nb::c_contig, nb::device::cpu>;
 using Out1 = nb::ndarray<double, nb::ndim<1>, nb::c_contig, nb::device::cpu>;
+using Out2 = nb::ndarray<double, nb::ndim<2>, nb::c_contig, nb::device::cpu>;
 
 namespace {
 
@@ -209,6 +212,8 @@ class ContactRhs {
     lim_joint_ = ints(lim_joint);
     lim_side_ = reals(lim_side);
     lim_value_ = reals(lim_value);
+    end_valid_ = false;
+    conditions_set_ = false;
     nb_ = static_cast<int>(joints_.size());
     n2h_ = static_cast<int>(body_.size());
     h_ = n2h_ / 2;
@@ -252,6 +257,7 @@ class ContactRhs {
   // The current modes (see packbot.contact.normal._Plan) and the law's constants.
   void set_plan(I1 engaged, I1 row_slip, I1 sticks, double mu, double stick_speed,
                 double baumgarte) {
+    end_valid_ = false;
     engaged_ = ints(engaged);
     row_slip_ = ints(row_slip);
     sticks_ = ints(sticks);
@@ -274,6 +280,79 @@ class ContactRhs {
     if (slip_dir.size() != slip_dir_.size())
       throw std::invalid_argument("slip_dir: (pairs, 3) expected");
     std::copy(slip_dir.data(), slip_dir.data() + slip_dir.size(), slip_dir_.begin());
+    end_valid_ = false;
+  }
+
+  // The mode conditions' constants: each patch row's tangential offset when built (rows, 2)
+  // [m], the force and stick hysteresis bands, the point tolerance (packbot.contact.normal).
+  void set_conditions(F2 offset0, double force_band, double point_tol, double stick_band) {
+    if (offset0.size() != static_cast<size_t>(2 * mp_))
+      throw std::invalid_argument("offset0: (patch rows, 2) expected");
+    offset0_ = reals(offset0);
+    force_band_ = force_band;
+    point_tol_ = point_tol;
+    stick_band_ = stick_band;
+    conditions_set_ = true;
+  }
+
+  // The step end's evaluation: when the last call was a dopri whose FSAL stage was at exactly
+  // y1 (no call or load since), (cond, a, lam, gap, vn, vt, slide2) there, as
+  // kernels.constrained_accel returns them (cond: the smallest mode condition, slide2: each
+  // pair's largest squared slide); else None.
+  nb::object end_eval(F1 y1) {
+    const size_t n = 2 * static_cast<size_t>(nv_);
+    if (!end_valid_ || !conditions_set_ || y1.shape(0) != n ||
+        !std::equal(y_end_.begin(), y_end_.end(), y1.data()))
+      return nb::none();
+    const int nv = nv_;
+    double cond = std::numeric_limits<double>::infinity();
+    pos_.assign(m_, -1);
+    for (int e = 0; e < ne_; ++e) pos_[engaged_[e]] = e;
+    for (int r = 0; r < m_; ++r) {
+      const double g = pos_[r] >= 0 ? lam_[pos_[r]] + force_band_ : gap_[r] + point_tol_;
+      if (g < cond) cond = g;
+    }
+    if (mu_ > 0.0) {
+      for (int i = 0; i < ns_; ++i) {
+        const int64_t p = sticks_[i];
+        double fn = 0.0;
+        for (int r = 0; r < mp_; ++r)
+          if (pos_[r] >= 0 && pair_[rows_[r]] == p) fn += lam_[pos_[r]];
+        const double l0 = lam_[ne_ + 2 * i], l1 = lam_[ne_ + 2 * i + 1];
+        const double g = mu_ * fn - std::sqrt(l0 * l0 + l1 * l1) + force_band_;
+        if (g < cond) cond = g;
+      }
+      slipping_.assign(np_, 0);
+      for (int e = 0; e < ne_; ++e)
+        if (row_slip_[e] >= 0) slipping_[row_slip_[e]] = 1;
+      for (int p = 0; p < np_; ++p) {
+        if (!slipping_[p]) continue;
+        const double *vt = &vt_[3 * p], *sd = &slip_dir_[3 * p];
+        const double w0 = vt[0] + stick_speed_ * sd[0];
+        const double w1 = vt[1] + stick_speed_ * sd[1];
+        const double w2 = vt[2] + stick_speed_ * sd[2];
+        const double nw = std::max(std::sqrt(w0 * w0 + w1 * w1 + w2 * w2), 1e-300);
+        const double g = (vt[0] * w0 + vt[1] * w1 + vt[2] * w2) / nw + stick_band_;
+        if (g < cond) cond = g;
+      }
+    }
+    std::vector<double> slide2(np_, 0.0);
+    for (int r = 0; r < mp_; ++r) {
+      const int k = static_cast<int>(rows_[r]);
+      const int p = static_cast<int>(pair_[k]);
+      double s2 = 0.0;
+      for (int j = 0; j < 2; ++j) {
+        const double *T = &F_[9 * p + 3 * j];
+        double d = T[0] * dP_[3 * k] + T[1] * dP_[3 * k + 1] + T[2] * dP_[3 * k + 2];
+        d -= offset0_[2 * r + j];
+        s2 += d * d;
+      }
+      if (s2 > slide2[p]) slide2[p] = s2;
+    }
+    (void)nv;
+    return nb::make_tuple(cond, vec(a_.data(), nv_), vec(lam_.data(), n_), vec(gap_.data(), m_),
+                          vec(vn_.data(), m_), mat(vt_.data(), np_, 3),
+                          vec(slide2.data(), np_));
   }
 
   // Accelerations of the current modes at (q, v) into out; x is tau (from_tau) or a_free.
@@ -282,6 +361,7 @@ class ContactRhs {
     if (q.shape(0) != static_cast<size_t>(nv_) || v.shape(0) != static_cast<size_t>(nv_) ||
         x.shape(0) != static_cast<size_t>(nv_) || out.shape(0) != static_cast<size_t>(nv_))
       throw std::invalid_argument("q, v, tau and out: nv entries expected");
+    end_valid_ = false;
     for (int i = 0; i < nv_; ++i) {
       q_[i] = q.data()[i];
       v_[i] = v.data()[i];
@@ -299,21 +379,77 @@ class ContactRhs {
     return ok;
   }
 
+  // The joint torques of the steps to come: tau = applied + (-viscous * v - coulomb_dir), as
+  // packbot.drive.Drive.torques with a held command and no motor lag (constants in a step).
+  void set_torque(F1 applied, F1 viscous, F1 coulomb_dir) {
+    if (applied.shape(0) != static_cast<size_t>(nv_) ||
+        viscous.shape(0) != static_cast<size_t>(nv_) ||
+        coulomb_dir.shape(0) != static_cast<size_t>(nv_))
+      throw std::invalid_argument("applied, viscous, coulomb_dir: nv entries expected");
+    end_valid_ = false;
+    applied_ = reals(applied);
+    viscous_ = reals(viscous);
+    coulomb_dir_ = reals(coulomb_dir);
+  }
+
+  // One Dormand-Prince 5(4) attempt of size h (packbot.ode.RK45Stepper.step's stages and error
+  // norm) on y = (q, v) with the modes and torques loaded: Z (8, 2 nv) holds [y0, k0] on entry
+  // and [y0, k0, ..., k6] on return (k6 = f(y1), the FSAL stage), y1 the 5th-order solution,
+  // ay1 = |y1|. Returns the scaled RMS error norm, or -1 when a stage's Delassus matrix is
+  // singular (the caller takes the Python stages).
+  double dopri(double h, Out2 Z, F1 ay0, F1 atol, double rtol, Out1 y1, Out1 ay1) {
+    const int nv = nv_, n = 2 * nv_;
+    if (Z.shape(0) != 8 || Z.shape(1) != static_cast<size_t>(n) ||
+        ay0.shape(0) != static_cast<size_t>(n) || atol.shape(0) != static_cast<size_t>(n) ||
+        y1.shape(0) != static_cast<size_t>(n) || ay1.shape(0) != static_cast<size_t>(n))
+      throw std::invalid_argument("Z (8, 2 nv); ay0, atol, y1, ay1 (2 nv,) expected");
+    if (applied_.size() != static_cast<size_t>(nv))
+      throw std::invalid_argument("set_torque was not called");
+    static constexpr double A[7][7] = {
+        {0, 0, 0, 0, 0, 0, 0},
+        {1.0 / 5, 0, 0, 0, 0, 0, 0},
+        {3.0 / 40, 9.0 / 40, 0, 0, 0, 0, 0},
+        {44.0 / 45, -56.0 / 15, 32.0 / 9, 0, 0, 0, 0},
+        {19372.0 / 6561, -25360.0 / 2187, 64448.0 / 6561, -212.0 / 729, 0, 0, 0},
+        {9017.0 / 3168, -355.0 / 33, 46732.0 / 5247, 49.0 / 176, -5103.0 / 18656, 0, 0},
+        {35.0 / 384, 0, 500.0 / 1113, 125.0 / 192, -2187.0 / 6784, 11.0 / 84, 0}};
+    static constexpr double E[7] = {-71.0 / 57600,    0, 71.0 / 16695, -71.0 / 1920,
+                                    17253.0 / 339200, -22.0 / 525, 1.0 / 40};
+    double *z = Z.data();
+    end_valid_ = false;
+    ys_.resize(n);
+    double ah[7];
+    for (int s = 1; s < 7; ++s) {
+      for (int j = 0; j < s; ++j) ah[j] = A[s][j] * h;
+      // the stage's argument y0 + sum_j (h a_sj) k_j (the order of RK45Stepper's np.dot)
+      double *arg = s < 6 ? ys_.data() : y1.data();
+      for (int c = 0; c < n; ++c) {
+        double acc = z[c];
+        for (int j = 0; j < s; ++j) acc += ah[j] * z[(1 + j) * n + c];
+        arg[c] = acc;
+      }
+      if (!stage(arg, z + (1 + s) * n)) return -1.0;
+    }
+    // the scaled RMS norm of h * sum_j e_j k_j
+    const double *a0 = ay0.data(), *at = atol.data(), *yn = y1.data();
+    double *a1 = ay1.data();
+    double ss = 0.0;
+    for (int c = 0; c < n; ++c) {
+      double ev = 0.0;
+      for (int j = 0; j < 7; ++j) ev += E[j] * z[(1 + j) * n + c];
+      a1[c] = std::abs(yn[c]);
+      const double sc = std::max(a0[c], a1[c]) * rtol + at[c];
+      ev /= sc;
+      ss += ev * ev;
+    }
+    y_end_.assign(yn, yn + n);  // the FSAL stage's state: end_eval's
+    end_valid_ = true;
+    return h * std::sqrt(ss * (1.0 / n));
+  }
+
   // The last call's unconstrained accelerations, M^-1, forces, gaps, normal velocities,
   // centre tangential velocities, Delassus matrix and right-hand side (copies).
   nb::tuple last() const {
-    auto vec = [](const double *p, size_t n) {
-      auto *buf = new double[n];
-      std::copy(p, p + n, buf);
-      nb::capsule owner(buf, [](void *d) noexcept { delete[] static_cast<double *>(d); });
-      return nb::ndarray<nb::numpy, double, nb::ndim<1>>(buf, {n}, owner);
-    };
-    auto mat = [](const double *p, size_t r, size_t c) {
-      auto *buf = new double[r * c];
-      std::copy(p, p + r * c, buf);
-      nb::capsule owner(buf, [](void *d) noexcept { delete[] static_cast<double *>(d); });
-      return nb::ndarray<nb::numpy, double, nb::ndim<2>>(buf, {r, c}, owner);
-    };
     Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> Mi = minv_;
     return nb::make_tuple(vec(a_free_.data(), nv_), mat(Mi.data(), nv_, nv_),
                           vec(lam_.data(), n_), vec(gap_.data(), m_), vec(vn_.data(), m_),
@@ -322,6 +458,20 @@ class ContactRhs {
   }
 
  private:
+  // numpy copies of n (r x c) doubles
+  static nb::ndarray<nb::numpy, double, nb::ndim<1>> vec(const double *p, size_t n) {
+    auto *buf = new double[n];
+    std::copy(p, p + n, buf);
+    nb::capsule owner(buf, [](void *d) noexcept { delete[] static_cast<double *>(d); });
+    return nb::ndarray<nb::numpy, double, nb::ndim<1>>(buf, {n}, owner);
+  }
+  static nb::ndarray<nb::numpy, double, nb::ndim<2>> mat(const double *p, size_t r, size_t c) {
+    auto *buf = new double[r * c];
+    std::copy(p, p + r * c, buf);
+    nb::capsule owner(buf, [](void *d) noexcept { delete[] static_cast<double *>(d); });
+    return nb::ndarray<nb::numpy, double, nb::ndim<2>>(buf, {r, c}, owner);
+  }
+
   void set_plan_sizes(int ne, int ns) {
     ne_ = ne;
     ns_ = ns;
@@ -336,6 +486,25 @@ class ContactRhs {
     rhs_.assign(n_, 0.0);
     rhs0_.assign(n_, 0.0);
     lam_.assign(n_, 0.0);
+  }
+
+  // One right-hand side dy/dt = (v, a) at y = (q, v) under the loaded torques; false when the
+  // Delassus matrix is singular.
+  bool stage(const double *y, double *f) {
+    const int nv = nv_;
+    for (int i = 0; i < nv; ++i) {
+      q_[i] = y[i];
+      v_[i] = y[nv + i];
+      x_[i] = applied_[i] + (-viscous_[i] * v_[i] - coulomb_dir_[i]);
+    }
+    pin::aba(model_, data_, q_, v_, x_, pin::Convention::LOCAL);
+    a_free_ = data_.ddq;
+    if (!compute()) return false;
+    for (int i = 0; i < nv; ++i) {
+      f[i] = y[nv + i];
+      f[nv + i] = a_[i];
+    }
+    return true;
   }
 
   bool compute() {
@@ -569,6 +738,14 @@ class ContactRhs {
   std::vector<double> H_, Vb_, Ab_, P_, Jp_, vp_, ap_, dJp_, vrel_, arel_, dP_, F_;
   std::vector<double> Jn_, drift_, gap_, vn_, JT_, bT_, vT_, vt_, slip_dir_;
   std::vector<double> A_, C_, target_, b_, MC_, G_, G0_, rhs_, rhs0_, lam_;
+  // the step's torques and its stage argument
+  std::vector<double> applied_, viscous_, coulomb_dir_, ys_;
+  // the step end's conditions (end_eval)
+  std::vector<double> offset0_, y_end_;
+  std::vector<int> pos_;
+  std::vector<char> slipping_;
+  double force_band_ = 0.0, point_tol_ = 0.0, stick_band_ = 0.0;
+  bool conditions_set_ = false, end_valid_ = false;
 };
 
 NB_MODULE(_native, m) {
@@ -585,5 +762,12 @@ NB_MODULE(_native, m) {
       .def("set_slip_dirs", &ContactRhs::set_slip_dirs)
       .def("accel", &ContactRhs::accel, nb::arg("q"), nb::arg("v"), nb::arg("x"),
            nb::arg("from_tau"), nb::arg("out"))
+      .def("set_torque", &ContactRhs::set_torque, nb::arg("applied"), nb::arg("viscous"),
+           nb::arg("coulomb_dir"))
+      .def("dopri", &ContactRhs::dopri, nb::arg("h"), nb::arg("Z"), nb::arg("ay0"),
+           nb::arg("atol"), nb::arg("rtol"), nb::arg("y1"), nb::arg("ay1"))
+      .def("set_conditions", &ContactRhs::set_conditions, nb::arg("offset0"),
+           nb::arg("force_band"), nb::arg("point_tol"), nb::arg("stick_band"))
+      .def("end_eval", &ContactRhs::end_eval, nb::arg("y1"))
       .def("last", &ContactRhs::last);
 }

@@ -1,0 +1,329 @@
+"""The native Dormand-Prince step of the contact-normal mode against the stepper's Python stages.
+
+:meth:`packbot.contact.normal.NormalLaw.step_kernel` hands the stepper one compiled call per
+attempt (``ContactRhs.dopri``: the six stages with the native right-hand side, the 5th-order
+solution, the FSAL slope and the error norm). At every attempt of real collapses it is compared
+with the stepper's own stages (:class:`packbot.ode.RK45Stepper`'s arithmetic around the
+integrator's right-hand side) at the same step size; whole runs with and without it; and the
+cases where it must not be offered.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+import packbot
+from packbot import ode
+from packbot.contact import native
+from packbot.contact.normal import NormalLaw
+from packbot.control.base import Controller
+from packbot.drive import Drive
+from packbot.system import System
+
+pytestmark = pytest.mark.skipif(not native.available(), reason="packbot._native is not built")
+
+WRIST = ("camera_tilt", "camera_pan", "gripper_roll", "gripper_jaw")
+
+
+def _python_attempt(stepper: ode.RK45Stepper, h: float, Z: np.ndarray) -> tuple:
+    """The stepper's Python stages, y1 and error norm of one attempt of size h (as ode.py)."""
+    t, rhs = stepper.t, stepper._rhs
+    Ah = ode._A8 * h
+    Ah[:, 0] = 1.0
+    Z = Z.copy()
+    for s in range(1, 6):
+        Z[1 + s] = rhs(t + ode._C[s] * h, np.dot(Ah[s, : s + 1], Z[: s + 1]))
+    y1 = np.dot(Ah[6, :7], Z[:7])
+    Z[7] = rhs(t + h, y1)
+    ev = np.dot(ode._E, Z[1:])
+    sc = np.maximum(stepper._ay, np.abs(y1)) * stepper.rtol + stepper.atol
+    ev /= sc
+    err = h * math.sqrt(float(np.dot(ev, ev)) / len(y1))
+    return Z, y1, err
+
+
+@pytest.mark.parametrize(
+    ("mu", "locked", "duration"),
+    [(0.5, WRIST, 1.2), (0.0, WRIST, 0.8), (0.5, (), 0.5)],
+    ids=["mu0.5", "mu0", "mu0.5-wrist-free"],
+)
+def test_every_native_attempt_matches_the_python_stages(robot, monkeypatch, mu, locked, duration):
+    seen = {"attempts": 0, "rejected": 0, "slip": 0, "stick": 0, "fallback": 0}
+    worst = {"Z": 0.0, "y1": 0.0, "err": 0.0, "norm": 0.0, "fsal": 0.0}
+    original = NormalLaw.step_kernel
+
+    def checked(self, t, y):
+        kernel = original(self, t, y)
+        if kernel is None:
+            return None
+        stepper = self._test_stepper
+        plan = self.normal._plan()
+
+        def both(h, Z, ay0, atol, rtol, y1, ay1):
+            assert ay0 is stepper._ay and rtol == stepper.rtol
+            Zp, y1p, errp = _python_attempt(stepper, h, Z)
+            err = kernel(h, Z, ay0, atol, rtol, y1, ay1)
+            if err < 0.0:  # a singular Delassus matrix: the stepper takes the Python stages
+                seen["fallback"] += 1
+                return err
+            scale = np.maximum(1.0, np.abs(Zp).max(axis=1))
+            worst["Z"] = max(worst["Z"], float((np.abs(Z - Zp).max(axis=1) / scale).max()))
+            worst["y1"] = max(worst["y1"], float(np.abs(y1 - y1p).max() / np.abs(y1p).max()))
+            worst["err"] = max(worst["err"], abs(err - errp) / max(errp, 1.0))
+            # the norm's own arithmetic: the Python norm of the native slopes
+            errz = h * math.sqrt(
+                float(np.sum((np.dot(ode._E, Z[1:]) / (np.maximum(ay0, ay1) * rtol + atol)) ** 2))
+                / len(y1)
+            )
+            worst["norm"] = max(worst["norm"], abs(err - errz) / max(errz, 1.0))
+            np.testing.assert_array_equal(ay1, np.abs(y1))
+            # the FSAL slope is the right-hand side at the native y1, to the last bit
+            f1 = stepper._rhs(stepper.t + h, y1.copy())
+            worst["fsal"] = max(worst["fsal"], float(np.abs(Z[7] - f1).max()))
+            if abs(errp - 1.0) > 1e-6:  # the same decision (accepted or rejected)
+                assert (err < 1.0) == (errp < 1.0)
+            seen["attempts"] += 1
+            seen["rejected"] += errp >= 1.0
+            seen["slip"] += bool(plan.slips)
+            seen["stick"] += bool(len(plan.sticks))
+            return err
+
+        return both
+
+    original_init = ode.RK45Stepper.__init__
+
+    def init(self, rhs, **kw):  # let the law find the run's stepper (for the Python stages)
+        original_init(self, rhs, **kw)
+        init.stepper = self
+
+    monkeypatch.setattr(ode.RK45Stepper, "__init__", init)
+    original_rebuild = NormalLaw.rebuild
+
+    def rebuild(self, system):
+        original_rebuild(self, system)
+        self._test_stepper = init.stepper
+
+    monkeypatch.setattr(NormalLaw, "rebuild", rebuild)
+    monkeypatch.setattr(NormalLaw, "step_kernel", checked)
+    cfg = packbot.SimConfig(contact_mode="normal", mu=mu, locked_joints=locked)
+    packbot.simulate(robot, robot.pose("drive"), np.zeros(8), duration, config=cfg)
+    assert seen["attempts"] > 100, seen
+    if mu > 0.0:  # (the frictionless collapse rejects no native attempt in 0.8 s)
+        assert seen["rejected"] > 0, seen
+        assert seen["slip"] > 0, seen
+        if locked:
+            assert seen["stick"] > 0, seen
+    # y1 to rounding; the norm's arithmetic too (2e-12 here: sum_j e_j k_j, the difference of
+    # the 5th- and 4th-order solutions, cancels, and its terms are summed in another order).
+    # The slopes to the rounding of their arguments
+    # (numpy's BLAS sums the stage arguments in another order: 1e-16) times the stiff
+    # right-hand side's Lipschitz constant (1e4 to 1e5 1/s in the slides): 3.5e-11 of the row
+    # at worst here; the error norm, which divides them by atol + rtol |y|, to 3e-8.
+    assert worst["y1"] <= 1e-13, worst
+    assert worst["norm"] <= 1e-10, worst
+    assert worst["Z"] <= 1e-9, worst
+    assert worst["err"] <= 1e-6, worst
+    assert worst["fsal"] == 0.0, worst
+
+
+def test_a_collapse_with_the_native_step_is_the_python_steps_within_rounding(robot, monkeypatch):
+    """The same events and samples; the differences are rounding (the stages' sums are
+    ordered differently from numpy's BLAS), which the stepper's accept/reject decisions in the
+    stiff slides amplify to about 3e-4 rad within 1 s (a 1e-14 rad change of the initial pose
+    moves the Python run by 1e-2 rad in 5 s).
+    """
+    cfg = packbot.SimConfig(contact_mode="normal", mu=0.5, locked_joints=WRIST)
+    runs = []
+    calls = {"native": 0}
+    original = NormalLaw.step_kernel
+
+    def counted(self, t, y):
+        kernel = original(self, t, y)
+        calls["native"] += kernel is not None
+        return kernel
+
+    monkeypatch.setattr(NormalLaw, "step_kernel", counted)
+    for enabled in (False, True):
+        monkeypatch.setattr(native, "STEP_ENABLED", enabled)
+        if enabled:
+            calls["native"] = 0
+        runs.append(packbot.simulate(robot, robot.pose("drive"), np.zeros(8), 1.0, config=cfg))
+    off, on = runs
+    assert calls["native"] > 300  # the steps with engaged rows took the native step
+    assert len(on.t) == len(off.t)
+    assert [(e.kind, e.piece1) for e in on.events] == [(e.kind, e.piece1) for e in off.events]
+    dt = max(abs(a.t - b.t) for a, b in zip(on.events, off.events, strict=True))
+    assert dt <= 1e-3  # 1.6e-4 s here
+    np.testing.assert_allclose(on.q, off.q, rtol=0.0, atol=1e-3)  # 2.9e-4 rad here
+    assert on.diagnostics.min_distance >= -1e-5
+
+
+def test_the_step_kernel_is_offered_only_where_the_native_rhs_serves_every_stage(
+    robot, monkeypatch
+):
+    offered: dict[str, int] = {}
+    original = NormalLaw.step_kernel
+    label = ["?"]
+
+    def counted(self, t, y):
+        kernel = original(self, t, y)
+        offered[label[0]] = offered.get(label[0], 0) + (kernel is not None)
+        return kernel
+
+    monkeypatch.setattr(NormalLaw, "step_kernel", counted)
+    q0, v0 = robot.pose("drive"), np.zeros(8)
+    base = {"contact_mode": "normal", "mu": 0.5, "locked_joints": WRIST}
+    cases = {
+        "plain": ({}, None),
+        "torque function": ({}, lambda t, q, v: np.zeros(8)),
+        "motor lag": ({"motor_lag": 0.01}, None),
+    }
+    for name, (extra, ctrl) in cases.items():
+        label[0] = name
+        cfg = packbot.SimConfig(**base, **extra)
+        packbot.simulate(robot, q0, v0, 0.3, config=cfg, controller=ctrl)
+    monkeypatch.setattr(native, "STEP_ENABLED", False)
+    label[0] = "switched off"
+    packbot.simulate(robot, q0, v0, 0.3, config=packbot.SimConfig(**base))
+    assert offered["plain"] > 20
+    assert offered["torque function"] == 0
+    assert offered["motor lag"] == 0
+    assert offered["switched off"] == 0
+
+
+def test_step_torques_are_the_drives_torques(robot, rng):
+    cfg = packbot.SimConfig(contact_mode="normal", joint_friction=True, locked_joints=WRIST)
+    sysm = System(robot, robot.pose("drive"), cfg, None)
+
+    class Held(Controller):
+        def compute(self, t, q, v):  # pragma: no cover - not ticked here
+            return np.zeros(8)
+
+    for controller in (None, Held()):
+        drive = Drive(robot, cfg, controller)
+        drive.phase(sysm, [])
+        if controller is not None:
+            drive.hold(rng.standard_normal(8), 0.0)
+        drive.fdir[:] = rng.choice([-1.0, 0.0, 1.0], sysm.nv)
+        y = np.concatenate([sysm.reduce(robot.pose("drive")), rng.standard_normal(sysm.nv)])
+        torques = drive.step_torques(0.0, y)
+        assert torques is not None
+        applied, viscous, coulomb_dir = torques
+        assert np.abs(viscous).max() > 0.0 and np.abs(coulomb_dir).max() > 0.0
+        for _ in range(3):
+            v = rng.standard_normal(sysm.nv)
+            y[sysm.nv :] = v
+            _, _, a, f = drive.torques(0.0, y)
+            np.testing.assert_array_equal(applied + (-viscous * v - coulomb_dir), a + f)
+
+
+def test_bad_step_arguments_are_refused(robot):
+    cfg = packbot.SimConfig(contact_mode="normal", locked_joints=WRIST)
+    sysm = System(robot, robot.pose("drive"), cfg, None)
+    rhs = native.NativeRhs(sysm.model)
+    n = 2 * sysm.nv
+    z = np.zeros(n)
+    with pytest.raises(ValueError, match="set_torque"):
+        rhs.step(1e-3, np.zeros((8, n)), z, z + 1e-9, 1e-6, np.zeros(n), np.zeros(n))
+    rhs.set_torque(np.zeros(sysm.nv), np.zeros(sysm.nv), np.zeros(sysm.nv))
+    with pytest.raises(ValueError, match=r"Z \(8, 2 nv\)"):
+        rhs.step(1e-3, np.zeros((7, n)), z, z + 1e-9, 1e-6, np.zeros(n), np.zeros(n))
+    with pytest.raises(ValueError, match="nv entries"):
+        rhs.set_torque(np.zeros(3), np.zeros(3), np.zeros(3))
+
+
+@pytest.mark.parametrize(
+    ("mu", "locked", "duration"),
+    [(0.5, WRIST, 1.2), (0.5, (), 0.5)],
+    ids=["mu0.5", "mu0.5-wrist-free"],
+)
+def test_the_step_ends_conditions_are_the_python_evaluations(
+    robot, monkeypatch, mu, locked, duration
+):
+    seen = {"ends": 0, "violated": 0}
+    worst = {"lam": 0.0, "rows": 0.0, "cond": 0.0, "slide2": 0.0}
+    original = native.NativeRhs.end_eval
+
+    def checked(self, contacts, y1):
+        ev = original(self, contacts, y1)
+        if ev is None:
+            return None
+        n = self.nv
+        law = checked.law
+        q, v = y1[:n], y1[n:]
+        # kept as the contact set's last evaluation at (q, v), for sliding() and stale()
+        assert contacts._last_eval[6] is ev
+        np.testing.assert_array_equal(contacts._last_eval[0], q)
+        py = contacts.evaluate(q, v, law.free_accel(0.0, y1), law.sys.minv(q))
+        np.testing.assert_allclose(ev.a, py.a, rtol=1e-12, atol=1e-12)
+        lscale = max(1.0, float(np.abs(py.lam).max()))
+        worst["lam"] = max(worst["lam"], float(np.abs(ev.lam - py.lam).max()) / lscale)
+        rows = np.concatenate([ev.gap - py.gap, ev.vn - py.vn, (ev.vt - py.vt).ravel()])
+        worst["rows"] = max(worst["rows"], float(np.abs(rows).max()))
+        worst["cond"] = max(worst["cond"], abs(ev.cond - py.cond))
+        slides = np.abs(ev.slide2 - py.slide2)  # (no pair: a limit row alone)
+        worst["slide2"] = max(worst["slide2"], float(slides.max(initial=0.0)))
+        assert contacts.violated(ev) == contacts.violated(py)
+        seen["ends"] += 1
+        seen["violated"] += ev.cond < 0.0
+        return ev
+
+    original_rebuild = NormalLaw.rebuild
+
+    def rebuild(self, system):
+        original_rebuild(self, system)
+        checked.law = self
+
+    monkeypatch.setattr(NormalLaw, "rebuild", rebuild)
+    monkeypatch.setattr(native.NativeRhs, "end_eval", checked)
+    cfg = packbot.SimConfig(contact_mode="normal", mu=mu, locked_joints=locked)
+    packbot.simulate(robot, robot.pose("drive"), np.zeros(8), duration, config=cfg)
+    assert seen["ends"] > 100, seen
+    assert seen["violated"] > 0, seen
+    assert worst["lam"] <= 1e-10, worst
+    assert worst["rows"] <= 1e-12, worst
+    assert worst["cond"] <= 1e-10, worst
+    assert worst["slide2"] <= 1e-20, worst
+
+
+def test_a_tick_inside_a_window_restarts_on_the_free_accelerations(robot, monkeypatch):
+    """A command change inside a time-stepping window restarts the stepper (one right-hand
+    side) while the window's steps have re-patched pairs under the event-driven modes' engaged
+    rows: those rows no longer index the contact set (the native call refused them: "engaged
+    row out of range"). In a window the right-hand side is the free one."""
+
+    class Push(Controller):
+        def compute(self, t, q, v):
+            tau = np.zeros(8)
+            tau[1] = -5.0 + 3.0 * np.sin(20.0 * t)
+            tau[2] = 2.0
+            return tau
+
+    cfg = packbot.SimConfig(contact_mode="normal", mu=0.5, locked_joints=WRIST, joint_friction=True)
+    in_window = {"calls": 0}
+    original = NormalLaw.torque_accel
+
+    def counted(self, q, v, tau):
+        a = original(self, q, v, tau)
+        if self.window is not None:
+            in_window["calls"] += 1
+            np.testing.assert_array_equal(a, self.sys.aba(q, v, tau))
+        return a
+
+    monkeypatch.setattr(NormalLaw, "torque_accel", counted)
+    runs = []
+    for enabled in (True, False):
+        monkeypatch.setattr(native, "ENABLED", enabled)
+        res = packbot.simulate(
+            robot, robot.pose("drive"), np.zeros(8), 2.0, config=cfg, controller=Push(dt=0.01)
+        )
+        assert res.t[-1] == pytest.approx(2.0)
+        assert res.diagnostics.windows > 0
+        runs.append(res)
+    assert in_window["calls"] > 0
+    on, off = runs
+    assert len(on.t) == len(off.t)
+    assert [e.kind for e in on.events] == [e.kind for e in off.events]
