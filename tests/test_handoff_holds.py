@@ -12,13 +12,13 @@ it until the hold reaches its bound and the joint slips, the pair still in conta
 import numpy as np
 import pinocchio as pin
 import pytest
+from test_handoff import WRIST, _handed_off_intervals
 
 import packbot
 from packbot.contact.handoff import HandoffContacts
 from packbot.contact.normal import PENETRATION_TOL
 from packbot.system import System
 
-WRIST = ("camera_tilt", "camera_pan", "gripper_roll", "gripper_jaw")
 #: The brake's threshold [N*m], its application time [s], the push's start [s] and rate [N*m/s].
 BRAKE = 16.0
 T_BRAKE = 0.79
@@ -30,12 +30,12 @@ TORQUE_TOL = 1e-6
 ENERGY_TOL = 1e-9
 
 
-def _config(**fields):
+def _config(*, restitution=0.5, **fields):
     return packbot.SimConfig(
         contact_mode="joint_clamp",
         locked_joints=WRIST,
         reset_rule="momentum",
-        restitution=0.5,
+        restitution=restitution,
         mu=0.5,
         handoff=True,
         **fields,
@@ -44,16 +44,7 @@ def _config(**fields):
 
 def _handed_off(res):
     """[(t_handoff, t_release or inf)] of the hand-offs of a run."""
-    out = []
-    for h in res.events_of("handoff"):
-        pieces = (h.piece1, h.piece2)
-        ends = [
-            e.t
-            for e in res.events_of("release")
-            if (e.piece1, e.piece2) == pieces and e.t > h.t and not e.relevant_joints
-        ]
-        out.append((h.t, min(ends, default=np.inf)))
-    return out
+    return [(t_on, t_off) for _, t_on, t_off in _handed_off_intervals(res)]
 
 
 def _holds(res, joint):
@@ -187,15 +178,7 @@ START = [
 @pytest.fixture(scope="module")
 def rubbing(robot):
     """The collapse from START with the hand-off and joint friction, e = 0.3, 3 s."""
-    cfg = packbot.SimConfig(
-        contact_mode="joint_clamp",
-        locked_joints=WRIST,
-        reset_rule="momentum",
-        restitution=0.3,
-        mu=0.5,
-        handoff=True,
-        joint_friction=True,
-    )
+    cfg = _config(restitution=0.3, joint_friction=True)
     return packbot.simulate(robot, np.array(START), np.zeros(robot.nq), 3.0, config=cfg)
 
 

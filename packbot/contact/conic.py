@@ -82,15 +82,26 @@ def _factor(AtA: Any, rho: float) -> Any:  # pragma: no cover - compiled
 
 
 @njit(cache=True)
-def _inverse_apply(A: Any, L: Any, rho: float, b: Any, out: Any) -> None:  # pragma: no cover
-    """The product (A A^T + rho I)^-1 b into out, by the Woodbury identity (L: rho I + A^T A)."""
+def _transposed_apply(A: Any, b: Any, w: Any) -> None:  # pragma: no cover - compiled
+    """The product A^T b into w."""
     m, r = A.shape
-    w = np.zeros(r)
     for k in range(r):
         s = 0.0
         for i in range(m):
             s += A[i, k] * b[i]
         w[k] = s
+
+
+@njit(cache=True)
+def _inverse_apply(  # pragma: no cover - compiled
+    A: Any, L: Any, rho: float, b: Any, out: Any, w: Any
+) -> None:
+    """The product (A A^T + rho I)^-1 b into out, by the Woodbury identity (L: rho I + A^T A).
+
+    w: a work vector of A's column count (overwritten).
+    """
+    m, r = A.shape
+    _transposed_apply(A, b, w)
     # (rho I + A^T A)^-1 w: forward then backward substitution
     for i in range(r):
         s = w[i]
@@ -110,15 +121,10 @@ def _inverse_apply(A: Any, L: Any, rho: float, b: Any, out: Any) -> None:  # pra
 
 
 @njit(cache=True)
-def _velocity(A: Any, x: Any, g: Any, out: Any) -> None:  # pragma: no cover - compiled
-    """The rows' velocities u = G x + g = A A^T x + g, into out."""
+def _velocity(A: Any, x: Any, g: Any, out: Any, w: Any) -> None:  # pragma: no cover - compiled
+    """The rows' velocities u = G x + g = A A^T x + g, into out (w: a work vector, as above)."""
     m, r = A.shape
-    w = np.zeros(r)
-    for k in range(r):
-        s = 0.0
-        for i in range(m):
-            s += A[i, k] * x[i]
-        w[k] = s
+    _transposed_apply(A, x, w)
     for i in range(m):
         s = g[i]
         for k in range(r):
@@ -303,7 +309,8 @@ def solve_conic(  # pragma: no cover - compiled
     if best_res <= tol:
         return best, best_res, 0, rho
     u = np.empty(m)
-    _velocity(A, z, g, u)
+    work = np.empty(r)  # A^T times a vector, for the Woodbury products (no allocation a step)
+    _velocity(A, z, g, u, work)
     # the multiplier of the guess: y = -(u + s), its shifted velocity negated
     y = np.empty(m)
     for i in range(m):
@@ -325,7 +332,7 @@ def solve_conic(  # pragma: no cover - compiled
             rhs[i] = -g[i] + rho * z[i] - y[i] + PROX * x[i]
         for k in range(K):
             rhs[3 * k + 2] -= mus[k] * math.sqrt(y[3 * k] ** 2 + y[3 * k + 1] ** 2)
-        _inverse_apply(A, L, PROX + rho, rhs, x)
+        _inverse_apply(A, L, PROX + rho, rhs, x, work)
         for i in range(m):
             x[i] = RELAX * x[i] + (1.0 - RELAX) * zp[i]
             z[i] = x[i] + y[i] / rho
