@@ -83,6 +83,11 @@ class JointLocks:
         return len(self._idx)
 
     @property
+    def locked_index(self) -> NDArray[np.intp]:
+        """The joints with a_j = 0 (engaged or held), sorted: a new array at every change."""
+        return self._idx
+
+    @property
     def locked(self) -> tuple[int, ...]:
         """Every joint with a_j = 0 in the current mode (engaged or held), sorted."""
         return tuple(int(j) for j in self._idx)
@@ -196,6 +201,15 @@ class JointLocks:
         change (an event).
         """
         a, lam_arr = self._current(a_free, minv)
+        return self.conditions_of(a, lam_arr)
+
+    def conditions_of(self, a: FloatArray, lam_arr: FloatArray) -> dict[tuple[str, int], float]:
+        """:meth:`conditions` from the current mode's accelerations and lock torques.
+
+        Args:
+            a: Accelerations of the current locked set [rad/s^2].
+            lam_arr: The lock torques [N*m] of :attr:`locked`, in its order.
+        """
         lam = lam_arr.tolist()  # (Python floats: the same numbers, faster to index)
         out: dict[tuple[str, int], float] = {}
         pos = self._pos

@@ -133,11 +133,13 @@ class NativeRhs:
         self.step: Callable[..., float] = self._rhs.dopri
         self._layout_id: Any = None  # the _Layout loaded
         self._plan_id: Any = None  # the _Plan loaded
+        self._locked_id: Any = None  # the locked joints loaded (set_locks)
 
     def load(self, contacts: NormalContacts, plan: Any) -> None:
         """Load the contact set's layout and the modes' plan (only when they changed)."""
         lay = contacts._layout()
         if lay is not self._layout_id:
+            self._locked_id = None
             self._rhs.set_layout(
                 _ints(lay.joints),
                 _reals(lay.masks),
@@ -171,6 +173,37 @@ class NativeRhs:
             self._plan_id = plan
         if plan.slips:  # the onset directions (reassigned at restarts)
             self._rhs.set_slip_dirs(_reals([p.slip_dir for p in contacts._pair_list]))
+
+    def set_locks(self, locked: NDArray[np.intp]) -> None:
+        """The report's law's modes instead of contact rows: these joints locked (a_j = 0).
+
+        The joints engaged or held (:attr:`JointLocks.locked
+        <packbot.contact.locks.JointLocks.locked>`, sorted): none (ABA), one (ABA and M^-1's
+        rank-one correction) or all but at most 3 (the unlocked joints' block of M, from CRBA
+        and the bias forces): the arithmetic of :meth:`JointStops.torque_accel
+        <packbot.contact.stops.JointStops.torque_accel>`. Loaded only when the array object
+        changed (the locks make a new one at every change of their set).
+
+        Args:
+            locked: The locked joints' indices, sorted.
+
+        Raises:
+            ValueError: Another number of locked joints (the extension refuses it).
+        """
+        if locked is not self._locked_id:
+            self._rhs.set_locks(_ints(locked))
+            self._locked_id = locked
+            self._layout_id = None
+
+    def end_locks(self, y1: FloatArray) -> tuple[FloatArray, FloatArray] | None:
+        """The accelerations and lock torques at the end of the last native step, if at y1.
+
+        The step's FSAL stage is the right-hand side at y1 in the loaded lock mode: its
+        accelerations a [rad/s^2] and lock torques lambda_L [N*m] (M a = tau - h + S_L^T
+        lambda, one per locked joint, in :meth:`set_locks`'s order), or None: the last native
+        call was not a lock-mode step ending at y1.
+        """
+        return self._rhs.end_locks(y1)
 
     def set_torque(self, applied: FloatArray, viscous: FloatArray, coulomb_dir: FloatArray) -> None:
         """The torques of the steps to come [N*m]: ``applied + (-viscous * v - coulomb_dir)``."""

@@ -21,7 +21,7 @@ from numpy.typing import NDArray
 from packbot.contact.base import Crossing, Key
 from packbot.contact.stops import JointStops
 from packbot.errors import InitialCollisionError
-from packbot.ode import DenseSegment, StepKernel
+from packbot.ode import DenseSegment
 from packbot.system import System
 
 __all__ = ["REACH_BOUND", "PairLaw"]
@@ -50,10 +50,6 @@ class PairLaw(JointStops):
         self.last_d: dict[int, float] = {}
         self.pending_d: dict[int, float] = {}  # the same at the end of the step being checked
         self.pending_min: tuple[float, int] = (math.inf, -1)
-
-    def step_kernel(self, t: float, y: FloatArray) -> StepKernel | None:
-        """No compiled step (the contact-normal mode's has one): the stages call ``rhs``."""
-        return None
 
     def step_bound(self, y: FloatArray) -> float:
         """Largest step keeping every point's motion within half the query margin [s]."""

@@ -37,10 +37,11 @@ from numpy.typing import NDArray
 
 from packbot.collision import PairInfo
 from packbot.config import SimConfig
+from packbot.contact import native
 from packbot.contact.base import Active, Crossing, Key
 from packbot.contact.locks import TORQUE_BAND, JointLocks
 from packbot.drive import Drive
-from packbot.ode import DenseSegment
+from packbot.ode import DenseSegment, StepKernel
 from packbot.recorder import EventLog
 from packbot.result import Diagnostics, Event
 from packbot.system import System
@@ -71,6 +72,12 @@ RECEDE_SPEED = 1e-9
 HOLD_KICK = 1e-3
 #: Resolution [s] of :func:`return_crossing`'s search (the event loop locates events to 1e-10 s).
 RETURN_DT = 1e-10
+#: The end of a native step (:meth:`JointStops.step_kernel`) screens the locks' and holds'
+#: conditions from its last stage: when every one is above this share of its terms' scale
+#: [-] (far above the rounding by which the stage's arithmetic differs from
+#: :meth:`JointStops.lock_conditions`'), none changed sign; otherwise they are evaluated as
+#: without the native step.
+SCREEN_MARGIN = 1e-9
 
 
 def return_crossing(
@@ -187,6 +194,8 @@ class JointStops:
         self.n = system.nv
         self.locks = JointLocks(system.nv)
         self.active: dict[Key, Active] = {}
+        self._lock_rhs: native.NativeRhs | None = None  # built at the first native step
+        self._lock_rhs_tried = False
 
     def start(self, t: float, y: FloatArray, check: bool) -> FloatArray:
         """Contacts (pairs within the contact tolerance) and limit stops at (t, y).
@@ -232,6 +241,60 @@ class JointStops:
     def _locks_now(self) -> bool:
         """Whether the current mode's accelerations are the locks' alone (no rows of the law)."""
         return self._locks_only
+
+    def step_kernel(self, t: float, y: FloatArray) -> StepKernel | None:
+        """The native Dormand-Prince step of the current lock mode, or None (the stages call rhs).
+
+        Offered when the mode's accelerations are the locks' alone (:meth:`_locks_now`) with no
+        joint locked, one, or all but at most 3 (:meth:`torque_accel`'s ABA, its rank-one
+        correction, or its unlocked block, computed the same way in the extension:
+        :meth:`~packbot.contact.native.NativeRhs.set_locks`), and the torques are fixed over
+        the step (a held command or none, no motor lag:
+        :meth:`~packbot.drive.Drive.step_torques`). The stages, the 5th-order solution and the
+        error norm in one call; the same numbers as the stages in Python around
+        :meth:`torque_accel`, to rounding.
+        """
+        if not native.STEP_ENABLED or not self._locks_now():
+            return None
+        locks = self.locks
+        k = locks.n_locked
+        if k >= 2 and self.n - k > 3:
+            return None
+        rhs = self._lock_rhs
+        if rhs is None:
+            if self._lock_rhs_tried:
+                return None
+            self._lock_rhs_tried = True
+            rhs = self._lock_rhs = native.native_rhs(self.sys.model) if native.ENABLED else None
+            if rhs is None:
+                return None
+        torques = self.drive.step_torques(t, y)
+        if torques is None:
+            return None
+        rhs.set_locks(locks.locked_index)
+        rhs.set_torque(*torques)
+        return rhs.step
+
+    def _screened(self, y1: FloatArray) -> bool:
+        """Whether the last native step ended at y1 with every lock condition clearly kept.
+
+        From its FSAL stage's accelerations and lock torques (the current locked set's, at
+        y1): every condition of :meth:`JointLocks.conditions_of
+        <packbot.contact.locks.JointLocks.conditions_of>` above :data:`SCREEN_MARGIN` of
+        its scale. False also when there was no such step (the conditions are then evaluated).
+        """
+        rhs = self._lock_rhs
+        if rhs is None or not self._locks_now():
+            return False
+        end = rhs.end_locks(y1)
+        if end is None:
+            return False
+        a, lam = end
+        cond = self.locks.conditions_of(a, lam)
+        if not cond:
+            return True
+        scale = 1.0 + float(np.abs(a).max(initial=0.0)) + float(np.abs(lam).max(initial=0.0))
+        return min(cond.values()) > SCREEN_MARGIN * scale
 
     def step_bound(self, y: FloatArray) -> float:
         """``max_step``: without a collision world nothing else bounds a step."""
@@ -370,7 +433,10 @@ class JointStops:
 
     def _hold_crossings(self, seg: DenseSegment, y1: FloatArray) -> list[Crossing]:
         n, out = self.n, []
-        if self.locks.held or any(len(s) == 1 for s in self.locks.signs.values()):
+        locks = self.locks
+        if (locks.held or any(len(s) == 1 for s in locks.signs.values())) and not self._screened(
+            y1
+        ):
             cond1 = self.lock_conditions(seg.t1, y1)
             bad = [k for k, g in cond1.items() if g < 0.0]
             if bad:

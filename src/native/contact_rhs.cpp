@@ -21,7 +21,9 @@
 #include <nanobind/stl/vector.h>
 
 #include <pinocchio/algorithm/aba.hpp>
+#include <pinocchio/algorithm/crba.hpp>
 #include <pinocchio/algorithm/jacobian.hpp>
+#include <pinocchio/algorithm/rnea.hpp>
 #include <pinocchio/multibody/data.hpp>
 #include <pinocchio/multibody/model.hpp>
 
@@ -145,6 +147,40 @@ bool solve_small(int m, double *G, double *y, double *x) {
   return true;
 }
 
+// packbot.contact.lcp.solve_small's closed forms (m <= 3, Cramer's rule), in its order of
+// operations: false when it would not take them (m > 3, or a determinant lost to rounding: the
+// Python path then calls numpy's solver). G (m x m) is row-major; x gets the solution.
+bool cramer_small(int m, const double *G, const double *r, double *x) {
+  if (m == 0) return true;
+  if (m == 1) {
+    if (G[0] == 0.0) return false;
+    x[0] = r[0] / G[0];
+    return true;
+  }
+  if (m == 2) {
+    const double a = G[0], b = G[1], c = G[2], d = G[3];
+    const double det = a * d - b * c;
+    if (!(std::abs(det) > 1e-12 * (std::abs(a * d) + std::abs(b * c)))) return false;
+    x[0] = (d * r[0] - b * r[1]) / det;
+    x[1] = (a * r[1] - c * r[0]) / det;
+    return true;
+  }
+  if (m == 3) {
+    const double a = G[0], b = G[1], c = G[2], d = G[3], e = G[4], f = G[5], g = G[6], h = G[7],
+                 i = G[8];
+    const double c0 = e * i - f * h, c1 = f * g - d * i, c2 = d * h - e * g;
+    const double det = a * c0 + b * c1 + c * c2;
+    const double scale = std::abs(a * c0) + std::abs(b * c1) + std::abs(c * c2);
+    if (!(std::abs(det) > 1e-12 * scale)) return false;
+    const double r0 = r[0], r1 = r[1], r2 = r[2];
+    x[0] = (c0 * r0 + (c * h - b * i) * r1 + (b * f - c * e) * r2) / det;
+    x[1] = (c1 * r0 + (a * i - c * g) * r1 + (c * d - a * f) * r2) / det;
+    x[2] = (c2 * r0 + (b * g - a * h) * r1 + (a * e - b * d) * r2) / det;
+    return true;
+  }
+  return false;
+}
+
 template <class A> std::vector<int64_t> ints(const A &a) {
   return std::vector<int64_t>(a.data(), a.data() + a.size());
 }
@@ -192,6 +228,7 @@ class ContactRhs {
     x_.setZero(nv_);
     a_free_.setZero(nv_);
     a_.setZero(nv_);
+    force_.setZero(nv_);
     minv_.setZero(nv_, nv_);
   }
 
@@ -212,6 +249,7 @@ class ContactRhs {
     lim_joint_ = ints(lim_joint);
     lim_side_ = reals(lim_side);
     lim_value_ = reals(lim_value);
+    lock_mode_ = -1;
     end_valid_ = false;
     conditions_set_ = false;
     nb_ = static_cast<int>(joints_.size());
@@ -355,12 +393,51 @@ class ContactRhs {
                           vec(slide2.data(), np_));
   }
 
+  // The report's law's modes instead of the contact rows (packbot.contact.stops.JointStops
+  // .torque_accel): the joints locked (a_j = 0; engaged clamps and held joints, sorted).
+  // None: ABA; one: ABA with M^-1's rank-one correction (JointLocks.accelerations); two or
+  // more with at most 3 unlocked: the unlocked block M_UU a_U = (tau - h)_U from CRBA and the
+  // bias forces (JointLocks.reduced_accelerations). Anything else is refused. set_layout
+  // goes back to the contact rows.
+  void set_locks(I1 locked) {
+    const int nl = static_cast<int>(locked.shape(0));
+    std::vector<char> is_locked(nv_, 0);
+    for (int i = 0; i < nl; ++i) {
+      const int64_t j = locked.data()[i];
+      if (j < 0 || j >= nv_ || is_locked[j] || (i && j <= locked.data()[i - 1]))
+        throw std::invalid_argument("locked: sorted distinct joint indices expected");
+      is_locked[j] = 1;
+    }
+    if (nl >= 2 && nv_ - nl > 3)
+      throw std::invalid_argument("locked: none, one, or all but at most 3 joints expected");
+    locked_.assign(locked.data(), locked.data() + nl);
+    unlocked_.clear();
+    for (int j = 0; j < nv_; ++j)
+      if (!is_locked[j]) unlocked_.push_back(j);
+    lock_mode_ = nl == 0 ? 0 : (nl == 1 ? 1 : 2);
+    end_valid_ = false;
+    lock_lam_.assign(nl, 0.0);
+  }
+
+  // (a, lambda_L) at the end of the last dopri in a lock mode, if it ended at exactly y1 (no
+  // call or load since), else None: the FSAL stage's accelerations and lock torques [N*m]
+  // (M a = tau - h + S_L^T lambda). One lock: -a_free_j / (M^-1)_jj; the unlocked block's
+  // mode: (M a - (tau - h))_L.
+  nb::object end_locks(F1 y1) {
+    const size_t n = 2 * static_cast<size_t>(nv_);
+    if (!end_valid_ || lock_mode_ < 0 || y1.shape(0) != n ||
+        !std::equal(y_end_.begin(), y_end_.end(), y1.data()))
+      return nb::none();
+    return nb::make_tuple(vec(a_.data(), nv_), vec(lock_lam_.data(), lock_lam_.size()));
+  }
+
   // Accelerations of the current modes at (q, v) into out; x is tau (from_tau) or a_free.
   // False when the Delassus matrix is singular (out then holds a_free: the caller solves).
   bool accel(F1 q, F1 v, F1 x, bool from_tau, Out1 out) {
     if (q.shape(0) != static_cast<size_t>(nv_) || v.shape(0) != static_cast<size_t>(nv_) ||
         x.shape(0) != static_cast<size_t>(nv_) || out.shape(0) != static_cast<size_t>(nv_))
       throw std::invalid_argument("q, v, tau and out: nv entries expected");
+    if (lock_mode_ >= 0) throw std::invalid_argument("accel: the contact rows' call (set_locks)");
     end_valid_ = false;
     for (int i = 0; i < nv_; ++i) {
       q_[i] = q.data()[i];
@@ -497,12 +574,72 @@ class ContactRhs {
       v_[i] = y[nv + i];
       x_[i] = applied_[i] + (-viscous_[i] * v_[i] - coulomb_dir_[i]);
     }
+    if (lock_mode_ >= 0) {
+      if (!lock_accel()) return false;
+      for (int i = 0; i < nv; ++i) {
+        f[i] = y[nv + i];
+        f[nv + i] = a_[i];
+      }
+      return true;
+    }
     pin::aba(model_, data_, q_, v_, x_, pin::Convention::LOCAL);
     a_free_ = data_.ddq;
     if (!compute()) return false;
     for (int i = 0; i < nv; ++i) {
       f[i] = y[nv + i];
       f[nv + i] = a_[i];
+    }
+    return true;
+  }
+
+  // The accelerations of the lock mode at (q_, v_) under x_ (tau) into a_, the lock torques
+  // into lock_lam_ (set_locks); false where the Python path would not take the closed form.
+  bool lock_accel() {
+    const int nv = nv_;
+    if (lock_mode_ <= 1) {
+      pin::aba(model_, data_, q_, v_, x_, pin::Convention::LOCAL);
+      a_free_ = data_.ddq;
+      if (lock_mode_ == 0) {
+        a_ = a_free_;
+        return true;
+      }
+      // a_free - minv[:, j] * (a_free[j] / minv[j, j]), minv mirrored from the upper triangle
+      pin::computeMinverse(model_, data_, q_);
+      const int j = static_cast<int>(locked_[0]);
+      const double mjj = data_.Minv(j, j);
+      const double r = a_free_[j] / mjj;
+      for (int i = 0; i < nv; ++i) {
+        const double mij = i <= j ? data_.Minv(i, j) : data_.Minv(j, i);
+        a_[i] = a_free_[i] - mij * r;
+      }
+      lock_lam_[0] = -a_free_[j] / mjj;
+      return std::isfinite(r);
+    }
+    pin::crba(model_, data_, q_, pin::Convention::LOCAL);
+    pin::nonLinearEffects(model_, data_, q_, v_);
+    const int k = static_cast<int>(unlocked_.size());
+    double G[9], r[3], x[3];
+    for (int i = 0; i < nv; ++i) force_[i] = x_[i] - data_.nle[i];
+    for (int a = 0; a < k; ++a) {
+      const int ua = unlocked_[a];
+      r[a] = force_[ua];
+      for (int b = 0; b < k; ++b) {
+        const int ub = unlocked_[b];
+        G[a * k + b] = ua <= ub ? data_.M(ua, ub) : data_.M(ub, ua);
+      }
+    }
+    if (!cramer_small(k, G, r, x)) return false;
+    a_.setZero();
+    for (int a = 0; a < k; ++a) a_[unlocked_[a]] = x[a];
+    // lambda_L = (M a - f)_L over the unlocked joints' columns (a is zero on the locked ones)
+    for (size_t l = 0; l < locked_.size(); ++l) {
+      const int jl = static_cast<int>(locked_[l]);
+      double s = 0.0;
+      for (int a = 0; a < k; ++a) {
+        const int ua = unlocked_[a];
+        s += (jl <= ua ? data_.M(jl, ua) : data_.M(ua, jl)) * x[a];
+      }
+      lock_lam_[l] = s - force_[jl];
     }
     return true;
   }
@@ -724,7 +861,12 @@ class ContactRhs {
   Model model_;
   Data data_;
   int nv_ = 0;
-  Eigen::VectorXd q_, v_, x_, a_free_, a_;
+  Eigen::VectorXd q_, v_, x_, a_free_, a_, force_;
+  // the report's law's locks (set_locks): -1 the contact rows, 0 none, 1 one, 2 the unlocked block
+  int lock_mode_ = -1;
+  std::vector<int64_t> locked_;
+  std::vector<int> unlocked_;
+  std::vector<double> lock_lam_;
   Eigen::MatrixXd minv_;
   // layout
   std::vector<int64_t> joints_, body_, pair_, rows_, centre_, normal_body_, lim_joint_;
@@ -769,5 +911,7 @@ NB_MODULE(_native, m) {
       .def("set_conditions", &ContactRhs::set_conditions, nb::arg("offset0"),
            nb::arg("force_band"), nb::arg("point_tol"), nb::arg("stick_band"))
       .def("end_eval", &ContactRhs::end_eval, nb::arg("y1"))
+      .def("set_locks", &ContactRhs::set_locks, nb::arg("locked"))
+      .def("end_locks", &ContactRhs::end_locks, nb::arg("y1"))
       .def("last", &ContactRhs::last);
 }

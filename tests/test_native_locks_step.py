@@ -1,0 +1,238 @@
+"""The native Dormand-Prince step of the report's law's lock modes against the Python stages.
+
+:meth:`packbot.contact.stops.JointStops.step_kernel` hands the stepper one compiled call per
+attempt when the mode's accelerations are the joint locks' alone (``ContactRhs.set_locks``:
+ABA with no lock, ABA and M^-1's rank-one correction with one, the unlocked joints' block of
+M from CRBA and the bias forces with all but at most 3 locked). At every attempt of real
+runs it is compared with the stepper's own stages around the integrator's right-hand side
+(:meth:`JointStops.torque_accel`); whole runs with and without it; the step end's screen of the
+lock conditions against :meth:`JointStops.lock_conditions`; and where it must not be offered.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+import packbot
+from packbot import ode
+from packbot.contact import native
+from packbot.contact.stops import JointStops
+from packbot.control.base import Controller
+from packbot.system import System
+
+pytestmark = pytest.mark.skipif(not native.available(), reason="packbot._native is not built")
+
+WRIST = ("camera_tilt", "camera_pan", "gripper_roll", "gripper_jaw")
+
+
+def _python_attempt(stepper: ode.RK45Stepper, h: float, Z: np.ndarray) -> tuple:
+    """The stepper's Python stages, y1 and error norm of one attempt of size h (as ode.py)."""
+    t, rhs = stepper.t, stepper._rhs
+    Ah = ode._A8 * h
+    Ah[:, 0] = 1.0
+    Z = Z.copy()
+    for s in range(1, 6):
+        Z[1 + s] = rhs(t + ode._C[s] * h, np.dot(Ah[s, : s + 1], Z[: s + 1]))
+    y1 = np.dot(Ah[6, :7], Z[:7])
+    Z[7] = rhs(t + h, y1)
+    ev = np.dot(ode._E, Z[1:])
+    sc = np.maximum(stepper._ay, np.abs(y1)) * stepper.rtol + stepper.atol
+    ev /= sc
+    err = h * math.sqrt(float(np.dot(ev, ev)) / len(y1))
+    return Z, y1, err
+
+
+def _find_stepper(monkeypatch) -> dict:
+    """Let a law find its run's stepper (for the Python stages): ``box["stepper"]``."""
+    box: dict = {}
+    original_init = ode.RK45Stepper.__init__
+
+    def init(self, rhs, **kw):
+        original_init(self, rhs, **kw)
+        box["stepper"] = self
+
+    monkeypatch.setattr(ode.RK45Stepper, "__init__", init)
+    return box
+
+
+CASES = {
+    # the report's collapse: no lock, one, then three of four joints locked
+    "collapse": ({"locked_joints": WRIST}, 1.0, None),
+    # joint friction: held joints (two or more locked with the clamps)
+    "friction": ({"locked_joints": WRIST, "joint_friction": True}, 1.0, None),
+    # a held command from a controller (applied torques fixed over each step)
+    "held command": ({"locked_joints": WRIST}, 0.6, "held"),
+}
+
+
+class _Held(Controller):
+    def compute(self, t, q, v):
+        tau = np.zeros(8)
+        tau[1] = 20.0 * math.sin(3.0 * t)
+        return tau
+
+
+@pytest.mark.parametrize("case", list(CASES))
+def test_every_native_lock_attempt_matches_the_python_stages(robot, monkeypatch, case):
+    extra, duration, ctrl = CASES[case]
+    seen: dict[str, int] = {"attempts": 0, "none": 0, "one": 0, "block": 0}
+    worst = {"Z": 0.0, "y1": 0.0, "err": 0.0}
+    box = _find_stepper(monkeypatch)
+    original = JointStops.step_kernel
+
+    def checked(self, t, y):
+        kernel = original(self, t, y)
+        if kernel is None:
+            return None
+        stepper = box["stepper"]
+        k = self.locks.n_locked
+
+        def both(h, Z, ay0, atol, rtol, y1, ay1):
+            assert ay0 is stepper._ay and rtol == stepper.rtol
+            Zp, y1p, errp = _python_attempt(stepper, h, Z)
+            err = kernel(h, Z, ay0, atol, rtol, y1, ay1)
+            assert err >= 0.0  # every stage in closed form here
+            scale = np.maximum(1.0, np.abs(Zp).max(axis=1))
+            worst["Z"] = max(worst["Z"], float((np.abs(Z - Zp).max(axis=1) / scale).max()))
+            worst["y1"] = max(worst["y1"], float(np.abs(y1 - y1p).max() / np.abs(y1p).max()))
+            worst["err"] = max(worst["err"], abs(err - errp) / max(errp, 1.0))
+            np.testing.assert_array_equal(ay1, np.abs(y1))
+            # the FSAL slope is the Python right-hand side at the native y1, to the last bit
+            np.testing.assert_array_equal(Z[7], stepper._rhs(stepper.t + h, y1.copy()))
+            if abs(errp - 1.0) > 1e-6:  # the same decision (accepted or rejected)
+                assert (err < 1.0) == (errp < 1.0)
+            seen["attempts"] += 1
+            seen["none" if k == 0 else ("one" if k == 1 else "block")] += 1
+            return err
+
+        return both
+
+    monkeypatch.setattr(JointStops, "step_kernel", checked)
+    cfg = packbot.SimConfig(contact_mode="joint_clamp", **extra)
+    controller = _Held(dt=0.01) if ctrl else None
+    res = packbot.simulate(
+        robot, robot.pose("drive"), np.zeros(8), duration, config=cfg, controller=controller
+    )
+    assert res.t[-1] == pytest.approx(duration)
+    assert seen["attempts"] > 50, seen
+    assert seen["block"] > 0, seen
+    if case == "collapse":
+        assert seen["none"] > 0 and seen["one"] > 0, seen
+    # the stage arguments are summed in another order than numpy's: rounding
+    assert worst["y1"] <= 1e-14, worst
+    assert worst["Z"] <= 1e-9, worst
+    assert worst["err"] <= 1e-6, worst
+
+
+def test_a_collapse_with_the_native_lock_step_is_the_python_steps_within_rounding(
+    robot, monkeypatch
+):
+    cfg = packbot.SimConfig(contact_mode="joint_clamp", locked_joints=WRIST)
+    calls = {"native": 0}
+    original = JointStops.step_kernel
+
+    def counted(self, t, y):
+        kernel = original(self, t, y)
+        calls["native"] += kernel is not None
+        return kernel
+
+    monkeypatch.setattr(JointStops, "step_kernel", counted)
+    runs = []
+    for enabled in (False, True):
+        monkeypatch.setattr(native, "STEP_ENABLED", enabled)
+        calls["native"] = 0
+        runs.append(packbot.simulate(robot, robot.pose("drive"), np.zeros(8), 5.0, config=cfg))
+    off, on = runs
+    assert calls["native"] == on.diagnostics.steps  # every step of the collapse
+    assert on.diagnostics.steps == off.diagnostics.steps
+    assert on.diagnostics.rhs_calls == off.diagnostics.rhs_calls
+    assert len(on.t) == len(off.t)
+    assert [(e.kind, e.piece1, e.piece2) for e in on.events] == [
+        (e.kind, e.piece1, e.piece2) for e in off.events
+    ]
+    dt = max(abs(a.t - b.t) for a, b in zip(on.events, off.events, strict=True))
+    assert dt <= 1e-12
+    np.testing.assert_allclose(on.q, off.q, rtol=0.0, atol=1e-12)
+
+
+@pytest.mark.parametrize("case", ["collapse", "friction"])
+def test_the_screened_step_ends_keep_every_lock_condition(robot, monkeypatch, case):
+    """Where the native step's end says no lock condition changed sign, none did: the
+    Python conditions at that state are all >= 0, and equal the screen's to rounding."""
+    extra, duration, _ = CASES[case]
+    seen = {"screened": 0, "evaluated": 0}
+    worst = {"cond": 0.0}
+    original = JointStops._screened
+
+    def checked(self, y1):
+        ok = original(self, y1)
+        end = self._lock_rhs.end_locks(y1) if self._lock_rhs is not None else None
+        if end is None:
+            assert not ok
+            return ok
+        py = self.lock_conditions(0.0, y1)  # a held command: the torques do not depend on t
+        nat = self.locks.conditions_of(*end)
+        assert py.keys() == nat.keys()
+        for key, g in py.items():
+            worst["cond"] = max(worst["cond"], abs(g - nat[key]) / (1.0 + abs(g)))
+        if ok:
+            assert min(py.values(), default=1.0) >= 0.0
+            seen["screened"] += 1
+        else:
+            seen["evaluated"] += 1
+        return ok
+
+    monkeypatch.setattr(JointStops, "_screened", checked)
+    cfg = packbot.SimConfig(contact_mode="joint_clamp", **extra)
+    packbot.simulate(robot, robot.pose("drive"), np.zeros(8), duration, config=cfg)
+    assert seen["screened"] > 50, seen
+    assert worst["cond"] <= 1e-11, worst
+
+
+def test_the_lock_step_is_offered_only_where_it_serves_every_stage(robot, monkeypatch):
+    offered: dict[str, int] = {}
+    original = JointStops.step_kernel
+    label = ["?"]
+
+    def counted(self, t, y):
+        kernel = original(self, t, y)
+        offered[label[0]] = offered.get(label[0], 0) + (kernel is not None)
+        return kernel
+
+    monkeypatch.setattr(JointStops, "step_kernel", counted)
+    q0, v0 = robot.pose("drive"), np.zeros(8)
+    base = {"contact_mode": "joint_clamp", "locked_joints": WRIST}
+    cases = {
+        "plain": ({}, None),
+        "torque function": ({}, lambda t, q, v: np.zeros(8)),
+        "motor lag": ({"motor_lag": 0.01}, None),
+    }
+    for name, (extra, ctrl) in cases.items():
+        label[0] = name
+        packbot.simulate(
+            robot, q0, v0, 0.3, config=packbot.SimConfig(**base, **extra), controller=ctrl
+        )
+    monkeypatch.setattr(native, "STEP_ENABLED", False)
+    label[0] = "switched off"
+    packbot.simulate(robot, q0, v0, 0.3, config=packbot.SimConfig(**base))
+    assert offered["plain"] > 20
+    assert offered["torque function"] == 0
+    assert offered["motor lag"] == 0
+    assert offered["switched off"] == 0
+
+
+def test_bad_lock_sets_are_refused(robot):
+    sysm = System(robot, robot.pose("drive"), packbot.SimConfig(contact_mode="none"), None)
+    rhs = native.NativeRhs(sysm.model)  # all 8 joints
+    for bad in ([2, 1], [1, 1], [8], [-1]):
+        with pytest.raises(ValueError, match="sorted distinct"):
+            rhs.set_locks(np.array(bad))
+    with pytest.raises(ValueError, match="at most 3"):
+        rhs.set_locks(np.array([0, 1]))  # 6 unlocked: the locks' M^-1 solve, not native
+    rhs.set_locks(np.array([0, 1, 2, 3, 4]))
+    with pytest.raises(ValueError, match="contact rows"):
+        rhs.accel(np.zeros(8), np.zeros(8), np.zeros(8), True)
+    assert rhs.end_locks(np.zeros(16)) is None  # no step yet
