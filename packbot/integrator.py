@@ -43,7 +43,7 @@ from packbot.inputs import check_inputs, warn_settings
 from packbot.model import Robot
 from packbot.ode import DenseSegment, RK45Stepper, StepSizeUnderflow, locate_root
 from packbot.payload import Payload
-from packbot.recorder import EventLog, Recorder, Sample, measure
+from packbot.recorder import EventLog, Recorder, Sample, Samples, measure, measure_many
 from packbot.result import Diagnostics, Event, SimResult, rest_time
 from packbot.schedule import Schedule, freeze_impulse, momentum_kept
 from packbot.system import System
@@ -94,7 +94,7 @@ class _Run:
         self.ticks = Ticks(self.schedule, self.drive)
         self.events = EventLog(config.max_events)
         self.diag = Diagnostics()
-        self.rec = Recorder(config.sample_dt, duration, self.measure)
+        self.rec = Recorder(config.sample_dt, duration, self.measure, self.measure_many)
         self.stepper = RK45Stepper(
             self.rhs, rtol=config.rtol, atol=config.atol, h_max=config.max_step
         )
@@ -148,9 +148,9 @@ class _Run:
         """The sample of state y at t (see :func:`packbot.recorder.measure`)."""
         return measure(t, y, self.drive, self.law.friction)
 
-    def energy(self, q: FloatArray, v: FloatArray) -> float:
-        """Total mechanical energy [J]."""
-        return self.sys.energy(q, v)
+    def measure_many(self, ts: list[float], ys: list[FloatArray]) -> Samples | None:
+        """The samples of several states at once (:func:`packbot.recorder.measure_many`)."""
+        return measure_many(ts, ys, self.drive, self.law.friction)
 
     # ------------------------------------------------------------------ loop
     def start(self) -> None:
@@ -303,7 +303,7 @@ class _Run:
             self.ctrl_obj.on_failure(failure, t)
         n = self.n
         q, v = self.y[:n], self.y[n : 2 * n]
-        e = self.energy(q, v)
+        e = self.sys.energy(q, v)
         self.events.log(
             Event(
                 t,
@@ -335,7 +335,7 @@ class _Run:
                 v_before=vf,
                 v_after=self.sys.v_full(v_new),
                 energy_before=e,
-                energy_after=self.energy(q, v_new),
+                energy_after=self.sys.energy(q, v_new),
             ),
             count=False,
         )
@@ -348,7 +348,7 @@ class _Run:
         """Pick up (an inelastic impact: generalized momentum kept) or drop the payload."""
         n = self.n
         q, v = self.y[:n], self.y[n : 2 * n]
-        e0 = self.energy(q, v)
+        e0 = self.sys.energy(q, v)
         vf0 = self.sys.v_full(v)
         momentum = self.sys.mass_matrix(q) @ v
         self.payload_on = what == "pick"
@@ -368,7 +368,7 @@ class _Run:
                 v_before=vf0,
                 v_after=self.sys.v_full(v),
                 energy_before=e0,
-                energy_after=self.energy(q, v),
+                energy_after=self.sys.energy(q, v),
             ),
             count=False,
         )

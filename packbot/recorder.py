@@ -16,8 +16,9 @@ energy: :func:`measure`).
 
 from __future__ import annotations
 
+import weakref
 from collections.abc import Callable
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -27,12 +28,19 @@ from packbot.errors import SimulationError
 from packbot.ode import DenseSegment
 from packbot.result import Event
 
-__all__ = ["EventLog", "Recorder", "Sample", "measure"]
+if TYPE_CHECKING:
+    from packbot.contact.native import NativeRhs
+    from packbot.system import System
+
+__all__ = ["EventLog", "Recorder", "Sample", "measure", "measure_many"]
 
 FloatArray = NDArray[np.float64]
 #: One sample: full q [rad], v [rad/s], commanded, applied and friction torques [N*m],
 #: effort limits [N*m] and the energy [J].
 Sample = tuple[Any, ...]
+#: Several samples at once: the same columns, each an array with one row per sample, or one
+#: row shared by all of them (broadcast).
+Samples = list[Any]
 
 
 class EventLog(list[Event]):
@@ -106,6 +114,89 @@ def measure(
     return (qf, vf, cmd_f, app_f, fr_f, drive.effort_full(), sys.energy(q, v))
 
 
+#: System -> its compiled model for the samples' energies (None: no extension, or a joint
+#: type it does not rebuild), built at a phase's first batch of samples.
+_COMPILED: weakref.WeakKeyDictionary[System, NativeRhs | None] = weakref.WeakKeyDictionary()
+
+
+def _compiled(sys: System) -> NativeRhs | None:
+    """The compiled model of ``sys`` for the samples' energies, or None."""
+    try:
+        return _COMPILED[sys]
+    except KeyError:
+        pass
+    from packbot.contact import native  # (the contact laws import this module)
+
+    rhs = native.native_rhs(sys.model) if native.ENABLED and native.available() else None
+    _COMPILED[sys] = rhs
+    return rhs
+
+
+def measure_many(
+    ts: list[float],
+    ys: list[FloatArray],
+    drive: Drive,
+    held: Callable[[FloatArray, FloatArray, FloatArray, FloatArray], FloatArray],
+    compiled: bool = True,
+) -> Samples | None:
+    """The samples of the states ys at the times ts, column by column (:func:`measure`'s).
+
+    The same numbers as :func:`measure` row by row (the torques of each state computed the
+    same way), with the full coordinates and the columns filled for all rows at once. The
+    energies come from the compiled extension in one call when it is there (the same to
+    rounding: :meth:`NativeRhs.energies <packbot.contact.native.NativeRhs.energies>`), else
+    from the system row by row. None with a torque function (a controller called at each
+    sample, which may raise: the samples before it are kept one by one).
+
+    Args:
+        ts: Times [s].
+        ys: Integrated states (q, v[, tau_m]), one per time.
+        drive: The run's torques (its system is the current phase's).
+        held: The contact law's :meth:`~packbot.contact.base.ContactLaw.friction`.
+        compiled: Use the extension's energies (False: the system's, row by row).
+    """
+    if drive.ctrl_fn is not None:
+        return None
+    sys = drive.sys
+    n = sys.nv
+    k = len(ts)
+    free = sys.free
+    zero = drive.zero_full
+    nq = len(zero)
+    Y = np.array(ys)
+    qf = np.empty((k, nq))
+    qf[:] = sys.q_locked
+    qf[:, free] = Y[:, :n]
+    vf = np.zeros((k, nq))
+    vf[:, free] = Y[:, n : 2 * n]
+    rows = []
+    shared = True
+    tau_zero = drive.tau_zero
+    for t, y in zip(ts, ys, strict=True):
+        cmd, _, applied, friction = drive.torques(t, y)
+        friction = held(y[:n], y[n : 2 * n], applied, friction)
+        shared = shared and cmd is tau_zero and applied is cmd and friction is cmd
+        rows.append((cmd, applied, friction))
+    cmd_f: Any = zero
+    app_f: Any = zero
+    fr_f: Any = zero
+    if not shared:
+        app_f, fr_f = np.zeros((k, nq)), np.zeros((k, nq))
+        app_f[:, free] = [r[1] for r in rows]
+        fr_f[:, free] = [r[2] for r in rows]
+        if drive.ctrl_obj is None:
+            cmd_f = np.zeros((k, nq))
+            cmd_f[:, free] = [r[0] for r in rows]
+    if drive.ctrl_obj is not None:
+        cmd_f = drive.hold_full
+    rhs = _compiled(sys) if compiled else None
+    if rhs is not None:
+        energy: Any = rhs.energies(Y[:, :n], Y[:, n : 2 * n])
+    else:
+        energy = [sys.energy(y[:n], y[n : 2 * n]) for y in ys]
+    return [qf, vf, cmd_f, app_f, fr_f, drive.effort_full(), energy]
+
+
 class Recorder:
     """The samples of one run, in preallocated arrays.
 
@@ -118,17 +209,24 @@ class Recorder:
         sample_dt: Interval of the regular samples [s].
         duration: The run's duration [s].
         measure: The sample at (t, y).
+        measure_many: The samples at several (t, y) at once (:func:`measure_many`'s columns;
+            None: that function cannot, they are measured one by one), or None.
     """
 
     #: Rows allocated beyond the regular samples and the final state (event samples).
     EXTRA_ROWS = 64
 
     def __init__(
-        self, sample_dt: float, duration: float, measure: Callable[[float, FloatArray], Sample]
+        self,
+        sample_dt: float,
+        duration: float,
+        measure: Callable[[float, FloatArray], Sample],
+        measure_many: Callable[[list[float], list[FloatArray]], Samples | None] | None = None,
     ) -> None:
         self.dt = sample_dt
         self.duration = duration
         self.measure = measure
+        self.measure_many = measure_many
         self.next_sample = 0
         self._n = 0  # rows filled
         self._capacity = int(duration / sample_dt) + 2 + self.EXTRA_ROWS
@@ -145,13 +243,31 @@ class Recorder:
         return self._t[: self._n].tolist()
 
     def record(self, seg: DenseSegment, t_end: float) -> None:
-        """Keep the regular samples due up to t_end from a step's dense output."""
+        """Keep the regular samples due up to t_end from a step's dense output.
+
+        Two or more are measured at once (``measure_many``) when the recorder has it.
+        """
         dt = self.dt
+        k = self.next_sample
+        times = []
         while True:
-            ts = self.next_sample * dt
+            ts = k * dt
             if ts > t_end + 1e-12 or ts > self.duration + 1e-12:
                 break
-            self.point(ts, seg(min(max(ts, seg.t0), seg.t1)))
+            times.append(ts)
+            k += 1
+        if not times:
+            return
+        t0, t1 = seg.t0, seg.t1
+        ys = [seg(min(max(ts, t0), t1)) for ts in times]
+        if len(times) > 1 and self.measure_many is not None and self._cols:
+            samples = self.measure_many(times, ys)
+            if samples is not None:
+                self._rows(times, samples)
+                self.next_sample = k
+                return
+        for ts, y in zip(times, ys, strict=True):
+            self.point(ts, y)
             self.next_sample += 1
 
     def record_due(self, t: float, y: FloatArray) -> None:
@@ -182,6 +298,17 @@ class Recorder:
         for col, value in zip(self._cols, sample, strict=True):
             col[n] = value
         self._n = n + 1
+
+    def _rows(self, times: list[float], samples: Samples) -> None:
+        """Keep several samples (the first one was kept before: the arrays exist)."""
+        n = self._n
+        k = len(times)
+        while n + k > len(self._t):
+            self._grow(())
+        self._t[n : n + k] = times
+        for col, block in zip(self._cols, samples, strict=True):
+            col[n : n + k] = block
+        self._n = n + k
 
     def _grow(self, sample: Sample) -> None:
         """Allocate the arrays (first sample: their row shapes from it), or enlarge them."""

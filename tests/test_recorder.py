@@ -66,3 +66,60 @@ def test_no_sample_gives_empty_arrays_and_a_failed_measure_keeps_nothing():
         rec.point(0.0, np.zeros(1))
     assert len(rec) == 0 and not rec.samples_t
     assert [a.shape for a in rec.arrays()] == [(0,)] * 8
+
+
+def test_a_steps_samples_measured_at_once_are_the_samples_one_by_one(robot):
+    """measure_many (the columns of a step's samples at once, the energies in one compiled
+    call) gives measure's numbers bit for bit (the compiled energies to rounding): a
+    torque-free collapse, friction with a held command; with a torque function it declines
+    (each sample is measured alone)."""
+    import packbot
+    from packbot import integrator
+    from packbot.contact import native
+    from packbot.control.base import Controller
+    from packbot.recorder import measure, measure_many
+
+    class Held(Controller):
+        def compute(self, t, q, v):
+            tau = np.zeros(8)
+            tau[1] = 20.0 * np.sin(3.0 * t)
+            return tau
+
+    wrist = ("camera_tilt", "camera_pan", "gripper_roll", "gripper_jaw")
+    cases = [
+        (packbot.SimConfig(contact_mode="joint_clamp", locked_joints=wrist), None),
+        (packbot.SimConfig(contact_mode="none", joint_friction=True), Held(dt=0.01)),
+    ]
+    for cfg, ctrl in cases:
+        run = integrator._Run(robot, robot.pose("drive"), np.zeros(8), 1.0, ctrl, None, cfg)
+        run.start()
+        compiled = 0
+        while run.stepper.t < 0.3:
+            seg = run.stepper.step(1.0)
+            ts = list(np.linspace(seg.t0, seg.t1, 4))
+            ys = [seg(t) for t in ts]
+            for native_energies in (native.available(), False):
+                cols = measure_many(ts, ys, run.drive, run.law.friction, native_energies)
+                assert cols is not None
+                compiled += native_energies
+                for i, (t, y) in enumerate(zip(ts, ys, strict=True)):
+                    one = measure(t, y, run.drive, run.law.friction)
+                    for block, value in zip(cols, one, strict=True):
+                        row = np.broadcast_to(block, (len(ts), *np.shape(value)))[i]
+                        if block is cols[-1] and native_energies:  # (v^T M) v, summed
+                            np.testing.assert_allclose(row, value, rtol=1e-14)  # in its order
+                        else:
+                            np.testing.assert_array_equal(row, value)
+        assert compiled > 0 or not native.available()
+    run = integrator._Run(
+        robot,
+        robot.pose("drive"),
+        np.zeros(8),
+        1.0,
+        lambda t, q, v: np.zeros(8),
+        None,
+        packbot.SimConfig(contact_mode="none"),
+    )
+    run.start()
+    seg = run.stepper.step(1.0)
+    assert measure_many([seg.t0, seg.t1], [seg.y0, seg.y1], run.drive, run.law.friction) is None

@@ -43,7 +43,7 @@ distance of touching pieces) that rebounds is not found again at the step's star
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
 
 import numpy as np
 from numpy.typing import NDArray
@@ -210,6 +210,21 @@ class JointClampLaw(PairLaw):
             d=self.distance(act.pair.index, y),
             joints=(self.sys.names[clamp[0]],),
         )
+
+    def _pairs_to_check(self, pairs: list[int], distances: list[float]) -> Iterable[int]:
+        """The pairs that can have an event: the active ones, and those within reach.
+
+        Within the contact tolerance (an inactive pair farther away has none:
+        :meth:`_pair_crossings`). A subclass with its own pair events (the hand-off's
+        handed-off pairs) checks them all.
+        """
+        if type(self)._pair_crossings is not JointClampLaw._pair_crossings:
+            return super()._pairs_to_check(pairs, distances)
+        tol = self.cfg.contact_tolerance
+        active = self.active
+        if not active:
+            return [i for i, d in enumerate(distances) if d <= tol]
+        return [i for i, d in enumerate(distances) if d <= tol or ("pair", pairs[i]) in active]
 
     def _pair_crossings(
         self, key: Key, p_idx: int, seg: DenseSegment, d0: float, d1: float

@@ -38,8 +38,9 @@ log = logging.getLogger(__name__)
 
 FloatArray = NDArray[np.float64]
 
-#: Whether the contact-normal mode uses the native right-hand side when it can (read when a
-#: law's phase is built; benchmarks switch it off to time the Python path).
+#: Whether the contact-normal mode uses the native right-hand side when it can, the report's
+#: law its native step and the samples their compiled energies (read when a law's or a run's
+#: phase is built; benchmarks switch it off to time the Python path).
 ENABLED = True
 #: Whether the stepper takes its Dormand-Prince stages natively (:meth:`NativeRhs.step`) when
 #: the native right-hand side would serve every stage (read at every step; benchmarks and
@@ -204,6 +205,20 @@ class NativeRhs:
         call was not a lock-mode step ending at y1.
         """
         return self._rhs.end_locks(y1)
+
+    def energies(self, q: FloatArray, v: FloatArray) -> FloatArray:
+        """Total energies [J] of several states: 0.5 v^T M(q) v plus gravity's potential.
+
+        :meth:`System.energy <packbot.system.System.energy>` (armature included) row by
+        row, in one call; the same numbers to rounding. The loaded modes are kept.
+
+        Args:
+            q: Configurations [rad], shape (k, nv).
+            v: Velocities [rad/s], shape (k, nv).
+        """
+        out = np.empty(len(q))
+        self._rhs.energies(_reals(q), _reals(v), out)
+        return out
 
     def set_torque(self, applied: FloatArray, viscous: FloatArray, coulomb_dir: FloatArray) -> None:
         """The torques of the steps to come [N*m]: ``applied + (-viscous * v - coulomb_dir)``."""

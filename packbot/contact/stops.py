@@ -416,7 +416,7 @@ class JointStops:
             return out
         q1 = y1[: self.n]  # numpy screen first: a limit crossing is rare
         upper, lower = self.sys.upper, self.sys.lower
-        for j in np.flatnonzero((q1 >= upper) | (q1 <= lower)).tolist():
+        for j in ((q1 >= upper) | (q1 <= lower)).nonzero()[0].tolist():
             side, lim = (1, upper[j]) if q1[j] >= upper[j] else (-1, lower[j])
             if ("limit", j, side) in self.active:
                 continue
@@ -453,7 +453,7 @@ class JointStops:
                         kind = "disengage" if j in self.locks.engaged else "engage"
                     out.append(Crossing(kind, ("lock", j), gl, cond0.get(k, 1.0), cond1[k]))
         fdir = self.drive.fdir
-        sliding = np.flatnonzero(fdir * y1[n : 2 * n] < -STICK_SPEED)
+        sliding = (fdir * y1[n : 2 * n] < -STICK_SPEED).nonzero()[0]
         for j in sliding.tolist():
 
             def gs(t: float, j: int = j) -> float:

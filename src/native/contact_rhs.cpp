@@ -22,6 +22,7 @@
 
 #include <pinocchio/algorithm/aba.hpp>
 #include <pinocchio/algorithm/crba.hpp>
+#include <pinocchio/algorithm/energy.hpp>
 #include <pinocchio/algorithm/jacobian.hpp>
 #include <pinocchio/algorithm/rnea.hpp>
 #include <pinocchio/multibody/data.hpp>
@@ -429,6 +430,31 @@ class ContactRhs {
         !std::equal(y_end_.begin(), y_end_.end(), y1.data()))
       return nb::none();
     return nb::make_tuple(vec(a_.data(), nv_), vec(lock_lam_.data(), lock_lam_.size()));
+  }
+
+  // The total energies [J] of k states (rows of Q and V, (k, nv)) into out (k,): kinetic
+  // 0.5 v^T M(q) v (CRBA, armature included; (v^T M) v as numpy's v @ M @ v) plus the
+  // potential energy of gravity (packbot.system.System.energy). The modes, the last step's end
+  // and its evaluation are left as they were.
+  void energies(F2 Q, F2 V, Out1 out) {
+    const size_t k = Q.shape(0);
+    if (Q.shape(1) != static_cast<size_t>(nv_) || V.shape(0) != k ||
+        V.shape(1) != static_cast<size_t>(nv_) || out.shape(0) != k)
+      throw std::invalid_argument("Q, V (k, nv) and out (k,) expected");
+    const int nv = nv_;
+    Eigen::VectorXd q(nv);
+    for (size_t r = 0; r < k; ++r) {
+      const double *qr = Q.data() + r * nv, *vr = V.data() + r * nv;
+      for (int i = 0; i < nv; ++i) q[i] = qr[i];
+      pin::crba(model_, data_, q, pin::Convention::LOCAL);
+      double kin = 0.0;
+      for (int i = 0; i < nv; ++i) {
+        double w = 0.0;
+        for (int c = 0; c < nv; ++c) w += vr[c] * (c <= i ? data_.M(c, i) : data_.M(i, c));
+        kin += w * vr[i];
+      }
+      out.data()[r] = 0.5 * kin + pin::computePotentialEnergy(model_, data_, q);
+    }
   }
 
   // Accelerations of the current modes at (q, v) into out; x is tau (from_tau) or a_free.
@@ -912,6 +938,7 @@ NB_MODULE(_native, m) {
            nb::arg("force_band"), nb::arg("point_tol"), nb::arg("stick_band"))
       .def("end_eval", &ContactRhs::end_eval, nb::arg("y1"))
       .def("set_locks", &ContactRhs::set_locks, nb::arg("locked"))
+      .def("energies", &ContactRhs::energies, nb::arg("Q"), nb::arg("V"), nb::arg("out"))
       .def("end_locks", &ContactRhs::end_locks, nb::arg("y1"))
       .def("last", &ContactRhs::last);
 }
