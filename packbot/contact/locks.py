@@ -70,6 +70,7 @@ class JointLocks:
         self.n = n
         self.signs: dict[int, set[int]] = {}
         self.held: dict[int, float] = {}
+        self._locked: list[int] | None = None  # the locked set the arrays below are of
         self._set_engaged(())
 
     @property
@@ -84,7 +85,7 @@ class JointLocks:
 
     @property
     def locked_index(self) -> NDArray[np.intp]:
-        """The joints with a_j = 0 (engaged or held), sorted: a new array at every change."""
+        """The joints with a_j = 0 (engaged or held), sorted: a new array when the set changes."""
         return self._idx
 
     @property
@@ -107,13 +108,18 @@ class JointLocks:
 
     def _set_engaged(self, engaged: tuple[int, ...]) -> None:
         self.engaged = engaged
-        self._idx = np.array(sorted(set(engaged) | set(self.held)), dtype=int)
+        locked = sorted(set(engaged) | set(self.held))
+        if locked == self._locked:
+            return  # the same locked set: its arrays (and their identity) kept
+        self._locked = locked
+        self._idx = np.array(locked, dtype=int)
         self._grid = np.ix_(self._idx, self._idx)
         self._all = -1  # the number of joints if every joint is locked (set at the first use)
         #: The joints not locked (None: n unknown) and their block's index grid.
         self.unlocked: NDArray[np.intp] | None = None
         if self.n is not None:
-            u = np.setdiff1d(np.arange(self.n), self._idx).astype(np.intp)
+            kept = set(locked)
+            u = np.array([j for j in range(self.n) if j not in kept], dtype=np.intp)
             self.unlocked = u
             # M_UU's entries in the upper triangle of M, flat: M_ij at min(i,j) n + max(i,j)
             lo, hi = np.minimum.outer(u, u), np.maximum.outer(u, u)

@@ -196,6 +196,7 @@ class JointStops:
         self.active: dict[Key, Active] = {}
         self._lock_rhs: native.NativeRhs | None = None  # built at the first native step
         self._lock_rhs_tried = False
+        self._lock_torques: tuple[FloatArray, ...] | None = None  # the torques it holds
 
     def start(self, t: float, y: FloatArray, check: bool) -> FloatArray:
         """Contacts (pairs within the contact tolerance) and limit stops at (t, y).
@@ -272,7 +273,16 @@ class JointStops:
         if torques is None:
             return None
         rhs.set_locks(locks.locked_index)
-        rhs.set_torque(*torques)
+        applied, viscous, coulomb_dir = torques
+        last = self._lock_torques
+        if not (
+            last is not None
+            and applied is last[0]  # (a held command's array is never written)
+            and viscous is last[1]
+            and np.array_equal(coulomb_dir, last[2])
+        ):
+            rhs.set_torque(applied, viscous, coulomb_dir)
+            self._lock_torques = torques
         return rhs.step
 
     def _screened(self, y1: FloatArray) -> bool:
