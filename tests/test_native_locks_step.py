@@ -19,7 +19,8 @@ import pytest
 import packbot
 from packbot import ode
 from packbot.contact import native
-from packbot.contact.stops import JointStops
+from packbot.contact.locks import ACCEL_BAND, TORQUE_BAND
+from packbot.contact.stops import SCREEN_MARGIN, JointStops
 from packbot.control.base import Controller
 from packbot.system import System
 
@@ -178,6 +179,14 @@ def test_the_screened_step_ends_keep_every_lock_condition(robot, monkeypatch, ca
         assert py.keys() == nat.keys()
         for key, g in py.items():
             worst["cond"] = max(worst["cond"], abs(g - nat[key]) / (1.0 + abs(g)))
+        a, lam = end
+        scale = 1.0 + np.abs(a).max() + np.abs(lam).max(initial=0.0)
+        screen = self._lock_rhs.end_screen(
+            self.locks.screen_rows(), y1, SCREEN_MARGIN, TORQUE_BAND, ACCEL_BAND
+        )
+        if nat:  # the extension's smallest condition is conditions_of's
+            assert screen == pytest.approx(min(nat.values()) - SCREEN_MARGIN * scale, abs=1e-12)
+        assert ok == (screen > 0.0)
         if ok:
             assert min(py.values(), default=1.0) >= 0.0
             seen["screened"] += 1

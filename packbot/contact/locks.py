@@ -108,6 +108,7 @@ class JointLocks:
 
     def _set_engaged(self, engaged: tuple[int, ...]) -> None:
         self.engaged = engaged
+        self._screen: FloatArray | None = None  # the conditions' rows (screen_rows)
         locked = sorted(set(engaged) | set(self.held))
         if locked == self._locked:
             return  # the same locked set: its arrays (and their identity) kept
@@ -193,7 +194,7 @@ class JointLocks:
     ) -> tuple[FloatArray, FloatArray]:
         if len(idx) == 0 or minv is None:
             return a_free, np.zeros(0)
-        lam = _solve(minv[np.ix_(idx, idx)], -a_free[idx])
+        lam = _solve(minv[idx[:, None], idx], -a_free[idx])  # (np.ix_'s block, without its checks)
         return a_free + minv[:, idx] @ lam, lam
 
     def conditions(
@@ -235,6 +236,35 @@ class JointLocks:
                 -s * lam[pos[j]] + TORQUE_BAND if j in pos else -s * a[j] + ACCEL_BAND
             )
         return out
+
+    def screen_rows(self) -> FloatArray:
+        """The conditions of :meth:`conditions_of` as rows (kind, index, s, bound).
+
+        For the native step's screen (:meth:`NativeRhs.end_screen
+        <packbot.contact.native.NativeRhs.end_screen>`), in :meth:`conditions_of`'s order:
+        kind 0 a held joint (index: its position in :attr:`locked`; s: the sign of its
+        one-sided clamp, or 0; its bound [N*m]); 1 an engaged clamp (its position, s); 2 a free
+        clamped joint (the joint, s); 3 a constant condition (the bound: a held joint clamped
+        both ways, 1). Built once per change of the clamps, holds or engaged set (a new array).
+        """
+        rows = self._screen
+        if rows is None:
+            out: list[tuple[float, float, float, float]] = []
+            pos = self._pos
+            for j, bound in self.held.items():
+                signs = self.signs.get(j, set())
+                if len(signs) == 2:
+                    out.append((3, j, 0, 1.0))
+                else:
+                    s = next(iter(signs)) if signs else 0
+                    out.append((0, pos[j], s, bound))
+            for j, signs in self.signs.items():
+                if len(signs) != 1 or j in self.held:
+                    continue
+                (s,) = signs
+                out.append((1, pos[j], s, 0.0) if j in pos else (2, j, s, 0.0))
+            rows = self._screen = np.array(out, dtype=np.float64).reshape(-1, 4)
+        return rows
 
     def torques(
         self, a_free: FloatArray, minv: FloatArray | None

@@ -135,6 +135,7 @@ class NativeRhs:
         self._layout_id: Any = None  # the _Layout loaded
         self._plan_id: Any = None  # the _Plan loaded
         self._locked_id: Any = None  # the locked joints loaded (set_locks)
+        self._screen_id: Any = None  # the lock conditions' rows loaded (set_screen)
 
     def load(self, contacts: NormalContacts, plan: Any) -> None:
         """Load the contact set's layout and the modes' plan (only when they changed)."""
@@ -205,6 +206,30 @@ class NativeRhs:
         call was not a lock-mode step ending at y1.
         """
         return self._rhs.end_locks(y1)
+
+    def end_screen(
+        self, rows: FloatArray, y1: FloatArray, margin: float, torque_band: float, accel_band: float
+    ) -> float:
+        """The smallest lock condition at the end of the last native step, less its margin.
+
+        The conditions of :meth:`JointLocks.conditions_of
+        <packbot.contact.locks.JointLocks.conditions_of>` (its :meth:`screen_rows
+        <packbot.contact.locks.JointLocks.screen_rows>`, loaded when the array changed) at
+        the step's FSAL stage, the smallest less ``margin`` times the scale 1 + max |a| +
+        max |lambda|: positive, every condition is clearly kept at y1. NaN when the last native
+        call was not a lock-mode step ending at y1.
+
+        Args:
+            rows: The conditions' rows.
+            y1: The state the step ended at.
+            margin: The share of the scale a condition must clear [-].
+            torque_band: The locks' torque band [N*m].
+            accel_band: The locks' acceleration band [rad/s^2].
+        """
+        if rows is not self._screen_id:
+            self._rhs.set_screen(rows, torque_band, accel_band)
+            self._screen_id = rows
+        return float(self._rhs.end_screen(y1, margin))
 
     def energies(self, q: FloatArray, v: FloatArray) -> FloatArray:
         """Total energies [J] of several states: 0.5 v^T M(q) v plus gravity's potential.

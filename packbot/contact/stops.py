@@ -39,7 +39,7 @@ from packbot.collision import PairInfo
 from packbot.config import SimConfig
 from packbot.contact import native
 from packbot.contact.base import Active, Crossing, Key
-from packbot.contact.locks import TORQUE_BAND, JointLocks
+from packbot.contact.locks import ACCEL_BAND, TORQUE_BAND, JointLocks
 from packbot.drive import Drive
 from packbot.ode import DenseSegment, StepKernel
 from packbot.recorder import EventLog
@@ -196,7 +196,8 @@ class JointStops:
         self.active: dict[Key, Active] = {}
         self._lock_rhs: native.NativeRhs | None = None  # built at the first native step
         self._lock_rhs_tried = False
-        self._lock_torques: tuple[FloatArray, ...] | None = None  # the torques it holds
+        # the torques it holds: (applied, viscous, coulomb_dir as a list)
+        self._lock_torques: tuple[FloatArray, FloatArray, list[float]] | None = None
 
     def start(self, t: float, y: FloatArray, check: bool) -> FloatArray:
         """Contacts (pairs within the contact tolerance) and limit stops at (t, y).
@@ -274,15 +275,12 @@ class JointStops:
             return None
         rhs.set_locks(locks.locked_index)
         applied, viscous, coulomb_dir = torques
+        key = (applied, viscous, coulomb_dir.tolist())
         last = self._lock_torques
-        if not (
-            last is not None
-            and applied is last[0]  # (a held command's array is never written)
-            and viscous is last[1]
-            and np.array_equal(coulomb_dir, last[2])
-        ):
+        # (a held command's array is never written: the same object, the same torques)
+        if last is None or not (applied is last[0] and viscous is last[1] and key[2] == last[2]):
             rhs.set_torque(applied, viscous, coulomb_dir)
-            self._lock_torques = torques
+            self._lock_torques = key
         return rhs.step
 
     def _screened(self, y1: FloatArray) -> bool:
@@ -291,20 +289,15 @@ class JointStops:
         From its FSAL stage's accelerations and lock torques (the current locked set's, at
         y1): every condition of :meth:`JointLocks.conditions_of
         <packbot.contact.locks.JointLocks.conditions_of>` above :data:`SCREEN_MARGIN` of
-        its scale. False also when there was no such step (the conditions are then evaluated).
+        its scale (1 + max |a| + max |lambda|), computed in the extension
+        (:meth:`~packbot.contact.native.NativeRhs.end_screen`). False also when there was no
+        such step (the conditions are then evaluated).
         """
         rhs = self._lock_rhs
         if rhs is None or not self._locks_now():
             return False
-        end = rhs.end_locks(y1)
-        if end is None:
-            return False
-        a, lam = end
-        cond = self.locks.conditions_of(a, lam)
-        if not cond:
-            return True
-        scale = 1.0 + float(np.abs(a).max(initial=0.0)) + float(np.abs(lam).max(initial=0.0))
-        return min(cond.values()) > SCREEN_MARGIN * scale
+        rows = self.locks.screen_rows()
+        return rhs.end_screen(rows, y1, SCREEN_MARGIN, TORQUE_BAND, ACCEL_BAND) > 0.0
 
     def step_bound(self, y: FloatArray) -> float:
         """``max_step``: without a collision world nothing else bounds a step."""

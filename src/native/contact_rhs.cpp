@@ -457,6 +457,56 @@ class ContactRhs {
     }
   }
 
+  // The lock conditions of packbot.contact.locks.JointLocks.conditions_of, as rows
+  // (kind, index, s, bound): kind 0 a held joint (index: its lock torque's position; s its
+  // one-sided clamp's sign or 0; bound F_j [N*m]): g = F_j + torque_band - |lambda| or, with
+  // a clamp, at least -s lambda + torque_band; 1 an engaged clamp: g = -s lambda +
+  // torque_band; 2 a free clamped joint (index: the joint): g = -s a_j + accel_band; 3 a
+  // constant g = bound (a joint held and clamped both ways).
+  void set_screen(F2 rows, double torque_band, double accel_band) {
+    if (rows.ndim() != 2 || (rows.shape(0) && rows.shape(1) != 4))
+      throw std::invalid_argument("rows: (m, 4) expected");
+    screen_ = reals(rows);
+    torque_band_ = torque_band;
+    accel_band_ = accel_band;
+  }
+
+  // The smallest lock condition at the end of the last dopri in a lock mode, less margin
+  // times its scale (1 + max |a| + max |lambda|), if that step ended at exactly y1; NaN
+  // otherwise (no such step: the caller evaluates the conditions). Positive: every condition
+  // is clearly kept.
+  double end_screen(F1 y1, double margin) {
+    const size_t n = 2 * static_cast<size_t>(nv_);
+    if (!end_valid_ || lock_mode_ < 0 || y1.shape(0) != n ||
+        !std::equal(y_end_.begin(), y_end_.end(), y1.data()))
+      return std::numeric_limits<double>::quiet_NaN();
+    double amax = 0.0, lmax = 0.0;
+    for (int i = 0; i < nv_; ++i) amax = std::max(amax, std::abs(a_[i]));
+    for (double l : lock_lam_) lmax = std::max(lmax, std::abs(l));
+    double g_min = std::numeric_limits<double>::infinity();
+    const size_t m = screen_.size() / 4;
+    for (size_t r = 0; r < m; ++r) {
+      const double *row = &screen_[4 * r];
+      const int kind = static_cast<int>(row[0]), i = static_cast<int>(row[1]);
+      const double s = row[2];
+      double g;
+      if (kind == 0) {
+        const double l = lock_lam_.at(i);
+        g = row[3] + torque_band_ - std::abs(l);
+        if (s != 0.0) g = std::max(g, -s * l + torque_band_);
+      } else if (kind == 1) {
+        g = -s * lock_lam_.at(i) + torque_band_;
+      } else if (kind == 2) {
+        if (i < 0 || i >= nv_) throw std::invalid_argument("screen: joint out of range");
+        g = -s * a_[i] + accel_band_;
+      } else {
+        g = row[3];
+      }
+      g_min = std::min(g_min, g);
+    }
+    return g_min - margin * (1.0 + amax + lmax);
+  }
+
   // Accelerations of the current modes at (q, v) into out; x is tau (from_tau) or a_free.
   // False when the Delassus matrix is singular (out then holds a_free: the caller solves).
   bool accel(F1 q, F1 v, F1 x, bool from_tau, Out1 out) {
@@ -893,6 +943,9 @@ class ContactRhs {
   std::vector<int64_t> locked_;
   std::vector<int> unlocked_;
   std::vector<double> lock_lam_;
+  // the lock conditions' screen (set_screen)
+  std::vector<double> screen_;
+  double torque_band_ = 0.0, accel_band_ = 0.0;
   Eigen::MatrixXd minv_;
   // layout
   std::vector<int64_t> joints_, body_, pair_, rows_, centre_, normal_body_, lim_joint_;
@@ -940,5 +993,8 @@ NB_MODULE(_native, m) {
       .def("set_locks", &ContactRhs::set_locks, nb::arg("locked"))
       .def("energies", &ContactRhs::energies, nb::arg("Q"), nb::arg("V"), nb::arg("out"))
       .def("end_locks", &ContactRhs::end_locks, nb::arg("y1"))
+      .def("set_screen", &ContactRhs::set_screen, nb::arg("rows"), nb::arg("torque_band"),
+           nb::arg("accel_band"))
+      .def("end_screen", &ContactRhs::end_screen, nb::arg("y1"), nb::arg("margin"))
       .def("last", &ContactRhs::last);
 }
