@@ -245,7 +245,7 @@ class Recorder:
     def record(self, seg: DenseSegment, t_end: float) -> None:
         """Keep the regular samples due up to t_end from a step's dense output.
 
-        Two or more are measured at once (``measure_many``) when the recorder has it.
+        They are measured at once (``measure_many``) when the recorder has it.
         """
         dt = self.dt
         k = self.next_sample
@@ -260,7 +260,7 @@ class Recorder:
             return
         t0, t1 = seg.t0, seg.t1
         ys = [seg(min(max(ts, t0), t1)) for ts in times]
-        if len(times) > 1 and self.measure_many is not None and self._cols:
+        if self.measure_many is not None and self._cols:
             samples = self.measure_many(times, ys)
             if samples is not None:
                 self._rows(times, samples)

@@ -109,6 +109,8 @@ class JointLocks:
     def _set_engaged(self, engaged: tuple[int, ...]) -> None:
         self.engaged = engaged
         self._screen: FloatArray | None = None  # the conditions' rows (screen_rows)
+        #: Whether the current mode has sign conditions: a held joint or a one-sided clamp.
+        self.conditional = bool(self.held) or any(len(s) == 1 for s in self.signs.values())
         locked = sorted(set(engaged) | set(self.held))
         if locked == self._locked:
             return  # the same locked set: its arrays (and their identity) kept

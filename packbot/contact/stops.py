@@ -436,10 +436,7 @@ class JointStops:
 
     def _hold_crossings(self, seg: DenseSegment, y1: FloatArray) -> list[Crossing]:
         n, out = self.n, []
-        locks = self.locks
-        if (locks.held or any(len(s) == 1 for s in locks.signs.values())) and not self._screened(
-            y1
-        ):
+        if self.locks.conditional and not self._screened(y1):
             cond1 = self.lock_conditions(seg.t1, y1)
             bad = [k for k, g in cond1.items() if g < 0.0]
             if bad:
@@ -456,6 +453,8 @@ class JointStops:
                         kind = "disengage" if j in self.locks.engaged else "engage"
                     out.append(Crossing(kind, ("lock", j), gl, cond0.get(k, 1.0), cond1[k]))
         fdir = self.drive.fdir
+        if not fdir.any():  # no joint slides with Coulomb friction
+            return out
         sliding = (fdir * y1[n : 2 * n] < -STICK_SPEED).nonzero()[0]
         for j in sliding.tolist():
 
