@@ -245,3 +245,44 @@ def test_bad_lock_sets_are_refused(robot):
     with pytest.raises(ValueError, match="contact rows"):
         rhs.accel(np.zeros(8), np.zeros(8), np.zeros(8), True)
     assert rhs.end_locks(np.zeros(16)) is None  # no step yet
+
+
+def test_the_screen_has_every_kind_of_lock_condition(robot):
+    """A held joint clamped both ways (a constant), a held joint with a one-sided clamp, an
+    engaged clamp and a free clamped joint: the extension's smallest condition at a native
+    step's end is JointLocks.conditions_of's there, whichever kind is the smallest."""
+    from packbot.contact.locks import JointLocks
+
+    cfg = packbot.SimConfig(contact_mode="joint_clamp", locked_joints=WRIST)
+    sysm = System(robot, robot.pose("drive"), cfg, None)
+    n = sysm.nv  # 4: turret, shoulder, elbow1, elbow2
+    rhs = native.NativeRhs(sysm.model)
+    y0 = np.concatenate([sysm.reduce(robot.pose("drive")), np.zeros(n)])
+    cases = [
+        ({0: 1e3, 1: 0.5}, [(0, 1), (0, -1), (1, 1), (2, -1), (3, 1)], (2,)),
+        ({1: 1e3}, [(0, 1), (1, -1), (3, -1)], (0,)),
+        ({}, [(1, 1), (2, 1)], (1, 2)),
+    ]
+    kinds = set()
+    for held, clamps, engaged in cases:
+        locks = JointLocks(n)
+        locks.set_held(held)
+        locks.set_clamps(clamps)
+        locks._set_engaged(engaged)
+        rows = locks.screen_rows()
+        kinds |= set(rows[:, 0].astype(int).tolist())
+        if len(locks.locked_index) >= 2 and n - len(locks.locked_index) > 3:
+            continue
+        rhs.set_locks(locks.locked_index)
+        rhs.set_torque(np.zeros(n), np.zeros(n), np.zeros(n))
+        Z = np.zeros((8, 2 * n))  # (k0 = 0: any attempt serves; the screen is at its y1)
+        Z[0] = y0
+        y1, ay1 = np.empty(2 * n), np.empty(2 * n)
+        err = rhs.step(1e-3, Z, np.abs(y0), np.full(2 * n, 1e-8), 1e-6, y1, ay1)
+        assert err >= 0.0
+        a, lam = rhs.end_locks(y1)
+        cond = locks.conditions_of(a, lam)
+        got = rhs.end_screen(rows, y1, 0.0, TORQUE_BAND, ACCEL_BAND)
+        assert got == pytest.approx(min(cond.values()), rel=1e-12, abs=1e-12)
+        assert math.isnan(rhs.end_screen(rows, y1 + 1e-9, 0.0, TORQUE_BAND, ACCEL_BAND))
+    assert kinds == {0, 1, 2, 3}
