@@ -216,18 +216,20 @@ def test_the_lock_step_is_offered_only_where_it_serves_every_stage(robot, monkey
     base = {"contact_mode": "joint_clamp", "locked_joints": WRIST}
     cases = {
         "plain": ({}, None),
+        "no contact law": ({"contact_mode": "none"}, None),
         "torque function": ({}, lambda t, q, v: np.zeros(8)),
         "motor lag": ({"motor_lag": 0.01}, None),
     }
     for name, (extra, ctrl) in cases.items():
         label[0] = name
         packbot.simulate(
-            robot, q0, v0, 0.3, config=packbot.SimConfig(**base, **extra), controller=ctrl
+            robot, q0, v0, 0.3, config=packbot.SimConfig(**{**base, **extra}), controller=ctrl
         )
     monkeypatch.setattr(native, "STEP_ENABLED", False)
     label[0] = "switched off"
     packbot.simulate(robot, q0, v0, 0.3, config=packbot.SimConfig(**base))
     assert offered["plain"] > 20
+    assert offered["no contact law"] > 5  # contact_mode="none" steps natively too (13)
     assert offered["torque function"] == 0
     assert offered["motor lag"] == 0
     assert offered["switched off"] == 0

@@ -7,13 +7,7 @@ clamp, :mod:`packbot.contact.stops`), and joint friction and brakes hold them.
 
 from __future__ import annotations
 
-import numpy as np
-from numpy.typing import NDArray
-
 from packbot.contact.stops import JointStops
-from packbot.ode import StepKernel
-
-FloatArray = NDArray[np.float64]
 
 __all__ = ["NoneLaw"]
 
@@ -21,9 +15,6 @@ __all__ = ["NoneLaw"]
 class NoneLaw(JointStops):
     """``contact_mode="none"``: :class:`~packbot.contact.stops.JointStops` alone.
 
-    Same arguments as :class:`~packbot.contact.stops.JointStops`.
+    Same arguments as :class:`~packbot.contact.stops.JointStops`; its steps are the locks'
+    native Dormand-Prince step where that serves (:meth:`JointStops.step_kernel`).
     """
-
-    def step_kernel(self, t: float, y: FloatArray) -> StepKernel | None:
-        """No compiled step: the stepper's stages call the right-hand side."""
-        return None
