@@ -353,7 +353,10 @@ def _relapse_restarts(res: packbot.SimResult) -> list[list[float]]:
         nxt = next((j for j in range(k + 1, len(ev)) if ev[j].kind == "timestep"), None)
         if nxt is None or ev[nxt].t - e.t > normal_law.RELAPSE_SPAN:
             continue
-        out.append(sorted({x.t for x in ev[k + 1 : nxt + 1]}))  # one restart's events share t
+        # one restart's events share t; a limit stop let go after a step (``release`` of a
+        # joint's "upper" or "lower" stop, JointStops.release_limits) is logged without a restart
+        restarts = [x for x in ev[k + 1 : nxt + 1] if x.link2 not in ("upper", "lower")]
+        out.append(sorted({x.t for x in restarts}))
     return out
 
 

@@ -65,10 +65,17 @@ class NormalContacts(RestartSteps, ModeSelection):
     def repatch(self, q: FloatArray, v: FloatArray, a_free_fn: Any, minv: FloatArray) -> FloatArray:
         """Recompute the patches of a sliding contact, correct drift and select the modes again.
 
+        The engaged rows before are kept when they still solve the mode problem
+        (:meth:`keep_modes`: one solve instead of the full selection); otherwise
+        ``select_modes(keep=True)``.
+
         Returns:
             The corrected configuration [rad].
         """
+        signature, engaged = self.row_signature(), list(self.engaged)
         self.refresh(q)
         q = self.project(q, v, minv)
-        self.select_modes(q, v, a_free_fn(q, v), minv, keep=True)
+        a_free = a_free_fn(q, v)
+        if not self.keep_modes(q, v, a_free, minv, signature, engaged):
+            self.select_modes(q, v, a_free, minv, keep=True)
         return q

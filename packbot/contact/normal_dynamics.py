@@ -266,3 +266,4 @@ class ConstrainedDynamics(ContactRows):
 _OWN_PROBLEM = ContactRows._problem
 _OWN_EVALUATE = ConstrainedDynamics.evaluate
 _OWN_CONDITIONS = ConstrainedDynamics.conditions
+_OWN_VIOLATED = ConstrainedDynamics.violated

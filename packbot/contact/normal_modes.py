@@ -17,7 +17,12 @@ from numpy.typing import NDArray
 
 from packbot.collision import PairInfo
 from packbot.contact.lcp import SMALL_LCP, lcp_residual, lemke, solve_lcp_psd
-from packbot.contact.normal_dynamics import ConstrainedDynamics
+from packbot.contact.normal_dynamics import (
+    _OWN_EVALUATE,
+    _OWN_PROBLEM,
+    _OWN_VIOLATED,
+    ConstrainedDynamics,
+)
 from packbot.contact.normal_patch import _Pair
 from packbot.contact.normal_tolerances import (
     BAUMGARTE,
@@ -115,6 +120,81 @@ class ModeSelection(ConstrainedDynamics):
                 np.array2string(vn, precision=6),
             )
         return events
+
+    def keep_modes(
+        self,
+        q: FloatArray,
+        v: FloatArray,
+        a_free: FloatArray,
+        minv: FloatArray,
+        signature: tuple[Any, ...],
+        engaged: list[int],
+    ) -> bool:
+        """After a re-patch, keep the engaged rows if they still solve the mode problem.
+
+        ``engaged`` are the rows engaged before the re-patch, ``signature`` what the row
+        indices meant then (:meth:`~packbot.contact.normal_set.ContactSet.row_signature`).
+        They are kept (True) when the rows are the same, every one still touches, no sliding
+        pair is slower than :data:`STICK_SPEED` (its direction is decided by the full
+        selection) and one solve with them (:meth:`evaluate`) is a solution of the mode problem
+        of :meth:`select_modes`: positive forces on the engaged rows, no touching free row
+        accelerating into contact (Baumgarte terms included; to :data:`RESIDUAL_TOL`, scaled,
+        as the selection's own solutions), every mode condition satisfied.
+        Sticking pairs stay sticking and sliding pairs take the direction of their sliding
+        velocity, as ``select_modes(keep=True)`` does; where that problem has one solution,
+        the same one. Otherwise (False) the caller selects the modes in full. The contact
+        set's own rows only (a subclass's rows take the full selection).
+
+        Args:
+            q: Configuration [rad].
+            v: Velocity [rad/s].
+            a_free: Unconstrained accelerations [rad/s^2].
+            minv: M^-1 at q.
+            signature: The row signature before the re-patch.
+            engaged: The engaged rows before the re-patch.
+        """
+        if (
+            not engaged
+            or type(self)._problem is not _OWN_PROBLEM
+            or type(self).evaluate is not _OWN_EVALUATE
+            or type(self).violated is not _OWN_VIOLATED
+            or signature != self.row_signature()
+        ):
+            return False
+        Jn, drift, gap, vn, extra = self._problem(q, v)
+        touch = (gap <= TOUCH_GAP) & (vn <= SPEED_BAND)
+        E = np.array(engaged, dtype=np.intp)
+        if not bool(touch[E].all()):
+            return False
+        if self.mu > 0.0:
+            k = 0
+            held = set(engaged)
+            for p, ex in zip(self.pairs.values(), extra, strict=True):
+                K = len(p.local1)
+                mine = [r for r in range(k, k + K) if r in held]
+                touching = bool(touch[k : k + K].any())
+                k += K
+                if p.stick:
+                    if touching and not mine:  # the full selection holds it with zero force
+                        return False
+                    continue
+                speed = float(np.linalg.norm(ex["vt"]))
+                if speed <= STICK_SPEED:
+                    return False
+                p.slip_dir = ex["vt"] / speed
+        self.engaged = list(engaged)
+        ev = self.evaluate(q, v, a_free, minv)
+        lam = ev.lam[: len(E)]
+        if self.violated(ev) or float(lam.min()) <= 1e-12 * (1.0 + float(np.abs(lam).max())):
+            return False
+        free = np.flatnonzero(touch)
+        free = free[~np.isin(free, E)]
+        if len(free):
+            w = Jn[free] @ ev.a + drift[free]
+            w += 2.0 * BAUMGARTE * vn[free] + BAUMGARTE**2 * gap[free]
+            if float(w.min()) < -RESIDUAL_TOL * (1.0 + float(np.abs(w).max())):
+                return False
+        return True
 
     def _consistent_directions(
         self,

@@ -240,6 +240,10 @@ class ContactSet:
             k += n
         return None, list(self.limits)[row - k]
 
+    def row_signature(self) -> tuple[Any, ...]:
+        """What the row indices mean: the pairs (index, patch size) and limits, in row order."""
+        return tuple((k, len(p.local1)) for k, p in self.pairs.items()), tuple(self.limits)
+
     def _invalidate(self) -> None:
         """The contact set changed: forget the cached kinematics and point layout."""
         self._kin_cache.clear()
