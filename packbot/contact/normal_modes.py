@@ -187,8 +187,9 @@ class ModeSelection(ConstrainedDynamics):
         lam = ev.lam[: len(E)]
         if self.violated(ev) or float(lam.min()) <= 1e-12 * (1.0 + float(np.abs(lam).max())):
             return False
-        free = np.flatnonzero(touch)
-        free = free[~np.isin(free, E)]
+        free_rows = touch.copy()
+        free_rows[E] = False
+        free = np.flatnonzero(free_rows)
         if len(free):
             w = Jn[free] @ ev.a + drift[free]
             w += 2.0 * BAUMGARTE * vn[free] + BAUMGARTE**2 * gap[free]
