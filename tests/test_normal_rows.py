@@ -274,7 +274,8 @@ def test_compiled_patches_equal_the_numpy_construction(contacts, rng):
     gives normal.py's numpy construction (_lift, _consistent, _tangents) at the collapse's
     pairs and at states around them, and add_pair stores it."""
     from packbot.contact import kernels
-    from packbot.contact.normal import PATCH_TOL, _consistent, _lift, _tangents
+    from packbot.contact.normal_patch import _consistent, _lift, _tangents
+    from packbot.contact.normal_tolerances import PATCH_TOL
 
     sysm, nc, q0 = contacts
     world, data = sysm.world, sysm.data
@@ -328,7 +329,7 @@ def test_compiled_small_lemke_reproduces_the_python_pivots_to_the_last_bit(rng):
     """kernels.lemke_small (the contact-normal mode's small LCPs) returns what lcp.lemke's
     Python-float pivots return, bit for bit: solutions, ray terminations (None) alike."""
     from packbot.contact.lcp import SMALL_LCP, lemke
-    from packbot.contact.normal import _lemke
+    from packbot.contact.normal_modes import _lemke
 
     solved = failed = 0
     for trial in range(600):

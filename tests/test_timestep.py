@@ -15,7 +15,7 @@ import pytest
 from test_normal_cascade import GAIN_TOL, start_pose
 
 import packbot
-from packbot.contact import normal as normal_mod
+from packbot.contact import normal_law
 from packbot.contact.lcp import box_residual, solve_mixed_admm
 from packbot.contact.normal import PENETRATION_TOL
 from packbot.contact.timestep import WINDOW_STEP, MoreauJeanStepper, StepSegment
@@ -126,8 +126,8 @@ def test_a_run_stepped_in_windows_rests_where_the_event_driven_mode_rests(robot,
     base = {"contact_mode": "normal", "mu": 0.5, "restitution": 0.0, "locked_joints": LOCKED}
     exact = packbot.simulate(robot, q0, np.zeros(robot.nq), 2.0, config=packbot.SimConfig(**base))
     assert exact.diagnostics.windows == 0
-    monkeypatch.setattr(normal_mod, "CASCADE_EVENTS", 1)
-    monkeypatch.setattr(normal_mod, "WINDOW_MIN", 10.0)
+    monkeypatch.setattr(normal_law, "CASCADE_EVENTS", 1)
+    monkeypatch.setattr(normal_law, "WINDOW_MIN", 10.0)
     cfg = packbot.SimConfig(**base, sample_dt=WINDOW_STEP)
     stepped = packbot.simulate(robot, q0, np.zeros(robot.nq), 2.0, config=cfg)
     d = stepped.diagnostics
@@ -222,7 +222,7 @@ def test_an_unconverged_step_falls_back_to_the_frictionless_rows(robot, monkeypa
 
     monkeypatch.setattr(timestep, "solve_mixed_admm", bad)
     monkeypatch.setattr(conic, "solve_conic", bad_conic)
-    monkeypatch.setattr(normal_mod, "CASCADE_EVENTS", 1)
+    monkeypatch.setattr(normal_law, "CASCADE_EVENTS", 1)
     cfg = packbot.SimConfig(contact_mode="normal", mu=0.5, restitution=0.0, locked_joints=LOCKED)
     res = packbot.simulate(robot, robot.pose("drive"), np.zeros(robot.nq), 0.4, config=cfg)
     assert res.diagnostics.window_steps > 100
@@ -271,15 +271,15 @@ def test_the_crawl_detector_opens_a_window_after_crawl_steps(robot, monkeypatch)
     q0, v0 = robot.pose("drive"), np.zeros(robot.nq)
     plain = packbot.simulate(robot, q0, v0, 0.6, config=cfg)
     assert plain.diagnostics.windows == 0
-    monkeypatch.setattr(normal_mod, "CRAWL_STEPS", 50)
-    monkeypatch.setattr(normal_mod, "CRAWL_STEP", 1.0)  # [s]: every step is "slow"
+    monkeypatch.setattr(normal_law, "CRAWL_STEPS", 50)
+    monkeypatch.setattr(normal_law, "CRAWL_STEP", 1.0)  # [s]: every step is "slow"
     res = packbot.simulate(robot, q0, v0, 0.6, config=cfg)
     d = res.diagnostics
     assert d.windows >= 1
     assert -d.min_distance <= PENETRATION_TOL
     assert _event_gain(res) <= GAIN_TOL
     # the count: with 100 steps to average, the first window opens later, after more steps
-    monkeypatch.setattr(normal_mod, "CRAWL_STEPS", 100)
+    monkeypatch.setattr(normal_law, "CRAWL_STEPS", 100)
     later = packbot.simulate(robot, q0, v0, 0.6, config=cfg)
     t50 = res.events_of("timestep")[0].t
     t100 = later.events_of("timestep")[0].t
@@ -309,7 +309,7 @@ def test_an_unconverged_compiled_answer_falls_back_to_pinocchios_admm(robot, mon
 
     monkeypatch.setattr(conic, "solve_conic", unconverged)
     monkeypatch.setattr(timestep, "solve_mixed_admm", counted)
-    monkeypatch.setattr(normal_mod, "CASCADE_EVENTS", 1)
+    monkeypatch.setattr(normal_law, "CASCADE_EVENTS", 1)
     cfg = packbot.SimConfig(contact_mode="normal", mu=0.5, restitution=0.0, locked_joints=LOCKED)
     res = packbot.simulate(robot, robot.pose("drive"), np.zeros(robot.nq), 0.3, config=cfg)
     assert res.diagnostics.window_steps > 100
@@ -323,8 +323,8 @@ def test_the_midpoint_step_removes_less_energy_where_the_wrist_spins(robot, monk
     one window from its first event. The Euler step (v + h a_free(q, v)) gained energy there
     through the fast joints' gyroscopic terms and the guard took it out (1.9 mJ in 1 s); the
     midpoint evaluation of the free accelerations leaves a tenth of it (0.19 mJ)."""
-    monkeypatch.setattr(normal_mod, "CASCADE_EVENTS", 1)
-    monkeypatch.setattr(normal_mod, "WINDOW_MIN", 10.0)
+    monkeypatch.setattr(normal_law, "CASCADE_EVENTS", 1)
+    monkeypatch.setattr(normal_law, "WINDOW_MIN", 10.0)
     q0 = robot.pose("drive")
     v0 = np.zeros(robot.nq)
     v0[robot.joint_names.index("gripper_roll")] = 80.0
@@ -351,9 +351,12 @@ def _relapse_restarts(res: packbot.SimResult) -> list[list[float]]:
         if e.kind != "resume":
             continue
         nxt = next((j for j in range(k + 1, len(ev)) if ev[j].kind == "timestep"), None)
-        if nxt is None or ev[nxt].t - e.t > normal_mod.RELAPSE_SPAN:
+        if nxt is None or ev[nxt].t - e.t > normal_law.RELAPSE_SPAN:
             continue
-        out.append(sorted({x.t for x in ev[k + 1 : nxt + 1]}))  # one restart's events share t
+        # one restart's events share t; a limit stop let go after a step (``release`` of a
+        # joint's "upper" or "lower" stop, JointStops.release_limits) is logged without a restart
+        restarts = [x for x in ev[k + 1 : nxt + 1] if x.link2 not in ("upper", "lower")]
+        out.append(sorted({x.t for x in restarts}))
     return out
 
 
@@ -367,9 +370,9 @@ def test_a_relapse_after_a_window_opens_the_next_one_within_a_few_restarts(robot
     grinding's restarts (0.3 to 0.5 ms apart) must open a window at the RELAPSE_EVENTS-th."""
     q0 = start_pose(robot, 4)
     cfg = packbot.SimConfig(contact_mode="normal", mu=0.8, restitution=0.0)
-    n = normal_mod.RELAPSE_EVENTS
-    for span in (normal_mod.CASCADE_SPAN, 0.005):
-        monkeypatch.setattr(normal_mod, "CASCADE_SPAN", span)
+    n = normal_law.RELAPSE_EVENTS
+    for span in (normal_law.CASCADE_SPAN, 0.005):
+        monkeypatch.setattr(normal_law, "CASCADE_SPAN", span)
         res = packbot.simulate(robot, q0, np.zeros(robot.nq), 1.8, config=cfg)
         relapses = _relapse_restarts(res)
         assert len(relapses) >= 2
@@ -377,7 +380,7 @@ def test_a_relapse_after_a_window_opens_the_next_one_within_a_few_restarts(robot
             # no cluster of n restarts within the span before the window's own restart
             early = [ts[i + n - 1] - ts[i] for i in range(len(ts) - n)]
             assert all(d > span for d in early), (span, ts)
-        if span > normal_mod.CASCADE_SPAN:
+        if span > normal_law.CASCADE_SPAN:
             assert any(len(ts) == n for ts in relapses), relapses
         assert _event_gain(res) <= GAIN_TOL
         assert -res.diagnostics.min_distance <= PENETRATION_TOL
@@ -395,8 +398,8 @@ def test_frictionless_steps_are_solved_by_the_compiled_solver(robot, monkeypatch
         return real(G, g, m)
 
     monkeypatch.setattr(MoreauJeanStepper, "_frictionless", staticmethod(counted))
-    monkeypatch.setattr(normal_mod, "CASCADE_EVENTS", 1)
-    monkeypatch.setattr(normal_mod, "WINDOW_MIN", 10.0)
+    monkeypatch.setattr(normal_law, "CASCADE_EVENTS", 1)
+    monkeypatch.setattr(normal_law, "WINDOW_MIN", 10.0)
     cfg = packbot.SimConfig(contact_mode="normal", mu=0.0, restitution=0.0, locked_joints=LOCKED)
     res = packbot.simulate(robot, robot.pose("drive"), np.zeros(robot.nq), 0.4, config=cfg)
     d = res.diagnostics

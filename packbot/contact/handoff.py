@@ -72,13 +72,11 @@ from packbot.contact.base import Active, Crossing, Key
 from packbot.contact.joint_clamp import JointClampLaw
 from packbot.contact.lcp import lcp_residual, lemke, solve_lcp_psd, solve_small
 from packbot.contact.locks import ACCEL_BAND, TORQUE_BAND
-from packbot.contact.normal import (
-    RESIDUAL_TOL,
-    ModeEvent,
-    NormalContacts,
-    PatchEvents,
-    _Eval,
-)
+from packbot.contact.normal_contacts import NormalContacts
+from packbot.contact.normal_dynamics import _Eval
+from packbot.contact.normal_modes import ModeEvent
+from packbot.contact.normal_tolerances import RESIDUAL_TOL
+from packbot.contact.patch_events import PatchEvents
 from packbot.contact.stops import HOLD_KICK, RECEDE_SPEED, STICK_SPEED, friction_share
 from packbot.ode import DenseSegment
 from packbot.system import System

@@ -30,7 +30,8 @@ from numpy.typing import NDArray
 from packbot.errors import ModelError, PackbotError
 
 if TYPE_CHECKING:
-    from packbot.contact.normal import NormalContacts, _Eval
+    from packbot.contact.normal_contacts import NormalContacts
+    from packbot.contact.normal_dynamics import _Eval
 
 __all__ = ["ENABLED", "STEP_ENABLED", "SUPPORTED_JOINTS", "NativeRhs", "available", "native_rhs"]
 
@@ -156,13 +157,13 @@ class NativeRhs:
                 _reals(lay.lim_side),
                 _reals(lay.lim_value),
             )
-            from packbot.contact.normal import FORCE_BAND, POINT_TOL, STICK_BAND
+            from packbot.contact.normal_tolerances import FORCE_BAND, POINT_TOL, STICK_BAND
 
             self._rhs.set_conditions(_reals(lay.offset0), FORCE_BAND, POINT_TOL, STICK_BAND)
             self._layout_id = lay
             self._plan_id = None
         if plan is not self._plan_id:
-            from packbot.contact.normal import BAUMGARTE, STICK_SPEED
+            from packbot.contact.normal_tolerances import BAUMGARTE, STICK_SPEED
 
             self._rhs.set_plan(
                 _ints(plan.engaged),
@@ -289,7 +290,7 @@ class NativeRhs:
         got = self._rhs.end_eval(y1)
         if got is None:
             return None
-        from packbot.contact.normal import _Eval
+        from packbot.contact.normal_dynamics import _Eval
 
         cond, a, lam, gap, vn, vt, slide2 = got
         ev = _Eval(a, lam, gap, vn, vt, cond=cond, slide2=slide2)

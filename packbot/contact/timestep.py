@@ -67,7 +67,7 @@ from packbot.ode import DenseSegment
 
 if TYPE_CHECKING:
     from packbot.config import SimConfig
-    from packbot.contact.normal import NormalContacts
+    from packbot.contact.normal_contacts import NormalContacts
     from packbot.drive import Drive
     from packbot.system import System
 

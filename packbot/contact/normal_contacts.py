@@ -1,0 +1,81 @@
+"""The contact-normal mode's contact set: its restart and re-patch sequences."""
+
+from __future__ import annotations
+
+import logging
+from typing import Any
+
+import numpy as np
+import pinocchio as pin
+from numpy.typing import NDArray
+
+from packbot.contact.normal_modes import ModeEvent, ModeSelection
+from packbot.contact.normal_steps import RestartSteps
+
+__all__ = ["NormalContacts"]
+
+log = logging.getLogger(__name__)
+
+FloatArray = NDArray[np.float64]
+
+
+class NormalContacts(RestartSteps, ModeSelection):
+    """The contact set of the normal mode, its modes, and the constrained dynamics.
+
+    The layers, one module each: the set (:class:`~packbot.contact.normal_set.ContactSet`),
+    its rows (:class:`~packbot.contact.normal_rows.ContactRows`), the dynamics with the modes
+    fixed (:class:`~packbot.contact.normal_dynamics.ConstrainedDynamics`), the mode selection
+    (:class:`~packbot.contact.normal_modes.ModeSelection`) and the restart's steps
+    (:class:`~packbot.contact.normal_steps.RestartSteps`); this class runs a restart and a
+    re-patch with them. Arguments: see :class:`~packbot.contact.normal_set.ContactSet`.
+    """
+
+    def restart(
+        self, q: FloatArray, v: FloatArray, a_free_fn: Any, minv: FloatArray
+    ) -> tuple[FloatArray, FloatArray, list[ModeEvent]]:
+        """Drift correction, impulse, then modes, at a restart.
+
+        Args:
+            q: Configuration [rad].
+            v: Velocity before [rad/s].
+            a_free_fn: Callable (q, v) -> unconstrained accelerations [rad/s^2].
+            minv: M^-1 at q.
+
+        Returns:
+            The configuration after the drift correction, the velocity after the impulse and
+            the mode changes to log.
+        """
+        self.refresh(q)
+        events: list[ModeEvent] = []
+        q_in = q
+        q = self.project(q, v, minv)
+        if q is not q_in and not np.array_equal(q, q_in):
+            # the impulse's energy balance is exact only with M at the q it acts on
+            Mi = np.asarray(pin.computeMinverse(self.model, self.data, q), dtype=np.float64)
+            minv = np.triu(Mi) + np.triu(Mi, 1).T
+        self.bounced = False
+        v = self.impulse(q, v, minv)
+        v = self.stop_slow(q, v, minv)
+        captured = self.capture(q, v, a_free_fn, minv)
+        if captured is not None:
+            return q, np.zeros_like(v), events + captured
+        events += self.select_modes(q, v, a_free_fn(q, v), minv)
+        return q, v, events
+
+    def repatch(self, q: FloatArray, v: FloatArray, a_free_fn: Any, minv: FloatArray) -> FloatArray:
+        """Recompute the patches of a sliding contact, correct drift and select the modes again.
+
+        The engaged rows before are kept when they still solve the mode problem
+        (:meth:`keep_modes`: one solve instead of the full selection); otherwise
+        ``select_modes(keep=True)``.
+
+        Returns:
+            The corrected configuration [rad].
+        """
+        signature, engaged = self.row_signature(), list(self.engaged)
+        self.refresh(q)
+        q = self.project(q, v, minv)
+        a_free = a_free_fn(q, v)
+        if not self.keep_modes(q, v, a_free, minv, signature, engaged):
+            self.select_modes(q, v, a_free, minv, keep=True)
+        return q

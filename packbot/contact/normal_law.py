@@ -1,0 +1,439 @@
+"""The contact-normal mode's law: events, restarts, and time-stepping windows.
+
+:class:`NormalLaw` integrates the arm with the contact set of
+:class:`~packbot.contact.normal.NormalContacts` between events and opens a time-stepping
+window (:mod:`packbot.contact.timestep`) where events pile up; its thresholds are below.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from collections import deque
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from packbot.collision import PairInfo
+from packbot.contact import native
+from packbot.contact.base import Active, Crossing, Key
+from packbot.contact.locks import JointLocks
+from packbot.contact.normal_contacts import NormalContacts
+from packbot.contact.patch_events import PatchEvents
+from packbot.contact.timestep import QUIET_STEPS, MoreauJeanStepper
+from packbot.ode import DenseSegment, StepKernel
+from packbot.system import System
+
+__all__ = [
+    "CASCADE_EVENTS",
+    "CASCADE_SPAN",
+    "CHATTER_EVENTS",
+    "CHATTER_SPAN",
+    "CRAWL_STEP",
+    "CRAWL_STEPS",
+    "HOLD_SPEED",
+    "RELAPSE_EVENTS",
+    "RELAPSE_SPAN",
+    "WINDOW_MIN",
+    "NormalLaw",
+]
+
+log = logging.getLogger(__name__)
+
+FloatArray = NDArray[np.float64]
+
+
+#: A cascade: CASCADE_EVENTS restarts within CASCADE_SPAN [s] (a pile-up at one instant), or
+#: CHATTER_EVENTS within CHATTER_SPAN [s] (a chattering slide: the drive-pose collapse with the
+#: wrist free and mu = 0.8 made 10,000 a second) start a time-stepping window.
+CASCADE_EVENTS = 20
+CASCADE_SPAN = 1e-3
+CHATTER_EVENTS = 32
+CHATTER_SPAN = 0.032
+#: The stepper crawls when CRAWL_STEPS accepted steps average less than CRAWL_STEP [s] (a slow
+#: slide whose friction direction turns is stiff for the explicit stepper: measured 117,824
+#: steps of 7 us in 0.8 s on a wrist-free start; the collapse averages 2.3 ms): a window opens.
+CRAWL_STEPS = 400
+CRAWL_STEP = 2.5e-5
+#: A joint with Coulomb friction or a brake slower than this [rad/s] while contacts push
+#: starts a window (its hold and the contact forces are one problem).
+HOLD_SPEED = 1e-3
+#: The shortest time-stepping window [s]; doubled when a cascade follows the previous window's
+#: end within RELAPSE_SPAN [s].
+WINDOW_MIN = 0.02
+RELAPSE_SPAN = 0.05
+#: Within RELAPSE_SPAN of a window's end, RELAPSE_EVENTS restarts within CASCADE_SPAN start the
+#: next window (a relapse: the resumed state cascades at once; measured on wrist-free start 4,
+#: mu 0.8: each of its six resumes was followed by 24 stick/slip restarts within 0.5 ms, a few
+#: milliseconds of CPU time each, before the 20th opened the next window).
+RELAPSE_EVENTS = 5
+
+
+@dataclass
+class _Window:
+    """A time-stepping window of the normal mode (:mod:`packbot.contact.timestep`)."""
+
+    stepper: MoreauJeanStepper
+    t_start: float
+    until: float  # the earliest exit [s]
+    energy_in: float  # [J]
+    quiet: int = 0  # steps whose signature equalled the previous one
+    last: Any = None  # the previous step's signature
+
+
+class NormalLaw(PatchEvents):
+    """The contact-normal mode (``contact_mode="normal"``).
+
+    Its contacts are the patches of :class:`NormalContacts` (impulse with restitution, resting
+    contact with Coulomb friction ``mu``, release when a force would pull) and its limit stops
+    are rows of the same problem. Same arguments as
+    :class:`~packbot.contact.stops.JointStops`.
+
+    **Where events pile up** (:data:`CASCADE_EVENTS` restarts within :data:`CASCADE_SPAN`: a
+    stick/slip or jam cascade at one instant, an accumulation of impacts; only
+    :data:`RELAPSE_EVENTS` within :data:`RELAPSE_SPAN` of a window's end; or
+    :data:`CHATTER_EVENTS` within :data:`CHATTER_SPAN`: a chattering slide)
+    the law integrates a window with fixed time steps itself
+    (:class:`~packbot.contact.timestep.MoreauJeanStepper`, through :meth:`advance`): one
+    complementarity problem per step, no event location. The window lasts at least
+    :data:`WINDOW_MIN` (doubled when the next cascade follows within :data:`RELAPSE_SPAN` of
+    its end) and ends once the steps' decisions have held for
+    :data:`~packbot.contact.timestep.QUIET_STEPS` steps; the event-driven restart then takes
+    over from that state. Both ends are logged (``timestep``, ``resume``).
+
+    Attributes:
+        normal: The contact set and its modes.
+        window: The time-stepping window in progress, or None.
+    """
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        self._min_len = WINDOW_MIN
+        self._last_exit = -math.inf
+        super().__init__(*args, **kwargs)
+
+    def rebuild(self, system: System) -> None:
+        """A new phase: an empty contact set on the new system."""
+        super().rebuild(system)
+        self.normal = NormalContacts.from_config(system.model, system.data, system.world, self.cfg)
+        self._native = native.native_rhs(system.model) if native.ENABLED else None
+        self.window: _Window | None = None
+        self._recent: deque[float] = deque(maxlen=CHATTER_EVENTS)
+        self._steps: deque[float] = deque(maxlen=CRAWL_STEPS)  # the last steps' sizes [s]
+
+    # ------------------------------------------------------------------ windows
+    def advance(self, t: float, y: FloatArray, t_end: float) -> DenseSegment | None:
+        """In a window, one time step from (t, y) (not past t_end); else None."""
+        w = self.window
+        if w is None:
+            return None
+        seg, info = w.stepper.step(t, y, t_end, self.energy)
+        self.diag.window_steps += 1
+        self.diag.sweeps += 1
+        self.diag.window_energy_removed += info.removed
+        self.note_min(*info.closest)  # the step's sweep at its start (the previous step's end)
+        w.quiet = w.quiet + 1 if info.signature == w.last else 0
+        w.last = info.signature
+        return seg
+
+    def rescue(self, t: float, y: FloatArray) -> bool:
+        """A step-size underflow at (t, y) (a stiff or discontinuous stretch): a window."""
+        if self.window is not None:
+            return False
+        self._enter(t, y, "the stepper's step size underflowed")
+        return True
+
+    def watch(self, seg: DenseSegment) -> list[Crossing]:
+        """The event functions (none in a window: its steps resolve their contacts)."""
+        if self.window is not None:
+            return []
+        self._steps.append(seg.h)
+        return super().watch(seg)
+
+    def after_step(self, t: float, y: FloatArray) -> FloatArray | None:
+        """After an accepted step; in a window, its end once the contacts have settled.
+
+        Outside a window, a stepper that crawls (:data:`CRAWL_STEPS` steps averaging less than
+        :data:`CRAWL_STEP`) opens one: the stretch is stiff for an explicit stepper (a slow
+        slide's friction direction turning), not for the windows' steps, whose contact forces
+        are implicit.
+        """
+        w = self.window
+        if w is None:
+            steps = self._steps
+            if len(steps) == CRAWL_STEPS and sum(steps) < CRAWL_STEPS * CRAWL_STEP:
+                y_new = super().after_step(t, y)
+                y = y if y_new is None else y_new
+                self._enter(t, y, "the stepper crawled (a stiff stretch)")
+                return y
+            return super().after_step(t, y)
+        if t < w.until or w.quiet < QUIET_STEPS:
+            return None
+        return self._resume(t, y)
+
+    def settle(self, t: float, y: FloatArray) -> None:
+        """The forces changed at t (in a window the next step sees them)."""
+        if self.window is None:
+            super().settle(t, y)
+
+    def _enter(self, t: float, y: FloatArray, why: str) -> None:
+        """Start a window at (t, y) (``why``: for the log)."""
+        relapse = t - self._last_exit <= RELAPSE_SPAN
+        self._min_len = 2.0 * self._min_len if relapse else WINDOW_MIN
+        n = self.n
+        q, v = y[:n], y[n : 2 * n]
+        self.drive.fdir[:] = 0.0  # Coulomb friction and brakes are rows of the steps
+        self.locks = JointLocks()
+        stepper = MoreauJeanStepper(self.sys, self.drive, self.normal, self.cfg)
+        self.window = _Window(stepper, t, t + self._min_len, self.energy(q, v))
+        self.diag.windows += 1
+        self._steps.clear()
+        self.log_event(t, "timestep", q, v, v, None)
+        log.debug("t=%.6f: %s: time steps for %.3g s at least", t, why, self._min_len)
+
+    def _resume(self, t: float, y: FloatArray) -> FloatArray:
+        """End the window at (t, y): the event-driven mode restarts from that state."""
+        assert self.window is not None
+        n = self.n
+        self._last_exit = t
+        self.log_event(t, "resume", y[:n], y[n : 2 * n], y[n : 2 * n], None)
+        self.rebuild(self.sys)  # every contact and mode forgotten (the window is ended)
+        self._after_event(y)  # the distances at the window's end (and the deepest one)
+        y_new = self.start(t, y, check=False)
+        self._after_event(y_new)
+        return y_new
+
+    def accel(self, q: FloatArray, v: FloatArray, a_free: FloatArray) -> FloatArray:
+        """Accelerations with the contact forces (and locks) of the current mode."""
+        a = super().accel(q, v, a_free)
+        if self.normal.engaged:
+            a = self.normal.evaluate(q, v, a, self.sys.minv(q)).a
+        return a
+
+    def torque_accel(self, q: FloatArray, v: FloatArray, tau: FloatArray) -> FloatArray:
+        """:meth:`accel` under the joint torques tau [N*m]; engaged rows: one native call.
+
+        With engaged rows, no lock and no rest capture, the native right-hand side
+        (:mod:`packbot.contact.native`: ABA, M^-1, the Jacobians, the rows and the
+        constrained accelerations in one compiled call) gives the same accelerations as
+        :meth:`accel` (to rounding); a singular Delassus matrix falls back to :meth:`accel`.
+        """
+        if self.window is not None:
+            # The window's steps integrate (advance); the loop's right-hand side only gives the
+            # stepper's restart value (a tick inside the window), recomputed when the window
+            # ends. The window's steps re-patch pairs in the contact set, so its engaged rows
+            # (the event-driven modes') may no longer index them: the free accelerations.
+            return self.sys.aba(q, v, tau)
+        nc = self.normal
+        rhs = self._native
+        if rhs is not None and nc.engaged and not nc.resting and not self.locks.any_locked:
+            rhs.load(nc, nc._plan())
+            a = rhs.accel(q, v, tau, True)
+            if a is not None:
+                return a
+        return self.accel(q, v, self.sys.aba(q, v, tau))
+
+    def step_kernel(self, t: float, y: FloatArray) -> StepKernel | None:
+        """The native Dormand-Prince step of the current modes, or None (the stages call rhs).
+
+        Offered when :meth:`torque_accel` would take the native call at every stage (engaged
+        rows, no lock, no rest capture, no window) and the torques are fixed over the step (a
+        held command, no motor lag: :meth:`~packbot.drive.Drive.step_torques`). The stages,
+        the 5th-order solution and the error norm in one call
+        (:meth:`~packbot.contact.native.NativeRhs.step`); the same numbers as the stages in
+        Python around :meth:`torque_accel`, to rounding.
+        """
+        rhs = self._native
+        nc = self.normal
+        if (
+            rhs is None
+            or not native.STEP_ENABLED
+            or not nc.engaged
+            or nc.resting
+            or self.locks.any_locked
+            or self.window is not None
+        ):
+            return None
+        torques = self.drive.step_torques(t, y)
+        if torques is None:
+            return None
+        rhs.load(nc, nc._plan())
+        rhs.set_torque(*torques)
+        return rhs.step
+
+    def _pair_crossings(
+        self, key: Key, p_idx: int, seg: DenseSegment, d0: float, d1: float
+    ) -> list[Crossing]:
+        return self._patch_pair_crossings(key, p_idx, seg, d0, d1)
+
+    def _pairs_to_check(self, pairs: list[int], distances: list[float]) -> Iterable[int]:
+        """The pairs that can have an event (see :meth:`_patch_pair_crossings`).
+
+        A pair at 0 < d <= the proximity tolerance has none (outside the contact set: no
+        impact; in it: neither release nor re-patch), nor one farther outside the set.
+        """
+        near = self.cfg.proximity_tolerance
+        active = self.active
+        return [
+            i
+            for i, d in enumerate(distances)
+            if d <= 0.0 or (d > near and ("pair", pairs[i]) in active)
+        ]
+
+    def _mode_crossings(self, seg: DenseSegment, y1: FloatArray) -> list[Crossing]:
+        nc = self.normal
+        if nc.empty:
+            return []
+        rhs = self._native
+        if rhs is not None:  # a native step's end: its last stage evaluated the conditions
+            ev = rhs.end_eval(nc, y1)
+            if ev is not None and ev.cond is not None and ev.cond >= 0.0:
+                return []
+        return self._problem_crossings(nc, seg, y1)
+
+    def _limit_held(self, j: int, side: int) -> bool:
+        return self.normal.limit_engaged(j, side)
+
+    def _drop_limit(self, j: int, side: int) -> None:
+        self.normal.remove_limit(j, side)
+
+    def _refresh(self, t: float, y: FloatArray) -> FloatArray | None:
+        # A sliding contact's patch is rebuilt only once it is stale (slid SLIDE_TOL or its gap
+        # off the pair's distance): its rows stay valid until then.
+        n = self.n
+        q, v = y[:n], y[n : 2 * n]
+        if self.normal.sliding(q, v) and self.normal.stale(q, v, self.last_d):
+            y_new = self._repatch(self.normal, t, y)
+            self._sync_pairs()
+            return y_new
+        return None
+
+    def _handle(self, t: float, y: FloatArray, crossings: Sequence[Crossing]) -> FloatArray:
+        """Events of the normal mode: update the contact set, then impulse and modes."""
+        normal, world = self.normal, self.world
+        n = self.n
+        q, v = y[:n], y[n : 2 * n].copy()
+        tail = y[2 * n :]
+        logged: list[tuple[str, PairInfo | None, float, tuple[str, ...]]] = []
+        stick: list[int] = []
+        for c in sorted(crossings, key=lambda c: c.key[0] != "mode"):
+            key = c.key
+            if key[0] in ("lock", "stick"):  # a joint's Coulomb friction or brake
+                v = self._hold_event(t, y, q, v, c, stick)
+                continue
+            if key[0] == "pair":
+                p_idx = key[1]
+                info = world.pairs[p_idx]
+                d = self.distance(p_idx, y)
+                if c.kind == "release":  # left the contact set (all its rows were free)
+                    self.active.pop(key, None)
+                    normal.remove_pair(p_idx)
+                    log.debug("t=%.6f: pair %s left the contact set", t, info.piece1)
+                    continue
+                if normal.add_pair(q, p_idx):
+                    self.active[key] = Active(info, [])
+                logged.append((c.kind, info, d, ()))
+            elif key[0] == "limit":
+                _, j, side = key
+                lim = float(self.sys.upper[j] if side > 0 else self.sys.lower[j])
+                normal.add_limit(j, side, lim)
+                self.active[key] = Active(None, [])
+                logged.append(("limit", None, float(side * (lim - q[j])), (self.sys.names[j],)))
+            else:  # ("mode", "nrow"/"nfric"/"nrest", index)
+                if key[1] == "nrest":  # the resting arm starts moving again
+                    logged.append((c.kind, None, math.nan, ()))
+                elif key[1] == "nrow":
+                    owner, lim_key = normal.row_owner(key[2])
+                    joints: tuple[str, ...] = ()
+                    if lim_key is not None:
+                        joints = (self.sys.names[lim_key[0]],)
+                    logged.append((c.kind, owner, math.nan, joints))
+                else:
+                    logged.append((c.kind, normal.pairs[key[2]].info, math.nan, ()))
+        q, v_new, mode_events = self._restart(normal, t, q, v, tail)
+        self._sync_pairs()
+        for kind, who, d, joints in logged:
+            self.log_event(t, kind, q, v, v_new, who, d=d, joints=joints)
+        for me in mode_events:
+            if any(me.kind == k and me.pair == i for k, i, _, _ in logged):
+                continue
+            self.log_event(t, me.kind, q, v_new, v_new, me.pair)
+        y_new = np.concatenate([q, v_new, tail])
+        if self.normal.resting:  # the rest capture holds every joint (friction included)
+            self.locks.set_held({})
+            self.drive.fdir[:] = 0.0
+        elif self.drive.path.coulomb.any():
+            self.settle_modes(t, y_new, candidates=stick, log_stick=True)
+        recent = self._recent
+        recent.append(t)
+        relapse = t - self._last_exit <= RELAPSE_SPAN
+        pile = min(RELAPSE_EVENTS, CASCADE_EVENTS) if relapse else CASCADE_EVENTS
+        piled = len(recent) >= pile and t - recent[-pile] <= CASCADE_SPAN
+        if piled or (len(recent) == CHATTER_EVENTS and t - recent[0] <= CHATTER_SPAN):
+            recent.clear()
+            self._enter(t, y_new, "events piled up")
+        elif self._held_with_contacts(v_new):
+            self._enter(t, y_new, "joints held by friction while contacts push")
+        return y_new
+
+    def _hold_event(
+        self, t: float, y: FloatArray, q: FloatArray, v: FloatArray, c: Crossing, stick: list[int]
+    ) -> FloatArray:
+        """A held joint slips, or a sliding one stops (Coulomb friction, brakes); new v.
+
+        As in the other laws (:class:`~packbot.contact.stops.JointStops`): the slip takes the
+        direction of the torque the hold needed; a stopped joint becomes a candidate that
+        :meth:`settle_modes` holds or lets slide on.
+        """
+        j = c.key[1]
+        fdir = self.drive.fdir
+        if c.kind == "slip":
+            lam = self.hold_torque(t, self.with_v(y, v), j)
+            self.locks.set_held({k: b for k, b in self.locks.held.items() if k != j})
+            fdir[j] = -math.copysign(1.0, lam)
+            self.log_event(t, "slip", q, v, v, None, joints=(self.sys.names[j],), joint=j)
+        elif c.kind == "stick":
+            v = v.copy()
+            v[j] = 0.0
+            fdir[j] = 0.0
+            stick.append(j)
+        return v
+
+    def _held_with_contacts(self, v: FloatArray) -> bool:
+        """Joints held (or stopped) by friction or a brake while contact rows push.
+
+        The event-driven modes solve the holds (:class:`~packbot.contact.locks.JointLocks`)
+        and the contact forces (:class:`NormalContacts`) apart, which is exact while only one
+        of them acts; when both do, the joints' holding torques and the contact forces are one
+        problem: a window's steps solve it (boxes and cones together). A resting arm (rest
+        capture) needs neither.
+
+        Args:
+            v: Velocities [rad/s] after the restart.
+        """
+        if not self.normal.engaged or self.normal.resting:
+            return False
+        if self.locks.held:
+            return True
+        stopped = (self.drive.path.coulomb > 0.0) & (np.abs(v) <= HOLD_SPEED)
+        return bool(stopped.any())
+
+    def friction(
+        self, q: FloatArray, v: FloatArray, applied: FloatArray, friction: FloatArray
+    ) -> FloatArray:
+        """The friction torques [N*m]; in a window, the last step's Coulomb and brake torques."""
+        w = self.window
+        if w is None:
+            return super().friction(q, v, applied, friction)
+        return np.asarray(friction + w.stepper.joint_torque, dtype=np.float64)
+
+    def _sync_pairs(self) -> None:
+        """Pairs that the drift projection put in the contact set become active pairs.
+
+        :meth:`NormalContacts.project` adds a pair it made penetrate (as an impact would):
+        its events are then those of a pair in contact (re-patch, release).
+        """
+        for k, p in self.normal.pairs.items():
+            self.active.setdefault(("pair", k), Active(p.info, []))

@@ -1,0 +1,366 @@
+"""Mode selection at a restart: engaged rows, stick or slip, consistent slip directions.
+
+The acceleration-level problem with the touching rows (a mixed LCP: complementary normal rows,
+sticking pairs' tangential rows as equalities; Lemke when sliding friction makes it
+non-symmetric), the cone check switching a sticking pair to slip, the Painleve fallback, and
+the slip directions of pairs starting to slide.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from packbot.collision import PairInfo
+from packbot.contact.lcp import SMALL_LCP, lcp_residual, lemke, solve_lcp_psd
+from packbot.contact.normal_dynamics import (
+    _OWN_EVALUATE,
+    _OWN_PROBLEM,
+    _OWN_VIOLATED,
+    ConstrainedDynamics,
+)
+from packbot.contact.normal_patch import _Pair
+from packbot.contact.normal_tolerances import (
+    BAUMGARTE,
+    FORCE_BAND,
+    RESIDUAL_TOL,
+    SPEED_BAND,
+    STICK_BAND,
+    STICK_SPEED,
+    TOUCH_GAP,
+)
+
+__all__ = ["ModeEvent", "ModeSelection"]
+
+log = logging.getLogger(__name__)
+
+FloatArray = NDArray[np.float64]
+
+
+@dataclass
+class ModeEvent:
+    """A mode change found at a restart (for the event log).
+
+    Attributes:
+        kind: ``"stick"``, ``"slip"``, ``"release"`` or ``"painleve"``.
+        pair: The pair (None for a limit row).
+        detail: Extra text (a limit row's joint).
+    """
+
+    kind: str
+    pair: PairInfo | None
+    detail: str = ""
+
+
+class ModeSelection(ConstrainedDynamics):
+    """The contact set's mode selection (see the module)."""
+
+    def select_modes(
+        self,
+        q: FloatArray,
+        v: FloatArray,
+        a_free: FloatArray,
+        minv: FloatArray,
+        keep: bool = False,
+    ) -> list[ModeEvent]:
+        """Solve the acceleration-level problem; set the engaged rows and stick/slip.
+
+        With ``keep`` (a re-patch inside a mode), sticking pairs stay sticking and sliding
+        pairs only update their direction.
+        """
+        events: list[ModeEvent] = []
+        Jn, drift, gap, vn, extra = self._problem(q, v)
+        touch = [int(r) for r in np.flatnonzero((gap <= TOUCH_GAP) & (vn <= SPEED_BAND))]
+        self.engaged = touch
+        if self.mu > 0.0:
+            for p, ex in zip(self.pairs.values(), extra, strict=True):
+                speed = float(np.linalg.norm(ex["vt"]))
+                was = p.stick
+                if keep and p.stick:
+                    continue
+                p.stick = speed <= STICK_SPEED and not keep
+                if not p.stick:
+                    p.slip_dir = ex["vt"] / speed
+                if was != p.stick:
+                    events.append(ModeEvent("stick" if p.stick else "slip", p.info))
+        if not touch:
+            self.engaged = []
+            return events
+        for _ in range(len(self.pairs) + 2):
+            lam, ok = self._solve_modes(touch, Jn, drift, gap, vn, extra, a_free, minv)
+            if not ok:
+                events.append(ModeEvent("painleve", None))
+                self.n_painleve += 1
+                for p in self.pairs.values():
+                    p.stick = True
+                lam, ok = self._solve_modes(touch, Jn, drift, gap, vn, extra, a_free, minv)
+                if not ok:  # give up friction for this restart
+                    log.warning("contact problem unsolved even with sticking contacts")
+                    self.engaged = [r for r in touch]
+                    return events
+            moved = self._cone_check(lam, extra)
+            if not moved:
+                break
+            for p, s in moved:
+                p.stick = False
+                p.slip_dir = s
+                events.append(ModeEvent("slip", p.info))
+        self._consistent_directions(q, v, Jn, drift, gap, vn, extra, a_free, minv, touch)
+        self._coulomb_residual_directions(extra)
+        if log.isEnabledFor(logging.DEBUG):
+            log.debug(
+                "modes: touch %s engaged %s gaps %s vn %s",
+                touch,
+                self.engaged,
+                np.array2string(gap, precision=8),
+                np.array2string(vn, precision=6),
+            )
+        return events
+
+    def keep_modes(
+        self,
+        q: FloatArray,
+        v: FloatArray,
+        a_free: FloatArray,
+        minv: FloatArray,
+        signature: tuple[Any, ...],
+        engaged: list[int],
+    ) -> bool:
+        """After a re-patch, keep the engaged rows if they still solve the mode problem.
+
+        ``engaged`` are the rows engaged before the re-patch, ``signature`` what the row
+        indices meant then (:meth:`~packbot.contact.normal_set.ContactSet.row_signature`).
+        They are kept (True) when the rows are the same, every one still touches, no sliding
+        pair is slower than :data:`STICK_SPEED` (its direction is decided by the full
+        selection) and one solve with them (:meth:`evaluate`) is a solution of the mode problem
+        of :meth:`select_modes`: positive forces on the engaged rows, no touching free row
+        accelerating into contact (Baumgarte terms included; to :data:`RESIDUAL_TOL`, scaled,
+        as the selection's own solutions), every mode condition satisfied.
+        Sticking pairs stay sticking and sliding pairs take the direction of their sliding
+        velocity, as ``select_modes(keep=True)`` does; where that problem has one solution,
+        the same one. Otherwise (False) the caller selects the modes in full. The contact
+        set's own rows only (a subclass's rows take the full selection).
+
+        Args:
+            q: Configuration [rad].
+            v: Velocity [rad/s].
+            a_free: Unconstrained accelerations [rad/s^2].
+            minv: M^-1 at q.
+            signature: The row signature before the re-patch.
+            engaged: The engaged rows before the re-patch.
+        """
+        if (
+            not engaged
+            or type(self)._problem is not _OWN_PROBLEM
+            or type(self).evaluate is not _OWN_EVALUATE
+            or type(self).violated is not _OWN_VIOLATED
+            or signature != self.row_signature()
+        ):
+            return False
+        Jn, drift, gap, vn, extra = self._problem(q, v)
+        touch = (gap <= TOUCH_GAP) & (vn <= SPEED_BAND)
+        E = np.array(engaged, dtype=np.intp)
+        if not bool(touch[E].all()):
+            return False
+        if self.mu > 0.0:
+            k = 0
+            held = set(engaged)
+            for p, ex in zip(self.pairs.values(), extra, strict=True):
+                K = len(p.local1)
+                mine = [r for r in range(k, k + K) if r in held]
+                touching = bool(touch[k : k + K].any())
+                k += K
+                if p.stick:
+                    if touching and not mine:  # the full selection holds it with zero force
+                        return False
+                    continue
+                speed = float(np.linalg.norm(ex["vt"]))
+                if speed <= STICK_SPEED:
+                    return False
+                p.slip_dir = ex["vt"] / speed
+        self.engaged = list(engaged)
+        ev = self.evaluate(q, v, a_free, minv)
+        lam = ev.lam[: len(E)]
+        if self.violated(ev) or float(lam.min()) <= 1e-12 * (1.0 + float(np.abs(lam).max())):
+            return False
+        free_rows = touch.copy()
+        free_rows[E] = False
+        free = np.flatnonzero(free_rows)
+        if len(free):
+            w = Jn[free] @ ev.a + drift[free]
+            w += 2.0 * BAUMGARTE * vn[free] + BAUMGARTE**2 * gap[free]
+            if float(w.min()) < -RESIDUAL_TOL * (1.0 + float(np.abs(w).max())):
+                return False
+        return True
+
+    def _consistent_directions(
+        self,
+        q: FloatArray,
+        v: FloatArray,
+        Jn: FloatArray,
+        drift: FloatArray,
+        gap: FloatArray,
+        vn: FloatArray,
+        extra: list[dict[str, Any]],
+        a_free: FloatArray,
+        minv: FloatArray,
+        touch: list[int],
+    ) -> None:
+        """Slip directions of pairs starting to slide from rest: their tangential acceleration.
+
+        A slip onset at rest (|v_t| <= :data:`STICK_SPEED`) must slide along its direction s:
+        a_t(s) . s > 0, a_t the tangential acceleration of the patch centre in the slip mode.
+        From the cone check's s = -f_t / |f_t|, s is turned towards a_t (s <- s + a_t / |a_t|)
+        until it is (a plain fixed point s = a_t / |a_t| can flip-flop).
+        """
+        if self.mu == 0.0:
+            return
+        starting = [
+            p
+            for p, ex in zip(self.pairs.values(), extra, strict=True)
+            if not p.stick and float(np.linalg.norm(ex["vt"])) <= STICK_SPEED
+        ]
+        if not starting or not self.engaged:
+            return
+        for _ in range(8):
+            a = self.evaluate(q, v, a_free, minv).a
+            moved = False
+            for p, ex in zip(self.pairs.values(), extra, strict=True):
+                if p not in starting:
+                    continue
+                at = ex["T"].T @ (ex["JT"] @ a + ex["bT"])
+                na = float(np.linalg.norm(at))
+                if na <= 1e-9 or float(at @ p.slip_dir) > 0.0:
+                    continue  # the slide grows along its direction: consistent
+                s = p.slip_dir + at / na
+                ns = float(np.linalg.norm(s))
+                p.slip_dir = s / ns if ns > 1e-9 else at / na
+                moved = True
+            if not moved:
+                return
+            self._solve_modes(touch, Jn, drift, gap, vn, extra, a_free, minv)
+
+    def _coulomb_residual_directions(self, extra: list[dict[str, Any]]) -> None:
+        """A pair set to slip against its own residual slide slips along that slide.
+
+        A slip onset inside the stick band (|v_t| <= :data:`STICK_SPEED`) takes its direction
+        s from the forces (cone check, then :meth:`_consistent_directions`). When the contact
+        still moves at a residual v_t that :meth:`stop_slow` could not remove (a slide driven
+        through a closed chain by the motion elsewhere) and s points so far against it that
+        the stick condition (the slide came back through zero) is below half of
+        :data:`STICK_BAND`, that condition would fire at once and the restart repeat at the
+        same instant (stick -> cone check -> slip -> stick ...; seen at mu = 0.45 in the
+        collapse: link 2's casing on the chassis at 4.6e-4 m/s). Coulomb's law for a moving
+        contact is friction against the motion, so such a pair slips along v_t: the slide
+        slows down, passes through zero and fires the
+        stick event after a finite time, where the onset is decided again.
+        """
+        if self.mu == 0.0:
+            return
+        for p, ex in zip(self.pairs.values(), extra, strict=True):
+            if p.stick:
+                continue
+            vt = ex["vt"]
+            speed = float(np.linalg.norm(vt))
+            w = vt + STICK_SPEED * p.slip_dir  # as in conditions(): g = v_t . w/|w| + band
+            g = float(vt @ w) / max(float(np.linalg.norm(w)), 1e-300) + STICK_BAND
+            if speed > 0.0 and g < 0.5 * STICK_BAND:
+                p.slip_dir = vt / speed
+
+    def _solve_modes(
+        self,
+        touch: list[int],
+        Jn: FloatArray,
+        drift: FloatArray,
+        gap: FloatArray,
+        vn: FloatArray,
+        extra: list[dict[str, Any]],
+        a_free: FloatArray,
+        minv: FloatArray,
+    ) -> tuple[dict[str, Any], bool]:
+        """The mixed LCP: touching normal rows complementary, sticking rows equalities."""
+        self.engaged = list(touch)
+        C = self._slip_columns(Jn, extra)
+        JT, bT, vT = self._stick_rows(extra)
+        N = touch
+        bN = Jn[N] @ a_free + drift[N] + 2.0 * BAUMGARTE * vn[N] + BAUMGARTE**2 * gap[N]
+        GNN = Jn[N] @ minv @ C[N].T
+        symmetric = all(p.stick for p in self.pairs.values()) or self.mu == 0.0
+        if len(JT):
+            bTt = JT @ a_free + bT + BAUMGARTE * vT
+            GNT = Jn[N] @ minv @ JT.T
+            GTN = JT @ minv @ C[N].T
+            GTT = JT @ minv @ JT.T
+            GTTi = np.linalg.pinv(GTT, rcond=1e-10)
+            Ml = GNN - GNT @ GTTi @ GTN
+            ql = bN - GNT @ GTTi @ bTt
+        else:
+            Ml, ql = GNN, bN
+        if symmetric:
+            z = solve_lcp_psd(Ml, ql)
+            res = lcp_residual(Ml, ql, z)
+            if res > RESIDUAL_TOL:
+                z2 = _lemke(Ml, ql)
+                if z2 is not None and lcp_residual(Ml, ql, z2) < res:
+                    z, res = z2, lcp_residual(Ml, ql, z2)
+        else:
+            z2 = _lemke(Ml, ql)
+            if z2 is None:
+                return {}, False
+            z, res = z2, lcp_residual(Ml, ql, z2)
+        if res > 1e-6:
+            log.debug("mode LCP residual %.3g", res)
+            if not symmetric:
+                return {}, False
+        scale = 1e-12 * (1.0 + float(np.abs(z).max(initial=0.0)))
+        self.engaged = [r for r, zr in zip(N, z.tolist(), strict=True) if zr > scale]
+        lamT = -GTTi @ (GTN @ z + bTt) if len(JT) else np.zeros(0)
+        return {"lamN": dict(zip(N, z.tolist(), strict=True)), "lamT": lamT}, True
+
+    def _cone_check(
+        self, lam: dict[str, Any], extra: list[dict[str, Any]]
+    ) -> list[tuple[_Pair, FloatArray]]:
+        """Sticking pairs whose tangential force leaves the cone, with their slip direction."""
+        if self.mu == 0.0:
+            return []
+        out = []
+        k_row, k_t = 0, 0
+        lamN, lamT = lam["lamN"], lam["lamT"]
+        for p, ex in zip(self.pairs.values(), extra, strict=True):
+            K = len(p.local1)
+            fn = sum(lamN.get(r, 0.0) for r in range(k_row, k_row + K))
+            had_rows = any(k_row <= r < k_row + K for r in lamN)
+            k_row += K
+            if not p.stick or not had_rows:
+                continue
+            # tangential rows exist for this pair only if it was engaged when rows were built
+            if k_t + 2 > len(lamT):
+                continue
+            lt = lamT[k_t : k_t + 2]
+            k_t += 2
+            nt = float(np.linalg.norm(lt))
+            if nt > self.mu * fn + FORCE_BAND:
+                f_world = ex["T"].T @ lt
+                out.append((p, -f_world / nt))
+        return out
+
+
+def _lemke(M: FloatArray, q: FloatArray) -> FloatArray | None:
+    """:func:`packbot.contact.lcp.lemke`, small problems on the compiled kernel (bit for bit).
+
+    Up to :data:`packbot.contact.lcp.SMALL_LCP` rows, ``kernels.lemke_small``: the same pivots
+    and operations as the Python-float version, without its interpreter overhead.
+    """
+    n = len(q)
+    if n == 0 or n > SMALL_LCP or bool(np.all(q >= 0.0)):
+        return lemke(M, q)
+    from packbot.contact import kernels  # lazy: numba is imported by contact runs only
+
+    z, ok = kernels.lemke_small(
+        np.ascontiguousarray(M, dtype=np.float64), np.asarray(q, dtype=np.float64), 200, 1e-12
+    )
+    return z if ok else None

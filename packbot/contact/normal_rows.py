@@ -1,0 +1,429 @@
+"""The rows of the contact set: kinematics, point layout, the modes' plan, patch staleness.
+
+Every patch point's normal row (gap, J_n, drift, v_n) and every pair's tangential rows at its
+patch centre come from one compiled call (:func:`packbot.contact.kernels.contact_rows`) over
+the point layout (:class:`_Layout`); :class:`_Plan` lists the rows of the constrained problem
+for the current modes. A sliding patch is rebuilt once stale (:meth:`ContactRows.stale`).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+import pinocchio as pin
+from numpy.typing import NDArray
+
+from packbot.contact.normal_patch import _Pair
+from packbot.contact.normal_set import ContactSet
+from packbot.contact.normal_tolerances import POINT_TOL, SLIDE_TOL, STICK_SPEED
+
+__all__ = ["ContactRows"]
+
+FloatArray = NDArray[np.float64]
+
+
+@dataclass
+class _Layout:
+    """Where the patch points of the contact set are, for the batched kinematics.
+
+    Every pair contributes its K points and its centre (their mean), on body 1 then on
+    body 2: point i of the h = sum(K + 1) points is row i on body 1 and row h + i on body 2.
+    """
+
+    joints: list[int]  # the joints of the bodies involved
+    masks: FloatArray  # (bodies, nv) 1 on the velocities moving each body
+    body: NDArray[np.intp]  # (2h,) index into joints of each point's body
+    local: FloatArray  # (2h, 4) point in its joint frame, homogeneous [m]
+    pair: NDArray[np.intp]  # (h,) pair of each point (position in the contact set)
+    rows: NDArray[np.intp]  # (m,) the patch points (not the centres), in row order
+    centre: NDArray[np.intp]  # (pairs,) the centres
+    normal_body: NDArray[np.intp]  # (pairs,) index into joints of body 2
+    frame2: FloatArray  # (pairs, 3, 3) rows t1, t2, n in body 2's joint frame
+    points: list[slice]  # per pair, its patch points among the h
+    lim_joint: NDArray[np.intp]  # (limits,) velocity index of each limit row
+    lim_side: FloatArray  # (limits,) +1 upper, -1 lower
+    lim_value: FloatArray  # (limits,) the limit [rad]
+    offset0: FloatArray  # (m_p, 2) per pair row, its tangential offset when built [m]
+    no_bodies: FloatArray  # (0, 4, 4), the placements when no pair is in contact
+    # (position in joints, Pinocchio's live reference to data.oMi[joint]) of the moving joints
+    placements: list[tuple[int, Any]]
+    H: FloatArray  # (bodies, 4, 4) buffer of the placements (the world's: identity)
+    no_jacobian: FloatArray  # (6, nv) zeros, the Jacobians when no pair is in contact
+    fixed: tuple[Any, ...] = ()  # body ... lim_value: the kernels' arguments after q, v
+
+
+@dataclass
+class _Plan:
+    """The constrained problem's rows for the current modes (see ``NormalContacts._plan``)."""
+
+    engaged: NDArray[np.intp]  # (e,) the engaged rows E
+    # per slipping pair with engaged rows: its position in the contact set, the positions of
+    # its rows in E, their points in its patch
+    slips: list[tuple[int, Any, Any]]
+    sticks: NDArray[np.intp]  # the positions of the sticking pairs with engaged rows
+    row_slip: NDArray[np.intp]  # (e,) the slipping pair of each engaged row, or -1
+    # per sticking pair with engaged rows (as sticks): the positions of its rows in E
+    stick_at: list[NDArray[np.intp]] = field(default_factory=list)
+
+
+class ContactRows(ContactSet):
+    """The contact set with its rows (see the module)."""
+
+    def _kinematics(
+        self, q: FloatArray, v: FloatArray
+    ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray, list[dict[str, Any]]]:
+        """Rows of every contact: J_n (m, nv), drift (m,), gap (m,), v_n (m,).
+
+        And per pair the tangential rows and the velocities at the patch centre
+        (:func:`packbot.contact.kernels.contact_rows`, compiled: every patch point of every
+        pair at once). The result depends only on (q, v) and the contact set, so it is cached
+        (a few states: the mode conditions and the restart's problems ask for the same state
+        several times); the cache is emptied whenever the contact set changes. The arrays
+        returned are read-only.
+        """
+        key = (q.tobytes(), v.tobytes())
+        hit = self._kin_cache.get(key)
+        if hit is not None:
+            return hit
+        raw = _kernels().contact_rows(*self._kernel_args(q, v))
+        rows, drift, gap, vn, JT, bT, vT, vt, nw, T, dJp, dP = raw
+        extra = [
+            {
+                "n": nw[i],
+                "T": T[i],
+                "JT": JT[i],
+                "bT": bT[i],
+                "vT": vT[i],
+                "vt": vt[i],
+                "dJ": dJp[sl],
+                "dp": dP[sl],
+            }
+            for i, sl in enumerate(self._layout().points)
+        ]
+        out = (rows, drift, gap, vn, extra)
+        for arr in out[:4]:
+            arr.setflags(write=False)
+        if len(self._kin_cache) >= 8:
+            self._kin_cache.clear()
+        self._kin_cache[key] = out
+        return out
+
+    def _kernel_args(self, q: FloatArray, v: FloatArray) -> tuple[Any, ...]:
+        """The arguments of :func:`packbot.contact.kernels.contact_rows` at (q, v).
+
+        With pairs in contact, one Pinocchio call: the joint Jacobians in the world frame and
+        their time variation (``data.J``, ``data.dJ``: per body, the spatial velocity J v and
+        the drift acceleration J' v at the world origin).
+        """
+        lay = self._layout()
+        return (*self._bodies(lay, q, v), lay.masks, q, v, *lay.fixed)
+
+    def _bodies(
+        self, lay: _Layout, q: FloatArray, v: FloatArray
+    ) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """The bodies' placements H, the joint Jacobians J and their time variation dJ."""
+        if not lay.joints:
+            return lay.no_bodies, lay.no_jacobian, lay.no_jacobian
+        model, data = self.model, self.data
+        pin.computeJointJacobiansTimeVariation(model, data, q, v)
+        H = lay.H  # (filled here, read by the kernel only)
+        for i, M in lay.placements:
+            H[i] = M.homogeneous
+        nv = self.nv
+        return H, data.J.reshape(6, nv), data.dJ.reshape(6, nv)  # (nv = 1: data.J is (6,))
+
+    def _layout(self) -> _Layout:
+        """The point layout of the current contact set (cached until it changes)."""
+        if self._lay is not None:
+            return self._lay
+        pairs = list(self.pairs.values())
+        joints = sorted({p.info.joint1 for p in pairs} | {p.info.joint2 for p in pairs})
+        index = {j: i for i, j in enumerate(joints)}
+        body1: list[int] = []
+        body2: list[int] = []
+        pair: list[int] = []
+        rows: list[int] = []
+        centre: list[int] = []
+        local1: list[FloatArray] = []
+        local2: list[FloatArray] = []
+        points: list[slice] = []
+        k = 0
+        for i, p in enumerate(pairs):
+            K = len(p.local1)
+            local1 += [p.local1, p.centre1]
+            local2 += [p.local2, p.centre2]
+            body1 += [index[p.info.joint1]] * (K + 1)
+            body2 += [index[p.info.joint2]] * (K + 1)
+            pair += [i] * (K + 1)
+            rows += range(k, k + K)
+            points.append(slice(k, k + K))
+            centre.append(k + K)
+            k += K + 1
+        limits = list(self.limits.items())
+        self._lay = _Layout(
+            joints=joints,
+            masks=np.ascontiguousarray(self._masks[joints][:, 0, :]),
+            body=np.array(body1 + body2, dtype=np.intp),
+            local=np.hstack([np.vstack(local1 + local2), np.ones((2 * k, 1))])
+            if pairs
+            else np.zeros((0, 4)),
+            pair=np.array(pair, dtype=np.intp),
+            rows=np.array(rows, dtype=np.intp),
+            centre=np.array(centre, dtype=np.intp),
+            normal_body=np.array([index[p.info.joint2] for p in pairs], dtype=np.intp),
+            frame2=np.array([p.frame2 for p in pairs]) if pairs else np.zeros((0, 3, 3)),
+            points=points,
+            lim_joint=np.array([j for (j, _), _ in limits], dtype=np.intp),
+            lim_side=np.array([side for (_, side), _ in limits], dtype=np.float64),
+            lim_value=np.array([value for _, value in limits], dtype=np.float64),
+            offset0=np.ascontiguousarray(np.vstack([p.offset0.T for p in pairs]))
+            if pairs
+            else np.zeros((0, 2)),
+            no_bodies=np.zeros((0, 4, 4)),
+            no_jacobian=np.asfortranarray(np.zeros((6, self.nv))),
+            placements=[(i, self.data.oMi[j]) for i, j in enumerate(joints) if j],
+            H=np.array([_I4 for _ in joints]) if joints else np.zeros((0, 4, 4)),
+        )
+        lay = self._lay
+        lay.fixed = (
+            lay.body,
+            lay.local,
+            lay.pair,
+            lay.rows,
+            lay.centre,
+            lay.normal_body,
+            lay.frame2,
+            lay.lim_joint,
+            lay.lim_side,
+            lay.lim_value,
+        )
+        return lay
+
+    @staticmethod
+    def _direction_rows(ex: dict[str, Any], d: FloatArray) -> FloatArray:
+        """d^T (J_p2 - J_p1) at every patch point of a pair, shape (K, nv); d (3,) world."""
+        return np.asarray(d @ ex["dJ"], dtype=np.float64)
+
+    def _problem(
+        self, q: FloatArray, v: FloatArray
+    ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray, list[dict[str, Any]]]:
+        return self._kinematics(q, v)
+
+    def _slip_columns(self, Jn: FloatArray, extra: list[dict[str, Any]]) -> FloatArray:
+        """Force columns of the normal rows: J_n - mu J_s on the rows of slipping pairs."""
+        if self.mu == 0.0:
+            return Jn
+        C = Jn.copy()
+        k = 0
+        for p, ex in zip(self.pairs.values(), extra, strict=True):
+            K = len(p.local1)
+            if not p.stick:
+                s = self._slip_direction(p, ex)
+                C[k : k + K] -= self.mu * self._direction_rows(ex, s)
+            k += K
+        return C
+
+    def _slip_direction(self, p: _Pair, ex: dict[str, Any]) -> FloatArray:
+        """The unit sliding direction of body 2 relative to body 1 at the patch centre (world).
+
+        It follows the sliding velocity v_t inside a step (a direction frozen at the onset
+        lets the friction force turn v_t sideways: an event every few degrees), blended with
+        the onset direction below :data:`STICK_SPEED`: s = (v_t + STICK_SPEED s0) / |...|, so
+        a slip starting from rest has the direction of its onset and a slowing slide keeps a
+        smooth direction until its stick event.
+        """
+        w = ex["vt"] + STICK_SPEED * p.slip_dir
+        nw = math.sqrt(float(w @ w))
+        return np.asarray(w / nw if nw > 0.0 else p.slip_dir, dtype=np.float64)
+
+    def _stick_rows(self, extra: list[dict[str, Any]]) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """Tangential rows (2 per sticking pair), their drift and velocities."""
+        if self.mu == 0.0:
+            z = np.zeros(0)
+            return np.zeros((0, self.nv)), z, z
+        JT, bT, vT = [], [], []
+        for p, ex in zip(self.pairs.values(), extra, strict=True):
+            if p.stick and self._pair_engaged(p):
+                JT.append(ex["JT"])
+                bT.append(ex["bT"])
+                vT.append(ex["vT"])
+        if not JT:
+            z = np.zeros(0)
+            return np.zeros((0, self.nv)), z, z
+        return np.vstack(JT), np.concatenate(bT), np.concatenate(vT)
+
+    def _plan(self) -> _Plan:
+        """The rows of the constrained problem for the current modes (cached while they hold)."""
+        pairs = self._pair_list
+        key = (self._version, tuple(self.engaged), tuple([p.stick for p in pairs]))
+        if self._plan_key == key:
+            return self._plan_val
+        pos = {r: i for i, r in enumerate(self.engaged)}
+        slips: list[tuple[int, Any, Any]] = []
+        sticks: list[int] = []
+        stick_at: list[NDArray[np.intp]] = []
+        row_slip = np.full(len(self.engaged), -1, dtype=np.intp)
+        k = 0
+        for i, p in enumerate(pairs):
+            K = len(p.local1)
+            mine = [(pos[r], r - k) for r in range(k, k + K) if r in pos]
+            k += K
+            if not mine or self.mu == 0.0:
+                continue
+            if p.stick:
+                sticks.append(i)
+                stick_at.append(np.array([m[0] for m in mine], dtype=np.intp))
+            else:
+                at = np.array([m[0] for m in mine], dtype=np.intp)
+                slips.append((i, at, np.array([m[1] for m in mine], dtype=np.intp)))
+                row_slip[at] = i
+        self._plan_key = key
+        self._plan_val = _Plan(
+            np.array(self.engaged, dtype=np.intp),
+            slips,
+            np.array(sticks, dtype=np.intp),
+            row_slip,
+            stick_at,
+        )
+        return self._plan_val
+
+    def _frictional_rows(
+        self, rows: NDArray[np.intp], Jn: FloatArray, extra: list[dict[str, Any]]
+    ) -> tuple[FloatArray, FloatArray]:
+        """Blocks (t1, t2, n) of the given normal rows (limit rows: no tangential part)."""
+        per_row: list[tuple[FloatArray, float]] = []
+        k = 0
+        lookup: dict[int, tuple[FloatArray, float]] = {}
+        for p, ex in zip(self.pairs.values(), extra, strict=True):
+            K = len(p.local1)
+            t1 = self._direction_rows(ex, ex["T"][0])
+            t2 = self._direction_rows(ex, ex["T"][1])
+            for i in range(K):
+                lookup[k + i] = (np.vstack([t1[i], t2[i], Jn[k + i]]), self.mu)
+            k += K
+        for r in rows.tolist():
+            if r in lookup:
+                per_row.append(lookup[r])
+            else:
+                blk = np.zeros((3, self.nv))
+                blk[2] = Jn[r]
+                per_row.append((blk, 0.0))
+        return np.vstack([b for b, _ in per_row]), np.array([m for _, m in per_row])
+
+    def sliding(self, q: FloatArray, v: FloatArray) -> bool:
+        """Whether a pair with engaged rows slides (its material points drift off the patch)."""
+        if not self.engaged or not self.pairs or self.resting:
+            return False
+        last = self._last_eval  # the step end's mode conditions computed them (same kernel)
+        if last is not None and _same(last[0], q) and _same(last[1], v):
+            vts: Any = last[6].vt
+        else:
+            vts = _centre_velocities(self._problem(q, v)[4])
+        for p, vt in zip(self.pairs.values(), vts, strict=True):
+            if (
+                not (self.mu > 0.0 and p.stick)
+                and math.sqrt(float(vt @ vt)) > STICK_SPEED  # (np.linalg.norm's own formula)
+                and self._pair_engaged(p)
+            ):
+                return True
+        return False
+
+    def stale(self, q: FloatArray, v: FloatArray, distance: dict[int, float]) -> bool:
+        """Whether a pair with engaged rows no longer has a valid patch (it must be rebuilt).
+
+        A patch is a set of material point pairs (p1 on body 1, p2 on body 2) and a normal fixed
+        in body 2; it describes the contact while (1) the points have not slid apart by more
+        than :data:`SLIDE_TOL` tangentially since it was built (the forces act where the bodies
+        touched, not where they touch now), and (2) the patch's smallest gap equals the pair's
+        signed distance to :data:`POINT_TOL` (a curved body's next facet comes closer than the
+        patch predicts, or a point slides off the edge of its face and the face's plane holds
+        it where nothing does). A slide of 2e-8 m per step passes both: the patch, its drift
+        projection and its modes are kept (events still watch every row and the pair's
+        distance).
+
+        Args:
+            q: Configuration [rad].
+            v: Velocity [rad/s].
+            distance: Signed distance [m] of the pairs in contact at q (Coal, by pair index);
+                a pair missing from it counts as stale.
+        """
+        return bool(self.stale_pairs(q, v, distance, engaged_only=True))
+
+    def stale_pairs(
+        self, q: FloatArray, v: FloatArray, distance: dict[int, float], engaged_only: bool = False
+    ) -> list[int]:
+        """The pairs whose patch no longer describes the contact (see :meth:`stale`).
+
+        Args:
+            q: Configuration [rad].
+            v: Velocity [rad/s].
+            distance: Signed distance [m] of the pairs at q, by pair index.
+            engaged_only: Only the pairs with engaged rows.
+        """
+        if not self.pairs:
+            return []
+        last = self._last_eval  # the step's end: the kernel computed the slides
+        slide2: Any = None
+        if last is not None and _same(last[0], q) and _same(last[1], v):
+            gap, slide2 = last[6].gap, last[6].slide2
+        if slide2 is None:
+            _, _, gap, _, extra = self._problem(q, v)
+        out: list[int] = []
+        k = 0
+        for i, (key, p) in enumerate(self.pairs.items()):
+            K = len(p.local1)
+            g = gap[k : k + K]
+            k += K
+            if engaged_only and not self._pair_engaged(p):
+                continue
+            d = distance.get(key)
+            if d is None or abs(float(g.min()) - d) > POINT_TOL:
+                out.append(key)
+                if engaged_only:
+                    return out
+                continue
+            if slide2 is not None:
+                s2 = float(slide2[i])
+            else:
+                ex = extra[i]
+                slide = ex["T"] @ ex["dp"].T - p.offset0  # (2, K)
+                s2 = float(np.max(slide[0] ** 2 + slide[1] ** 2))
+            if s2 > SLIDE_TOL**2:
+                out.append(key)
+                if engaged_only:
+                    return out
+        return out
+
+
+_KERNELS: list[Any] = []  # packbot.contact.kernels once imported (see _kernels)
+
+
+def _kernels() -> Any:
+    """:mod:`packbot.contact.kernels`, imported at the first call, then kept.
+
+    Numba is imported by contact runs only, not by ``import packbot``; an import statement in
+    the right-hand side costs a microsecond a call.
+    """
+    if not _KERNELS:
+        from packbot.contact import kernels
+
+        _KERNELS.append(kernels)
+    return _KERNELS[0]
+
+
+def _same(a: FloatArray, b: FloatArray) -> bool:
+    """Whether two float arrays are the same object or hold the same bits (same shape)."""
+    return a is b or (a.shape == b.shape and a.tobytes() == b.tobytes())
+
+
+def _centre_velocities(extra: list[dict[str, Any]]) -> FloatArray:
+    """The pairs' tangential velocities at their patch centres, shape (pairs, 3) [m/s]."""
+    if not extra:
+        return np.zeros((0, 3))
+    return np.array([ex["vt"] for ex in extra])
+
+
+_I4 = np.eye(4)

@@ -1,0 +1,269 @@
+"""The contact set of the contact-normal mode: pairs (as patches) and joint limits in contact.
+
+Membership (add, refresh, remove a pair; add, remove a limit), which rows are engaged, and the
+caches the rows keep (emptied whenever the set changes).
+"""
+
+from __future__ import annotations
+
+import logging
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+import pinocchio as pin
+from numpy.typing import NDArray
+
+from packbot.collision import CollisionWorld, PairInfo
+from packbot.contact.normal_patch import _Pair, _planes
+from packbot.contact.normal_tolerances import PATCH_TOL
+
+if TYPE_CHECKING:
+    from typing_extensions import Self
+
+    from packbot.config import SimConfig
+    from packbot.contact.normal_rows import _Layout, _Plan
+
+__all__ = ["ContactSet"]
+
+log = logging.getLogger(__name__)
+
+FloatArray = NDArray[np.float64]
+
+
+class ContactSet:
+    """The pairs and joint limits in contact, their patches and engaged rows.
+
+    The state of the contact-normal mode's contact set; the layers above it add the rows
+    (:class:`~packbot.contact.normal_rows.ContactRows`), the dynamics with the modes fixed,
+    the mode selection and the restart's steps (:class:`~packbot.contact.normal.NormalContacts`
+    is all of them).
+
+    Args:
+        model: The Pinocchio model integrated (reduced if joints are locked).
+        data: Its data (shared with the system: every call recomputes what it reads).
+        world: The collision world.
+        mu: Coulomb friction coefficient of every pair [-].
+        restitution: Coefficient of restitution e [-].
+        zeno_speed: Impacts slower than this are inelastic [m/s].
+        contact_tolerance: Security margin of the patch query [m].
+        check_others: Whether the drift projection checks the pairs not in the contact set
+            (see :meth:`~packbot.contact.normal_steps.RestartSteps.project`).
+    """
+
+    @classmethod
+    def from_config(
+        cls,
+        model: pin.Model,
+        data: pin.Data,
+        world: CollisionWorld | None,
+        config: SimConfig,
+        **kwargs: Any,
+    ) -> Self:
+        """The contact set with ``config``'s friction, restitution, Zeno speed and tolerance."""
+        return cls(
+            model,
+            data,
+            world,
+            mu=config.mu,
+            restitution=config.restitution,
+            zeno_speed=config.zeno_speed,
+            contact_tolerance=config.contact_tolerance,
+            **kwargs,
+        )
+
+    def __init__(
+        self,
+        model: pin.Model,
+        data: pin.Data,
+        world: CollisionWorld | None,
+        *,
+        mu: float,
+        restitution: float,
+        zeno_speed: float,
+        contact_tolerance: float,
+        check_others: bool = True,
+    ) -> None:
+        self.model, self.data, self.world = model, data, world
+        self.check_others = bool(check_others)
+        self.mu = float(mu)
+        self.e = float(restitution)
+        self.zeno_speed = float(zeno_speed)
+        self.tol = float(contact_tolerance)
+        self.nv = int(model.nv)
+        self.pairs: dict[int, _Pair] = {}
+        self.limits: dict[tuple[int, int], float] = {}  # (joint, side) -> limit [rad]
+        self.engaged: list[int] = []  # row indices
+        self.n_painleve = 0
+        #: Joint Coulomb friction and brake torques F_j [N*m] (0: none) and the drive's sliding
+        #: directions, for the rest capture (set by the law; None: no joint friction).
+        self.joint_coulomb: FloatArray | None = None
+        self.joint_fdir: FloatArray | None = None
+        self.resting = False  # captured at rest (see capture)
+        self.bounced = False  # the last impulse had restitution
+        self._kin_cache: dict[tuple[bytes, bytes], Any] = {}  # see _kinematics
+        self._planes_cache: dict[int, tuple[FloatArray, FloatArray]] = {}
+        self._lay: _Layout | None = None
+        self._pairs_cache: list[_Pair] | None = None
+        self._version = 0  # of the contact set, see _invalidate
+        # per joint: 1 on the velocities that move its body (its support), (joints, 1, nv)
+        self._masks = np.zeros((model.njoints, 1, self.nv))
+        for j in range(1, model.njoints):
+            for s in list(model.supports[j])[1:]:
+                self._masks[j, 0, model.idx_vs[s] : model.idx_vs[s] + model.nvs[s]] = 1.0
+        self._joint_of = np.zeros(self.nv, dtype=np.intp)  # model joint of each velocity
+        for j in range(1, model.njoints):
+            self._joint_of[model.idx_vs[j] : model.idx_vs[j] + model.nvs[j]] = j
+        self._plan_key: tuple[Any, ...] | None = None
+        self._plan_val: _Plan
+        self._no_slip_dirs = np.zeros((0, 3))
+        # the last compiled evaluation and its inputs: see evaluate_again
+        self._last_eval: tuple[Any, ...] | None = None
+
+    @property
+    def empty(self) -> bool:
+        """No pair and no limit in contact."""
+        return not self.pairs and not self.limits
+
+    def add_pair(self, q: FloatArray, pair: int, tol: float | None = None) -> bool:
+        """Put a pair in contact (or refresh its patch); False if it is not within tolerance.
+
+        Args:
+            q: Configuration [rad].
+            pair: The pair's index in the collision world.
+            tol: The patch query's security margin [m] (default: the contact tolerance).
+        """
+        assert self.world is not None
+        patch = self.world.contact_patch(q, pair, self.tol if tol is None else tol)
+        pin.forwardKinematics(self.model, self.data, q)
+        if patch is None:
+            return False
+        from packbot.contact import kernels  # lazy: numba is imported by contact runs only
+
+        old = self.pairs.get(pair)
+        info = patch.pair
+        M1 = self._placement(info.joint1)
+        M2 = self._placement(info.joint2)
+        R1, t1, R2, t2 = M1.rotation, M1.translation, M2.rotation, M2.translation
+        gd = self.world.geom_data
+        G1, G2 = gd.oMg[info.geom1], gd.oMg[info.geom2]
+        N1, o1 = self._planes_of(info.geom1)
+        N2, o2 = self._planes_of(info.geom2)
+        n, d = patch.normal, float(patch.distance)
+        ok, *made = kernels.patch_material(
+            patch.points1, patch.points2, n, d, N1, o1, G1.rotation, G1.translation,
+            N2, o2, G2.rotation, G2.translation, R1, t1, R2, t2, PATCH_TOL, True,
+        )  # fmt: skip
+        if not ok:
+            # Coal's patch of a deep or grazing penetration can place its points far off the
+            # pair's distance (measured: gaps of -33 mm and +12 mm for a pair 24 um deep, the
+            # camera head spinning into link 1's tube): one point, the witness pair, instead.
+            c = self.world.pair_contact(q, pair)
+            ok, *made = kernels.patch_material(
+                c.p1[None, :], c.p2[None, :], n, d, N1, o1, G1.rotation, G1.translation,
+                N2, o2, G2.rotation, G2.translation, R1, t1, R2, t2, PATCH_TOL, False,
+            )  # fmt: skip
+            log.debug(
+                "pair %s / %s: patch off its distance %.3g m: witness point used",
+                info.piece1,
+                info.piece2,
+                patch.distance,
+            )
+        local1, local2, normal2, frame2, centre1, centre2, offset0 = made
+        p = _Pair(info, local1, local2, normal2, offset0=offset0)
+        p.frame2, p.centre1, p.centre2 = frame2, centre1, centre2
+        if old is not None:
+            p.stick, p.slip_dir = old.stick, old.slip_dir
+        self.pairs[pair] = p
+        self._invalidate()
+        return True
+
+    def _planes_of(self, geom: int) -> tuple[FloatArray, FloatArray]:
+        """The face planes of a piece (see :func:`_planes`; none: 0 rows), kept per piece."""
+        try:
+            return self._planes_cache[geom]
+        except KeyError:
+            assert self.world is not None
+            shape = self.world.geom_model.geometryObjects[geom].geometry
+            planes = _planes(shape) or (np.zeros((0, 3)), np.zeros(0))
+            self._planes_cache[geom] = planes
+            return planes
+
+    def remove_pair(self, pair: int) -> None:
+        """Take a pair out of the contact set."""
+        self.pairs.pop(pair, None)
+        self._invalidate()
+        self.engaged = []
+
+    def add_limit(self, joint: int, side: int, limit: float) -> None:
+        """Put a joint position limit in contact (side +1: upper, -1: lower)."""
+        self.limits[(joint, side)] = float(limit)
+        self._invalidate()
+
+    def remove_limit(self, joint: int, side: int) -> None:
+        """Take a limit out of the contact set (its row must not be engaged)."""
+        keys = list(self.limits)
+        if (joint, side) not in self.limits:
+            return
+        row = sum(len(p.local1) for p in self.pairs.values()) + keys.index((joint, side))
+        self.limits.pop((joint, side))
+        self._invalidate()
+        self.engaged = [r if r < row else r - 1 for r in self.engaged if r != row]
+
+    def limit_engaged(self, joint: int, side: int) -> bool:
+        """Whether a limit's row is engaged."""
+        if (joint, side) not in self.limits:
+            return False
+        row = sum(len(p.local1) for p in self.pairs.values()) + list(self.limits).index(
+            (joint, side)
+        )
+        return row in self.engaged
+
+    def _placement(self, joint: int) -> pin.SE3:
+        return self.data.oMi[joint] if joint > 0 else pin.SE3.Identity()
+
+    def refresh(self, q: FloatArray) -> None:
+        """Recompute every pair's patch at q (drops pairs no longer within tolerance)."""
+        self.resting = False
+        for k in list(self.pairs):
+            if not self.add_pair(q, k):
+                self.pairs.pop(k)
+        self._invalidate()
+        self.engaged = []
+
+    def row_owner(self, row: int) -> tuple[PairInfo | None, tuple[int, int] | None]:
+        """The pair or the limit (joint, side) of a row."""
+        k = 0
+        for p in self.pairs.values():
+            n = len(p.local1)
+            if row < k + n:
+                return p.info, None
+            k += n
+        return None, list(self.limits)[row - k]
+
+    def row_signature(self) -> tuple[Any, ...]:
+        """What the row indices mean: the pairs (index, patch size) and limits, in row order."""
+        return tuple((k, len(p.local1)) for k, p in self.pairs.items()), tuple(self.limits)
+
+    def _invalidate(self) -> None:
+        """The contact set changed: forget the cached kinematics and point layout."""
+        self._kin_cache.clear()
+        self._last_eval = None
+        self._lay = None
+        self._pairs_cache = None
+        self._version += 1
+
+    def _pair_engaged(self, p: _Pair) -> bool:
+        k = 0
+        for other in self.pairs.values():
+            K = len(other.local1)
+            if other is p:
+                return any(k <= r < k + K for r in self.engaged)
+            k += K
+        return False
+
+    @property
+    def _pair_list(self) -> list[_Pair]:
+        """The pairs in contact, in row order (cached while the contact set holds)."""
+        if self._pairs_cache is None:
+            self._pairs_cache = list(self.pairs.values())
+        return self._pairs_cache

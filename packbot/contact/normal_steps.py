@@ -1,0 +1,321 @@
+"""The restart's steps on positions and velocities: projection, impulse, slow stop, capture.
+
+At a restart the contact set corrects the drift of its gaps (:meth:`RestartSteps.project`, a
+position-level LCP), applies the impact (:meth:`~RestartSteps.impulse`), stops the slow
+residual slides (:meth:`~RestartSteps.stop_slow`) and may bring a slow arm to rest
+(:meth:`~RestartSteps.capture`).
+"""
+
+from __future__ import annotations
+
+import logging
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from packbot.contact.lcp import lcp_residual, solve_lcp_psd, solve_ncp_admm
+from packbot.contact.normal_dynamics import ConstrainedDynamics
+from packbot.contact.normal_modes import ModeEvent, _lemke
+from packbot.contact.normal_tolerances import (
+    CAPTURE_ACCEL,
+    CAPTURE_SPEED,
+    PENETRATION_TOL,
+    PROJECT_ROUNDS,
+    RESIDUAL_TOL,
+    STICK_SPEED,
+    TOUCH_GAP,
+)
+
+__all__ = ["RestartSteps"]
+
+log = logging.getLogger(__name__)
+
+FloatArray = NDArray[np.float64]
+
+
+class RestartSteps(ConstrainedDynamics):
+    """The contact set's position and velocity steps at a restart (see the module)."""
+
+    def capture(
+        self, q: FloatArray, v: FloatArray, a_free_fn: Any, minv: FloatArray
+    ) -> list[ModeEvent] | None:
+        """Bring a slow arm to rest when it can stay there (rest capture).
+
+        When every joint speed is below :data:`CAPTURE_SPEED` and, at v = 0, the frictional
+        contact problem of every touching row (per-point Coulomb cones, solved jointly by
+        :func:`packbot.contact.lcp.solve_ncp_admm`) has joint accelerations below
+        :data:`CAPTURE_ACCEL`, the velocity is set to zero and the contacts are *resting*:
+        a = 0 until the rest condition (the same accelerations below 2 CAPTURE_ACCEL) fails.
+        This is a documented regularisation of the mode decision, not of the forces. The
+        joint problem is needed because a statically indeterminate arm (4 dof, an edge patch
+        and a second contact: 7 rows) has many force distributions; the pair-by-pair cone check
+        of :meth:`select_modes` takes one of them and finds it outside the cone (measured: 1.9
+        times the cone on the elbow casing) where a feasible one exists. Without the capture
+        the arm rocks on its edge patch in a periodic cycle of micro-impacts (period 16.7 ms,
+        joint speeds 6e-3 rad/s, forever). A bounce (an impulse with restitution) is never
+        captured.
+
+        Returns:
+            The mode changes if the arm was captured (the caller sets v = 0), else None (modes
+            untouched).
+        """
+        if self.bounced or not self.pairs or float(np.abs(v).max(initial=0.0)) > CAPTURE_SPEED:
+            return None
+        z = np.zeros_like(v)
+        a_free = a_free_fn(q, z)
+        a = self._rest_accel(q, a_free, minv)
+        if a is None or float(np.abs(a).max()) > CAPTURE_ACCEL:
+            return None
+        events = []
+        for p in self.pairs.values():
+            if self.mu > 0.0 and not p.stick:
+                events.append(ModeEvent("stick", p.info))
+            p.stick = True
+        _, _, gap, _, _ = self._problem(q, z)
+        self.engaged = [int(r) for r in np.flatnonzero(gap <= TOUCH_GAP)]
+        self.resting = bool(self.engaged)
+        return events if self.resting else None
+
+    def stop_slow(self, q: FloatArray, v: FloatArray, minv: FloatArray) -> FloatArray:
+        """Bring the touching pairs sliding slower than :data:`STICK_SPEED` to rest.
+
+        The least (M-weighted) velocity change that zeroes their tangential velocity at the
+        patch centre and lets no touching row approach (a stick event's residual speed, like
+        the joint-clamp mode's ``v_j = 0`` at a stick). Without it a slip that starts from such
+        a residual speed can be against its own onset direction, and the stick condition fires
+        again at once.
+
+        The touching rows are inequalities (J_n v+ >= 0, an LCP on the Schur complement of the
+        tangential equalities). A change needing a joint speed above :data:`CAPTURE_SPEED` is
+        not made: the slow slide is then driven by the motion elsewhere, not a residual. In the
+        arm's collapse (t = 0.508 s) the elbow casing slides on the chassis at 9e-4 m/s because
+        link 3, sliding at 0.15 m/s on the shoulder casing, cams elbow1 (its casing is not
+        quite round about elbow2); stopping that slide is only possible at v = 0, and the
+        former version (normal velocities held as equalities, no bound) zeroed the arm's
+        velocity there (elbow2 2.9 rad/s -> 0, -6.9 J).
+        """
+        if self.mu == 0.0 or not self.pairs:
+            return v
+        Jn, _, gap, vn, extra = self._problem(q, v)
+        rows, target = [], []
+        k = 0
+        for p, ex in zip(self.pairs.values(), extra, strict=True):
+            K = len(p.local1)
+            touching = bool(np.any(gap[k : k + K] <= TOUCH_GAP))
+            k += K
+            if touching and float(np.linalg.norm(ex["vt"])) <= STICK_SPEED:
+                rows.append(ex["JT"])
+                target.append(-ex["vT"])
+        if not rows:
+            return v
+        touch = np.flatnonzero(gap <= TOUCH_GAP)
+        E, bE, In = np.vstack(rows), np.concatenate(target), Jn[touch]
+        GEE_pinv = np.linalg.pinv(E @ minv @ E.T, rcond=1e-10)
+        GEI = E @ minv @ In.T
+        # dv = M^-1 (E^T y + I^T lam), y = GEE^+ (bE - GEI lam); w = I (v + dv) >= 0 _|_ lam >= 0
+        y0 = GEE_pinv @ bE
+        S = In @ minv @ In.T - GEI.T @ GEE_pinv @ GEI
+        w0 = vn[touch] + GEI.T @ y0
+        lam = solve_lcp_psd(S, w0)
+        if lcp_residual(S, w0, lam) > RESIDUAL_TOL:
+            lam2 = _lemke(S, w0)
+            if lam2 is None or lcp_residual(S, w0, lam2) > RESIDUAL_TOL:
+                log.debug("stop_slow: LCP unsolved, velocity kept")
+                return v
+            lam = lam2
+        y = y0 - GEE_pinv @ (GEI @ lam)
+        imp = E.T @ y + In.T @ lam  # the generalized impulse M dv [N*m*s]
+        dv = minv @ imp
+        if float(imp @ v) + 0.5 * float(imp @ dv) > 0.0:
+            # A projection onto a cone holding 0 cannot add energy; an inexact one (rank-
+            # deficient tangential rows, the LCP's residual) can: measured 2.4e-7 J.
+            log.debug("stop_slow: the change would add energy: kept")
+            return v
+        if float(np.abs(dv).max()) > CAPTURE_SPEED:
+            # The slow slide is driven by the motion elsewhere (a closed chain through two
+            # contacts), not a residual: stopping it would stop the arm. Leave it.
+            log.debug("stop_slow: change %.3g rad/s would stop the arm: kept", np.abs(dv).max())
+            return v
+        return np.asarray(v + dv, dtype=np.float64)
+
+    def project(self, q: FloatArray, v: FloatArray, minv: FloatArray) -> FloatArray:
+        """Move q by the least (M-weighted) amount that closes every negative touching gap.
+
+        The position-level LCP: dq = M^-1 J^T mu, mu >= 0, J dq + g >= 0, complementary, on
+        the touching rows (g <= :data:`TOUCH_GAP`, gaps before). Removes the integration drift
+        of resting gaps and the event tolerance's last micrometre at every restart. Two guards
+        make it safe:
+
+        1. *Targets clipped at the true distance*: a row's gap is measured against its patch's
+           geometry (a point against a face's plane), which can read far deeper than the pair
+           really is (a patch point lifted onto a face's plane beyond the face's edge, or a
+           stale point). Each pair row's gap is raised to min(d, 0) - :data:`PENETRATION_TOL`
+           when below it, d the pair's signed distance (Coal, one pruned sweep at q), so the
+           correction never exceeds the true penetration by more than the drift it exists
+           for. The band keeps the micrometre disagreements of a fresh patch corrected in
+           full (the collapse, mu = 0: a lifted point reading 1.6 um deeper than the distance
+           at t = 0.206 s; the elbow casing's edge patch on the chassis reading -1 um with the
+           pair 10 um apart at t = 1.45 s): left below -:data:`POINT_TOL`, such a row fires
+           its impact condition again at once and the restart repeats forever. Clipping
+           rather than re-patching: the patches are rebuilt just before every projection
+           (restart, re-patch), so a gap still off the distance is the patch's geometry,
+           which a new patch reproduces.
+        2. *No penetration elsewhere*: the projection moves q without looking at the pairs not
+           in the contact set. After it, the pairs the sweep leaves (within the world's
+           margin) are checked; one below -:data:`PENETRATION_TOL` joins the contact set (its
+           patch at the projected q, as an impact would add it: it then takes part in the
+           restart's impulse and modes) and the projection is made again from there, up to
+           :data:`PROJECT_ROUNDS` rounds. Off with ``check_others=False`` (the hand-off,
+           whose other pairs are the joint_clamp mode's).
+
+        Args:
+            q: Configuration [rad].
+            v: Velocity [rad/s] (for the rows' cache key only).
+            minv: M^-1 at q.
+
+        Returns:
+            The corrected configuration [rad].
+        """
+        for _ in range(PROJECT_ROUNDS):
+            Jn, _, gap, _, _ = self._problem(q, v)
+            if not bool(np.any(gap < 0.0)):
+                return q
+            dist = self._sweep(q)
+            gap = self._clip_gaps(gap, dist)
+            if not bool(np.any(gap < 0.0)):
+                return q
+            touch = np.flatnonzero(gap <= TOUCH_GAP)
+            J = Jn[touch]
+            G = J @ minv @ J.T
+            mu = _position_lcp(G, gap[touch])
+            q = np.asarray(q + minv @ J.T @ mu, dtype=np.float64)
+            if not self.check_others or self.world is None:
+                return q
+            dist = self._sweep(q)
+            bad = [k for k, d in dist.items() if k not in self.pairs and d < -PENETRATION_TOL]
+            if not bad:
+                return q
+            for k in bad:
+                log.debug(
+                    "projection: pair %s / %s at %.3g m joins the contact set",
+                    self.world.pairs[k].piece1,
+                    self.world.pairs[k].piece2,
+                    dist[k],
+                )
+                self.add_pair(q, k)
+        log.debug("projection: still penetrating after %d rounds", PROJECT_ROUNDS)
+        return q
+
+    def _sweep(self, q: FloatArray) -> dict[int, float]:
+        """Signed distances [m] at q of the pairs within the world's margin, by pair index.
+
+        Every pair of the contact set is included (queried alone if the sweep pruned it).
+        """
+        if self.world is None:
+            return {}
+        sw = self.world.sweep(q, reuse=True)
+        dist = dict(zip(sw.pairs.tolist(), sw.distances.tolist(), strict=True))
+        for k in self.pairs:
+            if k not in dist:
+                dist[k] = self.world.pair_contact(q, k).distance
+        return dist
+
+    def _clip_gaps(self, gap: FloatArray, dist: dict[int, float]) -> FloatArray:
+        """The rows' gaps [m], a pair's raised to min(d, 0) - PENETRATION_TOL (d: its distance)."""
+        if not self.pairs or not dist:
+            return gap
+        out = gap.copy()
+        k = 0
+        for key, p in self.pairs.items():
+            K = len(p.local1)
+            d = dist.get(key)
+            if d is not None:
+                np.maximum(out[k : k + K], min(d, 0.0) - PENETRATION_TOL, out=out[k : k + K])
+            k += K
+        return out
+
+    def impulse(self, q: FloatArray, v: FloatArray, minv: FloatArray) -> FloatArray:
+        """Simultaneous impact of every touching row (Newton's law, restitution e).
+
+        An impulse never adds kinetic energy: each candidate's change is checked exactly
+        (dT = P . J v + P . J dv / 2 for the generalized impulse J^T P, no mass matrix
+        needed) and the first that does not gain is applied, in this order: the frictional
+        impact (ADMM), the frictionless one with restitution, the frictionless inelastic one
+        (the M-projection of v onto J_n v >= 0, which cannot gain). A solver's inexact
+        answer (an ADMM residual just under its bound, an NNLS solution off the LCP) could
+        otherwise add energy: measured 2.5e-5 J at an impact of the camera head on link 1's
+        tube (the collapse from a random start, mu = 0.5, wrist locked).
+        """
+        Jn, _, gap, vn, extra = self._problem(q, v)
+        touch = np.flatnonzero(gap <= TOUCH_GAP)
+        if len(touch) == 0 or float(vn[touch].min()) >= 0.0:
+            return v
+        e = self.e if float(vn[touch].min()) < -self.zeno_speed else 0.0
+        self.bounced = e > 0.0
+        J = Jn[touch]
+        G = J @ minv @ J.T
+        tried: list[str] = []
+        if self.mu > 0.0:
+            # Frictional impact: blocks (t1, t2, n) per touching row on Pinocchio's ADMM.
+            J3, mus = self._frictional_rows(touch, Jn, extra)
+            G3 = J3 @ minv @ J3.T
+            g3 = J3 @ v
+            g3[2::3] += e * np.minimum(g3[2::3], 0.0)
+            x, res = solve_ncp_admm(self.model, self.data, G3, g3, mus)
+            if res <= 1e-6:
+                dv = minv @ J3.T @ x
+                if _energy_change(x, J3 @ v, J3 @ dv) <= 0.0:
+                    return np.asarray(v + dv, dtype=np.float64)
+                tried.append("frictional (gains energy)")
+            else:
+                tried.append(f"frictional (residual {res:.3g})")
+        for e_k in dict.fromkeys((e, 0.0)):
+            target = vn[touch] + e_k * np.minimum(vn[touch], 0.0)
+            P = self._normal_impulse(G, target)
+            dv = minv @ J.T @ P
+            if e_k == 0.0 or _energy_change(P, vn[touch], J @ dv) <= 0.0:
+                if tried:
+                    log.debug("impact: %s; frictionless e=%g used", ", ".join(tried), e_k)
+                self.bounced = e_k > 0.0
+                return np.asarray(v + dv, dtype=np.float64)
+            tried.append(f"frictionless e={e_k:g} (gains energy)")
+        return v  # not reached: the inelastic candidate is always taken
+
+    @staticmethod
+    def _normal_impulse(G: FloatArray, target: FloatArray) -> FloatArray:
+        """The normal impulses of a frictionless impact: LCP(G, target), residual checked."""
+        P = solve_lcp_psd(G, target)
+        res = lcp_residual(G, target, P)
+        if res > RESIDUAL_TOL:
+            P2 = _lemke(G, target)
+            if P2 is not None and lcp_residual(G, target, P2) < res:
+                P, res = P2, lcp_residual(G, target, P2)
+        if res > RESIDUAL_TOL:
+            log.warning("impact LCP residual %.3g", res)
+        return P
+
+
+def _energy_change(P: FloatArray, w: FloatArray, dw: FloatArray) -> float:
+    """Kinetic energy change [J] of an impulse: P . w + P . dw / 2.
+
+    P: the impulses on some rows J (generalized impulse J^T P = M dv); w = J v before; dw = J
+    dv. Rounding below 1e-12 of the energy scale counts as no change.
+    """
+    gain = float(P @ w) + 0.5 * float(P @ dw)
+    return gain - 1e-12 * (abs(float(P @ w)) + abs(float(P @ dw)))
+
+
+def _position_lcp(G: FloatArray, g: FloatArray) -> FloatArray:
+    """The projection's LCP(G, g) [N*s^2]: compiled Lemke, non-negative least squares if not solved.
+
+    The projection's step dq = M^-1 J^T mu is the same for every solution of this symmetric
+    positive semi-definite problem, so the solver only changes it by rounding; the compiled
+    pivots (:func:`~packbot.contact.normal_modes._lemke`, a few microseconds on the usual 1 to
+    8 rows) replace :func:`~packbot.contact.lcp.solve_lcp_psd` (``eigh``, ``lstsq`` and
+    scipy's NNLS: 130 us a call) whenever their residual passes.
+    """
+    z = _lemke(G, g)
+    if z is not None and lcp_residual(G, g, z) <= RESIDUAL_TOL:
+        return z
+    return solve_lcp_psd(G, g)

@@ -1,0 +1,48 @@
+"""The contact-normal mode's tolerances and gains (see :mod:`packbot.contact.normal`).
+
+Modelling tolerances of the patches, the mode conditions and the restart's steps; the law's
+own thresholds (cascades, windows) are in :mod:`packbot.contact.normal_law`.
+"""
+
+#: A row takes part in the impulse and acceleration problems when its gap is below this [m].
+TOUCH_GAP = 1e-5
+#: A free row of a pair in contact is an impact when its gap falls below -POINT_TOL [m].
+POINT_TOL = 1e-6
+#: A pair in contact whose signed distance falls below -PENETRATION_TOL [m] is re-patched (its
+#: patch no longer describes the touching features).
+PENETRATION_TOL = 1e-5
+#: A patch whose smallest point gap is farther than this from the pair's distance [m] is not
+#: used (see :meth:`NormalContacts.add_pair`).
+PATCH_TOL = 1e-4
+#: Hysteresis of the force conditions [N] (release, cone).
+FORCE_BAND = 1e-6
+#: A touching row separating slower than this takes part in the mode problem [m/s].
+SPEED_BAND = 1e-6
+#: Hysteresis of the stick condition [m/s]: a slipping pair sticks once its sliding velocity
+#: has come back through zero by this much along its friction direction. Smaller bands let
+#: a pair sliding at the cone's edge with almost no acceleration (the arm's elbow casing on the
+#: chassis while link 3 slides) fire a stick event every few milliseconds, each followed by an
+#: immediate slip: the restarts then keep resetting the other pair's slide (measured: a
+#: stick/slip pair of events every 3.35 ms with 1e-6 m/s).
+STICK_BAND = 1e-4
+#: A pair may start sticking when its sliding speed is below this [m/s] (the stick mode's
+#: velocity term removes the rest).
+STICK_SPEED = 1e-3
+#: Rest capture (:meth:`NormalContacts.capture`): at a restart, an arm slower than this
+#: [rad/s] whose contacts can all stick at v = 0 with accelerations below CAPTURE_ACCEL
+#: [rad/s^2] is brought to rest.
+CAPTURE_SPEED = 1e-2
+CAPTURE_ACCEL = 1e-2
+#: A sliding pair's patch is rebuilt once its material points have slid this far apart
+#: tangentially since it was built [m] (see :meth:`NormalContacts.stale`): the patch points are
+#: where the contact forces act, so 0.1 mm moves a force's point of application by less than
+#: 1e-3 of the arm's lever arms (0.1 to 0.5 m); the gap condition of ``stale`` catches a
+#: curved body's next facet, or a point sliding off its face, much earlier.
+SLIDE_TOL = 1e-4
+#: Stiffness of the drift correction [rad/s] (a_n = -2 w g' - w^2 g on engaged rows).
+BAUMGARTE = 20.0
+#: Largest acceptable scaled residual of a complementarity solution [-].
+RESIDUAL_TOL = 1e-7
+#: Rounds of the drift projection (:meth:`NormalContacts.project`): each adds to the contact set
+#: the pairs that the previous one made penetrate.
+PROJECT_ROUNDS = 3
