@@ -221,10 +221,14 @@ def python_world(
 def world_with(
     robot: packbot.Robot, manager: str, environment: packbot.Environment | None = None
 ) -> CollisionWorld:
-    """A collision world whose sweep prunes with the given one of Pinocchio's manager types."""
+    """A collision world whose sweep prunes with the given one of Pinocchio's manager types.
+
+    On the sweep's Python path (with the SSaP manager, the world would take the native sweep).
+    """
     kind = getattr(pin, f"BroadPhaseManager_{manager}")
     cls = type(f"World{manager}", (CollisionWorld,), {"_broadphase_type": kind})
     world: CollisionWorld = cls(robot, environment)
+    world._native = None
     return world
 
 

@@ -221,14 +221,23 @@ class Sweep {
     pin::forwardKinematics(model_, data_, q_);
     const size_t G = shapes_.size();
     const double inflation = (0.0 + margin) * 0.5;  // (break_distance + security_margin) / 2
+    const bool new_margin = !(margin == margin_);  // (the static pieces' boxes: once a margin)
+    margin_ = margin;
     for (size_t g = 0; g < G; ++g) {
       const size_t j = joint_[g];
       coal::CollisionObject &obj = *objects_[g];
       if (j > 0) {
-        oMg_[g] = data_.oMi[j] * placement_[g];
-        obj.setTransform(coal_of(data_.oMi[j] * box_placement_[g]));
+        const pin::SE3 &oMi = data_.oMi[j];
+        oMg_[g] = oMi * placement_[g];
+        // oMi * box_placement_[g], whose rotation is the identity: Pinocchio's SE3 product
+        // (its rotation R * I is R exactly; its translation the same expression as in
+        // SE3Tpl::act_impl)
+        const Eigen::Vector3d t =
+            oMi.translation() + oMi.rotation() * box_placement_[g].translation();
+        obj.setTransform(coal::Transform3s(oMi.rotation(), t));
       } else {
         oMg_[g] = placement_[g];
+        if (!new_margin) continue;
         obj.setTransform(coal_of(box_placement_[g]));
       }
       obj.computeAABB();
@@ -308,6 +317,7 @@ class Sweep {
   Model model_;
   Data data_;
   Eigen::VectorXd q_;
+  double margin_ = std::numeric_limits<double>::quiet_NaN();  // the last sweep's
   std::vector<size_t> joint_;
   std::vector<pin::SE3> placement_, box_placement_, oMg_;
   std::vector<std::shared_ptr<coal::CollisionGeometry>> shapes_;
