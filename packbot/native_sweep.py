@@ -32,7 +32,14 @@ from numpy.typing import NDArray
 if TYPE_CHECKING:
     from packbot.collision import CollisionWorld
 
-__all__ = ["ENABLED", "SUPPORTED_JOINTS", "NativeSweep", "available", "native_sweep"]
+__all__ = [
+    "ENABLED",
+    "SUPPORTED_JOINTS",
+    "NativeSweep",
+    "available",
+    "native_sweep",
+    "unavailable_reason",
+]
 
 log = logging.getLogger(__name__)
 
@@ -77,6 +84,11 @@ if _WHY_NOT is not None:  # pragma: no cover - see above
 def available() -> bool:
     """Whether the native sweep can run: the extension loads and matches the coal module."""
     return _WHY_NOT is None
+
+
+def unavailable_reason() -> str | None:
+    """Why the native sweep cannot run (None: it can)."""
+    return _WHY_NOT
 
 
 def _ints(x: Any) -> NDArray[np.int64]:
