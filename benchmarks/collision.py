@@ -8,7 +8,10 @@ For each configuration, microseconds per call: medians over interleaved batches 
 variant timed in turn, ``--repeat`` times, so that load from other processes on this shared
 machine hits them alike):
 
-- ``sweep``: :meth:`CollisionWorld.sweep` -- forward kinematics; the broadphase in C++
+- ``native``: :meth:`CollisionWorld.sweep` with the compiled sweep (``packbot._native_coal``,
+  :mod:`packbot.native_sweep`): forward kinematics, the broadphase boxes, their overlaps and
+  Coal's distances on the candidates in one native call (the default when it is built);
+- ``sweep``: the sweep's Python path -- forward kinematics; the broadphase in C++
   (Pinocchio's ``BroadPhaseManager`` over Coal's ``SSaPCollisionManager``: the pieces' world
   boxes inflated by half the margin, their overlaps, the pairs collected by
   ``pin.CollisionCallBackCollect``); the candidates read back; one ``pin.computeDistances``
@@ -46,13 +49,14 @@ import pinocchio as pin
 from numpy.typing import NDArray
 
 import packbot
-from packbot import CollisionWorld, load_robot
+from packbot import CollisionWorld, load_robot, native_sweep
 from packbot.collision import BOX_PAD, GJK_TOLERANCE, SweepCounts, SweepResult
 
 Array = NDArray[np.float64]
 POSES = ("drive", "stow", "stand", "high", "low")
 LOCKED = ["camera_tilt", "camera_pan", "gripper_roll", "gripper_jaw"]
 TARGET_RATIO = 2.0
+_SWEEP = CollisionWorld.sweep  # (in_run replaces it while it runs)
 MANAGERS = (
     "SSaPCollisionManager",
     "NaiveCollisionManager",
@@ -205,13 +209,26 @@ def loop_sweep(world: CollisionWorld) -> Callable[[Array, float], tuple[NDArray[
     return run
 
 
+def python_world(
+    robot: packbot.Robot, environment: packbot.Environment | None = None
+) -> CollisionWorld:
+    """A collision world whose sweep takes its Python path (Pinocchio's SSaP manager)."""
+    world = CollisionWorld(robot, environment)
+    world._native = None
+    return world
+
+
 def world_with(
     robot: packbot.Robot, manager: str, environment: packbot.Environment | None = None
 ) -> CollisionWorld:
-    """A collision world whose sweep prunes with the given one of Pinocchio's manager types."""
+    """A collision world whose sweep prunes with the given one of Pinocchio's manager types.
+
+    On the sweep's Python path (with the SSaP manager, the world would take the native sweep).
+    """
     kind = getattr(pin, f"BroadPhaseManager_{manager}")
     cls = type(f"World{manager}", (CollisionWorld,), {"_broadphase_type": kind})
     world: CollisionWorld = cls(robot, environment)
+    world._native = None
     return world
 
 
@@ -229,17 +246,19 @@ def clutter(n: int, seed: int) -> packbot.Environment:
 def clutter_table(robot: packbot.Robot, q: Array, repeat: int, seed: int) -> None:
     """The sweep's cost with 0 to 200 box obstacles, for three manager types."""
     kinds = ("SSaPCollisionManager", "NaiveCollisionManager", "DynamicAABBTreeCollisionManager")
-    print("| obstacles | pieces | pairs | tests | " + " | ".join(k[:-16] for k in kinds) + " |")
-    print("|---|---|---|---|" + "---|" * len(kinds))
+    cols = ("native", *kinds)
+    print("| obstacles | pieces | pairs | tests | " + " | ".join(k[:-16] or k for k in cols) + " |")
+    print("|---|---|---|---|" + "---|" * len(cols))
     for n in (0, 25, 50, 100, 150, 200):
         env = clutter(n, seed)
-        worlds = {k: world_with(robot, k, env) for k in kinds}
-        w0 = worlds[kinds[0]]
+        worlds = {"native": CollisionWorld(robot, env)}
+        worlds.update({k: world_with(robot, k, env) for k in kinds})
+        w0 = worlds["native"]
         tests = len(w0.sweep(q).pairs)
         for w in worlds.values():
             assert np.array_equal(w.sweep(q).pairs, w0.sweep(q).pairs)
         t = interleaved({k: (lambda w=w: w.sweep(q)) for k, w in worlds.items()}, repeat)
-        row = " | ".join(f"{t[k]:.1f}" for k in kinds)
+        row = " | ".join(f"{t[k]:.1f}" for k in cols)
         print(f"| {n} | {w0.geom_model.ngeoms} | {len(w0.pairs)} | {tests} | {row} |")
 
 
@@ -260,6 +279,7 @@ def configurations(
 
 
 def measure(
+    native: CollisionWorld,
     world: CollisionWorld,
     before: NumpyBoxSweep,
     variants: dict[str, CollisionWorld],
@@ -274,6 +294,10 @@ def measure(
     sw = world.sweep(q)
     cand = sw.pairs
     d0 = dict(zip(cand.tolist(), sw.distances.tolist(), strict=True))
+    s_nat = native.sweep(q)
+    assert np.array_equal(s_nat.pairs, cand), "the native sweep's candidates differ"
+    assert np.allclose(s_nat.distances, sw.distances, rtol=0.0, atol=1e-12)
+    assert s_nat.min_pair == sw.min_pair
     # every variant tests the same pairs and finds the same distances (GJK warm starts: 1e-9 m)
     _, _, cand_b, d_b = before.sweep(q, m)
     assert np.array_equal(cand_b, cand), "the numpy boxes and the broadphase disagree"
@@ -289,6 +313,7 @@ def measure(
     activate(world, gd_same, cand)
     gd_all = distance_data(world)
     fns: dict[str, Callable[[], object]] = {
+        "native": lambda: native.sweep(q),
         "sweep": lambda: world.sweep(q),
         "before": lambda: before.sweep(q, m),
         "cpp_same": lambda: pin.computeDistances(model, data, gm, gd_same, q),
@@ -307,9 +332,18 @@ def measure(
     return row
 
 
-def breakdown(world: CollisionWorld, q: Array, repeat: int) -> list[tuple[str, float]]:
-    """Cost of each stage of the sweep at q [us], each stage timed alone (interleaved)."""
+def breakdown(
+    native: CollisionWorld, world: CollisionWorld, q: Array, repeat: int
+) -> list[tuple[str, float]]:
+    """Cost of each stage of the Python sweep at q [us], each stage timed alone (interleaved)."""
     m = world.margin
+    model, data = world.robot.model, world.robot.model.createData()
+    gd_same = distance_data(world)
+    activate(world, gd_same, world.sweep(q).pairs)
+
+    def cpp() -> object:
+        return pin.computeDistances(model, data, world.geom_model, gd_same, q)
+
     gm, gd = world.geom_model, world.geom_data
     world.sweep(q)
     cb, bp, pairs = world._bp_callback, world._bp, world._bp_pairs
@@ -330,7 +364,9 @@ def breakdown(world: CollisionWorld, q: Array, repeat: int) -> list[tuple[str, f
         "pair activation (only when the candidates change)": lambda: world._activate(cand),
         "narrowphase on the candidates (C++)": lambda: pin.computeDistances(gm, gd),
         "read the candidates' distances": lambda: [res[p].min_distance for p in lst],
-        "whole sweep": lambda: world.sweep(q),
+        "whole sweep (Python path)": lambda: world.sweep(q),
+        "whole sweep (native, for comparison)": lambda: native.sweep(q),
+        "one C++ computeDistances, same pairs (for comparison)": lambda: cpp(),
     }
     times = interleaved(stages, repeat)
     world._active_list = lst  # the activation stage left exactly the candidates active
@@ -341,7 +377,9 @@ def numpy_sweep() -> Callable[..., SweepResult]:
     """A drop-in for :meth:`CollisionWorld.sweep` that prunes like before (numpy boxes)."""
     refs: dict[int, NumpyBoxSweep] = {}
 
-    def sweep(self: CollisionWorld, q: Array, margin: float | None = None) -> SweepResult:
+    def sweep(
+        self: CollisionWorld, q: Array, margin: float | None = None, reuse: bool = False
+    ) -> SweepResult:
         ref = refs.get(id(self))
         if ref is None:
             ref = refs[id(self)] = NumpyBoxSweep(self)
@@ -367,7 +405,9 @@ def in_run(robot: packbot.Robot, inner: Callable[..., SweepResult]) -> Array:
     rows: list[tuple[float, float, int]] = []
     extra: dict[int, tuple[pin.Data, pin.GeometryData, list[int]]] = {}
 
-    def timed(self: CollisionWorld, q: Array, margin: float | None = None) -> SweepResult:
+    def timed(
+        self: CollisionWorld, q: Array, margin: float | None = None, reuse: bool = False
+    ) -> SweepResult:
         if id(self) not in extra:
             extra[id(self)] = (self.robot.model.createData(), distance_data(self), [])
         data, gd, active = extra[id(self)]
@@ -383,7 +423,7 @@ def in_run(robot: packbot.Robot, inner: Callable[..., SweepResult]) -> Array:
         first = len(rows) % 2 == 0 and active  # the C++ call first, on the last candidates
         t_cpp = cpp(np.array(active, dtype=np.intp)) if first else 0.0
         t0 = time.perf_counter()
-        sw = inner(self, q, margin)
+        sw = inner(self, q, margin, reuse=reuse)
         t_sweep = time.perf_counter() - t0
         if not first or sw.pairs.tolist() != active:
             t_cpp = cpp(sw.pairs)
@@ -398,10 +438,22 @@ def in_run(robot: packbot.Robot, inner: Callable[..., SweepResult]) -> Array:
     return np.array(rows)
 
 
+def python_sweep(
+    self: CollisionWorld, q: Array, margin: float | None = None, reuse: bool = False
+) -> SweepResult:
+    """:meth:`CollisionWorld.sweep` on its Python path."""
+    native_sweep.ENABLED = False
+    try:
+        return _SWEEP(self, q, margin, reuse=reuse)
+    finally:
+        native_sweep.ENABLED = True
+
+
 def in_run_table(robot: packbot.Robot) -> None:
     """The in-run timings of the sweep and of the numpy sweep before it."""
     runs = {
-        "sweep (broadphase)": in_run(robot, CollisionWorld.sweep),
+        "native": in_run(robot, CollisionWorld.sweep),
+        "Python path (broadphase)": in_run(robot, python_sweep),
         "before (numpy boxes)": in_run(robot, numpy_sweep()),
     }
     print("\nIn the run (contact-normal collapse, mu 0.5, 3 s; medians per call in us):\n")
@@ -425,9 +477,13 @@ def main() -> None:
     parser.add_argument("--collapse", type=int, default=12, help="states along the collapse")
     parser.add_argument("--random", type=int, default=8, help="random poses")
     parser.add_argument("--seed", type=int, default=1, help="seed of the random poses")
+    parser.add_argument("--no-extras", action="store_true", help="the main tables only")
     args = parser.parse_args()
     robot = load_robot()
-    world = CollisionWorld(robot)
+    native = CollisionWorld(robot)
+    if native._native is None:
+        raise SystemExit("packbot._native_coal is not available: nothing to compare")
+    world = python_world(robot)
     before = NumpyBoxSweep(world)
     variants = {name: world_with(robot, name) for name in MANAGERS[1:]}
     configs = configurations(robot, args.collapse, args.random, args.seed)
@@ -438,19 +494,20 @@ def main() -> None:
         f"~1 ms; load average {load:.2f} at the start\n"
     )
     head = (
-        "| configuration | tests / within margin | sweep | before (numpy boxes) "
-        "| C++ same pairs | sweep / C++ | before / C++ | unpruned |"
+        "| configuration | tests / within margin | native | Python path | before (numpy boxes) "
+        "| C++ same pairs | native / C++ | Python / C++ | before / C++ | unpruned |"
     )
     print(head)
     print("|" + "---|" * (head.count("|") - 1))
     rows: list[tuple[str, str, dict[str, float]]] = []
     for group, label, q in configs:
-        r = measure(world, before, variants, q, args.repeat)
+        r = measure(native, world, before, variants, q, args.repeat)
         rows.append((group, label, r))
+        c = r["cpp_same"]
         print(
-            f"| {label} | {int(r['tests'])} / {int(r['within'])} | {r['sweep']:.1f} | "
-            f"{r['before']:.1f} | {r['cpp_same']:.1f} | {r['sweep'] / r['cpp_same']:.2f} | "
-            f"{r['before'] / r['cpp_same']:.2f} | {r['unpruned']:.1f} |"
+            f"| {label} | {int(r['tests'])} / {int(r['within'])} | {r['native']:.1f} | "
+            f"{r['sweep']:.1f} | {r['before']:.1f} | {c:.1f} | {r['native'] / c:.2f} | "
+            f"{r['sweep'] / c:.2f} | {r['before'] / c:.2f} | {r['unpruned']:.1f} |"
         )
 
     def med(group: str, f: Callable[[dict[str, float]], float]) -> float:
@@ -458,25 +515,30 @@ def main() -> None:
 
     print("\nMedians per group:\n")
     print(
-        "| group | configurations | tests | sweep | before | C++ same pairs | sweep / C++ "
-        "| before / C++ | target sweep / C++ <= 2 |"
+        "| group | configurations | tests | native | Python path | before | C++ same pairs "
+        "| native / C++ | Python / C++ | before / C++ | target native / C++ <= 2 |"
     )
-    print("|---|---|---|---|---|---|---|---|---|")
+    print("|---|---|---|---|---|---|---|---|---|---|---|")
     for group in ("named", "collapse", "random", "all"):
         n = sum(1 for g, _, _ in rows if g == group or group == "all")
-        ratio = med(group, lambda r: r["sweep"] / r["cpp_same"])
+        ratio = med(group, lambda r: r["native"] / r["cpp_same"])
         print(
             f"| {group} | {n} | {med(group, lambda r: r['tests']):.0f} | "
-            f"{med(group, lambda r: r['sweep']):.1f} | {med(group, lambda r: r['before']):.1f} | "
+            f"{med(group, lambda r: r['native']):.1f} | {med(group, lambda r: r['sweep']):.1f} | "
+            f"{med(group, lambda r: r['before']):.1f} | "
             f"{med(group, lambda r: r['cpp_same']):.1f} | {ratio:.2f} | "
+            f"{med(group, lambda r: r['sweep'] / r['cpp_same']):.2f} | "
             f"{med(group, lambda r: r['before'] / r['cpp_same']):.2f} | "
             f"{'met' if ratio <= TARGET_RATIO else 'not met'} |"
         )
+    worst = max(r["native"] / r["cpp_same"] for _, _, r in rows)
+    print(f"\nWorst native / C++ over the {len(rows)} configurations: {worst:.2f}")
 
-    print("\nThe sweep's variants (medians per group, us; every one tests the same pairs):\n")
-    cols = ["sweep", *MANAGERS[1:], "loop"]
+    print("\nThe Python path's variants (medians per group, us; every one tests the same pairs):\n")
+    cols = ["native", "sweep", *MANAGERS[1:], "loop"]
     names = {
-        "sweep": "SSaP (chosen)",
+        "native": "native",
+        "sweep": "SSaP (Python path)",
         "loop": "SSaP + pin.computeDistance per pair",
         **{m: m.removesuffix("CollisionManager") for m in MANAGERS[1:]},
     }
@@ -485,6 +547,8 @@ def main() -> None:
     for group in ("named", "collapse", "random"):
         vals = " | ".join(f"{med(group, lambda r, c=c: r[c]):.1f}" for c in cols)
         print(f"| {group} | {vals} |")
+    if args.no_extras:
+        return
 
     in_run_table(robot)
     collapse = [(label, q) for g, label, q in configs if g == "collapse"]
@@ -492,9 +556,9 @@ def main() -> None:
     print(f"\nThe sweep among 20 cm box obstacles on the ground at {label} (us):\n")
     clutter_table(robot, q_mid, args.repeat, args.seed)
     for label, q in [("the drive pose", robot.pose("drive")), *collapse[len(collapse) // 2 :][:1]]:
-        print(f"\nBreakdown of the sweep at {label} (each stage timed alone):\n")
+        print(f"\nBreakdown of the Python sweep at {label} (each stage timed alone):\n")
         print("| stage | us |\n|---|---|")
-        for stage, us in breakdown(world, q, args.repeat):
+        for stage, us in breakdown(native, world, q, args.repeat):
             print(f"| {stage} | {us:.1f} |")
 
 

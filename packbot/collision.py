@@ -19,7 +19,9 @@ over a sampling of the joint space; regenerate with ``packbot generate-srdf``).
 Pruning: Pinocchio's broadphase manager over Coal's ``SSaPCollisionManager`` (sweep and prune)
 keeps, in C++, the pairs whose world boxes, each inflated by half the query margin, overlap;
 the narrowphase then runs on those pairs only, in one C++ call (``pin.computeDistances`` with
-only those pairs active).
+only those pairs active). When the compiled ``packbot._native_coal`` is available
+(:mod:`packbot.native_sweep`), :meth:`CollisionWorld.sweep` does all of it in one native call
+instead, with the same boxes, candidates and distances.
 """
 
 from __future__ import annotations
@@ -35,6 +37,7 @@ import numpy as np
 import pinocchio as pin
 from numpy.typing import NDArray
 
+from packbot import native_sweep as _ns
 from packbot.environment import Environment
 from packbot.errors import ConfigurationError, ResourceNotFound, UnknownNameError
 from packbot.model import Robot
@@ -218,6 +221,9 @@ def _structure_key(
     return (tuple(pieces), tuple(model.names), robot.adjacent_links, environment, srdf_id)
 
 
+_tuple_new = tuple.__new__
+
+
 def _link_name(model: pin.Model, geom: pin.GeometryObject) -> str:
     return str(model.frames[geom.parentFrame].name)
 
@@ -298,12 +304,27 @@ class CollisionWorld:
         self._results = list(self.geom_data.distanceResults)
         self._last_sweep: tuple[tuple[bytes, float], SweepResult] | None = None  # see sweep
         self._n_pairs = len(self.pairs)
+        #: SweepCounts by the number of tests (shared by the sweeps, being immutable)
+        self._counts = [
+            SweepCounts(self._n_pairs, self._n_pairs - n, n) for n in range(self._n_pairs + 1)
+        ]
         G = gm.ngeoms
         # Activation map of pin.GeometryData.setActiveCollisionPairs (upper triangle).
         self._active = np.zeros((G, G), dtype=bool)
         self._all_pairs = np.arange(len(self.pairs), dtype=np.intp)
         self._active_list: list[int] | None = None  # the pairs active in geom_data (None: other)
         self._start_broadphase()
+        # The native sweep (None: the Python path), unless a subclass prunes with another
+        # manager type (the native sweep's candidates are the SSaP manager's).
+        self._native = (
+            _ns.native_sweep(self)
+            if self._broadphase_type is pin.BroadPhaseManager_SSaPCollisionManager
+            else None
+        )
+        # Where the pieces of self._data and geom_data are owed after native sweeps (placed on
+        # demand: _placed): False nowhere (they are placed), True at the last native sweep's
+        # q (and its witness points are the native sweep's), bytes at that q (a reused sweep).
+        self._pending: bool | bytes = False
 
     def _build(self, robot: Robot, srdf_path: Path | None) -> _Built:
         """The world's fixed parts: its geometry models, pieces and pairs (see _structure_key).
@@ -476,6 +497,7 @@ class CollisionWorld:
 
         At the last forward kinematics; all in C++ but the read-back of the indices.
         """
+        self._placed()
         self._place_broadphase(margin)
         self._bp.collide(self._bp_callback)
         pairs = self._bp_pairs
@@ -517,8 +539,18 @@ class CollisionWorld:
         """Forward kinematics and piece placements (the broadphase is placed on demand)."""
         self._fk(q)
 
+    def _placed(self) -> None:
+        """Place the pieces at the last native sweep's q if they are not (see sweep)."""
+        pending = self._pending
+        if pending is True:
+            assert self._native is not None
+            self._fk(self._native.last_q())
+        elif pending:
+            self._fk(np.frombuffer(pending, dtype=np.float64))
+
     def _fk(self, q: NDArray[np.float64]) -> None:
         """Forward kinematics and piece placements; a wrong-size q is a ConfigurationError."""
+        self._pending = False
         try:
             pin.updateGeometryPlacements(
                 self.robot.model, self._data, self.geom_model, self.geom_data, q
@@ -550,7 +582,10 @@ class CollisionWorld:
         one forward kinematics, one broadphase in C++ (Pinocchio's manager: the pieces' world
         boxes, inflated by half the margin, and their overlaps), and one C++ call
         (``pin.computeDistances``) over the candidate pairs only, which also returns the
-        closest; then one read per candidate.
+        closest; then one read per candidate. With the compiled sweep
+        (:mod:`packbot.native_sweep`, when available and enabled) all of it is one native
+        call with the same candidates and distances; the pieces of ``geom_data`` are then
+        placed at q only when a query that reads them (:meth:`candidate_pairs`) comes next.
 
         Args:
             q: Configuration [rad].
@@ -565,6 +600,8 @@ class CollisionWorld:
             ConfigurationError: A wrong-size q, or a margin that is not a finite number >= 0.
         """
         m = self._query_margin(margin)
+        if self._native is not None and _ns.ENABLED:
+            return self._sweep_native(q, m, reuse)
         self._fk(q)
         key = None
         if reuse:
@@ -589,6 +626,31 @@ class CollisionWorld:
         if key is not None:
             out.pairs.setflags(write=False)
             out.distances.setflags(write=False)
+            self._last_sweep = (key, out)
+        return out
+
+    def _sweep_native(self, q: NDArray[np.float64], m: float, reuse: bool) -> SweepResult:
+        """:meth:`sweep` in one call of the compiled sweep (checked margin ``m`` [m])."""
+        native = self._native
+        assert native is not None
+        key = None
+        if reuse:
+            key = (np.asarray(q, dtype=np.float64).tobytes(), m)
+            last = self._last_sweep
+            if last is not None and last[0] == key:
+                self._pending = key[0]
+                return last[1]
+        try:
+            pairs, d, k, dmin = native.sweep(q, m)
+        except (ValueError, TypeError) as exc:  # the extension's size/type check
+            nq = self.robot.model.nq
+            raise ConfigurationError("q", np.shape(q), f"a vector of shape ({nq},) [rad]") from exc
+        self._pending = True
+        # (tuple.__new__: a NamedTuple's own __new__ costs 0.1 us more, twice a sweep)
+        out = _tuple_new(SweepResult, (dmin, k, pairs, d, self._counts[len(pairs)]))
+        if key is not None:
+            pairs.setflags(write=False)
+            d.setflags(write=False)
             self._last_sweep = (key, out)
         return out
 
@@ -629,8 +691,23 @@ class CollisionWorld:
         """
         m = self.margin if margin is None else margin
         sw = self.sweep(q, m)
-        close = sw.pairs[sw.distances < m]
-        out = [self._contact(int(p)) for p in close]
+        if self._pending is True:  # the witness points are the native sweep's
+            assert self._native is not None
+            p1, p2, normal = self._native.witness()
+            rows = np.flatnonzero(sw.distances < m)
+            out = [
+                Contact(
+                    self.pairs[int(sw.pairs[i])],
+                    float(sw.distances[i]),
+                    p1[i].copy(),
+                    p2[i].copy(),
+                    normal[i].copy(),
+                )
+                for i in rows
+            ]
+        else:
+            close = sw.pairs[sw.distances < m]
+            out = [self._contact(int(p)) for p in close]
         return sorted(out, key=lambda c: c.distance)
 
     def _pair_id(self, pair: int) -> int:

@@ -65,6 +65,8 @@ PUBLIC_MODULES = {
 #: docs/*.md, not in the API reference (packages: their public names are their __init__'s)
 INTERNAL_MODULES = {
     "packbot._native",
+    "packbot._native_coal",
+    "packbot.native_sweep",
     "packbot.cli",
     "packbot.dh",
     "packbot.drive",

@@ -1,0 +1,264 @@
+"""The collision world's sweep in one native call (``packbot._native_coal``).
+
+:class:`NativeSweep` wraps the compiled ``Sweep`` (``src/native/sweep.cpp``, nanobind against
+Pinocchio's headers and Coal's library): one call takes (q, margin) and returns the pairs the
+broadphase boxes leave, their signed distances and the closest pair, doing in C++ what
+:meth:`packbot.collision.CollisionWorld.sweep`'s Python path does in about ten Pinocchio and
+Coal calls: forward kinematics, the pieces' placements, the broadphase boxes inflated by half
+the margin, their overlaps, and Coal's distance on each candidate.
+
+The extension keeps its own Pinocchio model (rebuilt from the model's joint types, parents and
+placements) and its own Coal shapes, built from the world's pieces' numbers: a hull's vertices
+and triangles, a box's half sides, a halfspace's normal and offset. Coal then computes the
+same distances from the same inputs: they agree with the Python path bit for bit (tested in
+``tests/test_native_sweep.py``). The candidates are exactly the Python path's: the same boxes,
+the same box arithmetic and the same overlap test.
+
+The module links libcoal, the library the coal wheel installs. Coal's classes are used inline,
+so the module serves only the coal version it was built with (:func:`available` checks it);
+otherwise, or when the module cannot be loaded, or the world has a piece or joint type the
+module does not build, the sweep takes its Python path.
+"""
+
+from __future__ import annotations
+
+import logging
+from typing import TYPE_CHECKING, Any
+
+import coal
+import numpy as np
+from numpy.typing import NDArray
+
+if TYPE_CHECKING:
+    from packbot.collision import CollisionWorld
+
+__all__ = [
+    "ENABLED",
+    "SUPPORTED_JOINTS",
+    "NativeSweep",
+    "available",
+    "native_sweep",
+    "unavailable_reason",
+]
+
+log = logging.getLogger(__name__)
+
+#: Whether collision worlds use the native sweep when they can (read at every sweep; tests and
+#: benchmarks switch it off to run the Python path).
+ENABLED = True
+
+#: The joint types the extension rebuilds (Pinocchio's short names).
+SUPPORTED_JOINTS = frozenset(
+    {
+        "JointModelRX",
+        "JointModelRY",
+        "JointModelRZ",
+        "JointModelRevoluteUnaligned",
+        "JointModelPX",
+        "JointModelPY",
+        "JointModelPZ",
+        "JointModelPrismaticUnaligned",
+    }
+)
+
+#: The extension's piece kinds.
+_CONVEX, _BOX, _HALFSPACE = 0, 1, 2
+
+_native_coal: Any
+_WHY_NOT: str | None = None
+try:  # the compiled extension (built by `pip install .`; see CMakeLists.txt)
+    from packbot import _native_coal
+except ImportError as exc:  # pragma: no cover - a build without the extension, or no libcoal
+    _native_coal = None
+    _WHY_NOT = f"packbot._native_coal cannot be imported ({exc})"
+else:
+    if coal.__version__ != _native_coal.COAL_VERSION:  # pragma: no cover - another coal wheel
+        _WHY_NOT = (
+            f"packbot._native_coal was built against Coal {_native_coal.COAL_VERSION}, "
+            f"the coal module is {coal.__version__}"
+        )
+if _WHY_NOT is not None:  # pragma: no cover - see above
+    log.info("%s: the collision sweep runs its Python path", _WHY_NOT)
+
+
+def available() -> bool:
+    """Whether the native sweep can run: the extension loads and matches the coal module."""
+    return _WHY_NOT is None
+
+
+def unavailable_reason() -> str | None:
+    """Why the native sweep cannot run (None: it can)."""
+    return _WHY_NOT
+
+
+def _ints(x: Any) -> NDArray[np.int64]:
+    return np.ascontiguousarray(x, dtype=np.int64)
+
+
+def _reals(x: Any) -> NDArray[np.float64]:
+    return np.ascontiguousarray(x, dtype=np.float64)
+
+
+def _arguments(world: CollisionWorld) -> dict[str, Any] | None:
+    """The extension's constructor arguments for a world, or None if it cannot build it."""
+    model = world.robot.model
+    types = [j.shortname() for j in model.joints]
+    if any(t not in SUPPORTED_JOINTS for t in types[1:]):
+        return None
+    axes = np.zeros((len(types), 3))
+    for i, j in enumerate(model.joints):
+        if i and types[i].endswith("Unaligned"):
+            axes[i] = np.asarray(j.extract().axis, dtype=float)
+    gm = world.geom_model
+    kinds, joints, placements, params = [], [], [], []
+    points: list[NDArray[np.float64]] = []
+    triangles: list[list[int]] = []
+    point_start, triangle_start = [0], [0]
+    for go in gm.geometryObjects:
+        g = go.geometry
+        p = np.zeros(4)
+        if isinstance(g, coal.Convex):
+            pts = np.asarray(g.points(), dtype=float).reshape(-1, 3)
+            points.append(pts)
+            for i in range(g.num_polygons):
+                t = g.polygons(i)
+                if t.size() != 3:  # pragma: no cover - packbot's hulls are triangulated
+                    return None
+                triangles.append([int(t[0]), int(t[1]), int(t[2])])
+            kinds.append(_CONVEX)
+        elif isinstance(g, coal.Box):
+            p[:3] = np.asarray(g.halfSide, dtype=float)
+            kinds.append(_BOX)
+        elif isinstance(g, coal.Halfspace):
+            p[:3] = np.asarray(g.n, dtype=float)
+            p[3] = float(g.d)
+            kinds.append(_HALFSPACE)
+        else:  # pragma: no cover - packbot builds hulls, boxes and halfspaces only
+            return None
+        point_start.append(point_start[-1] + (len(points[-1]) if kinds[-1] == _CONVEX else 0))
+        triangle_start.append(len(triangles))
+        joints.append(int(go.parentJoint))
+        placements.append(go.placement.homogeneous)
+        params.append(p)
+    bp = world._bp_model.geometryObjects
+    box_half = [np.asarray(b.geometry.halfSide, dtype=float) for b in bp]
+    box_centre = [np.asarray(b.placement.translation, dtype=float) for b in bp]
+    for b in bp:  # the broadphase boxes are axis-aligned in their frames (collision.py)
+        assert np.array_equal(b.placement.rotation, np.eye(3))
+    pairs = gm.collisionPairs
+    if len(world.geom_data.distanceRequests):
+        req = world.geom_data.distanceRequests[0]
+    else:  # no pairs: any request
+        req = coal.DistanceRequest()
+    return {
+        "types": types,
+        "parents": _ints(list(model.parents)),
+        "joint_placements": _reals([M.homogeneous for M in model.jointPlacements]),
+        "axes": _reals(axes),
+        "kinds": _ints(kinds),
+        "joints": _ints(joints),
+        "placements": _reals(placements).reshape(-1, 4, 4),
+        "params": _reals(params).reshape(-1, 4),
+        "points": _reals(np.concatenate(points) if points else np.zeros((0, 3))),
+        "point_start": _ints(point_start),
+        "triangles": _ints(triangles).reshape(-1, 3),
+        "triangle_start": _ints(triangle_start),
+        "box_half": _reals(box_half).reshape(-1, 3),
+        "box_centre": _reals(box_centre).reshape(-1, 3),
+        "first": _ints([int(c.first) for c in pairs]),
+        "second": _ints([int(c.second) for c in pairs]),
+        "gjk_tolerance": float(req.gjk_tolerance),
+        "epa_tolerance": float(req.epa_tolerance),
+        "gjk_max_iterations": int(req.gjk_max_iterations),
+        "epa_max_iterations": int(req.epa_max_iterations),
+        "absolute_criterion": (
+            req.gjk_convergence_criterion_type == coal.GJKConvergenceCriterionType.Absolute
+        ),
+        "cached_guess": _cached_guess(req),
+    }
+
+
+def _cached_guess(req: coal.DistanceRequest) -> bool:
+    """The request's (deprecated) ``enable_cached_gjk_guess``, which Pinocchio sets."""
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", DeprecationWarning)
+        return bool(req.enable_cached_gjk_guess)
+
+
+def _check_request(req: coal.DistanceRequest) -> bool:
+    """Whether the request's other settings are the ones the extension uses (Coal's defaults)."""
+    ref = coal.DistanceRequest()
+    names = ("gjk_variant", "gjk_convergence_criterion", "gjk_initial_guess", "abs_err")
+    same = all(getattr(req, n) == getattr(ref, n) for n in names)
+    return same and req.rel_err == ref.rel_err and req.enable_signed_distance
+
+
+#: The constructor arguments per geometry model (the worlds of one structure share it).
+_ARGS: dict[int, tuple[Any, dict[str, Any] | None]] = {}
+_ARGS_MAX = 16
+
+
+class NativeSweep:
+    """The compiled sweep of one collision world (its own state: one per world).
+
+    Args:
+        world: The world (its geometry model, broadphase boxes, pairs and distance requests).
+        args: The extension's constructor arguments (:func:`native_sweep` builds them).
+    """
+
+    def __init__(self, world: CollisionWorld, args: dict[str, Any]) -> None:
+        self._sweep = _native_coal.Sweep(**args)
+        #: ``sweep(q, margin) -> (pairs, distances, closest pair or -1, its distance)``.
+        self.sweep = self._sweep.sweep
+        #: ``last_q() -> q`` of the last sweep [rad].
+        self.last_q = self._sweep.last_q
+        n = len(world.pairs)
+        self._n_geoms = int(world.geom_model.ngeoms)
+        self._p1 = np.zeros((n, 3))
+        self._p2 = np.zeros((n, 3))
+        self._normal = np.zeros((n, 3))
+
+    def witness(
+        self,
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+        """The last sweep's witness points on pieces 1 and 2 [m] and normals, per candidate.
+
+        Arrays of shape (>= T, 3) in the candidates' order, overwritten by the next call.
+        """
+        self._sweep.witness(self._p1, self._p2, self._normal)
+        return self._p1, self._p2, self._normal
+
+    def boxes(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """The last sweep's world boxes, inflated by half its margin [m], shape (G, 3) each."""
+        G = self._n_geoms
+        lo, hi = np.zeros((G, 3)), np.zeros((G, 3))
+        self._sweep.boxes(lo, hi)
+        return lo, hi
+
+
+def native_sweep(world: CollisionWorld) -> NativeSweep | None:
+    """The native sweep of a world, or None when it cannot serve it (the Python path then).
+
+    None when the extension is not available (:func:`available`), or the world has a joint
+    type, piece type or distance request setting the extension does not build.
+    """
+    if not available():
+        return None
+    gm = world.geom_model
+    cached = _ARGS.get(id(gm))
+    if cached is None or cached[0] is not gm:
+        args = _arguments(world)
+        reqs = world.geom_data.distanceRequests
+        if args is not None and len(reqs) and not _check_request(reqs[0]):
+            args = None
+        if len(_ARGS) >= _ARGS_MAX:
+            del _ARGS[next(iter(_ARGS))]
+        cached = (gm, args)
+        _ARGS[id(gm)] = cached
+    args = cached[1]
+    if args is None:
+        log.debug("the native sweep cannot build this world: Python path")
+        return None
+    return NativeSweep(world, args)

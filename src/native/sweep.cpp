@@ -1,0 +1,353 @@
+// The collision world's event sweep in one native call (Pinocchio's headers, Coal's library).
+//
+// Python module ``packbot._native_coal`` (nanobind), apart from ``packbot._native`` because it
+// links libcoal (the library the coal wheel ships, found at run time beside the pin and coal
+// Python modules): if that library cannot be loaded, only this module fails to import and the
+// sweep falls back to its Python path; the contact right-hand side is unaffected.
+//
+// One object, ``Sweep``, holds:
+//   - its own Pinocchio model, rebuilt from the Python model's numbers (joint types, parents,
+//     placements; forward kinematics is all it needs),
+//   - the world's pieces as Coal shapes built from the Python pieces' numbers (a hull's vertices
+//     and triangles, a box's half sides, a halfspace's normal and offset), so that Coal's
+//     distance sees the same inputs as through Pinocchio's GeometryModel,
+//   - the broadphase boxes of packbot.collision (one coal::Box per piece in its joint frame,
+//     or in the world for static pieces), as Coal CollisionObjects,
+//   - the world's pairs (same order) with one coal::ComputeDistance each (as Pinocchio's
+//     GeometryData keeps one per pair).
+//
+// ``sweep(q, margin)`` does, in C++, what CollisionWorld's Python sweep does in ~10 calls:
+//   1. forward kinematics; each piece's placement oMg = oMi[joint] * placement (Pinocchio's
+//      updateGeometryPlacements);
+//   2. each broadphase box's world box: CollisionObject::setTransform, computeAABB, then
+//      expand by margin / 2 (Pinocchio's BroadPhaseManager::update with security_margin =
+//      margin and break_distance = 0, the same arithmetic);
+//   3. the candidates: the pairs whose two boxes overlap (AABB::overlap), in the pairs' order.
+//      Coal's SSaP manager, which the Python path uses, reports exactly the overlapping pairs;
+//      a loop over the world's pairs (204 for the robot and the floor) is cheaper here than
+//      keeping a manager's sorted lists;
+//   4. Coal's distance on each candidate (its ComputeDistance and its own copy of the world's
+//      DistanceRequest, whose cached GJK guess Coal updates, as in Pinocchio's GeometryData),
+//      keeping the first smallest (pinocchio::computeDistances' rule).
+// It returns (pairs, distances, closest pair) and keeps each candidate's witness points and
+// normal for ``witness``.
+
+#include <nanobind/nanobind.h>
+#include <nanobind/ndarray.h>
+#include <nanobind/stl/string.h>
+#include <nanobind/stl/tuple.h>
+#include <nanobind/stl/vector.h>
+
+#include <coal/BV/AABB.h>
+#include <coal/collision_object.h>
+#include <coal/config.hh>
+#include <coal/distance.h>
+#include <coal/shape/convex.h>
+#include <coal/shape/geometric_shapes.h>
+
+#include <pinocchio/algorithm/kinematics.hpp>
+#include <pinocchio/multibody/data.hpp>
+#include <pinocchio/multibody/model.hpp>
+
+#include <cstdint>
+#include <limits>
+#include <memory>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "joints.hpp"
+
+namespace nb = nanobind;
+namespace pin = pinocchio;
+
+using Model = pin::ModelTpl<double, 0, packbot_native::PackbotJointsTpl>;
+using Data = pin::DataTpl<double, 0, packbot_native::PackbotJointsTpl>;
+
+using F1 = nb::ndarray<const double, nb::ndim<1>, nb::c_contig, nb::device::cpu>;
+using F2 = nb::ndarray<const double, nb::ndim<2>, nb::c_contig, nb::device::cpu>;
+using F3 = nb::ndarray<const double, nb::ndim<3>, nb::c_contig, nb::device::cpu>;
+using I1 = nb::ndarray<const int64_t, nb::ndim<1>, nb::c_contig, nb::device::cpu>;
+using I2 = nb::ndarray<const int64_t, nb::ndim<2>, nb::c_contig, nb::device::cpu>;
+using Out2 = nb::ndarray<double, nb::ndim<2>, nb::c_contig, nb::device::cpu>;
+using NpI1 = nb::ndarray<nb::numpy, int64_t, nb::ndim<1>>;
+using NpF1 = nb::ndarray<nb::numpy, double, nb::ndim<1>>;
+
+namespace {
+
+// The piece kinds (packbot.native_sweep's numbering).
+constexpr int64_t CONVEX = 0, BOX = 1, HALFSPACE = 2;
+
+pin::SE3 se3_of(const double *H) {
+  pin::SE3 M;
+  for (int r = 0; r < 3; ++r) {
+    for (int c = 0; c < 3; ++c) M.rotation()(r, c) = H[4 * r + c];
+    M.translation()(r) = H[4 * r + 3];
+  }
+  return M;
+}
+
+coal::Transform3s coal_of(const pin::SE3 &M) {
+  return coal::Transform3s(M.rotation(), M.translation());  // Pinocchio's toCoalTransform3s
+}
+
+NpF1 new_reals(size_t n, double **data) {
+  auto *buf = new double[n > 0 ? n : 1];
+  nb::capsule owner(buf, [](void *p) noexcept { delete[] static_cast<double *>(p); });
+  *data = buf;
+  return NpF1(buf, {n}, owner);
+}
+
+}  // namespace
+
+class Sweep {
+ public:
+  Sweep(const std::vector<std::string> &types, I1 parents, F3 joint_placements, F2 axes,
+        I1 kinds, I1 joints, F3 placements, F2 params, F2 points, I1 point_start, I2 triangles,
+        I1 triangle_start, F2 box_half, F2 box_centre, I1 first, I1 second, double gjk_tolerance,
+        double epa_tolerance, int64_t gjk_max_iterations, int64_t epa_max_iterations,
+        bool absolute_criterion, bool cached_guess) {
+    const size_t nj = types.size();
+    if (parents.shape(0) != nj || joint_placements.shape(0) != nj || axes.shape(0) != nj)
+      throw std::invalid_argument("one entry per joint expected in every joint array");
+    for (size_t j = 1; j < nj; ++j) {
+      const auto parent = static_cast<pin::JointIndex>(parents.data()[j]);
+      model_.addJoint(parent, packbot_native::make_joint(types[j], axes.data() + 3 * j),
+                      se3_of(joint_placements.data() + 16 * j), "joint" + std::to_string(j));
+    }
+    data_ = Data(model_);
+    q_.setZero(model_.nq);
+
+    const size_t G = kinds.shape(0);
+    if (joints.shape(0) != G || placements.shape(0) != G || params.shape(0) != G ||
+        point_start.shape(0) != G + 1 || triangle_start.shape(0) != G + 1 ||
+        box_half.shape(0) != G || box_centre.shape(0) != G)
+      throw std::invalid_argument("one entry per piece expected in every piece array");
+    for (size_t g = 0; g < G; ++g) {
+      const int64_t j = joints.data()[g];
+      if (j < 0 || j >= static_cast<int64_t>(nj))
+        throw std::invalid_argument("a piece's joint is out of range");
+      joint_.push_back(static_cast<size_t>(j));
+      placement_.push_back(se3_of(placements.data() + 16 * g));
+      const double *p = params.data() + 4 * g;
+      std::shared_ptr<coal::CollisionGeometry> shape;
+      if (kinds.data()[g] == CONVEX) {
+        const int64_t p0 = point_start.data()[g], p1 = point_start.data()[g + 1];
+        const int64_t t0 = triangle_start.data()[g], t1 = triangle_start.data()[g + 1];
+        auto pts = std::make_shared<std::vector<coal::Vec3s>>();
+        for (int64_t k = p0; k < p1; ++k) {
+          const double *v = points.data() + 3 * k;
+          pts->emplace_back(v[0], v[1], v[2]);
+        }
+        auto tris = std::make_shared<std::vector<coal::Triangle>>();
+        for (int64_t k = t0; k < t1; ++k) {
+          const int64_t *t = triangles.data() + 3 * k;
+          for (int c = 0; c < 3; ++c)
+            if (t[c] < 0 || t[c] >= p1 - p0)
+              throw std::invalid_argument("a hull triangle's vertex is out of range");
+          tris->emplace_back(static_cast<coal::Triangle::index_type>(t[0]),
+                             static_cast<coal::Triangle::index_type>(t[1]),
+                             static_cast<coal::Triangle::index_type>(t[2]));
+        }
+        if (pts->size() < 4 || tris->empty())
+          throw std::invalid_argument("a hull needs >= 4 vertices and its triangles");
+        shape = std::make_shared<coal::Convex<coal::Triangle>>(
+            pts, static_cast<unsigned int>(pts->size()), tris,
+            static_cast<unsigned int>(tris->size()));
+      } else if (kinds.data()[g] == BOX) {
+        auto box = std::make_shared<coal::Box>();
+        box->halfSide = coal::Vec3s(p[0], p[1], p[2]);
+        shape = box;
+      } else if (kinds.data()[g] == HALFSPACE) {
+        auto hs = std::make_shared<coal::Halfspace>();
+        hs->n = coal::Vec3s(p[0], p[1], p[2]);  // already unit (as the Python shape stores it)
+        hs->d = p[3];
+        shape = hs;
+      } else {
+        throw std::invalid_argument("unknown piece kind " + std::to_string(kinds.data()[g]));
+      }
+      shapes_.push_back(shape);
+      // the broadphase box (packbot.collision's _broadphase_model): Box(2 h) has half sides h
+      const double *h = box_half.data() + 3 * g;
+      const double *c = box_centre.data() + 3 * g;
+      auto bbox = std::make_shared<coal::Box>(2 * h[0], 2 * h[1], 2 * h[2]);
+      bbox->computeLocalAABB();
+      box_placement_.push_back(pin::SE3(Eigen::Matrix3d::Identity(), Eigen::Vector3d(c[0], c[1], c[2])));
+      objects_.push_back(std::make_unique<coal::CollisionObject>(bbox, false));
+      oMg_.push_back(pin::SE3::Identity());
+    }
+
+    const size_t K = first.shape(0);
+    if (second.shape(0) != K) throw std::invalid_argument("first and second: one per pair");
+    for (size_t k = 0; k < K; ++k) {
+      const int64_t a = first.data()[k], b = second.data()[k];
+      if (a < 0 || b < 0 || a >= static_cast<int64_t>(G) || b >= static_cast<int64_t>(G))
+        throw std::invalid_argument("a pair's piece is out of range");
+      first_.push_back(static_cast<size_t>(a));
+      second_.push_back(static_cast<size_t>(b));
+      functors_.push_back(std::make_unique<coal::ComputeDistance>(shapes_[a].get(),
+                                                                   shapes_[b].get()));
+    }
+    request_.gjk_tolerance = gjk_tolerance;
+    request_.epa_tolerance = epa_tolerance;
+    request_.gjk_max_iterations = static_cast<size_t>(gjk_max_iterations);
+    request_.epa_max_iterations = static_cast<size_t>(epa_max_iterations);
+    request_.gjk_convergence_criterion_type =
+        absolute_criterion ? coal::GJKConvergenceCriterionType::Absolute
+                           : coal::GJKConvergenceCriterionType::Relative;
+    COAL_COMPILER_DIAGNOSTIC_PUSH
+    COAL_COMPILER_DIAGNOSTIC_IGNORED_DEPRECECATED_DECLARATIONS
+    request_.enable_cached_gjk_guess = cached_guess;  // as Pinocchio's GeometryData sets it
+    COAL_COMPILER_DIAGNOSTIC_POP
+    // one request per pair, as Pinocchio's GeometryData: with enable_cached_gjk_guess Coal
+    // keeps each pair's last GJK guess and support hints in its request (its mutable
+    // cached_gjk_guess), where the pair's next query starts
+    requests_.assign(K, request_);
+    cand_.reserve(K);
+    p1_.resize(K);
+    p2_.resize(K);
+    normal_.resize(K);
+  }
+
+  Sweep(const Sweep &) = delete;
+  Sweep &operator=(const Sweep &) = delete;
+
+  // (pairs, distances, closest pair index or -1, its distance or inf) of the candidates at q
+  // and margin [m].
+  std::tuple<NpI1, NpF1, int64_t, double> sweep(F1 q, double margin) {
+    if (q.shape(0) != static_cast<size_t>(model_.nq))
+      throw std::invalid_argument("q: " + std::to_string(model_.nq) + " entries expected");
+    for (int i = 0; i < model_.nq; ++i) q_[i] = q.data()[i];
+    pin::forwardKinematics(model_, data_, q_);
+    const size_t G = shapes_.size();
+    const double inflation = (0.0 + margin) * 0.5;  // (break_distance + security_margin) / 2
+    const bool new_margin = !(margin == margin_);  // (the static pieces' boxes: once a margin)
+    margin_ = margin;
+    for (size_t g = 0; g < G; ++g) {
+      const size_t j = joint_[g];
+      coal::CollisionObject &obj = *objects_[g];
+      if (j > 0) {
+        const pin::SE3 &oMi = data_.oMi[j];
+        oMg_[g] = oMi * placement_[g];
+        // oMi * box_placement_[g], whose rotation is the identity: Pinocchio's SE3 product
+        // (its rotation R * I is R exactly; its translation the same expression as in
+        // SE3Tpl::act_impl)
+        const Eigen::Vector3d t =
+            oMi.translation() + oMi.rotation() * box_placement_[g].translation();
+        obj.setTransform(coal::Transform3s(oMi.rotation(), t));
+      } else {
+        oMg_[g] = placement_[g];
+        if (!new_margin) continue;
+        obj.setTransform(coal_of(box_placement_[g]));
+      }
+      obj.computeAABB();
+      obj.getAABB().expand(inflation);
+    }
+    cand_.clear();
+    const size_t K = first_.size();
+    for (size_t k = 0; k < K; ++k)
+      if (objects_[first_[k]]->getAABB().overlap(objects_[second_[k]]->getAABB()))
+        cand_.push_back(k);
+    const size_t T = cand_.size();
+    int64_t *pairs_out = new int64_t[T > 0 ? T : 1];
+    nb::capsule pairs_owner(pairs_out,
+                            [](void *p) noexcept { delete[] static_cast<int64_t *>(p); });
+    double *dist_out = nullptr;
+    NpF1 distances = new_reals(T, &dist_out);
+    int64_t best = -1;
+    double best_d = std::numeric_limits<double>::infinity();
+    for (size_t i = 0; i < T; ++i) {
+      const size_t k = cand_[i];
+      result_.clear();
+      (*functors_[k])(coal_of(oMg_[first_[k]]), coal_of(oMg_[second_[k]]), requests_[k],
+                      result_);
+      const double d = result_.min_distance;
+      pairs_out[i] = static_cast<int64_t>(k);
+      dist_out[i] = d;
+      p1_[i] = result_.nearest_points[0];
+      p2_[i] = result_.nearest_points[1];
+      normal_[i] = result_.normal;
+      if (d < best_d) {
+        best_d = d;
+        best = static_cast<int64_t>(k);
+      }
+    }
+    return {NpI1(pairs_out, {T}, pairs_owner), distances, best, best_d};
+  }
+
+  // The last sweep's witness points and normals, one row per candidate (its order).
+  void witness(Out2 p1, Out2 p2, Out2 normal) const {
+    const size_t T = cand_.size();
+    if (p1.shape(0) < T || p2.shape(0) < T || normal.shape(0) < T || p1.shape(1) != 3 ||
+        p2.shape(1) != 3 || normal.shape(1) != 3)
+      throw std::invalid_argument("witness: (>= T, 3) arrays expected");
+    for (size_t i = 0; i < T; ++i)
+      for (int c = 0; c < 3; ++c) {
+        p1.data()[3 * i + c] = p1_[i][c];
+        p2.data()[3 * i + c] = p2_[i][c];
+        normal.data()[3 * i + c] = normal_[i][c];
+      }
+  }
+
+  // The world boxes of the last sweep (lower and upper corners, inflated by margin / 2).
+  void boxes(Out2 lo, Out2 hi) const {
+    const size_t G = objects_.size();
+    if (lo.shape(0) != G || hi.shape(0) != G || lo.shape(1) != 3 || hi.shape(1) != 3)
+      throw std::invalid_argument("boxes: (G, 3) arrays expected");
+    for (size_t g = 0; g < G; ++g) {
+      const coal::AABB &b = objects_[g]->getAABB();
+      for (int c = 0; c < 3; ++c) {
+        lo.data()[3 * g + c] = b.min_[c];
+        hi.data()[3 * g + c] = b.max_[c];
+      }
+    }
+  }
+
+  size_t n_pairs() const { return first_.size(); }
+
+  // The configuration of the last sweep [rad] (a copy).
+  NpF1 last_q() const {
+    double *out = nullptr;
+    NpF1 arr = new_reals(static_cast<size_t>(model_.nq), &out);
+    for (int i = 0; i < model_.nq; ++i) out[i] = q_[i];
+    return arr;
+  }
+
+ private:
+  Model model_;
+  Data data_;
+  Eigen::VectorXd q_;
+  double margin_ = std::numeric_limits<double>::quiet_NaN();  // the last sweep's
+  std::vector<size_t> joint_;
+  std::vector<pin::SE3> placement_, box_placement_, oMg_;
+  std::vector<std::shared_ptr<coal::CollisionGeometry>> shapes_;
+  std::vector<std::unique_ptr<coal::CollisionObject>> objects_;
+  std::vector<size_t> first_, second_, cand_;
+  std::vector<std::unique_ptr<coal::ComputeDistance>> functors_;
+  coal::DistanceRequest request_;
+  std::vector<coal::DistanceRequest> requests_;
+  coal::DistanceResult result_;
+  std::vector<coal::Vec3s> p1_, p2_, normal_;
+};
+
+NB_MODULE(_native_coal, m) {
+  m.doc() = "packbot's collision sweep in one native call (Pinocchio's headers, libcoal).";
+  m.attr("COAL_VERSION") = COAL_VERSION;
+  m.attr("PINOCCHIO_VERSION") = PINOCCHIO_VERSION;
+  nb::class_<Sweep>(m, "Sweep")
+      .def(nb::init<const std::vector<std::string> &, I1, F3, F2, I1, I1, F3, F2, F2, I1, I2, I1,
+                    F2, F2, I1, I1, double, double, int64_t, int64_t, bool, bool>(),
+           nb::arg("types"), nb::arg("parents"), nb::arg("joint_placements"), nb::arg("axes"),
+           nb::arg("kinds"), nb::arg("joints"), nb::arg("placements"), nb::arg("params"),
+           nb::arg("points"), nb::arg("point_start"), nb::arg("triangles"),
+           nb::arg("triangle_start"), nb::arg("box_half"), nb::arg("box_centre"),
+           nb::arg("first"), nb::arg("second"), nb::arg("gjk_tolerance"),
+           nb::arg("epa_tolerance"), nb::arg("gjk_max_iterations"),
+           nb::arg("epa_max_iterations"), nb::arg("absolute_criterion"),
+           nb::arg("cached_guess"))
+      .def("sweep", &Sweep::sweep, nb::arg("q"), nb::arg("margin"))
+      .def("witness", &Sweep::witness, nb::arg("p1"), nb::arg("p2"), nb::arg("normal"))
+      .def("boxes", &Sweep::boxes, nb::arg("lo"), nb::arg("hi"))
+      .def("last_q", &Sweep::last_q)
+      .def_prop_ro("n_pairs", &Sweep::n_pairs);
+}
