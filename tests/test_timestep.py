@@ -405,3 +405,112 @@ def test_frictionless_steps_are_solved_by_the_compiled_solver(robot, monkeypatch
     assert -d.min_distance <= PENETRATION_TOL
     assert _event_gain(res) <= GAIN_TOL
     assert d.window_energy_removed < 1e-3
+
+
+# ------------------------------------------------------------------ the step's own costs
+def _spinning_window(robot, monkeypatch, duration=0.3):
+    """The collapse from "drive" with the gripper and camera spinning, in one window from its
+    first event (sliding patches: many are rebuilt)."""
+    monkeypatch.setattr(normal_mod, "CASCADE_EVENTS", 1)
+    monkeypatch.setattr(normal_mod, "WINDOW_MIN", 10.0)
+    v0 = np.zeros(robot.nq)
+    v0[robot.joint_names.index("gripper_roll")] = 80.0
+    v0[robot.joint_names.index("camera_pan")] = -40.0
+    cfg = packbot.SimConfig(contact_mode="normal", mu=0.8, restitution=0.0)
+    return packbot.simulate(robot, robot.pose("drive"), v0, duration, config=cfg)
+
+
+def test_the_compiled_patch_rule_is_the_contact_sets_own(robot, monkeypatch):
+    """The window step's patch rule (every pair at once, compiled) names the same stale
+    pairs, in the same order, as ``NormalContacts.stale_pairs`` at every step."""
+    real = MoreauJeanStepper._stale
+    seen = {"steps": 0, "stale": 0, "differ": 0}
+
+    def both(self, q, v, near):
+        out = real(self, q, v, near)
+        ref = self.contacts.stale_pairs(q, v, near)
+        seen["steps"] += 1
+        seen["stale"] += len(ref)
+        seen["differ"] += out[0] != ref
+        return out
+
+    monkeypatch.setattr(MoreauJeanStepper, "_stale", both)
+    res = _spinning_window(robot, monkeypatch)
+    assert res.diagnostics.windows == 1
+    assert seen["steps"] > 100
+    assert seen["stale"] > 10  # patches were rebuilt
+    assert seen["differ"] == 0
+
+
+def test_the_step_signature_sums_each_pairs_points():
+    """Pushing: a pair's normal impulses sum above the band; sliding: the sum of its
+    tangential impulses on the cone (not inside it, never without friction); limits: their
+    own normal impulse."""
+    from packbot.contact.conic import step_signature
+
+    mu, band = 0.5, 1e-9
+    # pair 0: two points sticking (tangential sum inside the cone); pair 1: one point on the
+    # cone; pair 2: no push; then limit 0 pushing, limit 1 not; then a joint box (ignored)
+    x = np.concatenate(
+        [
+            [0.1, 0.0, 1.0, -0.1, 0.05, 1.0],  # pair 0
+            [0.3, 0.4, 1.0],  # pair 1: |t| = 0.5 = mu * 1
+            [0.0, 0.0, 1e-12],  # pair 2
+            [0.0, 0.0, 2.0, 0.0, 0.0, 0.0],  # limits
+            [7.0],
+        ]
+    )
+    row_pair = np.array([0, 0, 1, 2])
+    push, slide, lim = step_signature(x, row_pair, 3, 2, mu, band)
+    assert push.tolist() == [True, True, False]
+    assert slide.tolist() == [False, True, False]
+    assert lim.tolist() == [True, False]
+    push0, slide0, _ = step_signature(x, row_pair, 3, 2, 0.0, band)
+    assert push0.tolist() == push.tolist() and not slide0.any()
+
+
+def test_a_window_at_rest_sweeps_once_a_step(robot, monkeypatch):
+    """The sweep at a step's end serves the next step's contact set, also where the arm
+    comes to rest in a window (start 2, mu 0.5, wrist free: its margin covers the next
+    step's free velocity change; at the speeds alone, 37 of its 41 steps swept twice)."""
+    from packbot.collision import CollisionWorld
+
+    calls = {"steps": 0, "sweeps": 0, "inside": False}
+    sweep, step = CollisionWorld.sweep, MoreauJeanStepper.step
+
+    def counted_sweep(self, *args, **kwargs):
+        calls["sweeps"] += calls["inside"]
+        return sweep(self, *args, **kwargs)
+
+    def counted_step(self, *args, **kwargs):
+        calls["steps"] += 1
+        calls["inside"] = True
+        try:
+            return step(self, *args, **kwargs)
+        finally:
+            calls["inside"] = False
+
+    monkeypatch.setattr(CollisionWorld, "sweep", counted_sweep)
+    monkeypatch.setattr(MoreauJeanStepper, "step", counted_step)
+    cfg = packbot.SimConfig(contact_mode="normal", mu=0.5, restitution=0.0)
+    res = packbot.simulate(robot, start_pose(robot, 2), np.zeros(robot.nq), 1.0, config=cfg)
+    assert res.rest_time is not None
+    assert calls["steps"] == res.diagnostics.window_steps >= 20
+    assert calls["sweeps"] <= calls["steps"] + 2
+
+
+def test_the_start_energy_is_the_last_steps_end_energy(robot, monkeypatch):
+    """The energy at a step's start is the last step's at its end, computed once: the run
+    with it recomputed at every step is the same run, bit for bit."""
+    res = _spinning_window(robot, monkeypatch)
+    assert res.diagnostics.window_steps > 500
+    step = MoreauJeanStepper.step
+
+    def fresh(self, *args, **kwargs):
+        self._end_energy = None
+        return step(self, *args, **kwargs)
+
+    monkeypatch.setattr(MoreauJeanStepper, "step", fresh)
+    again = _spinning_window(robot, monkeypatch)
+    assert np.array_equal(again.q, res.q) and np.array_equal(again.v, res.v)
+    assert np.array_equal(again.energy, res.energy)

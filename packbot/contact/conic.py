@@ -45,7 +45,7 @@ from typing import Any
 import numpy as np
 from numba import njit
 
-__all__ = ["CHECK_EVERY", "conic_residual", "solve_conic"]
+__all__ = ["CHECK_EVERY", "conic_residual", "solve_conic", "stale_pairs", "step_signature"]
 
 #: The true residual is evaluated (and rho adapted) every this many iterations.
 CHECK_EVERY = 10
@@ -357,3 +357,97 @@ def solve_conic(  # pragma: no cover - compiled
                 rho = min(max(rho * math.sqrt(prim / dual), RHO_MIN * lam), RHO_MAX * lam)
                 L = _factor(AtA, PROX + rho)
     return best, best_res, it, rho
+
+
+@njit(cache=True)
+def stale_pairs(  # pragma: no cover - compiled
+    gap: Any,
+    T: Any,
+    dP: Any,
+    rows: Any,
+    pair: Any,
+    offset0: Any,
+    distance: Any,
+    point_tol: float,
+    slide_tol: float,
+) -> Any:
+    """Which pairs' patches no longer describe their contact (the window step's contact set).
+
+    The rule of :meth:`packbot.contact.normal.NormalContacts.stale_pairs` on every pair at
+    once, from the contact set's kinematics (:func:`packbot.contact.kernels.contact_rows`):
+    a pair is stale when its smallest patch gap is off its distance by more than
+    ``point_tol`` (or it has no distance: NaN), or a point slid by more than ``slide_tol``
+    tangentially since the patch was built.
+
+    Args:
+        gap: (m,) the rows' gaps [m] (the pairs' rows first).
+        T: (pairs, 2, 3) each pair's tangents (world).
+        dP: (points, 3) p2 - p1 at every patch point and centre [m].
+        rows: (m_p,) the patch point of each pair row.
+        pair: (points,) the pair of each point.
+        offset0: (m_p, 2) each pair row's tangential offset when its patch was built [m].
+        distance: (pairs,) each pair's signed distance [m] (NaN: none).
+        point_tol: Gap tolerance [m].
+        slide_tol: Slide tolerance [m].
+
+    Returns:
+        (pairs,) True where the pair is stale.
+    """
+    n = T.shape[0]
+    gmin = np.full(n, np.inf)
+    slide2 = np.zeros(n)
+    for r in range(rows.shape[0]):
+        k = rows[r]
+        p = pair[k]
+        if gap[r] < gmin[p]:
+            gmin[p] = gap[r]
+        a = T[p, 0, 0] * dP[k, 0] + T[p, 0, 1] * dP[k, 1] + T[p, 0, 2] * dP[k, 2] - offset0[r, 0]
+        b = T[p, 1, 0] * dP[k, 0] + T[p, 1, 1] * dP[k, 1] + T[p, 1, 2] * dP[k, 2] - offset0[r, 1]
+        s2 = a * a + b * b
+        if s2 > slide2[p]:
+            slide2[p] = s2
+    out = np.empty(n, dtype=np.bool_)
+    for p in range(n):
+        out[p] = not abs(gmin[p] - distance[p]) <= point_tol or slide2[p] > slide_tol * slide_tol
+    return out
+
+
+@njit(cache=True)
+def step_signature(  # pragma: no cover - compiled
+    x: Any, row_pair: Any, pairs: int, limits: int, mu: float, band: float
+) -> Any:
+    """What a window step's impulses decided, per pair and per limit.
+
+    Args:
+        x: The impulses: blocks (t1, t2, n) of the pairs' rows, then of the limits' rows
+            (then the joint boxes, not read) [N*s].
+        row_pair: (m_p,) the pair of each pair row.
+        pairs: The pairs' count.
+        limits: The limits' count.
+        mu: Friction coefficient [-].
+        band: An impulse above this pushes [N*s].
+
+    Returns:
+        (pairs,) pushing: the pair's normal impulses sum to more than ``band``; (pairs,)
+        sliding: pushing, and the sum of its tangential impulses reaches the cone (within
+        1e-6; never without friction); (limits,) pushing.
+    """
+    xn = np.zeros(pairs)
+    t1 = np.zeros(pairs)
+    t2 = np.zeros(pairs)
+    mp = row_pair.shape[0]
+    for r in range(mp):
+        p = row_pair[r]
+        t1[p] += x[3 * r]
+        t2[p] += x[3 * r + 1]
+        xn[p] += x[3 * r + 2]
+    push = np.empty(pairs, dtype=np.bool_)
+    slide = np.empty(pairs, dtype=np.bool_)
+    for p in range(pairs):
+        push[p] = xn[p] > band
+        ft = math.sqrt(t1[p] * t1[p] + t2[p] * t2[p])
+        slide[p] = push[p] and mu > 0.0 and ft >= mu * xn[p] * (1 - 1e-6)
+    lim = np.empty(limits, dtype=np.bool_)
+    for i in range(limits):
+        lim[i] = x[3 * (mp + i) + 2] > band
+    return push, slide, lim
