@@ -281,6 +281,12 @@ def solve_conic(  # pragma: no cover - compiled
     """
     m, r = A.shape
     K = mus.shape[0]
+    z = guess.copy()
+    _project(z, mus, bound)
+    best = z.copy()
+    best_res = conic_residual(A, g, z, mus, bound)
+    if best_res <= tol and rho0 > 0.0:  # a warm start already converged: nothing to set up
+        return best, best_res, 0, rho0
     AtA = np.zeros((r, r))
     for a in range(r):
         for b in range(a + 1):
@@ -301,13 +307,9 @@ def solve_conic(  # pragma: no cover - compiled
     lam = max(lam, 1e-300)
     # the spectral rule of the initial rho (Pinocchio's ADMM: mu_prox (L / mu_prox)^0.2)
     rho = PROX * (lam / PROX) ** RHO_POWER if rho0 <= 0.0 else rho0
-    L = _factor(AtA, PROX + rho)
-    z = guess.copy()
-    _project(z, mus, bound)
-    best = z.copy()
-    best_res = conic_residual(A, g, z, mus, bound)
     if best_res <= tol:
         return best, best_res, 0, rho
+    L = _factor(AtA, PROX + rho)
     u = np.empty(m)
     work = np.empty(r)  # A^T times a vector, for the Woodbury products (no allocation a step)
     _velocity(A, z, g, u, work)
