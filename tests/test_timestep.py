@@ -344,7 +344,7 @@ def test_the_midpoint_step_removes_less_energy_where_the_wrist_spins(robot, monk
 
 def _relapse_restarts(res: packbot.SimResult) -> list[list[float]]:
     """Per window that reopens within RELAPSE_SPAN of the previous one's end: the distinct
-    times of the restarts from that end up to the new window's start (its own included)."""
+    times of the restarts after that end up to the new window's start (its own included)."""
     ev = res.events
     out = []
     for k, e in enumerate(ev):
@@ -353,7 +353,9 @@ def _relapse_restarts(res: packbot.SimResult) -> list[list[float]]:
         nxt = next((j for j in range(k + 1, len(ev)) if ev[j].kind == "timestep"), None)
         if nxt is None or ev[nxt].t - e.t > normal_mod.RELAPSE_SPAN:
             continue
-        out.append(sorted({x.t for x in ev[k + 1 : nxt + 1]}))  # one restart's events share t
+        # one restart's events share t; the modes the resume itself logs (at its own t) are
+        # not a restart
+        out.append(sorted({x.t for x in ev[k + 1 : nxt + 1] if x.t > e.t}))
     return out
 
 
@@ -514,3 +516,39 @@ def test_the_start_energy_is_the_last_steps_end_energy(robot, monkeypatch):
     again = _spinning_window(robot, monkeypatch)
     assert np.array_equal(again.q, res.q) and np.array_equal(again.v, res.v)
     assert np.array_equal(again.energy, res.energy)
+
+
+def test_the_reach_bounds_bound_every_pieces_distance_to_the_joints_axes(robot, monkeypatch):
+    """Each joint's reach bound is at least the distance from its origin (on its axis) to
+    every vertex of every piece it moves, in random configurations; the wrist's are a tenth
+    of REACH_BOUND; a model with a joint that is not revolute gets REACH_BOUND throughout."""
+    from packbot.contact import timestep
+    from packbot.contact.pairs import REACH_BOUND
+    from packbot.contact.timestep import reach_bounds
+    from packbot.system import System
+
+    system = System(robot, robot.pose("drive"), packbot.SimConfig(contact_mode="normal"), None)
+    model, world = system.model, system.world
+    assert world is not None
+    r = reach_bounds(model, world)
+    data = model.createData()
+    gd = pin.GeometryData(world.geom_model)
+    rng = np.random.default_rng(5)
+    closest = np.inf  # the smallest margin left, over every vertex and joint
+    for _ in range(20):
+        q = rng.uniform(model.lowerPositionLimit, model.upperPositionLimit)
+        pin.updateGeometryPlacements(model, data, world.geom_model, gd, q)
+        for g, go in enumerate(world.geom_model.geometryObjects):
+            if go.parentJoint == 0:
+                continue
+            M = gd.oMg[g]
+            pts = np.asarray(go.geometry.points()) @ M.rotation.T + M.translation
+            for s in list(model.supports[go.parentJoint])[1:]:
+                far = np.linalg.norm(pts - data.oMi[s].translation, axis=1).max()
+                closest = min(closest, r[model.idx_vs[s]] - far)
+    assert closest >= 0.0
+    wrist = [robot.joint_names.index(n) for n in LOCKED]
+    assert r[wrist].max() < 0.15 * REACH_BOUND
+    assert r.max() <= REACH_BOUND
+    monkeypatch.setattr(timestep, "REVOLUTE", ("JointModelRX",))  # (the arm's are RZ, RY)
+    assert np.array_equal(reach_bounds(model, world), np.full(model.nv, REACH_BOUND))

@@ -66,6 +66,7 @@ from packbot.contact.pairs import REACH_BOUND
 from packbot.ode import DenseSegment
 
 if TYPE_CHECKING:
+    from packbot.collision import CollisionWorld
     from packbot.config import SimConfig
     from packbot.contact.normal import NormalContacts
     from packbot.drive import Drive
@@ -130,6 +131,9 @@ RESIDUAL_OK = 1e-6
 ADMM_RETRY_ITERATIONS = 4000
 #: Touching rows (gap below this [m]) approaching faster than the Zeno speed get restitution.
 TOUCH_GAP = 1e-5
+#: The joint types whose reach :func:`reach_bounds` bounds (one rotation about an axis through
+#: the joint's origin); a model with another type uses REACH_BOUND for every joint.
+REVOLUTE = ("JointModelRX", "JointModelRY", "JointModelRZ", "JointModelRevoluteUnaligned")
 
 
 class StepSegment(DenseSegment):
@@ -235,6 +239,9 @@ class MoreauJeanStepper:
         # the event-driven mode's patch rule (NormalContacts.stale_pairs), see _stale
         self._point_tol, self._slide_tol = normal.POINT_TOL, normal.SLIDE_TOL
         self._lay: _PairLayout | None = None  # see _layout
+        #: Per velocity index, a bound on the distance [m] from the joint's axis to any point
+        #: it moves: a point's speed is at most reach . |v| (see reach_bounds).
+        self.reach = reach_bounds(system.model, contacts.world)
 
     def step(
         self,
@@ -314,10 +321,12 @@ class MoreauJeanStepper:
         projected = False
         world = contacts.world
         # the first pass's sweep at q1 also serves the next step's contact set (it starts at
-        # q1 unless a pass moves it): its margin covers that step's reach at the speeds now,
-        # the next step's free velocity change (about this step's, v_f - v) included
-        speed = float(np.abs(v1).sum()) + float(np.abs(v_f - v).sum())
-        reach = ACTIVE_GAP + 2.0 * self.h * REACH_BOUND * SWEEP_SLACK * speed
+        # q1 unless a pass moves it): its margin covers that step's reach at the speeds now
+        # and at its free velocity, predicted with this step's change v_f - v (an arm at
+        # rest has v1 = 0 and the next step's reach h |a_free|)
+        r = self.reach
+        speed = max(float(r @ np.abs(v1)), float(r @ np.abs(v1 + (v_f - v))))
+        reach = ACTIVE_GAP + 2.0 * self.h * SWEEP_SLACK * speed
         self._next_sweep = None
         for npass in range(PROJECT_PASSES if world is not None else 0):
             assert world is not None
@@ -503,7 +512,8 @@ class MoreauJeanStepper:
             rule computed them and the set has not changed since, else None.
         """
         contacts, cfg = self.contacts, self.cfg
-        speed = REACH_BOUND * max(float(np.abs(v).sum()), float(np.abs(v_f).sum()))
+        r = self.reach  # (a point's speed is at most r . |v|)
+        speed = max(float(r @ np.abs(v)), float(r @ np.abs(v_f)))
         d_act = ACTIVE_GAP + 2.0 * h * speed
         near: dict[int, float] = {}
         closest = (math.inf, -1)
@@ -657,3 +667,54 @@ class _PairLayout:
         pair = np.asarray(lay.pair, dtype=np.intp)
         offset0 = np.ascontiguousarray(lay.offset0, dtype=np.float64)
         return cls(lay, keys, rows, pair, pair[rows], offset0, key)
+
+
+def reach_bounds(model: pin.Model, world: CollisionWorld | None) -> FloatArray:
+    """Per velocity index, a bound [m] on the distance from the joint's axis to its pieces.
+
+    Any point of the collision pieces the joint moves, over every configuration. A point p of
+    a piece moves at dp/dt = sum over the joints s carrying it of w_s x (p - o_s) (revolute
+    joints: |w_s| = |v_s|, o_s on the axis), so its speed is at most sum_s r_s |v_s| with
+    r_s the largest |p - o_s|. By the triangle inequality r_s is at most the lengths of the
+    joint placements from s down to the piece's joint, plus the piece's own radius about
+    that joint's origin (its placement's offset, its bounding box's centre and half
+    diagonal). Joints that move no piece get 0. For the arm's wrist joints this is about
+    0.2 m instead of :data:`~packbot.contact.pairs.REACH_BOUND` (2.2 m): a step's contact set
+    holds the pairs it can reach, not every pair within a spinning gripper's worst-case
+    travel. A model with a joint that is not revolute (or no collision world): REACH_BOUND
+    for every joint; no joint gets more.
+
+    Args:
+        model: The integrated model (its joints are the velocity indices).
+        world: The collision world on that model (its pieces' parent joints).
+    """
+    nv = int(model.nv)
+    flat = np.full(nv, REACH_BOUND)
+    if world is None or any(
+        j.shortname() not in REVOLUTE for j in list(model.joints)[1:]
+    ):  # (one velocity per joint below)
+        return flat
+    r = np.zeros(nv)
+    offset = [
+        float(np.linalg.norm(model.jointPlacements[j].translation)) for j in range(model.njoints)
+    ]
+    for go in world.geom_model.geometryObjects:
+        j = int(go.parentJoint)
+        if j == 0:
+            continue
+        shape = go.geometry
+        shape.computeLocalAABB()
+        radius = (
+            float(np.linalg.norm(go.placement.translation))
+            + float(np.linalg.norm(shape.aabb_center))
+            + float(shape.aabb_radius)
+        )
+        # from the piece's joint up its chain: each joint's distance to the piece grows by the
+        # placement of the joint below it
+        k = j
+        while k > 0:
+            iv = int(model.idx_vs[k])
+            r[iv] = max(r[iv], radius)
+            radius += offset[k]
+            k = int(model.parents[k])
+    return np.minimum(r, REACH_BOUND)  # (both are bounds; an unbounded piece: REACH_BOUND)
