@@ -45,7 +45,14 @@ from typing import Any
 import numpy as np
 from numba import njit
 
-__all__ = ["CHECK_EVERY", "conic_residual", "solve_conic", "stale_pairs", "step_signature"]
+__all__ = [
+    "CHECK_EVERY",
+    "conic_residual",
+    "solve_conic",
+    "stale_pairs",
+    "step_problem",
+    "step_signature",
+]
 
 #: The true residual is evaluated (and rho adapted) every this many iterations.
 CHECK_EVERY = 10
@@ -453,3 +460,89 @@ def step_signature(  # pragma: no cover - compiled
     for i in range(limits):
         lim[i] = x[3 * (mp + i) + 2] > band
     return push, slide, lim
+
+
+@njit(cache=True)
+def step_problem(  # pragma: no cover - compiled
+    Jn: Any,
+    T: Any,
+    dJp: Any,
+    rows: Any,
+    row_pair: Any,
+    boxes: Any,
+    minv: Any,
+    v_f: Any,
+    gap: Any,
+    h: float,
+    mu: float,
+) -> Any:
+    """A window step's problem: its rows J, the factor A = J C of G = J M^-1 J^T, and u_f.
+
+    Args:
+        Jn: (m, nv) the contact rows' normals (the pairs' points, then the limits).
+        T: (pairs, 2, 3) each pair's tangents (world).
+        dJp: (points, 3, nv) J_p2 - J_p1 at every patch point and centre.
+        rows: (m_p,) the patch point of each pair row.
+        row_pair: (m_p,) the pair of each pair row.
+        boxes: (B,) the velocity index of each joint box row.
+        minv: (nv, nv) M^-1 (symmetric positive definite).
+        v_f: (nv,) the free velocity [rad/s].
+        gap: (m,) the rows' gaps [m or rad].
+        h: The step [s].
+        mu: The pairs' friction coefficient [-] (the limits': 0).
+
+    Returns:
+        J (3m + B, nv): per contact row the blocks (t1, t2, n), then the boxes' unit rows; A
+        (3m + B, nv) = J C with C the lower Cholesky factor of M^-1 (G = A A^T); gf = J v_f
+        (3m + B,); g = gf with max(gap, 0) / h added on the normal rows (an open gap may
+        close within the step, not beyond); mus (m,) each block's friction.
+    """
+    m, nv = Jn.shape
+    P = rows.shape[0]
+    B = boxes.shape[0]
+    J = np.zeros((3 * m + B, nv))
+    for r in range(P):
+        k = rows[r]
+        p = row_pair[r]
+        for a in range(2):
+            for c in range(nv):
+                J[3 * r + a, c] = (
+                    T[p, a, 0] * dJp[k, 0, c]
+                    + T[p, a, 1] * dJp[k, 1, c]
+                    + T[p, a, 2] * dJp[k, 2, c]
+                )
+    for r in range(m):
+        for c in range(nv):
+            J[3 * r + 2, c] = Jn[r, c]
+    for i in range(B):
+        J[3 * m + i, boxes[i]] = 1.0
+    mus = np.zeros(m)
+    for r in range(P):
+        mus[r] = mu
+    # C: lower Cholesky factor of M^-1
+    C = np.zeros((nv, nv))
+    for i in range(nv):
+        for j in range(i + 1):
+            s = minv[i, j]
+            for k in range(j):
+                s -= C[i, k] * C[j, k]
+            if i == j:
+                C[i, i] = math.sqrt(max(s, 1e-300))
+            else:
+                C[i, j] = s / C[j, j]
+    rt = 3 * m + B
+    A = np.zeros((rt, nv))
+    gf = np.zeros(rt)
+    for i in range(rt):
+        sv = 0.0
+        for k in range(nv):
+            Jik = J[i, k]
+            if Jik != 0.0:
+                sv += Jik * v_f[k]
+                for c in range(k + 1):
+                    A[i, c] += Jik * C[k, c]
+        gf[i] = sv
+    g = gf.copy()
+    for r in range(m):
+        g[3 * r + 2] += max(gap[r], 0.0) / h
+    return J, A, gf, g, mus

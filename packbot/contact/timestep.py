@@ -283,20 +283,17 @@ class MoreauJeanStepper:
         m = len(gap)
         coul = self.drive.path.coulomb
         cj = np.flatnonzero(coul > 0.0)
-        J3, mus = self._cone_rows(Jn, raw[9], raw[10], m, lay)
-        J = np.vstack([J3, self._eye[cj]]) if len(cj) else J3
+        # the rows (blocks t1, t2, n; the boxes), G = A A^T with A = J C, C C^T = M^-1 (the
+        # compiled solver works on the factor; G itself is formed only where a fallback or
+        # the restitution check needs it), u_f = J v_f and the gaps' terms, in one call
+        J, A, gf, g, mus = self._conic.step_problem(
+            Jn, raw[9], raw[10], lay.rows, lay.row_pair, cj, minv, v_f, gap, h, contacts.mu
+        )
         x = np.zeros(len(J))
         residual = 0.0
         if len(J):
-            gf = J @ v_f
-            g = gf.copy()
-            b = np.maximum(gap, 0.0) / h
-            bounce = (gap <= TOUCH_GAP) & (vn < -cfg.zeno_speed)
-            g[2 : 3 * m : 3] += b
-            # G = A A^T with A = J C, C C^T = M^-1: the compiled solver works on the factor
-            # (G itself is formed only where a fallback or the restitution check needs it)
-            A = np.ascontiguousarray(J @ np.linalg.cholesky(minv))
-            if cfg.restitution > 0.0 and bool(bounce.any()):
+            bounce = (gap <= TOUCH_GAP) & (vn < -cfg.zeno_speed) if cfg.restitution > 0.0 else None
+            if bounce is not None and bool(bounce.any()):
                 # Newton's law row by row over a patch can add energy (as at an event): the
                 # impulse's kinetic energy change x . J v_f + x . G x / 2 is checked, and an
                 # impulse that gains is replaced by the inelastic one (which cannot, up to its
@@ -367,25 +364,6 @@ class MoreauJeanStepper:
         y1 = np.concatenate([q1, v1, tail])
         info = StepInfo(sig, m, residual, removed, projected, closest)
         return StepSegment(t, t + h, y, y1), info
-
-    def _cone_rows(
-        self, Jn: FloatArray, T: FloatArray, dJp: FloatArray, m: int, lay: _PairLayout
-    ) -> tuple[FloatArray, FloatArray]:
-        """Blocks (t1, t2, n) of every contact row, (3m, nv), and each block's friction.
-
-        The pairs' points (tangents t1, t2 of the pair's contact frame), then the limits (no
-        tangential part, friction 0): the rows of ``NormalContacts._frictional_rows`` on every
-        row, every pair's points in one stacked product (T: (pairs, 2, 3) the tangents, dJp:
-        (points, 3, nv) J_p2 - J_p1 at every point, from the set's kinematics).
-        """
-        blocks = np.zeros((m, 3, self.n))
-        mus = np.zeros(m)
-        P = len(lay.row_pair)
-        if P:
-            blocks[:P, :2] = T[lay.row_pair] @ dJp[lay.rows]  # (P, 2, 3) @ (P, 3, nv)
-            mus[:P] = self.contacts.mu
-        blocks[:, 2] = Jn
-        return blocks.reshape(3 * m, self.n), mus
 
     def _solve(
         self,
