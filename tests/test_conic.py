@@ -180,3 +180,24 @@ def test_a_steps_problem_is_its_rows_and_their_delassus_factor():
     expect[2 : 3 * m : 3] += np.maximum(gap, 0.0) / h
     assert np.allclose(g, expect, rtol=1e-13, atol=1e-13)
     assert mus.tolist() == [mu] * len(rows) + [0.0]
+
+
+def test_a_solve_stuck_just_above_its_tolerance_stops():
+    """A residual that no longer drops (the rounding floor of the rows) ends the solve once it
+    has held for STALL_CHECKS checks within STALL_OK times the tolerance; far above it, the
+    solve goes on to its limit."""
+    from packbot.contact import conic
+
+    A, g, mus, bound = _problem(4, blocks=8, boxes=2, rank=6)
+    x, res, _, _ = solve_conic(A, g, mus, bound, np.zeros(len(g)), 1e-9, 5000)
+    assert res <= 1e-9
+    # an unreachable tolerance (far below the floor: no stall stop): the floor
+    _, floor, its2, _ = solve_conic(A, g, mus, bound, x, 1e-30, 20_000)
+    assert 1e-30 < floor <= res and its2 == 20_000
+    tol = floor / (0.8 * conic.STALL_OK)  # the floor: above it, within STALL_OK times it
+    _, res3, its3, _ = solve_conic(A, g, mus, bound, x, tol, 20_000)
+    assert tol < res3 <= conic.STALL_OK * tol
+    assert its3 < 20_000  # (stopped by the stall, not the limit)
+    # the floor far above STALL_OK times the tolerance: no early stop
+    _, _, its4, _ = solve_conic(A, g, mus, bound, x, floor / (10.0 * conic.STALL_OK), 3000)
+    assert its4 == 3000

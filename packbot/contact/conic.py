@@ -27,7 +27,8 @@ its iterations on the dense m x m factor) on that factor:
   every check;
 - every :data:`CHECK_EVERY` iterations the *true* residual of z (the definition of
   :func:`packbot.contact.lcp.ncp_residual` and :func:`packbot.contact.lcp.box_residual`:
-  the solver's own convergence measure is never trusted) decides the end.
+  the solver's own convergence measure is never trusted) decides the end; a residual stuck
+  within :data:`STALL_OK` times the tolerance for :data:`STALL_CHECKS` checks ends it too.
 
 Measured on 300 window problems of three wrist-free runs (cold starts, a true residual of
 1e-9): median 90 to 130 iterations, 2 of 300 not converged within 3,000 (the caller then
@@ -69,6 +70,15 @@ RHO_MAX = 1e3
 POWER_ITERATIONS = 20
 #: Over-relaxation of the x-update.
 RELAX = 1.5
+#: A solve stops once its best residual has not dropped below STALL_GAIN times itself for
+#: STALL_CHECKS checks in a row while it is within STALL_OK times the tolerance: measured on
+#: 3,558 window problems of 8 wrist-free starts (mu 0.5), 139 ran to the 1,000-iteration limit
+#: with a residual stuck at about 1.36e-9 against a tolerance of 1e-9 (its rounding floor on
+#: those rows), 42 % of the solver's time (with STALL_OK = 2: 40 % fewer iterations in all, the
+#: same answers but for the 64 stuck ones).
+STALL_CHECKS = 10
+STALL_GAIN = 0.99
+STALL_OK = 2.0
 
 
 @njit(cache=True)
@@ -277,7 +287,8 @@ def solve_conic(  # pragma: no cover - compiled
         mus: (K,) friction coefficient of each contact block.
         bound: (B,) bound of each box row (> 0).
         guess: (m,) impulses to start from (zeros: a cold start).
-        tol: Stop once the true scaled residual (:func:`conic_residual`) is at most this.
+        tol: Stop once the true scaled residual (:func:`conic_residual`) is at most this,
+            or once it is stuck within :data:`STALL_OK` times this (:data:`STALL_CHECKS`).
         max_iterations: Iteration limit.
         rho0: The ADMM's initial rho (a warm start: the previous step's last rho); 0: its
             spectral rule.
@@ -331,6 +342,8 @@ def solve_conic(  # pragma: no cover - compiled
     zp = np.empty(m)
     rhs = np.empty(m)
     it = 0
+    stall_ref = best_res  # the best residual when it last dropped by a 1 - STALL_GAIN share
+    stalled = 0  # checks since
     while it < max_iterations:
         it += 1
         for i in range(m):
@@ -361,6 +374,13 @@ def solve_conic(  # pragma: no cover - compiled
                     best[i] = z[i]
             if res <= tol or not math.isfinite(res):
                 break
+            if best_res < STALL_GAIN * stall_ref:
+                stall_ref = best_res
+                stalled = 0
+            else:
+                stalled += 1
+                if stalled >= STALL_CHECKS and best_res <= STALL_OK * tol:
+                    break  # stuck just above the tolerance (its rounding floor)
             # rho from the residuals' balance (the OSQP rule of Pinocchio's ADMM)
             if (prim > RATIO * dual or dual > RATIO * prim) and prim > 0.0 and dual > 0.0:
                 rho = min(max(rho * math.sqrt(prim / dual), RHO_MIN * lam), RHO_MAX * lam)
