@@ -35,7 +35,12 @@ Measured on 300 window problems of three wrist-free runs (cold starts, a true re
 calls Pinocchio's ADMM). Random problems of the same shape are harder: some need 15,000.
 
 The answer z is always inside the cones and boxes (it is a projection). Compiled with numba
-(``@njit(cache=True)``, cached beside this file), imported by a window's first step only.
+(``@njit(cache=True)``, cached beside this file), imported by a window's first stepper only.
+
+The window step's other small dense algebra is compiled here too, each piece one call instead
+of a numpy call per pair or per row: the problem's rows and factor (:func:`step_problem`), the
+patch rule over every pair at once (:func:`stale_pairs`) and what the impulses decided
+(:func:`step_signature`).
 """
 
 from __future__ import annotations

@@ -15,7 +15,9 @@ theta = 1, i.e. symplectic Euler with impulses):
 1. **Contact set**: every collision pair within ``d_act`` of touching (its patch: one row per
    point, as the event-driven mode builds them) and, with joint limits on, every joint within
    ``h |v_j| +`` :data:`LIMIT_GAP` of a limit. ``d_act`` = :data:`ACTIVE_GAP` plus twice the
-   distance any point can travel in the step.
+   distance any point can travel in the step, h sum_j r_j |v_j| with r_j the joint's reach
+   bound (:func:`reach_bounds`). A pair's patch is kept while it describes the contact (the
+   event-driven mode's rule, on every pair at once: :func:`packbot.contact.conic.stale_pairs`).
 2. **Free velocity**: v_f = v + h a_free(t + h/2, q_m, v_m) (applied torques, gravity,
    Coriolis, viscous joint friction), at the explicit midpoint q_m = q (+) (h/2) v,
    v_m = v + (h/2) a_free(t, q, v): an Euler step v + h a_free(t, q, v) gains energy where a
@@ -42,6 +44,11 @@ theta = 1, i.e. symplectic Euler with impulses):
    row's sign: a stuck point stays stuck, a separating one separates). The energy removed this
    way is counted (:attr:`StepInfo.removed`, ``Diagnostics.window_energy_removed``): a
    modelling choice of the window, measured in docs/contact.md.
+
+The step's small dense algebra (the rows, the Cholesky factor of M^-1, the Delassus factor,
+the patch rule, the signature) is compiled (:mod:`packbot.contact.conic`, numba); the sweep at a
+step's end serves the next step's contact set, and the energy at its end the next step's
+guard. What a step costs, and where: docs/performance.md, "Window steps".
 
 A step's *signature* is what the solution decided: the pairs and limits pushing, the pairs
 sliding, the joints slipping. The law (:class:`~packbot.contact.normal.NormalLaw`) leaves the
