@@ -145,3 +145,59 @@ def test_separating_rows_get_no_impulse():
     x, res, it, _ = solve_conic(A, g, mus, bound, np.zeros(len(g)), 1e-9, 100)
     assert it == 0 and res == 0.0
     assert not x.any()
+
+
+def test_a_steps_problem_is_its_rows_and_their_delassus_factor():
+    """``step_problem``: the tangent rows T dJ and the normal rows of every point, the limits'
+    normal rows, the boxes' unit rows; A A^T = J M^-1 J^T; g = J v_f with max(gap, 0) / h on
+    the normal rows; the pairs' points get mu, the limits 0."""
+    from packbot.contact.conic import step_problem
+
+    rng = np.random.default_rng(11)
+    nv, pairs, points = 8, 2, 6  # points: 2 + 3 patch points and a centre (not a row)
+    T = rng.standard_normal((pairs, 2, 3))
+    dJp = rng.standard_normal((points, 3, nv))
+    rows = np.array([0, 1, 3, 4, 5], dtype=np.intp)  # point 2 is pair 0's centre
+    row_pair = np.array([0, 0, 1, 1, 1], dtype=np.intp)
+    Jn = rng.standard_normal((len(rows) + 1, nv))  # then one limit row
+    boxes = np.array([2, 6], dtype=np.intp)
+    B = rng.standard_normal((nv, nv))
+    minv = B @ B.T + nv * np.eye(nv)
+    v_f = rng.standard_normal(nv)
+    gap = np.array([-1e-6, 2e-4, 0.0, 1e-3, -3e-5, 5e-4])
+    h, mu = 5e-4, 0.7
+    J, A, gf, g, mus = step_problem(Jn, T, dJp, rows, row_pair, boxes, minv, v_f, gap, h, mu)
+    m = len(Jn)
+    assert J.shape == A.shape == (3 * m + 2, nv)
+    for r, (k, p) in enumerate(zip(rows, row_pair, strict=True)):
+        assert np.allclose(J[3 * r : 3 * r + 2], T[p] @ dJp[k], rtol=1e-14, atol=1e-14)
+    assert np.array_equal(J[3 * len(rows) : 3 * m : 3], np.zeros((1, nv)))  # a limit: no tangents
+    assert np.array_equal(J[2 : 3 * m : 3], Jn)
+    assert np.array_equal(J[3 * m :], np.eye(nv)[boxes])
+    assert np.allclose(A @ A.T, J @ minv @ J.T, rtol=1e-12, atol=1e-12)
+    assert np.allclose(gf, J @ v_f, rtol=1e-13, atol=1e-13)
+    expect = gf.copy()
+    expect[2 : 3 * m : 3] += np.maximum(gap, 0.0) / h
+    assert np.allclose(g, expect, rtol=1e-13, atol=1e-13)
+    assert mus.tolist() == [mu] * len(rows) + [0.0]
+
+
+def test_a_solve_stuck_just_above_its_tolerance_stops():
+    """A residual that no longer drops (the rounding floor of the rows) ends the solve once it
+    has held for STALL_CHECKS checks within STALL_OK times the tolerance; far above it, the
+    solve goes on to its limit."""
+    from packbot.contact import conic
+
+    A, g, mus, bound = _problem(4, blocks=8, boxes=2, rank=6)
+    x, res, _, _ = solve_conic(A, g, mus, bound, np.zeros(len(g)), 1e-9, 5000)
+    assert res <= 1e-9
+    # an unreachable tolerance (far below the floor: no stall stop): the floor
+    _, floor, its2, _ = solve_conic(A, g, mus, bound, x, 1e-30, 20_000)
+    assert 1e-30 < floor <= res and its2 == 20_000
+    tol = floor / (0.8 * conic.STALL_OK)  # the floor: above it, within STALL_OK times it
+    _, res3, its3, _ = solve_conic(A, g, mus, bound, x, tol, 20_000)
+    assert tol < res3 <= conic.STALL_OK * tol
+    assert its3 < 20_000  # (stopped by the stall, not the limit)
+    # the floor far above STALL_OK times the tolerance: no early stop
+    _, _, its4, _ = solve_conic(A, g, mus, bound, x, floor / (10.0 * conic.STALL_OK), 3000)
+    assert its4 == 3000

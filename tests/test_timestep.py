@@ -344,7 +344,7 @@ def test_the_midpoint_step_removes_less_energy_where_the_wrist_spins(robot, monk
 
 def _relapse_restarts(res: packbot.SimResult) -> list[list[float]]:
     """Per window that reopens within RELAPSE_SPAN of the previous one's end: the distinct
-    times of the restarts from that end up to the new window's start (its own included)."""
+    times of the restarts after that end up to the new window's start (its own included)."""
     ev = res.events
     out = []
     for k, e in enumerate(ev):
@@ -353,9 +353,12 @@ def _relapse_restarts(res: packbot.SimResult) -> list[list[float]]:
         nxt = next((j for j in range(k + 1, len(ev)) if ev[j].kind == "timestep"), None)
         if nxt is None or ev[nxt].t - e.t > normal_law.RELAPSE_SPAN:
             continue
-        # one restart's events share t; a limit stop let go after a step (``release`` of a
-        # joint's "upper" or "lower" stop, JointStops.release_limits) is logged without a restart
-        restarts = [x for x in ev[k + 1 : nxt + 1] if x.link2 not in ("upper", "lower")]
+        # one restart's events share t; the modes the resume itself logs (at its own t) are
+        # not a restart, nor is a limit stop let go after a step (``release`` of a joint's
+        # "upper" or "lower" stop, JointStops.release_limits: logged without a restart)
+        restarts = [
+            x for x in ev[k + 1 : nxt + 1] if x.t > e.t and x.link2 not in ("upper", "lower")
+        ]
         out.append(sorted({x.t for x in restarts}))
     return out
 
@@ -408,3 +411,153 @@ def test_frictionless_steps_are_solved_by_the_compiled_solver(robot, monkeypatch
     assert -d.min_distance <= PENETRATION_TOL
     assert _event_gain(res) <= GAIN_TOL
     assert d.window_energy_removed < 1e-3
+
+
+# ------------------------------------------------------------------ the step's own costs
+def _spinning_window(robot, monkeypatch, duration=0.3):
+    """The collapse from "drive" with the gripper and camera spinning, in one window from its
+    first event (sliding patches: many are rebuilt)."""
+    monkeypatch.setattr(normal_law, "CASCADE_EVENTS", 1)
+    monkeypatch.setattr(normal_law, "WINDOW_MIN", 10.0)
+    v0 = np.zeros(robot.nq)
+    v0[robot.joint_names.index("gripper_roll")] = 80.0
+    v0[robot.joint_names.index("camera_pan")] = -40.0
+    cfg = packbot.SimConfig(contact_mode="normal", mu=0.8, restitution=0.0)
+    return packbot.simulate(robot, robot.pose("drive"), v0, duration, config=cfg)
+
+
+def test_the_compiled_patch_rule_is_the_contact_sets_own(robot, monkeypatch):
+    """The window step's patch rule (every pair at once, compiled) names the same stale
+    pairs, in the same order, as ``NormalContacts.stale_pairs`` at every step."""
+    real = MoreauJeanStepper._stale
+    seen = {"steps": 0, "stale": 0, "differ": 0}
+
+    def both(self, q, v, near):
+        out = real(self, q, v, near)
+        ref = self.contacts.stale_pairs(q, v, near)
+        seen["steps"] += 1
+        seen["stale"] += len(ref)
+        seen["differ"] += out[0] != ref
+        return out
+
+    monkeypatch.setattr(MoreauJeanStepper, "_stale", both)
+    res = _spinning_window(robot, monkeypatch)
+    assert res.diagnostics.windows == 1
+    assert seen["steps"] > 100
+    assert seen["stale"] > 10  # patches were rebuilt
+    assert seen["differ"] == 0
+
+
+def test_the_step_signature_sums_each_pairs_points():
+    """Pushing: a pair's normal impulses sum above the band; sliding: the sum of its
+    tangential impulses on the cone (not inside it, never without friction); limits: their
+    own normal impulse."""
+    from packbot.contact.conic import step_signature
+
+    mu, band = 0.5, 1e-9
+    # pair 0: two points sticking (tangential sum inside the cone); pair 1: one point on the
+    # cone; pair 2: no push; then limit 0 pushing, limit 1 not; then a joint box (ignored)
+    x = np.concatenate(
+        [
+            [0.1, 0.0, 1.0, -0.1, 0.05, 1.0],  # pair 0
+            [0.3, 0.4, 1.0],  # pair 1: |t| = 0.5 = mu * 1
+            [0.0, 0.0, 1e-12],  # pair 2
+            [0.0, 0.0, 2.0, 0.0, 0.0, 0.0],  # limits
+            [7.0],
+        ]
+    )
+    row_pair = np.array([0, 0, 1, 2])
+    push, slide, lim = step_signature(x, row_pair, 3, 2, mu, band)
+    assert push.tolist() == [True, True, False]
+    assert slide.tolist() == [False, True, False]
+    assert lim.tolist() == [True, False]
+    push0, slide0, _ = step_signature(x, row_pair, 3, 2, 0.0, band)
+    assert push0.tolist() == push.tolist() and not slide0.any()
+
+
+def test_a_window_at_rest_sweeps_once_a_step(robot, monkeypatch):
+    """The sweep at a step's end serves the next step's contact set, also where the arm rests
+    in a window (its margin covers the next step's free velocity change; at the speeds alone,
+    a resting arm's steps swept twice). The wrist-locked collapse from "drive" in one window
+    from its first event: it comes to rest in the window (at 1.86 s) and rests to 3 s."""
+    from packbot.collision import CollisionWorld
+
+    calls = {"rest steps": 0, "sweeps": 0, "inside": False}
+    sweep, step = CollisionWorld.sweep, MoreauJeanStepper.step
+
+    def counted_sweep(self, *args, **kwargs):
+        calls["sweeps"] += calls["inside"]
+        return sweep(self, *args, **kwargs)
+
+    def counted_step(self, t, y, *args, **kwargs):
+        n = self.n
+        at_rest = float(np.abs(y[n : 2 * n]).sum()) < 1e-3  # [rad/s]
+        calls["rest steps"] += at_rest
+        calls["inside"] = at_rest
+        try:
+            return step(self, t, y, *args, **kwargs)
+        finally:
+            calls["inside"] = False
+
+    monkeypatch.setattr(CollisionWorld, "sweep", counted_sweep)
+    monkeypatch.setattr(MoreauJeanStepper, "step", counted_step)
+    monkeypatch.setattr(normal_law, "CASCADE_EVENTS", 1)
+    monkeypatch.setattr(normal_law, "WINDOW_MIN", 10.0)
+    cfg = packbot.SimConfig(contact_mode="normal", mu=0.5, restitution=0.0, locked_joints=LOCKED)
+    res = packbot.simulate(robot, robot.pose("drive"), np.zeros(robot.nq), 3.0, config=cfg)
+    assert res.rest_time is not None
+    assert calls["rest steps"] >= 500
+    assert calls["sweeps"] <= calls["rest steps"]
+
+
+def test_the_start_energy_is_the_last_steps_end_energy(robot, monkeypatch):
+    """The energy at a step's start is the last step's at its end, computed once: the run
+    with it recomputed at every step is the same run, bit for bit."""
+    res = _spinning_window(robot, monkeypatch)
+    assert res.diagnostics.window_steps > 500
+    step = MoreauJeanStepper.step
+
+    def fresh(self, *args, **kwargs):
+        self._end_energy = None
+        return step(self, *args, **kwargs)
+
+    monkeypatch.setattr(MoreauJeanStepper, "step", fresh)
+    again = _spinning_window(robot, monkeypatch)
+    assert np.array_equal(again.q, res.q) and np.array_equal(again.v, res.v)
+    assert np.array_equal(again.energy, res.energy)
+
+
+def test_the_reach_bounds_bound_every_pieces_distance_to_the_joints_axes(robot, monkeypatch):
+    """Each joint's reach bound is at least the distance from its origin (on its axis) to
+    every vertex of every piece it moves, in random configurations; the wrist's are a tenth
+    of REACH_BOUND; a model with a joint that is not revolute gets REACH_BOUND throughout."""
+    from packbot.contact import timestep
+    from packbot.contact.pairs import REACH_BOUND
+    from packbot.contact.timestep import reach_bounds
+    from packbot.system import System
+
+    system = System(robot, robot.pose("drive"), packbot.SimConfig(contact_mode="normal"), None)
+    model, world = system.model, system.world
+    assert world is not None
+    r = reach_bounds(model, world)
+    data = model.createData()
+    gd = pin.GeometryData(world.geom_model)
+    rng = np.random.default_rng(5)
+    closest = np.inf  # the smallest margin left, over every vertex and joint
+    for _ in range(20):
+        q = rng.uniform(model.lowerPositionLimit, model.upperPositionLimit)
+        pin.updateGeometryPlacements(model, data, world.geom_model, gd, q)
+        for g, go in enumerate(world.geom_model.geometryObjects):
+            if go.parentJoint == 0:
+                continue
+            M = gd.oMg[g]
+            pts = np.asarray(go.geometry.points()) @ M.rotation.T + M.translation
+            for s in list(model.supports[go.parentJoint])[1:]:
+                far = np.linalg.norm(pts - data.oMi[s].translation, axis=1).max()
+                closest = min(closest, r[model.idx_vs[s]] - far)
+    assert closest >= 0.0
+    wrist = [robot.joint_names.index(n) for n in LOCKED]
+    assert r[wrist].max() < 0.15 * REACH_BOUND
+    assert r.max() <= REACH_BOUND
+    monkeypatch.setattr(timestep, "REVOLUTE", ("JointModelRX",))  # (the arm's are RZ, RY)
+    assert np.array_equal(reach_bounds(model, world), np.full(model.nv, REACH_BOUND))

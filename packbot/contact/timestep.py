@@ -15,7 +15,9 @@ theta = 1, i.e. symplectic Euler with impulses):
 1. **Contact set**: every collision pair within ``d_act`` of touching (its patch: one row per
    point, as the event-driven mode builds them) and, with joint limits on, every joint within
    ``h |v_j| +`` :data:`LIMIT_GAP` of a limit. ``d_act`` = :data:`ACTIVE_GAP` plus twice the
-   distance any point can travel in the step.
+   distance any point can travel in the step, h sum_j r_j |v_j| with r_j the joint's reach
+   bound (:func:`reach_bounds`). A pair's patch is kept while it describes the contact (the
+   event-driven mode's rule, on every pair at once: :func:`packbot.contact.conic.stale_pairs`).
 2. **Free velocity**: v_f = v + h a_free(t + h/2, q_m, v_m) (applied torques, gravity,
    Coriolis, viscous joint friction), at the explicit midpoint q_m = q (+) (h/2) v,
    v_m = v + (h/2) a_free(t, q, v): an Euler step v + h a_free(t, q, v) gains energy where a
@@ -43,6 +45,11 @@ theta = 1, i.e. symplectic Euler with impulses):
    way is counted (:attr:`StepInfo.removed`, ``Diagnostics.window_energy_removed``): a
    modelling choice of the window, measured in docs/contact.md.
 
+The step's small dense algebra (the rows, the Cholesky factor of M^-1, the Delassus factor,
+the patch rule, the signature) is compiled (:mod:`packbot.contact.conic`, numba); the sweep at a
+step's end serves the next step's contact set, and the energy at its end the next step's
+guard. What a step costs, and where: docs/performance.md, "Window steps".
+
 A step's *signature* is what the solution decided: the pairs and limits pushing, the pairs
 sliding, the joints slipping. The law (:class:`~packbot.contact.normal.NormalLaw`) leaves the
 window when the signature has held for :data:`QUIET_STEPS` steps (or the arm is free of
@@ -66,6 +73,7 @@ from packbot.contact.pairs import REACH_BOUND
 from packbot.ode import DenseSegment
 
 if TYPE_CHECKING:
+    from packbot.collision import CollisionWorld
     from packbot.config import SimConfig
     from packbot.contact.normal_contacts import NormalContacts
     from packbot.drive import Drive
@@ -130,6 +138,9 @@ RESIDUAL_OK = 1e-6
 ADMM_RETRY_ITERATIONS = 4000
 #: Touching rows (gap below this [m]) approaching faster than the Zeno speed get restitution.
 TOUCH_GAP = 1e-5
+#: The joint types whose reach :func:`reach_bounds` bounds (one rotation about an axis through
+#: the joint's origin); a model with another type uses REACH_BOUND for every joint.
+REVOLUTE = ("JointModelRX", "JointModelRY", "JointModelRZ", "JointModelRevoluteUnaligned")
 
 
 class StepSegment(DenseSegment):
@@ -224,6 +235,20 @@ class MoreauJeanStepper:
         self._last_rho = 0.0  # the compiled ADMM's last rho (0: its spectral rule)
         # the last step's sweep at its end: (q bytes, margin [m], result), or None
         self._next_sweep: tuple[bytes, float, Any] | None = None
+        # the last step's end state (q, v bytes) and its energy [J], or None
+        self._end_energy: tuple[bytes, float] | None = None
+        self._eye = np.eye(self.n)  # its rows: the joint boxes' rows
+        # the compiled pieces (numba is imported by windows only; normal.py is loaded: it
+        # builds the steppers)
+        from packbot.contact import conic, kernels, normal
+
+        self._conic, self._kernels = conic, kernels
+        # the event-driven mode's patch rule (NormalContacts.stale_pairs), see _stale
+        self._point_tol, self._slide_tol = normal.POINT_TOL, normal.SLIDE_TOL
+        self._lay: _PairLayout | None = None  # see _layout
+        #: Per velocity index, a bound on the distance [m] from the joint's axis to any point
+        #: it moves: a point's speed is at most reach . |v| (see reach_bounds).
+        self.reach = reach_bounds(system.model, contacts.world)
 
     def step(
         self,
@@ -257,41 +282,42 @@ class MoreauJeanStepper:
             v_f = v + h * a0
         minv = sys.minv(q)
 
-        closest = self._update_set(q, v, v_f, h)
-        Jn, _, gap, vn, extra = contacts._problem(q, v)
+        closest, raw = self._update_set(q, v, v_f, h)
+        lay = self._layout()
+        if raw is None:  # (the set changed since the kinematics of its patch rule)
+            raw = self._kernels.contact_rows(*contacts._kernel_args(q, v))
+        Jn, gap, vn = raw[0], raw[2], raw[3]
         m = len(gap)
         coul = self.drive.path.coulomb
         cj = np.flatnonzero(coul > 0.0)
-        J3, mus = self._cone_rows(Jn, extra, m)
-        J = np.vstack([J3, np.eye(n)[cj]]) if len(cj) else J3
+        # the rows (blocks t1, t2, n; the boxes), G = A A^T with A = J C, C C^T = M^-1 (the
+        # compiled solver works on the factor; G itself is formed only where a fallback or
+        # the restitution check needs it), u_f = J v_f and the gaps' terms, in one call
+        J, A, gf, g, mus = self._conic.step_problem(
+            Jn, raw[9], raw[10], lay.rows, lay.row_pair, cj, minv, v_f, gap, h, contacts.mu
+        )
         x = np.zeros(len(J))
         residual = 0.0
         if len(J):
-            gf = J @ v_f
-            g = gf.copy()
-            b = np.maximum(gap, 0.0) / h
-            bounce = (gap <= TOUCH_GAP) & (vn < -cfg.zeno_speed)
-            g[2 : 3 * m : 3] += b
-            # G = A A^T with A = J C, C C^T = M^-1: the compiled solver works on the factor
-            A = np.ascontiguousarray(J @ np.linalg.cholesky(minv))
-            G = A @ A.T
-            if cfg.restitution > 0.0 and bool(bounce.any()):
+            bounce = (gap <= TOUCH_GAP) & (vn < -cfg.zeno_speed) if cfg.restitution > 0.0 else None
+            if bounce is not None and bool(bounce.any()):
                 # Newton's law row by row over a patch can add energy (as at an event): the
                 # impulse's kinetic energy change x . J v_f + x . G x / 2 is checked, and an
                 # impulse that gains is replaced by the inelastic one (which cannot, up to its
                 # residual: with e = 0 every row's x . u = 0 and b >= 0).
+                G = A @ A.T
                 gb = g.copy()
                 gb[2 : 3 * m : 3] += np.where(bounce, cfg.restitution * np.minimum(vn, 0.0), 0.0)
-                x, residual = self._solve(A, G, gb, mus, cj, h * coul[cj], m)
+                x, residual = self._solve(A, G, gb, mus, cj, h * coul[cj], m, lay.key)
                 if float(x @ gf) + 0.5 * float(x @ (G @ x)) > 0.0:
-                    x, residual = self._solve(A, G, g, mus, cj, h * coul[cj], m)
+                    x, residual = self._solve(A, G, g, mus, cj, h * coul[cj], m, lay.key)
             else:
-                x, residual = self._solve(A, G, g, mus, cj, h * coul[cj], m)
+                x, residual = self._solve(A, None, g, mus, cj, h * coul[cj], m, lay.key)
         v1 = v_f + minv @ (J.T @ x) if len(J) else v_f
         if residual > RESIDUAL_OK:  # no dual solution to trust: the primal problem instead
             v1 = self._project(v_f, Jn, np.maximum(gap, 0.0) / h, sys.mass_matrix(q))
         # what the step decided, on the rows it solved (the projection below may change the set)
-        sig = self._signature(x, m, mus, gap, len(cj), cj)
+        sig = self._signature(x, lay, len(cj), cj)
         self.joint_torque = np.zeros(n)
         self.joint_torque[cj] = x[3 * m :] / h
         q1 = np.asarray(pin.integrate(sys.model, q, h * v1), dtype=np.float64)
@@ -300,18 +326,18 @@ class MoreauJeanStepper:
         world = contacts.world
         # the first pass's sweep at q1 also serves the next step's contact set (it starts at
         # q1 unless a pass moves it): its margin covers that step's reach at the speeds now
-        reach = ACTIVE_GAP + 2.0 * self.h * REACH_BOUND * SWEEP_SLACK * float(np.abs(v1).sum())
+        # and at its free velocity, predicted with this step's change v_f - v (an arm at
+        # rest has v1 = 0 and the next step's reach h |a_free|)
+        r = self.reach
+        speed = max(float(r @ np.abs(v1)), float(r @ np.abs(v1 + (v_f - v))))
+        reach = ACTIVE_GAP + 2.0 * self.h * SWEEP_SLACK * speed
         self._next_sweep = None
         for npass in range(PROJECT_PASSES if world is not None else 0):
             assert world is not None
             sw = world.sweep(q1, margin=reach if npass == 0 else PROJECT_DEPTH)
             if npass == 0:
                 self._next_sweep = (q1.tobytes(), reach, sw)
-            deep = [
-                int(k)
-                for k, d in zip(sw.pairs.tolist(), sw.distances.tolist(), strict=True)
-                if d < -PROJECT_DEPTH
-            ]
+            deep = sw.pairs[sw.distances < -PROJECT_DEPTH].tolist()
             if not deep:
                 break
             # patches at q1 (a curved piece's contact moves): a pass corrects to first order
@@ -322,8 +348,10 @@ class MoreauJeanStepper:
             projected = True
             self._next_sweep = None
 
-        # the energy guard
-        e0 = energy(q, v)
+        # the energy guard (the energy at the step's start: the last step's at its end when
+        # this step starts there, bit for bit)
+        last = self._end_energy
+        e0 = last[1] if last is not None and last[0] == y[: 2 * n].tobytes() else energy(q, v)
         work = h * float(applied @ (0.5 * (v + v1)))
         e1 = energy(q1, v1)
         removed = 0.0
@@ -333,6 +361,9 @@ class MoreauJeanStepper:
             s = math.sqrt(max(0.0, kin - excess) / kin) if kin > 0.0 else 0.0
             v1 = s * v1
             removed = kin * (1.0 - s * s)
+            self._end_energy = None
+        else:
+            self._end_energy = (q1.tobytes() + v1.tobytes(), e1)
 
         if len(tail):
             lag = cfg.motor_lag
@@ -341,36 +372,16 @@ class MoreauJeanStepper:
         info = StepInfo(sig, m, residual, removed, projected, closest)
         return StepSegment(t, t + h, y, y1), info
 
-    def _cone_rows(
-        self, Jn: FloatArray, extra: list[dict[str, Any]], m: int
-    ) -> tuple[FloatArray, FloatArray]:
-        """Blocks (t1, t2, n) of every contact row, (3m, nv), and each block's friction.
-
-        The pairs' points (tangents t1, t2 of the pair's contact frame), then the limits (no
-        tangential part, friction 0): the rows of ``NormalContacts._frictional_rows`` on every
-        row, one array operation per pair.
-        """
-        c = self.contacts
-        blocks = np.zeros((m, 3, self.n))
-        mus = np.zeros(m)
-        k = 0
-        for p, ex in zip(c.pairs.values(), extra, strict=True):
-            K = len(p.local1)
-            blocks[k : k + K, :2] = ex["T"] @ ex["dJ"]  # (2, 3) @ (K, 3, nv)
-            mus[k : k + K] = c.mu
-            k += K
-        blocks[:, 2] = Jn
-        return blocks.reshape(3 * m, self.n), mus
-
     def _solve(
         self,
         A: FloatArray,
-        G: FloatArray,
+        G: FloatArray | None,
         g: FloatArray,
         mus: FloatArray,
         cj: NDArray[np.intp],
         bound: FloatArray,
         m: int,
+        rows: tuple[Any, ...],
     ) -> tuple[FloatArray, float]:
         """The step's impulses: the combined problem, with a fallback that cannot misbehave.
 
@@ -388,16 +399,17 @@ class MoreauJeanStepper:
         is not used: measured once on a frictionless start with the wrist free (27 rows of
         three nearly parallel patches), a residual of 5e-3 turned 11 rad/s into 30 rad/s.
 
+        G (m x m, A A^T) is formed here only if a fallback needs it (None: not yet formed);
+        ``rows`` is the step's rows' key (:meth:`_PairLayout.key`, the warm start's condition).
+
         Returns:
             The impulses and the residual of the solution used.
         """
         sys = self.sys
         joints = self.joint_of[cj]
-        from packbot.contact.conic import solve_conic  # lazy: numba is imported by windows only
-
-        rows = self._rows_key(len(cj))
+        rows = (rows, len(cj))
         guess = self._last_x if rows == self._last_rows else None
-        x, res, _, rho = solve_conic(
+        x, res, _, rho = self._conic.solve_conic(
             A, g, np.asarray(mus, dtype=np.float64), np.asarray(bound, dtype=np.float64),
             np.zeros(len(g)) if guess is None else guess, CONIC_TOL, CONIC_ITERATIONS,
             self._last_rho if guess is not None else 0.0,
@@ -406,6 +418,7 @@ class MoreauJeanStepper:
             self._last_rows, self._last_x, self._last_rho = rows, x, rho
             return x, res
         self.conic_fallbacks += 1
+        G = A @ A.T if G is None else G
         if not len(cj) and not np.any(mus):  # frictionless, no joint boxes: an LCP
             return self._frictionless(G, g, m)
         x, res = solve_mixed_admm(
@@ -425,15 +438,6 @@ class MoreauJeanStepper:
         self.fallbacks += 1
         log.debug("window step: ADMM residual %.3g; frictionless normal rows used", res2)
         return self._frictionless(G, g, m)
-
-    def _rows_key(self, boxes: int) -> tuple[Any, ...]:
-        """What makes two steps' rows the same rows (a warm start's condition).
-
-        The pairs and their point counts, the limits, the joint boxes: the points themselves
-        move from step to step.
-        """
-        c = self.contacts
-        return (tuple((k, len(p.local1)) for k, p in c.pairs.items()), tuple(c.limits), boxes)
 
     @staticmethod
     def _frictionless(G: FloatArray, g: FloatArray, m: int) -> tuple[FloatArray, float]:
@@ -480,19 +484,21 @@ class MoreauJeanStepper:
 
     def _update_set(
         self, q: FloatArray, v: FloatArray, v_f: FloatArray, h: float
-    ) -> tuple[float, int]:
+    ) -> tuple[tuple[float, int], Any]:
         """The pairs and limits within reach of the step form the contact set.
 
         A pair already in the set keeps its patch while the patch describes the contact (its
         points have not slid apart and its smallest gap is the pair's distance:
-        :meth:`NormalContacts.stale_pairs`, the event-driven mode's rule); a new or stale one
-        is patched at q.
+        :meth:`_stale`, the event-driven mode's rule); a new or stale one is patched at q.
 
         Returns:
-            The smallest signed distance of the sweep [m] and its pair (-1: none).
+            The smallest signed distance of the sweep [m] and its pair (-1: none); the set's
+            kinematics at (q, v) (:func:`packbot.contact.kernels.contact_rows`) if the patch
+            rule computed them and the set has not changed since, else None.
         """
-        contacts, cfg, sys = self.contacts, self.cfg, self.sys
-        speed = REACH_BOUND * max(float(np.abs(v).sum()), float(np.abs(v_f).sum()))
+        contacts, cfg = self.contacts, self.cfg
+        r = self.reach  # (a point's speed is at most r . |v|)
+        speed = max(float(r @ np.abs(v)), float(r @ np.abs(v_f)))
         d_act = ACTIVE_GAP + 2.0 * h * speed
         near: dict[int, float] = {}
         closest = (math.inf, -1)
@@ -503,66 +509,197 @@ class MoreauJeanStepper:
             else:
                 sw = contacts.world.sweep(q, margin=max(d_act, 1e-9))
             closest = (float(sw.min_distance), int(sw.min_pair))
-            near = {
-                int(k): float(d)
-                for k, d in zip(sw.pairs.tolist(), sw.distances.tolist(), strict=True)
-                if d <= d_act
-            }
+            within = sw.distances <= d_act
+            near = dict(zip(sw.pairs[within].tolist(), sw.distances[within].tolist(), strict=True))
         for k in list(contacts.pairs):
             if k not in near:
                 contacts.remove_pair(k)
-        redo = set(contacts.stale_pairs(q, v, near)) | (near.keys() - contacts.pairs.keys())
+        stale, raw = self._stale(q, v, near)
+        redo = set(stale) | (near.keys() - contacts.pairs.keys())
         for k in redo:
             contacts.add_pair(q, k, tol=d_act)
-        if not cfg.joint_limits:
-            return closest
-        reach = LIMIT_GAP + h * np.maximum(np.abs(v), np.abs(v_f))
+        if cfg.joint_limits:
+            self._update_limits(q, LIMIT_GAP + h * np.maximum(np.abs(v), np.abs(v_f)))
+        if raw is not None and self._layout() is not raw[1]:
+            raw = None
+        return closest, None if raw is None else raw[0]
+
+    def _update_limits(self, q: FloatArray, reach: FloatArray) -> None:
+        """The joint limits within ``reach`` [rad] of q join the set, the others leave it.
+
+        In the order of the joints, the upper limit before the lower (the rows' order).
+        """
+        sys, limits = self.sys, self.contacts.limits
+        upper = (sys.upper - q <= reach).tolist()  # (an infinite limit is never within reach)
+        lower = (q - sys.lower <= reach).tolist()
+        want = [
+            (j, side)
+            for j in range(self.n)
+            for side, near in ((1, upper[j]), (-1, lower[j]))
+            if near
+        ]
+        if len(want) == len(limits) and all(k in limits for k in want):
+            return  # (the usual step: no change)
         for j in range(self.n):
-            for side, lim in ((1, float(sys.upper[j])), (-1, float(sys.lower[j]))):
-                if not math.isfinite(lim):
-                    continue
-                if side * (lim - q[j]) <= reach[j]:
-                    if (j, side) not in contacts.limits:
-                        contacts.add_limit(j, side, lim)
-                elif (j, side) in contacts.limits:
-                    contacts.remove_limit(j, side)
-        return closest
+            for side, near, lim in ((1, upper[j], sys.upper[j]), (-1, lower[j], sys.lower[j])):
+                if near:
+                    if (j, side) not in limits:
+                        self.contacts.add_limit(j, side, float(lim))
+                elif (j, side) in limits:
+                    self.contacts.remove_limit(j, side)
+
+    def _stale(
+        self, q: FloatArray, v: FloatArray, near: dict[int, float]
+    ) -> tuple[list[int], tuple[Any, _PairLayout] | None]:
+        """The pairs of the set whose patch no longer describes the contact, in the set's order.
+
+        :meth:`NormalContacts.stale_pairs` (its rule: a pair missing from ``near``, a
+        smallest patch gap off the pair's distance by more than ``POINT_TOL``, or a point
+        slid by more than ``SLIDE_TOL`` since the patch was built), on every pair at once
+        (:func:`packbot.contact.conic.stale_pairs`) from the set's kinematics at (q, v).
+        Where the contact set holds a compiled evaluation (which computed the slides
+        itself), its own method.
+
+        Args:
+            q: Configuration [rad].
+            v: Velocity [rad/s].
+            near: Signed distance [m] of the pairs within reach at q, by pair index.
+
+        Returns:
+            The stale pairs; the kinematics computed at (q, v) and the layout they are of
+            (None: none computed).
+        """
+        c = self.contacts
+        if not c.pairs:
+            return [], None
+        if c._last_eval is not None:
+            return c.stale_pairs(q, v, near), None
+        lay = self._layout()
+        raw = self._kernels.contact_rows(*c._kernel_args(q, v))
+        dist = np.array([near.get(k, math.nan) for k in lay.keys])
+        stale = self._conic.stale_pairs(
+            raw[2], raw[9], raw[11], lay.rows, lay.pair, lay.offset0, dist,
+            self._point_tol, self._slide_tol,
+        )  # fmt: skip
+        return [k for k, bad in zip(lay.keys, stale.tolist(), strict=True) if bad], (raw, lay)
 
     def _signature(
-        self,
-        x: FloatArray,
-        m: int,
-        mus: FloatArray,
-        gap: FloatArray,
-        nj: int,
-        cj: NDArray[np.intp],
+        self, x: FloatArray, lay: _PairLayout, nj: int, cj: NDArray[np.intp]
     ) -> tuple[frozenset[int], frozenset[int], frozenset[tuple[int, int]], frozenset[int]]:
-        """Pairs pushing, pairs sliding, limits pushing, joints slipping."""
-        contacts = self.contacts
-        X = x[: 3 * m].reshape(-1, 3) if m else np.zeros((0, 3))
-        pushing: set[int] = set()
-        sliding: set[int] = set()
-        limits: set[tuple[int, int]] = set()
-        k = 0
-        for key, p in contacts.pairs.items():
-            K = len(p.local1)
-            xs = X[k : k + K]
-            k += K
-            if float(xs[:, 2].sum()) > IMPULSE_BAND:
-                pushing.add(key)
-                ft = float(np.linalg.norm(xs[:, :2].sum(axis=0)))
-                if contacts.mu > 0.0 and ft >= contacts.mu * float(xs[:, 2].sum()) * (1 - 1e-6):
-                    sliding.add(key)
-        for i, lk in enumerate(contacts.limits):
-            if X[k + i, 2] > IMPULSE_BAND:
-                limits.add(lk)
-        slipping: set[int] = set()
+        """Pairs pushing, pairs sliding, limits pushing, joints slipping.
+
+        A pair pushes when its points' normal impulses sum to more than
+        :data:`IMPULSE_BAND`; it slides when their tangential impulses' sum reaches the cone
+        (within 1e-6: :func:`packbot.contact.conic.step_signature`); a joint slips when its
+        box impulse is at its bound (within 1e-6).
+        """
+        c = self.contacts
+        push, slide, lim = self._conic.step_signature(
+            x, lay.row_pair, len(lay.keys), len(c.limits), c.mu, IMPULSE_BAND
+        )
+        keys = lay.keys
+        slipping: frozenset[int] = frozenset()
         if nj:
-            xj = x[3 * m :]
-            bound = self.h * self.drive.path.coulomb[cj]
-            slipping = {
-                int(j)
-                for j, xv, bd in zip(cj, xj, bound, strict=True)
-                if abs(xv) >= bd * (1 - 1e-6)
-            }
-        return frozenset(pushing), frozenset(sliding), frozenset(limits), frozenset(slipping)
+            m3 = len(x) - nj
+            slip = np.abs(x[m3:]) >= self.h * self.drive.path.coulomb[cj] * (1 - 1e-6)
+            slipping = frozenset(cj[slip].tolist())
+        return (
+            frozenset(k for k, on in zip(keys, push.tolist(), strict=True) if on),
+            frozenset(k for k, on in zip(keys, slide.tolist(), strict=True) if on),
+            frozenset(k for k, on in zip(c.limits, lim.tolist(), strict=True) if on),
+            slipping,
+        )
+
+    def _layout(self) -> _PairLayout:
+        """The layout of the contact set's rows (kept while the set's own layout is)."""
+        lay = self.contacts._layout()
+        mine = self._lay
+        if mine is None or mine.of is not lay:
+            mine = self._lay = _PairLayout.build(self.contacts, lay)
+        return mine
+
+
+@dataclass
+class _PairLayout:
+    """The pairs of a contact set in its order, and where their points' rows are.
+
+    Attributes:
+        of: The contact set's own point layout (``NormalContacts._layout``) this one extends.
+        keys: The pairs' indices in the collision world.
+        rows: (m_p,) the patch point of each pair row (the limits' rows follow them).
+        pair: (points,) the pair (position in the set) of each patch point and centre.
+        row_pair: (m_p,) the pair of each pair row.
+        offset0: (m_p, 2) each pair row's tangential offset when its patch was built [m].
+        key: What makes two steps' rows the same rows (the pairs and their point counts, the
+            limits; a warm start's condition): the points themselves move from step to step.
+    """
+
+    of: Any
+    keys: list[int]
+    rows: NDArray[np.intp]
+    pair: NDArray[np.intp]
+    row_pair: NDArray[np.intp]
+    offset0: FloatArray
+    key: tuple[Any, ...]
+
+    @classmethod
+    def build(cls, contacts: NormalContacts, lay: Any) -> _PairLayout:
+        """The layout of the set as it is now (``lay``: its own point layout)."""
+        keys = list(contacts.pairs)
+        counts = [len(p.local1) for p in contacts.pairs.values()]
+        key = (tuple(zip(keys, counts, strict=True)), tuple(contacts.limits))
+        rows = np.asarray(lay.rows, dtype=np.intp)
+        pair = np.asarray(lay.pair, dtype=np.intp)
+        offset0 = np.ascontiguousarray(lay.offset0, dtype=np.float64)
+        return cls(lay, keys, rows, pair, pair[rows], offset0, key)
+
+
+def reach_bounds(model: pin.Model, world: CollisionWorld | None) -> FloatArray:
+    """Per velocity index, a bound [m] on the distance from the joint's axis to its pieces.
+
+    Any point of the collision pieces the joint moves, over every configuration. A point p of
+    a piece moves at dp/dt = sum over the joints s carrying it of w_s x (p - o_s) (revolute
+    joints: |w_s| = |v_s|, o_s on the axis), so its speed is at most sum_s r_s |v_s| with
+    r_s the largest |p - o_s|. By the triangle inequality r_s is at most the lengths of the
+    joint placements from s down to the piece's joint, plus the piece's own radius about
+    that joint's origin (its placement's offset, its bounding box's centre and half
+    diagonal). Joints that move no piece get 0. For the arm's wrist joints this is about
+    0.2 m instead of :data:`~packbot.contact.pairs.REACH_BOUND` (2.2 m): a step's contact set
+    holds the pairs it can reach, not every pair within a spinning gripper's worst-case
+    travel. A model with a joint that is not revolute (or no collision world): REACH_BOUND
+    for every joint; no joint gets more.
+
+    Args:
+        model: The integrated model (its joints are the velocity indices).
+        world: The collision world on that model (its pieces' parent joints).
+    """
+    nv = int(model.nv)
+    flat = np.full(nv, REACH_BOUND)
+    if world is None or any(
+        j.shortname() not in REVOLUTE for j in list(model.joints)[1:]
+    ):  # (one velocity per joint below)
+        return flat
+    r = np.zeros(nv)
+    offset = [
+        float(np.linalg.norm(model.jointPlacements[j].translation)) for j in range(model.njoints)
+    ]
+    for go in world.geom_model.geometryObjects:
+        j = int(go.parentJoint)
+        if j == 0:
+            continue
+        shape = go.geometry
+        shape.computeLocalAABB()
+        radius = (
+            float(np.linalg.norm(go.placement.translation))
+            + float(np.linalg.norm(shape.aabb_center))
+            + float(shape.aabb_radius)
+        )
+        # from the piece's joint up its chain: each joint's distance to the piece grows by the
+        # placement of the joint below it
+        k = j
+        while k > 0:
+            iv = int(model.idx_vs[k])
+            r[iv] = max(r[iv], radius)
+            radius += offset[k]
+            k = int(model.parents[k])
+    return np.minimum(r, REACH_BOUND)  # (both are bounds; an unbounded piece: REACH_BOUND)
