@@ -241,7 +241,8 @@ class CollisionWorld:
         robot: The robot.
         environment: The environment.
         geom_model: Robot pieces followed by obstacle pieces, with the tested pairs.
-        geom_data: Its data (placements, distance results).
+        geom_data: Its data (placements, distance results), placed at the last query's q
+            when read.
         pairs: The tested pairs (see :class:`PairInfo`).
         margin: Default query margin [m].
     """
@@ -288,7 +289,8 @@ class CollisionWorld:
         ) = built
         gm = self.geom_model
         self._n_robot = robot.collision_model.ngeoms
-        self.geom_data = gm.createData()
+        self._pending: bool | bytes = False  # (see below)
+        self._geom_data = gm.createData()
         for creq in self.geom_data.collisionRequests:
             creq.enable_contact = (
                 True  # Coal misses deep overlaps of near-coincident centres without
@@ -322,9 +324,10 @@ class CollisionWorld:
             else None
         )
         # Where the pieces of self._data and geom_data are owed after native sweeps (placed on
-        # demand: _placed): False nowhere (they are placed), True at the last native sweep's
-        # q (and its witness points are the native sweep's), bytes at that q (a reused sweep).
-        self._pending: bool | bytes = False
+        # demand: _placed, by every reader of geom_data): False nowhere (they are placed), True
+        # at the last native sweep's q (and its witness points are the native sweep's), bytes
+        # at that q (a reused sweep).
+        self._pending = False
 
     def _build(self, robot: Robot, srdf_path: Path | None) -> _Built:
         """The world's fixed parts: its geometry models, pieces and pairs (see _structure_key).
@@ -539,6 +542,16 @@ class CollisionWorld:
         """Forward kinematics and piece placements (the broadphase is placed on demand)."""
         self._fk(q)
 
+    @property
+    def geom_data(self) -> pin.GeometryData:
+        """The geometry model's data (placements, distance results), at the last query's q.
+
+        After a native sweep the pieces are placed here on first read (:meth:`_placed`).
+        """
+        if self._pending is not False:
+            self._placed()
+        return self._geom_data
+
     def _placed(self) -> None:
         """Place the pieces at the last native sweep's q if they are not (see sweep)."""
         pending = self._pending
@@ -553,7 +566,7 @@ class CollisionWorld:
         self._pending = False
         try:
             pin.updateGeometryPlacements(
-                self.robot.model, self._data, self.geom_model, self.geom_data, q
+                self.robot.model, self._data, self.geom_model, self._geom_data, q
             )
         except (ValueError, TypeError) as exc:  # Pinocchio's own size/type check
             nq = self.robot.model.nq
@@ -592,7 +605,8 @@ class CollisionWorld:
             margin: Query margin [m] (default: the world's).
             reuse: Return the last sweep's result (its arrays are read-only) when it was made
                 with ``reuse`` at the same q and margin, bit for bit (the event loop sweeps
-                the same state more than once). The pieces are placed at q either way, but
+                the same state more than once). The pieces are placed at q either way (on
+                first read of ``geom_data`` after a native sweep), but
                 then ``geom_data``'s distance results are not recomputed: a caller that reads
                 them (``contacts``) must not reuse.
 

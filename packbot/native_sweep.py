@@ -23,6 +23,7 @@ module does not build, the sweep takes its Python path.
 from __future__ import annotations
 
 import logging
+import threading
 from typing import TYPE_CHECKING, Any
 
 import coal
@@ -71,14 +72,17 @@ try:  # the compiled extension (built by `pip install .`; see CMakeLists.txt)
 except ImportError as exc:  # pragma: no cover - a build without the extension, or no libcoal
     _native_coal = None
     _WHY_NOT = f"packbot._native_coal cannot be imported ({exc})"
+    log.info("%s: the collision sweep runs its Python path", _WHY_NOT)
 else:
     if coal.__version__ != _native_coal.COAL_VERSION:  # pragma: no cover - another coal wheel
         _WHY_NOT = (
             f"packbot._native_coal was built against Coal {_native_coal.COAL_VERSION}, "
             f"the coal module is {coal.__version__}"
         )
-if _WHY_NOT is not None:  # pragma: no cover - see above
-    log.info("%s: the collision sweep runs its Python path", _WHY_NOT)
+        # a warning: the results are the same, the sweeps slower (rebuild packbot against the
+        # installed coal, `pip install --no-build-isolation .`, or install the coal it was
+        # built with)
+        log.warning("%s: the collision sweep runs its Python path", _WHY_NOT)
 
 
 def available() -> bool:
@@ -99,9 +103,12 @@ def _reals(x: Any) -> NDArray[np.float64]:
     return np.ascontiguousarray(x, dtype=np.float64)
 
 
-def _arguments(world: CollisionWorld) -> dict[str, Any] | None:
-    """The extension's constructor arguments for a world, or None if it cannot build it."""
-    model = world.robot.model
+def _kinematics(model: Any) -> dict[str, Any] | None:
+    """The extension's model arguments (joint types, parents, placements, axes), or None.
+
+    Built from the world's own robot model at every build: worlds that share a geometry model
+    (the same pieces and joint names, :mod:`packbot.collision`) may differ in kinematics.
+    """
     types = [j.shortname() for j in model.joints]
     if any(t not in SUPPORTED_JOINTS for t in types[1:]):
         return None
@@ -109,6 +116,16 @@ def _arguments(world: CollisionWorld) -> dict[str, Any] | None:
     for i, j in enumerate(model.joints):
         if i and types[i].endswith("Unaligned"):
             axes[i] = np.asarray(j.extract().axis, dtype=float)
+    return {
+        "types": types,
+        "parents": _ints(list(model.parents)),
+        "joint_placements": _reals([M.homogeneous for M in model.jointPlacements]),
+        "axes": _reals(axes),
+    }
+
+
+def _arguments(world: CollisionWorld) -> dict[str, Any] | None:
+    """The extension's geometry arguments for a world, or None if it cannot build it."""
     gm = world.geom_model
     kinds, joints, placements, params = [], [], [], []
     points: list[NDArray[np.float64]] = []
@@ -151,10 +168,6 @@ def _arguments(world: CollisionWorld) -> dict[str, Any] | None:
     else:  # no pairs: any request
         req = coal.DistanceRequest()
     return {
-        "types": types,
-        "parents": _ints(list(model.parents)),
-        "joint_placements": _reals([M.homogeneous for M in model.jointPlacements]),
-        "axes": _reals(axes),
         "kinds": _ints(kinds),
         "joints": _ints(joints),
         "placements": _reals(placements).reshape(-1, 4, 4),
@@ -195,9 +208,11 @@ def _check_request(req: coal.DistanceRequest) -> bool:
     return same and req.rel_err == ref.rel_err and req.enable_signed_distance
 
 
-#: The constructor arguments per geometry model (the worlds of one structure share it).
+#: The geometry arguments per geometry model (the worlds of one structure share it; the
+#: kinematics are not cached: :func:`_kinematics`).
 _ARGS: dict[int, tuple[Any, dict[str, Any] | None]] = {}
 _ARGS_MAX = 16
+_ARGS_LOCK = threading.Lock()  # (Dask workers may build worlds in several threads)
 
 
 class NativeSweep:
@@ -247,18 +262,24 @@ def native_sweep(world: CollisionWorld) -> NativeSweep | None:
     if not available():
         return None
     gm = world.geom_model
-    cached = _ARGS.get(id(gm))
-    if cached is None or cached[0] is not gm:
-        args = _arguments(world)
-        reqs = world.geom_data.distanceRequests
-        if args is not None and len(reqs) and not _check_request(reqs[0]):
-            args = None
-        if len(_ARGS) >= _ARGS_MAX:
-            del _ARGS[next(iter(_ARGS))]
-        cached = (gm, args)
-        _ARGS[id(gm)] = cached
-    args = cached[1]
-    if args is None:
+    with _ARGS_LOCK:
+        cached = _ARGS.get(id(gm))
+        if cached is None or cached[0] is not gm:
+            args = _arguments(world)
+            reqs = world.geom_data.distanceRequests
+            if args is not None and len(reqs) and not _check_request(reqs[0]):
+                args = None
+            if len(_ARGS) >= _ARGS_MAX:
+                del _ARGS[next(iter(_ARGS))]
+            cached = (gm, args)
+            _ARGS[id(gm)] = cached
+    geometry = cached[1]
+    kinematics = _kinematics(world.robot.model)
+    if geometry is None or kinematics is None:
         log.debug("the native sweep cannot build this world: Python path")
         return None
-    return NativeSweep(world, args)
+    try:
+        return NativeSweep(world, {**kinematics, **geometry})
+    except ValueError as exc:  # the extension's own checks (e.g. a degenerate hull)
+        log.warning("the native sweep cannot build this world (%s): Python path", exc)
+        return None

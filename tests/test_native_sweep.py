@@ -152,9 +152,17 @@ def test_reuse_placement_and_candidate_pairs_after_native_sweeps(robot, rng):
     assert other.pairs.flags.writeable and w.sweep(q0, reuse=True) is first
     # the pieces are placed on demand at the last query's q (a reused sweep's included)
     np.testing.assert_array_equal(w.candidate_pairs(), first.pairs)
-    M = w.geom_data.oMg[3]
+    # geom_data read after a native sweep holds the pieces at that sweep's q (a piece on a
+    # moving joint: the last joint's)
+    joints = [go.parentJoint for go in w.geom_model.geometryObjects]
+    k = int(np.argmax(joints))
+    assert joints[k] == robot.model.njoints - 1
+    w.sweep(q1)
+    placed = w.geom_data.oMg[k].homogeneous.copy()  # (oMg[k] is a live view)
+    w._fk(q1)
+    np.testing.assert_array_equal(placed, w.geom_data.oMg[k].homogeneous)
     w._fk(q0)
-    np.testing.assert_array_equal(M.homogeneous, w.geom_data.oMg[3].homogeneous)
+    assert not np.array_equal(placed, w.geom_data.oMg[k].homogeneous)
     w.sweep(q1)
     np.testing.assert_array_equal(w.candidate_pairs(), other.pairs)
     w.sweep(q1, 0.2)
@@ -222,3 +230,26 @@ def test_a_collapse_runs_alike_with_and_without_the_native_sweep(robot, monkeypa
     assert [(e.t, e.kind) for e in a.events] == [(e.t, e.kind) for e in b.events]
     np.testing.assert_array_equal(np.asarray(a.q), np.asarray(b.q))
     np.testing.assert_array_equal(a.diagnostics.min_distance, b.diagnostics.min_distance)
+
+
+def test_worlds_sharing_pieces_but_not_kinematics_sweep_with_their_own(robot):
+    """Two robots with the same pieces and joint names share a geometry model; the native
+    sweep of each takes its own robot's kinematics (a joint origin moved by 0.15 m here)."""
+    import dataclasses
+
+    model = robot.model.copy()
+    M = model.jointPlacements[3]
+    model.jointPlacements[3] = pin.SE3(M.rotation, M.translation + np.array([0.0, 0.0, 0.15]))
+    moved = dataclasses.replace(robot, model=model)
+    w0, w1 = CollisionWorld(robot), CollisionWorld(moved)
+    assert w0.geom_model is w1.geom_model  # shared: the test's premise
+    q = robot.pose("drive")
+    native = w1.sweep(q, 0.05)
+    native_sweep.ENABLED = False
+    try:
+        python = CollisionWorld(moved).sweep(q, 0.05)
+    finally:
+        native_sweep.ENABLED = True
+    assert native.pairs.tolist() == python.pairs.tolist()
+    np.testing.assert_array_equal(native.distances, python.distances)
+    assert not np.array_equal(w0.sweep(q, 0.05).distances[:3], native.distances[:3])

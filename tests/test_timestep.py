@@ -357,7 +357,9 @@ def _relapse_restarts(res: packbot.SimResult) -> list[list[float]]:
         # not a restart, nor is a limit stop let go after a step (``release`` of a joint's
         # "upper" or "lower" stop, JointStops.release_limits: logged without a restart)
         restarts = [
-            x for x in ev[k + 1 : nxt + 1] if x.t > e.t and x.link2 not in ("upper", "lower")
+            x
+            for x in ev[k + 1 : nxt + 1]
+            if x.t > e.t and not (x.kind == "release" and x.link2 in ("upper", "lower"))
         ]
         out.append(sorted({x.t for x in restarts}))
     return out

@@ -198,6 +198,10 @@ class NativeRhs:
             self._locked_id = locked
             self._layout_id = None
 
+    def holds_locks(self, locked: NDArray[np.intp]) -> bool:
+        """Whether ``locked`` (the locks' array, by identity) is the lock set loaded last."""
+        return locked is self._locked_id
+
     def end_locks(self, y1: FloatArray) -> tuple[FloatArray, FloatArray] | None:
         """The accelerations and lock torques at the end of the last native step, if at y1.
 

@@ -294,8 +294,8 @@ class JointStops:
         such step (the conditions are then evaluated).
         """
         rhs = self._lock_rhs
-        if rhs is None or not self._locks_now():
-            return False
+        if rhs is None or not self._locks_now() or not rhs.holds_locks(self.locks.locked_index):
+            return False  # (the locks changed since the step: e.g. a clamp after it)
         rows = self.locks.screen_rows()
         return rhs.end_screen(rows, y1, SCREEN_MARGIN, TORQUE_BAND, ACCEL_BAND) > 0.0
 
