@@ -390,6 +390,9 @@ def test_dask_worker_matches_main_process(reference, tmp_path: Path) -> None:
 
 # ---------------------------------------------------------------------------------- kill midway
 def _cli(*args: str) -> list[str]:
+    """The CLI as a command (run it outside the checkout: ``python -m`` puts the working
+    directory first on sys.path, and the checkout's source tree has no compiled extensions:
+    its runs would take the Python paths, equal to the native ones only to rounding)."""
     return [sys.executable, "-m", "packbot.cli", *args]
 
 
@@ -399,7 +402,7 @@ def test_kill_midway_then_rerun_completes_identically(reference, tmp_path: Path,
     total = len(reference.runs)
     cmd = _cli("batch", SMALL, "--out", str(out), "--workers", "1")
     proc = subprocess.Popen(
-        cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, start_new_session=True
+        cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, start_new_session=True, cwd=tmp_path
     )
     try:
         deadline = time.monotonic() + 60
@@ -421,7 +424,7 @@ def test_kill_midway_then_rerun_completes_identically(reference, tmp_path: Path,
     done = read_records(out, reference.runs)
     assert 0 < len(done) < total, "the batch was not killed midway"
     # No half-written file survives as a record; temporary files are cleared by the rerun.
-    res = subprocess.run([*cmd, "--no-progress"], capture_output=True, timeout=120)
+    res = subprocess.run([*cmd, "--no-progress"], capture_output=True, timeout=120, cwd=tmp_path)
     assert res.returncode == 0, res.stderr.decode()
     assert f"({total - len(done)} run now, {len(done)} finished before)" in res.stdout.decode()
     assert not list(out.rglob(".*.tmp"))

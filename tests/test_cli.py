@@ -335,8 +335,13 @@ def test_ctrl_c_during_run_saves_the_partial_result_and_exits_130(tmp_path):
     manifest = out / MANIFEST_NAME
     # loose_shoulder runs at a few times real time: 300 s cannot finish before the signal
     cmd = [sys.executable, "-m", "packbot.cli", "run", "loose_shoulder", "--duration", "300"]
+    # (cwd: not the checkout, whose source tree `python -m` would import, without the extensions)
     proc = subprocess.Popen(
-        [*cmd, "--out", str(out)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
+        [*cmd, "--out", str(out)],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        cwd=tmp_path,
     )
     try:
         # the manifest is written once the Ctrl-C handler is in place, just before simulating
