@@ -170,7 +170,7 @@ def test_the_screened_step_ends_keep_every_lock_condition(robot, monkeypatch, ca
 
     def checked(self, y1):
         ok = original(self, y1)
-        end = self._lock_rhs.end_locks(y1) if self._lock_rhs is not None else None
+        end = self._lock_step.rhs.end_locks(y1) if self._lock_step.rhs is not None else None
         if end is None:
             assert not ok
             return ok
@@ -181,7 +181,7 @@ def test_the_screened_step_ends_keep_every_lock_condition(robot, monkeypatch, ca
             worst["cond"] = max(worst["cond"], abs(g - nat[key]) / (1.0 + abs(g)))
         a, lam = end
         scale = 1.0 + np.abs(a).max() + np.abs(lam).max(initial=0.0)
-        screen = self._lock_rhs.end_screen(
+        screen = self._lock_step.rhs.end_screen(
             self.locks.screen_rows(), y1, SCREEN_MARGIN, TORQUE_BAND, ACCEL_BAND
         )
         if nat:  # the extension's smallest condition is conditions_of's
