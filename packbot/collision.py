@@ -221,9 +221,6 @@ def _structure_key(
     return (tuple(pieces), tuple(model.names), robot.adjacent_links, environment, srdf_id)
 
 
-_tuple_new = tuple.__new__
-
-
 def _link_name(model: pin.Model, geom: pin.GeometryObject) -> str:
     return str(model.frames[geom.parentFrame].name)
 
@@ -289,7 +286,9 @@ class CollisionWorld:
         ) = built
         gm = self.geom_model
         self._n_robot = robot.collision_model.ngeoms
-        self._pending: bool | bytes = False  # (see below)
+        self._native: _ns.NativeSweep | None = None  # (built below, once geom_data is set)
+        # the native sweeps' calls and where they owe the pieces (placed on demand)
+        self._dispatch = _ns.NativeDispatch(self)
         self._geom_data = gm.createData()
         for creq in self.geom_data.collisionRequests:
             creq.enable_contact = (
@@ -306,10 +305,6 @@ class CollisionWorld:
         self._results = list(self.geom_data.distanceResults)
         self._last_sweep: tuple[tuple[bytes, float], SweepResult] | None = None  # see sweep
         self._n_pairs = len(self.pairs)
-        #: SweepCounts by the number of tests (shared by the sweeps, being immutable)
-        self._counts = [
-            SweepCounts(self._n_pairs, self._n_pairs - n, n) for n in range(self._n_pairs + 1)
-        ]
         G = gm.ngeoms
         # Activation map of pin.GeometryData.setActiveCollisionPairs (upper triangle).
         self._active = np.zeros((G, G), dtype=bool)
@@ -323,11 +318,6 @@ class CollisionWorld:
             if self._broadphase_type is pin.BroadPhaseManager_SSaPCollisionManager
             else None
         )
-        # Where the pieces of self._data and geom_data are owed after native sweeps (placed on
-        # demand: _placed, by every reader of geom_data): False nowhere (they are placed), True
-        # at the last native sweep's q (and its witness points are the native sweep's), bytes
-        # at that q (a reused sweep).
-        self._pending = False
 
     def _build(self, robot: Robot, srdf_path: Path | None) -> _Built:
         """The world's fixed parts: its geometry models, pieces and pairs (see _structure_key).
@@ -500,7 +490,7 @@ class CollisionWorld:
 
         At the last forward kinematics; all in C++ but the read-back of the indices.
         """
-        self._placed()
+        self._dispatch.place()
         self._place_broadphase(margin)
         self._bp.collide(self._bp_callback)
         pairs = self._bp_pairs
@@ -546,24 +536,16 @@ class CollisionWorld:
     def geom_data(self) -> pin.GeometryData:
         """The geometry model's data (placements, distance results), at the last query's q.
 
-        After a native sweep the pieces are placed here on first read (:meth:`_placed`).
+        After a native sweep the pieces are placed here on first read
+        (:meth:`NativeDispatch.place <packbot.native_sweep.NativeDispatch.place>`).
         """
-        if self._pending is not False:
-            self._placed()
+        if self._dispatch.pending is not False:
+            self._dispatch.place()
         return self._geom_data
-
-    def _placed(self) -> None:
-        """Place the pieces at the last native sweep's q if they are not (see sweep)."""
-        pending = self._pending
-        if pending is True:
-            assert self._native is not None
-            self._fk(self._native.last_q())
-        elif pending:
-            self._fk(np.frombuffer(pending, dtype=np.float64))
 
     def _fk(self, q: NDArray[np.float64]) -> None:
         """Forward kinematics and piece placements; a wrong-size q is a ConfigurationError."""
-        self._pending = False
+        self._dispatch.pending = False
         try:
             pin.updateGeometryPlacements(
                 self.robot.model, self._data, self.geom_model, self._geom_data, q
@@ -615,7 +597,7 @@ class CollisionWorld:
         """
         m = self._query_margin(margin)
         if self._native is not None and _ns.ENABLED:
-            return self._sweep_native(q, m, reuse)
+            return self._dispatch.sweep(q, m, reuse)
         self._fk(q)
         key = None
         if reuse:
@@ -640,31 +622,6 @@ class CollisionWorld:
         if key is not None:
             out.pairs.setflags(write=False)
             out.distances.setflags(write=False)
-            self._last_sweep = (key, out)
-        return out
-
-    def _sweep_native(self, q: NDArray[np.float64], m: float, reuse: bool) -> SweepResult:
-        """:meth:`sweep` in one call of the compiled sweep (checked margin ``m`` [m])."""
-        native = self._native
-        assert native is not None
-        key = None
-        if reuse:
-            key = (np.asarray(q, dtype=np.float64).tobytes(), m)
-            last = self._last_sweep
-            if last is not None and last[0] == key:
-                self._pending = key[0]
-                return last[1]
-        try:
-            pairs, d, k, dmin = native.sweep(q, m)
-        except (ValueError, TypeError) as exc:  # the extension's size/type check
-            nq = self.robot.model.nq
-            raise ConfigurationError("q", np.shape(q), f"a vector of shape ({nq},) [rad]") from exc
-        self._pending = True
-        # (tuple.__new__: a NamedTuple's own __new__ costs 0.1 us more, twice a sweep)
-        out = _tuple_new(SweepResult, (dmin, k, pairs, d, self._counts[len(pairs)]))
-        if key is not None:
-            pairs.setflags(write=False)
-            d.setflags(write=False)
             self._last_sweep = (key, out)
         return out
 
@@ -705,20 +662,8 @@ class CollisionWorld:
         """
         m = self.margin if margin is None else margin
         sw = self.sweep(q, m)
-        if self._pending is True:  # the witness points are the native sweep's
-            assert self._native is not None
-            p1, p2, normal = self._native.witness()
-            rows = np.flatnonzero(sw.distances < m)
-            out = [
-                Contact(
-                    self.pairs[int(sw.pairs[i])],
-                    float(sw.distances[i]),
-                    p1[i].copy(),
-                    p2[i].copy(),
-                    normal[i].copy(),
-                )
-                for i in rows
-            ]
+        if self._dispatch.pending is True:  # the witness points are the native sweep's
+            out = self._dispatch.contacts(sw, m)
         else:
             close = sw.pairs[sw.distances < m]
             out = [self._contact(int(p)) for p in close]

@@ -18,24 +18,32 @@ The module links libcoal, the library the coal wheel installs. Coal's classes ar
 so the module serves only the coal version it was built with (:func:`available` checks it);
 otherwise, or when the module cannot be loaded, or the world has a piece or joint type the
 module does not build, the sweep takes its Python path.
+
+:class:`NativeDispatch` is the world's side of it: the sweep's call (its reuse of the last
+result included), where the world's pieces are owed after native sweeps (placed on demand) and
+the witness points of the contacts the last native sweep found.
 """
 
 from __future__ import annotations
 
 import logging
 import threading
+from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
 import coal
 import numpy as np
 from numpy.typing import NDArray
 
+from packbot.errors import ConfigurationError
+
 if TYPE_CHECKING:
-    from packbot.collision import CollisionWorld
+    from packbot.collision import CollisionWorld, Contact, SweepCounts, SweepResult
 
 __all__ = [
     "ENABLED",
     "SUPPORTED_JOINTS",
+    "NativeDispatch",
     "NativeSweep",
     "available",
     "native_sweep",
@@ -283,3 +291,97 @@ def native_sweep(world: CollisionWorld) -> NativeSweep | None:
     except ValueError as exc:  # the extension's own checks (e.g. a degenerate hull)
         log.warning("the native sweep cannot build this world (%s): Python path", exc)
         return None
+
+
+_tuple_new = tuple.__new__
+
+
+class NativeDispatch:
+    """A collision world's native sweeps: their calls, the placement they owe, their contacts.
+
+    After a native sweep the world's own data (its Pinocchio data and ``geom_data``) are not
+    placed at its q: :attr:`pending` says where they are owed, and :meth:`place` places them
+    (every reader of ``geom_data`` calls it first, through the world's property).
+
+    Args:
+        world: The world (its native sweep, ``_native``, is read at every call: None or a
+            stand-in may replace it).
+
+    Attributes:
+        pending: Where the pieces are owed: False nowhere (they are placed), True at the last
+            native sweep's q (and the witness points are the native sweep's), bytes at that q
+            (a reused sweep).
+    """
+
+    def __init__(self, world: CollisionWorld) -> None:
+        from packbot.collision import Contact, SweepCounts, SweepResult
+
+        self.world = world
+        self.pending: bool | bytes = False
+        n = len(world.pairs)
+        #: SweepCounts by the number of tests (shared by the sweeps, being immutable)
+        self._counts: list[SweepCounts] = [SweepCounts(n, n - k, k) for k in range(n + 1)]
+        self._result = SweepResult
+        self._contact: Callable[..., Contact] = Contact
+
+    def sweep(self, q: NDArray[np.float64], m: float, reuse: bool) -> SweepResult:
+        """The world's sweep in one call of its native sweep (checked margin ``m`` [m]).
+
+        Raises:
+            ConfigurationError: A wrong-size q.
+        """
+        world = self.world
+        native = world._native
+        assert native is not None
+        key = None
+        if reuse:
+            key = (np.asarray(q, dtype=np.float64).tobytes(), m)
+            last = world._last_sweep
+            if last is not None and last[0] == key:
+                self.pending = key[0]
+                return last[1]
+        try:
+            pairs, d, k, dmin = native.sweep(q, m)
+        except (ValueError, TypeError) as exc:  # the extension's size/type check
+            nq = world.robot.model.nq
+            raise ConfigurationError("q", np.shape(q), f"a vector of shape ({nq},) [rad]") from exc
+        self.pending = True
+        # (tuple.__new__: a NamedTuple's own __new__ costs 0.1 us more, twice a sweep)
+        out: SweepResult = _tuple_new(self._result, (dmin, k, pairs, d, self._counts[len(pairs)]))
+        if key is not None:
+            pairs.setflags(write=False)
+            d.setflags(write=False)
+            world._last_sweep = (key, out)
+        return out
+
+    def place(self) -> None:
+        """Place the world's pieces at the last native sweep's q if they are not."""
+        pending = self.pending
+        if pending is True:
+            native = self.world._native
+            assert native is not None
+            self.world._fk(native.last_q())
+        elif pending:
+            self.world._fk(np.frombuffer(pending, dtype=np.float64))
+
+    def contacts(self, sw: SweepResult, m: float) -> list[Contact]:
+        """The pairs of the last native sweep ``sw`` closer than ``m`` [m], unsorted.
+
+        With the native sweep's witness points and normals (:attr:`pending` is True).
+        """
+        native = self.world._native
+        assert native is not None and self.pending is True
+        p1, p2, normal = native.witness()
+        rows = np.flatnonzero(sw.distances < m)
+        pairs = self.world.pairs
+        contact = self._contact
+        return [
+            contact(
+                pairs[int(sw.pairs[i])],
+                float(sw.distances[i]),
+                p1[i].copy(),
+                p2[i].copy(),
+                normal[i].copy(),
+            )
+            for i in rows
+        ]

@@ -11,6 +11,7 @@ lock conditions against :meth:`JointStops.lock_conditions`; and where it must no
 
 from __future__ import annotations
 
+import itertools
 import math
 
 import numpy as np
@@ -170,7 +171,7 @@ def test_the_screened_step_ends_keep_every_lock_condition(robot, monkeypatch, ca
 
     def checked(self, y1):
         ok = original(self, y1)
-        end = self._lock_rhs.end_locks(y1) if self._lock_rhs is not None else None
+        end = self._lock_step.rhs.end_locks(y1) if self._lock_step.rhs is not None else None
         if end is None:
             assert not ok
             return ok
@@ -181,7 +182,7 @@ def test_the_screened_step_ends_keep_every_lock_condition(robot, monkeypatch, ca
             worst["cond"] = max(worst["cond"], abs(g - nat[key]) / (1.0 + abs(g)))
         a, lam = end
         scale = 1.0 + np.abs(a).max() + np.abs(lam).max(initial=0.0)
-        screen = self._lock_rhs.end_screen(
+        screen = self._lock_step.rhs.end_screen(
             self.locks.screen_rows(), y1, SCREEN_MARGIN, TORQUE_BAND, ACCEL_BAND
         )
         if nat:  # the extension's smallest condition is conditions_of's
@@ -288,3 +289,46 @@ def test_the_screen_has_every_kind_of_lock_condition(robot):
         assert got == pytest.approx(min(cond.values()), rel=1e-12, abs=1e-12)
         assert math.isnan(rhs.end_screen(rows, y1 + 1e-9, 0.0, TORQUE_BAND, ACCEL_BAND))
     assert kinds == {0, 1, 2, 3}
+
+
+def test_the_lock_step_loads_each_held_command_once_and_screens_only_its_lock_set(
+    robot, monkeypatch
+):
+    """The law's NativeLockStep: one per phase; a held command's torques are loaded into the
+    extension when they change (at a controller tick), not at every step; its end screen
+    answers only for the lock set of its last step, and a phase's new one, before any step,
+    answers False (the conditions are then evaluated)."""
+    from packbot.contact.lock_step import NativeLockStep
+    from packbot.contact.locks import JointLocks
+
+    loads: list[np.ndarray] = []
+    set_torque = native.NativeRhs.set_torque
+
+    def counted(self, applied, viscous, coulomb_dir):
+        loads.append(applied.copy())
+        return set_torque(self, applied, viscous, coulomb_dir)
+
+    monkeypatch.setattr(native.NativeRhs, "set_torque", counted)
+    laws: list[JointStops] = []
+    step_kernel = JointStops.step_kernel
+
+    def kept(self, t, y):
+        laws.append(self)
+        return step_kernel(self, t, y)
+
+    monkeypatch.setattr(JointStops, "step_kernel", kept)
+    cfg = packbot.SimConfig(contact_mode="joint_clamp", locked_joints=WRIST)
+    res = packbot.simulate(
+        robot, robot.pose("drive"), np.zeros(8), 0.6, config=cfg, controller=_Held(dt=0.01)
+    )
+    assert len({id(law._lock_step) for law in laws}) == 1  # one phase, one lock step
+    assert 0 < len(loads) <= res.control_ticks < res.diagnostics.steps
+    assert not any(np.array_equal(a, b) for a, b in itertools.pairwise(loads))
+    law = laws[-1]
+    step = law._lock_step
+    y = np.concatenate([law.sys.reduce(res.q[-1]), law.sys.reduce(res.v[-1])])
+    other = JointLocks(law.n)
+    other.set_held({0: 1.0})  # another lock set than the last step's
+    assert step.rhs is not None and not step.screened(y, other)
+    fresh = NativeLockStep(law.sys, law.drive)
+    assert fresh.rhs is None and not fresh.screened(y, law.locks)

@@ -253,3 +253,31 @@ def test_worlds_sharing_pieces_but_not_kinematics_sweep_with_their_own(robot):
     assert native.pairs.tolist() == python.pairs.tolist()
     np.testing.assert_array_equal(native.distances, python.distances)
     assert not np.array_equal(w0.sweep(q, 0.05).distances[:3], native.distances[:3])
+
+
+def test_the_dispatch_owes_the_placement_until_a_reader_places_the_pieces(robot, rng):
+    """The world's NativeDispatch: after a native sweep the pieces are owed at its q (True),
+    after a reused one at that sweep's q (its bytes); reading geom_data places them there and
+    clears the debt; a sweep of the Python path places them itself."""
+    w = CollisionWorld(robot)
+    dispatch = w._dispatch
+    assert w._native is not None and dispatch.pending is False
+    q0, q1 = (rng.uniform(robot.params.lower, robot.params.upper) for _ in range(2))
+    k = int(np.argmax([go.parentJoint for go in w.geom_model.geometryObjects]))
+    w.sweep(q0, reuse=True)
+    assert dispatch.pending is True
+    at_q0 = w.geom_data.oMg[k].homogeneous.copy()
+    assert dispatch.pending is False
+    w.sweep(q1)
+    w.sweep(q0, reuse=True)  # the reused result: owed at q0, not at the last call's q1
+    assert dispatch.pending == np.asarray(q0, dtype=np.float64).tobytes()
+    np.testing.assert_array_equal(w.geom_data.oMg[k].homogeneous, at_q0)
+    assert dispatch.pending is False
+    w.sweep(q1)
+    native_sweep.ENABLED = False
+    try:
+        w.sweep(q0)
+    finally:
+        native_sweep.ENABLED = True
+    assert dispatch.pending is False
+    np.testing.assert_array_equal(w.geom_data.oMg[k].homogeneous, at_q0)

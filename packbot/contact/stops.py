@@ -39,7 +39,9 @@ from packbot.collision import PairInfo
 from packbot.config import SimConfig
 from packbot.contact import native
 from packbot.contact.base import Active, Crossing, Key
-from packbot.contact.locks import ACCEL_BAND, TORQUE_BAND, JointLocks
+from packbot.contact.lock_step import SCREEN_MARGIN as SCREEN_MARGIN
+from packbot.contact.lock_step import NativeLockStep
+from packbot.contact.locks import TORQUE_BAND, JointLocks
 from packbot.drive import Drive
 from packbot.ode import DenseSegment, StepKernel
 from packbot.recorder import EventLog
@@ -72,12 +74,6 @@ RECEDE_SPEED = 1e-9
 HOLD_KICK = 1e-3
 #: Resolution [s] of :func:`return_crossing`'s search (the event loop locates events to 1e-10 s).
 RETURN_DT = 1e-10
-#: The end of a native step (:meth:`JointStops.step_kernel`) screens the locks' and holds'
-#: conditions from its last stage: when every one is above this share of its terms' scale
-#: [-] (far above the rounding by which the stage's arithmetic differs from
-#: :meth:`JointStops.lock_conditions`'), none changed sign; otherwise they are evaluated as
-#: without the native step.
-SCREEN_MARGIN = 1e-9
 
 
 def return_crossing(
@@ -194,10 +190,7 @@ class JointStops:
         self.n = system.nv
         self.locks = JointLocks(system.nv)
         self.active: dict[Key, Active] = {}
-        self._lock_rhs: native.NativeRhs | None = None  # built at the first native step
-        self._lock_rhs_tried = False
-        # the torques it holds: (applied, viscous, coulomb_dir as a list)
-        self._lock_torques: tuple[FloatArray, FloatArray, list[float]] | None = None
+        self._lock_step = NativeLockStep(system, self.drive)  # the native step, its screen
 
     def start(self, t: float, y: FloatArray, check: bool) -> FloatArray:
         """Contacts (pairs within the contact tolerance) and limit stops at (t, y).
@@ -254,50 +247,21 @@ class JointStops:
         the step (a held command or none, no motor lag:
         :meth:`~packbot.drive.Drive.step_torques`). The stages, the 5th-order solution and the
         error norm in one call; the same numbers as the stages in Python around
-        :meth:`torque_accel`, to rounding.
+        :meth:`torque_accel`, to rounding (:class:`~packbot.contact.lock_step.NativeLockStep`).
         """
         if not native.STEP_ENABLED or not self._locks_now():
             return None
-        locks = self.locks
-        k = locks.n_locked
-        if k >= 2 and self.n - k > 3:
-            return None
-        rhs = self._lock_rhs
-        if rhs is None:
-            if self._lock_rhs_tried:
-                return None
-            self._lock_rhs_tried = True
-            rhs = self._lock_rhs = native.native_rhs(self.sys.model) if native.ENABLED else None
-            if rhs is None:
-                return None
-        torques = self.drive.step_torques(t, y)
-        if torques is None:
-            return None
-        rhs.set_locks(locks.locked_index)
-        applied, viscous, coulomb_dir = torques
-        key = (applied, viscous, coulomb_dir.tolist())
-        last = self._lock_torques
-        # (a held command's array is never written: the same object, the same torques)
-        if last is None or not (applied is last[0] and viscous is last[1] and key[2] == last[2]):
-            rhs.set_torque(applied, viscous, coulomb_dir)
-            self._lock_torques = key
-        return rhs.step
+        return self._lock_step.kernel(t, y, self.locks)
 
     def _screened(self, y1: FloatArray) -> bool:
         """Whether the last native step ended at y1 with every lock condition clearly kept.
 
-        From its FSAL stage's accelerations and lock torques (the current locked set's, at
-        y1): every condition of :meth:`JointLocks.conditions_of
-        <packbot.contact.locks.JointLocks.conditions_of>` above :data:`SCREEN_MARGIN` of
-        its scale (1 + max |a| + max |lambda|), computed in the extension
-        (:meth:`~packbot.contact.native.NativeRhs.end_screen`). False also when there was no
-        such step (the conditions are then evaluated).
+        False also when there was no such step, or the mode is no longer the locks' alone (the
+        conditions are then evaluated): :meth:`NativeLockStep.screened
+        <packbot.contact.lock_step.NativeLockStep.screened>`.
         """
-        rhs = self._lock_rhs
-        if rhs is None or not self._locks_now() or not rhs.holds_locks(self.locks.locked_index):
-            return False  # (the locks changed since the step: e.g. a clamp after it)
-        rows = self.locks.screen_rows()
-        return rhs.end_screen(rows, y1, SCREEN_MARGIN, TORQUE_BAND, ACCEL_BAND) > 0.0
+        step = self._lock_step
+        return step.rhs is not None and self._locks_now() and step.screened(y1, self.locks)
 
     def step_bound(self, y: FloatArray) -> float:
         """``max_step``: without a collision world nothing else bounds a step."""

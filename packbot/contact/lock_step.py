@@ -1,0 +1,111 @@
+"""The joint locks' native step: one compiled Dormand-Prince attempt and its end's screen.
+
+:class:`NativeLockStep` is what :class:`~packbot.contact.stops.JointStops` holds of the
+extension (``packbot._native``) for one phase: the native right-hand side (built at the
+phase's first native step), the torques loaded in it, the step it hands the stepper
+(:meth:`NativeLockStep.kernel`) and the screen of the locks' and holds' conditions at that
+step's end (:meth:`NativeLockStep.screened`). The law decides when its mode's accelerations
+are the locks' alone (:meth:`JointStops.step_kernel
+<packbot.contact.stops.JointStops.step_kernel>`); this object decides the rest.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import NDArray
+
+from packbot.contact import native
+from packbot.contact.locks import ACCEL_BAND, TORQUE_BAND, JointLocks
+from packbot.drive import Drive
+from packbot.ode import StepKernel
+from packbot.system import System
+
+__all__ = ["SCREEN_MARGIN", "NativeLockStep"]
+
+FloatArray = NDArray[np.float64]
+#: The end of a native step (:meth:`JointStops.step_kernel
+#: <packbot.contact.stops.JointStops.step_kernel>`) screens the locks' and holds' conditions
+#: from its last stage: when every one is above this share of its terms' scale [-] (far above
+#: the rounding by which the stage's arithmetic differs from :meth:`JointStops.lock_conditions
+#: <packbot.contact.stops.JointStops.lock_conditions>`'), none changed sign; otherwise they are
+#: evaluated as without the native step.
+SCREEN_MARGIN = 1e-9
+
+
+class NativeLockStep:
+    """The native step of one phase's lock modes (its own state: one per phase).
+
+    Args:
+        system: The phase's integrated system (its model and joint count).
+        drive: The run's torques (:meth:`~packbot.drive.Drive.step_torques`).
+
+    Attributes:
+        rhs: The native right-hand side, built at the first native step (None before, or if
+            the extension cannot serve the model).
+    """
+
+    def __init__(self, system: System, drive: Drive) -> None:
+        self.sys = system
+        self.drive = drive
+        self.rhs: native.NativeRhs | None = None
+        self._tried = False
+        # the torques it holds: (applied, viscous, coulomb_dir as a list)
+        self._torques: tuple[FloatArray, FloatArray, list[float]] | None = None
+
+    def kernel(self, t: float, y: FloatArray, locks: JointLocks) -> StepKernel | None:
+        """The native step from (t, y) with the current locked set, or None (Python stages).
+
+        For a mode whose accelerations are the locks' alone: offered with no joint locked,
+        one, or all but at most 3 (:meth:`JointStops.torque_accel
+        <packbot.contact.stops.JointStops.torque_accel>`'s ABA, its rank-one correction, or
+        its unlocked block: :meth:`~packbot.contact.native.NativeRhs.set_locks`), and torques
+        fixed over the step (:meth:`~packbot.drive.Drive.step_torques`).
+
+        Args:
+            t: The step's start [s].
+            y: The state there.
+            locks: The law's joint locks.
+        """
+        k = locks.n_locked
+        if k >= 2 and self.sys.nv - k > 3:
+            return None
+        rhs = self.rhs
+        if rhs is None:
+            if self._tried:
+                return None
+            self._tried = True
+            rhs = self.rhs = native.native_rhs(self.sys.model) if native.ENABLED else None
+            if rhs is None:
+                return None
+        torques = self.drive.step_torques(t, y)
+        if torques is None:
+            return None
+        rhs.set_locks(locks.locked_index)
+        applied, viscous, coulomb_dir = torques
+        key = (applied, viscous, coulomb_dir.tolist())
+        last = self._torques
+        # (a held command's array is never written: the same object, the same torques)
+        if last is None or not (applied is last[0] and viscous is last[1] and key[2] == last[2]):
+            rhs.set_torque(applied, viscous, coulomb_dir)
+            self._torques = key
+        return rhs.step
+
+    def screened(self, y1: FloatArray, locks: JointLocks) -> bool:
+        """Whether the last native step ended at y1 with every lock condition clearly kept.
+
+        From its FSAL stage's accelerations and lock torques (the current locked set's, at
+        y1): every condition of :meth:`JointLocks.conditions_of
+        <packbot.contact.locks.JointLocks.conditions_of>` above :data:`SCREEN_MARGIN` of
+        its scale (1 + max |a| + max |lambda|), computed in the extension
+        (:meth:`~packbot.contact.native.NativeRhs.end_screen`). False also when there was no
+        such step with this locked set (the conditions are then evaluated).
+
+        Args:
+            y1: The step's end state.
+            locks: The law's joint locks.
+        """
+        rhs = self.rhs
+        if rhs is None or not rhs.holds_locks(locks.locked_index):
+            return False  # (the locks changed since the step: e.g. a clamp after it)
+        rows = locks.screen_rows()
+        return rhs.end_screen(rows, y1, SCREEN_MARGIN, TORQUE_BAND, ACCEL_BAND) > 0.0
