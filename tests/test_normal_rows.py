@@ -347,3 +347,45 @@ def test_compiled_small_lemke_reproduces_the_python_pivots_to_the_last_bit(rng):
         else:
             failed += 1
     assert solved > 300 and failed > 10
+
+
+def test_a_repatch_of_the_same_shape_reuses_the_layout_and_equals_a_full_build(contacts, rng):
+    """A refresh that keeps every pair's patch size keeps the layout's index arrays and
+    replaces only the patch points, frames and offsets: the layout and the rows at a state are
+    those of a layout built from nothing, bit for bit; a change of shape builds it anew."""
+    from dataclasses import fields
+
+    sysm, _, q0 = contacts
+    cfg = packbot.SimConfig(contact_mode="normal", mu=0.5, locked_joints=WRIST)
+    nc = NormalContacts.from_config(sysm.model, sysm.data, sysm.world, cfg)
+    assert sysm.world is not None
+    for p in range(len(sysm.world.pairs)):
+        nc.add_pair(q0, p)
+    first = nc._layout()
+    sizes = nc.row_signature()
+    q = q0 + 1e-5 * rng.standard_normal(len(q0))
+    nc.refresh(q)
+    assert nc.row_signature() == sizes  # the same pairs and patch sizes
+    v = rng.standard_normal(len(q0))
+    lay = nc._layout()
+    assert lay is not first and lay.rows is first.rows and lay.body is first.body
+    assert not np.array_equal(lay.local, first.local)  # the new patches
+    rows = nc._kinematics(q, v)
+    nc._lay_prev = None  # forget it: the next layout is built from nothing
+    nc._invalidate()
+    full = nc._layout()
+    assert full.rows is not lay.rows
+    for f in fields(full):
+        a, b = getattr(full, f.name), getattr(lay, f.name)
+        if f.name in ("placements", "fixed", "H"):  # (H: a buffer filled at every call)
+            assert len(a) == len(b)
+        elif isinstance(a, list):
+            assert a == b, f.name
+        else:
+            assert np.array_equal(a, b) and a.dtype == b.dtype and a.shape == b.shape, f.name
+    for x, y in zip(rows[:4], nc._kinematics(q, v)[:4], strict=True):
+        assert np.array_equal(x, y)
+    # another shape (a pair less): built anew
+    nc.remove_pair(next(iter(nc.pairs)))
+    smaller = nc._layout()
+    assert smaller.rows is not full.rows and len(smaller.pair) < len(full.pair)
