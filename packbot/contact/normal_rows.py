@@ -315,6 +315,12 @@ class ContactRows(ContactSet):
             vts: Any = last[6].vt
         else:
             vts = _centre_velocities(self._problem(q, v)[4])
+        if self.mu > 0.0:  # the plan's slipping pairs: those with engaged rows not sticking
+            for i, _, _ in self._plan().slips:
+                vt = vts[i]
+                if math.sqrt(float(vt @ vt)) > STICK_SPEED:
+                    return True
+            return False
         for p, vt in zip(self.pairs.values(), vts, strict=True):
             if (
                 not (self.mu > 0.0 and p.stick)
@@ -364,6 +370,8 @@ class ContactRows(ContactSet):
             gap, slide2 = last[6].gap, last[6].slide2
         if slide2 is None:
             _, _, gap, _, extra = self._problem(q, v)
+        elif engaged_only and self.mu > 0.0:
+            return self._stale_engaged(gap, slide2, distance)
         out: list[int] = []
         k = 0
         for i, (key, p) in enumerate(self.pairs.items()):
@@ -389,6 +397,29 @@ class ContactRows(ContactSet):
                 if engaged_only:
                     return out
         return out
+
+    def _stale_engaged(self, gap: Any, slide2: Any, distance: dict[int, float]) -> list[int]:
+        """:meth:`stale_pairs` with ``engaged_only`` from the compiled evaluation's slides.
+
+        The pairs with engaged rows are the modes' plan's (with friction: its slipping and
+        sticking pairs), in the contact set's order; the first stale one is returned.
+        """
+        plan = self._plan()
+        engaged = [s[0] for s in plan.slips] + plan.sticks.tolist()
+        if not engaged:
+            return []
+        engaged.sort()
+        keys = list(self.pairs)
+        points = self._layout().points
+        for i in engaged:
+            sl = points[i]  # (among the points and centres: i centres before it)
+            key = keys[i]
+            d = distance.get(key)
+            if d is None or abs(float(gap[sl.start - i : sl.stop - i].min()) - d) > POINT_TOL:
+                return [key]
+            if float(slide2[i]) > SLIDE_TOL**2:
+                return [key]
+        return []
 
 
 def _local(pairs: list[_Pair], h: int) -> FloatArray:
