@@ -30,7 +30,7 @@ import logging
 import math
 from dataclasses import dataclass
 from pathlib import Path
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import coal
 import numpy as np
@@ -318,6 +318,11 @@ class CollisionWorld:
             if self._broadphase_type is pin.BroadPhaseManager_SSaPCollisionManager
             else None
         )
+        # contact_patch's Coal requests and each pair's two shapes (read-only), made once
+        creq = coal.CollisionRequest()
+        creq.enable_contact = True
+        self._patch_requests = (creq, coal.ContactPatchRequest())
+        self._patch_shapes: dict[int, tuple[Any, Any]] = {}
 
     def _build(self, robot: Robot, srdf_path: Path | None) -> _Built:
         """The world's fixed parts: its geometry models, pieces and pairs (see _structure_key).
@@ -753,19 +758,22 @@ class CollisionWorld:
         Raises:
             ConfigurationError: ``pair`` is not the index of a tested pair.
         """
-        p = self.pairs[self._pair_id(pair)]
+        k = self._pair_id(pair)
+        p = self.pairs[k]
         self._place(q)
-        g1 = self.geom_model.geometryObjects[p.geom1].geometry
-        g2 = self.geom_model.geometryObjects[p.geom2].geometry
-        T1 = _to_coal(self.geom_data.oMg[p.geom1])
-        T2 = _to_coal(self.geom_data.oMg[p.geom2])
-        creq = coal.CollisionRequest()
+        shapes = self._patch_shapes.get(k)
+        if shapes is None:
+            objs = self.geom_model.geometryObjects
+            shapes = self._patch_shapes[k] = (objs[p.geom1].geometry, objs[p.geom2].geometry)
+        g1, g2 = shapes
+        oMg = self.geom_data.oMg
+        T1 = _to_coal(oMg[p.geom1])
+        T2 = _to_coal(oMg[p.geom2])
+        creq, preq = self._patch_requests  # (the same queries: only the margin changes)
         creq.security_margin = tol
-        creq.enable_contact = True
         cres = coal.CollisionResult()
         if not coal.collide(g1, T1, g2, T2, creq, cres):
             return None
-        preq = coal.ContactPatchRequest()
         pres = coal.ContactPatchResult(preq)
         coal.computeContactPatch(g1, T1, g2, T2, cres, preq, pres)
         if pres.numContactPatches() == 0:  # pragma: no cover - coal gives one per collision

@@ -839,6 +839,36 @@ def test_contact_patch_on_a_halfspace_and_far_apart(robot):
     assert far.contact_patch(robot.pose("high"), k, tol=0.01) is None
 
 
+def test_contact_patches_in_sequence_equal_those_of_a_fresh_world(robot):
+    """The Coal requests made once per world carry nothing from one patch query to the next:
+    queries of several pairs, margins and configurations in turn give what a new world gives
+    for each alone, bit for bit (a margin too small then large again included)."""
+    q0 = robot.pose("drive")
+    w = CollisionWorld(robot)
+    sw = w.sweep(q0)
+    near = sw.pairs[np.argsort(sw.distances)[:3]].tolist()
+    d = float(np.sort(sw.distances)[0])
+    queries = [
+        (q0 + dq, k, tol)
+        for dq in (0.0, 1e-3)
+        for k in near
+        for tol in (abs(d) + 0.01, abs(d) / 2 if d > 0 else 0.0, abs(d) + 0.01)
+    ]
+    seen = 0
+    for q, k, tol in queries:
+        got = w.contact_patch(q, k, tol)
+        ref = CollisionWorld(robot).contact_patch(q, k, tol)
+        assert (got is None) == (ref is None)
+        if got is not None and ref is not None:
+            seen += 1
+            assert got.pair == ref.pair and got.distance == ref.distance
+            for a, b in ((got.normal, ref.normal), (got.points1, ref.points1)):
+                assert np.array_equal(a, b)
+            assert np.array_equal(got.points2, ref.points2)
+    assert seen >= 4  # patches were made, and queries fell outside their margin
+    assert seen < len(queries)
+
+
 # ------------------------------------------------------------------------- line of sight
 def _los_world(robot: packbot.Robot, *obstacles: Obstacle) -> CollisionWorld:
     return CollisionWorld(robot, Environment().with_obstacles(*obstacles))

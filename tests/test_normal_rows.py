@@ -347,3 +347,98 @@ def test_compiled_small_lemke_reproduces_the_python_pivots_to_the_last_bit(rng):
         else:
             failed += 1
     assert solved > 300 and failed > 10
+
+
+def test_a_repatch_of_the_same_shape_reuses_the_layout_and_equals_a_full_build(contacts, rng):
+    """A refresh that keeps every pair's patch size keeps the layout's index arrays and
+    replaces only the patch points, frames and offsets: the layout and the rows at a state are
+    those of a layout built from nothing, bit for bit; a change of shape builds it anew."""
+    from dataclasses import fields
+
+    sysm, _, q0 = contacts
+    cfg = packbot.SimConfig(contact_mode="normal", mu=0.5, locked_joints=WRIST)
+    nc = NormalContacts.from_config(sysm.model, sysm.data, sysm.world, cfg)
+    assert sysm.world is not None
+    for p in range(len(sysm.world.pairs)):
+        nc.add_pair(q0, p)
+    first = nc._layout()
+    sizes = nc.row_signature()
+    q = q0 + 1e-5 * rng.standard_normal(len(q0))
+    nc.refresh(q)
+    assert nc.row_signature() == sizes  # the same pairs and patch sizes
+    v = rng.standard_normal(len(q0))
+    lay = nc._layout()
+    assert lay is not first and lay.rows is first.rows and lay.body is first.body
+    assert not np.array_equal(lay.local, first.local)  # the new patches
+    rows = nc._kinematics(q, v)
+    nc._lay_prev = None  # forget it: the next layout is built from nothing
+    nc._invalidate()
+    full = nc._layout()
+    assert full.rows is not lay.rows
+    for f in fields(full):
+        a, b = getattr(full, f.name), getattr(lay, f.name)
+        if f.name in ("placements", "fixed", "H"):  # (H: a buffer filled at every call)
+            assert len(a) == len(b)
+        elif isinstance(a, list):
+            assert a == b, f.name
+        else:
+            assert np.array_equal(a, b) and a.dtype == b.dtype and a.shape == b.shape, f.name
+    for x, y in zip(rows[:4], nc._kinematics(q, v)[:4], strict=True):
+        assert np.array_equal(x, y)
+    # another shape (a pair less): built anew
+    nc.remove_pair(next(iter(nc.pairs)))
+    smaller = nc._layout()
+    assert smaller.rows is not full.rows and len(smaller.pair) < len(full.pair)
+
+
+def test_the_plans_pairs_decide_sliding_and_staleness_as_the_loop_over_every_pair(
+    robot, monkeypatch
+):
+    """At every step end of the collapse (mu = 0.5) ``sliding`` and ``stale``, which look at
+    the modes' plan's pairs only, decide as the rule over every pair of the contact set: a pair
+    with engaged rows, not sticking, faster than STICK_SPEED slides; the first pair with
+    engaged rows whose patch is stale (``stale_pairs`` over every pair) is the stale one."""
+    import math
+
+    from packbot.contact.normal_rows import ContactRows, _same
+    from packbot.contact.normal_tolerances import STICK_SPEED
+
+    real_sliding, real_stale = ContactRows.sliding, ContactRows.stale_pairs
+    seen = {"sliding": 0, "slides": 0, "stale": 0, "stales": 0}
+
+    def sliding(self, q, v):
+        out = real_sliding(self, q, v)
+        ref = False
+        if self.engaged and self.pairs and not self.resting:
+            last = self._last_eval
+            if last is not None and _same(last[0], q) and _same(last[1], v):
+                vts = last[6].vt
+            else:
+                vts = [ex["vt"] for ex in self._problem(q, v)[4]]
+            ref = any(
+                not (self.mu > 0.0 and p.stick)
+                and math.sqrt(float(vt @ vt)) > STICK_SPEED
+                and self._pair_engaged(p)
+                for p, vt in zip(self.pairs.values(), vts, strict=True)
+            )
+        assert out == ref
+        seen["sliding"] += 1
+        seen["slides"] += out
+        return out
+
+    def stale_pairs(self, q, v, distance, engaged_only=False):
+        out = real_stale(self, q, v, distance, engaged_only)
+        if engaged_only:
+            every = real_stale(self, q, v, distance, False)
+            ref = [k for k in every if self._pair_engaged(self.pairs[k])][:1]
+            assert out == ref
+            seen["stale"] += 1
+            seen["stales"] += bool(out)
+        return out
+
+    monkeypatch.setattr(ContactRows, "sliding", sliding)
+    monkeypatch.setattr(ContactRows, "stale_pairs", stale_pairs)
+    cfg = packbot.SimConfig(contact_mode="normal", mu=0.5, locked_joints=WRIST)
+    packbot.simulate(robot, robot.pose("drive"), np.zeros(8), 5.0, config=cfg)
+    assert seen["sliding"] > 1000 and seen["slides"] > 300
+    assert seen["stale"] > 300 and seen["stales"] > 100

@@ -9,7 +9,7 @@ for the current modes. A sliding patch is rebuilt once stale (:meth:`ContactRows
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -140,6 +140,17 @@ class ContactRows(ContactSet):
         if self._lay is not None:
             return self._lay
         pairs = list(self.pairs.values())
+        shape = (
+            tuple([(k, len(p.local1)) for k, p in self.pairs.items()]),
+            tuple(self.limits.items()),
+        )
+        prev = self._lay_prev
+        if prev is not None and prev[0] == shape:
+            # the same pairs with the same patch sizes and the same limits (a re-patch): only
+            # the points, the frames and the offsets change
+            self._lay = lay = _replace_patches(prev[1], pairs)
+            self._lay_prev = (shape, lay)
+            return lay
         joints = sorted({p.info.joint1 for p in pairs} | {p.info.joint2 for p in pairs})
         index = {j: i for i, j in enumerate(joints)}
         body1: list[int] = []
@@ -147,14 +158,10 @@ class ContactRows(ContactSet):
         pair: list[int] = []
         rows: list[int] = []
         centre: list[int] = []
-        local1: list[FloatArray] = []
-        local2: list[FloatArray] = []
         points: list[slice] = []
         k = 0
         for i, p in enumerate(pairs):
             K = len(p.local1)
-            local1 += [p.local1, p.centre1]
-            local2 += [p.local2, p.centre2]
             body1 += [index[p.info.joint1]] * (K + 1)
             body2 += [index[p.info.joint2]] * (K + 1)
             pair += [i] * (K + 1)
@@ -167,39 +174,25 @@ class ContactRows(ContactSet):
             joints=joints,
             masks=np.ascontiguousarray(self._masks[joints][:, 0, :]),
             body=np.array(body1 + body2, dtype=np.intp),
-            local=np.hstack([np.vstack(local1 + local2), np.ones((2 * k, 1))])
-            if pairs
-            else np.zeros((0, 4)),
+            local=_local(pairs, k),
             pair=np.array(pair, dtype=np.intp),
             rows=np.array(rows, dtype=np.intp),
             centre=np.array(centre, dtype=np.intp),
             normal_body=np.array([index[p.info.joint2] for p in pairs], dtype=np.intp),
-            frame2=np.array([p.frame2 for p in pairs]) if pairs else np.zeros((0, 3, 3)),
+            frame2=_frame2(pairs),
             points=points,
             lim_joint=np.array([j for (j, _), _ in limits], dtype=np.intp),
             lim_side=np.array([side for (_, side), _ in limits], dtype=np.float64),
             lim_value=np.array([value for _, value in limits], dtype=np.float64),
-            offset0=np.ascontiguousarray(np.vstack([p.offset0.T for p in pairs]))
-            if pairs
-            else np.zeros((0, 2)),
+            offset0=_offset0(pairs),
             no_bodies=np.zeros((0, 4, 4)),
             no_jacobian=np.asfortranarray(np.zeros((6, self.nv))),
             placements=[(i, self.data.oMi[j]) for i, j in enumerate(joints) if j],
             H=np.array([_I4 for _ in joints]) if joints else np.zeros((0, 4, 4)),
         )
         lay = self._lay
-        lay.fixed = (
-            lay.body,
-            lay.local,
-            lay.pair,
-            lay.rows,
-            lay.centre,
-            lay.normal_body,
-            lay.frame2,
-            lay.lim_joint,
-            lay.lim_side,
-            lay.lim_value,
-        )
+        lay.fixed = _fixed(lay)
+        self._lay_prev = (shape, lay)
         return lay
 
     @staticmethod
@@ -322,6 +315,12 @@ class ContactRows(ContactSet):
             vts: Any = last[6].vt
         else:
             vts = _centre_velocities(self._problem(q, v)[4])
+        if self.mu > 0.0:  # the plan's slipping pairs: those with engaged rows not sticking
+            for i, _, _ in self._plan().slips:
+                vt = vts[i]
+                if math.sqrt(float(vt @ vt)) > STICK_SPEED:
+                    return True
+            return False
         for p, vt in zip(self.pairs.values(), vts, strict=True):
             if (
                 not (self.mu > 0.0 and p.stick)
@@ -371,6 +370,8 @@ class ContactRows(ContactSet):
             gap, slide2 = last[6].gap, last[6].slide2
         if slide2 is None:
             _, _, gap, _, extra = self._problem(q, v)
+        elif engaged_only and self.mu > 0.0:
+            return self._stale_engaged(gap, slide2, distance)
         out: list[int] = []
         k = 0
         for i, (key, p) in enumerate(self.pairs.items()):
@@ -396,6 +397,82 @@ class ContactRows(ContactSet):
                 if engaged_only:
                     return out
         return out
+
+    def _stale_engaged(self, gap: Any, slide2: Any, distance: dict[int, float]) -> list[int]:
+        """:meth:`stale_pairs` with ``engaged_only`` from the compiled evaluation's slides.
+
+        The pairs with engaged rows are the modes' plan's (with friction: its slipping and
+        sticking pairs), in the contact set's order; the first stale one is returned.
+        """
+        plan = self._plan()
+        engaged = [s[0] for s in plan.slips] + plan.sticks.tolist()
+        if not engaged:
+            return []
+        engaged.sort()
+        keys = list(self.pairs)
+        points = self._layout().points
+        for i in engaged:
+            sl = points[i]  # (among the points and centres: i centres before it)
+            key = keys[i]
+            d = distance.get(key)
+            if d is None or abs(float(gap[sl.start - i : sl.stop - i].min()) - d) > POINT_TOL:
+                return [key]
+            if float(slide2[i]) > SLIDE_TOL**2:
+                return [key]
+        return []
+
+
+def _local(pairs: list[_Pair], h: int) -> FloatArray:
+    """(2h, 4) every patch point and centre, on body 1 then body 2, homogeneous [m]."""
+    if not pairs:
+        return np.zeros((0, 4))
+    local1: list[FloatArray] = []
+    local2: list[FloatArray] = []
+    for p in pairs:
+        local1 += [p.local1, p.centre1]
+        local2 += [p.local2, p.centre2]
+    return np.hstack([np.vstack(local1 + local2), np.ones((2 * h, 1))])
+
+
+def _frame2(pairs: list[_Pair]) -> FloatArray:
+    """(pairs, 3, 3) each pair's rows t1, t2, n in body 2's joint frame."""
+    return np.array([p.frame2 for p in pairs]) if pairs else np.zeros((0, 3, 3))
+
+
+def _offset0(pairs: list[_Pair]) -> FloatArray:
+    """(m_p, 2) each pair row's tangential offset when its patch was built [m]."""
+    if not pairs:
+        return np.zeros((0, 2))
+    return np.ascontiguousarray(np.vstack([p.offset0.T for p in pairs]))
+
+
+def _fixed(lay: _Layout) -> tuple[Any, ...]:
+    """The kernels' arguments after q, v (see :attr:`_Layout.fixed`)."""
+    return (
+        lay.body,
+        lay.local,
+        lay.pair,
+        lay.rows,
+        lay.centre,
+        lay.normal_body,
+        lay.frame2,
+        lay.lim_joint,
+        lay.lim_side,
+        lay.lim_value,
+    )
+
+
+def _replace_patches(lay: _Layout, pairs: list[_Pair]) -> _Layout:
+    """A new layout of the same shape as ``lay`` with the patches of ``pairs``.
+
+    The pairs, their patch sizes and the limits are those of ``lay``; its index arrays,
+    masks and buffers are shared (none is written after it is built, but H, filled before
+    every kernel call).
+    """
+    h = len(lay.pair)
+    new = replace(lay, local=_local(pairs, h), frame2=_frame2(pairs), offset0=_offset0(pairs))
+    new.fixed = _fixed(new)
+    return new
 
 
 _KERNELS: list[Any] = []  # packbot.contact.kernels once imported (see _kernels)

@@ -103,6 +103,9 @@ class ContactSet:
         self._kin_cache: dict[tuple[bytes, bytes], Any] = {}  # see _kinematics
         self._planes_cache: dict[int, tuple[FloatArray, FloatArray]] = {}
         self._lay: _Layout | None = None
+        # the last layout built and its shape (see ContactRows._layout): a re-patch that keeps
+        # every pair's patch size reuses all of it but the points, frames and offsets
+        self._lay_prev: tuple[Any, _Layout] | None = None
         self._pairs_cache: list[_Pair] | None = None
         self._version = 0  # of the contact set, see _invalidate
         # per joint: 1 on the velocities that move its body (its support), (joints, 1, nv)
