@@ -20,6 +20,8 @@
 #include <nanobind/stl/string.h>
 #include <nanobind/stl/vector.h>
 
+#include "joints.hpp"
+
 #include <pinocchio/algorithm/aba.hpp>
 #include <pinocchio/algorithm/crba.hpp>
 #include <pinocchio/algorithm/energy.hpp>
@@ -39,45 +41,12 @@
 namespace nb = nanobind;
 namespace pin = pinocchio;
 
-// The joints this module's model may hold: the 1-dof revolute and prismatic ones. Pinocchio's
-// algorithms visit a joint variant; its default collection has 25 types (composite and mimic
-// joints among them), each instantiating every algorithm step: this one (the 1-dof joints, and
-// the mimic joint Pinocchio's model code asks for) compiles in a fraction of the time and memory.
-template <typename _Scalar, int _Options> struct PackbotJointsTpl {
-  typedef _Scalar Scalar;
-  static constexpr int Options = _Options;
-  typedef pin::JointModelRevoluteTpl<Scalar, Options, 0> JointModelRX;
-  typedef pin::JointModelRevoluteTpl<Scalar, Options, 1> JointModelRY;
-  typedef pin::JointModelRevoluteTpl<Scalar, Options, 2> JointModelRZ;
-  typedef pin::JointModelRevoluteUnalignedTpl<Scalar, Options> JointModelRevoluteUnaligned;
-  typedef pin::JointModelPrismaticTpl<Scalar, Options, 0> JointModelPX;
-  typedef pin::JointModelPrismaticTpl<Scalar, Options, 1> JointModelPY;
-  typedef pin::JointModelPrismaticTpl<Scalar, Options, 2> JointModelPZ;
-  typedef pin::JointModelPrismaticUnalignedTpl<Scalar, Options> JointModelPrismaticUnaligned;
-  // Pinocchio's model and data test for mimic joints (boost::get): the variant must hold them
-  typedef pin::JointModelMimicTpl<Scalar, Options, PackbotJointsTpl> JointModelMimic;
-  typedef boost::variant<JointModelRX, JointModelRY, JointModelRZ, JointModelRevoluteUnaligned,
-                         JointModelPX, JointModelPY, JointModelPZ, JointModelPrismaticUnaligned,
-                         boost::recursive_wrapper<JointModelMimic>>
-      JointModelVariant;
-  typedef pin::JointDataRevoluteTpl<Scalar, Options, 0> JointDataRX;
-  typedef pin::JointDataRevoluteTpl<Scalar, Options, 1> JointDataRY;
-  typedef pin::JointDataRevoluteTpl<Scalar, Options, 2> JointDataRZ;
-  typedef pin::JointDataRevoluteUnalignedTpl<Scalar, Options> JointDataRevoluteUnaligned;
-  typedef pin::JointDataPrismaticTpl<Scalar, Options, 0> JointDataPX;
-  typedef pin::JointDataPrismaticTpl<Scalar, Options, 1> JointDataPY;
-  typedef pin::JointDataPrismaticTpl<Scalar, Options, 2> JointDataPZ;
-  typedef pin::JointDataPrismaticUnalignedTpl<Scalar, Options> JointDataPrismaticUnaligned;
-  typedef pin::JointDataMimicTpl<Scalar, Options, PackbotJointsTpl> JointDataMimic;
-  typedef boost::variant<JointDataRX, JointDataRY, JointDataRZ, JointDataRevoluteUnaligned,
-                         JointDataPX, JointDataPY, JointDataPZ, JointDataPrismaticUnaligned,
-                         boost::recursive_wrapper<JointDataMimic>>
-      JointDataVariant;
-};
+// The joints this module's model may hold: the 1-dof revolute and prismatic ones (joints.hpp,
+// shared with sweep.cpp).
+using packbot_native::make_joint;
+using packbot_native::PackbotJointsTpl;
 using Model = pin::ModelTpl<double, 0, PackbotJointsTpl>;
 using Data = pin::DataTpl<double, 0, PackbotJointsTpl>;
-using JointModel = pin::JointModelTpl<double, 0, PackbotJointsTpl>;
-using J = PackbotJointsTpl<double, 0>;
 
 using F1 = nb::ndarray<const double, nb::ndim<1>, nb::c_contig, nb::device::cpu>;
 using F2 = nb::ndarray<const double, nb::ndim<2>, nb::c_contig, nb::device::cpu>;
@@ -88,18 +57,6 @@ using Out2 = nb::ndarray<double, nb::ndim<2>, nb::c_contig, nb::device::cpu>;
 
 namespace {
 
-JointModel make_joint(const std::string &type, const double *axis) {
-  const Eigen::Vector3d ax(axis[0], axis[1], axis[2]);
-  if (type == "JointModelRX") return J::JointModelRX();
-  if (type == "JointModelRY") return J::JointModelRY();
-  if (type == "JointModelRZ") return J::JointModelRZ();
-  if (type == "JointModelRevoluteUnaligned") return J::JointModelRevoluteUnaligned(ax);
-  if (type == "JointModelPX") return J::JointModelPX();
-  if (type == "JointModelPY") return J::JointModelPY();
-  if (type == "JointModelPZ") return J::JointModelPZ();
-  if (type == "JointModelPrismaticUnaligned") return J::JointModelPrismaticUnaligned(ax);
-  throw std::invalid_argument("unsupported joint type " + type);
-}
 
 // Gaussian elimination with partial pivoting (closed form for 1 x 1 and 2 x 2), as
 // kernels._solve_small: G (m x m, row-major) is overwritten; false when singular.
