@@ -22,6 +22,10 @@ the narrowphase then runs on those pairs only, in one C++ call (``pin.computeDis
 only those pairs active). When the compiled ``packbot._native_coal`` is available
 (:mod:`packbot.native_sweep`), :meth:`CollisionWorld.sweep` does all of it in one native call
 instead, with the same boxes, candidates and distances.
+
+The world's fixed parts (pieces, pairs, broadphase boxes) are built in
+``packbot.collision_build``, once per robot, environment and SRDF; the contact patches and the
+line of sight query Coal in ``packbot.collision_queries``.
 """
 
 from __future__ import annotations
@@ -552,7 +556,9 @@ class CollisionWorld:
         Raises:
             ConfigurationError: ``pair`` is not the index of a tested pair.
         """
-        return _cq.contact_patch(self, q, pair, tol)
+        k = self._pair_id(pair)
+        found = _cq.contact_patch(self, q, k, tol)
+        return None if found is None else ContactPatch(self.pairs[k], *found)
 
     # ------------------------------------------------------------------ line of sight
     def line_of_sight(

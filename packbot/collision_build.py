@@ -146,10 +146,7 @@ def build(robot: Robot, environment: Environment, srdf_path: Path | None) -> Bui
             n_before - len(gm.collisionPairs),
             n_before,
         )
-    pairs = tuple(
-        pair_info(gm, link_of_geom, body_of_geom, k, int(cp.first), int(cp.second))
-        for k, cp in enumerate(gm.collisionPairs)
-    )
+    pairs = pair_infos(gm, link_of_geom, body_of_geom)
     G = gm.ngeoms
     first = np.array([p.geom1 for p in pairs], dtype=np.intp)
     second = np.array([p.geom2 for p in pairs], dtype=np.intp)
@@ -205,29 +202,30 @@ def candidate_geom_pairs(
     return out
 
 
-def pair_info(
-    gm: pin.GeometryModel,
-    link_of_geom: list[str],
-    body_of_geom: NDArray[np.intp],
-    index: int,
-    g1: int,
-    g2: int,
-) -> PairInfo:
-    """The pair ``index`` of pieces ``g1`` (distal) and ``g2`` of the geometry model ``gm``."""
+def pair_infos(
+    gm: pin.GeometryModel, link_of_geom: list[str], body_of_geom: NDArray[np.intp]
+) -> tuple[PairInfo, ...]:
+    """The pairs of the geometry model ``gm``, in its order (piece 1 distal)."""
     from packbot.collision import PairInfo  # (packbot.collision imports this module)
 
     gos = gm.geometryObjects
-    return PairInfo(
-        index=index,
-        geom1=g1,
-        geom2=g2,
-        link1=link_of_geom[g1],
-        link2=link_of_geom[g2],
-        piece1=gos[g1].name,
-        piece2=gos[g2].name,
-        joint1=int(max(body_of_geom[g1], 0)),
-        joint2=int(max(body_of_geom[g2], 0)),
-    )
+    out = []
+    for index, cp in enumerate(gm.collisionPairs):
+        g1, g2 = int(cp.first), int(cp.second)
+        out.append(
+            PairInfo(
+                index=index,
+                geom1=g1,
+                geom2=g2,
+                link1=link_of_geom[g1],
+                link2=link_of_geom[g2],
+                piece1=gos[g1].name,
+                piece2=gos[g2].name,
+                joint1=int(max(body_of_geom[g1], 0)),
+                joint2=int(max(body_of_geom[g2], 0)),
+            )
+        )
+    return tuple(out)
 
 
 # ---------------------------------------------------------------------- broadphase

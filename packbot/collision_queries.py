@@ -18,7 +18,7 @@ from numpy.typing import NDArray
 from packbot.errors import ConfigurationError, UnknownNameError
 
 if TYPE_CHECKING:
-    from packbot.collision import CollisionWorld, ContactPatch
+    from packbot.collision import CollisionWorld
 
 __all__ = ["LOS_SHORTEN", "contact_patch", "line_of_sight"]
 
@@ -27,16 +27,15 @@ LOS_SHORTEN = 1e-3
 
 
 def contact_patch(
-    world: CollisionWorld, q: NDArray[np.float64], pair: int, tol: float
-) -> ContactPatch | None:
-    """The contact patch of a pair within ``tol`` [m] at q, or None if farther apart.
+    world: CollisionWorld, q: NDArray[np.float64], k: int, tol: float
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], float] | None:
+    """The contact patch of the tested pair ``k`` within ``tol`` [m] at q, or None.
 
-    Raises:
-        ConfigurationError: ``pair`` is not the index of a tested pair.
+    Returns:
+        The patch's normal (body 1 to body 2), its vertices on piece 1 and on piece 2, shape
+        (K, 3) [m] each, and the signed distance [m] (the fields of a
+        :class:`~packbot.collision.ContactPatch` after its pair); None: farther apart.
     """
-    from packbot.collision import ContactPatch  # (packbot.collision imports this module)
-
-    k = world._pair_id(pair)
     p = world.pairs[k]
     world._place(q)
     shapes = world._patch_shapes.get(k)
@@ -58,10 +57,10 @@ def contact_patch(
         return None
     patch = pres.getContactPatch(0)
     n = np.array(patch.getNormal())
-    k = patch.size()
-    pts1 = np.array([patch.getPointShape1(i) for i in range(k)]).reshape(-1, 3)
-    pts2 = np.array([patch.getPointShape2(i) for i in range(k)]).reshape(-1, 3)
-    return ContactPatch(p, n, pts1, pts2, float(patch.penetration_depth))
+    npts = patch.size()
+    pts1 = np.array([patch.getPointShape1(i) for i in range(npts)]).reshape(-1, 3)
+    pts2 = np.array([patch.getPointShape2(i) for i in range(npts)]).reshape(-1, 3)
+    return n, pts1, pts2, float(patch.penetration_depth)
 
 
 def line_of_sight(
