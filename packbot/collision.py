@@ -22,11 +22,14 @@ the narrowphase then runs on those pairs only, in one C++ call (``pin.computeDis
 only those pairs active). When the compiled ``packbot._native_coal`` is available
 (:mod:`packbot.native_sweep`), :meth:`CollisionWorld.sweep` does all of it in one native call
 instead, with the same boxes, candidates and distances.
+
+The world's fixed parts (pieces, pairs, broadphase boxes) are built in
+``packbot.collision_build``, once per robot, environment and SRDF; the contact patches and the
+line of sight query Coal in ``packbot.collision_queries``.
 """
 
 from __future__ import annotations
 
-import logging
 import math
 from dataclasses import dataclass
 from pathlib import Path
@@ -37,7 +40,12 @@ import numpy as np
 import pinocchio as pin
 from numpy.typing import NDArray
 
+from packbot import collision_build as _cb
+from packbot import collision_queries as _cq
 from packbot import native_sweep as _ns
+from packbot.collision_build import BOX_PAD as BOX_PAD  # (importable from here as before)
+from packbot.collision_build import HALFSPACE_BOX as HALFSPACE_BOX
+from packbot.collision_queries import LOS_SHORTEN as LOS_SHORTEN
 from packbot.environment import Environment
 from packbot.errors import ConfigurationError, ResourceNotFound, UnknownNameError
 from packbot.model import Robot
@@ -54,23 +62,12 @@ __all__ = [
     "SweepResult",
 ]
 
-log = logging.getLogger(__name__)
-
 #: File name of the SRDF beside the URDF (its disabled collision pairs).
 SRDF_NAME = "packbot_eod.srdf"
 #: Default query margin [m]: pairs farther apart than this are pruned.
 DEFAULT_MARGIN = 0.05
 #: Absolute GJK and EPA tolerance [m].
 GJK_TOLERANCE = 1e-10
-#: Padding of every piece's bounding box [m]: covers the rounding of the box arithmetic, so
-#: that the pruned sweep never drops a pair that the unpruned one finds within the margin.
-BOX_PAD = 1e-9
-#: A halfspace's infinite box sides are clipped to +-HALFSPACE_BOX [m] in the broadphase (Coal's
-#: broadphase inflates a box, not a halfspace; 1e6 m keeps the rounding of the finite face
-#: under BOX_PAD).
-HALFSPACE_BOX = 1e6
-#: The line of sight stops this short of the target [m], so that a target on a surface is seen.
-LOS_SHORTEN = 1e-3
 
 
 @dataclass(frozen=True)
@@ -166,65 +163,6 @@ class SweepResult(NamedTuple):
     counts: SweepCounts
 
 
-#: A world's fixed parts (:meth:`CollisionWorld._build`): geometry model with its pairs, the
-#: broadphase's model, each piece's link and body, the links, the pairs, their flat indices.
-_Built = tuple[
-    pin.GeometryModel,
-    pin.GeometryModel,
-    list[str],
-    NDArray[np.intp],
-    tuple[str, ...],
-    tuple["PairInfo", ...],
-    NDArray[np.intp],
-]
-#: The fixed parts of the worlds built so far, by :func:`_structure_key` (the last few: a
-#: simulation builds its world at every phase, a batch of runs the same worlds again).
-_BUILT: dict[tuple[object, ...], _Built] = {}
-_BUILT_MAX = 16
-
-
-def _structure_key(
-    robot: Robot, environment: Environment, srdf: Path | None
-) -> tuple[object, ...] | None:
-    """What a world's fixed parts are made of, by value; None: not to be shared.
-
-    Every robot piece (name, joint, frame and its link, placement, the convex's vertices), the
-    model's joint names, the links joined by one joint, the environment (a frozen dataclass)
-    and the SRDF file (path, modification time and size). Two worlds with equal keys have
-    equal geometry models, pairs and broadphase boxes. Costs about 0.1 ms (the build, 3 to 4).
-    """
-    try:
-        hash(environment)
-    except TypeError:  # an environment with unhashable parts: built every time
-        return None
-    model = robot.model
-    pieces = []
-    for go in robot.collision_model.geometryObjects:
-        geom = go.geometry
-        if not isinstance(geom, coal.ConvexBase):
-            return None
-        pieces.append(
-            (
-                go.name,
-                int(go.parentJoint),
-                int(go.parentFrame),
-                str(model.frames[go.parentFrame].name),
-                go.placement.homogeneous.tobytes(),
-                np.asarray(geom.points(), dtype=float).tobytes(),
-            )
-        )
-    if srdf is None:
-        srdf_id: tuple[object, ...] | None = None
-    else:
-        st = srdf.stat()
-        srdf_id = (str(srdf.resolve()), st.st_mtime_ns, st.st_size)
-    return (tuple(pieces), tuple(model.names), robot.adjacent_links, environment, srdf_id)
-
-
-def _link_name(model: pin.Model, geom: pin.GeometryObject) -> str:
-    return str(model.frames[geom.parentFrame].name)
-
-
 class CollisionWorld:
     """Convex pieces of a robot and its static environment, answering distance queries at q.
 
@@ -267,14 +205,7 @@ class CollisionWorld:
             if not srdf_path.is_file():
                 raise ResourceNotFound(srdf_path, "run `packbot generate-srdf` to create it")
         self.srdf_path = srdf_path
-        key = _structure_key(robot, self.environment, srdf_path)
-        built = _BUILT.get(key) if key is not None else None
-        if built is None:
-            built = self._build(robot, srdf_path)
-            if key is not None:
-                if len(_BUILT) >= _BUILT_MAX:
-                    del _BUILT[next(iter(_BUILT))]
-                _BUILT[key] = built
+        # the fixed parts (shared with the worlds of the same robot, environment and SRDF)
         (
             self.geom_model,
             self._bp_model,
@@ -283,7 +214,7 @@ class CollisionWorld:
             self.links,
             self.pairs,
             self._pair_flat,
-        ) = built
+        ) = _cb.fixed_parts(robot, self.environment, srdf_path)
         gm = self.geom_model
         self._n_robot = robot.collision_model.ngeoms
         self._native: _ns.NativeSweep | None = None  # (built below, once geom_data is set)
@@ -324,144 +255,11 @@ class CollisionWorld:
         self._patch_requests = (creq, coal.ContactPatchRequest())
         self._patch_shapes: dict[int, tuple[Any, Any]] = {}
 
-    def _build(self, robot: Robot, srdf_path: Path | None) -> _Built:
-        """The world's fixed parts: its geometry models, pieces and pairs (see _structure_key).
-
-        Read-only once built: the worlds of the same robot, environment and SRDF share them
-        (each has its own data, distance requests and broadphase manager).
-        """
-        model = robot.model
-        gm = robot.collision_model.copy()
-        link_of_geom = [_link_name(model, go) for go in gm.geometryObjects]
-        # Obstacles: static, one "body" each (body id -1 - k).
-        body_of_geom = [int(go.parentJoint) for go in gm.geometryObjects]
-        for k, ob in enumerate(self.environment.obstacles):
-            if ob.name in set(link_of_geom):
-                raise ConfigurationError("obstacle.name", ob.name, "a name that is not a link")
-            go = pin.GeometryObject(f"{ob.name}", 0, 0, ob.placement(), ob.shape())
-            gm.addGeometryObject(go)
-            link_of_geom.append(ob.name)
-            body_of_geom.append(-1 - k)
-        self.geom_model = gm
-        self._link_of_geom = link_of_geom
-        self._body_of_geom = np.array(body_of_geom)
-        links: tuple[str, ...] = tuple(dict.fromkeys(link_of_geom))
-        for g1, g2 in self._candidate_geom_pairs():
-            gm.addCollisionPair(pin.CollisionPair(g1, g2))
-        if srdf_path is not None:
-            n_before = len(gm.collisionPairs)
-            pin.removeCollisionPairs(model, gm, str(srdf_path))
-            log.debug(
-                "SRDF %s removed %d of %d pairs",
-                srdf_path,
-                n_before - len(gm.collisionPairs),
-                n_before,
-            )
-        pairs = tuple(
-            self._pair_info(k, int(cp.first), int(cp.second))
-            for k, cp in enumerate(gm.collisionPairs)
-        )
-        G = gm.ngeoms
-        first = np.array([p.geom1 for p in pairs], dtype=np.intp)
-        second = np.array([p.geom2 for p in pairs], dtype=np.intp)
-        pair_flat = np.minimum(first, second) * G + np.maximum(first, second)
-        return (
-            gm,
-            self._broadphase_model(),
-            link_of_geom,
-            self._body_of_geom,
-            links,
-            pairs,
-            pair_flat,
-        )
-
-    # ------------------------------------------------------------------ pairs
-    def _is_static(self, body: int) -> bool:
-        return body <= 0
-
-    def _adjacent(self, g1: int, g2: int) -> bool:
-        """Pieces on links joined by one joint of the healthy arm (see Robot.adjacent_links)."""
-        if self._body_of_geom[g1] < 0 or self._body_of_geom[g2] < 0:
-            return False  # obstacles
-        link1, link2 = self._link_of_geom[g1], self._link_of_geom[g2]
-        return frozenset((link1, link2)) in self.robot.adjacent_links
-
-    def _candidate_geom_pairs(self) -> list[tuple[int, int]]:
-        """Geometry pairs on different, non-adjacent bodies, not both static; distal first."""
-        bodies = self._body_of_geom
-        out = []
-        n = self.geom_model.ngeoms
-        for i in range(n):
-            for j in range(i + 1, n):
-                b_i, b_j = int(bodies[i]), int(bodies[j])
-                if b_i == b_j or (self._is_static(b_i) and self._is_static(b_j)):
-                    continue
-                if self._adjacent(i, j):
-                    continue
-                # piece 1 on the more distal body; static bodies (<= 0) always second
-                out.append((i, j) if b_i > b_j else (j, i))
-        return out
-
-    def _pair_info(self, index: int, g1: int, g2: int) -> PairInfo:
-        gos = self.geom_model.geometryObjects
-        return PairInfo(
-            index=index,
-            geom1=g1,
-            geom2=g2,
-            link1=self._link_of_geom[g1],
-            link2=self._link_of_geom[g2],
-            piece1=gos[g1].name,
-            piece2=gos[g2].name,
-            joint1=int(max(self._body_of_geom[g1], 0)),
-            joint2=int(max(self._body_of_geom[g2], 0)),
-        )
-
     # ------------------------------------------------------------------ broadphase
     #: Pinocchio's wrapper of the Coal broadphase manager the sweep prunes with: sweep and
     #: prune, chosen by measurement (benchmarks/collision.py: as fast as testing every pair of
     #: boxes for the robot and the floor, the fastest type from 100 box obstacles on).
     _broadphase_type: type = pin.BroadPhaseManager_SSaPCollisionManager
-
-    def _broadphase_model(self) -> pin.GeometryModel:
-        """The broadphase's own geometry model (its data and manager: :meth:`_start_broadphase`).
-
-        The broadphase model has one box per piece and the same pairs in the same order as
-        :attr:`geom_model`, so that its pair indices are the world's. A moving piece's box is
-        the box of its vertices in its joint's frame, a static piece's (chassis, obstacles) in
-        the world frame, padded by ``BOX_PAD``; a halfspace's is infinite on its open sides
-        (clipped to :data:`HALFSPACE_BOX`) and on all sides unless it is axis-aligned. Coal
-        takes the world box of that box (``R c + t +- |R| h``). Its data keeps every pair
-        active; Pinocchio inflates each piece's world box by half the largest
-        ``security_margin + break_distance`` of its pairs' collision requests:
-        :meth:`_place_broadphase` sets the security margins to the query margin, and the break
-        distances are 0.
-        """
-        gm = self.geom_model
-        bp_model = pin.GeometryModel()
-        bodies = self._body_of_geom
-        for g, go in enumerate(gm.geometryObjects):
-            b = int(bodies[g])
-            if b >= 0:  # the joint frame (the world frame for the chassis, on joint 0)
-                M = go.placement
-                pts = np.asarray(go.geometry.points(), dtype=float) @ M.rotation.T + M.translation
-                lo, hi = pts.min(axis=0), pts.max(axis=0)
-            else:
-                lo, hi = self.environment.obstacles[-1 - b].world_aabb()
-                lo = np.clip(lo, -HALFSPACE_BOX, HALFSPACE_BOX)
-                hi = np.clip(hi, -HALFSPACE_BOX, HALFSPACE_BOX)
-            lo, hi = lo - BOX_PAD, hi + BOX_PAD  # covers rounding: the boxes stay conservative
-            box = coal.Box(*(hi - lo))  # a positive volume: the manager would skip a flat one
-            box.computeLocalAABB()
-            centre = pin.SE3(np.eye(3), (lo + hi) / 2)
-            bp_model.addGeometryObject(
-                pin.GeometryObject(go.name, go.parentJoint, go.parentFrame, centre, box)
-            )
-        for cp in gm.collisionPairs:
-            bp_model.addCollisionPair(pin.CollisionPair(int(cp.first), int(cp.second)))
-        assert [(c.first, c.second) for c in bp_model.collisionPairs] == [
-            (c.first, c.second) for c in gm.collisionPairs
-        ]  # Pinocchio appends pairs in order: a pair index means the same in both models
-        return bp_model
 
     def _start_broadphase(self) -> None:
         """The broadphase's data, manager and pair collector on :attr:`_bp_model`."""
@@ -759,31 +557,8 @@ class CollisionWorld:
             ConfigurationError: ``pair`` is not the index of a tested pair.
         """
         k = self._pair_id(pair)
-        p = self.pairs[k]
-        self._place(q)
-        shapes = self._patch_shapes.get(k)
-        if shapes is None:
-            objs = self.geom_model.geometryObjects
-            shapes = self._patch_shapes[k] = (objs[p.geom1].geometry, objs[p.geom2].geometry)
-        g1, g2 = shapes
-        oMg = self.geom_data.oMg
-        T1 = _to_coal(oMg[p.geom1])
-        T2 = _to_coal(oMg[p.geom2])
-        creq, preq = self._patch_requests  # (the same queries: only the margin changes)
-        creq.security_margin = tol
-        cres = coal.CollisionResult()
-        if not coal.collide(g1, T1, g2, T2, creq, cres):
-            return None
-        pres = coal.ContactPatchResult(preq)
-        coal.computeContactPatch(g1, T1, g2, T2, cres, preq, pres)
-        if pres.numContactPatches() == 0:  # pragma: no cover - coal gives one per collision
-            return None
-        patch = pres.getContactPatch(0)
-        n = np.array(patch.getNormal())
-        k = patch.size()
-        pts1 = np.array([patch.getPointShape1(i) for i in range(k)]).reshape(-1, 3)
-        pts2 = np.array([patch.getPointShape2(i) for i in range(k)]).reshape(-1, 3)
-        return ContactPatch(p, n, pts1, pts2, float(patch.penetration_depth))
+        found = _cq.contact_patch(self, q, k, tol)
+        return None if found is None else ContactPatch(self.pairs[k], *found)
 
     # ------------------------------------------------------------------ line of sight
     def line_of_sight(
@@ -811,47 +586,4 @@ class CollisionWorld:
             UnknownNameError: An unknown frame, or an unknown link or obstacle in ``ignore``.
             ConfigurationError: A target that is not 3 finite numbers, or a negative radius.
         """
-        model = self.robot.model
-        if not model.existFrame(frame):
-            raise UnknownNameError("frame", frame, [f.name for f in model.frames])
-        for name in ignore:
-            if name not in self.links:
-                raise UnknownNameError("link or obstacle", name, self.links)
-        b = np.asarray(target, dtype=float)
-        if b.shape != (3,) or not np.all(np.isfinite(b)):
-            raise ConfigurationError("target", target, "a world point: 3 finite numbers [m]")
-        if not radius >= 0.0:
-            raise ConfigurationError("radius", radius, "a non-negative radius [m]")
-        self._place(q)
-        fid = model.getFrameId(frame)
-        pin.updateFramePlacement(model, self._data, fid)
-        a = self._data.oMf[fid].translation.copy()
-        seg = b - a
-        full = float(np.linalg.norm(seg))
-        reach = full - LOS_SHORTEN  # the capsule spans [a, a + reach * u]
-        if reach <= 0.0:
-            return None
-        u = seg / full
-        r = min(float(radius), reach / 2)
-        R = pin.Quaternion.FromTwoVectors(np.array([0.0, 0.0, 1.0]), u).matrix()
-        T = coal.Transform3s(R, a + u * reach / 2)
-        cap = coal.Capsule(r, reach - 2 * r)  # coal: full cylinder length, axis z, centred
-        best: tuple[float, str] | None = None
-        req = coal.DistanceRequest()
-        res = coal.DistanceResult()
-        ignored = set(ignore)
-        for g, go in enumerate(self.geom_model.geometryObjects):
-            name = self._link_of_geom[g]
-            if name in ignored:
-                continue
-            res.clear()
-            d = coal.distance(cap, T, go.geometry, _to_coal(self.geom_data.oMg[g]), req, res)
-            if d <= 0.0:
-                dist_from_eye = float(np.dot(np.array(res.getNearestPoint2()) - a, u))
-                if best is None or dist_from_eye < best[0]:
-                    best = (dist_from_eye, name)
-        return None if best is None else best[1]
-
-
-def _to_coal(M: pin.SE3) -> coal.Transform3s:
-    return coal.Transform3s(M.rotation, M.translation)
+        return _cq.line_of_sight(self, q, target, frame, radius, ignore)

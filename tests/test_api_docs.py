@@ -68,6 +68,8 @@ INTERNAL_MODULES = {
     "packbot._native_coal",
     "packbot.native_sweep",
     "packbot.cli",
+    "packbot.collision_build",
+    "packbot.collision_queries",
     "packbot.dh",
     "packbot.drive",
     "packbot.geometry",

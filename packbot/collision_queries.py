@@ -1,0 +1,125 @@
+"""The collision world's queries outside the pair sweep: contact patches and line of sight.
+
+Both call Coal directly on the pieces placed at q (:meth:`CollisionWorld.contact_patch
+<packbot.collision.CollisionWorld.contact_patch>` and :meth:`CollisionWorld.line_of_sight
+<packbot.collision.CollisionWorld.line_of_sight>` delegate here; their docstrings are the
+contract).
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import coal
+import numpy as np
+import pinocchio as pin
+from numpy.typing import NDArray
+
+from packbot.errors import ConfigurationError, UnknownNameError
+
+if TYPE_CHECKING:
+    from packbot.collision import CollisionWorld
+
+__all__ = ["LOS_SHORTEN", "contact_patch", "line_of_sight"]
+
+#: The line of sight stops this short of the target [m], so that a target on a surface is seen.
+LOS_SHORTEN = 1e-3
+
+
+def contact_patch(
+    world: CollisionWorld, q: NDArray[np.float64], k: int, tol: float
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], float] | None:
+    """The contact patch of the tested pair ``k`` within ``tol`` [m] at q, or None.
+
+    Returns:
+        The patch's normal (body 1 to body 2), its vertices on piece 1 and on piece 2, shape
+        (K, 3) [m] each, and the signed distance [m] (the fields of a
+        :class:`~packbot.collision.ContactPatch` after its pair); None: farther apart.
+    """
+    p = world.pairs[k]
+    world._place(q)
+    shapes = world._patch_shapes.get(k)
+    if shapes is None:
+        objs = world.geom_model.geometryObjects
+        shapes = world._patch_shapes[k] = (objs[p.geom1].geometry, objs[p.geom2].geometry)
+    g1, g2 = shapes
+    oMg = world.geom_data.oMg
+    T1 = _to_coal(oMg[p.geom1])
+    T2 = _to_coal(oMg[p.geom2])
+    creq, preq = world._patch_requests  # (the same queries: only the margin changes)
+    creq.security_margin = tol
+    cres = coal.CollisionResult()
+    if not coal.collide(g1, T1, g2, T2, creq, cres):
+        return None
+    pres = coal.ContactPatchResult(preq)
+    coal.computeContactPatch(g1, T1, g2, T2, cres, preq, pres)
+    if pres.numContactPatches() == 0:  # pragma: no cover - coal gives one per collision
+        return None
+    patch = pres.getContactPatch(0)
+    n = np.array(patch.getNormal())
+    npts = patch.size()
+    pts1 = np.array([patch.getPointShape1(i) for i in range(npts)]).reshape(-1, 3)
+    pts2 = np.array([patch.getPointShape2(i) for i in range(npts)]).reshape(-1, 3)
+    return n, pts1, pts2, float(patch.penetration_depth)
+
+
+def line_of_sight(
+    world: CollisionWorld,
+    q: NDArray[np.float64],
+    target: NDArray[np.float64],
+    frame: str,
+    radius: float,
+    ignore: tuple[str, ...],
+) -> str | None:
+    """The blocking link or obstacle nearest to the eye, or None (see the method).
+
+    Raises:
+        UnknownNameError: An unknown frame, or an unknown link or obstacle in ``ignore``.
+        ConfigurationError: A target that is not 3 finite numbers, or a negative radius.
+    """
+    model = world.robot.model
+    if not model.existFrame(frame):
+        raise UnknownNameError("frame", frame, [f.name for f in model.frames])
+    for name in ignore:
+        if name not in world.links:
+            raise UnknownNameError("link or obstacle", name, world.links)
+    b = np.asarray(target, dtype=float)
+    if b.shape != (3,) or not np.all(np.isfinite(b)):
+        raise ConfigurationError("target", target, "a world point: 3 finite numbers [m]")
+    if not radius >= 0.0:
+        raise ConfigurationError("radius", radius, "a non-negative radius [m]")
+    world._place(q)
+    data = world._data
+    fid = model.getFrameId(frame)
+    pin.updateFramePlacement(model, data, fid)
+    a = data.oMf[fid].translation.copy()
+    seg = b - a
+    full = float(np.linalg.norm(seg))
+    reach = full - LOS_SHORTEN  # the capsule spans [a, a + reach * u]
+    if reach <= 0.0:
+        return None
+    u = seg / full
+    r = min(float(radius), reach / 2)
+    R = pin.Quaternion.FromTwoVectors(np.array([0.0, 0.0, 1.0]), u).matrix()
+    T = coal.Transform3s(R, a + u * reach / 2)
+    cap = coal.Capsule(r, reach - 2 * r)  # coal: full cylinder length, axis z, centred
+    best: tuple[float, str] | None = None
+    req = coal.DistanceRequest()
+    res = coal.DistanceResult()
+    ignored = set(ignore)
+    link_of_geom = world._link_of_geom
+    for g, go in enumerate(world.geom_model.geometryObjects):
+        name = link_of_geom[g]
+        if name in ignored:
+            continue
+        res.clear()
+        d = coal.distance(cap, T, go.geometry, _to_coal(world.geom_data.oMg[g]), req, res)
+        if d <= 0.0:
+            dist_from_eye = float(np.dot(np.array(res.getNearestPoint2()) - a, u))
+            if best is None or dist_from_eye < best[0]:
+                best = (dist_from_eye, name)
+    return None if best is None else best[1]
+
+
+def _to_coal(M: pin.SE3) -> coal.Transform3s:
+    return coal.Transform3s(M.rotation, M.translation)
