@@ -234,8 +234,34 @@ class ConstrainedDynamics(ContactRows):
     def _rest_accel(self, q: FloatArray, a_free: FloatArray, minv: FloatArray) -> FloatArray | None:
         """Joint accelerations at v = 0 under the frictional contact of every touching row.
 
-        None when no row touches or the cone problem is not solved.
+        None when no row touches or the cone problem is not solved. A resting arm's state
+        does not move: the step ends' rest condition asks this again with the same q, a_free
+        and M^-1, whose answer (a cone problem solved from scratch: a function of its inputs)
+        is kept while the contact set and the joints' Coulomb friction are unchanged too.
         """
+        coul, fdir = self.joint_coulomb, self.joint_fdir
+        key = (
+            self._version,
+            self.mu,
+            q.tobytes(),
+            a_free.tobytes(),
+            minv.tobytes(),
+            None if coul is None else coul.tobytes(),
+            None if fdir is None else fdir.tobytes(),
+        )
+        own = type(self)._problem is _OWN_PROBLEM
+        got = self._rest_cache
+        if own and got is not None and got[0] == key:
+            return None if got[1] is None else got[1].copy()
+        a = self._rest_accel_solve(q, a_free, minv)
+        if own:
+            self._rest_cache = (key, None if a is None else a.copy())
+        return a
+
+    def _rest_accel_solve(
+        self, q: FloatArray, a_free: FloatArray, minv: FloatArray
+    ) -> FloatArray | None:
+        """:meth:`_rest_accel`, solved."""
         z = np.zeros(self.nv)
         Jn, _, gap, _, extra = self._problem(q, z)
         touch = np.flatnonzero(gap <= TOUCH_GAP)

@@ -121,6 +121,8 @@ class ContactSet:
         self._no_slip_dirs = np.zeros((0, 3))
         # the last compiled evaluation and its inputs: see evaluate_again
         self._last_eval: tuple[Any, ...] | None = None
+        # the last rest accelerations and their inputs: see ConstrainedDynamics._rest_accel
+        self._rest_cache: tuple[Any, ...] | None = None
 
     @property
     def empty(self) -> bool:
@@ -251,6 +253,7 @@ class ContactSet:
         """The contact set changed: forget the cached kinematics and point layout."""
         self._kin_cache.clear()
         self._last_eval = None
+        self._rest_cache = None
         self._lay = None
         self._pairs_cache = None
         self._version += 1
