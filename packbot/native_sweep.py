@@ -36,6 +36,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from packbot.errors import ConfigurationError
+from packbot.native_joints import SUPPORTED_JOINTS
 
 if TYPE_CHECKING:
     from packbot.collision import CollisionWorld, Contact, SweepCounts, SweepResult
@@ -55,20 +56,6 @@ log = logging.getLogger(__name__)
 #: Whether collision worlds use the native sweep when they can (read at every sweep; tests and
 #: benchmarks switch it off to run the Python path).
 ENABLED = True
-
-#: The joint types the extension rebuilds (Pinocchio's short names).
-SUPPORTED_JOINTS = frozenset(
-    {
-        "JointModelRX",
-        "JointModelRY",
-        "JointModelRZ",
-        "JointModelRevoluteUnaligned",
-        "JointModelPX",
-        "JointModelPY",
-        "JointModelPZ",
-        "JointModelPrismaticUnaligned",
-    }
-)
 
 #: The extension's piece kinds.
 _CONVEX, _BOX, _HALFSPACE = 0, 1, 2

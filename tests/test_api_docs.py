@@ -67,6 +67,7 @@ INTERNAL_MODULES = {
     "packbot._native",
     "packbot._native_coal",
     "packbot.native_sweep",
+    "packbot.native_joints",
     "packbot.cli",
     "packbot.collision_build",
     "packbot.collision_queries",

@@ -16,6 +16,7 @@ import math
 
 import numpy as np
 import pytest
+from test_native_step import _python_attempt
 
 import packbot
 from packbot import ode
@@ -28,23 +29,6 @@ from packbot.system import System
 pytestmark = pytest.mark.skipif(not native.available(), reason="packbot._native is not built")
 
 WRIST = ("camera_tilt", "camera_pan", "gripper_roll", "gripper_jaw")
-
-
-def _python_attempt(stepper: ode.RK45Stepper, h: float, Z: np.ndarray) -> tuple:
-    """The stepper's Python stages, y1 and error norm of one attempt of size h (as ode.py)."""
-    t, rhs = stepper.t, stepper._rhs
-    Ah = ode._A8 * h
-    Ah[:, 0] = 1.0
-    Z = Z.copy()
-    for s in range(1, 6):
-        Z[1 + s] = rhs(t + ode._C[s] * h, np.dot(Ah[s, : s + 1], Z[: s + 1]))
-    y1 = np.dot(Ah[6, :7], Z[:7])
-    Z[7] = rhs(t + h, y1)
-    ev = np.dot(ode._E, Z[1:])
-    sc = np.maximum(stepper._ay, np.abs(y1)) * stepper.rtol + stepper.atol
-    ev /= sc
-    err = h * math.sqrt(float(np.dot(ev, ev)) / len(y1))
-    return Z, y1, err
 
 
 def _find_stepper(monkeypatch) -> dict:

@@ -15,6 +15,7 @@ import coal
 import numpy as np
 import pinocchio as pin
 import pytest
+from test_collision import obstacle_env as collision_obstacles
 
 import packbot
 from packbot import native_sweep
@@ -30,18 +31,8 @@ MARGINS = (0.0, 0.003, 0.05, 0.2)
 
 
 def obstacle_env() -> Environment:
-    """The floor, a crate, a rock (a hull of random points), a tilted wall, in reach."""
-    pts = np.random.default_rng(7).normal(size=(24, 3)) * 0.12
-    return Environment().with_obstacles(
-        Obstacle(name="crate", kind="box", size=(0.4, 0.3, 0.5), xyz=(0.8, 0.3, 0.25)),
-        Obstacle(
-            name="rock",
-            kind="convex",
-            points=tuple(map(tuple, pts)),
-            xyz=(0.7, -0.4, 0.4),
-            rpy=(0.3, -0.2, 1.0),
-        ),
-        Obstacle(name="wall", kind="halfspace", normal=(-1.0, 0.0, 0.1), offset=-1.3),
+    """test_collision's floor, crate, rock and wall, and a tilted halfspace, in reach."""
+    return collision_obstacles().with_obstacles(
         Obstacle(name="slope", kind="halfspace", normal=(0.3, 0.2, 1.0), offset=-0.02),
     )
 

@@ -544,17 +544,7 @@ def step_problem(  # pragma: no cover - compiled
     mus = np.zeros(m)
     for r in range(P):
         mus[r] = mu
-    # C: lower Cholesky factor of M^-1
-    C = np.zeros((nv, nv))
-    for i in range(nv):
-        for j in range(i + 1):
-            s = minv[i, j]
-            for k in range(j):
-                s -= C[i, k] * C[j, k]
-            if i == j:
-                C[i, i] = math.sqrt(max(s, 1e-300))
-            else:
-                C[i, j] = s / C[j, j]
+    C = _factor(minv, 0.0)  # lower Cholesky factor of M^-1
     rt = 3 * m + B
     A = np.zeros((rt, nv))
     gf = np.zeros(rt)

@@ -28,6 +28,7 @@ import pinocchio as pin
 from numpy.typing import NDArray
 
 from packbot.errors import ModelError, PackbotError
+from packbot.native_joints import SUPPORTED_JOINTS
 
 if TYPE_CHECKING:
     from packbot.contact.normal_contacts import NormalContacts
@@ -47,20 +48,6 @@ ENABLED = True
 #: the native right-hand side would serve every stage (read at every step; benchmarks and
 #: tests switch it off to compare with the stages in Python around the native call).
 STEP_ENABLED = True
-
-#: The joint types the extension rebuilds (Pinocchio's short names).
-SUPPORTED_JOINTS = frozenset(
-    {
-        "JointModelRX",
-        "JointModelRY",
-        "JointModelRZ",
-        "JointModelRevoluteUnaligned",
-        "JointModelPX",
-        "JointModelPY",
-        "JointModelPZ",
-        "JointModelPrismaticUnaligned",
-    }
-)
 
 _native: Any
 _IMPORT_ERROR: ImportError | None = None
