@@ -111,6 +111,7 @@ class _EmptySet:
         self._nc = NormalContacts.from_config(sysm.model, sysm.data, None, packbot.SimConfig())
         self.mu = 0.5
         self._pair_list: list = []
+        self.pairs: dict = {}
         self.plan = self._nc._plan()
 
     def _layout(self):

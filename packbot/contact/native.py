@@ -147,6 +147,7 @@ class NativeRhs:
             from packbot.contact.normal_tolerances import FORCE_BAND, POINT_TOL, STICK_BAND
 
             self._rhs.set_conditions(_reals(lay.offset0), FORCE_BAND, POINT_TOL, STICK_BAND)
+            self._rhs.set_keys(_ints(list(contacts.pairs)))  # (in the layout's order)
             self._layout_id = lay
             self._plan_id = None
         if plan is not self._plan_id:
@@ -288,6 +289,39 @@ class NativeRhs:
         nv = self.nv
         contacts._last_eval = (y1[:nv], y1[nv:], _NONE, _NONE, _NONE, contacts._plan_key, ev)
         return ev
+
+    def end_check(
+        self,
+        y1: FloatArray,
+        swept: NDArray[np.int64],
+        dist: FloatArray,
+        active: NDArray[np.int64],
+        near: float,
+        pen_tol: float,
+        slide_tol2: float,
+    ) -> int:
+        """The step end's screen of the contact-normal mode, from the last native step's end.
+
+        What :meth:`NormalLaw.watch <packbot.contact.normal_law.NormalLaw.watch>` and
+        ``after_step`` would find at y1, in one call on the FSAL stage's evaluation (the one
+        :meth:`end_eval` returns) and the step end's sweep: -1 when the last native call was
+        not a step ending at y1 (nothing screened); else a bit set, 0 when there is nothing
+        to do. Bit 1: a swept pair has an event (outside ``active``: ``d <= 0``; in it:
+        ``d > near`` or ``d < -pen_tol``). Bit 2: a mode condition is negative (end_eval's
+        ``cond < 0``). Bit 4: a pair with engaged rows slides and a sliding contact's patch
+        may be stale (:meth:`NormalContacts.sliding` and ``stale`` would re-patch), or a slide
+        speed is too close to the stick speed to say without numpy's rounding.
+
+        Args:
+            y1: The state the step ended at, (q, v).
+            swept: The swept pairs' indices in the collision world.
+            dist: Their signed distances at y1 [m].
+            active: The active pairs' indices.
+            near: The proximity tolerance [m].
+            pen_tol: The penetration a contact re-patches at [m].
+            slide_tol2: The square of the slide a patch goes stale at [m^2].
+        """
+        return int(self._rhs.end_check(y1, swept, dist, active, near, pen_tol, slide_tol2))
 
     def last(self) -> tuple[FloatArray, ...]:
         """The last call's (a_free, M^-1, lam, gap, v_n, v_t, G, rhs): copies, for tests."""

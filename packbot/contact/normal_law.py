@@ -22,6 +22,7 @@ from packbot.contact import native
 from packbot.contact.base import Active, Crossing, Key
 from packbot.contact.locks import JointLocks
 from packbot.contact.normal_contacts import NormalContacts
+from packbot.contact.normal_tolerances import PENETRATION_TOL, SLIDE_TOL
 from packbot.contact.patch_events import PatchEvents
 from packbot.contact.timestep import QUIET_STEPS, MoreauJeanStepper
 from packbot.ode import DenseSegment, StepKernel
@@ -122,6 +123,9 @@ class NormalLaw(PatchEvents):
         self.window: _Window | None = None
         self._recent: deque[float] = deque(maxlen=CHATTER_EVENTS)
         self._steps: deque[float] = deque(maxlen=CRAWL_STEPS)  # the last steps' sizes [s]
+        self._clear: FloatArray | None = None  # a step end the screen found clear (watch)
+        self._ready: FloatArray | None = None  # a state the native modes are loaded for
+        self._torques: tuple[Any, ...] | None = None  # the torques loaded (step_kernel)
 
     # ------------------------------------------------------------------ windows
     def advance(self, t: float, y: FloatArray, t_end: float) -> DenseSegment | None:
@@ -147,6 +151,7 @@ class NormalLaw(PatchEvents):
 
     def watch(self, seg: DenseSegment) -> list[Crossing]:
         """The event functions (none in a window: its steps resolve their contacts)."""
+        self._clear = None
         if self.window is not None:
             return []
         self._steps.append(seg.h)
@@ -168,18 +173,25 @@ class NormalLaw(PatchEvents):
                 y = y if y_new is None else y_new
                 self._enter(t, y, "the stepper crawled (a stiff stretch)")
                 return y
-            return super().after_step(t, y)
+            n_active = len(self.active)
+            y_new = super().after_step(t, y)
+            if y_new is None and y is self._clear and len(self.active) == n_active:
+                self._ready = y  # no mode changed since the step: its loaded modes hold
+            return y_new
         if t < w.until or w.quiet < QUIET_STEPS:
             return None
         return self._resume(t, y)
 
     def settle(self, t: float, y: FloatArray) -> None:
         """The forces changed at t (in a window the next step sees them)."""
+        self._ready = None
         if self.window is None:
             super().settle(t, y)
 
     def _enter(self, t: float, y: FloatArray, why: str) -> None:
         """Start a window at (t, y) (``why``: for the log)."""
+        self._keep_end_eval()
+        self._ready = None
         relapse = t - self._last_exit <= RELAPSE_SPAN
         self._min_len = 2.0 * self._min_len if relapse else WINDOW_MIN
         n = self.n
@@ -259,14 +271,60 @@ class NormalLaw(PatchEvents):
         torques = self.drive.step_torques(t, y)
         if torques is None:
             return None
-        rhs.load(nc, nc._plan())
-        rhs.set_torque(*torques)
+        if y is not self._ready:  # (else no mode changed since the last load)
+            rhs.load(nc, nc._plan())
+        self._ready = None
+        applied, viscous, coulomb_dir = torques
+        key = (applied, viscous, coulomb_dir.tolist())
+        last = self._torques
+        # (a held command's array is never written: the same object, the same torques)
+        if last is None or not (applied is last[0] and viscous is last[1] and key[2] == last[2]):
+            rhs.set_torque(applied, viscous, coulomb_dir)
+            self._torques = key
         return rhs.step
 
     def _pair_crossings(
         self, key: Key, p_idx: int, seg: DenseSegment, d0: float, d1: float
     ) -> list[Crossing]:
         return self._patch_pair_crossings(key, p_idx, seg, d0, d1)
+
+    def _contact_crossings(self, seg: DenseSegment, y1: FloatArray) -> list[Crossing]:
+        """The pairs' and modes' events over the step; a native step's end screened first.
+
+        After a native step (:meth:`step_kernel`), one call
+        (:meth:`~packbot.contact.native.NativeRhs.end_check`) on its last stage's evaluation
+        and the end's sweep says which checks can find something: the pairs' (an impact, a
+        release, a re-patch), the modes' (a negative condition) and :meth:`_refresh`'s (a
+        sliding contact's stale patch). Only those run, as without the screen; a step end
+        the screen finds clear (the common case) is marked for :meth:`_refresh`.
+        """
+        sw = self._end_sweep(y1)
+        rhs = self._native
+        code = -1
+        if rhs is not None and not self.normal.empty:
+            active = np.array([k[1] for k in self.active if k[0] == "pair"], dtype=np.int64)
+            code = rhs.end_check(
+                y1,
+                sw.pairs,
+                sw.distances,
+                active,
+                self.cfg.proximity_tolerance,
+                PENETRATION_TOL,
+                SLIDE_TOL**2,
+            )
+        if code < 0:  # not a native step's end: every check
+            out = self._swept_crossings(seg, sw)
+            out.extend(self._mode_crossings(seg, y1))
+            return out
+        out = self._swept_crossings(seg, sw) if code & 1 else []
+        if code & 2:
+            out.extend(self._mode_crossings(seg, y1))
+        elif code & 4:  # the evaluation the refresh reads (end_eval's, as without the screen)
+            assert rhs is not None
+            rhs.end_eval(self.normal, y1)
+        else:
+            self._clear = y1
+        return out
 
     def _pairs_to_check(self, pairs: list[int], distances: list[float]) -> Iterable[int]:
         """The pairs that can have an event (see :meth:`_patch_pair_crossings`).
@@ -299,9 +357,20 @@ class NormalLaw(PatchEvents):
     def _drop_limit(self, j: int, side: int) -> None:
         self.normal.remove_limit(j, side)
 
+    def _keep_end_eval(self) -> None:
+        """The last step end's evaluation kept by the contact set, as without the screen.
+
+        A step end the screen found clear (:meth:`_contact_crossings`) did not hand its
+        evaluation to the contact set; before events or a window, which may read it, it does.
+        """
+        if self._clear is not None and self._native is not None:
+            self._native.end_eval(self.normal, self._clear)
+
     def _refresh(self, t: float, y: FloatArray) -> FloatArray | None:
         # A sliding contact's patch is rebuilt only once it is stale (slid SLIDE_TOL or its gap
         # off the pair's distance): its rows stay valid until then.
+        if y is self._clear:  # the step end's screen found no sliding contact's stale patch
+            return None
         n = self.n
         q, v = y[:n], y[n : 2 * n]
         if self.normal.sliding(q, v) and self.normal.stale(q, v, self.last_d):
@@ -312,6 +381,7 @@ class NormalLaw(PatchEvents):
 
     def _handle(self, t: float, y: FloatArray, crossings: Sequence[Crossing]) -> FloatArray:
         """Events of the normal mode: update the contact set, then impulse and modes."""
+        self._keep_end_eval()
         normal, world = self.normal, self.world
         n = self.n
         q, v = y[:n], y[n : 2 * n].copy()

@@ -18,6 +18,7 @@ from collections.abc import Callable, Iterable
 import numpy as np
 from numpy.typing import NDArray
 
+from packbot.collision import SweepResult
 from packbot.contact.base import Crossing, Key
 from packbot.contact.stops import JointStops
 from packbot.errors import InitialCollisionError
@@ -31,6 +32,11 @@ FloatArray = NDArray[np.float64]
 REACH_BOUND = 2.2
 
 
+def _distances(pairs: NDArray[np.intp], dist: FloatArray) -> dict[int, float]:
+    """Pair -> signed distance [m], from a sweep's arrays."""
+    return dict(zip(pairs.tolist(), dist.tolist(), strict=True))
+
+
 class PairLaw(JointStops):
     """The base of the laws with collisions: distances tracked, pair events located.
 
@@ -42,14 +48,45 @@ class PairLaw(JointStops):
         last_d: Pair -> signed distance at the last kept state [m].
     """
 
+    # The kept distances are made a dict only when read: a step end keeps its sweep's arrays
+    # (a new pair of arrays at every sweep, never written); None: the dict is still to make.
+    _last_d: dict[int, float] | None
+    _last_arr: tuple[NDArray[np.intp], FloatArray]
+    _pending_d: dict[int, float] | None
+    _pending_arr: tuple[NDArray[np.intp], FloatArray]
+
     def rebuild(self, system: System) -> None:
         """A new phase: the pairs' kept distances forgotten."""
         super().rebuild(system)
         assert system.world is not None
         self.world = system.world
-        self.last_d: dict[int, float] = {}
-        self.pending_d: dict[int, float] = {}  # the same at the end of the step being checked
+        self.last_d = {}
+        self.pending_d = {}  # the same at the end of the step being checked
         self.pending_min: tuple[float, int] = (math.inf, -1)
+
+    @property
+    def last_d(self) -> dict[int, float]:
+        """Pair -> signed distance at the last kept state [m]."""
+        d = self._last_d
+        if d is None:
+            d = self._last_d = _distances(*self._last_arr)
+        return d
+
+    @last_d.setter
+    def last_d(self, d: dict[int, float]) -> None:
+        self._last_d = d
+
+    @property
+    def pending_d(self) -> dict[int, float]:
+        """Pair -> signed distance at the end of the step being checked [m]."""
+        d = self._pending_d
+        if d is None:
+            d = self._pending_d = _distances(*self._pending_arr)
+        return d
+
+    @pending_d.setter
+    def pending_d(self, d: dict[int, float]) -> None:
+        self._pending_d = d
 
     def step_bound(self, y: FloatArray) -> float:
         """Largest step keeping every point's motion within half the query margin [s]."""
@@ -106,18 +143,29 @@ class PairLaw(JointStops):
         return crossings
 
     def _contact_crossings(self, seg: DenseSegment, y1: FloatArray) -> list[Crossing]:
-        out: list[Crossing] = []
+        sw = self._end_sweep(y1)
+        out = self._swept_crossings(seg, sw)
+        out.extend(self._mode_crossings(seg, y1))
+        return out
+
+    def _end_sweep(self, y1: FloatArray) -> SweepResult:
+        """The sweep at a step's end y1: its distances become the pending ones."""
         sw = self.world.sweep(y1[: self.n], reuse=True)
         self.diag.sweeps += 1
         self.pending_min = (sw.min_distance, sw.min_pair)
+        self._pending_arr = (sw.pairs, sw.distances)
+        self._pending_d = None
+        return sw
+
+    def _swept_crossings(self, seg: DenseSegment, sw: SweepResult) -> list[Crossing]:
+        """The pair events over the step whose end's sweep is sw."""
+        out: list[Crossing] = []
         pairs, dist = sw.pairs.tolist(), sw.distances.tolist()
-        d_now = dict(zip(pairs, dist, strict=True))
+        last_d = self.last_d
         for i in self._pairs_to_check(pairs, dist):
             p_idx, d1 = pairs[i], dist[i]
-            d0 = self.last_d.get(p_idx, math.inf)
+            d0 = last_d.get(p_idx, math.inf)
             out.extend(self._pair_crossings(("pair", p_idx), p_idx, seg, d0, d1))
-        self.pending_d = d_now
-        out.extend(self._mode_crossings(seg, y1))
         return out
 
     def _after_event(self, y: FloatArray) -> None:
@@ -127,7 +175,9 @@ class PairLaw(JointStops):
         self.note_min(sw.min_distance, sw.min_pair)
 
     def _accept(self) -> None:
-        self.last_d = self.pending_d
+        self._last_d = self._pending_d
+        if self._pending_d is None:
+            self._last_arr = self._pending_arr
         self.note_min(*self.pending_min)
 
     def _pair_crossing(

@@ -296,59 +296,77 @@ class ContactRhs {
   // kernels.constrained_accel returns them (cond: the smallest mode condition, slide2: each
   // pair's largest squared slide); else None.
   nb::object end_eval(F1 y1) {
-    const size_t n = 2 * static_cast<size_t>(nv_);
-    if (!end_valid_ || !conditions_set_ || y1.shape(0) != n ||
-        !std::equal(y_end_.begin(), y_end_.end(), y1.data()))
-      return nb::none();
-    const int nv = nv_;
-    double cond = std::numeric_limits<double>::infinity();
-    pos_.assign(m_, -1);
-    for (int e = 0; e < ne_; ++e) pos_[engaged_[e]] = e;
-    for (int r = 0; r < m_; ++r) {
-      const double g = pos_[r] >= 0 ? lam_[pos_[r]] + force_band_ : gap_[r] + point_tol_;
-      if (g < cond) cond = g;
-    }
-    if (mu_ > 0.0) {
-      for (int i = 0; i < ns_; ++i) {
-        const int64_t p = sticks_[i];
-        double fn = 0.0;
-        for (int r = 0; r < mp_; ++r)
-          if (pos_[r] >= 0 && pair_[rows_[r]] == p) fn += lam_[pos_[r]];
-        const double l0 = lam_[ne_ + 2 * i], l1 = lam_[ne_ + 2 * i + 1];
-        const double g = mu_ * fn - std::sqrt(l0 * l0 + l1 * l1) + force_band_;
-        if (g < cond) cond = g;
-      }
-      slipping_.assign(np_, 0);
-      for (int e = 0; e < ne_; ++e)
-        if (row_slip_[e] >= 0) slipping_[row_slip_[e]] = 1;
-      for (int p = 0; p < np_; ++p) {
-        if (!slipping_[p]) continue;
-        const double *vt = &vt_[3 * p], *sd = &slip_dir_[3 * p];
-        const double w0 = vt[0] + stick_speed_ * sd[0];
-        const double w1 = vt[1] + stick_speed_ * sd[1];
-        const double w2 = vt[2] + stick_speed_ * sd[2];
-        const double nw = std::max(std::sqrt(w0 * w0 + w1 * w1 + w2 * w2), 1e-300);
-        const double g = (vt[0] * w0 + vt[1] * w1 + vt[2] * w2) / nw + stick_band_;
-        if (g < cond) cond = g;
-      }
-    }
-    std::vector<double> slide2(np_, 0.0);
-    for (int r = 0; r < mp_; ++r) {
-      const int k = static_cast<int>(rows_[r]);
-      const int p = static_cast<int>(pair_[k]);
-      double s2 = 0.0;
-      for (int j = 0; j < 2; ++j) {
-        const double *T = &F_[9 * p + 3 * j];
-        double d = T[0] * dP_[3 * k] + T[1] * dP_[3 * k + 1] + T[2] * dP_[3 * k + 2];
-        d -= offset0_[2 * r + j];
-        s2 += d * d;
-      }
-      if (s2 > slide2[p]) slide2[p] = s2;
-    }
-    (void)nv;
+    if (!at_end(y1)) return nb::none();
+    const double cond = end_conditions();
     return nb::make_tuple(cond, vec(a_.data(), nv_), vec(lam_.data(), n_), vec(gap_.data(), m_),
                           vec(vn_.data(), m_), mat(vt_.data(), np_, 3),
-                          vec(slide2.data(), np_));
+                          vec(slide2_.data(), np_));
+  }
+
+  // The contact set's pairs' indices in the collision world, in the layout's order (end_check).
+  void set_keys(I1 keys) {
+    if (keys.shape(0) != static_cast<size_t>(np_))
+      throw std::invalid_argument("keys: one per pair of the layout expected");
+    keys_ = ints(keys);
+  }
+
+  // The step end's screen of the contact-normal mode (packbot.contact.normal_law.NormalLaw
+  // .watch and after_step) at the end of the last dopri, if it ended at exactly y1 (as
+  // end_eval): -1 no such step (the caller checks everything); else a bit set, 0 when nothing
+  // is to do. 1: a swept pair (its index in `swept`, signed distance `dist` [m]) has an event
+  // (PatchEvents._patch_pair_crossings: outside `active`, d <= 0; in it, d > near or
+  // d < -pen_tol). 2: the smallest mode condition (end_eval's cond) is negative. 4: a pair with
+  // engaged rows slides faster than the stick speed (NormalContacts.sliding) and one such pair's
+  // patch is stale (stale_pairs: its distance missing from the sweep, its gaps' minimum off it
+  // by more than the point tolerance, or a slide2 above slide_tol2), or a slide speed is within
+  // a relative 1e-9 of the stick speed (numpy's dot may round otherwise: the caller decides).
+  int end_check(F1 y1, I1 swept, F1 dist, I1 active, double near, double pen_tol,
+                double slide_tol2) {
+    const size_t ns = swept.shape(0);
+    if (dist.shape(0) != ns) throw std::invalid_argument("swept, dist: one length expected");
+    if (!at_end(y1) || keys_.size() != static_cast<size_t>(np_)) return -1;
+    int out = 0;
+    const int64_t *sp = swept.data(), *ac = active.data();
+    const size_t na = active.shape(0);
+    const double *dp = dist.data();
+    for (size_t k = 0; k < ns; ++k) {
+      const double d = dp[k];
+      const bool in = std::find(ac, ac + na, sp[k]) != ac + na;
+      if (in ? (d > near || d < -pen_tol) : d <= 0.0) {
+        out |= 1;
+        break;
+      }
+    }
+    if (!(end_conditions() >= 0.0)) out |= 2;
+    // the pairs with engaged rows, their slide speeds and their gaps' minimum
+    engaged_pair_.assign(np_, 0);
+    gap_min_.assign(np_, std::numeric_limits<double>::infinity());
+    for (int r = 0; r < mp_; ++r) {
+      const int p = static_cast<int>(pair_[rows_[r]]);
+      if (pos_[r] >= 0) engaged_pair_[p] = 1;
+      if (!(gap_[r] >= gap_min_[p])) gap_min_[p] = gap_[r];  // (a NaN is kept, as numpy's min)
+    }
+    bool sliding = false, unsure = false;
+    for (int p = 0; p < np_; ++p) {
+      // with friction the slipping pairs (the plan's), without it every pair with engaged rows
+      if (!(mu_ > 0.0 ? slipping_[p] != 0 : engaged_pair_[p] != 0)) continue;
+      const double *vt = &vt_[3 * p];
+      const double s = std::sqrt(vt[0] * vt[0] + vt[1] * vt[1] + vt[2] * vt[2]);
+      if (std::abs(s - stick_speed_) <= 1e-9 * stick_speed_ || std::isnan(s)) unsure = true;
+      if (s > stick_speed_) sliding = true;
+    }
+    if (unsure) return out | 4;
+    if (!sliding) return out;
+    for (int p = 0; p < np_; ++p) {
+      if (!engaged_pair_[p]) continue;
+      const int64_t key = keys_[p];
+      size_t k = 0;
+      while (k < ns && sp[k] != key) ++k;
+      if (k == ns || std::isnan(gap_min_[p]) || std::abs(gap_min_[p] - dp[k]) > point_tol_ ||
+          slide2_[p] > slide_tol2)
+        return out | 4;
+    }
+    return out;
   }
 
   // The report's law's modes instead of the contact rows (packbot.contact.stops.JointStops
@@ -891,6 +909,64 @@ class ContactRhs {
     }
   }
 
+  // Whether the last call was a dopri (contact rows) whose FSAL stage was at exactly y1.
+  bool at_end(F1 y1) const {
+    const size_t n = 2 * static_cast<size_t>(nv_);
+    return end_valid_ && conditions_set_ && y1.shape(0) == n &&
+           std::equal(y_end_.begin(), y_end_.end(), y1.data());
+  }
+
+  // The smallest mode condition at the last dopri's end (returned; pos_ and, with friction,
+  // slipping_ set) and each pair's largest squared slide (slide2_), as
+  // kernels.constrained_accel computes them.
+  double end_conditions() {
+    double cond = std::numeric_limits<double>::infinity();
+    pos_.assign(m_, -1);
+    for (int e = 0; e < ne_; ++e) pos_[engaged_[e]] = e;
+    for (int r = 0; r < m_; ++r) {
+      const double g = pos_[r] >= 0 ? lam_[pos_[r]] + force_band_ : gap_[r] + point_tol_;
+      if (g < cond) cond = g;
+    }
+    slipping_.assign(np_, 0);
+    if (mu_ > 0.0) {
+      for (int i = 0; i < ns_; ++i) {
+        const int64_t p = sticks_[i];
+        double fn = 0.0;
+        for (int r = 0; r < mp_; ++r)
+          if (pos_[r] >= 0 && pair_[rows_[r]] == p) fn += lam_[pos_[r]];
+        const double l0 = lam_[ne_ + 2 * i], l1 = lam_[ne_ + 2 * i + 1];
+        const double g = mu_ * fn - std::sqrt(l0 * l0 + l1 * l1) + force_band_;
+        if (g < cond) cond = g;
+      }
+      for (int e = 0; e < ne_; ++e)
+        if (row_slip_[e] >= 0) slipping_[row_slip_[e]] = 1;
+      for (int p = 0; p < np_; ++p) {
+        if (!slipping_[p]) continue;
+        const double *vt = &vt_[3 * p], *sd = &slip_dir_[3 * p];
+        const double w0 = vt[0] + stick_speed_ * sd[0];
+        const double w1 = vt[1] + stick_speed_ * sd[1];
+        const double w2 = vt[2] + stick_speed_ * sd[2];
+        const double nw = std::max(std::sqrt(w0 * w0 + w1 * w1 + w2 * w2), 1e-300);
+        const double g = (vt[0] * w0 + vt[1] * w1 + vt[2] * w2) / nw + stick_band_;
+        if (g < cond) cond = g;
+      }
+    }
+    slide2_.assign(np_, 0.0);
+    for (int r = 0; r < mp_; ++r) {
+      const int k = static_cast<int>(rows_[r]);
+      const int p = static_cast<int>(pair_[k]);
+      double s2 = 0.0;
+      for (int j = 0; j < 2; ++j) {
+        const double *T = &F_[9 * p + 3 * j];
+        double d = T[0] * dP_[3 * k] + T[1] * dP_[3 * k + 1] + T[2] * dP_[3 * k + 2];
+        d -= offset0_[2 * r + j];
+        s2 += d * d;
+      }
+      if (s2 > slide2_[p]) slide2_[p] = s2;
+    }
+    return cond;
+  }
+
   Model model_;
   Data data_;
   int nv_ = 0;
@@ -921,7 +997,9 @@ class ContactRhs {
   // the step end's conditions (end_eval)
   std::vector<double> offset0_, y_end_;
   std::vector<int> pos_;
-  std::vector<char> slipping_;
+  std::vector<char> slipping_, engaged_pair_;
+  std::vector<double> slide2_, gap_min_;
+  std::vector<int64_t> keys_;  // (set_keys)
   double force_band_ = 0.0, point_tol_ = 0.0, stick_band_ = 0.0;
   bool conditions_set_ = false, end_valid_ = false;
 };
@@ -947,6 +1025,9 @@ NB_MODULE(_native, m) {
       .def("set_conditions", &ContactRhs::set_conditions, nb::arg("offset0"),
            nb::arg("force_band"), nb::arg("point_tol"), nb::arg("stick_band"))
       .def("end_eval", &ContactRhs::end_eval, nb::arg("y1"))
+      .def("set_keys", &ContactRhs::set_keys, nb::arg("keys"))
+      .def("end_check", &ContactRhs::end_check, nb::arg("y1"), nb::arg("swept"), nb::arg("dist"),
+           nb::arg("active"), nb::arg("near"), nb::arg("pen_tol"), nb::arg("slide_tol2"))
       .def("set_locks", &ContactRhs::set_locks, nb::arg("locked"))
       .def("energies", &ContactRhs::energies, nb::arg("Q"), nb::arg("V"), nb::arg("out"))
       .def("end_locks", &ContactRhs::end_locks, nb::arg("y1"))

@@ -1,0 +1,147 @@
+"""The contact-normal mode's step-end screen against the Python checks it stands in for.
+
+After a native step, ``NormalLaw._contact_crossings`` asks the extension once
+(``NativeRhs.end_check``) which of its checks can find something: the pairs' events, the
+modes' conditions, the refresh of a sliding contact's stale patch; only those run. At every
+step end of real runs (the collapse with and without friction, an arm with every joint free),
+each check is run all the same and must agree with the screen: a clear screen only where the
+Python checks find nothing. A run without the screen is the same run, bit for bit; the step
+kernel that skips the load after a clear step end has the current modes loaded.
+"""
+
+from __future__ import annotations
+
+from collections import Counter
+
+import numpy as np
+import pytest
+
+import packbot
+from packbot.contact import native
+from packbot.contact.normal_law import NormalLaw
+
+pytestmark = pytest.mark.skipif(not native.available(), reason="packbot._native not built")
+
+WRIST = ("camera_tilt", "camera_pan", "gripper_roll", "gripper_jaw")
+
+
+def _collapse(mu: float, duration: float, wrist: bool = True) -> packbot.SimResult:
+    robot = packbot.load_robot()
+    cfg = packbot.SimConfig(contact_mode="normal", mu=mu, locked_joints=WRIST if wrist else ())
+    return packbot.simulate(robot, robot.pose("drive"), np.zeros(8), duration, config=cfg)
+
+
+@pytest.mark.parametrize(
+    ("mu", "duration", "wrist"), [(0.5, 5.0, True), (0.0, 1.0, True), (0.5, 1.0, False)]
+)
+def test_a_clear_screen_only_where_the_python_checks_find_nothing(
+    monkeypatch, mu, duration, wrist
+) -> None:
+    codes: list[int] = []
+    seen: Counter[str] = Counter()
+    check = native.NativeRhs.end_check
+    crossings = NormalLaw._contact_crossings
+
+    def spy(self, *args):
+        code = check(self, *args)
+        codes.append(code)
+        return code
+
+    def checked(self, seg, y1):
+        codes.clear()
+        out = crossings(self, seg, y1)
+        if not codes or codes[0] < 0:
+            seen["not screened"] += 1
+            return out
+        code = codes[0]
+        # what the Python checks find at this step end
+        sw = self.world.sweep(y1[: self.n], reuse=True)
+        pair_events = self._swept_crossings(seg, sw)
+        ev = self._native.end_eval(self.normal, y1)
+        assert ev is not None  # the screen was at the native step's end
+        q, v = y1[: self.n], y1[self.n : 2 * self.n]
+        nc = self.normal
+        refresh = nc.sliding(q, v) and nc.stale(q, v, self.pending_d)
+        assert bool(code & 1) == bool(pair_events)
+        assert bool(code & 2) == (not ev.cond >= 0.0)
+        if not code & 4:
+            assert not refresh
+        else:
+            seen["refresh"] += 1
+            seen["refresh needed"] += refresh
+        if code == 0:
+            seen["clear"] += 1
+            assert out == []
+        return out
+
+    monkeypatch.setattr(native.NativeRhs, "end_check", spy)
+    monkeypatch.setattr(NormalLaw, "_contact_crossings", checked)
+    res = _collapse(mu, duration, wrist)
+    assert res.diagnostics.steps > 100
+    assert seen["clear"] > 0
+    # the refresh bit is exact but where a slide speed is within 1e-9 of the stick speed
+    assert seen["refresh needed"] == seen["refresh"]
+    if mu > 0.0 and wrist:  # the collapse: most step ends are clear
+        assert seen["clear"] > res.diagnostics.steps // 2
+
+
+@pytest.mark.parametrize("mu", [0.5, 0.0])
+def test_the_same_run_without_the_screen(monkeypatch, mu) -> None:
+    duration = 5.0 if mu > 0.0 else 1.0
+    screened = _collapse(mu, duration)
+    monkeypatch.setattr(native.NativeRhs, "end_check", lambda self, *a: -1)
+    full = _collapse(mu, duration)
+    for k in ("t", "q", "v", "tau", "energy"):
+        np.testing.assert_array_equal(getattr(screened, k), getattr(full, k))
+    assert [(e.t, e.kind, e.piece1, e.piece2) for e in screened.events] == [
+        (e.t, e.kind, e.piece1, e.piece2) for e in full.events
+    ]
+    assert screened.diagnostics.steps == full.diagnostics.steps
+    assert screened.diagnostics.sweeps == full.diagnostics.sweeps
+
+
+def test_a_skipped_load_finds_the_current_modes_loaded(monkeypatch) -> None:
+    kernel = NormalLaw.step_kernel
+    n = Counter[str]()
+
+    def checked(self, t, y):
+        skipped = y is self._ready
+        k = kernel(self, t, y)
+        if skipped and k is not None:
+            n["skipped"] += 1
+            nc, rhs = self.normal, self._native
+            assert rhs._layout_id is nc._layout()
+            assert rhs._plan_id is nc._plan()
+        elif k is not None:
+            n["loaded"] += 1
+        return k
+
+    monkeypatch.setattr(NormalLaw, "step_kernel", checked)
+    _collapse(0.5, 5.0)
+    assert n["skipped"] > n["loaded"] > 0
+
+
+def test_the_screen_answers_only_at_the_last_native_steps_end(monkeypatch) -> None:
+    got: list[tuple[NormalLaw, np.ndarray]] = []
+    crossings = NormalLaw._contact_crossings
+
+    def keep(self, seg, y1):
+        out = crossings(self, seg, y1)
+        if self._clear is y1:
+            got.append((self, y1))
+        return out
+
+    monkeypatch.setattr(NormalLaw, "_contact_crossings", keep)
+    _collapse(0.5, 0.5)
+    law, y1 = got[-1]
+    rhs = law._native
+    active = np.array([k[1] for k in law.active if k[0] == "pair"], dtype=np.int64)
+    sw = law.world.sweep(y1[: law.n], reuse=True)
+    args = (sw.pairs, sw.distances, active, law.cfg.proximity_tolerance, 1e-4, 1e-8)
+    other = y1.copy()
+    other[0] += 1e-9
+    assert rhs.end_check(other, *args) == -1  # not the step's end
+    rhs.accel(y1[: law.n], y1[law.n :], np.zeros(law.n), True)  # another call since
+    assert rhs.end_check(y1, *args) == -1
+    with pytest.raises(ValueError):
+        rhs._rhs.end_check(y1, sw.pairs, sw.distances[:-1], active, 0.0, 0.0, 0.0)
