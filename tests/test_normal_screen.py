@@ -32,38 +32,33 @@ def _collapse(mu: float, duration: float, wrist: bool = True) -> packbot.SimResu
 
 
 @pytest.mark.parametrize(
-    ("mu", "duration", "wrist"), [(0.5, 5.0, True), (0.0, 1.0, True), (0.5, 1.0, False)]
+    ("mu", "duration", "wrist"), [(0.5, 5.0, True), (0.0, 5.0, True), (0.5, 1.0, False)]
 )
 def test_a_clear_screen_only_where_the_python_checks_find_nothing(
     monkeypatch, mu, duration, wrist
 ) -> None:
-    codes: list[int] = []
     seen: Counter[str] = Counter()
-    check = native.NativeRhs.end_check
-    crossings = NormalLaw._contact_crossings
+    screened = NormalLaw._screened_crossings
 
-    def spy(self, *args):
-        code = check(self, *args)
-        codes.append(code)
-        return code
-
-    def checked(self, seg, y1):
-        codes.clear()
-        out = crossings(self, seg, y1)
-        if not codes or codes[0] < 0:
+    def checked(self, seg, y1, sw, code):
+        out = screened(self, seg, y1, sw, code)
+        if code < 0:
             seen["not screened"] += 1
             return out
-        code = codes[0]
         # what the Python checks find at this step end
-        sw = self.world.sweep(y1[: self.n], reuse=True)
         pair_events = self._swept_crossings(seg, sw)
+        limit_events = self._limit_crossings(seg, y1)
+        q, v = y1[: self.n], y1[self.n : 2 * self.n]
+        beyond = bool(((q >= self.sys.upper) | (q <= self.sys.lower)).any())
         ev = self._native.end_eval(self.normal, y1)
         assert ev is not None  # the screen was at the native step's end
-        q, v = y1[: self.n], y1[self.n : 2 * self.n]
         nc = self.normal
         refresh = nc.sliding(q, v) and nc.stale(q, v, self.pending_d)
         assert bool(code & 1) == bool(pair_events)
         assert bool(code & 2) == (not ev.cond >= 0.0)
+        assert bool(code & 8) == beyond
+        if not code & 8:
+            assert limit_events == []
         if not code & 4:
             assert not refresh
         else:
@@ -72,10 +67,10 @@ def test_a_clear_screen_only_where_the_python_checks_find_nothing(
         if code == 0:
             seen["clear"] += 1
             assert out == []
+        seen["limits"] += bool(code & 8)
         return out
 
-    monkeypatch.setattr(native.NativeRhs, "end_check", spy)
-    monkeypatch.setattr(NormalLaw, "_contact_crossings", checked)
+    monkeypatch.setattr(NormalLaw, "_screened_crossings", checked)
     res = _collapse(mu, duration, wrist)
     assert res.diagnostics.steps > 100
     assert seen["clear"] > 0
@@ -83,6 +78,8 @@ def test_a_clear_screen_only_where_the_python_checks_find_nothing(
     assert seen["refresh needed"] == seen["refresh"]
     if mu > 0.0 and wrist:  # the collapse: most step ends are clear
         assert seen["clear"] > res.diagnostics.steps // 2
+    if not wrist:  # the free wrist comes to its stops
+        assert seen["limits"] > 0
 
 
 @pytest.mark.parametrize("mu", [0.5, 0.0])
@@ -123,15 +120,15 @@ def test_a_skipped_load_finds_the_current_modes_loaded(monkeypatch) -> None:
 
 def test_the_screen_answers_only_at_the_last_native_steps_end(monkeypatch) -> None:
     got: list[tuple[NormalLaw, np.ndarray]] = []
-    crossings = NormalLaw._contact_crossings
+    screened = NormalLaw._screened_crossings
 
-    def keep(self, seg, y1):
-        out = crossings(self, seg, y1)
+    def keep(self, seg, y1, sw, code):
+        out = screened(self, seg, y1, sw, code)
         if self._clear is y1:
             got.append((self, y1))
         return out
 
-    monkeypatch.setattr(NormalLaw, "_contact_crossings", keep)
+    monkeypatch.setattr(NormalLaw, "_screened_crossings", keep)
     _collapse(0.5, 0.5)
     law, y1 = got[-1]
     rhs = law._native

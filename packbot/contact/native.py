@@ -290,6 +290,10 @@ class NativeRhs:
         contacts._last_eval = (y1[:nv], y1[nv:], _NONE, _NONE, _NONE, contacts._plan_key, ev)
         return ev
 
+    def set_limits(self, upper: FloatArray, lower: FloatArray) -> None:
+        """The joint limits [rad] :meth:`end_check` screens (empty arrays: none)."""
+        self._rhs.set_limits(_reals(upper), _reals(lower))
+
     def end_check(
         self,
         y1: FloatArray,
@@ -310,7 +314,8 @@ class NativeRhs:
         ``d > near`` or ``d < -pen_tol``). Bit 2: a mode condition is negative (end_eval's
         ``cond < 0``). Bit 4: a pair with engaged rows slides and a sliding contact's patch
         may be stale (:meth:`NormalContacts.sliding` and ``stale`` would re-patch), or a slide
-        speed is too close to the stick speed to say without numpy's rounding.
+        speed is too close to the stick speed to say without numpy's rounding. Bit 8: a
+        joint is at or beyond one of the limits of :meth:`set_limits`.
 
         Args:
             y1: The state the step ended at, (q, v).

@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from packbot.collision import PairInfo
+from packbot.collision import PairInfo, SweepResult
 from packbot.contact import native
 from packbot.contact.base import Active, Crossing, Key
 from packbot.contact.locks import JointLocks
@@ -43,6 +43,7 @@ __all__ = [
 ]
 
 log = logging.getLogger(__name__)
+_SLIDE_TOL2 = SLIDE_TOL**2  # [m^2] (normal_rows' test: the same square)
 
 FloatArray = NDArray[np.float64]
 
@@ -120,6 +121,8 @@ class NormalLaw(PatchEvents):
         super().rebuild(system)
         self.normal = NormalContacts.from_config(system.model, system.data, system.world, self.cfg)
         self._native = native.native_rhs(system.model) if native.ENABLED else None
+        if self._native is not None and self.cfg.joint_limits:  # (the step end's screen)
+            self._native.set_limits(system.upper, system.lower)
         self.window: _Window | None = None
         self._recent: deque[float] = deque(maxlen=CHATTER_EVENTS)
         self._steps: deque[float] = deque(maxlen=CRAWL_STEPS)  # the last steps' sizes [s]
@@ -155,7 +158,14 @@ class NormalLaw(PatchEvents):
         if self.window is not None:
             return []
         self._steps.append(seg.h)
-        return super().watch(seg)
+        y1 = seg.y1
+        sw = self._end_sweep(y1)
+        code = self._end_code(y1, sw)
+        # (the order of JointStops.watch: limits, pairs, modes, holds)
+        out = self._limit_crossings(seg, y1) if code < 0 or code & 8 else []
+        out.extend(self._screened_crossings(seg, y1, sw, code))
+        out.extend(self._hold_crossings(seg, y1))
+        return out
 
     def after_step(self, t: float, y: FloatArray) -> FloatArray | None:
         """After an accepted step; in a window, its end once the contacts have settled.
@@ -289,29 +299,40 @@ class NormalLaw(PatchEvents):
         return self._patch_pair_crossings(key, p_idx, seg, d0, d1)
 
     def _contact_crossings(self, seg: DenseSegment, y1: FloatArray) -> list[Crossing]:
-        """The pairs' and modes' events over the step; a native step's end screened first.
-
-        After a native step (:meth:`step_kernel`), one call
-        (:meth:`~packbot.contact.native.NativeRhs.end_check`) on its last stage's evaluation
-        and the end's sweep says which checks can find something: the pairs' (an impact, a
-        release, a re-patch), the modes' (a negative condition) and :meth:`_refresh`'s (a
-        sliding contact's stale patch). Only those run, as without the screen; a step end
-        the screen finds clear (the common case) is marked for :meth:`_refresh`.
-        """
         sw = self._end_sweep(y1)
+        return self._screened_crossings(seg, y1, sw, self._end_code(y1, sw))
+
+    def _end_code(self, y1: FloatArray, sw: SweepResult) -> int:
+        """The step end's screen (:meth:`~packbot.contact.native.NativeRhs.end_check`).
+
+        After a native step (:meth:`step_kernel`), one call on its last stage's evaluation and
+        the end's sweep says which checks of :meth:`watch` and :meth:`after_step` can find
+        something: the limits' (bit 8), the pairs' (an impact, a release, a re-patch: 1), the
+        modes' (a negative condition: 2) and :meth:`_refresh`'s (a sliding contact's stale
+        patch: 4). -1: not a native step's end (every check runs).
+        """
         rhs = self._native
-        code = -1
-        if rhs is not None and not self.normal.empty:
-            active = np.array([k[1] for k in self.active if k[0] == "pair"], dtype=np.int64)
-            code = rhs.end_check(
-                y1,
-                sw.pairs,
-                sw.distances,
-                active,
-                self.cfg.proximity_tolerance,
-                PENETRATION_TOL,
-                SLIDE_TOL**2,
-            )
+        if rhs is None or self.normal.empty:
+            return -1
+        active = np.array([k[1] for k in self.active if k[0] == "pair"], dtype=np.int64)
+        return rhs.end_check(
+            y1,
+            sw.pairs,
+            sw.distances,
+            active,
+            self.cfg.proximity_tolerance,
+            PENETRATION_TOL,
+            _SLIDE_TOL2,
+        )
+
+    def _screened_crossings(
+        self, seg: DenseSegment, y1: FloatArray, sw: SweepResult, code: int
+    ) -> list[Crossing]:
+        """The pairs' and modes' events over the step: the checks the screen's code asks for.
+
+        As without the screen; a step end it finds clear of pair, mode and refresh checks
+        (the common case) is marked for :meth:`_refresh` (nothing to re-patch there).
+        """
         if code < 0:  # not a native step's end: every check
             out = self._swept_crossings(seg, sw)
             out.extend(self._mode_crossings(seg, y1))
@@ -320,8 +341,8 @@ class NormalLaw(PatchEvents):
         if code & 2:
             out.extend(self._mode_crossings(seg, y1))
         elif code & 4:  # the evaluation the refresh reads (end_eval's, as without the screen)
-            assert rhs is not None
-            rhs.end_eval(self.normal, y1)
+            assert self._native is not None
+            self._native.end_eval(self.normal, y1)
         else:
             self._clear = y1
         return out

@@ -310,6 +310,16 @@ class ContactRhs {
     keys_ = ints(keys);
   }
 
+  // The joint limits [rad] end_check compares the step end's positions with (nv each), or none
+  // (empty arrays: no limit check).
+  void set_limits(F1 upper, F1 lower) {
+    if (upper.shape(0) != lower.shape(0) ||
+        (upper.shape(0) && upper.shape(0) != static_cast<size_t>(nv_)))
+      throw std::invalid_argument("upper, lower: nv entries each (or none) expected");
+    upper_ = reals(upper);
+    lower_ = reals(lower);
+  }
+
   // The step end's screen of the contact-normal mode (packbot.contact.normal_law.NormalLaw
   // .watch and after_step) at the end of the last dopri, if it ended at exactly y1 (as
   // end_eval): -1 no such step (the caller checks everything); else a bit set, 0 when nothing
@@ -320,6 +330,7 @@ class ContactRhs {
   // patch is stale (stale_pairs: its distance missing from the sweep, its gaps' minimum off it
   // by more than the point tolerance, or a slide2 above slide_tol2), or a slide speed is within
   // a relative 1e-9 of the stick speed (numpy's dot may round otherwise: the caller decides).
+  // 8: a joint is at or beyond one of its limits (set_limits; JointStops._limit_crossings).
   int end_check(F1 y1, I1 swept, F1 dist, I1 active, double near, double pen_tol,
                 double slide_tol2) {
     const size_t ns = swept.shape(0);
@@ -338,6 +349,12 @@ class ContactRhs {
       }
     }
     if (!(end_conditions() >= 0.0)) out |= 2;
+    const double *q1 = y1.data();
+    for (size_t j = 0; j < upper_.size(); ++j)
+      if (q1[j] >= upper_[j] || q1[j] <= lower_[j]) {
+        out |= 8;
+        break;
+      }
     // the pairs with engaged rows, their slide speeds and their gaps' minimum
     engaged_pair_.assign(np_, 0);
     gap_min_.assign(np_, std::numeric_limits<double>::infinity());
@@ -1000,6 +1017,7 @@ class ContactRhs {
   std::vector<char> slipping_, engaged_pair_;
   std::vector<double> slide2_, gap_min_;
   std::vector<int64_t> keys_;  // (set_keys)
+  std::vector<double> upper_, lower_;  // (set_limits)
   double force_band_ = 0.0, point_tol_ = 0.0, stick_band_ = 0.0;
   bool conditions_set_ = false, end_valid_ = false;
 };
@@ -1026,6 +1044,7 @@ NB_MODULE(_native, m) {
            nb::arg("force_band"), nb::arg("point_tol"), nb::arg("stick_band"))
       .def("end_eval", &ContactRhs::end_eval, nb::arg("y1"))
       .def("set_keys", &ContactRhs::set_keys, nb::arg("keys"))
+      .def("set_limits", &ContactRhs::set_limits, nb::arg("upper"), nb::arg("lower"))
       .def("end_check", &ContactRhs::end_check, nb::arg("y1"), nb::arg("swept"), nb::arg("dist"),
            nb::arg("active"), nb::arg("near"), nb::arg("pen_tol"), nb::arg("slide_tol2"))
       .def("set_locks", &ContactRhs::set_locks, nb::arg("locked"))
