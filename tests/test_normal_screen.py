@@ -142,3 +142,32 @@ def test_the_screen_answers_only_at_the_last_native_steps_end(monkeypatch) -> No
     assert rhs.end_check(y1, *args) == -1
     with pytest.raises(ValueError):
         rhs._rhs.end_check(y1, sw.pairs, sw.distances[:-1], active, 0.0, 0.0, 0.0)
+
+
+@pytest.mark.parametrize("mode", ["normal", "joint_clamp"])
+def test_the_kept_distances_are_the_sweep_at_the_kept_state(monkeypatch, mode) -> None:
+    """The kept distances (made a dict only when read) are the pairs' at each accepted step."""
+    from packbot.contact.stops import JointStops
+
+    after = JointStops.after_step
+    n = Counter[str]()
+
+    def checked(self, t, y):
+        y_new = after(self, t, y)
+        if y_new is None:
+            # (the sweep at y is the step end's, kept: a fresh one may differ in the last bits)
+            sw = self.world.sweep(y[: self.n], reuse=True)
+            assert self.last_d == dict(zip(sw.pairs.tolist(), sw.distances.tolist(), strict=True))
+            fresh = self.world.sweep(y[: self.n].copy())
+            assert sorted(self.last_d) == sorted(fresh.pairs.tolist())
+            np.testing.assert_allclose(
+                [self.last_d[p] for p in fresh.pairs.tolist()], fresh.distances, atol=1e-12
+            )
+            n["checked"] += 1
+        return y_new
+
+    monkeypatch.setattr(JointStops, "after_step", checked)
+    robot = packbot.load_robot()
+    cfg = packbot.SimConfig(contact_mode=mode, mu=0.5, locked_joints=WRIST)
+    packbot.simulate(robot, robot.pose("drive"), np.zeros(8), 1.0, config=cfg)
+    assert n["checked"] > 50
