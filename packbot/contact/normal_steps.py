@@ -188,7 +188,7 @@ class RestartSteps(ConstrainedDynamics):
             touch = np.flatnonzero(gap <= TOUCH_GAP)
             J = Jn[touch]
             G = J @ minv @ J.T
-            mu = _position_lcp(G, gap[touch])
+            mu = _psd_lcp(G, gap[touch])
             q = np.asarray(q + minv @ J.T @ mu, dtype=np.float64)
             if not self.check_others or self.world is None:
                 return q
@@ -284,13 +284,14 @@ class RestartSteps(ConstrainedDynamics):
 
     @staticmethod
     def _normal_impulse(G: FloatArray, target: FloatArray) -> FloatArray:
-        """The normal impulses of a frictionless impact: LCP(G, target), residual checked."""
-        P = solve_lcp_psd(G, target)
+        """The normal impulses of a frictionless impact: LCP(G, target), residual checked.
+
+        Compiled Lemke first, as the projection (:func:`_psd_lcp`): the velocity change
+        M^-1 J^T P is the same for every solution of this symmetric positive semi-definite
+        problem (only its rounding depends on the solver).
+        """
+        P = _psd_lcp(G, target)
         res = lcp_residual(G, target, P)
-        if res > RESIDUAL_TOL:
-            P2 = _lemke(G, target)
-            if P2 is not None and lcp_residual(G, target, P2) < res:
-                P, res = P2, lcp_residual(G, target, P2)
         if res > RESIDUAL_TOL:
             log.warning("impact LCP residual %.3g", res)
         return P
@@ -306,16 +307,25 @@ def _energy_change(P: FloatArray, w: FloatArray, dw: FloatArray) -> float:
     return gain - 1e-12 * (abs(float(P @ w)) + abs(float(P @ dw)))
 
 
-def _position_lcp(G: FloatArray, g: FloatArray) -> FloatArray:
-    """The projection's LCP(G, g) [N*s^2]: compiled Lemke, non-negative least squares if not solved.
+def _psd_lcp(G: FloatArray, g: FloatArray) -> FloatArray:
+    """LCP(G, g) of a Delassus matrix G = J M^-1 J^T: compiled Lemke, else least squares.
 
-    The projection's step dq = M^-1 J^T mu is the same for every solution of this symmetric
-    positive semi-definite problem, so the solver only changes it by rounding; the compiled
-    pivots (:func:`~packbot.contact.normal_modes._lemke`, a few microseconds on the usual 1 to
-    8 rows) replace :func:`~packbot.contact.lcp.solve_lcp_psd` (``eigh``, ``lstsq`` and
-    scipy's NNLS: 130 us a call) whenever their residual passes.
+    For the projection (dq = M^-1 J^T mu [rad]) and a frictionless impact (dv = M^-1 J^T P
+    [rad/s]). Every solution z of this symmetric positive semi-definite problem minimises the
+    convex 1/2 z.G z + g.z over z >= 0 and has the same M^-1/2 J^T z (the objective is
+    strictly convex in it), so the step is the same whichever solution a solver returns: the
+    solver only changes it by rounding. The compiled pivots
+    (:func:`~packbot.contact.normal_modes._lemke`, a few microseconds on the usual 1 to 8 rows)
+    replace :func:`~packbot.contact.lcp.solve_lcp_psd` (``eigh``, ``lstsq`` and scipy's NNLS:
+    130 us a call) whenever their residual passes; otherwise the least-squares solution, or
+    Lemke's if its residual is the smaller (the caller checks and reports it).
     """
     z = _lemke(G, g)
-    if z is not None and lcp_residual(G, g, z) <= RESIDUAL_TOL:
+    if z is not None:
+        res = lcp_residual(G, g, z)
+        if res <= RESIDUAL_TOL:
+            return z
+    z2 = solve_lcp_psd(G, g)
+    if z is not None and res < lcp_residual(G, g, z2):
         return z
-    return solve_lcp_psd(G, g)
+    return z2
