@@ -117,3 +117,54 @@ def test_the_impulses_and_projections_of_a_collapse_equal_the_least_squares_ones
     cfg = packbot.SimConfig(contact_mode="normal", mu=0.0, restitution=0.0)
     packbot.simulate(robot, robot.pose("drive"), np.zeros(8), 1.0, config=cfg)
     assert seen["calls"] > 20 and seen["rows>1"] > 5
+
+
+def test_the_compiled_lemke_equals_the_array_pivots_beyond_the_small_problems(rng):
+    """Problems of 9 to 16 rows (a patch pair and limits), symmetric and not, solvable or not:
+    the compiled kernel's answer equals the array version's to the last bit."""
+    from packbot.contact import lcp
+    from packbot.contact.normal_modes import _lemke
+
+    solved = unsolved = 0
+    for it in range(300):
+        n = int(rng.integers(lcp.SMALL_LCP + 1, 17))
+        r = int(rng.integers(2, n + 1))
+        J = rng.normal(size=(n, r)) @ rng.normal(size=(r, 8))
+        L = rng.normal(size=(8, 8))
+        G = J @ (L @ L.T + 0.1 * np.eye(8)) @ J.T
+        if it % 3 == 0:
+            G = G + 0.1 * rng.normal(size=G.shape)  # not symmetric: Lemke may find no solution
+        q = rng.normal(size=n)
+        ref = lcp.lemke(G, q)
+        z = _lemke(G, q)
+        assert (z is None) == (ref is None)
+        if ref is not None:
+            np.testing.assert_array_equal(z, ref)
+            solved += 1
+        else:
+            unsolved += 1
+    assert solved > 100 and unsolved > 10
+
+
+def test_one_mode_condition_equals_the_dictionarys(robot, monkeypatch):
+    """At every step end with a mode event of a collapse (mu = 0.5, wrist free), each condition
+    read alone (the event functions' way) equals its entry in the dictionary of all of them."""
+    from packbot.contact import patch_events
+
+    crossings = patch_events.PatchEvents._problem_crossings
+    seen = {"nrow": 0, "nfric": 0}
+
+    def checked(self, contacts, seg, y1):
+        out = crossings(self, contacts, seg, y1)
+        for t in (seg.t0, 0.5 * (seg.t0 + seg.t1), seg.t1):
+            ev = self._contact_eval(contacts, t, seg(t))
+            cond = contacts.conditions(ev)
+            for k, (_, g) in cond.items():
+                assert contacts.condition(ev, k) == g
+                seen[k[0]] = seen.get(k[0], 0) + 1
+        return out
+
+    monkeypatch.setattr(patch_events.PatchEvents, "_problem_crossings", checked)
+    cfg = packbot.SimConfig(contact_mode="normal", mu=0.5)
+    packbot.simulate(robot, robot.pose("drive"), np.zeros(8), 1.0, config=cfg)
+    assert seen["nrow"] > 50 and seen["nfric"] > 5
