@@ -4,8 +4,10 @@
   locating every crossing on the whole step keeps, at the same time (to the event tolerance:
   a pair's distance is warm-started by Coal from its last query, so its root finder's iterates
   move in the last bits with the order of the queries), on real steps of contact runs.
-- The compiled Lemke on the Delassus problems of the projection and the frictionless impact
-  (``normal_steps._psd_lcp``) gives the step of the non-negative least squares it replaces.
+- The compiled Lemke on the Delassus problems of the projection, the frictionless impact and
+  the symmetric mode problems (``normal_modes._psd_lcp``) gives the step (the accelerations)
+  of the non-negative least squares it replaces, and at any size the array version's pivots.
+- One mode condition read alone equals its entry in the dictionary of all of them.
 """
 
 import numpy as np
@@ -168,3 +170,32 @@ def test_one_mode_condition_equals_the_dictionarys(robot, monkeypatch):
     cfg = packbot.SimConfig(contact_mode="normal", mu=0.5)
     packbot.simulate(robot, robot.pose("drive"), np.zeros(8), 1.0, config=cfg)
     assert seen["nrow"] > 50 and seen["nfric"] > 5
+
+
+def test_the_mode_lcps_of_a_collapse_give_the_least_squares_accelerations(robot, monkeypatch):
+    """At every symmetric mode problem of a wrist-free collapse (mu = 0), the compiled Lemke's
+    forces z give the accelerations of the least-squares solution (G z equal: the engaged rows'
+    accelerations and the generalized force are those of every solution) and are basic (the
+    Delassus block of their support is non-singular), as the selection needs."""
+    from packbot.contact import normal_modes
+
+    psd = normal_modes._psd_lcp
+    seen = {"calls": 0, "other_support": 0}
+
+    def checked(G, g):
+        z = psd(G, g)
+        ref = solve_lcp_psd(G, g)
+        if lcp_residual(G, g, ref) <= RESIDUAL_TOL and lcp_residual(G, g, z) <= RESIDUAL_TOL:
+            scale = 1.0 + float(np.abs(G @ ref).max(initial=0.0)) + float(np.abs(g).max())
+            assert np.abs(G @ (z - ref)).max(initial=0.0) <= 1e-9 * scale
+            S = np.flatnonzero(z > 1e-12 * (1.0 + np.abs(z).max(initial=0.0)))
+            assert np.linalg.matrix_rank(G[np.ix_(S, S)]) == len(S)
+            S_ref = np.flatnonzero(ref > 1e-12 * (1.0 + np.abs(ref).max(initial=0.0)))
+            seen["other_support"] += not np.array_equal(S, S_ref)
+            seen["calls"] += 1
+        return z
+
+    monkeypatch.setattr(normal_modes, "_psd_lcp", checked)
+    cfg = packbot.SimConfig(contact_mode="normal", mu=0.0, restitution=0.0)
+    packbot.simulate(robot, robot.pose("drive"), np.zeros(8), 1.0, config=cfg)
+    assert seen["calls"] > 20

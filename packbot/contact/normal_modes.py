@@ -301,12 +301,8 @@ class ModeSelection(ConstrainedDynamics):
         else:
             Ml, ql = GNN, bN
         if symmetric:
-            z = solve_lcp_psd(Ml, ql)
+            z = _psd_lcp(Ml, ql)
             res = lcp_residual(Ml, ql, z)
-            if res > RESIDUAL_TOL:
-                z2 = _lemke(Ml, ql)
-                if z2 is not None and lcp_residual(Ml, ql, z2) < res:
-                    z, res = z2, lcp_residual(Ml, ql, z2)
         else:
             z2 = _lemke(Ml, ql)
             if z2 is None:
@@ -367,3 +363,27 @@ def _lemke(M: FloatArray, q: FloatArray) -> FloatArray | None:
         np.ascontiguousarray(M, dtype=np.float64), np.asarray(q, dtype=np.float64), 200, 1e-12
     )
     return z if ok else None
+
+
+def _psd_lcp(G: FloatArray, g: FloatArray) -> FloatArray:
+    """LCP(G, g) of a Delassus matrix G = J M^-1 J^T: compiled Lemke, else least squares.
+
+    For the projection (dq = M^-1 J^T mu [rad]) and a frictionless impact (dv = M^-1 J^T P
+    [rad/s]). Every solution z of this symmetric positive semi-definite problem minimises the
+    convex 1/2 z.G z + g.z over z >= 0 and has the same M^-1/2 J^T z (the objective is
+    strictly convex in it), so the step is the same whichever solution a solver returns: the
+    solver only changes it by rounding. The compiled pivots
+    (:func:`~packbot.contact.normal_modes._lemke`, a few microseconds on the usual 1 to 8 rows)
+    replace :func:`~packbot.contact.lcp.solve_lcp_psd` (``eigh``, ``lstsq`` and scipy's NNLS:
+    130 us a call) whenever their residual passes; otherwise the least-squares solution, or
+    Lemke's if its residual is the smaller (the caller checks and reports it).
+    """
+    z = _lemke(G, g)
+    if z is not None:
+        res = lcp_residual(G, g, z)
+        if res <= RESIDUAL_TOL:
+            return z
+    z2 = solve_lcp_psd(G, g)
+    if z is not None and res < lcp_residual(G, g, z2):
+        return z
+    return z2

@@ -16,7 +16,7 @@ from numpy.typing import NDArray
 
 from packbot.contact.lcp import lcp_residual, solve_lcp_psd, solve_ncp_admm
 from packbot.contact.normal_dynamics import ConstrainedDynamics
-from packbot.contact.normal_modes import ModeEvent, _lemke
+from packbot.contact.normal_modes import ModeEvent, _lemke, _psd_lcp
 from packbot.contact.normal_tolerances import (
     CAPTURE_ACCEL,
     CAPTURE_SPEED,
@@ -305,27 +305,3 @@ def _energy_change(P: FloatArray, w: FloatArray, dw: FloatArray) -> float:
     """
     gain = float(P @ w) + 0.5 * float(P @ dw)
     return gain - 1e-12 * (abs(float(P @ w)) + abs(float(P @ dw)))
-
-
-def _psd_lcp(G: FloatArray, g: FloatArray) -> FloatArray:
-    """LCP(G, g) of a Delassus matrix G = J M^-1 J^T: compiled Lemke, else least squares.
-
-    For the projection (dq = M^-1 J^T mu [rad]) and a frictionless impact (dv = M^-1 J^T P
-    [rad/s]). Every solution z of this symmetric positive semi-definite problem minimises the
-    convex 1/2 z.G z + g.z over z >= 0 and has the same M^-1/2 J^T z (the objective is
-    strictly convex in it), so the step is the same whichever solution a solver returns: the
-    solver only changes it by rounding. The compiled pivots
-    (:func:`~packbot.contact.normal_modes._lemke`, a few microseconds on the usual 1 to 8 rows)
-    replace :func:`~packbot.contact.lcp.solve_lcp_psd` (``eigh``, ``lstsq`` and scipy's NNLS:
-    130 us a call) whenever their residual passes; otherwise the least-squares solution, or
-    Lemke's if its residual is the smaller (the caller checks and reports it).
-    """
-    z = _lemke(G, g)
-    if z is not None:
-        res = lcp_residual(G, g, z)
-        if res <= RESIDUAL_TOL:
-            return z
-    z2 = solve_lcp_psd(G, g)
-    if z is not None and res < lcp_residual(G, g, z2):
-        return z
-    return z2
