@@ -1,9 +1,9 @@
 """Mode selection at a restart: engaged rows, stick or slip, consistent slip directions.
 
 The acceleration-level problem with the touching rows (a mixed LCP: complementary normal rows,
-sticking pairs' tangential rows as equalities; Lemke when sliding friction makes it
-non-symmetric), the cone check switching a sticking pair to slip, the Painleve fallback, and
-the slip directions of pairs starting to slide.
+sticking pairs' tangential rows as equalities; compiled Lemke, with non-negative least squares
+as the fallback of the symmetric problems), the cone check switching a sticking pair to slip,
+the Painleve fallback, and the slip directions of pairs starting to slide.
 """
 
 from __future__ import annotations
