@@ -762,8 +762,8 @@ def locate_earliest(
     at_tol``, inside the step) is still positive is not located: a function with one falling
     sign change on the step crosses after that point, so it is neither earlier than
     ``t_star`` nor at it. One evaluation instead of a root find (about ten) for every
-    crossing that is not at the event. A function that is not located by :func:`locate_root`
-    is located by it, on the whole step, as before: the times compared are the same floats.
+    crossing that is not at the event. A function that is not excluded so is located by
+    :func:`locate_root` on the whole step, as before: the times compared are the same floats.
     For a function with several sign changes on the step, :func:`locate_root` returns one
     of them, not necessarily the earliest, and the two ways may then keep different ones.
 

@@ -368,11 +368,14 @@ def _lemke(M: FloatArray, q: FloatArray) -> FloatArray | None:
 def _psd_lcp(G: FloatArray, g: FloatArray) -> FloatArray:
     """LCP(G, g) of a Delassus matrix G = J M^-1 J^T: compiled Lemke, else least squares.
 
-    For the projection (dq = M^-1 J^T mu [rad]) and a frictionless impact (dv = M^-1 J^T P
-    [rad/s]). Every solution z of this symmetric positive semi-definite problem minimises the
-    convex 1/2 z.G z + g.z over z >= 0 and has the same M^-1/2 J^T z (the objective is
+    For the projection (dq = M^-1 J^T mu [rad]), a frictionless impact (dv = M^-1 J^T P
+    [rad/s]) and the symmetric mode problems (the constrained acceleration M^-1 J^T lambda
+    [rad/s^2]). Every solution z of this symmetric positive semi-definite problem minimises
+    the convex 1/2 z.G z + g.z over z >= 0 and has the same M^-1/2 J^T z (the objective is
     strictly convex in it), so the step is the same whichever solution a solver returns: the
-    solver only changes it by rounding. The compiled pivots
+    solver only changes it by rounding. Which rows carry the force can differ where the rows
+    are dependent; Lemke's solution is basic, as the least-squares one (the Delassus block of
+    its support is non-singular: its final basis holds those columns). The compiled pivots
     (:func:`~packbot.contact.normal_modes._lemke`, a few microseconds on the usual 1 to 8 rows)
     replace :func:`~packbot.contact.lcp.solve_lcp_psd` (``eigh``, ``lstsq`` and scipy's NNLS:
     130 us a call) whenever their residual passes; otherwise the least-squares solution, or
