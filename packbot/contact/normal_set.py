@@ -159,6 +159,9 @@ class ContactSet:
         assert world is not None
         if not pairs:
             return []
+        from packbot.contact import kernels  # lazy: numba is imported by contact runs only
+
+        material = kernels.patch_material
         t = self.tol if tol is None else tol
         ks = [world._pair_id(k) for k in pairs]
         batch = world._patch_batch(q, ks, t)
@@ -174,12 +177,13 @@ class ContactSet:
                 G1, G2 = gd.oMg[patch.pair.geom1], gd.oMg[patch.pair.geom2]
                 self._put(
                     q, k, patch.normal, patch.points1, patch.points2, patch.distance,
-                    G1.rotation, G1.translation, G2.rotation, G2.translation,
+                    G1.rotation, G1.translation, G2.rotation, G2.translation, {}, material,
                 )  # fmt: skip
                 out.append(True)
             return out
         sizes, normals, depths, pts1, pts2, rot, trans = batch
         pin.forwardKinematics(self.model, self.data, q)
+        frames: dict[int, tuple[Any, ...]] = {}  # the joints' placements at q, read once
         out, s = [], 0
         for i, k in enumerate(ks):
             K = int(sizes[i])
@@ -188,7 +192,7 @@ class ContactSet:
                 continue
             self._put(
                 q, k, normals[i], pts1[s : s + K], pts2[s : s + K], float(depths[i]),
-                rot[i, 0], trans[i, 0], rot[i, 1], trans[i, 1],
+                rot[i, 0], trans[i, 0], rot[i, 1], trans[i, 1], frames, material,
             )  # fmt: skip
             s += K
             out.append(True)
@@ -206,6 +210,8 @@ class ContactSet:
         tg1: FloatArray,
         Rg2: FloatArray,
         tg2: FloatArray,
+        frames: dict[int, tuple[Any, ...]],
+        material: Any,
     ) -> None:
         """Put a pair's patch in the contact set (the model's kinematics at q).
 
@@ -220,18 +226,17 @@ class ContactSet:
             tg1: Piece 1's world translation [m].
             Rg2: Piece 2's world rotation.
             tg2: Piece 2's world translation [m].
+            frames: The joints' placements already read at q, by joint (filled here).
+            material: ``kernels.patch_material``.
         """
-        from packbot.contact import kernels  # lazy: numba is imported by contact runs only
-
         assert self.world is not None
         old = self.pairs.get(pair)
         info = self.world.pairs[pair]
-        M1 = self._placement(info.joint1)
-        M2 = self._placement(info.joint2)
-        R1, t1, R2, t2 = M1.rotation, M1.translation, M2.rotation, M2.translation
+        _, R1, t1 = frames.get(info.joint1) or self._frame(frames, info.joint1)
+        _, R2, t2 = frames.get(info.joint2) or self._frame(frames, info.joint2)
         N1, o1 = self._planes_of(info.geom1)
         N2, o2 = self._planes_of(info.geom2)
-        ok, *made = kernels.patch_material(
+        ok, *made = material(
             points1, points2, n, d, N1, o1, Rg1, tg1,
             N2, o2, Rg2, tg2, R1, t1, R2, t2, PATCH_TOL, True,
         )  # fmt: skip
@@ -240,7 +245,7 @@ class ContactSet:
             # pair's distance (measured: gaps of -33 mm and +12 mm for a pair 24 um deep, the
             # camera head spinning into link 1's tube): one point, the witness pair, instead.
             c = self.world.pair_contact(q, pair)
-            ok, *made = kernels.patch_material(
+            ok, *made = material(
                 c.p1[None, :], c.p2[None, :], n, d, N1, o1, Rg1, tg1,
                 N2, o2, Rg2, tg2, R1, t1, R2, t2, PATCH_TOL, False,
             )  # fmt: skip
@@ -298,6 +303,12 @@ class ContactSet:
             (joint, side)
         )
         return row in self.engaged
+
+    def _frame(self, frames: dict[int, tuple[Any, ...]], joint: int) -> tuple[Any, ...]:
+        """A joint's (placement, rotation, translation) at the last kinematics, kept in frames."""
+        M = self._placement(joint)  # (kept: the arrays are views of it)
+        out = frames[joint] = (M, M.rotation, M.translation)
+        return out
 
     def _placement(self, joint: int) -> pin.SE3:
         return self.data.oMi[joint] if joint > 0 else pin.SE3.Identity()
