@@ -180,6 +180,8 @@ class ContactSet:
                     G1.rotation, G1.translation, G2.rotation, G2.translation, {}, material,
                 )  # fmt: skip
                 out.append(True)
+            if any(out):
+                self._invalidate()
             return out
         sizes, normals, depths, pts1, pts2, rot, trans = batch
         pin.forwardKinematics(self.model, self.data, q)
@@ -196,6 +198,8 @@ class ContactSet:
             )  # fmt: skip
             s += K
             out.append(True)
+        if any(out):
+            self._invalidate()  # (once: the caches are not read in between)
         return out
 
     def _put(
@@ -214,6 +218,8 @@ class ContactSet:
         material: Any,
     ) -> None:
         """Put a pair's patch in the contact set (the model's kinematics at q).
+
+        The caller then empties the caches (:meth:`_invalidate`).
 
         Args:
             q: Configuration [rad].
@@ -260,8 +266,7 @@ class ContactSet:
         p.frame2, p.centre1, p.centre2 = frame2, centre1, centre2
         if old is not None:
             p.stick, p.slip_dir = old.stick, old.slip_dir
-        self.pairs[pair] = p
-        self._invalidate()
+        self.pairs[pair] = p  # (the caller invalidates the caches)
 
     def _planes_of(self, geom: int) -> tuple[FloatArray, FloatArray]:
         """The face planes of a piece (see :func:`_planes`; none: 0 rows), kept per piece."""
