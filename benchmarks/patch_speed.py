@@ -11,12 +11,17 @@ Measures, in one process per round and interpreter:
   poses, seed 2026, mu 0, no restitution), summed.
 
 ``--python`` names the interpreters to compare (each imports the packbot installed in its own
-environment, e.g. the venv of a checkout of the revision before and this one's); the rounds
-run them in turn (interleaved), and the table prints the medians over the rounds and the
-ratios of the medians. Run it outside a source tree (``cd /tmp``), so that each interpreter
-imports its installed packbot with its compiled modules::
+environment, e.g. the venv of a checkout of the revision before and this one's); ``--before``
+adds the source tree of an older revision run by this interpreter (its editable import hook
+removed, the tree first on ``sys.path``: copy the installed ``packbot/_native*.so`` into the
+tree's ``packbot/``, as for ``normal_before_after.py``). The rounds run them in turn
+(interleaved), and the table prints the medians over the rounds and the ratios of the medians
+(the last column over the first). Run it outside a source tree (``cd /tmp``), so that each
+interpreter imports its installed packbot with its compiled modules::
 
     python benchmarks/patch_speed.py --python /venv-before/bin/python /venv-after/bin/python
+    git archive REV | tar -x -C /tmp/before && cp $SITE/packbot/_native*.so /tmp/before/packbot/
+    python benchmarks/patch_speed.py --before /tmp/before --rounds 5
     python benchmarks/patch_speed.py --one          # one round in this interpreter (JSON)
 """
 
@@ -81,13 +86,18 @@ def _per_call(robot, cfg) -> dict[str, float]:
     }
 
 
-def one() -> dict[str, float]:
-    """One round in this interpreter."""
+def one(tree: str | None = None) -> dict[str, float]:
+    """One round in this interpreter (of the packbot in ``tree`` if given)."""
+    if tree:
+        sys.meta_path[:] = [f for f in sys.meta_path if "editable" not in repr(f).lower()]
+        sys.path.insert(0, tree)
     sys.path.insert(0, str(HERE))
     import robustness as rb
 
     import packbot
 
+    if tree:
+        assert packbot.__file__.startswith(tree), packbot.__file__
     logging.getLogger("packbot").setLevel(logging.ERROR)
     robot = packbot.load_robot()
     cfg = packbot.SimConfig(contact_mode="normal", mu=0.5, locked_joints=WRIST)
@@ -112,27 +122,34 @@ def one() -> dict[str, float]:
 def main(argv: list[str] | None = None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--python", nargs="+", default=[sys.executable], help="interpreters")
+    ap.add_argument("--before", help="an older revision's source tree, run first")
+    ap.add_argument("--tree", help=argparse.SUPPRESS)
     ap.add_argument("--rounds", type=int, default=3)
     ap.add_argument("--one", action="store_true", help="one round here, printed as JSON")
     args = ap.parse_args(argv)
     if args.one:
-        print(json.dumps(one()))
+        print(json.dumps(one(args.tree)))
         return
-    runs: dict[str, list[dict[str, float]]] = {p: [] for p in args.python}
+    commands = {p: [p, __file__, "--one"] for p in args.python}
+    if args.before:
+        tree = str(Path(args.before).resolve())
+        commands = {tree: [sys.executable, __file__, "--one", "--tree", tree], **commands}
+    runs: dict[str, list[dict[str, float]]] = {p: [] for p in commands}
     for r in range(args.rounds):
-        for p in args.python:
-            proc = subprocess.run(
-                [p, __file__, "--one"], capture_output=True, text=True, check=True, cwd="/tmp"
-            )
+        for p, cmd in commands.items():
+            proc = subprocess.run(cmd, capture_output=True, text=True, cwd="/tmp")
+            if proc.returncode:
+                sys.exit(f"{cmd} failed:\n{proc.stderr}")
             runs[p].append(json.loads(proc.stdout.strip().splitlines()[-1]))
             print(f"round {r + 1} {p}: {runs[p][-1]}", file=sys.stderr)
-    keys = list(runs[args.python[0]][0])
-    med = {p: {k: statistics.median(x[k] for x in runs[p]) for k in keys} for p in args.python}
+    names = list(commands)
+    keys = list(runs[names[0]][0])
+    med = {p: {k: statistics.median(x[k] for x in runs[p]) for k in keys} for p in names}
     print(f"medians of {args.rounds} interleaved rounds (CPU times)")
-    print(f"| quantity | {' | '.join(args.python)} | ratio |")
-    print("|---" * (len(args.python) + 2) + "|")
+    print(f"| quantity | {' | '.join(names)} | ratio |")
+    print("|---" * (len(names) + 2) + "|")
     for k in keys:
-        vals = [med[p][k] for p in args.python]
+        vals = [med[p][k] for p in names]
         ratio = vals[-1] / vals[0] if vals[0] else float("nan")
         print(f"| {k} | {' | '.join(f'{v:.4g}' for v in vals)} | {ratio:.3f} |")
 
