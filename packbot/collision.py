@@ -31,6 +31,7 @@ line of sight query Coal in ``packbot.collision_queries``.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, NamedTuple
@@ -554,11 +555,77 @@ class CollisionWorld:
         points, an edge 2, a vertex 1).
 
         Raises:
-            ConfigurationError: ``pair`` is not the index of a tested pair.
+            ConfigurationError: ``pair`` is not the index of a tested pair, or a wrong-size q.
         """
-        k = self._pair_id(pair)
-        found = _cq.contact_patch(self, q, k, tol)
-        return None if found is None else ContactPatch(self.pairs[k], *found)
+        return self.contact_patches(q, [pair], tol)[0]
+
+    def contact_patches(
+        self, q: NDArray[np.float64], pairs: Sequence[int], tol: float
+    ) -> list[ContactPatch | None]:
+        """The contact patches of several pairs within ``tol`` [m] at q (None: farther apart).
+
+        The same patches as :meth:`contact_patch` pair by pair, bit for bit; with the compiled
+        sweep (:mod:`packbot.native_sweep`, when available and enabled) all of them in one
+        native call after one forward kinematics, the pieces of ``geom_data`` then placed at q
+        on first read.
+
+        Raises:
+            ConfigurationError: A pair that is not the index of a tested pair, or a wrong-size q.
+        """
+        ks = [self._pair_id(p) for p in pairs]
+        batch = self._patch_batch(q, ks, tol)
+        if batch is None:
+            out: list[ContactPatch | None] = []
+            for k in ks:
+                found = _cq.contact_patch(self, q, k, tol)
+                out.append(None if found is None else ContactPatch(self.pairs[k], *found))
+            return out
+        sizes, normals, depths, pts1, pts2 = batch[:5]
+        out, s = [], 0
+        for i, k in enumerate(ks):
+            K = int(sizes[i])
+            if K < 0:
+                out.append(None)
+                continue
+            patch = ContactPatch(
+                self.pairs[k],
+                normals[i].copy(),
+                pts1[s : s + K].copy(),
+                pts2[s : s + K].copy(),
+                float(depths[i]),
+            )
+            out.append(patch)
+            s += K
+        return out
+
+    def _patch_batch(
+        self, q: NDArray[np.float64], pairs: list[int], tol: float
+    ) -> tuple[NDArray[Any], ...] | None:
+        """The native patches of checked ``pairs`` at q (None: the native sweep cannot serve).
+
+        Returns:
+            (sizes, normals, depths, points1, points2, rotations, translations): per pair its
+            number of patch points K (-1: farther apart than ``tol``), normal, signed distance
+            [m]; the patches' points on pieces 1 and 2, pair after pair, (sum K, 3) [m]; the
+            two pieces' world placements, rotations (n, 2, 3, 3) (each Fortran-ordered, as
+            Pinocchio's) and translations (n, 2, 3) [m].
+
+        Raises:
+            ConfigurationError: A wrong-size q.
+        """
+        native = self._native
+        if native is None or not _ns.ENABLED:
+            return None
+        qa = np.ascontiguousarray(q, dtype=np.float64)
+        try:
+            out = native.patches(qa, np.asarray(pairs, dtype=np.int64), float(tol))
+        except (ValueError, TypeError) as exc:  # the extension's size/type check
+            nq = self.robot.model.nq
+            raise ConfigurationError("q", np.shape(q), f"a vector of shape ({nq},) [rad]") from exc
+        # the pieces of geom_data are owed at q (placed on first read, as after a reused sweep)
+        self._dispatch.pending = qa.tobytes()
+        sizes, normals, depths, pts1, pts2, rot, trans = out
+        return sizes, normals, depths, pts1, pts2, rot.swapaxes(2, 3), trans
 
     # ------------------------------------------------------------------ line of sight
     def line_of_sight(
