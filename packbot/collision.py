@@ -68,7 +68,7 @@ SRDF_NAME = "packbot_eod.srdf"
 #: Default query margin [m]: pairs farther apart than this are pruned.
 DEFAULT_MARGIN = 0.05
 #: Absolute GJK and EPA tolerance [m].
-GJK_TOLERANCE = 1e-10
+GJK_TOLERANCE = _cb.GJK_TOLERANCE
 
 
 @dataclass(frozen=True)
@@ -221,17 +221,8 @@ class CollisionWorld:
         self._native: _ns.NativeSweep | None = None  # (built below, once geom_data is set)
         # the native sweeps' calls and where they owe the pieces (placed on demand)
         self._dispatch = _ns.NativeDispatch(self)
-        self._geom_data = gm.createData()
-        for creq in self.geom_data.collisionRequests:
-            creq.enable_contact = (
-                True  # Coal misses deep overlaps of near-coincident centres without
-            )
-        for dreq in self.geom_data.distanceRequests:
-            # Coal's default relative 1e-6 GJK/EPA tolerance and warm starts let one pair's
-            # distance vary by ~1e-6 m between calls; absolute 1e-10 m costs nothing measurable.
-            dreq.gjk_convergence_criterion_type = coal.GJKConvergenceCriterionType.Absolute
-            dreq.gjk_tolerance = GJK_TOLERANCE
-            dreq.epa_tolerance = GJK_TOLERANCE
+        self._geom_data = _cb.geometry_data(gm)
+        self._point_data: pin.GeometryData | None = None  # pair_contact's (made on first use)
         # Live proxies into the C++ vector (valid while geom_data lives): indexing it costs
         # 0.1 us against 0.45 us through distanceResults[k].
         self._results = list(self.geom_data.distanceResults)
@@ -449,7 +440,9 @@ class CollisionWorld:
         return np.array([r.min_distance for r in self._results])
 
     def _contact(self, p: int) -> Contact:
-        r = self._results[p]
+        return self._contact_of(self._results[p], p)
+
+    def _contact_of(self, r: coal.DistanceResult, p: int) -> Contact:
         return Contact(
             self.pairs[p],
             float(r.min_distance),
@@ -492,8 +485,14 @@ class CollisionWorld:
         """
         k = self._pair_id(pair)
         self._place(q)
-        pin.computeDistance(self.geom_model, self.geom_data, k)
-        return self._contact(k)
+        # Its own requests: Coal warm-starts GJK from a request's last answer, so the sweep's
+        # distances (native or not) never depend on the point queries made between sweeps.
+        data = self._point_data
+        if data is None:
+            data = self._point_data = _cb.geometry_data(self.geom_model)
+        pin.updateGeometryPlacements(self.robot.model, self._data, self.geom_model, data)
+        pin.computeDistance(self.geom_model, data, k)
+        return self._contact_of(data.distanceResults[k], k)
 
     def closest(self, q: NDArray[np.float64]) -> Contact:
         """The closest pair at q over all tested pairs."""
