@@ -782,8 +782,9 @@ def locate_earliest(
         (ascending).
 
     Raises:
-        ConfigurationError: No function given, the lengths differ, ``at_tol`` < 0, or a
-            function's values do not bracket a sign change (:func:`locate_root`).
+        ConfigurationError: No function given, the lengths differ, ``at_tol`` < 0,
+            ``xtol`` <= 0, ``t1`` <= ``t0``, or a function with ``g0 > 0`` has ``g1 > 0`` (no
+            sign change to locate), whether or not it is located.
     """
     n = len(gs)
     if n == 0:
@@ -792,6 +793,18 @@ def locate_earliest(
         raise ConfigurationError("(len(g0s), len(g1s))", (len(g0s), len(g1s)), f"both {n}")
     if not at_tol >= 0.0:
         raise ConfigurationError("at_tol", at_tol, "a time tolerance >= 0 [s]")
+    # (locate_root's checks, made for every function: one tested away is not located)
+    if not t1 > t0:
+        raise ConfigurationError("t1", t1, f"a time > t0={t0!r}")
+    if not xtol > 0.0:
+        raise ConfigurationError("xtol", xtol, "a time tolerance > 0 [s]")
+    for i, (g0, g1) in enumerate(zip(g0s, g1s, strict=True)):
+        if g0 > 0.0 and not g1 <= 0.0:
+            raise ConfigurationError(
+                f"(g0s[{i}], g1s[{i}])",
+                (g0, g1),
+                "g0 > 0 >= g1 (or g0 <= 0): a sign change of the event function on [t0, t1]",
+            )
     times: list[float | None] = [None] * n
     t_star = math.inf
     pending = []

@@ -539,6 +539,21 @@ def test_locate_earliest_rejects_bad_arguments() -> None:
         locate_earliest([math.cos], [1.0], [0.5], 0.0, 1.0)
 
 
+def test_locate_earliest_rejects_bad_arguments_it_would_not_locate() -> None:
+    """A crossing tested away (its value just after an earlier one still positive) or a step
+    with every function already on its event side is checked as :func:`locate_root` checks
+    the ones it locates: no sign change, a bad xtol or an empty step raise."""
+    gs = [math.cos, math.cos]
+    with pytest.raises(ConfigurationError, match=r"g1s\[1\]"):  # 0.5 > 0: no sign change
+        locate_earliest(gs, [-1.0, 1.0], [-1.0, 0.5], 0.0, 1.0)
+    with pytest.raises(ConfigurationError, match="xtol"):
+        locate_earliest(gs, [-1.0, -1.0], [-1.0, -1.0], 0.0, 1.0, xtol=0.0)
+    with pytest.raises(ConfigurationError, match="t1"):
+        locate_earliest(gs, [-1.0, -1.0], [-1.0, -1.0], 1.0, 1.0)
+    # (valid: both at the start, no root found)
+    assert locate_earliest(gs, [-1.0, 0.0], [-1.0, -1.0], 0.0, 1.0) == (0.0, [0, 1])
+
+
 # --- configuration errors -----------------------------------------------------------------------
 
 
