@@ -481,7 +481,7 @@ class CollisionWorld:
         """Signed distance, witness points and normal of one pair at q (no pruning).
 
         Raises:
-            ConfigurationError: ``pair`` is not the index of a tested pair.
+            ConfigurationError: ``pair`` is not the index of a tested pair, or a wrong-size q.
         """
         k = self._pair_id(pair)
         self._place(q)

@@ -171,3 +171,20 @@ def test_the_kept_distances_are_the_sweep_at_the_kept_state(monkeypatch, mode) -
     cfg = packbot.SimConfig(contact_mode=mode, mu=0.5, locked_joints=WRIST)
     packbot.simulate(robot, robot.pose("drive"), np.zeros(8), 1.0, config=cfg)
     assert n["checked"] > 50
+
+
+def test_the_screens_inputs_of_a_wrong_size_raise() -> None:
+    """set_limits, set_keys and end_check check their arrays' sizes (no read out of bounds)."""
+    rhs = native.native_rhs(packbot.load_robot().model)
+    assert rhs is not None
+    nv, none = rhs.nv, np.zeros(0, dtype=np.int64)
+    for upper, lower in [(np.zeros(nv), np.zeros(nv - 1)), (np.zeros(nv + 1), np.zeros(nv + 1))]:
+        with pytest.raises(ValueError, match="nv entries"):
+            rhs.set_limits(upper, lower)
+    rhs.set_limits(np.zeros(0), np.zeros(0))  # (none: no limit screened)
+    with pytest.raises(ValueError, match="keys"):  # no layout loaded: no pair
+        rhs._rhs.set_keys(np.zeros(3, dtype=np.int64))
+    y = np.zeros(2 * nv)
+    with pytest.raises(ValueError, match="one length"):
+        rhs.end_check(y, np.zeros(2, dtype=np.int64), np.zeros(1), none, 1e-3, 1e-4, 1e-8)
+    assert rhs.end_check(y, none, np.zeros(0), none, 1e-3, 1e-4, 1e-8) == -1  # no step yet

@@ -381,7 +381,7 @@ class NormalLaw(PatchEvents):
     def _keep_end_eval(self) -> None:
         """The last step end's evaluation kept by the contact set, as without the screen.
 
-        A step end the screen found clear (:meth:`_contact_crossings`) did not hand its
+        A step end the screen found clear (:meth:`_screened_crossings`) did not hand its
         evaluation to the contact set; before events or a window, which may read it, it does.
         """
         if self._clear is not None and self._native is not None:
