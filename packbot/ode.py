@@ -445,6 +445,35 @@ class RK45Stepper:
             h = h0
         return h
 
+    def _stages(
+        self, t: float, t_new: float, h: float, Z: FloatArray
+    ) -> tuple[FloatArray, FloatArray, float]:
+        """One attempt's stages by ``rhs`` into Z; (y_new, |y_new|, scaled error norm).
+
+        Z holds [y0, k_0] on entry (rows 0, 1) and every stage on return (rows 2..7).
+        """
+        rhs = self._rhs
+        Ah = self._Ah
+        r1, r2, r3, r4, r5, r6 = self._rows[1:]
+        c1, c2, c3, c4, c5 = _C[1:6]
+        np.multiply(_A8, h, out=Ah)
+        Ah[:, 0] = 1.0
+        Z[2] = rhs(t + c1 * h, np.dot(r1, Z[:2]))
+        Z[3] = rhs(t + c2 * h, np.dot(r2, Z[:3]))
+        Z[4] = rhs(t + c3 * h, np.dot(r3, Z[:4]))
+        Z[5] = rhs(t + c4 * h, np.dot(r4, Z[:5]))
+        Z[6] = rhs(t + c5 * h, np.dot(r5, Z[:6]))
+        y_new = np.dot(r6, Z[:7])
+        Z[7] = rhs(t_new, y_new)
+        # Scaled RMS norm of the error estimate h * sum_j e_j k_j.
+        ev = np.dot(_E, Z[1:])
+        ay1 = np.abs(y_new)
+        sc = np.maximum(self._ay, ay1)
+        sc *= self.rtol
+        sc += self.atol
+        ev /= sc
+        return y_new, ay1, h * math.sqrt(float(np.dot(ev, ev)) * self._inv_n)
+
     def step(self, t_end: float, kernel: StepKernel | None = None) -> DenseSegment:
         """Take one accepted step, never beyond ``t_end``.
 
@@ -473,25 +502,20 @@ class RK45Stepper:
             if t != t:
                 raise ConfigurationError("t", t, "a state: call reset(t, y) before step()")
             raise ConfigurationError("t_end", t_end, f"a time > the current time t={t!r}")
-        rhs = self._rhs
         y = self.y
         h = self.h
         if h > self.h_max:
             h = self.h_max
-        Ah = self._Ah
-        r1, r2, r3, r4, r5, r6 = self._rows[1:]
-        c1, c2, c3, c4, c5 = _C[1:6]
-        Z = np.empty((8, self._n))
+        n = self._n
+        Z = np.empty((8, n))
         Z[0] = y
         Z[1] = self.f
-        K = Z[1:]
         rtol = self.rtol
-        atol = self.atol
         ay0 = self._ay
-        n = self._n
-        atol_vec = self._atol_vec
-        if kernel is not None and atol_vec.shape[0] != n:
-            atol_vec = self._atol_vec = np.broadcast_to(atol, (n,)).astype(np.float64)
+        if kernel is not None:
+            atol_vec = self._atol_vec
+            if atol_vec.shape[0] != n:
+                atol_vec = self._atol_vec = np.broadcast_to(self.atol, (n,)).astype(np.float64)
         rejected = False
         while True:
             t_new = t + h
@@ -500,29 +524,14 @@ class RK45Stepper:
                 h_wanted = h
                 t_new = t_end
                 h = t_end - t
-            err = -1.0
             if kernel is not None:
                 y_new = np.empty(n)
                 ay1 = np.empty(n)
                 err = kernel(h, Z, ay0, atol_vec, rtol, y_new, ay1)
-            if err < 0.0:  # (also not: a nan error is a rejection)
-                np.multiply(_A8, h, out=Ah)
-                Ah[:, 0] = 1.0
-                Z[2] = rhs(t + c1 * h, np.dot(r1, Z[:2]))
-                Z[3] = rhs(t + c2 * h, np.dot(r2, Z[:3]))
-                Z[4] = rhs(t + c3 * h, np.dot(r3, Z[:4]))
-                Z[5] = rhs(t + c4 * h, np.dot(r4, Z[:5]))
-                Z[6] = rhs(t + c5 * h, np.dot(r5, Z[:6]))
-                y_new = np.dot(r6, Z[:7])
-                Z[7] = rhs(t_new, y_new)
-                # Scaled RMS norm of the error estimate h * sum_j e_j k_j.
-                ev = np.dot(_E, K)
-                ay1 = np.abs(y_new)
-                sc = np.maximum(ay0, ay1)
-                sc *= rtol
-                sc += atol
-                ev /= sc
-                err = h * math.sqrt(float(np.dot(ev, ev)) * self._inv_n)
+                if err < 0.0:  # (also not: a nan error is a rejection)
+                    y_new, ay1, err = self._stages(t, t_new, h, Z)
+            else:
+                y_new, ay1, err = self._stages(t, t_new, h, Z)
             self.n_rhs += 6
             if err < 1.0:
                 break

@@ -27,6 +27,13 @@ import numpy as np
 import pinocchio as pin
 from numpy.typing import NDArray
 
+from packbot.contact.normal_tolerances import (
+    BAUMGARTE,
+    FORCE_BAND,
+    POINT_TOL,
+    STICK_BAND,
+    STICK_SPEED,
+)
 from packbot.errors import ModelError, PackbotError
 from packbot.native_joints import SUPPORTED_JOINTS
 
@@ -144,15 +151,11 @@ class NativeRhs:
                 _reals(lay.lim_side),
                 _reals(lay.lim_value),
             )
-            from packbot.contact.normal_tolerances import FORCE_BAND, POINT_TOL, STICK_BAND
-
             self._rhs.set_conditions(_reals(lay.offset0), FORCE_BAND, POINT_TOL, STICK_BAND)
             self._rhs.set_keys(_ints(list(contacts.pairs)))  # (in the layout's order)
             self._layout_id = lay
             self._plan_id = None
         if plan is not self._plan_id:
-            from packbot.contact.normal_tolerances import BAUMGARTE, STICK_SPEED
-
             self._rhs.set_plan(
                 _ints(plan.engaged),
                 _ints(plan.row_slip),
