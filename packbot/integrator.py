@@ -41,7 +41,7 @@ from packbot.errors import PackbotError, SimulationError
 from packbot.failures import Failure
 from packbot.inputs import check_inputs, warn_settings
 from packbot.model import Robot
-from packbot.ode import DenseSegment, RK45Stepper, StepSizeUnderflow, locate_root
+from packbot.ode import DenseSegment, RK45Stepper, StepSizeUnderflow, locate_earliest
 from packbot.payload import Payload
 from packbot.recorder import EventLog, Recorder, Sample, Samples, measure, measure_many
 from packbot.result import Diagnostics, Event, SimResult, rest_time
@@ -267,16 +267,16 @@ class _Run:
             ) from exc
 
     def locate(self, seg: DenseSegment, crossings: list[Crossing]) -> tuple[float, list[Crossing]]:
-        """Earliest crossing time and the crossings that happen at it."""
-        times = []
-        for c in crossings:
-            if c.g0 <= 0.0:
-                times.append(seg.t0)  # already on the event side at the step start
-                continue
-            times.append(locate_root(c.g, seg.t0, seg.t1, c.g0, c.g1, xtol=EVENT_XTOL))
-        t_star = min(times)
-        at = [c for c, tc in zip(crossings, times, strict=True) if tc <= t_star + 10 * EVENT_XTOL]
-        return t_star, at
+        """Earliest crossing time and the crossings within 10 EVENT_XTOL of it (locate_earliest)."""
+        gs, g0s, g1s = (
+            [c.g for c in crossings],
+            [c.g0 for c in crossings],
+            [c.g1 for c in crossings],
+        )
+        t_star, idx = locate_earliest(
+            gs, g0s, g1s, seg.t0, seg.t1, xtol=EVENT_XTOL, at_tol=10 * EVENT_XTOL
+        )
+        return t_star, [crossings[i] for i in idx]
 
     # ------------------------------------------------------------------ scheduled actions
     def run_scheduled(self, t: float, record: bool = True) -> bool:

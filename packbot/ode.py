@@ -34,7 +34,7 @@ from __future__ import annotations
 import itertools
 import logging
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -46,6 +46,7 @@ __all__ = [
     "RK45Stepper",
     "StepKernel",
     "StepSizeUnderflow",
+    "locate_earliest",
     "locate_root",
 ]
 
@@ -748,3 +749,79 @@ def locate_root(
             xtol,
         )
     return tb
+
+
+def locate_earliest(
+    gs: Sequence[Callable[[float], float]],
+    g0s: Sequence[float],
+    g1s: Sequence[float],
+    t0: float,
+    t1: float,
+    *,
+    xtol: float = 1e-10,
+    at_tol: float = 1e-9,
+) -> tuple[float, list[int]]:
+    """The earliest crossing of several event functions on one step, and the ones at it.
+
+    The result of locating every function with :func:`locate_root` (one with ``g0 <= 0`` is
+    on its event side at ``t0``: its time is ``t0``), taking the earliest time ``t_star`` and
+    keeping the functions whose time is at most ``t_star + at_tol``, with fewer evaluations:
+    the functions are taken in the order of their chords' zeros (the linear estimate of each
+    crossing), and one whose value just after the earliest time found so far (at ``t_star +
+    at_tol``, inside the step) is still positive is not located: a function with one falling
+    sign change on the step crosses after that point, so it is neither earlier than
+    ``t_star`` nor at it. One evaluation instead of a root find (about ten) for every
+    crossing that is not at the event. A function that is not excluded so is located by
+    :func:`locate_root` on the whole step, as before: the times compared are the same floats.
+    For a function with several sign changes on the step, :func:`locate_root` returns one
+    of them, not necessarily the earliest, and the two ways may then keep different ones.
+
+    Args:
+        gs: Event functions of time, each falling to <= 0 over the step.
+        g0s: Their values at ``t0`` (<= 0: on the event side at the step start).
+        g1s: Their values at ``t1``, <= 0.
+        t0: Start of the step [s].
+        t1: End of the step [s], > ``t0``.
+        xtol: Width of :func:`locate_root`'s final bracket [s], > 0.
+        at_tol: How much later than the earliest crossing a crossing still counts as at it
+            [s], >= 0.
+
+    Returns:
+        ``t_star`` [s] and the positions in ``gs`` of the functions crossing at it
+        (ascending).
+
+    Raises:
+        ConfigurationError: No function given, the lengths differ, ``at_tol`` < 0, or a
+            function's values do not bracket a sign change (:func:`locate_root`).
+    """
+    n = len(gs)
+    if n == 0:
+        raise ConfigurationError("gs", n, "at least one event function")
+    if len(g0s) != n or len(g1s) != n:
+        raise ConfigurationError("(len(g0s), len(g1s))", (len(g0s), len(g1s)), f"both {n}")
+    if not at_tol >= 0.0:
+        raise ConfigurationError("at_tol", at_tol, "a time tolerance >= 0 [s]")
+    times: list[float | None] = [None] * n
+    t_star = math.inf
+    pending = []
+    for i, g0 in enumerate(g0s):
+        if g0 <= 0.0:
+            times[i] = t0  # already on the event side at the step start
+            t_star = t0
+        else:
+            pending.append(i)
+    span = t1 - t0
+
+    def chord(i: int) -> float:
+        g0, g1 = float(g0s[i]), float(g1s[i])
+        return t0 + span * (g0 / (g0 - g1)) if g0 - g1 > 0.0 else t1
+
+    for i in sorted(pending, key=chord):
+        t_hi = t_star + at_tol
+        if t_hi < t1 and float(gs[i](t_hi)) > 0.0:
+            continue  # still before its crossing just after t_star: neither earlier nor at it
+        tc = locate_root(gs[i], t0, t1, g0s[i], g1s[i], xtol=xtol)
+        times[i] = tc
+        t_star = min(t_star, tc)
+    bound = t_star + at_tol
+    return t_star, [i for i, tc in enumerate(times) if tc is not None and tc <= bound]

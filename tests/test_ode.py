@@ -12,7 +12,13 @@ from scipy.integrate import RK45
 
 import packbot.ode as ode
 from packbot.errors import ConfigurationError, PackbotError
-from packbot.ode import DenseSegment, RK45Stepper, StepSizeUnderflow, locate_root
+from packbot.ode import (
+    DenseSegment,
+    RK45Stepper,
+    StepSizeUnderflow,
+    locate_earliest,
+    locate_root,
+)
 
 # --- test problems ------------------------------------------------------------------------------
 
@@ -450,6 +456,87 @@ def test_locate_root_rejects_a_non_bracket() -> None:
         locate_root(math.sin, 0.5, 1.0, math.sin(0.5), math.sin(1.0))
     with pytest.raises(ConfigurationError, match="t1"):
         locate_root(math.sin, 1.0, 1.0, 1.0, -1.0)
+
+
+def _locate_each(gs, g0s, g1s, t0, t1, xtol, at_tol):
+    """The reference: every crossing located on the whole step, then the earliest kept."""
+    times = [t0 if g0 <= 0.0 else locate_root(g, t0, t1, g0, g1, xtol=xtol)
+             for g, g0, g1 in zip(gs, g0s, g1s, strict=True)]  # fmt: skip
+    t_star = min(times)
+    return t_star, [i for i, tc in enumerate(times) if tc <= t_star + at_tol]
+
+
+@settings(max_examples=200, deadline=None)
+@given(
+    roots=st.lists(st.floats(0.0, 1.0), min_size=1, max_size=6),
+    slopes=st.lists(st.floats(0.1, 10.0), min_size=6, max_size=6),
+    curv=st.floats(-0.4, 0.4),
+    near=st.booleans(),
+)
+def test_locate_earliest_equals_locating_every_crossing(roots, slopes, curv, near) -> None:
+    """Falling functions with one crossing each on [0, 1] (some already <= 0 at 0, some within
+    the tolerance of another, some at the step's end): the same time and crossings, to the bit,
+    with at most one more evaluation per crossing (the test of one that is at the event)."""
+    at_tol = 1e-9
+    if near and len(roots) > 1:
+        roots[1] = min(roots[0] + 0.5 * at_tol, 1.0)  # a crossing within at_tol of another
+    gs, g0s, g1s = [], [], []
+    for r, k in zip(roots, slopes, strict=False):
+
+        def g(t: float, r: float = r, k: float = k) -> float:
+            return k * (r - t) * (1.0 + curv * (t - r) ** 2)
+
+        gs.append(g)
+        g0s.append(g(0.0) if r > 0.0 else -1.0)
+        g1s.append(min(g(1.0), 0.0))
+    count = [0, 0]
+
+    def counted(fs, slot):
+        def wrap(f):
+            def h(t: float) -> float:
+                count[slot] += 1
+                return f(t)
+
+            return h
+
+        return [wrap(f) for f in fs]
+
+    ref = _locate_each(counted(gs, 0), g0s, g1s, 0.0, 1.0, 1e-10, at_tol)
+    got = locate_earliest(counted(gs, 1), g0s, g1s, 0.0, 1.0, xtol=1e-10, at_tol=at_tol)
+    assert got == ref
+    assert count[1] <= count[0] + len(gs)
+
+
+def test_locate_earliest_tests_the_later_crossings_with_one_evaluation() -> None:
+    """Three crossings far apart: the earliest is located, the two others cost one evaluation
+    each (their value just after it is still positive)."""
+    calls = {0: 0, 1: 0, 2: 0}
+
+    def make(i: int, r: float):
+        def g(t: float) -> float:
+            calls[i] += 1
+            return r - t
+
+        return g
+
+    gs = [make(0, 0.7), make(1, 0.2), make(2, 0.5)]
+    t_star, at = locate_earliest(gs, [0.7, 0.2, 0.5], [-0.3, -0.8, -0.5], 0.0, 1.0)
+    assert at == [1] and 0.2 <= t_star < 0.2 + 1e-10
+    assert calls[0] == 1 and calls[2] == 1 and calls[1] > 1
+    # one already on its event side at the step start: t_star is the start, the others tested
+    t_star, at = locate_earliest(gs, [0.7, -0.1, 0.5], [-0.3, -0.8, -0.5], 0.0, 1.0)
+    assert (t_star, at) == (0.0, [1])
+
+
+def test_locate_earliest_rejects_bad_arguments() -> None:
+    with pytest.raises(ConfigurationError, match="gs"):
+        locate_earliest([], [], [], 0.0, 1.0)
+    with pytest.raises(ConfigurationError, match="len"):
+        locate_earliest([math.cos], [1.0, 2.0], [-1.0], 0.0, 2.0)
+    with pytest.raises(ConfigurationError, match="at_tol"):
+        locate_earliest([math.cos], [1.0], [math.cos(2.0)], 0.0, 2.0, at_tol=-1.0)
+    with pytest.raises(ConfigurationError, match="g0 > 0 >= g1"):
+        locate_earliest([math.cos], [1.0], [0.5], 0.0, 1.0)
 
 
 # --- configuration errors -----------------------------------------------------------------------

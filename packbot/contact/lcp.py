@@ -52,8 +52,9 @@ def lcp_residual(G: FloatArray, q: FloatArray, z: FloatArray) -> float:
     """
     if len(q) == 0:
         return 0.0
-    w = G @ z + q
-    scale = 1.0 + float(np.abs(q).max()) + float(np.abs(G @ z).max())
+    Gz = G @ z
+    w = Gz + q
+    scale = 1.0 + float(np.abs(q).max()) + float(np.abs(Gz).max())
     res = max(-float(z.min()), -float(w.min()), abs(float(z @ w)) / scale, 0.0)
     return res / scale
 

@@ -32,12 +32,14 @@ every step the mode conditions are checked; a violated one is an event located b
 1. *impulse*: every row touching (g <= :data:`TOUCH_GAP`) takes part in one impulse problem,
    Newton's law per row with restitution e (0 below the Zeno speed
    :attr:`SimConfig.zeno_speed`: a bounce so slow becomes resting contact); frictionless, an LCP
-   on the Delassus matrix G = J M^-1 J^T (:func:`packbot.contact.lcp.solve_lcp_psd`); with
-   friction, Pinocchio's ADMM on point-contact cones
+   on the Delassus matrix G = J M^-1 J^T (compiled Lemke;
+   :func:`packbot.contact.lcp.solve_lcp_psd` when its residual fails: every solution gives the
+   same velocity change); with friction, Pinocchio's ADMM on point-contact cones
    (:func:`packbot.contact.lcp.solve_ncp_admm`); residuals checked;
 2. *modes*: the acceleration-level problem with the touching rows (lambda >= 0, a_n >= 0,
-   complementary), sticking pairs' tangential rows eliminated, sliding friction making it
-   non-symmetric (Lemke); a sticking pair whose force leaves the cone is switched to slip and
+   complementary), sticking pairs' tangential rows eliminated, solved by Lemke (symmetric
+   without sliding friction: then non-negative least squares if Lemke's residual fails); a
+   sticking pair whose force leaves the cone is switched to slip and
    the problem solved again. No solution (Painleve: friction making the problem inconsistent)
    is logged as an event and handled impulsively: the sliding pairs are stopped by a
    frictional impulse and the problem is solved with them sticking.

@@ -195,6 +195,20 @@ class ConstrainedDynamics(ContactRows):
                     out[("nfric", key)] = ("stick", g + STICK_BAND)
         return out
 
+    def condition(self, ev: _Eval, key: tuple[Any, ...]) -> float:
+        """The value of one mode condition of :meth:`conditions` (the same float).
+
+        An event function on the step's dense output asks for one condition at each point;
+        a row's (``("nrow", r)``) is read without building the dictionary of all of them.
+        """
+        if key[0] == "nrow" and ev.rest is None and type(self).conditions is _OWN_CONDITIONS:
+            r = key[1]
+            E = self.engaged
+            if r in E:
+                return float(ev.lam[E.index(r)]) + FORCE_BAND
+            return float(ev.gap[r]) + POINT_TOL
+        return self.conditions(ev)[key][1]
+
     def violated(self, ev: _Eval) -> bool:
         """Whether a mode condition of :meth:`conditions` is negative (an event).
 

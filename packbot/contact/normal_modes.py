@@ -1,9 +1,9 @@
 """Mode selection at a restart: engaged rows, stick or slip, consistent slip directions.
 
 The acceleration-level problem with the touching rows (a mixed LCP: complementary normal rows,
-sticking pairs' tangential rows as equalities; Lemke when sliding friction makes it
-non-symmetric), the cone check switching a sticking pair to slip, the Painleve fallback, and
-the slip directions of pairs starting to slide.
+sticking pairs' tangential rows as equalities; compiled Lemke, with non-negative least squares
+as the fallback of the symmetric problems), the cone check switching a sticking pair to slip,
+the Painleve fallback, and the slip directions of pairs starting to slide.
 """
 
 from __future__ import annotations
@@ -16,7 +16,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from packbot.collision import PairInfo
-from packbot.contact.lcp import SMALL_LCP, lcp_residual, lemke, solve_lcp_psd
+from packbot.contact.lcp import lcp_residual, lemke, solve_lcp_psd
 from packbot.contact.normal_dynamics import (
     _OWN_EVALUATE,
     _OWN_PROBLEM,
@@ -301,12 +301,8 @@ class ModeSelection(ConstrainedDynamics):
         else:
             Ml, ql = GNN, bN
         if symmetric:
-            z = solve_lcp_psd(Ml, ql)
+            z = _psd_lcp(Ml, ql)
             res = lcp_residual(Ml, ql, z)
-            if res > RESIDUAL_TOL:
-                z2 = _lemke(Ml, ql)
-                if z2 is not None and lcp_residual(Ml, ql, z2) < res:
-                    z, res = z2, lcp_residual(Ml, ql, z2)
         else:
             z2 = _lemke(Ml, ql)
             if z2 is None:
@@ -350,13 +346,16 @@ class ModeSelection(ConstrainedDynamics):
 
 
 def _lemke(M: FloatArray, q: FloatArray) -> FloatArray | None:
-    """:func:`packbot.contact.lcp.lemke`, small problems on the compiled kernel (bit for bit).
+    """:func:`packbot.contact.lcp.lemke` on the compiled kernel, at any size (bit for bit).
 
-    Up to :data:`packbot.contact.lcp.SMALL_LCP` rows, ``kernels.lemke_small``: the same pivots
-    and operations as the Python-float version, without its interpreter overhead.
+    ``kernels.lemke_small``: the same pivots and operations as the Python-float version
+    (problems up to :data:`packbot.contact.lcp.SMALL_LCP` rows) and as the array version
+    (larger ones: its row update ``T - outer(col, T[r])`` is the kernel's element by element),
+    without their interpreter overhead (a 10-row problem: 116 us in the array version, 1.4 us
+    compiled).
     """
     n = len(q)
-    if n == 0 or n > SMALL_LCP or bool(np.all(q >= 0.0)):
+    if n == 0 or bool(np.all(q >= 0.0)):
         return lemke(M, q)
     from packbot.contact import kernels  # lazy: numba is imported by contact runs only
 
@@ -364,3 +363,30 @@ def _lemke(M: FloatArray, q: FloatArray) -> FloatArray | None:
         np.ascontiguousarray(M, dtype=np.float64), np.asarray(q, dtype=np.float64), 200, 1e-12
     )
     return z if ok else None
+
+
+def _psd_lcp(G: FloatArray, g: FloatArray) -> FloatArray:
+    """LCP(G, g) of a Delassus matrix G = J M^-1 J^T: compiled Lemke, else least squares.
+
+    For the projection (dq = M^-1 J^T mu [rad]), a frictionless impact (dv = M^-1 J^T P
+    [rad/s]) and the symmetric mode problems (the constrained acceleration M^-1 J^T lambda
+    [rad/s^2]). Every solution z of this symmetric positive semi-definite problem minimises
+    the convex 1/2 z.G z + g.z over z >= 0 and has the same M^-1/2 J^T z (the objective is
+    strictly convex in it), so the step is the same whichever solution a solver returns: the
+    solver only changes it by rounding. Which rows carry the force can differ where the rows
+    are dependent; Lemke's solution is basic, as the least-squares one (the Delassus block of
+    its support is non-singular: its final basis holds those columns). The compiled pivots
+    (:func:`~packbot.contact.normal_modes._lemke`, a few microseconds on the usual 1 to 8 rows)
+    replace :func:`~packbot.contact.lcp.solve_lcp_psd` (``eigh``, ``lstsq`` and scipy's NNLS:
+    130 us a call) whenever their residual passes; otherwise the least-squares solution, or
+    Lemke's if its residual is the smaller (the caller checks and reports it).
+    """
+    z = _lemke(G, g)
+    if z is not None:
+        res = lcp_residual(G, g, z)
+        if res <= RESIDUAL_TOL:
+            return z
+    z2 = solve_lcp_psd(G, g)
+    if z is not None and res < lcp_residual(G, g, z2):
+        return z
+    return z2

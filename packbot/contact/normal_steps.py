@@ -16,7 +16,7 @@ from numpy.typing import NDArray
 
 from packbot.contact.lcp import lcp_residual, solve_lcp_psd, solve_ncp_admm
 from packbot.contact.normal_dynamics import ConstrainedDynamics
-from packbot.contact.normal_modes import ModeEvent, _lemke
+from packbot.contact.normal_modes import ModeEvent, _lemke, _psd_lcp
 from packbot.contact.normal_tolerances import (
     CAPTURE_ACCEL,
     CAPTURE_SPEED,
@@ -188,7 +188,7 @@ class RestartSteps(ConstrainedDynamics):
             touch = np.flatnonzero(gap <= TOUCH_GAP)
             J = Jn[touch]
             G = J @ minv @ J.T
-            mu = _position_lcp(G, gap[touch])
+            mu = _psd_lcp(G, gap[touch])
             q = np.asarray(q + minv @ J.T @ mu, dtype=np.float64)
             if not self.check_others or self.world is None:
                 return q
@@ -284,13 +284,14 @@ class RestartSteps(ConstrainedDynamics):
 
     @staticmethod
     def _normal_impulse(G: FloatArray, target: FloatArray) -> FloatArray:
-        """The normal impulses of a frictionless impact: LCP(G, target), residual checked."""
-        P = solve_lcp_psd(G, target)
+        """The normal impulses of a frictionless impact: LCP(G, target), residual checked.
+
+        Compiled Lemke first, as the projection (:func:`_psd_lcp`): the velocity change
+        M^-1 J^T P is the same for every solution of this symmetric positive semi-definite
+        problem (only its rounding depends on the solver).
+        """
+        P = _psd_lcp(G, target)
         res = lcp_residual(G, target, P)
-        if res > RESIDUAL_TOL:
-            P2 = _lemke(G, target)
-            if P2 is not None and lcp_residual(G, target, P2) < res:
-                P, res = P2, lcp_residual(G, target, P2)
         if res > RESIDUAL_TOL:
             log.warning("impact LCP residual %.3g", res)
         return P
@@ -304,18 +305,3 @@ def _energy_change(P: FloatArray, w: FloatArray, dw: FloatArray) -> float:
     """
     gain = float(P @ w) + 0.5 * float(P @ dw)
     return gain - 1e-12 * (abs(float(P @ w)) + abs(float(P @ dw)))
-
-
-def _position_lcp(G: FloatArray, g: FloatArray) -> FloatArray:
-    """The projection's LCP(G, g) [N*s^2]: compiled Lemke, non-negative least squares if not solved.
-
-    The projection's step dq = M^-1 J^T mu is the same for every solution of this symmetric
-    positive semi-definite problem, so the solver only changes it by rounding; the compiled
-    pivots (:func:`~packbot.contact.normal_modes._lemke`, a few microseconds on the usual 1 to
-    8 rows) replace :func:`~packbot.contact.lcp.solve_lcp_psd` (``eigh``, ``lstsq`` and
-    scipy's NNLS: 130 us a call) whenever their residual passes.
-    """
-    z = _lemke(G, g)
-    if z is not None and lcp_residual(G, g, z) <= RESIDUAL_TOL:
-        return z
-    return solve_lcp_psd(G, g)

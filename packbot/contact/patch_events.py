@@ -81,7 +81,7 @@ class PatchEvents(PairLaw):
         for k in bad:
 
             def gn(t: float, k: tuple[Any, ...] = k) -> float:
-                return self._contact_conditions(contacts, t, seg(t))[k][1]
+                return contacts.condition(self._contact_eval(contacts, t, seg(t)), k)
 
             g0 = cond0[k][1] if k in cond0 else 1.0
             out.append(Crossing(cond1[k][0], ("mode", *k), gn, g0, cond1[k][1]))
