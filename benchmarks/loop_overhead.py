@@ -11,6 +11,13 @@ steps, restarts and events (the last round's: before and after agree where a cha
 bit).
 
     python benchmarks/loop_overhead.py --before /path/to/venv-before/bin/python [--rounds 5]
+    python benchmarks/loop_overhead.py --before "$(which python)" --before-tree /tmp/old
+
+``--before-tree``: the before side is an older revision's source tree (``git archive REV |
+tar -x -C /tmp/old``: its data files too, the installed ``packbot/_native*.so`` copied into
+``/tmp/old/packbot/``) run by the ``--before`` interpreter with its editable import hook
+removed: for a change in Python alone, the same compiled extensions on both sides. Run it
+outside a source tree (``cd /tmp``).
 """
 
 from __future__ import annotations
@@ -23,8 +30,14 @@ import sys
 
 CHILD = r"""
 import json, logging, sys, time
+tree = sys.argv[3]
+if tree:  # an older revision's source tree run by this interpreter (its editable hook removed)
+    sys.meta_path[:] = [f for f in sys.meta_path if "editable" not in repr(f).lower()]
+    sys.path.insert(0, tree)
 import numpy as np
 import packbot
+if tree:
+    assert packbot.__file__.startswith(tree), packbot.__file__
 from packbot.scenario import load_scenario
 logging.getLogger("packbot").setLevel(logging.ERROR)
 WRIST = ("camera_tilt", "camera_pan", "gripper_roll", "gripper_jaw")
@@ -60,8 +73,8 @@ print(json.dumps(out))
 """
 
 
-def _run(python: str, case: str, arg: str) -> dict[str, float]:
-    cmd = [python, "-c", CHILD, case, arg]
+def _run(python: str, case: str, arg: str, tree: str = "") -> dict[str, float]:
+    cmd = [python, "-c", CHILD, case, arg, tree]
     done = subprocess.run(cmd, capture_output=True, text=True, check=True, cwd="/")
     return json.loads(done.stdout.strip().splitlines()[-1])
 
@@ -69,6 +82,12 @@ def _run(python: str, case: str, arg: str) -> dict[str, float]:
 def main(argv: list[str] | None = None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--before", required=True, help="the Python of the install before")
+    ap.add_argument(
+        "--before-tree",
+        default="",
+        help="run the before side from this source tree (an older revision's checkout with the "
+        "installed packbot/_native*.so copied into its packbot/) with the --before Python",
+    )
     ap.add_argument("--after", default=sys.executable, help="the Python of the install after")
     ap.add_argument("--rounds", type=int, default=5)
     ap.add_argument("--repeats", type=int, default=3, help="collapse runs per process")
@@ -85,7 +104,8 @@ def main(argv: list[str] | None = None) -> None:
     for _ in range(args.rounds):
         for label, (case, arg) in cases.items():
             for side, python in (("before", args.before), ("after", args.after)):
-                got[label][side].append(_run(python, case, arg))
+                tree = args.before_tree if side == "before" else ""
+                got[label][side].append(_run(python, case, arg, tree))
     print(f"CPU time [s], medians of {args.rounds} interleaved rounds")
     print(
         f"{'case':32s} {'before':>8s} {'after':>8s} {'after/before':>12s}  steps, restarts, events"
