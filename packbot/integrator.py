@@ -166,8 +166,14 @@ class _Run:
         self.stepper.reset(0.0, self.y)
 
     def restart(self) -> None:
-        """A fresh step from the current state (after an event or a changed state)."""
-        self.stepper.reset(self.t, self.y, h=max(self.stepper.h, 1e-6))
+        """A fresh step from the current state (after an event or a changed state).
+
+        With a law whose native step has a first stage (the contact-normal mode), the
+        derivative at the restart is left to the next step: its first stage there, or the
+        right-hand side then (nothing between a restart and the next step changes it).
+        """
+        defer = getattr(self.law, "first_stage", None) is not None
+        self.stepper.reset(self.t, self.y, h=max(self.stepper.h, 1e-6), defer=defer)
 
     def run(self) -> None:
         """Integrate to the duration, event by event."""
@@ -189,7 +195,13 @@ class _Run:
             t_far = min(duration, schedule.horizon(ticks.cut))
             try:
                 seg = law.advance(t, y, min(duration, t_sched))
-                seg = seg or stepper.step(t_far, law.step_kernel(t, y))
+                if seg is None:
+                    kernel = law.step_kernel(t, y)
+                    # (a restart's derivative left to this step: the kernel's first stage)
+                    first = None
+                    if stepper.f_pending and kernel is not None:
+                        first = getattr(law, "first_stage", None)
+                    seg = stepper.step(t_far, kernel, first)
             except StepSizeUnderflow:
                 if not law.rescue(t, y):
                     raise

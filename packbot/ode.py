@@ -141,6 +141,8 @@ MAX_FACTOR = 10.0
 ERROR_EXPONENT = -1.0 / 5.0
 #: A step that would end within this fraction of itself before ``t_end`` is stretched onto it.
 STRETCH = 0.01
+#: ``RK45Stepper.f`` while it is pending (a deferred reset).
+_NO_F = np.empty(0)
 
 
 class StepSizeUnderflow(PackbotError):
@@ -314,7 +316,9 @@ class RK45Stepper:
         h_min: Smallest step size [s]; below it :meth:`step` raises :class:`StepSizeUnderflow`.
         n_steps: Accepted steps, cumulative over resets.
         n_rejected: Rejected step attempts, cumulative over resets.
-        n_rhs: Right-hand-side calls, cumulative over resets.
+        n_rhs: Right-hand-side calls, cumulative over resets (a deferred one counted at its
+            reset).
+        f_pending: Whether ``f`` is deferred to the next step (``reset(..., defer=True)``).
     """
 
     def __init__(
@@ -363,6 +367,7 @@ class RK45Stepper:
         self.h = math.nan
         self.y: FloatArray = np.empty(0)
         self.f: FloatArray = np.empty(0)
+        self.f_pending = False
         self._n = 0
         self._inv_n = 0.0
         self._ay: FloatArray = np.empty(0)  # |y|, reused by the error norm of the next step
@@ -372,7 +377,7 @@ class RK45Stepper:
         self._Ah = np.empty((7, 8))
         self._rows = [self._Ah[s, : s + 1] for s in range(7)]
 
-    def reset(self, t: float, y: ArrayLike, h: float | None = None) -> None:
+    def reset(self, t: float, y: ArrayLike, h: float | None = None, *, defer: bool = False) -> None:
         """Restart at (t, y): forget the FSAL stage and choose the next step size.
 
         Costs 1 right-hand-side call if ``h`` is given, else 2 (Hairer's initial step
@@ -382,6 +387,10 @@ class RK45Stepper:
             t: Time [s].
             y: State, shape (n,); copied. The dimension may change between resets.
             h: Next step size [s], > 0, or None to choose one (capped at ``h_max``).
+            defer: With ``h`` given: the derivative at (t, y) is computed by the next
+                :meth:`step` (by its ``first`` stage, or ``rhs`` there), not now; ``f`` is
+                pending until then. Counted now. For a caller whose right-hand side is the
+                same at that step (nothing it depends on changes in between).
 
         Raises:
             ConfigurationError: ``y`` is not a finite 1-d array, ``atol`` does not match its
@@ -398,10 +407,15 @@ class RK45Stepper:
         if h is not None and not h > 0.0:
             raise ConfigurationError("h", h, "a step size > 0 [s], or None to choose one")
         t = float(t)
-        f = np.array(self._rhs(t, y), dtype=np.float64)
         self.n_rhs += 1
-        if f.shape != (n,):
-            raise ConfigurationError("rhs(t, y)", f.shape, f"an array of shape ({n},)")
+        if defer and h is not None:
+            self.f_pending = True
+            f = _NO_F
+        else:
+            self.f_pending = False
+            f = np.array(self._rhs(t, y), dtype=np.float64)
+            if f.shape != (n,):
+                raise ConfigurationError("rhs(t, y)", f.shape, f"an array of shape ({n},)")
         self.t = t
         self.y = y
         self.f = f
@@ -475,7 +489,12 @@ class RK45Stepper:
         ev /= sc
         return y_new, ay1, h * math.sqrt(float(np.dot(ev, ev)) * self._inv_n)
 
-    def step(self, t_end: float, kernel: StepKernel | None = None) -> DenseSegment:
+    def step(
+        self,
+        t_end: float,
+        kernel: StepKernel | None = None,
+        first: Callable[[FloatArray], bool] | None = None,
+    ) -> DenseSegment:
         """Take one accepted step, never beyond ``t_end``.
 
         The step tried is the current ``h`` (capped at ``h_max``), shortened to land exactly on
@@ -489,6 +508,9 @@ class RK45Stepper:
                 (:data:`StepKernel`; the contact-normal mode's native step), or None: the
                 stages call ``rhs``. The step-size control stays here; the results agree with
                 the ``rhs`` stages to rounding.
+            first: With ``kernel``, when ``f`` is pending (a deferred :meth:`reset`): the
+                kernel's first stage, ``first(Z) -> ok`` writing ``rhs(t, Z[0])`` into
+                ``Z[1]`` with the same arithmetic as ``rhs`` (False: ``rhs`` is called instead).
 
         Returns:
             The accepted step; afterwards ``self.t == segment.t1`` and ``self.y is segment.y1``.
@@ -510,7 +532,16 @@ class RK45Stepper:
         n = self._n
         Z = np.empty((8, n))
         Z[0] = y
-        Z[1] = self.f
+        if self.f_pending:
+            self.f_pending = False
+            if kernel is None or first is None or not first(Z):
+                f = np.array(self._rhs(t, y), dtype=np.float64)
+                if f.shape != (n,):
+                    raise ConfigurationError("rhs(t, y)", f.shape, f"an array of shape ({n},)")
+                Z[1] = f
+            self.f = Z[1]
+        else:
+            Z[1] = self.f
         rtol = self.rtol
         ay0 = self._ay
         if kernel is not None:

@@ -127,6 +127,11 @@ class NativeRhs:
         #: modes and torques: ``step(h, Z, ay0, atol, rtol, y1, ay1) -> err`` (-1: a singular
         #: Delassus matrix at a stage, the caller takes the Python stages).
         self.step: Callable[..., float] = self._rhs.dopri
+        #: The first stage of a native step after a restart (the stepper's ``first``):
+        #: ``first(Z) -> ok``, ``Z[1] = (v, a)`` at ``Z[0]`` under the loaded modes and torques,
+        #: the arithmetic of :meth:`accel` on ``applied + (-viscous * v - coulomb_dir)`` (False:
+        #: a singular Delassus matrix).
+        self.first: Callable[[FloatArray], bool] = self._rhs.first
         self._layout_id: Any = None  # the _Layout loaded
         self._plan_id: Any = None  # the _Plan loaded
         self._locked_id: Any = None  # the locked joints loaded (set_locks)
