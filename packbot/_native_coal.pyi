@@ -40,5 +40,16 @@ class Sweep:
     ) -> None: ...
     def boxes(self, lo: NDArray[np.float64], hi: NDArray[np.float64]) -> None: ...
     def last_q(self) -> NDArray[np.float64]: ...
+    def patches(
+        self, q: NDArray[np.float64], pairs: NDArray[np.int64], tol: float
+    ) -> tuple[
+        NDArray[np.int64],
+        NDArray[np.float64],
+        NDArray[np.float64],
+        NDArray[np.float64],
+        NDArray[np.float64],
+        NDArray[np.float64],
+        NDArray[np.float64],
+    ]: ...
     @property
     def n_pairs(self) -> int: ...

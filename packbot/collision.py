@@ -31,6 +31,7 @@ line of sight query Coal in ``packbot.collision_queries``.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, NamedTuple
@@ -67,7 +68,7 @@ SRDF_NAME = "packbot_eod.srdf"
 #: Default query margin [m]: pairs farther apart than this are pruned.
 DEFAULT_MARGIN = 0.05
 #: Absolute GJK and EPA tolerance [m].
-GJK_TOLERANCE = 1e-10
+GJK_TOLERANCE = _cb.GJK_TOLERANCE
 
 
 @dataclass(frozen=True)
@@ -220,17 +221,8 @@ class CollisionWorld:
         self._native: _ns.NativeSweep | None = None  # (built below, once geom_data is set)
         # the native sweeps' calls and where they owe the pieces (placed on demand)
         self._dispatch = _ns.NativeDispatch(self)
-        self._geom_data = gm.createData()
-        for creq in self.geom_data.collisionRequests:
-            creq.enable_contact = (
-                True  # Coal misses deep overlaps of near-coincident centres without
-            )
-        for dreq in self.geom_data.distanceRequests:
-            # Coal's default relative 1e-6 GJK/EPA tolerance and warm starts let one pair's
-            # distance vary by ~1e-6 m between calls; absolute 1e-10 m costs nothing measurable.
-            dreq.gjk_convergence_criterion_type = coal.GJKConvergenceCriterionType.Absolute
-            dreq.gjk_tolerance = GJK_TOLERANCE
-            dreq.epa_tolerance = GJK_TOLERANCE
+        self._geom_data = _cb.geometry_data(gm)
+        self._point_data: pin.GeometryData | None = None  # pair_contact's (made on first use)
         # Live proxies into the C++ vector (valid while geom_data lives): indexing it costs
         # 0.1 us against 0.45 us through distanceResults[k].
         self._results = list(self.geom_data.distanceResults)
@@ -448,7 +440,9 @@ class CollisionWorld:
         return np.array([r.min_distance for r in self._results])
 
     def _contact(self, p: int) -> Contact:
-        r = self._results[p]
+        return self._contact_of(self._results[p], p)
+
+    def _contact_of(self, r: coal.DistanceResult, p: int) -> Contact:
         return Contact(
             self.pairs[p],
             float(r.min_distance),
@@ -491,8 +485,14 @@ class CollisionWorld:
         """
         k = self._pair_id(pair)
         self._place(q)
-        pin.computeDistance(self.geom_model, self.geom_data, k)
-        return self._contact(k)
+        # Its own requests: Coal warm-starts GJK from a request's last answer, so the sweep's
+        # distances (native or not) never depend on the point queries made between sweeps.
+        data = self._point_data
+        if data is None:
+            data = self._point_data = _cb.geometry_data(self.geom_model)
+        pin.updateGeometryPlacements(self.robot.model, self._data, self.geom_model, data)
+        pin.computeDistance(self.geom_model, data, k)
+        return self._contact_of(data.distanceResults[k], k)
 
     def closest(self, q: NDArray[np.float64]) -> Contact:
         """The closest pair at q over all tested pairs."""
@@ -554,11 +554,77 @@ class CollisionWorld:
         points, an edge 2, a vertex 1).
 
         Raises:
-            ConfigurationError: ``pair`` is not the index of a tested pair.
+            ConfigurationError: ``pair`` is not the index of a tested pair, or a wrong-size q.
         """
-        k = self._pair_id(pair)
-        found = _cq.contact_patch(self, q, k, tol)
-        return None if found is None else ContactPatch(self.pairs[k], *found)
+        return self.contact_patches(q, [pair], tol)[0]
+
+    def contact_patches(
+        self, q: NDArray[np.float64], pairs: Sequence[int], tol: float
+    ) -> list[ContactPatch | None]:
+        """The contact patches of several pairs within ``tol`` [m] at q (None: farther apart).
+
+        The same patches as :meth:`contact_patch` pair by pair, bit for bit; with the compiled
+        sweep (:mod:`packbot.native_sweep`, when available and enabled) all of them in one
+        native call after one forward kinematics, the pieces of ``geom_data`` then placed at q
+        on first read.
+
+        Raises:
+            ConfigurationError: A pair that is not the index of a tested pair, or a wrong-size q.
+        """
+        ks = [self._pair_id(p) for p in pairs]
+        batch = self._patch_batch(q, ks, tol)
+        if batch is None:
+            out: list[ContactPatch | None] = []
+            for k in ks:
+                found = _cq.contact_patch(self, q, k, tol)
+                out.append(None if found is None else ContactPatch(self.pairs[k], *found))
+            return out
+        sizes, normals, depths, pts1, pts2 = batch[:5]
+        out, s = [], 0
+        for i, k in enumerate(ks):
+            K = int(sizes[i])
+            if K < 0:
+                out.append(None)
+                continue
+            patch = ContactPatch(
+                self.pairs[k],
+                normals[i].copy(),
+                pts1[s : s + K].copy(),
+                pts2[s : s + K].copy(),
+                float(depths[i]),
+            )
+            out.append(patch)
+            s += K
+        return out
+
+    def _patch_batch(
+        self, q: NDArray[np.float64], pairs: list[int], tol: float
+    ) -> tuple[NDArray[Any], ...] | None:
+        """The native patches of checked ``pairs`` at q (None: the native sweep cannot serve).
+
+        Returns:
+            (sizes, normals, depths, points1, points2, rotations, translations): per pair its
+            number of patch points K (-1: farther apart than ``tol``), normal, signed distance
+            [m]; the patches' points on pieces 1 and 2, pair after pair, (sum K, 3) [m]; the
+            two pieces' world placements, rotations (n, 2, 3, 3) (each Fortran-ordered, as
+            Pinocchio's) and translations (n, 2, 3) [m].
+
+        Raises:
+            ConfigurationError: A wrong-size q.
+        """
+        native = self._native
+        if native is None or not _ns.ENABLED:
+            return None
+        qa = np.ascontiguousarray(q, dtype=np.float64)
+        try:
+            out = native.patches(qa, np.asarray(pairs, dtype=np.int64), float(tol))
+        except (ValueError, TypeError) as exc:  # the extension's size/type check
+            nq = self.robot.model.nq
+            raise ConfigurationError("q", np.shape(q), f"a vector of shape ({nq},) [rad]") from exc
+        # the pieces of geom_data are owed at q (placed on first read, as after a reused sweep)
+        self._dispatch.pending = qa.tobytes()
+        sizes, normals, depths, pts1, pts2, rot, trans = out
+        return sizes, normals, depths, pts1, pts2, rot.swapaxes(2, 3), trans
 
     # ------------------------------------------------------------------ line of sight
     def line_of_sight(

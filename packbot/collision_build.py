@@ -24,7 +24,15 @@ from packbot.model import Robot
 if TYPE_CHECKING:
     from packbot.collision import PairInfo
 
-__all__ = ["BOX_PAD", "HALFSPACE_BOX", "Built", "fixed_parts", "structure_key"]
+__all__ = [
+    "BOX_PAD",
+    "GJK_TOLERANCE",
+    "HALFSPACE_BOX",
+    "Built",
+    "fixed_parts",
+    "geometry_data",
+    "structure_key",
+]
 
 log = logging.getLogger("packbot.collision")  # (the SRDF's pairs: logged as before)
 
@@ -35,6 +43,8 @@ BOX_PAD = 1e-9
 #: broadphase inflates a box, not a halfspace; 1e6 m keeps the rounding of the finite face
 #: under BOX_PAD).
 HALFSPACE_BOX = 1e6
+#: Absolute GJK and EPA tolerance [m].
+GJK_TOLERANCE = 1e-10
 
 #: A world's fixed parts (:func:`build`): geometry model with its pairs, the broadphase's
 #: model, each piece's link and body, the links, the pairs, their flat indices.
@@ -269,3 +279,17 @@ def broadphase_model(
         (c.first, c.second) for c in gm.collisionPairs
     ]  # Pinocchio appends pairs in order: a pair index means the same in both models
     return bp_model
+
+
+def geometry_data(gm: pin.GeometryModel) -> pin.GeometryData:
+    """A data of the geometry model with the collision world's request settings."""
+    data = gm.createData()
+    for creq in data.collisionRequests:
+        creq.enable_contact = True  # Coal misses deep overlaps of near-coincident centres without
+    for dreq in data.distanceRequests:
+        # Coal's default relative 1e-6 GJK/EPA tolerance and warm starts let one pair's
+        # distance vary by ~1e-6 m between calls; absolute 1e-10 m costs nothing measurable.
+        dreq.gjk_convergence_criterion_type = coal.GJKConvergenceCriterionType.Absolute
+        dreq.gjk_tolerance = GJK_TOLERANCE
+        dreq.epa_tolerance = GJK_TOLERANCE
+    return data

@@ -224,6 +224,10 @@ class NativeSweep:
         self.sweep = self._sweep.sweep
         #: ``last_q() -> q`` of the last sweep [rad].
         self.last_q = self._sweep.last_q
+        #: ``patches(q, pairs, tol) -> (sizes, normals, depths, points1, points2, rotations,
+        #: translations)``: the contact patches of several pairs at one q (see
+        #: ``CollisionWorld.contact_patches``; the rotations are stored transposed).
+        self.patches = self._sweep.patches
         n = len(world.pairs)
         self._n_geoms = int(world.geom_model.ngeoms)
         self._p1 = np.zeros((n, 3))

@@ -272,3 +272,22 @@ def test_the_dispatch_owes_the_placement_until_a_reader_places_the_pieces(robot,
         native_sweep.ENABLED = True
     assert dispatch.pending is False
     np.testing.assert_array_equal(w.geom_data.oMg[k].homogeneous, at_q0)
+
+
+@pytest.mark.parametrize("enabled", [True, False])
+def test_point_queries_between_sweeps_change_no_sweep(robot, enabled, monkeypatch):
+    """Coal warm-starts GJK from a request's last answer: pair_contact has its own requests,
+    so the sweeps (native or Python) give the same distances with or without point queries of
+    other configurations between them."""
+    monkeypatch.setattr(native_sweep, "ENABLED", enabled)
+    rng = np.random.default_rng(7)
+    qs = [robot.pose("drive") + rng.uniform(-0.05, 0.05, robot.nq) for _ in range(6)]
+    plain, queried = CollisionWorld(robot), CollisionWorld(robot)
+    for q in qs:
+        a = plain.sweep(q, 0.05)
+        for _ in range(3):
+            for p in a.pairs[:4]:
+                queried.pair_contact(q + rng.uniform(-0.02, 0.02, robot.nq), int(p))
+        b = queried.sweep(q, 0.05)
+        assert a.pairs.tolist() == b.pairs.tolist()
+        np.testing.assert_array_equal(a.distances, b.distances)

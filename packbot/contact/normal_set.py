@@ -7,6 +7,7 @@ caches the rows keep (emptied whenever the set changes).
 from __future__ import annotations
 
 import logging
+from collections.abc import Sequence
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -137,50 +138,135 @@ class ContactSet:
             pair: The pair's index in the collision world.
             tol: The patch query's security margin [m] (default: the contact tolerance).
         """
-        assert self.world is not None
-        patch = self.world.contact_patch(q, pair, self.tol if tol is None else tol)
-        pin.forwardKinematics(self.model, self.data, q)
-        if patch is None:
-            return False
+        return self.add_pairs(q, [pair], tol)[0]
+
+    def add_pairs(
+        self, q: FloatArray, pairs: Sequence[int], tol: float | None = None
+    ) -> list[bool]:
+        """:meth:`add_pair` for several pairs at one q, in their order; whether each is in.
+
+        With the compiled sweep the patches of all of them come from one native call
+        (:meth:`CollisionWorld.contact_patches
+        <packbot.collision.CollisionWorld.contact_patches>`), after one forward kinematics of
+        the model; the same patches and points as pair by pair, bit for bit.
+
+        Args:
+            q: Configuration [rad].
+            pairs: The pairs' indices in the collision world.
+            tol: The patch query's security margin [m] (default: the contact tolerance).
+        """
+        world = self.world
+        assert world is not None
+        if not pairs:
+            return []
         from packbot.contact import kernels  # lazy: numba is imported by contact runs only
 
+        material = kernels.patch_material
+        t = self.tol if tol is None else tol
+        ks = [world._pair_id(k) for k in pairs]
+        batch = world._patch_batch(q, ks, t)
+        if batch is None:  # the Python path: pair by pair
+            out = []
+            for k in ks:
+                patch = world.contact_patch(q, k, t)
+                pin.forwardKinematics(self.model, self.data, q)
+                if patch is None:
+                    out.append(False)
+                    continue
+                gd = world.geom_data
+                G1, G2 = gd.oMg[patch.pair.geom1], gd.oMg[patch.pair.geom2]
+                self._put(
+                    q, k, patch.normal, patch.points1, patch.points2, patch.distance,
+                    G1.rotation, G1.translation, G2.rotation, G2.translation, {}, material,
+                )  # fmt: skip
+                out.append(True)
+            if any(out):
+                self._invalidate()
+            return out
+        sizes, normals, depths, pts1, pts2, rot, trans = batch
+        pin.forwardKinematics(self.model, self.data, q)
+        frames: dict[int, tuple[Any, ...]] = {}  # the joints' placements at q, read once
+        out, s = [], 0
+        for i, k in enumerate(ks):
+            K = int(sizes[i])
+            if K < 0:
+                out.append(False)
+                continue
+            self._put(
+                q, k, normals[i], pts1[s : s + K], pts2[s : s + K], float(depths[i]),
+                rot[i, 0], trans[i, 0], rot[i, 1], trans[i, 1], frames, material,
+            )  # fmt: skip
+            s += K
+            out.append(True)
+        if any(out):
+            self._invalidate()  # (once: the caches are not read in between)
+        return out
+
+    def _put(
+        self,
+        q: FloatArray,
+        pair: int,
+        n: FloatArray,
+        points1: FloatArray,
+        points2: FloatArray,
+        d: float,
+        Rg1: FloatArray,
+        tg1: FloatArray,
+        Rg2: FloatArray,
+        tg2: FloatArray,
+        frames: dict[int, tuple[Any, ...]],
+        material: Any,
+    ) -> None:
+        """Put a pair's patch in the contact set (the model's kinematics at q).
+
+        The caller then empties the caches (:meth:`_invalidate`).
+
+        Args:
+            q: Configuration [rad].
+            pair: The pair's index.
+            n: The patch normal (world, body 1 to body 2).
+            points1: Its points on piece 1, (K, 3) world [m].
+            points2: Its points on piece 2, (K, 3) world [m].
+            d: The pair's signed distance [m].
+            Rg1: Piece 1's world rotation.
+            tg1: Piece 1's world translation [m].
+            Rg2: Piece 2's world rotation.
+            tg2: Piece 2's world translation [m].
+            frames: The joints' placements already read at q, by joint (filled here).
+            material: ``kernels.patch_material``.
+        """
+        assert self.world is not None
         old = self.pairs.get(pair)
-        info = patch.pair
-        M1 = self._placement(info.joint1)
-        M2 = self._placement(info.joint2)
-        R1, t1, R2, t2 = M1.rotation, M1.translation, M2.rotation, M2.translation
-        gd = self.world.geom_data
-        G1, G2 = gd.oMg[info.geom1], gd.oMg[info.geom2]
+        info = self.world.pairs[pair]
+        _, R1, t1 = frames.get(info.joint1) or self._frame(frames, info.joint1)
+        _, R2, t2 = frames.get(info.joint2) or self._frame(frames, info.joint2)
         N1, o1 = self._planes_of(info.geom1)
         N2, o2 = self._planes_of(info.geom2)
-        n, d = patch.normal, float(patch.distance)
-        ok, *made = kernels.patch_material(
-            patch.points1, patch.points2, n, d, N1, o1, G1.rotation, G1.translation,
-            N2, o2, G2.rotation, G2.translation, R1, t1, R2, t2, PATCH_TOL, True,
+        ok, *made = material(
+            points1, points2, n, d, N1, o1, Rg1, tg1,
+            N2, o2, Rg2, tg2, R1, t1, R2, t2, PATCH_TOL, True,
         )  # fmt: skip
         if not ok:
             # Coal's patch of a deep or grazing penetration can place its points far off the
             # pair's distance (measured: gaps of -33 mm and +12 mm for a pair 24 um deep, the
             # camera head spinning into link 1's tube): one point, the witness pair, instead.
             c = self.world.pair_contact(q, pair)
-            ok, *made = kernels.patch_material(
-                c.p1[None, :], c.p2[None, :], n, d, N1, o1, G1.rotation, G1.translation,
-                N2, o2, G2.rotation, G2.translation, R1, t1, R2, t2, PATCH_TOL, False,
+            ok, *made = material(
+                c.p1[None, :], c.p2[None, :], n, d, N1, o1, Rg1, tg1,
+                N2, o2, Rg2, tg2, R1, t1, R2, t2, PATCH_TOL, False,
             )  # fmt: skip
             log.debug(
                 "pair %s / %s: patch off its distance %.3g m: witness point used",
                 info.piece1,
                 info.piece2,
-                patch.distance,
+                d,
             )
         local1, local2, normal2, frame2, centre1, centre2, offset0 = made
         p = _Pair(info, local1, local2, normal2, offset0=offset0)
         p.frame2, p.centre1, p.centre2 = frame2, centre1, centre2
         if old is not None:
             p.stick, p.slip_dir = old.stick, old.slip_dir
-        self.pairs[pair] = p
-        self._invalidate()
-        return True
+        self.pairs[pair] = p  # (the caller invalidates the caches)
 
     def _planes_of(self, geom: int) -> tuple[FloatArray, FloatArray]:
         """The face planes of a piece (see :func:`_planes`; none: 0 rows), kept per piece."""
@@ -223,14 +309,21 @@ class ContactSet:
         )
         return row in self.engaged
 
+    def _frame(self, frames: dict[int, tuple[Any, ...]], joint: int) -> tuple[Any, ...]:
+        """A joint's (placement, rotation, translation) at the last kinematics, kept in frames."""
+        M = self._placement(joint)  # (kept: the arrays are views of it)
+        out = frames[joint] = (M, M.rotation, M.translation)
+        return out
+
     def _placement(self, joint: int) -> pin.SE3:
         return self.data.oMi[joint] if joint > 0 else pin.SE3.Identity()
 
     def refresh(self, q: FloatArray) -> None:
         """Recompute every pair's patch at q (drops pairs no longer within tolerance)."""
         self.resting = False
-        for k in list(self.pairs):
-            if not self.add_pair(q, k):
+        ks = list(self.pairs)
+        for k, ok in zip(ks, self.add_pairs(q, ks), strict=True):
+            if not ok:
                 self.pairs.pop(k)
         self._invalidate()
         self.engaged = []

@@ -342,8 +342,7 @@ class MoreauJeanStepper:
                 break
             # patches at q1 (a curved piece's contact moves): a pass corrects to first order
             contacts.refresh(q1)
-            for k in deep:
-                contacts.add_pair(q1, k)
+            contacts.add_pairs(q1, deep)
             q1 = contacts.project(q1, v1, sys.minv(q1))
             projected = True
             self._next_sweep = None
@@ -516,8 +515,7 @@ class MoreauJeanStepper:
                 contacts.remove_pair(k)
         stale, raw = self._stale(q, v, near)
         redo = set(stale) | (near.keys() - contacts.pairs.keys())
-        for k in redo:
-            contacts.add_pair(q, k, tol=d_act)
+        contacts.add_pairs(q, list(redo), tol=d_act)
         if cfg.joint_limits:
             self._update_limits(q, LIMIT_GAP + h * np.maximum(np.abs(v), np.abs(v_f)))
         if raw is not None and self._layout() is not raw[1]:

@@ -31,6 +31,13 @@
 //      keeping the first smallest (pinocchio::computeDistances' rule).
 // It returns (pairs, distances, closest pair) and keeps each candidate's witness points and
 // normal for ``witness``.
+//
+// ``patches(q, pairs, tol)`` gives the contact patches of several pairs at one q after one
+// forward kinematics: per pair the Coal calls of packbot.collision_queries.contact_patch
+// (coal::collide with a default CollisionRequest whose security_margin is tol, then
+// coal::computeContactPatch with a default ContactPatchRequest, both free functions that
+// keep no state between calls), on the same shapes and placements as the sweep. It leaves the
+// sweep's state (its q, boxes, witness points) as it was.
 
 #include <nanobind/nanobind.h>
 #include <nanobind/ndarray.h>
@@ -39,7 +46,10 @@
 #include <nanobind/stl/vector.h>
 
 #include <coal/BV/AABB.h>
+#include <coal/collision.h>
+#include <coal/collision_data.h>
 #include <coal/collision_object.h>
+#include <coal/contact_patch.h>
 #include <coal/config.hh>
 #include <coal/distance.h>
 #include <coal/shape/convex.h>
@@ -72,6 +82,8 @@ using I2 = nb::ndarray<const int64_t, nb::ndim<2>, nb::c_contig, nb::device::cpu
 using Out2 = nb::ndarray<double, nb::ndim<2>, nb::c_contig, nb::device::cpu>;
 using NpI1 = nb::ndarray<nb::numpy, int64_t, nb::ndim<1>>;
 using NpF1 = nb::ndarray<nb::numpy, double, nb::ndim<1>>;
+using NpI = nb::ndarray<nb::numpy, int64_t>;  // (any number of dimensions)
+using NpF = nb::ndarray<nb::numpy, double>;
 
 namespace {
 
@@ -98,6 +110,17 @@ NpF1 new_reals(size_t n, double **data) {
   return NpF1(buf, {n}, owner);
 }
 
+// A new C-ordered numpy array of the given shape (any number of dimensions).
+template <typename T>
+nb::ndarray<nb::numpy, T> new_array(std::initializer_list<size_t> shape, T **data) {
+  size_t n = 1;
+  for (size_t s : shape) n *= s;
+  auto *buf = new T[n > 0 ? n : 1];
+  nb::capsule owner(buf, [](void *p) noexcept { delete[] static_cast<T *>(p); });
+  *data = buf;
+  return nb::ndarray<nb::numpy, T>(buf, shape.size(), shape.begin(), owner);
+}
+
 }  // namespace
 
 class Sweep {
@@ -117,6 +140,7 @@ class Sweep {
     }
     data_ = Data(model_);
     q_.setZero(model_.nq);
+    pq_.setZero(model_.nq);
 
     const size_t G = kinds.shape(0);
     if (joints.shape(0) != G || placements.shape(0) != G || params.shape(0) != G ||
@@ -275,6 +299,81 @@ class Sweep {
     return {NpI1(pairs_out, {T}, pairs_owner), distances, best, best_d};
   }
 
+  // The contact patches of ``pairs`` within ``tol`` [m] at q: (sizes, normals, depths, points1,
+  // points2, rotations, translations). sizes (n,): each pair's number of patch points K, -1 for
+  // a pair farther apart than tol; normals (n, 3) and depths (n,) the patches' normals (body 1
+  // to body 2) and penetration depths (0 and 0 for a far pair); points1 and points2 (sum K, 3)
+  // the patches' points on pieces 1 and 2, pair after pair (world frame [m]); rotations (n, 2,
+  // 3, 3) the two pieces' world rotations, each stored TRANSPOSED (so that rotations.swapaxes(2,
+  // 3)[i, j] is the Fortran-ordered matrix Pinocchio's SE3.rotation is), translations (n, 2, 3).
+  std::tuple<NpI, NpF, NpF, NpF, NpF, NpF, NpF> patches(F1 q, I1 pairs, double tol) {
+    if (q.shape(0) != static_cast<size_t>(model_.nq))
+      throw std::invalid_argument("q: " + std::to_string(model_.nq) + " entries expected");
+    const size_t n = pairs.shape(0), K = first_.size();
+    for (size_t i = 0; i < n; ++i)
+      if (pairs.data()[i] < 0 || pairs.data()[i] >= static_cast<int64_t>(K))
+        throw std::invalid_argument("a pair index is out of range");
+    for (int i = 0; i < model_.nq; ++i) pq_[i] = q.data()[i];
+    pin::forwardKinematics(model_, data_, pq_);
+    int64_t *sizes = nullptr;
+    double *normals = nullptr, *depths = nullptr, *rot = nullptr, *trans = nullptr;
+    auto sizes_arr = new_array<int64_t>({n}, &sizes);
+    auto normals_arr = new_array<double>({n, 3}, &normals);
+    auto depths_arr = new_array<double>({n}, &depths);
+    auto rot_arr = new_array<double>({n, 2, 3, 3}, &rot);
+    auto trans_arr = new_array<double>({n, 2, 3}, &trans);
+    pts1_.clear();
+    pts2_.clear();
+    coal::CollisionRequest creq;  // packbot.collision's _patch_requests: Coal's defaults,
+    creq.enable_contact = true;   // enable_contact (already the default), the margin tol
+    creq.security_margin = tol;
+    const coal::ContactPatchRequest preq;
+    for (size_t i = 0; i < n; ++i) {
+      const size_t k = static_cast<size_t>(pairs.data()[i]);
+      const size_t g[2] = {first_[k], second_[k]};
+      pin::SE3 M[2];
+      for (int s = 0; s < 2; ++s) {
+        const size_t j = joint_[g[s]];
+        // Pinocchio's updateGeometryPlacements
+        M[s] = j > 0 ? pin::SE3(data_.oMi[j] * placement_[g[s]]) : placement_[g[s]];
+        for (int r = 0; r < 3; ++r) {
+          for (int c = 0; c < 3; ++c) rot[18 * i + 9 * s + 3 * c + r] = M[s].rotation()(r, c);
+          trans[6 * i + 3 * s + r] = M[s].translation()(r);
+        }
+      }
+      const coal::Transform3s T1 = coal_of(M[0]), T2 = coal_of(M[1]);
+      const coal::CollisionGeometry *s1 = shapes_[g[0]].get(), *s2 = shapes_[g[1]].get();
+      coal::CollisionResult cres;
+      sizes[i] = -1;
+      normals[3 * i] = normals[3 * i + 1] = normals[3 * i + 2] = 0.0;
+      depths[i] = 0.0;
+      if (!coal::collide(s1, T1, s2, T2, creq, cres)) continue;
+      coal::ContactPatchResult pres(preq);
+      coal::computeContactPatch(s1, T1, s2, T2, cres, preq, pres);
+      if (pres.numContactPatches() == 0) continue;
+      const coal::ContactPatch &patch = pres.getContactPatch(0);
+      const coal::Vec3s nrm = patch.getNormal();
+      const size_t npts = patch.size();
+      sizes[i] = static_cast<int64_t>(npts);
+      for (int c = 0; c < 3; ++c) normals[3 * i + c] = nrm[c];
+      depths[i] = patch.penetration_depth;
+      for (size_t m = 0; m < npts; ++m) {
+        pts1_.push_back(patch.getPointShape1(m));
+        pts2_.push_back(patch.getPointShape2(m));
+      }
+    }
+    const size_t S = pts1_.size();
+    double *p1 = nullptr, *p2 = nullptr;
+    auto p1_arr = new_array<double>({S, 3}, &p1);
+    auto p2_arr = new_array<double>({S, 3}, &p2);
+    for (size_t m = 0; m < S; ++m)
+      for (int c = 0; c < 3; ++c) {
+        p1[3 * m + c] = pts1_[m][c];
+        p2[3 * m + c] = pts2_[m][c];
+      }
+    return {sizes_arr, normals_arr, depths_arr, p1_arr, p2_arr, rot_arr, trans_arr};
+  }
+
   // The last sweep's witness points and normals, one row per candidate (its order).
   void witness(Out2 p1, Out2 p2, Out2 normal) const {
     const size_t T = cand_.size();
@@ -316,7 +415,7 @@ class Sweep {
  private:
   Model model_;
   Data data_;
-  Eigen::VectorXd q_;
+  Eigen::VectorXd q_, pq_;  // the last sweep's q, the last patches' q
   double margin_ = std::numeric_limits<double>::quiet_NaN();  // the last sweep's
   std::vector<size_t> joint_;
   std::vector<pin::SE3> placement_, box_placement_, oMg_;
@@ -328,6 +427,7 @@ class Sweep {
   std::vector<coal::DistanceRequest> requests_;
   coal::DistanceResult result_;
   std::vector<coal::Vec3s> p1_, p2_, normal_;
+  std::vector<coal::Vec3s> pts1_, pts2_;  // (patches' scratch)
 };
 
 NB_MODULE(_native_coal, m) {
@@ -346,6 +446,7 @@ NB_MODULE(_native_coal, m) {
            nb::arg("epa_max_iterations"), nb::arg("absolute_criterion"),
            nb::arg("cached_guess"))
       .def("sweep", &Sweep::sweep, nb::arg("q"), nb::arg("margin"))
+      .def("patches", &Sweep::patches, nb::arg("q"), nb::arg("pairs"), nb::arg("tol"))
       .def("witness", &Sweep::witness, nb::arg("p1"), nb::arg("p2"), nb::arg("normal"))
       .def("boxes", &Sweep::boxes, nb::arg("lo"), nb::arg("hi"))
       .def("last_q", &Sweep::last_q)
