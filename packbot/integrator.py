@@ -24,6 +24,7 @@ calls whom and in which order.
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from collections.abc import Callable, Sequence
 from typing import Any
@@ -172,7 +173,7 @@ class _Run:
         derivative at the restart is left to the next step: its first stage there, or the
         right-hand side then (nothing between a restart and the next step changes it).
         """
-        defer = getattr(self.law, "first_stage", None) is not None
+        defer = self.law.first_stage is not None
         self.stepper.reset(self.t, self.y, h=max(self.stepper.h, 1e-6), defer=defer)
 
     def run(self) -> None:
@@ -198,9 +199,7 @@ class _Run:
                 if seg is None:
                     kernel = law.step_kernel(t, y)
                     # (a restart's derivative left to this step: the kernel's first stage)
-                    first = None
-                    if stepper.f_pending and kernel is not None:
-                        first = getattr(law, "first_stage", None)
+                    first = law.first_stage if stepper.f_pending and kernel is not None else None
                     seg = stepper.step(t_far, kernel, first)
             except StepSizeUnderflow:
                 if not law.rescue(t, y):
@@ -280,13 +279,9 @@ class _Run:
 
     def locate(self, seg: DenseSegment, crossings: list[Crossing]) -> tuple[float, list[Crossing]]:
         """Earliest crossing time and the crossings within 10 EVENT_XTOL of it (locate_earliest)."""
-        gs, g0s, g1s = (
-            [c.g for c in crossings],
-            [c.g0 for c in crossings],
-            [c.g1 for c in crossings],
-        )
+        gs, g0s, g1s = zip(*((c.g, c.g0, c.g1) for c in crossings), strict=True)
         t_star, idx = locate_earliest(
-            gs, g0s, g1s, seg.t0, seg.t1, xtol=EVENT_XTOL, at_tol=10 * EVENT_XTOL
+            list(gs), list(g0s), list(g1s), seg.t0, seg.t1, xtol=EVENT_XTOL, at_tol=10 * EVENT_XTOL
         )
         return t_star, [crossings[i] for i in idx]
 
@@ -325,19 +320,7 @@ class _Run:
         n = self.n
         q, v = self.y[:n], self.y[n : 2 * n]
         e = self.sys.energy(q, v)
-        self.events.log(
-            Event(
-                t,
-                "failure",
-                failure.joint,
-                failure.kind,
-                v_before=vf,
-                v_after=vf,
-                energy_before=e,
-                energy_after=e,
-            ),
-            count=False,
-        )
+        self.log_action(Event(t, "failure", failure.joint, failure.kind), vf, vf, e, e)
         if failure.kind != "frozen":
             self.drive.set_failures(self.failures_in)
             self.law.settle(t, self.y)
@@ -345,21 +328,10 @@ class _Run:
         # Freezing: the impulse that stops joint j, the law's locked joints kept still.
         j = int(np.flatnonzero(self.sys.free == self.robot.params.index(failure.joint))[0])
         v_new, idx = freeze_impulse(self.sys, q, v, j, self.law.held())
-        self.events.log(
-            Event(
-                t,
-                "freeze",
-                failure.joint,
-                "",
-                distance=float(qf[self.sys.free[j]]),
-                relevant_joints=tuple(self.sys.names[i] for i in idx),
-                v_before=vf,
-                v_after=self.sys.v_full(v_new),
-                energy_before=e,
-                energy_after=self.sys.energy(q, v_new),
-            ),
-            count=False,
-        )
+        moved = tuple(self.sys.names[i] for i in idx)
+        ev = Event(t, "freeze", failure.joint, distance=float(qf[self.sys.free[j]]))
+        ev = dataclasses.replace(ev, relevant_joints=moved)
+        self.log_action(ev, vf, self.sys.v_full(v_new), e, self.sys.energy(q, v_new))
         self.frozen.append(failure.joint)
         y = self.y.copy()
         y[n : 2 * n] = v_new
@@ -380,19 +352,15 @@ class _Run:
             self.y = self.y.copy()
             self.y[n : 2 * n] = v
             self.law.settle(t, self.y)
-        self.events.log(
-            Event(
-                t,
-                what,
-                self.payload.frame if self.payload else "",
-                "",
-                v_before=vf0,
-                v_after=self.sys.v_full(v),
-                energy_before=e0,
-                energy_after=self.sys.energy(q, v),
-            ),
-            count=False,
-        )
+        ev = Event(t, what, self.payload.frame if self.payload else "", "")
+        self.log_action(ev, vf0, self.sys.v_full(v), e0, self.sys.energy(q, v))
+
+    def log_action(
+        self, ev: Event, v_before: FloatArray, v_after: FloatArray, e0: float, e1: float
+    ) -> None:
+        """Log a scheduled action's event with the velocities [rad/s] and energies [J] around it."""
+        ev = dataclasses.replace(ev, v_before=v_before, v_after=v_after)
+        self.events.log(dataclasses.replace(ev, energy_before=e0, energy_after=e1), count=False)
 
     def result(self) -> SimResult:
         """The run's result (also the partial result of a run that stopped)."""
