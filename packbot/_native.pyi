@@ -61,6 +61,7 @@ class ContactRhs:
         viscous: NDArray[np.float64],
         coulomb_dir: NDArray[np.float64],
     ) -> None: ...
+    def first(self, Z: NDArray[np.float64]) -> bool: ...
     def dopri(
         self,
         h: float,

@@ -24,6 +24,7 @@ calls whom and in which order.
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from collections.abc import Callable, Sequence
 from typing import Any
@@ -166,61 +167,80 @@ class _Run:
         self.stepper.reset(0.0, self.y)
 
     def restart(self) -> None:
-        """A fresh step from the current state (after an event or a changed state)."""
-        self.stepper.reset(self.t, self.y, h=max(self.stepper.h, 1e-6))
+        """A fresh step from the current state (after an event or a changed state).
+
+        With a law whose native step has a first stage (the contact-normal mode), the
+        derivative at the restart is left to the next step: its first stage there, or the
+        right-hand side then (nothing between a restart and the next step changes it).
+        """
+        defer = self.law.first_stage is not None
+        self.stepper.reset(self.t, self.y, h=max(self.stepper.h, 1e-6), defer=defer)
 
     def run(self) -> None:
         """Integrate to the duration, event by event."""
         self.start()
-        while self.t < self.duration - 1e-12:
-            self.stepper.h_max = self.law.step_bound(self.y)
-            t_sched = self.schedule.next_time()
-            if t_sched <= self.t + 1e-12:  # an event landed on a scheduled time
-                if self.run_scheduled(self.t):
+        law, stepper, rec = self.law, self.stepper, self.rec
+        schedule, ticks = self.schedule, self.ticks
+        duration = self.duration
+        t_last = duration - 1e-12  # (the run ends within 1e-12 s of its duration)
+        while self.t < t_last:
+            t = self.t
+            y = self.y
+            stepper.h_max = law.step_bound(y)
+            t_sched = schedule.next_time()
+            if t_sched <= t + 1e-12:  # an event landed on a scheduled time
+                if self.run_scheduled(t):
                     self.restart()
                 continue
             # A window lands on every tick, the stepper on those that change the command.
-            t_far = min(self.duration, self.schedule.horizon(self.ticks.cut))
+            t_far = min(duration, schedule.horizon(ticks.cut))
             try:
-                seg = self.law.advance(self.t, self.y, min(self.duration, t_sched))
-                seg = seg or self.stepper.step(t_far, self.law.step_kernel(self.t, self.y))
+                seg = law.advance(t, y, min(duration, t_sched))
+                if seg is None:
+                    kernel = law.step_kernel(t, y)
+                    # (a restart's derivative left to this step: the kernel's first stage)
+                    first = law.first_stage if stepper.f_pending and kernel is not None else None
+                    seg = stepper.step(t_far, kernel, first)
             except StepSizeUnderflow:
-                if not self.law.rescue(self.t, self.y):
+                if not law.rescue(t, y):
                     raise
                 continue  # the law integrates the stiff stretch itself
-            crossings = self.law.watch(seg)
+            crossings = law.watch(seg)
             t_star, at = self.locate(seg, crossings) if crossings else (seg.t1, [])
-            changed = self.ticks.inside(seg, t_star, self.rec.record)
+            # (no tick before the step's end or its first event: nothing to visit)
+            changed = ticks.inside(seg, t_star, rec.record) if schedule.next_tick < t_star else None
             if changed is not None:
                 self.cut_at_tick(seg, *changed)
             elif not crossings:
-                t_sched = self.schedule.next_time()
-                on_schedule = seg.t1 >= t_sched - 1e-12 and seg.t1 < self.duration - 1e-12
+                t1 = seg.t1
+                t_sched = schedule.next_time()
+                on_schedule = t1 >= t_sched - 1e-12 and t1 < t_last
                 # A sample on a scheduled time shows the state after the action (a new held
                 # command applies from its tick on).
-                self.rec.record(seg, seg.t1 - 1e-11 if on_schedule else seg.t1)
-                self.t, self.y = seg.t1, seg.y1
-                y_new = self.law.after_step(self.t, self.y)
+                rec.record(seg, t1 - 1e-11 if on_schedule else t1)
+                self.t, self.y = t1, seg.y1
+                y_new = law.after_step(t1, seg.y1)
                 if y_new is not None:  # the law changed the state (a re-patch)
                     self.y = y_new
                     self.diag.restarts += 1
                     self.restart()
                 if on_schedule:
-                    restart = self.run_scheduled(self.t)
-                    self.rec.record_due(self.t, self.y)
+                    restart = self.run_scheduled(t1)
+                    rec.record_due(t1, self.y)
                     if restart:
                         self.restart()
             else:
                 y_star = seg(t_star)
-                self.rec.record(seg, t_star)
-                self.rec.point(t_star, y_star)
-                y_new = self.law.handle(t_star, y_star, at)
-                self.rec.point(t_star, y_new)
+                rec.record(seg, t_star)
+                rec.point(t_star, y_star)
+                y_new = law.handle(t_star, y_star, at)
+                rec.point(t_star, y_new)
                 self.t, self.y = t_star, y_new
                 self.diag.restarts += 1
                 self.restart()
-            self.report_progress()
-        self.rec.record_final(self.y)
+            if self.progress is not None:
+                self.report_progress()
+        rec.record_final(self.y)
 
     def cut_at_tick(self, seg: DenseSegment, t: float, tau: FloatArray) -> None:
         """The tick at t inside the step changes the command: the step is kept up to t.
@@ -259,13 +279,9 @@ class _Run:
 
     def locate(self, seg: DenseSegment, crossings: list[Crossing]) -> tuple[float, list[Crossing]]:
         """Earliest crossing time and the crossings within 10 EVENT_XTOL of it (locate_earliest)."""
-        gs, g0s, g1s = (
-            [c.g for c in crossings],
-            [c.g0 for c in crossings],
-            [c.g1 for c in crossings],
-        )
+        gs, g0s, g1s = zip(*((c.g, c.g0, c.g1) for c in crossings), strict=True)
         t_star, idx = locate_earliest(
-            gs, g0s, g1s, seg.t0, seg.t1, xtol=EVENT_XTOL, at_tol=10 * EVENT_XTOL
+            list(gs), list(g0s), list(g1s), seg.t0, seg.t1, xtol=EVENT_XTOL, at_tol=10 * EVENT_XTOL
         )
         return t_star, [crossings[i] for i in idx]
 
@@ -304,19 +320,7 @@ class _Run:
         n = self.n
         q, v = self.y[:n], self.y[n : 2 * n]
         e = self.sys.energy(q, v)
-        self.events.log(
-            Event(
-                t,
-                "failure",
-                failure.joint,
-                failure.kind,
-                v_before=vf,
-                v_after=vf,
-                energy_before=e,
-                energy_after=e,
-            ),
-            count=False,
-        )
+        self.log_action(Event(t, "failure", failure.joint, failure.kind), vf, vf, e, e)
         if failure.kind != "frozen":
             self.drive.set_failures(self.failures_in)
             self.law.settle(t, self.y)
@@ -324,21 +328,10 @@ class _Run:
         # Freezing: the impulse that stops joint j, the law's locked joints kept still.
         j = int(np.flatnonzero(self.sys.free == self.robot.params.index(failure.joint))[0])
         v_new, idx = freeze_impulse(self.sys, q, v, j, self.law.held())
-        self.events.log(
-            Event(
-                t,
-                "freeze",
-                failure.joint,
-                "",
-                distance=float(qf[self.sys.free[j]]),
-                relevant_joints=tuple(self.sys.names[i] for i in idx),
-                v_before=vf,
-                v_after=self.sys.v_full(v_new),
-                energy_before=e,
-                energy_after=self.sys.energy(q, v_new),
-            ),
-            count=False,
-        )
+        moved = tuple(self.sys.names[i] for i in idx)
+        ev = Event(t, "freeze", failure.joint, distance=float(qf[self.sys.free[j]]))
+        ev = dataclasses.replace(ev, relevant_joints=moved)
+        self.log_action(ev, vf, self.sys.v_full(v_new), e, self.sys.energy(q, v_new))
         self.frozen.append(failure.joint)
         y = self.y.copy()
         y[n : 2 * n] = v_new
@@ -359,19 +352,15 @@ class _Run:
             self.y = self.y.copy()
             self.y[n : 2 * n] = v
             self.law.settle(t, self.y)
-        self.events.log(
-            Event(
-                t,
-                what,
-                self.payload.frame if self.payload else "",
-                "",
-                v_before=vf0,
-                v_after=self.sys.v_full(v),
-                energy_before=e0,
-                energy_after=self.sys.energy(q, v),
-            ),
-            count=False,
-        )
+        ev = Event(t, what, self.payload.frame if self.payload else "", "")
+        self.log_action(ev, vf0, self.sys.v_full(v), e0, self.sys.energy(q, v))
+
+    def log_action(
+        self, ev: Event, v_before: FloatArray, v_after: FloatArray, e0: float, e1: float
+    ) -> None:
+        """Log a scheduled action's event with the velocities [rad/s] and energies [J] around it."""
+        ev = dataclasses.replace(ev, v_before=v_before, v_after=v_after)
+        self.events.log(dataclasses.replace(ev, energy_before=e0, energy_after=e1), count=False)
 
     def result(self) -> SimResult:
         """The run's result (also the partial result of a run that stopped)."""

@@ -141,6 +141,8 @@ MAX_FACTOR = 10.0
 ERROR_EXPONENT = -1.0 / 5.0
 #: A step that would end within this fraction of itself before ``t_end`` is stretched onto it.
 STRETCH = 0.01
+#: ``RK45Stepper.f`` while it is pending (a deferred reset).
+_NO_F = np.empty(0)
 
 
 class StepSizeUnderflow(PackbotError):
@@ -314,7 +316,9 @@ class RK45Stepper:
         h_min: Smallest step size [s]; below it :meth:`step` raises :class:`StepSizeUnderflow`.
         n_steps: Accepted steps, cumulative over resets.
         n_rejected: Rejected step attempts, cumulative over resets.
-        n_rhs: Right-hand-side calls, cumulative over resets.
+        n_rhs: Right-hand-side calls, cumulative over resets (a deferred one counted at its
+            reset).
+        f_pending: Whether ``f`` is deferred to the next step (``reset(..., defer=True)``).
     """
 
     def __init__(
@@ -363,6 +367,7 @@ class RK45Stepper:
         self.h = math.nan
         self.y: FloatArray = np.empty(0)
         self.f: FloatArray = np.empty(0)
+        self.f_pending = False
         self._n = 0
         self._inv_n = 0.0
         self._ay: FloatArray = np.empty(0)  # |y|, reused by the error norm of the next step
@@ -372,7 +377,7 @@ class RK45Stepper:
         self._Ah = np.empty((7, 8))
         self._rows = [self._Ah[s, : s + 1] for s in range(7)]
 
-    def reset(self, t: float, y: ArrayLike, h: float | None = None) -> None:
+    def reset(self, t: float, y: ArrayLike, h: float | None = None, *, defer: bool = False) -> None:
         """Restart at (t, y): forget the FSAL stage and choose the next step size.
 
         Costs 1 right-hand-side call if ``h`` is given, else 2 (Hairer's initial step
@@ -382,6 +387,10 @@ class RK45Stepper:
             t: Time [s].
             y: State, shape (n,); copied. The dimension may change between resets.
             h: Next step size [s], > 0, or None to choose one (capped at ``h_max``).
+            defer: With ``h`` given: the derivative at (t, y) is computed by the next
+                :meth:`step` (by its ``first`` stage, or ``rhs`` there), not now; ``f`` is
+                pending until then. Counted now. For a caller whose right-hand side is the
+                same at that step (nothing it depends on changes in between).
 
         Raises:
             ConfigurationError: ``y`` is not a finite 1-d array, ``atol`` does not match its
@@ -398,10 +407,15 @@ class RK45Stepper:
         if h is not None and not h > 0.0:
             raise ConfigurationError("h", h, "a step size > 0 [s], or None to choose one")
         t = float(t)
-        f = np.array(self._rhs(t, y), dtype=np.float64)
         self.n_rhs += 1
-        if f.shape != (n,):
-            raise ConfigurationError("rhs(t, y)", f.shape, f"an array of shape ({n},)")
+        if defer and h is not None:
+            self.f_pending = True
+            f = _NO_F
+        else:
+            self.f_pending = False
+            f = np.array(self._rhs(t, y), dtype=np.float64)
+            if f.shape != (n,):
+                raise ConfigurationError("rhs(t, y)", f.shape, f"an array of shape ({n},)")
         self.t = t
         self.y = y
         self.f = f
@@ -446,7 +460,41 @@ class RK45Stepper:
             h = h0
         return h
 
-    def step(self, t_end: float, kernel: StepKernel | None = None) -> DenseSegment:
+    def _stages(
+        self, t: float, t_new: float, h: float, Z: FloatArray
+    ) -> tuple[FloatArray, FloatArray, float]:
+        """One attempt's stages by ``rhs`` into Z; (y_new, |y_new|, scaled error norm).
+
+        Z holds [y0, k_0] on entry (rows 0, 1) and every stage on return (rows 2..7).
+        """
+        rhs = self._rhs
+        Ah = self._Ah
+        r1, r2, r3, r4, r5, r6 = self._rows[1:]
+        c1, c2, c3, c4, c5 = _C[1:6]
+        np.multiply(_A8, h, out=Ah)
+        Ah[:, 0] = 1.0
+        Z[2] = rhs(t + c1 * h, np.dot(r1, Z[:2]))
+        Z[3] = rhs(t + c2 * h, np.dot(r2, Z[:3]))
+        Z[4] = rhs(t + c3 * h, np.dot(r3, Z[:4]))
+        Z[5] = rhs(t + c4 * h, np.dot(r4, Z[:5]))
+        Z[6] = rhs(t + c5 * h, np.dot(r5, Z[:6]))
+        y_new = np.dot(r6, Z[:7])
+        Z[7] = rhs(t_new, y_new)
+        # Scaled RMS norm of the error estimate h * sum_j e_j k_j.
+        ev = np.dot(_E, Z[1:])
+        ay1 = np.abs(y_new)
+        sc = np.maximum(self._ay, ay1)
+        sc *= self.rtol
+        sc += self.atol
+        ev /= sc
+        return y_new, ay1, h * math.sqrt(float(np.dot(ev, ev)) * self._inv_n)
+
+    def step(
+        self,
+        t_end: float,
+        kernel: StepKernel | None = None,
+        first: Callable[[FloatArray], bool] | None = None,
+    ) -> DenseSegment:
         """Take one accepted step, never beyond ``t_end``.
 
         The step tried is the current ``h`` (capped at ``h_max``), shortened to land exactly on
@@ -460,6 +508,9 @@ class RK45Stepper:
                 (:data:`StepKernel`; the contact-normal mode's native step), or None: the
                 stages call ``rhs``. The step-size control stays here; the results agree with
                 the ``rhs`` stages to rounding.
+            first: With ``kernel``, when ``f`` is pending (a deferred :meth:`reset`): the
+                kernel's first stage, ``first(Z) -> ok`` writing ``rhs(t, Z[0])`` into
+                ``Z[1]`` with the same arithmetic as ``rhs`` (False: ``rhs`` is called instead).
 
         Returns:
             The accepted step; afterwards ``self.t == segment.t1`` and ``self.y is segment.y1``.
@@ -474,25 +525,29 @@ class RK45Stepper:
             if t != t:
                 raise ConfigurationError("t", t, "a state: call reset(t, y) before step()")
             raise ConfigurationError("t_end", t_end, f"a time > the current time t={t!r}")
-        rhs = self._rhs
         y = self.y
         h = self.h
         if h > self.h_max:
             h = self.h_max
-        Ah = self._Ah
-        r1, r2, r3, r4, r5, r6 = self._rows[1:]
-        c1, c2, c3, c4, c5 = _C[1:6]
-        Z = np.empty((8, self._n))
-        Z[0] = y
-        Z[1] = self.f
-        K = Z[1:]
-        rtol = self.rtol
-        atol = self.atol
-        ay0 = self._ay
         n = self._n
-        atol_vec = self._atol_vec
-        if kernel is not None and atol_vec.shape[0] != n:
-            atol_vec = self._atol_vec = np.broadcast_to(atol, (n,)).astype(np.float64)
+        Z = np.empty((8, n))
+        Z[0] = y
+        if self.f_pending:
+            self.f_pending = False
+            if kernel is None or first is None or not first(Z):
+                f = np.array(self._rhs(t, y), dtype=np.float64)
+                if f.shape != (n,):
+                    raise ConfigurationError("rhs(t, y)", f.shape, f"an array of shape ({n},)")
+                Z[1] = f
+            self.f = Z[1]
+        else:
+            Z[1] = self.f
+        rtol = self.rtol
+        ay0 = self._ay
+        if kernel is not None:
+            atol_vec = self._atol_vec
+            if atol_vec.shape[0] != n:
+                atol_vec = self._atol_vec = np.broadcast_to(self.atol, (n,)).astype(np.float64)
         rejected = False
         while True:
             t_new = t + h
@@ -501,29 +556,14 @@ class RK45Stepper:
                 h_wanted = h
                 t_new = t_end
                 h = t_end - t
-            err = -1.0
             if kernel is not None:
                 y_new = np.empty(n)
                 ay1 = np.empty(n)
                 err = kernel(h, Z, ay0, atol_vec, rtol, y_new, ay1)
-            if err < 0.0:  # (also not: a nan error is a rejection)
-                np.multiply(_A8, h, out=Ah)
-                Ah[:, 0] = 1.0
-                Z[2] = rhs(t + c1 * h, np.dot(r1, Z[:2]))
-                Z[3] = rhs(t + c2 * h, np.dot(r2, Z[:3]))
-                Z[4] = rhs(t + c3 * h, np.dot(r3, Z[:4]))
-                Z[5] = rhs(t + c4 * h, np.dot(r4, Z[:5]))
-                Z[6] = rhs(t + c5 * h, np.dot(r5, Z[:6]))
-                y_new = np.dot(r6, Z[:7])
-                Z[7] = rhs(t_new, y_new)
-                # Scaled RMS norm of the error estimate h * sum_j e_j k_j.
-                ev = np.dot(_E, K)
-                ay1 = np.abs(y_new)
-                sc = np.maximum(ay0, ay1)
-                sc *= rtol
-                sc += atol
-                ev /= sc
-                err = h * math.sqrt(float(np.dot(ev, ev)) * self._inv_n)
+                if err < 0.0:  # (also not: a nan error is a rejection)
+                    y_new, ay1, err = self._stages(t, t_new, h, Z)
+            else:
+                y_new, ay1, err = self._stages(t, t_new, h, Z)
             self.n_rhs += 6
             if err < 1.0:
                 break

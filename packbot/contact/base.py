@@ -123,6 +123,16 @@ class ContactLaw(Protocol):
         """
         ...
 
+    @property
+    def first_stage(self) -> Callable[[FloatArray], bool] | None:
+        """The compiled step's first stage, which takes a restart's derivative, or None.
+
+        When not None, the loop leaves the derivative at a restart to the next step
+        (:meth:`packbot.ode.RK45Stepper.reset`'s ``defer``): this stage at its start when the
+        step is the law's :meth:`step_kernel`, else the right-hand side there.
+        """
+        ...
+
     def step_bound(self, y: FloatArray) -> float:
         """The longest step [s] from y that the law's event detection allows."""
         ...

@@ -27,6 +27,13 @@ import numpy as np
 import pinocchio as pin
 from numpy.typing import NDArray
 
+from packbot.contact.normal_tolerances import (
+    BAUMGARTE,
+    FORCE_BAND,
+    POINT_TOL,
+    STICK_BAND,
+    STICK_SPEED,
+)
 from packbot.errors import ModelError, PackbotError
 from packbot.native_joints import SUPPORTED_JOINTS
 
@@ -120,6 +127,11 @@ class NativeRhs:
         #: modes and torques: ``step(h, Z, ay0, atol, rtol, y1, ay1) -> err`` (-1: a singular
         #: Delassus matrix at a stage, the caller takes the Python stages).
         self.step: Callable[..., float] = self._rhs.dopri
+        #: The first stage of a native step after a restart (the stepper's ``first``):
+        #: ``first(Z) -> ok``, ``Z[1] = (v, a)`` at ``Z[0]`` under the loaded modes and torques,
+        #: the arithmetic of :meth:`accel` on ``applied + (-viscous * v - coulomb_dir)`` (False:
+        #: a singular Delassus matrix).
+        self.first: Callable[[FloatArray], bool] = self._rhs.first
         self._layout_id: Any = None  # the _Layout loaded
         self._plan_id: Any = None  # the _Plan loaded
         self._locked_id: Any = None  # the locked joints loaded (set_locks)
@@ -144,15 +156,11 @@ class NativeRhs:
                 _reals(lay.lim_side),
                 _reals(lay.lim_value),
             )
-            from packbot.contact.normal_tolerances import FORCE_BAND, POINT_TOL, STICK_BAND
-
             self._rhs.set_conditions(_reals(lay.offset0), FORCE_BAND, POINT_TOL, STICK_BAND)
             self._rhs.set_keys(_ints(list(contacts.pairs)))  # (in the layout's order)
             self._layout_id = lay
             self._plan_id = None
         if plan is not self._plan_id:
-            from packbot.contact.normal_tolerances import BAUMGARTE, STICK_SPEED
-
             self._rhs.set_plan(
                 _ints(plan.engaged),
                 _ints(plan.row_slip),

@@ -10,7 +10,7 @@ from __future__ import annotations
 import logging
 import math
 from collections import deque
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -256,6 +256,18 @@ class NormalLaw(PatchEvents):
             if a is not None:
                 return a
         return self.accel(q, v, self.sys.aba(q, v, tau))
+
+    @property
+    def first_stage(self) -> Callable[[FloatArray], bool] | None:
+        """The native step's first stage after a restart, or None (no native right-hand side).
+
+        Where :meth:`step_kernel` offers the native step, :meth:`torque_accel` at its start
+        would take the native call on the same modes and torques: the same numbers (the
+        stepper's deferred derivative, :meth:`RK45Stepper.reset
+        <packbot.ode.RK45Stepper.reset>`'s ``defer``).
+        """
+        rhs = self._native
+        return None if rhs is None else rhs.first
 
     def step_kernel(self, t: float, y: FloatArray) -> StepKernel | None:
         """The native Dormand-Prince step of the current modes, or None (the stages call rhs).

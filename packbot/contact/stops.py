@@ -237,6 +237,11 @@ class JointStops:
         """Whether the current mode's accelerations are the locks' alone (no rows of the law)."""
         return self._locks_only
 
+    @property
+    def first_stage(self) -> Callable[[FloatArray], bool] | None:
+        """None: a restart computes its derivative at once (ContactLaw.first_stage)."""
+        return None
+
     def step_kernel(self, t: float, y: FloatArray) -> StepKernel | None:
         """The native Dormand-Prince step of the current lock mode, or None (the stages call rhs).
 

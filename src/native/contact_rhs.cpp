@@ -537,6 +537,22 @@ class ContactRhs {
     coulomb_dir_ = reals(coulomb_dir);
   }
 
+  // The first stage of a step: Z[1] = f(Z[0]) = (v, a) under the loaded modes and torques, the
+  // same arithmetic as accel(q, v, applied + (-viscous * v - coulomb_dir), true) (a restarted
+  // stepper's derivative, computed with its first native attempt); false when the Delassus
+  // matrix is singular (the caller then calls its right-hand side).
+  bool first(Out2 Z) {
+    const int n = 2 * nv_;
+    if (Z.shape(0) != 8 || Z.shape(1) != static_cast<size_t>(n))
+      throw std::invalid_argument("Z (8, 2 nv) expected");
+    if (lock_mode_ >= 0) throw std::invalid_argument("first: the contact rows' call (set_locks)");
+    if (applied_.size() != static_cast<size_t>(nv_))
+      throw std::invalid_argument("set_torque was not called");
+    end_valid_ = false;
+    double *z = Z.data();
+    return stage(z, z + n);
+  }
+
   // One Dormand-Prince 5(4) attempt of size h (packbot.ode.RK45Stepper.step's stages and error
   // norm) on y = (q, v) with the modes and torques loaded: Z (8, 2 nv) holds [y0, k0] on entry
   // and [y0, k0, ..., k6] on return (k6 = f(y1), the FSAL stage), y1 the 5th-order solution,
@@ -1038,6 +1054,7 @@ NB_MODULE(_native, m) {
            nb::arg("from_tau"), nb::arg("out"))
       .def("set_torque", &ContactRhs::set_torque, nb::arg("applied"), nb::arg("viscous"),
            nb::arg("coulomb_dir"))
+      .def("first", &ContactRhs::first, nb::arg("Z"))
       .def("dopri", &ContactRhs::dopri, nb::arg("h"), nb::arg("Z"), nb::arg("ay0"),
            nb::arg("atol"), nb::arg("rtol"), nb::arg("y1"), nb::arg("ay1"))
       .def("set_conditions", &ContactRhs::set_conditions, nb::arg("offset0"),
