@@ -8,8 +8,9 @@ for the current modes. A sliding patch is rebuilt once stale (:meth:`ContactRows
 
 from __future__ import annotations
 
+import copy
 import math
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -431,7 +432,9 @@ def _local(pairs: list[_Pair], h: int) -> FloatArray:
     for p in pairs:
         local1 += [p.local1, p.centre1]
         local2 += [p.local2, p.centre2]
-    return np.hstack([np.vstack(local1 + local2), np.ones((2 * h, 1))])
+    out = np.ones((2 * h, 4))  # (the points and centres are (K, 3) and (1, 3): one copy)
+    np.concatenate(local1 + local2, out=out[:, :3])
+    return out
 
 
 def _frame2(pairs: list[_Pair]) -> FloatArray:
@@ -443,7 +446,7 @@ def _offset0(pairs: list[_Pair]) -> FloatArray:
     """(m_p, 2) each pair row's tangential offset when its patch was built [m]."""
     if not pairs:
         return np.zeros((0, 2))
-    return np.ascontiguousarray(np.vstack([p.offset0.T for p in pairs]))
+    return np.ascontiguousarray(np.concatenate([p.offset0.T for p in pairs]))
 
 
 def _fixed(lay: _Layout) -> tuple[Any, ...]:
@@ -470,7 +473,8 @@ def _replace_patches(lay: _Layout, pairs: list[_Pair]) -> _Layout:
     every kernel call).
     """
     h = len(lay.pair)
-    new = replace(lay, local=_local(pairs, h), frame2=_frame2(pairs), offset0=_offset0(pairs))
+    new = copy.copy(lay)  # (dataclasses.replace, without its field-by-field __init__)
+    new.local, new.frame2, new.offset0 = _local(pairs, h), _frame2(pairs), _offset0(pairs)
     new.fixed = _fixed(new)
     return new
 

@@ -62,6 +62,7 @@ import logging
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
+from itertools import compress
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -510,9 +511,8 @@ class MoreauJeanStepper:
             closest = (float(sw.min_distance), int(sw.min_pair))
             within = sw.distances <= d_act
             near = dict(zip(sw.pairs[within].tolist(), sw.distances[within].tolist(), strict=True))
-        for k in list(contacts.pairs):
-            if k not in near:
-                contacts.remove_pair(k)
+        for k in [k for k in contacts.pairs if k not in near]:
+            contacts.remove_pair(k)
         stale, raw = self._stale(q, v, near)
         redo = set(stale) | (near.keys() - contacts.pairs.keys())
         contacts.add_pairs(q, list(redo), tol=d_act)
@@ -528,8 +528,11 @@ class MoreauJeanStepper:
         In the order of the joints, the upper limit before the lower (the rows' order).
         """
         sys, limits = self.sys, self.contacts.limits
-        upper = (sys.upper - q <= reach).tolist()  # (an infinite limit is never within reach)
-        lower = (q - sys.lower <= reach).tolist()
+        up = sys.upper - q <= reach  # (an infinite limit is never within reach)
+        lo = q - sys.lower <= reach
+        if not limits and not (up.any() or lo.any()):
+            return  # (the usual step far from the limits: none in the set, none near)
+        upper, lower = up.tolist(), lo.tolist()
         want = [
             (j, side)
             for j in range(self.n)
@@ -579,7 +582,7 @@ class MoreauJeanStepper:
             raw[2], raw[9], raw[11], lay.rows, lay.pair, lay.offset0, dist,
             self._point_tol, self._slide_tol,
         )  # fmt: skip
-        return [k for k, bad in zip(lay.keys, stale.tolist(), strict=True) if bad], (raw, lay)
+        return list(compress(lay.keys, stale.tolist())), (raw, lay)
 
     def _signature(
         self, x: FloatArray, lay: _PairLayout, nj: int, cj: NDArray[np.intp]
@@ -602,9 +605,9 @@ class MoreauJeanStepper:
             slip = np.abs(x[m3:]) >= self.h * self.drive.path.coulomb[cj] * (1 - 1e-6)
             slipping = frozenset(cj[slip].tolist())
         return (
-            frozenset(k for k, on in zip(keys, push.tolist(), strict=True) if on),
-            frozenset(k for k, on in zip(keys, slide.tolist(), strict=True) if on),
-            frozenset(k for k, on in zip(c.limits, lim.tolist(), strict=True) if on),
+            frozenset(compress(keys, push.tolist())),
+            frozenset(compress(keys, slide.tolist())),
+            frozenset(compress(c.limits, lim.tolist())),
             slipping,
         )
 
