@@ -292,21 +292,29 @@ class ModeSelection(ConstrainedDynamics):
         """
         self.engaged = list(touch)
         C = self._slip_columns(Jn, extra)
-        JT, bT, vT = self._stick_rows(extra)
         N = touch
         if base is None:
             base = _ModeBase(touch, Jn, drift, gap, vn, a_free, minv)
         bN, JnM = base.bN, base.JnM
+        sticks = tuple([p.stick for p in self.pairs.values()])
+        rows = base.stick_rows.get(sticks)
+        if rows is None:  # the sticking rows' blocks: they follow the stick flags alone
+            JT, bT, vT = self._stick_rows(extra)
+            if len(JT):
+                bTt = JT @ a_free + bT + BAUMGARTE * vT
+                JTM = JT @ minv
+                GTTi = np.linalg.pinv(JTM @ JT.T, rcond=1e-10)
+                rows = (JT, bTt, JTM, GTTi)
+            else:
+                rows = (JT, bT, JT, JT)
+            base.stick_rows[sticks] = rows
+        JT, bTt, JTM, GTTi = rows
         CNt = C[N].T
         GNN = JnM @ CNt
-        symmetric = all(p.stick for p in self.pairs.values()) or self.mu == 0.0
+        symmetric = all(sticks) or self.mu == 0.0
         if len(JT):
-            bTt = JT @ a_free + bT + BAUMGARTE * vT
-            JTM = JT @ minv
             GNT = JnM @ JT.T
             GTN = JTM @ CNt
-            GTT = JTM @ JT.T
-            GTTi = np.linalg.pinv(GTT, rcond=1e-10)
             GNTi = GNT @ GTTi
             Ml = GNN - GNTi @ GTN
             ql = bN - GNTi @ bTt
@@ -364,10 +372,14 @@ class _ModeBase:
     and the right-hand side b_N = J_n[N] a_free + drift[N] + 2 BAUMGARTE v_n[N] +
     BAUMGARTE^2 gap[N] [m/s^2], the same operations in the same order as the solve made them
     each time (so the same bits); the mode loop and :meth:`ModeSelection._consistent_directions`
-    reuse it while their arguments are the ones it was built from.
+    reuse it while their arguments are the ones it was built from. ``stick_rows`` caches, by
+    the pairs' stick flags (all the sticking rows depend on with these arguments: the engaged
+    rows are the touching ones during a solve), the sticking rows J_T, their right-hand side,
+    J_T M^-1 and the pseudo-inverse of G_TT = J_T M^-1 J_T^T: the direction iteration changes
+    only the sliding directions, so its solves reuse them.
     """
 
-    __slots__ = ("JnM", "bN")
+    __slots__ = ("JnM", "bN", "stick_rows")
 
     def __init__(
         self,
@@ -385,6 +397,9 @@ class _ModeBase:
             JnN @ a_free + drift[N] + 2.0 * BAUMGARTE * vn[N] + BAUMGARTE**2 * gap[N]
         )
         self.JnM: FloatArray = JnN @ minv
+        self.stick_rows: dict[
+            tuple[bool, ...], tuple[FloatArray, FloatArray, FloatArray, FloatArray]
+        ] = {}
 
 
 def _norm(x: FloatArray) -> float:
