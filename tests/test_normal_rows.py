@@ -446,3 +446,56 @@ def test_the_plans_pairs_decide_sliding_and_staleness_as_the_loop_over_every_pai
     packbot.simulate(robot, robot.pose("drive"), np.zeros(8), 5.0, config=cfg)
     assert seen["sliding"] > 1000 and seen["slides"] > 300
     assert seen["stale"] > 300 and seen["stales"] > 100
+
+
+def test_the_mode_solve_on_its_hoisted_parts_equals_the_inline_one_to_the_bit(contacts, rng):
+    """``_solve_modes`` with a ``_ModeBase`` built once (as the mode loop and the direction
+    iteration reuse it, its stick-row blocks cached by the stick flags) gives the bits of a
+    fresh construction, for every stick/slip assignment tried, new sliding directions each
+    time (cache hits included); ``_norm`` is ``np.linalg.norm`` bit for bit."""
+    from packbot.contact.normal_modes import _ModeBase, _norm
+    from packbot.contact.normal_tolerances import BAUMGARTE
+
+    sysm, nc, q0 = contacts
+    saved = (list(nc.engaged), [(p.stick, p.slip_dir.copy()) for p in nc.pairs.values()])
+    try:
+        solved = 0
+        for _ in range(4):
+            q = q0 + 1e-3 * rng.standard_normal(len(q0))
+            v = 0.1 * rng.standard_normal(len(q0))
+            a_free = sysm.aba(q, v, np.zeros(len(q0)))
+            minv = sysm.minv(q)
+            Jn, drift, gap, vn, extra = nc._problem(q, v)
+            touch = list(range(len(gap)))
+            base = _ModeBase(touch, Jn, drift, gap, vn, a_free, minv)
+            bN = Jn[touch] @ a_free + drift[touch] + 2.0 * BAUMGARTE * vn[touch]
+            bN = bN + BAUMGARTE**2 * gap[touch]
+            assert np.array_equal(base.bN, bN)
+            assert np.array_equal(base.JnM, Jn[touch] @ minv)
+            every = [True] * len(nc.pairs)
+            mixed = [i % 2 == 0 for i in range(len(nc.pairs))]
+            for sticks in (every, mixed, every, mixed):  # the stick-row cache: miss, miss, hit
+                for p, s in zip(nc.pairs.values(), sticks, strict=True):
+                    p.stick = s
+                    d = rng.standard_normal(3)
+                    p.slip_dir = d / np.linalg.norm(d)
+                args = (touch, Jn, drift, gap, vn, extra, a_free, minv)
+                lam1, ok1 = nc._solve_modes(*args, base)
+                engaged1 = list(nc.engaged)
+                lam2, ok2 = nc._solve_modes(*args)
+                assert ok1 == ok2
+                solved += ok1
+                assert engaged1 == nc.engaged
+                if ok1:
+                    assert lam1["lamN"] == lam2["lamN"]
+                    assert np.array_equal(lam1["lamT"], lam2["lamT"])
+                assert tuple(sticks) in base.stick_rows
+            assert len(base.stick_rows) == 2  # one entry per stick assignment, reused
+        assert solved >= 8  # most of the 16 problems have a solution to compare
+        for _ in range(50):
+            x = rng.standard_normal(int(rng.integers(1, 5))) * 10.0 ** rng.uniform(-8, 3)
+            assert _norm(x) == float(np.linalg.norm(x))
+    finally:
+        nc.engaged = saved[0]
+        for p, (s, d) in zip(nc.pairs.values(), saved[1], strict=True):
+            p.stick, p.slip_dir = s, d

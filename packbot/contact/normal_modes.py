@@ -9,6 +9,7 @@ the Painleve fallback, and the slip directions of pairs starting to slide.
 from __future__ import annotations
 
 import logging
+import math
 from dataclasses import dataclass
 from typing import Any
 
@@ -78,7 +79,7 @@ class ModeSelection(ConstrainedDynamics):
         self.engaged = touch
         if self.mu > 0.0:
             for p, ex in zip(self.pairs.values(), extra, strict=True):
-                speed = float(np.linalg.norm(ex["vt"]))
+                speed = _norm(ex["vt"])
                 was = p.stick
                 if keep and p.stick:
                     continue
@@ -90,14 +91,15 @@ class ModeSelection(ConstrainedDynamics):
         if not touch:
             self.engaged = []
             return events
+        base = _ModeBase(touch, Jn, drift, gap, vn, a_free, minv)
         for _ in range(len(self.pairs) + 2):
-            lam, ok = self._solve_modes(touch, Jn, drift, gap, vn, extra, a_free, minv)
+            lam, ok = self._solve_modes(touch, Jn, drift, gap, vn, extra, a_free, minv, base)
             if not ok:
                 events.append(ModeEvent("painleve", None))
                 self.n_painleve += 1
                 for p in self.pairs.values():
                     p.stick = True
-                lam, ok = self._solve_modes(touch, Jn, drift, gap, vn, extra, a_free, minv)
+                lam, ok = self._solve_modes(touch, Jn, drift, gap, vn, extra, a_free, minv, base)
                 if not ok:  # give up friction for this restart
                     log.warning("contact problem unsolved even with sticking contacts")
                     self.engaged = [r for r in touch]
@@ -109,7 +111,7 @@ class ModeSelection(ConstrainedDynamics):
                 p.stick = False
                 p.slip_dir = s
                 events.append(ModeEvent("slip", p.info))
-        self._consistent_directions(q, v, Jn, drift, gap, vn, extra, a_free, minv, touch)
+        self._consistent_directions(q, v, Jn, drift, gap, vn, extra, a_free, minv, touch, base)
         self._coulomb_residual_directions(extra)
         if log.isEnabledFor(logging.DEBUG):
             log.debug(
@@ -178,7 +180,7 @@ class ModeSelection(ConstrainedDynamics):
                     if touching and not mine:  # the full selection holds it with zero force
                         return False
                     continue
-                speed = float(np.linalg.norm(ex["vt"]))
+                speed = _norm(ex["vt"])
                 if speed <= STICK_SPEED:
                     return False
                 p.slip_dir = ex["vt"] / speed
@@ -209,6 +211,7 @@ class ModeSelection(ConstrainedDynamics):
         a_free: FloatArray,
         minv: FloatArray,
         touch: list[int],
+        base: _ModeBase | None = None,
     ) -> None:
         """Slip directions of pairs starting to slide from rest: their tangential acceleration.
 
@@ -220,29 +223,29 @@ class ModeSelection(ConstrainedDynamics):
         if self.mu == 0.0:
             return
         starting = [
-            p
+            (p, ex)
             for p, ex in zip(self.pairs.values(), extra, strict=True)
-            if not p.stick and float(np.linalg.norm(ex["vt"])) <= STICK_SPEED
+            if not p.stick and _norm(ex["vt"]) <= STICK_SPEED
         ]
         if not starting or not self.engaged:
             return
+        if base is None:
+            base = _ModeBase(touch, Jn, drift, gap, vn, a_free, minv)
         for _ in range(8):
             a = self.evaluate(q, v, a_free, minv).a
             moved = False
-            for p, ex in zip(self.pairs.values(), extra, strict=True):
-                if p not in starting:
-                    continue
+            for p, ex in starting:
                 at = ex["T"].T @ (ex["JT"] @ a + ex["bT"])
-                na = float(np.linalg.norm(at))
+                na = _norm(at)
                 if na <= 1e-9 or float(at @ p.slip_dir) > 0.0:
                     continue  # the slide grows along its direction: consistent
                 s = p.slip_dir + at / na
-                ns = float(np.linalg.norm(s))
+                ns = _norm(s)
                 p.slip_dir = s / ns if ns > 1e-9 else at / na
                 moved = True
             if not moved:
                 return
-            self._solve_modes(touch, Jn, drift, gap, vn, extra, a_free, minv)
+            self._solve_modes(touch, Jn, drift, gap, vn, extra, a_free, minv, base)
 
     def _coulomb_residual_directions(self, extra: list[dict[str, Any]]) -> None:
         """A pair set to slip against its own residual slide slips along that slide.
@@ -265,9 +268,9 @@ class ModeSelection(ConstrainedDynamics):
             if p.stick:
                 continue
             vt = ex["vt"]
-            speed = float(np.linalg.norm(vt))
+            speed = _norm(vt)
             w = vt + STICK_SPEED * p.slip_dir  # as in conditions(): g = v_t . w/|w| + band
-            g = float(vt @ w) / max(float(np.linalg.norm(w)), 1e-300) + STICK_BAND
+            g = float(vt @ w) / max(_norm(w), 1e-300) + STICK_BAND
             if speed > 0.0 and g < 0.5 * STICK_BAND:
                 p.slip_dir = vt / speed
 
@@ -281,23 +284,40 @@ class ModeSelection(ConstrainedDynamics):
         extra: list[dict[str, Any]],
         a_free: FloatArray,
         minv: FloatArray,
+        base: _ModeBase | None = None,
     ) -> tuple[dict[str, Any], bool]:
-        """The mixed LCP: touching normal rows complementary, sticking rows equalities."""
+        """The mixed LCP: touching normal rows complementary, sticking rows equalities.
+
+        ``base``: the parts independent of the modes (built from these arguments when None).
+        """
         self.engaged = list(touch)
         C = self._slip_columns(Jn, extra)
-        JT, bT, vT = self._stick_rows(extra)
         N = touch
-        bN = Jn[N] @ a_free + drift[N] + 2.0 * BAUMGARTE * vn[N] + BAUMGARTE**2 * gap[N]
-        GNN = Jn[N] @ minv @ C[N].T
-        symmetric = all(p.stick for p in self.pairs.values()) or self.mu == 0.0
+        if base is None:
+            base = _ModeBase(touch, Jn, drift, gap, vn, a_free, minv)
+        bN, JnM = base.bN, base.JnM
+        sticks = tuple([p.stick for p in self.pairs.values()])
+        rows = base.stick_rows.get(sticks)
+        if rows is None:  # the sticking rows' blocks: they follow the stick flags alone
+            JT, bT, vT = self._stick_rows(extra)
+            if len(JT):
+                bTt = JT @ a_free + bT + BAUMGARTE * vT
+                JTM = JT @ minv
+                GTTi = np.linalg.pinv(JTM @ JT.T, rcond=1e-10)
+                rows = (JT, bTt, JTM, GTTi)
+            else:
+                rows = (JT, bT, JT, JT)
+            base.stick_rows[sticks] = rows
+        JT, bTt, JTM, GTTi = rows
+        CNt = C[N].T
+        GNN = JnM @ CNt
+        symmetric = all(sticks) or self.mu == 0.0
         if len(JT):
-            bTt = JT @ a_free + bT + BAUMGARTE * vT
-            GNT = Jn[N] @ minv @ JT.T
-            GTN = JT @ minv @ C[N].T
-            GTT = JT @ minv @ JT.T
-            GTTi = np.linalg.pinv(GTT, rcond=1e-10)
-            Ml = GNN - GNT @ GTTi @ GTN
-            ql = bN - GNT @ GTTi @ bTt
+            GNT = JnM @ JT.T
+            GTN = JTM @ CNt
+            GNTi = GNT @ GTTi
+            Ml = GNN - GNTi @ GTN
+            ql = bN - GNTi @ bTt
         else:
             Ml, ql = GNN, bN
         if symmetric:
@@ -338,11 +358,53 @@ class ModeSelection(ConstrainedDynamics):
                 continue
             lt = lamT[k_t : k_t + 2]
             k_t += 2
-            nt = float(np.linalg.norm(lt))
+            nt = _norm(lt)
             if nt > self.mu * fn + FORCE_BAND:
                 f_world = ex["T"].T @ lt
                 out.append((p, -f_world / nt))
         return out
+
+
+class _ModeBase:
+    """The parts of :meth:`ModeSelection._solve_modes` that the modes do not change.
+
+    Built once per restart from the touching rows ``touch`` (N) and the row data: J_n[N] M^-1
+    and the right-hand side b_N = J_n[N] a_free + drift[N] + 2 BAUMGARTE v_n[N] +
+    BAUMGARTE^2 gap[N] [m/s^2], the same operations in the same order as the solve made them
+    each time (so the same bits); the mode loop and :meth:`ModeSelection._consistent_directions`
+    reuse it while their arguments are the ones it was built from. ``stick_rows`` caches, by
+    the pairs' stick flags (all the sticking rows depend on with these arguments: the engaged
+    rows are the touching ones during a solve), the sticking rows J_T, their right-hand side,
+    J_T M^-1 and the pseudo-inverse of G_TT = J_T M^-1 J_T^T: the direction iteration changes
+    only the sliding directions, so its solves reuse them.
+    """
+
+    __slots__ = ("JnM", "bN", "stick_rows")
+
+    def __init__(
+        self,
+        touch: list[int],
+        Jn: FloatArray,
+        drift: FloatArray,
+        gap: FloatArray,
+        vn: FloatArray,
+        a_free: FloatArray,
+        minv: FloatArray,
+    ) -> None:
+        N = touch
+        JnN = Jn[N]
+        self.bN: FloatArray = (
+            JnN @ a_free + drift[N] + 2.0 * BAUMGARTE * vn[N] + BAUMGARTE**2 * gap[N]
+        )
+        self.JnM: FloatArray = JnN @ minv
+        self.stick_rows: dict[
+            tuple[bool, ...], tuple[FloatArray, FloatArray, FloatArray, FloatArray]
+        ] = {}
+
+
+def _norm(x: FloatArray) -> float:
+    """``float(np.linalg.norm(x))`` of a real vector, bit for bit: sqrt(x . x) [its unit]."""
+    return math.sqrt(float(x.dot(x)))
 
 
 def _lemke(M: FloatArray, q: FloatArray) -> FloatArray | None:
