@@ -49,8 +49,6 @@ class NativeLockStep:
         self.drive = drive
         self.rhs: native.NativeRhs | None = None
         self._tried = False
-        # the torques it holds: (applied, viscous, coulomb_dir as a list)
-        self._torques: tuple[FloatArray, FloatArray, list[float]] | None = None
 
     def kernel(self, t: float, y: FloatArray, locks: JointLocks) -> StepKernel | None:
         """The native step from (t, y) with the current locked set, or None (Python stages).
@@ -81,13 +79,7 @@ class NativeLockStep:
         if torques is None:
             return None
         rhs.set_locks(locks.locked_index)
-        applied, viscous, coulomb_dir = torques
-        key = (applied, viscous, coulomb_dir.tolist())
-        last = self._torques
-        # (a held command's array is never written: the same object, the same torques)
-        if last is None or not (applied is last[0] and viscous is last[1] and key[2] == last[2]):
-            rhs.set_torque(applied, viscous, coulomb_dir)
-            self._torques = key
+        rhs.hold_torque(*torques)
         return rhs.step
 
     def screened(self, y1: FloatArray, locks: JointLocks) -> bool:

@@ -123,6 +123,8 @@ class NativeRhs:
             _reals(model.gravity.linear),
         )
         self._out = np.zeros(self.nv)  # the extension writes here
+        # the torques loaded by hold_torque: (applied, viscous, coulomb_dir as a list)
+        self._torques: tuple[FloatArray, FloatArray, list[float]] | None = None
         #: One native Dormand-Prince attempt (:data:`packbot.ode.StepKernel`) on the loaded
         #: modes and torques: ``step(h, Z, ay0, atol, rtol, y1, ay1) -> err`` (-1: a singular
         #: Delassus matrix at a stage, the caller takes the Python stages).
@@ -249,6 +251,22 @@ class NativeRhs:
     def set_torque(self, applied: FloatArray, viscous: FloatArray, coulomb_dir: FloatArray) -> None:
         """The torques of the steps to come [N*m]: ``applied + (-viscous * v - coulomb_dir)``."""
         self._rhs.set_torque(_reals(applied), _reals(viscous), _reals(coulomb_dir))
+
+    def hold_torque(
+        self, applied: FloatArray, viscous: FloatArray, coulomb_dir: FloatArray
+    ) -> None:
+        """:meth:`set_torque`, skipped when these torques are the ones loaded [N*m].
+
+        A held command's arrays are never written (a new command is a new array), so the same
+        ``applied`` and ``viscous`` objects are the same torques; ``coulomb_dir`` is compared
+        by value (the drive rewrites it in place).
+        """
+        last = self._torques
+        fdir = coulomb_dir.tolist()
+        if last is not None and applied is last[0] and viscous is last[1] and fdir == last[2]:
+            return
+        self.set_torque(applied, viscous, coulomb_dir)
+        self._torques = (applied, viscous, fdir)
 
     def accel(
         self, q: FloatArray, v: FloatArray, x: FloatArray, from_tau: bool

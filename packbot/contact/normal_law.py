@@ -128,7 +128,6 @@ class NormalLaw(PatchEvents):
         self._steps: deque[float] = deque(maxlen=CRAWL_STEPS)  # the last steps' sizes [s]
         self._clear: FloatArray | None = None  # a step end the screen found clear (watch)
         self._ready: FloatArray | None = None  # a state the native modes are loaded for
-        self._torques: tuple[Any, ...] | None = None  # the torques loaded (step_kernel)
 
     # ------------------------------------------------------------------ windows
     def advance(self, t: float, y: FloatArray, t_end: float) -> DenseSegment | None:
@@ -296,13 +295,7 @@ class NormalLaw(PatchEvents):
         if y is not self._ready:  # (else no mode changed since the last load)
             rhs.load(nc, nc._plan())
         self._ready = None
-        applied, viscous, coulomb_dir = torques
-        key = (applied, viscous, coulomb_dir.tolist())
-        last = self._torques
-        # (a held command's array is never written: the same object, the same torques)
-        if last is None or not (applied is last[0] and viscous is last[1] and key[2] == last[2]):
-            rhs.set_torque(applied, viscous, coulomb_dir)
-            self._torques = key
+        rhs.hold_torque(*torques)
         return rhs.step
 
     def _pair_crossings(
