@@ -20,6 +20,15 @@ evaluate event functions and :func:`locate_root` to find the instant an event fu
 changes sign, then restarts the stepper there with :meth:`RK45Stepper.restrict` or
 :meth:`RK45Stepper.reset`.
 
+Stiff stretches: with a compiled step (``kernel``) and its linearly implicit counterpart
+(:class:`StiffKernel`: a RODAS4 attempt, Hairer and Wanner, *Solving Ordinary Differential
+Equations II*, 2nd ed., sec. IV.7), :meth:`RK45Stepper.step` applies Hairer's stiffness test
+of DOPRI5 to the Dormand-Prince steps (``h |lambda| ~ h ||k_7 - k_6|| / ||y_1 - y_6||``, the two
+stages at ``t + h``): after :data:`STIFF_STEPS` steps in a row above :data:`STIFF_RATIO`, where
+the explicit method is held at its stability bound, it takes Rosenbrock steps
+(:class:`HermiteSegment`: the cubic Hermite interpolant on the step's ends) until the next step
+size times the Jacobian's spectral radius falls below :data:`NONSTIFF_RATIO`, or the next reset.
+
 Why not ``scipy.integrate.RK45``: its per-step and per-construction Python overhead (hundreds
 of microseconds) dominates a right-hand side that costs a few microseconds, and the simulator
 restarts after every contact event. This module keeps the per-step overhead to a few dozen
@@ -386,6 +395,9 @@ class RK45Stepper:
         n_rhs: Right-hand-side calls, cumulative over resets (a deferred one counted at its
             reset).
         f_pending: Whether ``f`` is deferred to the next step (``reset(..., defer=True)``).
+        stiff: Whether the next step with a :class:`StiffKernel` is a Rosenbrock attempt
+            (:meth:`step`'s ``stiff``; False after a :meth:`reset`).
+        n_stiff_steps: Accepted Rosenbrock steps, cumulative over resets.
     """
 
     def __init__(
@@ -659,7 +671,8 @@ class RK45Stepper:
                         y_new, ay1, err = self._stages(t, t_new, h, Z)
             else:
                 y_new, ay1, err = self._stages(t, t_new, h, Z)
-            self.n_rhs += 6
+            # (a Rosenbrock attempt: 5 stages, its Jacobian's 2 n at a step's first attempt)
+            self.n_rhs += (5 if rejected else 5 + 2 * n) if implicit else 6
             if err < 1.0:
                 break
             # Rejected (also when err is nan: the rhs returned inf/nan).
@@ -695,6 +708,7 @@ class RK45Stepper:
         if stiff is not None:
             if implicit:
                 self.n_stiff_steps += 1
+                self.n_rhs += 1  # f(y1), the accepted attempt's last stage
                 seg: DenseSegment = HermiteSegment(t, t_new, t_new - t, y, y_new, Z)
                 if self.h * stiff.radius() < NONSTIFF_RATIO:
                     self.stiff = False
