@@ -25,7 +25,7 @@ from packbot.contact.normal_contacts import NormalContacts
 from packbot.contact.normal_tolerances import PENETRATION_TOL, SLIDE_TOL
 from packbot.contact.patch_events import PatchEvents
 from packbot.contact.timestep import QUIET_STEPS, MoreauJeanStepper
-from packbot.ode import DenseSegment, StepKernel
+from packbot.ode import DenseSegment, StepKernel, StiffKernel
 from packbot.system import System
 
 __all__ = [
@@ -267,6 +267,16 @@ class NormalLaw(PatchEvents):
         """
         rhs = self._native
         return None if rhs is None else rhs.first
+
+    @property
+    def stiff_kernel(self) -> StiffKernel | None:
+        """The native RODAS4 attempt on the modes :meth:`step_kernel` loaded, or None.
+
+        For the stepper's stiff stretches (a slow slide whose friction direction decays
+        sideways fast: :attr:`NativeRhs.stiff <packbot.contact.native.NativeRhs.stiff>`).
+        """
+        rhs = self._native
+        return None if rhs is None or not native.STIFF_ENABLED else rhs.stiff
 
     def step_kernel(self, t: float, y: FloatArray) -> StepKernel | None:
         """The native Dormand-Prince step of the current modes, or None (the stages call rhs).
