@@ -91,9 +91,10 @@ def test_make_law_builds_the_configured_law_with_the_whole_protocol(robot, field
 
 @pytest.mark.parametrize("joints", [("camera_pan",), ("gripper_roll", "elbow2"), None])
 def test_the_step_bound_keeps_every_point_within_half_the_margin(robot, joints):
-    """The pair laws' step bound h = margin / (2 reach . |v|): moving every joint at its
-    velocity for h (random configurations), no vertex of any piece travels more than half the
-    query margin; a wrist joint spinning alone gets a step about ten times REACH_BOUND's."""
+    """The contact-normal mode's step bound h = margin / (2 reach . |v|): moving every joint at
+    its velocity for h (random configurations), no vertex of any piece travels more than half
+    the query margin; a wrist joint spinning alone gets a step about ten times REACH_BOUND's
+    (the report's law's)."""
     import pinocchio as pin
 
     from packbot.contact.pairs import REACH_BOUND
@@ -129,6 +130,8 @@ def test_the_step_bound_keeps_every_point_within_half_the_margin(robot, joints):
         if joints == ("camera_pan",):
             flat = 0.5 * cfg.margin / (REACH_BOUND * float(np.abs(v).sum()))
             assert h > 8.0 * flat
+            clamp, _, _ = _law(robot, packbot.SimConfig(contact_mode="joint_clamp"), q)
+            assert clamp.step_bound(np.concatenate([q, v])) == pytest.approx(flat, rel=1e-12)
 
 
 @pytest.mark.parametrize("mode", ["none", "joint_clamp"])

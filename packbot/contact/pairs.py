@@ -70,8 +70,9 @@ class PairLaw(JointStops):
         assert system.world is not None
         self.world = system.world
         #: Per velocity index, a bound [m] on the distance from the joint's axis to the pieces
-        #: it moves (:func:`reach_bounds`): a point's speed is at most ``reach . |v|``.
-        self.reach = reach_bounds(system.model, system.world)
+        #: it moves: a point's speed is at most ``reach . |v|``. Here REACH_BOUND for every
+        #: joint; the contact-normal mode takes each joint's own (:func:`reach_bounds`).
+        self.reach = np.full(system.nv, REACH_BOUND)
         self.last_d = {}
         self.pending_d = {}  # the same at the end of the step being checked
         self.pending_min: tuple[float, int] = (math.inf, -1)
@@ -103,9 +104,8 @@ class PairLaw(JointStops):
     def step_bound(self, y: FloatArray) -> float:
         """Largest step keeping every point's motion within half the query margin [s].
 
-        A point's speed is bounded by ``reach . |v|`` at the step's start (per joint, the
-        largest distance from its axis to a piece it moves: :func:`reach_bounds`), so a pair
-        beyond the margin cannot pass through contact within the step unseen.
+        A point's speed is bounded by ``reach . |v|`` at the step's start (:attr:`reach`), so
+        a pair beyond the margin cannot pass through contact within the step unseen.
         """
         speed = float(self.reach @ np.abs(y[self.n : 2 * self.n]))
         return min(self.cfg.max_step, 0.5 * self.cfg.margin / max(speed, 1e-9))
