@@ -533,9 +533,8 @@ def test_the_reach_bounds_bound_every_pieces_distance_to_the_joints_axes(robot, 
     """Each joint's reach bound is at least the distance from its origin (on its axis) to
     every vertex of every piece it moves, in random configurations; the wrist's are a tenth
     of REACH_BOUND; a model with a joint that is not revolute gets REACH_BOUND throughout."""
-    from packbot.contact import timestep
-    from packbot.contact.pairs import REACH_BOUND
-    from packbot.contact.timestep import reach_bounds
+    from packbot.contact import pairs
+    from packbot.contact.pairs import REACH_BOUND, reach_bounds
     from packbot.system import System
 
     system = System(robot, robot.pose("drive"), packbot.SimConfig(contact_mode="normal"), None)
@@ -561,5 +560,5 @@ def test_the_reach_bounds_bound_every_pieces_distance_to_the_joints_axes(robot, 
     wrist = [robot.joint_names.index(n) for n in LOCKED]
     assert r[wrist].max() < 0.15 * REACH_BOUND
     assert r.max() <= REACH_BOUND
-    monkeypatch.setattr(timestep, "REVOLUTE", ("JointModelRX",))  # (the arm's are RZ, RY)
+    monkeypatch.setattr(pairs, "REVOLUTE", ("JointModelRX",))  # (the arm's are RZ, RY)
     assert np.array_equal(reach_bounds(model, world), np.full(model.nv, REACH_BOUND))

@@ -23,6 +23,7 @@ from packbot.contact.base import Active, Crossing, Key
 from packbot.contact.locks import JointLocks
 from packbot.contact.normal_contacts import NormalContacts
 from packbot.contact.normal_tolerances import PENETRATION_TOL, SLIDE_TOL
+from packbot.contact.pairs import reach_bounds
 from packbot.contact.patch_events import PatchEvents
 from packbot.contact.timestep import QUIET_STEPS, MoreauJeanStepper
 from packbot.ode import DenseSegment, StepKernel, StiffKernel
@@ -119,6 +120,10 @@ class NormalLaw(PatchEvents):
     def rebuild(self, system: System) -> None:
         """A new phase: an empty contact set on the new system."""
         super().rebuild(system)
+        # Each joint's own reach (a wrist joint's 0.2 m, not REACH_BOUND's 2.2 m): the step
+        # bound then follows what the moving joints can reach. (The report's law keeps
+        # REACH_BOUND for every joint: its golden results are made with it.)
+        self.reach = reach_bounds(system.model, system.world)
         self.normal = NormalContacts.from_config(system.model, system.data, system.world, self.cfg)
         self._native = native.native_rhs(system.model) if native.ENABLED else None
         if self._native is not None and self.cfg.joint_limits:  # (the step end's screen)
