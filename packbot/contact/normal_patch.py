@@ -1,8 +1,9 @@
 """A contact patch as material points: the pair record and the patch geometry.
 
 A pair in contact is stored as its patch points on each body (in their joint frames), its
-normal fixed in body 2 and its friction mode (:class:`_Pair`). The helpers are the face planes
-of a piece and the numpy reference of the patch construction (``kernels.patch_material``).
+normal fixed in the body whose face it is and its friction mode (:class:`_Pair`). The helpers
+are the face planes of a piece and the numpy reference of the patch construction
+(``kernels.patch_material``).
 """
 
 from __future__ import annotations

@@ -337,14 +337,14 @@ class ContactRows(ContactSet):
         """Whether a pair with engaged rows no longer has a valid patch (it must be rebuilt).
 
         A patch is a set of material point pairs (p1 on body 1, p2 on body 2) and a normal fixed
-        in body 2; it describes the contact while (1) the points have not slid apart by more
-        than :data:`SLIDE_TOL` tangentially since it was built (the forces act where the bodies
-        touched, not where they touch now), and (2) the patch's smallest gap equals the pair's
-        signed distance to :data:`POINT_TOL` (a curved body's next facet comes closer than the
-        patch predicts, or a point slides off the edge of its face and the face's plane holds
-        it where nothing does). A slide of 2e-8 m per step passes both: the patch, its drift
-        projection and its modes are kept (events still watch every row and the pair's
-        distance).
+        in the body whose face it is; it describes the contact while (1) the points have not
+        slid apart by more than :data:`SLIDE_TOL` tangentially since it was built (the forces
+        act where the bodies touched, not where they touch now), and (2) the patch's smallest
+        gap equals the pair's signed distance to :data:`POINT_TOL` (a curved body's next facet
+        comes closer than the patch predicts, or a point slides off the edge of its face and the
+        face's plane holds it where nothing does). A slide of 2e-8 m per step passes both: the
+        patch, its drift projection and its modes are kept (events still watch every row and
+        the pair's distance).
 
         Args:
             q: Configuration [rad].
@@ -440,7 +440,7 @@ def _local(pairs: list[_Pair], h: int) -> FloatArray:
 
 
 def _frame2(pairs: list[_Pair]) -> FloatArray:
-    """(pairs, 3, 3) each pair's rows t1, t2, n in body 2's joint frame."""
+    """(pairs, 3, 3) each pair's rows t1, t2, n in the joint frame of the body carrying n."""
     return np.array([p.frame2 for p in pairs]) if pairs else np.zeros((0, 3, 3))
 
 
