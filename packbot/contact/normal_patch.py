@@ -1,8 +1,9 @@
 """A contact patch as material points: the pair record and the patch geometry.
 
 A pair in contact is stored as its patch points on each body (in their joint frames), its
-normal fixed in body 2 and its friction mode (:class:`_Pair`). The helpers are the face planes
-of a piece and the numpy reference of the patch construction (``kernels.patch_material``).
+normal fixed in the body whose face it is and its friction mode (:class:`_Pair`). The helpers
+are the face planes of a piece and the numpy reference of the patch construction
+(``kernels.patch_material``).
 """
 
 from __future__ import annotations
@@ -23,18 +24,24 @@ FloatArray = NDArray[np.float64]
 
 @dataclass
 class _Pair:
-    """A pair in contact: its patch as material points and its friction mode."""
+    """A pair in contact: its patch as material points and its friction mode.
+
+    The normal (from body 1 to body 2) is fixed in the body whose face it is
+    (:func:`packbot.contact.kernels.normal_owner`): body 2's joint frame, or body 1's when
+    ``on1``; ``normal2``, ``frame2`` and ``offset0`` are in that frame.
+    """
 
     info: PairInfo
     local1: FloatArray  # (K, 3) points on body 1, joint1 frame [m]
     local2: FloatArray  # (K, 3) points on body 2, joint2 frame [m]
-    normal2: FloatArray  # (3,) normal in joint2 frame
+    normal2: FloatArray  # (3,) normal in the frame of the joint carrying it
+    on1: bool = False  # the normal is a face normal of body 1, fixed in joint1's frame
     stick: bool = True
     slip_dir: FloatArray = field(default_factory=lambda: np.zeros(3))  # world, at onset
     # (2, K) tangential offsets (t1, t2 of the contact frame) of p2 - p1 when built [m]
     offset0: FloatArray = field(default_factory=lambda: np.zeros((2, 0)))
     # the patch centres (means of the points) in the joint frames [m] and the contact frame
-    # (rows t1, t2, n) in body 2's joint frame: computed once, for the point layout
+    # (rows t1, t2, n) in the normal's joint frame: computed once, for the point layout
     centre1: FloatArray = field(init=False)
     centre2: FloatArray = field(init=False)
     frame2: FloatArray = field(init=False)

@@ -41,8 +41,8 @@ class _Layout:
     pair: NDArray[np.intp]  # (h,) pair of each point (position in the contact set)
     rows: NDArray[np.intp]  # (m,) the patch points (not the centres), in row order
     centre: NDArray[np.intp]  # (pairs,) the centres
-    normal_body: NDArray[np.intp]  # (pairs,) index into joints of body 2
-    frame2: FloatArray  # (pairs, 3, 3) rows t1, t2, n in body 2's joint frame
+    normal_body: NDArray[np.intp]  # (pairs,) index into joints of the body carrying the normal
+    frame2: FloatArray  # (pairs, 3, 3) rows t1, t2, n in that body's joint frame
     points: list[slice]  # per pair, its patch points among the h
     lim_joint: NDArray[np.intp]  # (limits,) velocity index of each limit row
     lim_side: FloatArray  # (limits,) +1 upper, -1 lower
@@ -142,13 +142,13 @@ class ContactRows(ContactSet):
             return self._lay
         pairs = list(self.pairs.values())
         shape = (
-            tuple([(k, len(p.local1)) for k, p in self.pairs.items()]),
+            tuple([(k, len(p.local1), p.on1) for k, p in self.pairs.items()]),
             tuple(self.limits.items()),
         )
         prev = self._lay_prev
         if prev is not None and prev[0] == shape:
-            # the same pairs with the same patch sizes and the same limits (a re-patch): only
-            # the points, the frames and the offsets change
+            # the same pairs with the same patch sizes, normals on the same bodies and the same
+            # limits (a re-patch): only the points, the frames and the offsets change
             self._lay = lay = _replace_patches(prev[1], pairs)
             self._lay_prev = (shape, lay)
             return lay
@@ -179,7 +179,9 @@ class ContactRows(ContactSet):
             pair=np.array(pair, dtype=np.intp),
             rows=np.array(rows, dtype=np.intp),
             centre=np.array(centre, dtype=np.intp),
-            normal_body=np.array([index[p.info.joint2] for p in pairs], dtype=np.intp),
+            normal_body=np.array(
+                [index[p.info.joint1 if p.on1 else p.info.joint2] for p in pairs], dtype=np.intp
+            ),
             frame2=_frame2(pairs),
             points=points,
             lim_joint=np.array([j for (j, _), _ in limits], dtype=np.intp),
@@ -335,14 +337,14 @@ class ContactRows(ContactSet):
         """Whether a pair with engaged rows no longer has a valid patch (it must be rebuilt).
 
         A patch is a set of material point pairs (p1 on body 1, p2 on body 2) and a normal fixed
-        in body 2; it describes the contact while (1) the points have not slid apart by more
-        than :data:`SLIDE_TOL` tangentially since it was built (the forces act where the bodies
-        touched, not where they touch now), and (2) the patch's smallest gap equals the pair's
-        signed distance to :data:`POINT_TOL` (a curved body's next facet comes closer than the
-        patch predicts, or a point slides off the edge of its face and the face's plane holds
-        it where nothing does). A slide of 2e-8 m per step passes both: the patch, its drift
-        projection and its modes are kept (events still watch every row and the pair's
-        distance).
+        in the body whose face it is; it describes the contact while (1) the points have not
+        slid apart by more than :data:`SLIDE_TOL` tangentially since it was built (the forces
+        act where the bodies touched, not where they touch now), and (2) the patch's smallest
+        gap equals the pair's signed distance to :data:`POINT_TOL` (a curved body's next facet
+        comes closer than the patch predicts, or a point slides off the edge of its face and the
+        face's plane holds it where nothing does). A slide of 2e-8 m per step passes both: the
+        patch, its drift projection and its modes are kept (events still watch every row and
+        the pair's distance).
 
         Args:
             q: Configuration [rad].
@@ -438,7 +440,7 @@ def _local(pairs: list[_Pair], h: int) -> FloatArray:
 
 
 def _frame2(pairs: list[_Pair]) -> FloatArray:
-    """(pairs, 3, 3) each pair's rows t1, t2, n in body 2's joint frame."""
+    """(pairs, 3, 3) each pair's rows t1, t2, n in the joint frame of the body carrying n."""
     return np.array([p.frame2 for p in pairs]) if pairs else np.zeros((0, 3, 3))
 
 

@@ -261,8 +261,8 @@ class ContactSet:
                 info.piece2,
                 d,
             )
-        local1, local2, normal2, frame2, centre1, centre2, offset0 = made
-        p = _Pair(info, local1, local2, normal2, offset0=offset0)
+        local1, local2, normal2, frame2, centre1, centre2, offset0, on1 = made
+        p = _Pair(info, local1, local2, normal2, bool(on1), offset0=offset0)
         p.frame2, p.centre1, p.centre2 = frame2, centre1, centre2
         if old is not None:
             p.stick, p.slip_dir = old.stick, old.slip_dir

@@ -1044,19 +1044,37 @@ class ContactRhs {
       const int k = static_cast<int>(rows_[r]);
       const int p = static_cast<int>(pair_[k]);
       const double *n = &F_[9 * p + 6];
-      const double *w = &Vb_[6 * body_[h + k] + 3];
+      // n turns with the body b carrying it: the exact derivatives of the gap n . (p2 - p1)
+      // (kernels.contact_rows: the terms in dP = p2 - p1, zero when b is the world)
+      const int b = static_cast<int>(normal_body_[p]);
+      const double *w = &Vb_[6 * b + 3];
+      const double *al = &Ab_[6 * b + 3];
+      const double *dPk = &dP_[3 * k];
       const double wxn0 = w[1] * n[2] - w[2] * n[1];
       const double wxn1 = w[2] * n[0] - w[0] * n[2];
       const double wxn2 = w[0] * n[1] - w[1] * n[0];
       const double wxn[3] = {wxn0, wxn1, wxn2};
+      const double wwxn[3] = {w[1] * wxn2 - w[2] * wxn1, w[2] * wxn0 - w[0] * wxn2,
+                              w[0] * wxn1 - w[1] * wxn0};
+      const double nxd[3] = {n[1] * dPk[2] - n[2] * dPk[1], n[2] * dPk[0] - n[0] * dPk[2],
+                             n[0] * dPk[1] - n[1] * dPk[0]};
       const double *d = &dJp_[k * 3 * nv];
-      for (int c = 0; c < nv; ++c)
+      const double *mk = &masks_[b * nv];
+      for (int c = 0; c < nv; ++c) {
         Jn_[r * nv + c] = n[0] * d[c] + n[1] * d[nv + c] + n[2] * d[2 * nv + c];
+        if (mk[c] != 0.0)
+          Jn_[r * nv + c] +=
+              nxd[0] * data_.J(3, c) + nxd[1] * data_.J(4, c) + nxd[2] * data_.J(5, c);
+      }
       double g = 0.0, vv = 0.0, dd = 0.0;
       for (int i = 0; i < 3; ++i) {
         g += dP_[3 * k + i] * n[i];
         vv += vrel_[3 * k + i] * n[i];
         dd += arel_[3 * k + i] * n[i] + 2.0 * vrel_[3 * k + i] * wxn[i];
+      }
+      for (int i = 0; i < 3; ++i) {
+        vv += wxn[i] * dPk[i];
+        dd += nxd[i] * al[i] + wwxn[i] * dPk[i];
       }
       gap_[r] = g;
       vn_[r] = vv;
