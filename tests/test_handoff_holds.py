@@ -66,6 +66,11 @@ def _holds(res, joint):
 @pytest.fixture(scope="module")
 def braked(robot):
     """The collapse with the hand-off, elbow1's brake and the push on elbow1, 1.2 s."""
+    return _braked_run(robot)
+
+
+def _braked_run(robot, **fields):
+    """The run of :func:`braked` (``fields``: more SimConfig fields)."""
     e1 = robot.joint_names.index("elbow1")
 
     def push(t, q, v):
@@ -78,7 +83,7 @@ def braked(robot):
         robot.pose("drive"),
         np.zeros(robot.nq),
         1.2,
-        config=_config(),
+        config=_config(**fields),
         controller=push,
         failures=[packbot.Failure(joint="elbow1", kind="brake", threshold=BRAKE, t=T_BRAKE)],
     )
@@ -158,6 +163,46 @@ def test_the_holding_torque_balances_the_contact_forces(robot, braked):
     # the contact forces are in it: without them the hold would need another torque
     alone = -a_free[e1] / minv[e1, e1]
     assert abs(alone - tau[e1]) > 1.0
+
+
+def test_every_restart_under_the_pair_ends_in_a_mode_whose_conditions_hold(robot, monkeypatch):
+    """After each event handled with the pair handed off, no mode or hold condition is negative.
+
+    A negative one is an event at the same instant, and the next restart must not choose the
+    same mode again. In this run, at 0.8142 s (the turret's clamp coming back as a row, the
+    pair sliding at 7e-5 m/s that the slow-slide stop cannot remove), the mode selection solved
+    the engaged rows with the cone check's slip direction, then turned that direction along the
+    residual slide (Coulomb: friction against the motion) without solving again: the clamp
+    row's torque read -0.11 N*m, a ``disengage`` at once, and the same restart repeated until
+    max_events (20000 'disengage' events at one instant).
+    """
+    from packbot.contact.handoff import HandoffLaw
+
+    handle = HandoffLaw._handle
+    seen: list[tuple[float, dict]] = []
+
+    def checked(self, t, y, crossings):
+        out = handle(self, t, y, crossings)
+        if self.mixed_on:
+            n, mixed = self.n, self.mixed
+            q, v = out[:n], out[n : 2 * n]
+            ev = mixed.evaluate(q, v, self.free_accel(t, out), self.sys.minv(q))
+            negative = {k: g for k, (_, g) in mixed.conditions(ev).items() if g < 0.0}
+            negative.update({k: g for k, g in self.lock_conditions(t, out).items() if g < 0.0})
+            seen.append((t, negative))
+        return out
+
+    monkeypatch.setattr(HandoffLaw, "_handle", checked)
+    try:
+        res = _braked_run(robot, max_events=500)  # the run has 44 events
+    except packbot.errors.SimulationError:
+        res = None
+    assert len(seen) >= 5  # the restarts under the handed-off pair were checked
+    bad = [(t, neg) for t, neg in seen if neg]
+    assert not bad, bad[:3]
+    assert res is not None and res.t[-1] == pytest.approx(1.2)
+    instants = np.unique([e.t for e in res.events], return_counts=True)[1]
+    assert instants.max() <= 4
 
 
 #: A random start of benchmarks/robustness.py (seed 2026, start 3): the arm lands on the floor,

@@ -466,7 +466,7 @@ def test_the_plans_pairs_decide_sliding_and_staleness_as_the_loop_over_every_pai
     cfg = packbot.SimConfig(contact_mode="normal", mu=0.5, locked_joints=WRIST)
     packbot.simulate(robot, robot.pose("drive"), np.zeros(8), 5.0, config=cfg)
     assert seen["sliding"] > 1000 and seen["slides"] > 300
-    assert seen["stale"] > 300 and seen["stales"] > 100
+    assert seen["stale"] > 300 and seen["stales"] > 50
 
 
 def test_the_mode_solve_on_its_hoisted_parts_equals_the_inline_one_to_the_bit(contacts, rng):

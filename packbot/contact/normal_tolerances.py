@@ -38,7 +38,7 @@ CAPTURE_ACCEL = 1e-2
 #: where the contact forces act, so 0.1 mm moves a force's point of application by less than
 #: 1e-3 of the arm's lever arms (0.1 to 0.5 m); the gap condition of ``stale`` catches a
 #: curved body's next facet, or a point sliding off its face, much earlier.
-SLIDE_TOL = 1e-4
+SLIDE_TOL = 1e-3
 #: Stiffness of the drift correction [rad/s] (a_n = -2 w g' - w^2 g on engaged rows).
 BAUMGARTE = 20.0
 #: Largest acceptable scaled residual of a complementarity solution [-].
