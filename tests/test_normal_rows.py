@@ -97,6 +97,63 @@ def test_tangential_rows_span_the_contact_plane(contacts, rng):
         np.testing.assert_allclose(ex["JT"] @ v, ex["vT"], atol=1e-12)
 
 
+def test_tangential_rows_are_the_exact_derivatives_of_the_centres_slides(contacts, rng):
+    """The slides s = T (c2 - c1) of the patch centres, T the tangents turning with the body
+    carrying the frame (the normal's): along q + v t (q'' = 0) their central differences are
+    the rows' v_T = J_T v and their drift b_T; the sliding velocity v_t is the relative
+    velocity where the bodies touch (body b's velocity field at the other body's centre),
+    not that of b's own material centre, which slides away from it."""
+    sysm, nc, q0 = contacts
+    model, data = sysm.model, sysm.data
+
+    def slides(q):
+        pin.forwardKinematics(model, data, q)
+        out = []
+        for p in nc.pairs.values():
+            i1, i2 = p.info.joint1, p.info.joint2
+            M1 = data.oMi[i1] if i1 else pin.SE3.Identity()
+            M2 = data.oMi[i2] if i2 else pin.SE3.Identity()
+            i_n = i1 if p.on1 else i2
+            Rn = data.oMi[i_n].rotation if i_n else np.eye(3)
+            T = p.frame2[:2] @ Rn.T  # rows t1, t2 in the world
+            out.append(T @ (M2.act(p.centre2[0]) - M1.act(p.centre1[0])))
+        return np.array(out)
+
+    moved = 0.0
+    for _ in range(3):
+        # away from the patches' own state: the centres slid apart by up to a millimetre
+        q = q0 + 3e-3 * rng.standard_normal(len(q0))
+        v = rng.standard_normal(len(q0))
+        _, _, _, _, extra = nc._kinematics(q, v)
+        vT = np.array([ex["vT"] for ex in extra])
+        bT = np.array([ex["bT"] for ex in extra])
+        h = 1e-5
+        sp, s0, sm = slides(q + h * v), slides(q), slides(q - h * v)
+        np.testing.assert_allclose((sp - sm) / (2 * h), vT, rtol=1e-6, atol=1e-9)
+        np.testing.assert_allclose((sp - 2 * s0 + sm) / h**2, bT, rtol=1e-4, atol=1e-4)
+        for ex, p in zip(extra, nc.pairs.values(), strict=True):
+            np.testing.assert_allclose(ex["JT"] @ v, ex["vT"], atol=1e-12)
+            # the relative velocity at the touching centre: body b's field there
+            pin.forwardKinematics(model, data, q, v)
+            i1, i2 = p.info.joint1, p.info.joint2
+            M1 = data.oMi[i1] if i1 else pin.SE3.Identity()
+            M2 = data.oMi[i2] if i2 else pin.SE3.Identity()
+            c1, c2 = M1.act(p.centre1[0]), M2.act(p.centre2[0])
+
+            def field(joint, x):  # world velocity of the body's material point at x
+                if joint == 0:
+                    return np.zeros(3)
+                Vw = pin.getVelocity(model, data, joint, pin.LOCAL_WORLD_ALIGNED)
+                return Vw.linear + np.cross(Vw.angular, x - data.oMi[joint].translation)
+
+            at = c2 if p.on1 else c1  # the other body's centre
+            vrel = field(i2, at) - field(i1, at)
+            n = ex["n"]
+            np.testing.assert_allclose(ex["vt"], vrel - n * (n @ vrel), atol=1e-12)
+            moved = max(moved, float(np.linalg.norm(c2 - c1 - n * (n @ (c2 - c1)))))
+    assert moved > 1e-4  # the slides were not all zero (the terms in c2 - c1 were tested)
+
+
 def test_small_lemke_reproduces_the_array_pivots_to_the_last_bit(rng, monkeypatch):
     import packbot.contact.lcp as lcp
 

@@ -95,8 +95,10 @@ def contact_rows(  # pragma: no cover - compiled
     Returns:
         Jn (m, nv) rows (pairs' points, then limits), drift (m,) = J_n' v [m/s^2], gap (m,)
         [m or rad], vn (m,) [m/s or rad/s]; per pair JT (pairs, 2, nv) tangential rows at the
-        centre, bT (pairs, 2) their drift, vT (pairs, 2) tangential velocities, vt (pairs, 3)
-        the world tangential velocity, nw (pairs, 3) the normal, T (pairs, 2, 3) the tangents;
+        centre (the exact derivatives of the centres' slides t . (c2 - c1), the tangents
+        turning with the frame's body), bT (pairs, 2) their drift, vT (pairs, 2) tangential
+        velocities, vt (pairs, 3) the world tangential velocity where the bodies touch
+        (v_rel - w x (c2 - c1)), nw (pairs, 3) the normal, T (pairs, 2, 3) the tangents;
         per point dJp (h, 3, nv) = J_p2 - J_p1 and dP (h, 3) = p2 - p1 [m].
     """
     nv = v.shape[0]
@@ -224,26 +226,42 @@ def contact_rows(  # pragma: no cover - compiled
     nw = np.empty((npairs, 3))
     T = np.empty((npairs, 2, 3))
     for p in range(npairs):
+        # The tangential slides t . (c2 - c1) of the patch centres, the tangents turning with
+        # the body b carrying the frame: their exact derivatives, as the normal rows' (the
+        # terms in dP = c2 - c1 act on body b at the other body's centre, where the bodies
+        # touch). The sliding velocity is the relative velocity there, v_rel - w x dP.
         c0 = centre[p]
+        b = normal_body[p]
+        w = Vb[b, 3:6]
+        d = dP[c0]
+        wxd = _cross(w, d)
         for r in range(2):
+            t = F[p, r]
+            wxt = _cross(w, t)
+            wwxt = _cross(w, wxt)
+            txd = _cross(t, d)
             for c in range(nv):
-                JT[p, r, c] = (
-                    F[p, r, 0] * dJp[c0, 0, c]
-                    + F[p, r, 1] * dJp[c0, 1, c]
-                    + F[p, r, 2] * dJp[c0, 2, c]
-                )
-            bT[p, r] = (
-                F[p, r, 0] * arel[c0, 0] + F[p, r, 1] * arel[c0, 1] + F[p, r, 2] * arel[c0, 2]
-            )
-            vT[p, r] = (
-                F[p, r, 0] * vrel[c0, 0] + F[p, r, 1] * vrel[c0, 1] + F[p, r, 2] * vrel[c0, 2]
-            )
+                JT[p, r, c] = t[0] * dJp[c0, 0, c] + t[1] * dJp[c0, 1, c] + t[2] * dJp[c0, 2, c]
+                if masks[b, c] != 0.0:
+                    JT[p, r, c] += txd[0] * J[3, c] + txd[1] * J[4, c] + txd[2] * J[5, c]
+            bb = 0.0
+            vv = 0.0
             for i in range(3):
-                T[p, r, i] = F[p, r, i]
-        vnc = F[p, 2, 0] * vrel[c0, 0] + F[p, 2, 1] * vrel[c0, 1] + F[p, 2, 2] * vrel[c0, 2]
+                bb += t[i] * arel[c0, i] + 2.0 * wxt[i] * vrel[c0, i]
+                vv += t[i] * vrel[c0, i]
+            for i in range(3):
+                bb += txd[i] * Ab[b, 3 + i] + wwxt[i] * d[i]
+                vv += wxt[i] * d[i]
+            bT[p, r] = bb
+            vT[p, r] = vv
+            for i in range(3):
+                T[p, r, i] = t[i]
+        vnc = 0.0
+        for i in range(3):
+            vnc += F[p, 2, i] * (vrel[c0, i] - wxd[i])
         for i in range(3):
             nw[p, i] = F[p, 2, i]
-            vt[p, i] = vrel[c0, i] - F[p, 2, i] * vnc
+            vt[p, i] = vrel[c0, i] - wxd[i] - F[p, 2, i] * vnc
     return Jn, drift, gap, vn, JT, bT, vT, vt, nw, T, dJp, dP
 
 

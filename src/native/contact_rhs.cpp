@@ -1088,21 +1088,51 @@ class ContactRhs {
       vn_[mp_ + i] = -s * v_[j];
     }
     for (int p = 0; p < np_; ++p) {
+      // the centres' tangential slides t . (c2 - c1), the tangents turning with the frame's
+      // body b: their exact derivatives (kernels.contact_rows, as the normal rows above); the
+      // sliding velocity where the bodies touch, v_rel - w x dP
       const int c0 = static_cast<int>(centre_[p]);
       const double *F = &F_[9 * p];
       const double *d = &dJp_[c0 * 3 * nv];
       const double *vr = &vrel_[3 * c0];
       const double *ar = &arel_[3 * c0];
+      const int b = static_cast<int>(normal_body_[p]);
+      const double *w = &Vb_[6 * b + 3];
+      const double *al = &Ab_[6 * b + 3];
+      const double *dPk = &dP_[3 * c0];
+      const double *mk = &masks_[b * nv];
+      const double wxd[3] = {w[1] * dPk[2] - w[2] * dPk[1], w[2] * dPk[0] - w[0] * dPk[2],
+                             w[0] * dPk[1] - w[1] * dPk[0]};
       for (int r = 0; r < 2; ++r) {
         const double *t = F + 3 * r;
-        for (int c = 0; c < nv; ++c)
+        const double wxt[3] = {w[1] * t[2] - w[2] * t[1], w[2] * t[0] - w[0] * t[2],
+                               w[0] * t[1] - w[1] * t[0]};
+        const double wwxt[3] = {w[1] * wxt[2] - w[2] * wxt[1], w[2] * wxt[0] - w[0] * wxt[2],
+                                w[0] * wxt[1] - w[1] * wxt[0]};
+        const double txd[3] = {t[1] * dPk[2] - t[2] * dPk[1], t[2] * dPk[0] - t[0] * dPk[2],
+                               t[0] * dPk[1] - t[1] * dPk[0]};
+        for (int c = 0; c < nv; ++c) {
           JT_[(p * 2 + r) * nv + c] = t[0] * d[c] + t[1] * d[nv + c] + t[2] * d[2 * nv + c];
-        bT_[2 * p + r] = t[0] * ar[0] + t[1] * ar[1] + t[2] * ar[2];
-        vT_[2 * p + r] = t[0] * vr[0] + t[1] * vr[1] + t[2] * vr[2];
+          if (mk[c] != 0.0)
+            JT_[(p * 2 + r) * nv + c] +=
+                txd[0] * data_.J(3, c) + txd[1] * data_.J(4, c) + txd[2] * data_.J(5, c);
+        }
+        double bb = 0.0, vv = 0.0;
+        for (int i = 0; i < 3; ++i) {
+          bb += t[i] * ar[i] + 2.0 * wxt[i] * vr[i];
+          vv += t[i] * vr[i];
+        }
+        for (int i = 0; i < 3; ++i) {
+          bb += txd[i] * al[i] + wwxt[i] * dPk[i];
+          vv += wxt[i] * dPk[i];
+        }
+        bT_[2 * p + r] = bb;
+        vT_[2 * p + r] = vv;
       }
       const double *n = F + 6;
-      const double vnc = n[0] * vr[0] + n[1] * vr[1] + n[2] * vr[2];
-      for (int i = 0; i < 3; ++i) vt_[3 * p + i] = vr[i] - n[i] * vnc;
+      double vnc = 0.0;
+      for (int i = 0; i < 3; ++i) vnc += n[i] * (vr[i] - wxd[i]);
+      for (int i = 0; i < 3; ++i) vt_[3 * p + i] = vr[i] - wxd[i] - n[i] * vnc;
     }
   }
 
