@@ -239,7 +239,7 @@ def test_bad_step_arguments_are_refused(robot):
 
 @pytest.mark.parametrize(
     ("mu", "locked", "duration"),
-    [(0.5, WRIST, 1.2), (0.5, (), 0.5)],
+    [(0.5, WRIST, 1.2), (0.5, (), 1.0)],
     ids=["mu0.5", "mu0.5-wrist-free"],
 )
 def test_the_step_ends_conditions_are_the_python_evaluations(
