@@ -72,6 +72,18 @@ class ContactRhs:
         y1: NDArray[np.float64],
         ay1: NDArray[np.float64],
     ) -> float: ...
+    def stiffness(self) -> float: ...
+    def rosenbrock(
+        self,
+        h: float,
+        Z: NDArray[np.float64],
+        ay0: NDArray[np.float64],
+        atol: NDArray[np.float64],
+        rtol: float,
+        y1: NDArray[np.float64],
+        ay1: NDArray[np.float64],
+    ) -> float: ...
+    def jac_radius(self) -> float: ...
     def set_conditions(
         self, offset0: NDArray[np.float64], force_band: float, point_tol: float, stick_band: float
     ) -> None: ...

@@ -200,7 +200,8 @@ class _Run:
                     kernel = law.step_kernel(t, y)
                     # (a restart's derivative left to this step: the kernel's first stage)
                     first = law.first_stage if stepper.f_pending and kernel is not None else None
-                    seg = stepper.step(t_far, kernel, first)
+                    stiff = law.stiff_kernel if kernel is not None else None
+                    seg = stepper.step(t_far, kernel, first, stiff)
             except StepSizeUnderflow:
                 if not law.rescue(t, y):
                     raise

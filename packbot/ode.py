@@ -20,6 +20,15 @@ evaluate event functions and :func:`locate_root` to find the instant an event fu
 changes sign, then restarts the stepper there with :meth:`RK45Stepper.restrict` or
 :meth:`RK45Stepper.reset`.
 
+Stiff stretches: with a compiled step (``kernel``) and its linearly implicit counterpart
+(:class:`StiffKernel`: a RODAS4 attempt, Hairer and Wanner, *Solving Ordinary Differential
+Equations II*, 2nd ed., sec. IV.7), :meth:`RK45Stepper.step` applies Hairer's stiffness test
+of DOPRI5 to the Dormand-Prince steps (``h |lambda| ~ h ||k_7 - k_6|| / ||y_1 - y_6||``, the two
+stages at ``t + h``): after :data:`STIFF_STEPS` steps in a row above :data:`STIFF_RATIO`, where
+the explicit method is held at its stability bound, it takes Rosenbrock steps
+(:class:`HermiteSegment`: the cubic Hermite interpolant on the step's ends) until the next step
+size times the Jacobian's spectral radius falls below :data:`NONSTIFF_RATIO`, or the next reset.
+
 Why not ``scipy.integrate.RK45``: its per-step and per-construction Python overhead (hundreds
 of microseconds) dominates a right-hand side that costs a few microseconds, and the simulator
 restarts after every contact event. This module keeps the per-step overhead to a few dozen
@@ -35,6 +44,7 @@ import itertools
 import logging
 import math
 from collections.abc import Callable, Sequence
+from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -43,9 +53,11 @@ from packbot.errors import ConfigurationError, PackbotError
 
 __all__ = [
     "DenseSegment",
+    "HermiteSegment",
     "RK45Stepper",
     "StepKernel",
     "StepSizeUnderflow",
+    "StiffKernel",
     "locate_earliest",
     "locate_root",
 ]
@@ -63,6 +75,30 @@ RHS = Callable[[float, FloatArray], ArrayLike]
 StepKernel = Callable[
     [float, FloatArray, FloatArray, FloatArray, float, FloatArray, FloatArray], float
 ]
+
+
+@dataclass(frozen=True, slots=True)
+class StiffKernel:
+    """A compiled linearly implicit step for the stiff stretches of a step kernel's problem.
+
+    The same right-hand side as the :data:`StepKernel` it goes with (the contact-normal mode's
+    native step: :class:`packbot.contact.native.NativeRhs`).
+
+    Attributes:
+        attempt: One Rosenbrock attempt, ``attempt(h, Z, ay0, atol, rtol, y1, ay1) -> err``
+            with the arguments of a :data:`StepKernel`: ``Z`` holds ``[y0, f(y0)]`` on entry;
+            on return ``Z[2] = y1`` and, when ``err < 1`` (accepted), ``Z[7] = f(y1)``. The
+            error norm is the embedded order-3 solution's (a negative return: the kernel
+            could not; the stepper takes a Dormand-Prince attempt).
+        stiffness: After a :data:`StepKernel` attempt: its estimate of ``h |lambda|`` [-]
+            (Hairer's test, ``h ||k_7 - k_6|| / ||y_1 - y_6||``: the two stages at ``t + h``).
+        radius: After an :attr:`attempt`: the spectral radius of its Jacobian df/dy [1/s].
+    """
+
+    attempt: StepKernel
+    stiffness: Callable[[], float]
+    radius: Callable[[], float]
+
 
 # --- Dormand-Prince 5(4) tableau ----------------------------------------------------------------
 # Stage times c_i (stage 7 is at t + h: it is f(t + h, y1), the FSAL stage).
@@ -141,6 +177,18 @@ MAX_FACTOR = 10.0
 ERROR_EXPONENT = -1.0 / 5.0
 #: A step that would end within this fraction of itself before ``t_end`` is stretched onto it.
 STRETCH = 0.01
+#: Dormand-Prince steps count as stiff when their ``h |lambda|`` estimate exceeds this [-]
+#: (the method's stability bound on the negative real axis is about 3.3; DOPRI5 uses 3.25).
+STIFF_RATIO = 3.0
+#: Successive stiff Dormand-Prince steps after which the stepper takes Rosenbrock steps [-].
+STIFF_STEPS = 3
+#: A Rosenbrock step whose next step size times its Jacobian's spectral radius is below this
+#: hands back to Dormand-Prince (which is then stable at that step size) [-].
+NONSTIFF_RATIO = 3.0
+#: Exponent of the error in the Rosenbrock step-size factor: -1 / (embedded order 3 + 1).
+ROS_ERROR_EXPONENT = -1.0 / 4.0
+#: Largest step-size growth of a Rosenbrock step [-] (rodas.f's default).
+ROS_MAX_FACTOR = 6.0
 #: ``RK45Stepper.f`` while it is pending (a deferred reset).
 _NO_F = np.empty(0)
 
@@ -219,7 +267,7 @@ class DenseSegment:
         Args:
             t: Time [s] in (t0, t1].
         """
-        seg = DenseSegment(self.t0, t, t - self.t0, self.y0, self(t), self._Z)
+        seg = type(self)(self.t0, t, t - self.t0, self.y0, self(t), self._Z)
         seg._hz = self._hz
         seg._Q = self._Q
         return seg
@@ -291,6 +339,34 @@ class DenseSegment:
         return f"DenseSegment(t0={self.t0!r}, t1={self.t1!r}, n={self.y0.shape[0]})"
 
 
+class HermiteSegment(DenseSegment):
+    """A Rosenbrock step [t0, t1]: y(t) by the cubic Hermite interpolant on its ends.
+
+    The cubic that matches y and dy/dt = f(t, y) at both ends (3rd-order accurate), so that it
+    joins the interpolants of its neighbours (either kind) with continuous first derivatives.
+    ``Z`` holds ``[y0, f(y0), y1_step, ..., f(y1_step)]`` (rows 0, 1, 2 and 7; ``y1_step``
+    the full step's end, also in a truncated segment).
+    """
+
+    __slots__ = ()
+
+    def _coefficients(self) -> FloatArray:
+        """The cubic's coefficients on the basis of :class:`DenseSegment` (the quartic's 0)."""
+        Q = self._Q
+        if Q is None:
+            Z = self._Z
+            h = self._hz
+            y0, f0, y1, f1 = Z[0], Z[1], Z[2], Z[7]
+            Q = np.zeros((5, Z.shape[1]))
+            Q[0] = y0
+            Q[1] = f0
+            dy = (y1 - y0) / h
+            Q[2] = 3.0 * dy - 2.0 * f0 - f1
+            Q[3] = f0 + f1 - 2.0 * dy
+            self._Q = Q
+        return Q
+
+
 class RK45Stepper:
     """Dormand-Prince 5(4) stepper with error control, FSAL and dense output; forward in time.
 
@@ -319,6 +395,9 @@ class RK45Stepper:
         n_rhs: Right-hand-side calls, cumulative over resets (a deferred one counted at its
             reset).
         f_pending: Whether ``f`` is deferred to the next step (``reset(..., defer=True)``).
+        stiff: Whether the next step with a :class:`StiffKernel` is a Rosenbrock attempt
+            (:meth:`step`'s ``stiff``; False after a :meth:`reset`).
+        n_stiff_steps: Accepted Rosenbrock steps, cumulative over resets.
     """
 
     def __init__(
@@ -373,6 +452,9 @@ class RK45Stepper:
         self._ay: FloatArray = np.empty(0)  # |y|, reused by the error norm of the next step
         self._atol_vec: FloatArray = np.empty(0)  # atol of shape (n,), for a step kernel
         self._max_factor = MAX_FACTOR_FIRST
+        self.stiff = False
+        self.n_stiff_steps = 0
+        self._stiff_run = 0  # successive stiff Dormand-Prince steps
         # Stage-coefficient buffer Ah = [1, h * a_s] and its per-stage row views.
         self._Ah = np.empty((7, 8))
         self._rows = [self._Ah[s, : s + 1] for s in range(7)]
@@ -424,6 +506,8 @@ class RK45Stepper:
         ay = np.abs(y)
         self._ay = ay
         self._max_factor = MAX_FACTOR_FIRST
+        self.stiff = False
+        self._stiff_run = 0
         if h is None:
             h = self._initial_step(t, y, f, ay)
         self.h = min(float(h), self.h_max)
@@ -494,6 +578,7 @@ class RK45Stepper:
         t_end: float,
         kernel: StepKernel | None = None,
         first: Callable[[FloatArray], bool] | None = None,
+        stiff: StiffKernel | None = None,
     ) -> DenseSegment:
         """Take one accepted step, never beyond ``t_end``.
 
@@ -511,6 +596,13 @@ class RK45Stepper:
             first: With ``kernel``, when ``f`` is pending (a deferred :meth:`reset`): the
                 kernel's first stage, ``first(Z) -> ok`` writing ``rhs(t, Z[0])`` into
                 ``Z[1]`` with the same arithmetic as ``rhs`` (False: ``rhs`` is called instead).
+            stiff: With ``kernel``, its linearly implicit counterpart (:class:`StiffKernel`),
+                or None. After :data:`STIFF_STEPS` successive kernel steps whose stiffness
+                estimate exceeds :data:`STIFF_RATIO` (Dormand-Prince held at its stability
+                bound), the steps are Rosenbrock attempts (:class:`HermiteSegment`; error
+                exponent -1/4, growth up to :data:`ROS_MAX_FACTOR`) until the next step size
+                times the Jacobian's spectral radius falls below :data:`NONSTIFF_RATIO`, or
+                the next :meth:`reset`.
 
         Returns:
             The accepted step; afterwards ``self.t == segment.t1`` and ``self.y is segment.y1``.
@@ -518,7 +610,8 @@ class RK45Stepper:
         Raises:
             StepSizeUnderflow: The error control asked for a step below ``h_min``; the state
                 stays at the last accepted step.
-            ConfigurationError: ``t_end <= t``, or :meth:`reset` was never called.
+            ConfigurationError: ``t_end <= t``, :meth:`reset` was never called, or ``stiff`` is
+                not a :class:`StiffKernel` or comes without ``kernel``.
         """
         t = self.t
         if not t_end > t:
@@ -548,6 +641,12 @@ class RK45Stepper:
             atol_vec = self._atol_vec
             if atol_vec.shape[0] != n:
                 atol_vec = self._atol_vec = np.broadcast_to(self.atol, (n,)).astype(np.float64)
+        if stiff is not None and (kernel is None or not isinstance(stiff, StiffKernel)):
+            raise ConfigurationError(
+                "stiff", stiff, "None, or a StiffKernel given together with its kernel"
+            )
+        implicit = stiff is not None and self.stiff
+        expo = ROS_ERROR_EXPONENT if implicit else ERROR_EXPONENT
         rejected = False
         while True:
             t_new = t + h
@@ -559,18 +658,27 @@ class RK45Stepper:
             if kernel is not None:
                 y_new = np.empty(n)
                 ay1 = np.empty(n)
-                err = kernel(h, Z, ay0, atol_vec, rtol, y_new, ay1)
-                if err < 0.0:  # (also not: a nan error is a rejection)
-                    y_new, ay1, err = self._stages(t, t_new, h, Z)
+                if implicit:
+                    assert stiff is not None
+                    err = stiff.attempt(h, Z, ay0, atol_vec, rtol, y_new, ay1)
+                    if err < 0.0:  # the kernel could not: back to Dormand-Prince
+                        implicit = self.stiff = False
+                        self._stiff_run = 0
+                        expo = ERROR_EXPONENT
+                if not implicit:
+                    err = kernel(h, Z, ay0, atol_vec, rtol, y_new, ay1)
+                    if err < 0.0:  # (also not: a nan error is a rejection)
+                        y_new, ay1, err = self._stages(t, t_new, h, Z)
             else:
                 y_new, ay1, err = self._stages(t, t_new, h, Z)
-            self.n_rhs += 6
+            # (a Rosenbrock attempt: 5 stages, its Jacobian's 2 n at a step's first attempt)
+            self.n_rhs += (5 if rejected else 5 + 2 * n) if implicit else 6
             if err < 1.0:
                 break
             # Rejected (also when err is nan: the rhs returned inf/nan).
             self.n_rejected += 1
             rejected = True
-            fac = SAFETY * err**ERROR_EXPONENT
+            fac = SAFETY * err**expo
             if not fac > MIN_FACTOR:
                 fac = MIN_FACTOR
             h *= fac
@@ -579,12 +687,13 @@ class RK45Stepper:
                 self.h = h
                 raise StepSizeUnderflow(t, h, h_floor)
         # Accepted.
+        max_factor = ROS_MAX_FACTOR if implicit else self._max_factor
         if err == 0.0:
-            fac = self._max_factor
+            fac = max_factor
         else:
-            fac = SAFETY * err**ERROR_EXPONENT
-            if fac > self._max_factor:
-                fac = self._max_factor
+            fac = SAFETY * err**expo
+            if fac > max_factor:
+                fac = max_factor
         if rejected:
             if fac > 1.0:
                 fac = 1.0
@@ -596,7 +705,24 @@ class RK45Stepper:
         self.h = h * fac
         self._max_factor = MAX_FACTOR
         self.n_steps += 1
-        seg = DenseSegment(t, t_new, t_new - t, y, y_new, Z)
+        if stiff is not None:
+            if implicit:
+                self.n_stiff_steps += 1
+                self.n_rhs += 1  # f(y1), the accepted attempt's last stage
+                seg: DenseSegment = HermiteSegment(t, t_new, t_new - t, y, y_new, Z)
+                if self.h * stiff.radius() < NONSTIFF_RATIO:
+                    self.stiff = False
+                    self._stiff_run = 0
+            else:
+                seg = DenseSegment(t, t_new, t_new - t, y, y_new, Z)
+                if stiff.stiffness() > STIFF_RATIO:
+                    self._stiff_run += 1
+                    if self._stiff_run >= STIFF_STEPS:
+                        self.stiff = True
+                else:
+                    self._stiff_run = 0
+        else:
+            seg = DenseSegment(t, t_new, t_new - t, y, y_new, Z)
         self.t = t_new
         self.y = y_new
         self.f = Z[7]

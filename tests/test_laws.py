@@ -89,6 +89,51 @@ def test_make_law_builds_the_configured_law_with_the_whole_protocol(robot, field
     assert law.held() == ()
 
 
+@pytest.mark.parametrize("joints", [("camera_pan",), ("gripper_roll", "elbow2"), None])
+def test_the_step_bound_keeps_every_point_within_half_the_margin(robot, joints):
+    """The contact-normal mode's step bound h = margin / (2 reach . |v|): moving every joint at
+    its velocity for h (random configurations), no vertex of any piece travels more than half
+    the query margin; a wrist joint spinning alone gets a step about ten times REACH_BOUND's
+    (the report's law's)."""
+    import pinocchio as pin
+
+    from packbot.contact.pairs import REACH_BOUND
+
+    cfg = packbot.SimConfig(contact_mode="normal")
+    law, sys, _ = _law(robot, cfg, robot.pose("drive"))
+    world, model = sys.world, sys.model
+    assert world is not None
+    data, gd = model.createData(), pin.GeometryData(world.geom_model)
+    rng = np.random.default_rng(11)
+    n = sys.nv
+    for _ in range(10):
+        q = rng.uniform(model.lowerPositionLimit, model.upperPositionLimit)
+        v = np.zeros(n)
+        idx = range(n) if joints is None else [robot.joint_names.index(j) for j in joints]
+        for j in idx:
+            v[j] = rng.uniform(2.0, 8.0) * rng.choice([-1.0, 1.0])
+        h = law.step_bound(np.concatenate([q, v]))
+        assert h < cfg.max_step
+        moved = 0.0
+        pin.updateGeometryPlacements(model, data, world.geom_model, gd, q)
+        before = [np.asarray(M.homogeneous).copy() for M in gd.oMg]
+        for s in np.linspace(0.0, 1.0, 11)[1:]:  # along the step (q linear in t)
+            pin.updateGeometryPlacements(model, data, world.geom_model, gd, q + s * h * v)
+            for g, go in enumerate(world.geom_model.geometryObjects):
+                pts = np.asarray(go.geometry.points()) if hasattr(go.geometry, "points") else None
+                if pts is None or go.parentJoint == 0:
+                    continue
+                H0, H1 = before[g], gd.oMg[g].homogeneous
+                d = (pts @ H1[:3, :3].T + H1[:3, 3]) - (pts @ H0[:3, :3].T + H0[:3, 3])
+                moved = max(moved, float(np.linalg.norm(d, axis=1).max()))
+        assert 0.0 < moved <= 0.5 * cfg.margin
+        if joints == ("camera_pan",):
+            flat = 0.5 * cfg.margin / (REACH_BOUND * float(np.abs(v).sum()))
+            assert h > 8.0 * flat
+            clamp, _, _ = _law(robot, packbot.SimConfig(contact_mode="joint_clamp"), q)
+            assert clamp.step_bound(np.concatenate([q, v])) == pytest.approx(flat, rel=1e-12)
+
+
 @pytest.mark.parametrize("mode", ["none", "joint_clamp"])
 def test_locked_accelerations_from_the_unlocked_block_equal_those_from_minv(robot, mode):
     """torque_accel's reduced solve (M_UU a_U = tau_U - h_U, a = 0 on the locked joints) gives the

@@ -37,12 +37,12 @@ def test_every_first_stage_is_the_right_hand_side_at_the_restart(robot, monkeypa
     seen = {"first": 0, "rhs": 0}
     step = ode.RK45Stepper.step
 
-    def checked(self, t_end, kernel=None, first=None):
+    def checked(self, t_end, kernel=None, first=None, stiff=None):
         if not self.f_pending:
-            return step(self, t_end, kernel, first)
+            return step(self, t_end, kernel, first, stiff)
         # the right-hand side the eager restart computed, at the same state, before the step
         f_eager = np.array(self._rhs(self.t, self.y), dtype=np.float64)
-        seg = step(self, t_end, kernel, first)
+        seg = step(self, t_end, kernel, first, stiff)
         assert np.array_equal(seg._Z[1], f_eager)
         seen["first" if first is not None else "rhs"] += 1
         return seg

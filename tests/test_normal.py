@@ -367,6 +367,32 @@ def test_stale_patch_point_moves_q_no_more_than_the_true_penetration(depth):
     assert d1 == pytest.approx(moved - depth, rel=1e-4)  # moved straight up
 
 
+@pytest.mark.parametrize("depth", [5e-6, 2e-5])
+def test_projection_sweeps_for_the_clip_only_below_the_drift_band(depth, monkeypatch):
+    """A box sunk by ``depth``: within the drift band (gap >= -PENETRATION_TOL) the clip at
+    the true distance cannot change a gap, so the projection sweeps once (the check of the
+    other pairs after the move); deeper, twice. Either way it closes the gap in full."""
+    robot = box_robot()
+    q = np.array([0.0, HALF_Z - depth, 0.0])
+    sysm, nc = _contacts(robot, q)
+    world = sysm.world
+    assert world is not None
+    assert nc.add_pair(q, 0)
+    calls = []
+    sweep = world.sweep
+
+    def counted(qq, *args, **kwargs):
+        calls.append(np.array(qq))
+        return sweep(qq, *args, **kwargs)
+
+    monkeypatch.setattr(world, "sweep", counted)
+    q1 = nc.project(q, np.zeros(3), sysm.minv(q))
+    assert float(np.abs(q1 - q).max()) == pytest.approx(depth, rel=1e-6)
+    assert len(calls) == (1 if depth < PENETRATION_TOL else 2)
+    assert np.array_equal(calls[-1], q1)  # the last sweep checks the others at the new q
+    assert world.pair_contact(q1, 0).distance == pytest.approx(0.0, abs=1e-9)
+
+
 def test_arm_collapse_frictionless_penetrates_no_pair(robot):
     """mu = 0, 2 s: over every sample and every pair, no distance below the re-patch
     threshold (the drift projection once sank the camera wrist 0.94 mm into the turret)."""

@@ -138,9 +138,9 @@ def test_the_compiled_dynamics_equal_the_numpy_ones_along_a_collapse(robot, monk
     worst = 0.0
     step = ode.RK45Stepper.step
 
-    def checked(self, t_end, kernel=None, first=None):
+    def checked(self, t_end, kernel=None, first=None, stiff=None):
         nonlocal worst
-        seg = step(self, t_end, kernel, first)
+        seg = step(self, t_end, kernel, first, stiff)
         run = self._rhs.__self__
         nc, n = run.law.normal, run.n
         if nc.resting or not nc.engaged:

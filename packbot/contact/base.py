@@ -36,7 +36,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from packbot.collision import PairInfo
-from packbot.ode import DenseSegment, StepKernel
+from packbot.ode import DenseSegment, StepKernel, StiffKernel
 from packbot.system import System
 
 __all__ = ["Active", "ContactLaw", "Crossing", "Key"]
@@ -120,6 +120,16 @@ class ContactLaw(Protocol):
         The stepper's stages (:meth:`packbot.ode.RK45Stepper.step`'s ``kernel``) on the same
         right-hand side, its modes and torques fixed over the step (the contact-normal mode's
         native step).
+        """
+        ...
+
+    @property
+    def stiff_kernel(self) -> StiffKernel | None:
+        """The linearly implicit counterpart of :meth:`step_kernel`'s kernel, or None.
+
+        Read right after :meth:`step_kernel` returned a kernel: the stepper's ``stiff``
+        (:meth:`packbot.ode.RK45Stepper.step`), for the stretches where the explicit step is
+        held at its stability bound.
         """
         ...
 

@@ -36,12 +36,21 @@ from packbot.contact.normal_tolerances import (
 )
 from packbot.errors import ModelError, PackbotError
 from packbot.native_joints import SUPPORTED_JOINTS
+from packbot.ode import StiffKernel
 
 if TYPE_CHECKING:
     from packbot.contact.normal_contacts import NormalContacts
     from packbot.contact.normal_dynamics import _Eval
 
-__all__ = ["ENABLED", "STEP_ENABLED", "SUPPORTED_JOINTS", "NativeRhs", "available", "native_rhs"]
+__all__ = [
+    "ENABLED",
+    "STEP_ENABLED",
+    "STIFF_ENABLED",
+    "SUPPORTED_JOINTS",
+    "NativeRhs",
+    "available",
+    "native_rhs",
+]
 
 log = logging.getLogger(__name__)
 
@@ -55,6 +64,10 @@ ENABLED = True
 #: the native right-hand side would serve every stage (read at every step; benchmarks and
 #: tests switch it off to compare with the stages in Python around the native call).
 STEP_ENABLED = True
+#: Whether the contact-normal mode's native steps switch to the native Rosenbrock attempt in
+#: stiff stretches (:attr:`NativeRhs.stiff`; read at every step; benchmarks and tests switch
+#: it off to compare with the explicit steps alone).
+STIFF_ENABLED = True
 
 _native: Any
 _IMPORT_ERROR: ImportError | None = None
@@ -134,6 +147,10 @@ class NativeRhs:
         #: the arithmetic of :meth:`accel` on ``applied + (-viscous * v - coulomb_dir)`` (False:
         #: a singular Delassus matrix).
         self.first: Callable[[FloatArray], bool] = self._rhs.first
+        #: The native RODAS4 attempt for the stiff stretches (:class:`packbot.ode.StiffKernel`)
+        #: on the loaded modes and torques, with the last native step's stiffness estimate and
+        #: the Jacobian's spectral radius.
+        self.stiff = StiffKernel(self._rhs.rosenbrock, self._rhs.stiffness, self._rhs.jac_radius)
         self._layout_id: Any = None  # the _Layout loaded
         self._plan_id: Any = None  # the _Plan loaded
         self._locked_id: Any = None  # the locked joints loaded (set_locks)

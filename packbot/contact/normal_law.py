@@ -23,9 +23,10 @@ from packbot.contact.base import Active, Crossing, Key
 from packbot.contact.locks import JointLocks
 from packbot.contact.normal_contacts import NormalContacts
 from packbot.contact.normal_tolerances import PENETRATION_TOL, SLIDE_TOL
+from packbot.contact.pairs import reach_bounds
 from packbot.contact.patch_events import PatchEvents
 from packbot.contact.timestep import QUIET_STEPS, MoreauJeanStepper
-from packbot.ode import DenseSegment, StepKernel
+from packbot.ode import DenseSegment, StepKernel, StiffKernel
 from packbot.system import System
 
 __all__ = [
@@ -119,6 +120,10 @@ class NormalLaw(PatchEvents):
     def rebuild(self, system: System) -> None:
         """A new phase: an empty contact set on the new system."""
         super().rebuild(system)
+        # Each joint's own reach (a wrist joint's 0.2 m, not REACH_BOUND's 2.2 m): the step
+        # bound then follows what the moving joints can reach. (The report's law keeps
+        # REACH_BOUND for every joint: its golden results are made with it.)
+        self.reach = reach_bounds(system.model, system.world)
         self.normal = NormalContacts.from_config(system.model, system.data, system.world, self.cfg)
         self._native = native.native_rhs(system.model) if native.ENABLED else None
         if self._native is not None and self.cfg.joint_limits:  # (the step end's screen)
@@ -267,6 +272,16 @@ class NormalLaw(PatchEvents):
         """
         rhs = self._native
         return None if rhs is None else rhs.first
+
+    @property
+    def stiff_kernel(self) -> StiffKernel | None:
+        """The native RODAS4 attempt on the modes :meth:`step_kernel` loaded, or None.
+
+        For the stepper's stiff stretches (a slow slide whose friction direction decays
+        sideways fast: :attr:`NativeRhs.stiff <packbot.contact.native.NativeRhs.stiff>`).
+        """
+        rhs = self._native
+        return None if rhs is None or not native.STIFF_ENABLED else rhs.stiff
 
     def step_kernel(self, t: float, y: FloatArray) -> StepKernel | None:
         """The native Dormand-Prince step of the current modes, or None (the stages call rhs).

@@ -198,12 +198,15 @@ class RestartSteps(ConstrainedDynamics):
         """
         for _ in range(PROJECT_ROUNDS):
             Jn, _, gap, _, _ = self._problem(q, v)
-            if not bool(np.any(gap < 0.0)):
+            low = float(gap.min()) if gap.size else 0.0
+            if not low < 0.0:
                 return q
-            dist = self._sweep(q)
-            gap = self._clip_gaps(gap, dist)
-            if not bool(np.any(gap < 0.0)):
-                return q
+            if low < -PENETRATION_TOL:
+                # (else the clip changes nothing: its floor min(d, 0) - PENETRATION_TOL is at
+                # most -PENETRATION_TOL, below every gap; the sweep is spared)
+                gap = self._clip_gaps(gap, self._sweep(q))
+                if not bool(np.any(gap < 0.0)):
+                    return q
             touch = np.flatnonzero(gap <= TOUCH_GAP)
             J = Jn[touch]
             G = J @ minv @ J.T

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Iterable
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import NDArray
@@ -25,11 +26,19 @@ from packbot.errors import InitialCollisionError
 from packbot.ode import DenseSegment
 from packbot.system import System
 
-__all__ = ["REACH_BOUND", "PairLaw"]
+if TYPE_CHECKING:
+    import pinocchio as pin
+
+    from packbot.collision import CollisionWorld
+
+__all__ = ["REACH_BOUND", "REVOLUTE", "PairLaw", "reach_bounds"]
 
 FloatArray = NDArray[np.float64]
 #: Bound on the distance from any joint axis to any point of the arm [m] (reach is ~2 m).
 REACH_BOUND = 2.2
+#: The joint types whose reach :func:`reach_bounds` bounds (one rotation about an axis through
+#: the joint's origin); a model with another type uses REACH_BOUND for every joint.
+REVOLUTE = ("JointModelRX", "JointModelRY", "JointModelRZ", "JointModelRevoluteUnaligned")
 
 
 def _distances(pairs: NDArray[np.intp], dist: FloatArray) -> dict[int, float]:
@@ -60,6 +69,10 @@ class PairLaw(JointStops):
         super().rebuild(system)
         assert system.world is not None
         self.world = system.world
+        #: Per velocity index, a bound [m] on the distance from the joint's axis to the pieces
+        #: it moves: a point's speed is at most ``reach . |v|``. Here REACH_BOUND for every
+        #: joint; the contact-normal mode takes each joint's own (:func:`reach_bounds`).
+        self.reach = np.full(system.nv, REACH_BOUND)
         self.last_d = {}
         self.pending_d = {}  # the same at the end of the step being checked
         self.pending_min: tuple[float, int] = (math.inf, -1)
@@ -89,8 +102,12 @@ class PairLaw(JointStops):
         self._pending_d = d
 
     def step_bound(self, y: FloatArray) -> float:
-        """Largest step keeping every point's motion within half the query margin [s]."""
-        speed = REACH_BOUND * float(np.add.reduce(np.abs(y[self.n : 2 * self.n])))
+        """Largest step keeping every point's motion within half the query margin [s].
+
+        A point's speed is bounded by ``reach . |v|`` at the step's start (:attr:`reach`), so
+        a pair beyond the margin cannot pass through contact within the step unseen.
+        """
+        speed = float(self.reach @ np.abs(y[self.n : 2 * self.n]))
         return min(self.cfg.max_step, 0.5 * self.cfg.margin / max(speed, 1e-9))
 
     def distance(self, pair: int, y: FloatArray) -> float:
@@ -199,3 +216,54 @@ class PairLaw(JointStops):
         if g0 <= 0.0:  # not a clean crossing (e.g. just restarted on it): take the step start
             g0 = g(seg.t0)
         return Crossing(kind, key, g, g0, fn(d1))
+
+
+def reach_bounds(model: pin.Model, world: CollisionWorld | None) -> FloatArray:
+    """Per velocity index, a bound [m] on the distance from the joint's axis to its pieces.
+
+    Any point of the collision pieces the joint moves, over every configuration. A point p of
+    a piece moves at dp/dt = sum over the joints s carrying it of w_s x (p - o_s) (revolute
+    joints: |w_s| = |v_s|, o_s on the axis), so its speed is at most sum_s r_s |v_s| with
+    r_s the largest |p - o_s|. By the triangle inequality r_s is at most the lengths of the
+    joint placements from s down to the piece's joint, plus the piece's own radius about
+    that joint's origin (its placement's offset, its bounding box's centre and half
+    diagonal). Joints that move no piece get 0. For the arm's wrist joints this is about
+    0.2 m instead of :data:`REACH_BOUND` (2.2 m): a step's contact set
+    holds the pairs it can reach, not every pair within a spinning gripper's worst-case
+    travel. A model with a joint that is not revolute (or no collision world): REACH_BOUND
+    for every joint; no joint gets more.
+
+    Args:
+        model: The integrated model (its joints are the velocity indices).
+        world: The collision world on that model (its pieces' parent joints).
+    """
+    nv = int(model.nv)
+    flat = np.full(nv, REACH_BOUND)
+    if world is None or any(
+        j.shortname() not in REVOLUTE for j in list(model.joints)[1:]
+    ):  # (one velocity per joint below)
+        return flat
+    r = np.zeros(nv)
+    offset = [
+        float(np.linalg.norm(model.jointPlacements[j].translation)) for j in range(model.njoints)
+    ]
+    for go in world.geom_model.geometryObjects:
+        j = int(go.parentJoint)
+        if j == 0:
+            continue
+        shape = go.geometry
+        shape.computeLocalAABB()
+        radius = (
+            float(np.linalg.norm(go.placement.translation))
+            + float(np.linalg.norm(shape.aabb_center))
+            + float(shape.aabb_radius)
+        )
+        # from the piece's joint up its chain: each joint's distance to the piece grows by the
+        # placement of the joint below it
+        k = j
+        while k > 0:
+            iv = int(model.idx_vs[k])
+            r[iv] = max(r[iv], radius)
+            radius += offset[k]
+            k = int(model.parents[k])
+    return np.minimum(r, REACH_BOUND)  # (both are bounds; an unbounded piece: REACH_BOUND)

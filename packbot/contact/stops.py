@@ -43,7 +43,7 @@ from packbot.contact.lock_step import SCREEN_MARGIN as SCREEN_MARGIN
 from packbot.contact.lock_step import NativeLockStep
 from packbot.contact.locks import TORQUE_BAND, JointLocks
 from packbot.drive import Drive
-from packbot.ode import DenseSegment, StepKernel
+from packbot.ode import DenseSegment, StepKernel, StiffKernel
 from packbot.recorder import EventLog
 from packbot.result import Diagnostics, Event
 from packbot.system import System
@@ -236,6 +236,11 @@ class JointStops:
     def _locks_now(self) -> bool:
         """Whether the current mode's accelerations are the locks' alone (no rows of the law)."""
         return self._locks_only
+
+    @property
+    def stiff_kernel(self) -> StiffKernel | None:
+        """None: the lock modes' native steps stay explicit (ContactLaw.stiff_kernel)."""
+        return None
 
     @property
     def first_stage(self) -> Callable[[FloatArray], bool] | None:

@@ -70,11 +70,10 @@ import pinocchio as pin
 from numpy.typing import NDArray
 
 from packbot.contact.lcp import lcp_residual, lemke, solve_lcp_psd, solve_mixed_admm
-from packbot.contact.pairs import REACH_BOUND
+from packbot.contact.pairs import reach_bounds
 from packbot.ode import DenseSegment
 
 if TYPE_CHECKING:
-    from packbot.collision import CollisionWorld
     from packbot.config import SimConfig
     from packbot.contact.normal_contacts import NormalContacts
     from packbot.drive import Drive
@@ -139,9 +138,6 @@ RESIDUAL_OK = 1e-6
 ADMM_RETRY_ITERATIONS = 4000
 #: Touching rows (gap below this [m]) approaching faster than the Zeno speed get restitution.
 TOUCH_GAP = 1e-5
-#: The joint types whose reach :func:`reach_bounds` bounds (one rotation about an axis through
-#: the joint's origin); a model with another type uses REACH_BOUND for every joint.
-REVOLUTE = ("JointModelRX", "JointModelRY", "JointModelRZ", "JointModelRevoluteUnaligned")
 
 
 class StepSegment(DenseSegment):
@@ -653,54 +649,3 @@ class _PairLayout:
         pair = np.asarray(lay.pair, dtype=np.intp)
         offset0 = np.ascontiguousarray(lay.offset0, dtype=np.float64)
         return cls(lay, keys, rows, pair, pair[rows], offset0, key)
-
-
-def reach_bounds(model: pin.Model, world: CollisionWorld | None) -> FloatArray:
-    """Per velocity index, a bound [m] on the distance from the joint's axis to its pieces.
-
-    Any point of the collision pieces the joint moves, over every configuration. A point p of
-    a piece moves at dp/dt = sum over the joints s carrying it of w_s x (p - o_s) (revolute
-    joints: |w_s| = |v_s|, o_s on the axis), so its speed is at most sum_s r_s |v_s| with
-    r_s the largest |p - o_s|. By the triangle inequality r_s is at most the lengths of the
-    joint placements from s down to the piece's joint, plus the piece's own radius about
-    that joint's origin (its placement's offset, its bounding box's centre and half
-    diagonal). Joints that move no piece get 0. For the arm's wrist joints this is about
-    0.2 m instead of :data:`~packbot.contact.pairs.REACH_BOUND` (2.2 m): a step's contact set
-    holds the pairs it can reach, not every pair within a spinning gripper's worst-case
-    travel. A model with a joint that is not revolute (or no collision world): REACH_BOUND
-    for every joint; no joint gets more.
-
-    Args:
-        model: The integrated model (its joints are the velocity indices).
-        world: The collision world on that model (its pieces' parent joints).
-    """
-    nv = int(model.nv)
-    flat = np.full(nv, REACH_BOUND)
-    if world is None or any(
-        j.shortname() not in REVOLUTE for j in list(model.joints)[1:]
-    ):  # (one velocity per joint below)
-        return flat
-    r = np.zeros(nv)
-    offset = [
-        float(np.linalg.norm(model.jointPlacements[j].translation)) for j in range(model.njoints)
-    ]
-    for go in world.geom_model.geometryObjects:
-        j = int(go.parentJoint)
-        if j == 0:
-            continue
-        shape = go.geometry
-        shape.computeLocalAABB()
-        radius = (
-            float(np.linalg.norm(go.placement.translation))
-            + float(np.linalg.norm(shape.aabb_center))
-            + float(shape.aabb_radius)
-        )
-        # from the piece's joint up its chain: each joint's distance to the piece grows by the
-        # placement of the joint below it
-        k = j
-        while k > 0:
-            iv = int(model.idx_vs[k])
-            r[iv] = max(r[iv], radius)
-            radius += offset[k]
-            k = int(model.parents[k])
-    return np.minimum(r, REACH_BOUND)  # (both are bounds; an unbounded piece: REACH_BOUND)

@@ -30,6 +30,9 @@
 #include <pinocchio/multibody/data.hpp>
 #include <pinocchio/multibody/model.hpp>
 
+#include <Eigen/Eigenvalues>
+#include <Eigen/LU>
+
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
@@ -210,6 +213,7 @@ class ContactRhs {
     lock_mode_ = -1;
     end_valid_ = false;
     conditions_set_ = false;
+    jac_valid_ = false;
     nb_ = static_cast<int>(joints_.size());
     n2h_ = static_cast<int>(body_.size());
     h_ = n2h_ / 2;
@@ -254,6 +258,7 @@ class ContactRhs {
   void set_plan(I1 engaged, I1 row_slip, I1 sticks, double mu, double stick_speed,
                 double baumgarte) {
     end_valid_ = false;
+    jac_valid_ = false;
     engaged_ = ints(engaged);
     row_slip_ = ints(row_slip);
     sticks_ = ints(sticks);
@@ -277,6 +282,7 @@ class ContactRhs {
       throw std::invalid_argument("slip_dir: (pairs, 3) expected");
     std::copy(slip_dir.data(), slip_dir.data() + slip_dir.size(), slip_dir_.begin());
     end_valid_ = false;
+    jac_valid_ = false;
   }
 
   // The mode conditions' constants: each patch row's tangential offset when built (rows, 2)
@@ -409,6 +415,7 @@ class ContactRhs {
       if (!is_locked[j]) unlocked_.push_back(j);
     lock_mode_ = nl == 0 ? 0 : (nl == 1 ? 1 : 2);
     end_valid_ = false;
+    jac_valid_ = false;
     lock_lam_.assign(nl, 0.0);
   }
 
@@ -532,6 +539,7 @@ class ContactRhs {
         coulomb_dir.shape(0) != static_cast<size_t>(nv_))
       throw std::invalid_argument("applied, viscous, coulomb_dir: nv entries expected");
     end_valid_ = false;
+    jac_valid_ = false;
     applied_ = reals(applied);
     viscous_ = reals(viscous);
     coulomb_dir_ = reals(coulomb_dir);
@@ -603,9 +611,123 @@ class ContactRhs {
       ev /= sc;
       ss += ev * ev;
     }
+    // Hairer's stiffness test (DOPRI5): h |lambda| ~ h ||k6 - k5|| / ||y1 - y_5||, the two
+    // stages at t + h (y_5: the 6th stage's argument, still in ys_)
+    double num = 0.0, den = 0.0;
+    for (int c = 0; c < n; ++c) {
+      const double dk = z[7 * n + c] - z[6 * n + c], dy = yn[c] - ys_[c];
+      num += dk * dk;
+      den += dy * dy;
+    }
+    hlamb_ = den > 0.0 ? h * std::sqrt(num / den) : 0.0;
     y_end_.assign(yn, yn + n);  // the FSAL stage's state: end_eval's
     end_valid_ = true;
     return h * std::sqrt(ss * (1.0 / n));
+  }
+
+  // The last dopri's stiffness estimate h |lambda| (Hairer's DOPRI5 test; Dormand-Prince's
+  // stability bound on the negative real axis is about 3.3).
+  double stiffness() const { return hlamb_; }
+
+  // One RODAS4 attempt of size h (Hairer and Wanner, Solving ODEs II, sec. IV.7; rodas.f, the
+  // coefficients of METH = 1): a stiffly accurate, L-stable Rosenbrock method of order 4 with
+  // an embedded order-3 solution, on y = (q, v) under the loaded modes and torques (autonomous:
+  // the torques are constants of the step). Z (8, 2 nv) holds [y0, f(y0)] on entry; on return
+  // Z[2] = y1 and, when the error norm is < 1 (accepted), Z[7] = f(y1) (the next step's first
+  // stage, the dense output's end slope, end_eval's evaluation). The Jacobian df/dy at y0 is
+  // taken by forward differences of the stage (2 nv calls; the q rows exact: dq/dt = v), kept
+  // while y0, the modes and the torques stay (a retried attempt reuses it). Returns the scaled
+  // RMS error norm (as dopri's), or -1 when a stage's Delassus matrix or I/(h gamma) - J is
+  // singular.
+  double rosenbrock(double h, Out2 Z, F1 ay0, F1 atol, double rtol, Out1 y1, Out1 ay1) {
+    const int nv = nv_, n = 2 * nv_;
+    if (Z.shape(0) != 8 || Z.shape(1) != static_cast<size_t>(n) ||
+        ay0.shape(0) != static_cast<size_t>(n) || atol.shape(0) != static_cast<size_t>(n) ||
+        y1.shape(0) != static_cast<size_t>(n) || ay1.shape(0) != static_cast<size_t>(n))
+      throw std::invalid_argument("Z (8, 2 nv); ay0, atol, y1, ay1 (2 nv,) expected");
+    if (applied_.size() != static_cast<size_t>(nv))
+      throw std::invalid_argument("set_torque was not called");
+    if (!(h > 0.0)) throw std::invalid_argument("h: a step size > 0 expected");
+    static constexpr double gam = 0.25;
+    static constexpr double A[6][5] = {
+        {0, 0, 0, 0, 0},
+        {1.544, 0, 0, 0, 0},
+        {0.9466785280815826, 0.2557011698983284, 0, 0, 0},
+        {3.314825187068521, 2.896124015972201, 0.9986419139977817, 0, 0},
+        {1.221224509226641, 6.019134481288629, 12.53708332932087, -0.6878860361058950, 0},
+        {1.221224509226641, 6.019134481288629, 12.53708332932087, -0.6878860361058950, 1.0}};
+    static constexpr double C[6][5] = {
+        {0, 0, 0, 0, 0},
+        {-5.6688, 0, 0, 0, 0},
+        {-2.430093356833875, -0.2063599157091915, 0, 0, 0},
+        {-0.1073529058151375, -9.594562251023355, -20.47028614809616, 0, 0},
+        {7.496443313967647, -10.24680431464352, -33.99990352819905, 11.70890893206160, 0},
+        {8.083246795921522, -7.981132988064893, -31.52159432874371, 16.31930543123136,
+         -6.058818238834054}};
+    double *z = Z.data();
+    end_valid_ = false;
+    ys_.resize(n);
+    fs_.resize(n);
+    if (!jac_valid_ || !std::equal(y_jac_.begin(), y_jac_.end(), z)) {
+      if (!jacobian(z, z + n)) return -1.0;
+    }
+    const double fac = 1.0 / (h * gam);
+    Eigen::MatrixXd E = -jac_;
+    E.diagonal().array() += fac;
+    lu_.compute(E);
+    if (!(std::abs(lu_.determinant()) > 0.0) || !std::isfinite(lu_.determinant())) return -1.0;
+    K_.resize(n, 6);
+    Eigen::VectorXd r(n);
+    for (int s = 0; s < 6; ++s) {
+      const double *f;
+      if (s == 0) {
+        f = z + n;
+      } else {
+        for (int c = 0; c < n; ++c) {
+          double acc = z[c];
+          for (int j = 0; j < s; ++j) acc += A[s][j] * K_(c, j);
+          ys_[c] = acc;
+        }
+        if (!stage(ys_.data(), fs_.data())) return -1.0;
+        f = fs_.data();
+      }
+      for (int c = 0; c < n; ++c) {
+        double acc = f[c];
+        for (int j = 0; j < s; ++j) acc += (C[s][j] / h) * K_(c, j);
+        r[c] = acc;
+      }
+      K_.col(s) = lu_.solve(r);
+    }
+    // y1 = (the 6th stage's argument) + k6; the error estimate is k6
+    const double *a0 = ay0.data(), *at = atol.data();
+    double *yn = y1.data(), *a1 = ay1.data();
+    double ss = 0.0;
+    for (int c = 0; c < n; ++c) {
+      const double k6 = K_(c, 5);
+      yn[c] = ys_[c] + k6;
+      z[2 * n + c] = yn[c];
+      a1[c] = std::abs(yn[c]);
+      const double sc = std::max(a0[c], a1[c]) * rtol + at[c];
+      const double ev = k6 / sc;
+      ss += ev * ev;
+    }
+    const double err = std::sqrt(ss * (1.0 / n));
+    if (!(err < 1.0)) return std::isnan(err) ? 1e300 : err;
+    if (!stage(yn, z + 7 * n)) return -1.0;
+    y_end_.assign(yn, yn + n);
+    end_valid_ = true;
+    return err;
+  }
+
+  // The spectral radius [1/s] of the last Rosenbrock attempt's Jacobian df/dy (0 if none).
+  double jac_radius() {
+    if (!jac_valid_) return 0.0;
+    if (radius_ < 0.0) {
+      Eigen::EigenSolver<Eigen::MatrixXd> es(jac_, false);
+      radius_ = es.info() == Eigen::Success ? es.eigenvalues().cwiseAbs().maxCoeff()
+                                            : std::numeric_limits<double>::infinity();
+    }
+    return radius_;
   }
 
   // The last call's unconstrained accelerations, M^-1, forces, gaps, normal velocities,
@@ -673,6 +795,30 @@ class ContactRhs {
       f[i] = y[nv + i];
       f[nv + i] = a_[i];
     }
+    return true;
+  }
+
+  // df/dy at y0 (f0 = f(y0)) into jac_ by forward differences of the stage (Hairer's
+  // increments sqrt(eps max(1e-5, |y_c|))); the q rows exact (dq/dt = v).
+  bool jacobian(const double *y0, const double *f0) {
+    const int nv = nv_, n = 2 * nv_;
+    jac_valid_ = false;
+    jac_.setZero(n, n);
+    yp_.assign(y0, y0 + n);
+    fp_.resize(n);
+    for (int c = 0; c < n; ++c) {
+      const double d = std::sqrt(2.220446049250313e-16 * std::max(1e-5, std::abs(y0[c])));
+      yp_[c] = y0[c] + d;
+      const double dd = yp_[c] - y0[c];
+      const bool ok = stage(yp_.data(), fp_.data());
+      yp_[c] = y0[c];
+      if (!ok) return false;
+      for (int i = nv; i < n; ++i) jac_(i, c) = (fp_[i] - f0[i]) / dd;
+    }
+    for (int i = 0; i < nv; ++i) jac_(i, nv + i) = 1.0;
+    y_jac_.assign(y0, y0 + n);
+    jac_valid_ = true;
+    radius_ = -1.0;
     return true;
   }
 
@@ -1054,6 +1200,13 @@ class ContactRhs {
   std::vector<double> upper_, lower_;  // (set_limits)
   double force_band_ = 0.0, point_tol_ = 0.0, stick_band_ = 0.0;
   bool conditions_set_ = false, end_valid_ = false;
+  // the stiff steps (stiffness, rosenbrock): the last dopri's h |lambda|, the Jacobian, where
+  // it was taken, its spectral radius (-1: not computed), the LU of I/(h gamma) - J, the stages
+  double hlamb_ = 0.0, radius_ = -1.0;
+  bool jac_valid_ = false;
+  Eigen::MatrixXd jac_, K_;
+  Eigen::PartialPivLU<Eigen::MatrixXd> lu_;
+  std::vector<double> y_jac_, yp_, fp_, fs_;
 };
 
 NB_MODULE(_native, m) {
@@ -1075,6 +1228,10 @@ NB_MODULE(_native, m) {
       .def("first", &ContactRhs::first, nb::arg("Z"))
       .def("dopri", &ContactRhs::dopri, nb::arg("h"), nb::arg("Z"), nb::arg("ay0"),
            nb::arg("atol"), nb::arg("rtol"), nb::arg("y1"), nb::arg("ay1"))
+      .def("stiffness", &ContactRhs::stiffness)
+      .def("rosenbrock", &ContactRhs::rosenbrock, nb::arg("h"), nb::arg("Z"), nb::arg("ay0"),
+           nb::arg("atol"), nb::arg("rtol"), nb::arg("y1"), nb::arg("ay1"))
+      .def("jac_radius", &ContactRhs::jac_radius)
       .def("set_conditions", &ContactRhs::set_conditions, nb::arg("offset0"),
            nb::arg("force_band"), nb::arg("point_tol"), nb::arg("stick_band"))
       .def("end_eval", &ContactRhs::end_eval, nb::arg("y1"))
