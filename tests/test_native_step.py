@@ -155,12 +155,47 @@ def test_a_collapse_with_the_native_step_is_the_python_steps_within_rounding(rob
         runs.append(packbot.simulate(robot, robot.pose("drive"), np.zeros(8), 1.0, config=cfg))
     off, on = runs
     assert calls["native"] > 300  # the steps with engaged rows took the native step
-    assert len(on.t) == len(off.t)
-    assert [(e.kind, e.piece1) for e in on.events] == [(e.kind, e.piece1) for e in off.events]
-    dt = max(abs(a.t - b.t) for a, b in zip(on.events, off.events, strict=True))
-    assert dt <= 1e-3  # 1.6e-4 s here
-    np.testing.assert_allclose(on.q, off.q, rtol=0.0, atol=1e-3)  # 2.9e-4 rad here
+    # Rounding can tip a borderline event either way: a slide coming back to within
+    # STICK_BAND of zero (a stick and its slip at one instant in one run only), a pair
+    # reaching PENETRATION_TOL (re-patched in one run, its free row's impact in the other, at
+    # the same instant). Here (the rows' exact terms in p2 - p1): one such stick/slip pair at
+    # 0.303 s and one re-patch/impact at 0.598 s; the impacts after them 2e-3 s apart.
+    ev_on, ev_off = _outcomes(on.events), _outcomes(off.events)
+    assert [k for k, _, _ in ev_on] == [k for k, _, _ in ev_off]
+    dt = max(abs(a - b) for (_, a, _), (_, b, _) in zip(ev_on, ev_off, strict=True))
+    assert dt <= 5e-3  # 1.9e-3 s here
+    grid = np.arange(101) * 0.01  # the samples every 0.01 s (the events' own samples apart)
+    rows_on = [int(np.argmin(np.abs(on.t - g))) for g in grid]
+    rows_off = [int(np.argmin(np.abs(off.t - g))) for g in grid]
+    np.testing.assert_allclose(on.t[rows_on], grid, rtol=0.0, atol=1e-12)
+    np.testing.assert_allclose(off.t[rows_off], grid, rtol=0.0, atol=1e-12)
+    dq = np.abs(on.q[rows_on] - off.q[rows_off]).max()
+    assert dq <= 1e-3  # 1.4e-4 rad here
     assert on.diagnostics.min_distance >= -1e-5
+
+
+def _outcomes(events):
+    """(kind, piece1), t of the events, a stick followed by a slip of the same pair at the same
+    instant dropped (no mode change) and a re-patch counted as the impact it can be."""
+    out = []
+    for i, e in enumerate(events):
+        nxt = events[i + 1] if i + 1 < len(events) else None
+        prv = events[i - 1] if i > 0 else None
+        if (
+            e.kind == "stick"
+            and nxt is not None
+            and (nxt.kind, nxt.t, nxt.piece1, nxt.piece2) == ("slip", e.t, e.piece1, e.piece2)
+        ):
+            continue
+        if (
+            e.kind == "slip"
+            and prv is not None
+            and (prv.kind, prv.t, prv.piece1, prv.piece2) == ("stick", e.t, e.piece1, e.piece2)
+        ):
+            continue
+        kind = "impact" if e.kind == "repatch" else e.kind
+        out.append(((kind, e.piece1), e.t, e.piece2))
+    return out
 
 
 def test_the_step_kernel_is_offered_only_where_the_native_rhs_serves_every_stage(

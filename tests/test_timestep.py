@@ -248,16 +248,17 @@ def test_the_primal_projection_is_the_nearest_admissible_velocity():
     assert abs(lam @ (Jn @ v + b)) < 1e-6
 
 
-def test_a_crawling_stepper_opens_a_window(robot):
-    """Start 20, wrist free, mu 0.5: a slow slide near 0.67 s is stiff for the explicit
-    stepper (117,824 steps of 7 us in the first 0.8 s, five minutes of wall time); a window
-    opens once 400 steps average under 25 us, and the run takes a few thousand steps."""
+def test_the_slow_slide_of_start_20_does_not_crawl(robot):
+    """Start 20, wrist free, mu 0.5: a slow slide near 0.67 s was stiff for the explicit
+    stepper (117,824 steps of 7 us in the first 0.8 s, five minutes of wall time); then a
+    window opened once 400 steps averaged under 25 us (922 steps, one window). With the
+    patch normals on the faces' bodies and the rows' exact terms the slide is not stiff: 704
+    steps, no window. (The crawl detector itself: the next test.)"""
     q0 = start_pose(robot, 20)
     cfg = packbot.SimConfig(contact_mode="normal", mu=0.5, restitution=0.0)
     res = packbot.simulate(robot, q0, np.zeros(robot.nq), 0.8, config=cfg)
     d = res.diagnostics
-    assert d.windows >= 1
-    assert d.steps < 10_000
+    assert d.steps < 2_000
     assert -d.min_distance <= PENETRATION_TOL
     assert _event_gain(res) <= GAIN_TOL
 
