@@ -50,6 +50,11 @@ tolerance 1e-6 J).
 IMPACT_ADMM_ACCEPT = 1e-6
 """The true residual [-] under which the frictional impact's answer is used."""
 
+DEPENDENT_ROW = 1e-12
+"""A touching row of :meth:`RestartSteps.stop_slow` whose Schur complement (its diagonal in
+the LCP after the tangential equalities) is below this times the largest one [-] lies in the
+span of the tangential rows: rounding, not a constraint the LCP can act on."""
+
 FloatArray = NDArray[np.float64]
 
 
@@ -136,13 +141,28 @@ class RestartSteps(ConstrainedDynamics):
         y0 = GEE_pinv @ bE
         S = In @ minv @ In.T - GEI.T @ GEE_pinv @ GEI
         w0 = vn[touch] + GEI.T @ y0
-        lam = solve_lcp_psd(S, w0)
-        if lcp_residual(S, w0, lam) > RESIDUAL_TOL:
-            lam2 = _lemke(S, w0)
-            if lam2 is None or lcp_residual(S, w0, lam2) > RESIDUAL_TOL:
+        # A touching row in the span of the tangential rows (a hand-off clamp row on the turret
+        # where the slide's direction moves the turret alone) has a zero Schur complement up to
+        # rounding: the equalities fix its velocity w0, which a force on it cannot change. Its
+        # rounding-level diagonal made the LCP unsolvable (1e-16 against w0 = -4e-21 m/s):
+        # such a row is out of the LCP, at lambda = 0, if its w0 is not negative beyond
+        # RESIDUAL_TOL (otherwise the slide cannot stop without it approaching: unsolved).
+        scale = float(np.abs(np.diag(S)).max(initial=0.0))
+        fixed = np.diag(S) <= DEPENDENT_ROW * scale
+        lam = np.zeros(len(w0))
+        if fixed.any() and float(w0[fixed].min()) < -RESIDUAL_TOL:
+            log.debug("stop_slow: a row fixed by the slide would approach, velocity kept")
+            return v
+        keep = np.flatnonzero(~fixed)
+        Sk, wk = S[np.ix_(keep, keep)], w0[keep]
+        lamk = solve_lcp_psd(Sk, wk)
+        if lcp_residual(Sk, wk, lamk) > RESIDUAL_TOL:
+            lam2 = _lemke(Sk, wk)
+            if lam2 is None or lcp_residual(Sk, wk, lam2) > RESIDUAL_TOL:
                 log.debug("stop_slow: LCP unsolved, velocity kept")
                 return v
-            lam = lam2
+            lamk = lam2
+        lam[keep] = lamk
         y = y0 - GEE_pinv @ (GEI @ lam)
         imp = E.T @ y + In.T @ lam  # the generalized impulse M dv [N*m*s]
         dv = minv @ imp
