@@ -257,6 +257,61 @@ def test_step_torques_are_the_drives_torques(robot, rng):
             np.testing.assert_array_equal(applied + (-viscous * v - coulomb_dir), a + f)
 
 
+def test_the_root_findings_native_evaluations_are_the_python_ones(robot, monkeypatch):
+    """Inside a native step, the mode conditions' root finding evaluates them natively
+    (NativeRhs.eval_at, the loaded modes and torques): the same forces, rows, smallest
+    condition and slides as NormalContacts.evaluate at that state, to rounding; the root
+    finding's states lie inside their steps."""
+    seen = {"calls": 0}
+    worst = {"lam": 0.0, "rows": 0.0, "cond": 0.0}
+    original = native.NativeRhs.eval_at
+
+    def checked(self, contacts, y):
+        ev = original(self, contacts, y)
+        if ev is None:
+            return None
+        n = self.nv
+        law = checked.law
+        q, v = y[:n], y[n:]
+        assert contacts._last_eval[6] is ev
+        py = contacts.evaluate(q, v, law.free_accel(0.0, y), law.sys.minv(q))
+        np.testing.assert_allclose(ev.a, py.a, rtol=1e-10, atol=1e-10)
+        lscale = max(1.0, float(np.abs(py.lam).max()))
+        worst["lam"] = max(worst["lam"], float(np.abs(ev.lam - py.lam).max()) / lscale)
+        rows = np.concatenate([ev.gap - py.gap, ev.vn - py.vn, (ev.vt - py.vt).ravel()])
+        worst["rows"] = max(worst["rows"], float(np.abs(rows).max()))
+        worst["cond"] = max(worst["cond"], abs(ev.cond - py.cond))
+        seen["calls"] += 1
+        return ev
+
+    original_rebuild = NormalLaw.rebuild
+
+    def rebuild(self, system):
+        original_rebuild(self, system)
+        checked.law = self
+
+    monkeypatch.setattr(NormalLaw, "rebuild", rebuild)
+    monkeypatch.setattr(native.NativeRhs, "eval_at", checked)
+    cfg = packbot.SimConfig(contact_mode="normal", mu=0.5, locked_joints=WRIST)
+    packbot.simulate(robot, robot.pose("drive"), np.zeros(8), 1.0, config=cfg)
+    assert seen["calls"] > 20, seen
+    assert worst["lam"] <= 1e-9, worst
+    assert worst["rows"] <= 1e-12, worst
+    assert worst["cond"] <= 1e-8, worst
+
+
+def test_eval_at_refuses_a_wrong_state_and_needs_the_torques(robot):
+    cfg = packbot.SimConfig(contact_mode="normal", locked_joints=WRIST)
+    sysm = System(robot, robot.pose("drive"), cfg, None)
+    rhs = native.NativeRhs(sysm.model)
+    n = 2 * sysm.nv
+    with pytest.raises(ValueError, match="set_torque"):
+        rhs._rhs.eval_at(np.zeros(n))
+    rhs.set_torque(np.zeros(sysm.nv), np.zeros(sysm.nv), np.zeros(sysm.nv))
+    with pytest.raises(ValueError, match="2 nv"):
+        rhs._rhs.eval_at(np.zeros(n - 1))
+
+
 def test_bad_step_arguments_are_refused(robot):
     cfg = packbot.SimConfig(contact_mode="normal", locked_joints=WRIST)
     sysm = System(robot, robot.pose("drive"), cfg, None)

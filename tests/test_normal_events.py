@@ -156,8 +156,8 @@ def test_one_mode_condition_equals_the_dictionarys(robot, monkeypatch):
     crossings = patch_events.PatchEvents._problem_crossings
     seen = {"nrow": 0, "nfric": 0}
 
-    def checked(self, contacts, seg, y1):
-        out = crossings(self, contacts, seg, y1)
+    def checked(self, contacts, seg, y1, native=None):
+        out = crossings(self, contacts, seg, y1, native)
         for t in (seg.t0, 0.5 * (seg.t0 + seg.t1), seg.t1):
             ev = self._contact_eval(contacts, t, seg(t))
             cond = contacts.conditions(ev)

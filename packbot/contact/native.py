@@ -333,6 +333,34 @@ class NativeRhs:
         contacts._last_eval = (y1[:nv], y1[nv:], _NONE, _NONE, _NONE, contacts._plan_key, ev)
         return ev
 
+    def eval_at(self, contacts: NormalContacts, y: FloatArray) -> _Eval | None:
+        """The evaluation at state y with the loaded modes and torques (as :meth:`end_eval`).
+
+        For an event's root finding inside a native step (the modes and torques loaded for it,
+        unchanged since): the right-hand side's stage at y, then what :meth:`end_eval` reads,
+        in one call instead of :meth:`NormalContacts.evaluate`'s Python and kernel (the same
+        kernel, ported: the values agree to rounding). Kept as the contact set's last
+        evaluation at (q, v).
+
+        Args:
+            contacts: The contact set whose modes are loaded.
+            y: The state, (q, v).
+
+        Returns:
+            The evaluation, or None: the Delassus matrix is singular (the caller evaluates
+            in Python).
+        """
+        got = self._rhs.eval_at(y)
+        if got is None:
+            return None
+        from packbot.contact.normal_dynamics import _Eval
+
+        cond, a, lam, gap, vn, vt, slide2 = got
+        ev = _Eval(a, lam, gap, vn, vt, cond=cond, slide2=slide2)
+        nv = self.nv
+        contacts._last_eval = (y[:nv], y[nv:], _NONE, _NONE, _NONE, contacts._plan_key, ev)
+        return ev
+
     def set_limits(self, upper: FloatArray, lower: FloatArray) -> None:
         """The joint limits [rad] :meth:`end_check` screens (empty arrays: none)."""
         self._rhs.set_limits(_reals(upper), _reals(lower))

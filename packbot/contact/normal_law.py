@@ -390,7 +390,9 @@ class NormalLaw(PatchEvents):
             ev = rhs.end_eval(nc, y1)
             if ev is not None and ev.cond is not None and ev.cond >= 0.0:
                 return []
-        return self._problem_crossings(nc, seg, y1)
+            if ev is None:  # (not a native step: its modes are not the loaded ones)
+                rhs = None
+        return self._problem_crossings(nc, seg, y1, rhs)
 
     def _limit_held(self, j: int, side: int) -> bool:
         return self.normal.limit_engaged(j, side)

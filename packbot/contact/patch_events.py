@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -14,6 +14,9 @@ from packbot.contact.normal_modes import ModeEvent
 from packbot.contact.normal_tolerances import PENETRATION_TOL
 from packbot.contact.pairs import PairLaw
 from packbot.ode import DenseSegment
+
+if TYPE_CHECKING:
+    from packbot.contact.native import NativeRhs
 
 __all__ = ["PatchEvents"]
 
@@ -66,9 +69,18 @@ class PatchEvents(PairLaw):
         return contacts.conditions(self._contact_eval(contacts, t, y))
 
     def _problem_crossings(
-        self, contacts: NormalContacts, seg: DenseSegment, y1: FloatArray
+        self,
+        contacts: NormalContacts,
+        seg: DenseSegment,
+        y1: FloatArray,
+        native: NativeRhs | None = None,
     ) -> list[Crossing]:
-        """Mode conditions of a contact problem that changed sign over the step."""
+        """Mode conditions of a contact problem that changed sign over the step.
+
+        With ``native`` (the step was the native one, its modes and torques still loaded) the
+        root finding evaluates the conditions inside the step in one native call each
+        (:meth:`~packbot.contact.native.NativeRhs.eval_at`; in Python where it cannot).
+        """
         ev1 = self._contact_eval(contacts, seg.t1, y1)
         if not contacts.violated(ev1):
             return []
@@ -81,7 +93,11 @@ class PatchEvents(PairLaw):
         for k in bad:
 
             def gn(t: float, k: tuple[Any, ...] = k) -> float:
-                return contacts.condition(self._contact_eval(contacts, t, seg(t)), k)
+                y = seg(t)
+                ev = None if native is None else native.eval_at(contacts, y)
+                if ev is None:
+                    ev = self._contact_eval(contacts, t, y)
+                return contacts.condition(ev, k)
 
             g0 = cond0[k][1] if k in cond0 else 1.0
             out.append(Crossing(cond1[k][0], ("mode", *k), gn, g0, cond1[k][1]))

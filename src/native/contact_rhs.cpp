@@ -309,6 +309,22 @@ class ContactRhs {
                           vec(slide2_.data(), np_));
   }
 
+  // The evaluation at y with the modes and torques loaded (an event's root finding inside a
+  // native step): the right-hand side's stage at y, then end_eval's tuple there (y becomes the
+  // state end_eval and end_check answer for). None when the Delassus matrix is singular.
+  nb::object eval_at(F1 y) {
+    const size_t n = 2 * static_cast<size_t>(nv_);
+    if (y.shape(0) != n) throw std::invalid_argument("y: 2 nv entries expected");
+    if (applied_.size() != static_cast<size_t>(nv_))
+      throw std::invalid_argument("set_torque was not called");
+    end_valid_ = false;
+    std::vector<double> f(n);
+    if (!stage(y.data(), f.data())) return nb::none();
+    y_end_.assign(y.data(), y.data() + n);
+    end_valid_ = true;
+    return end_eval(y);
+  }
+
   // The contact set's pairs' indices in the collision world, in the layout's order (end_check).
   void set_keys(I1 keys) {
     if (keys.shape(0) != static_cast<size_t>(np_))
@@ -1265,6 +1281,7 @@ NB_MODULE(_native, m) {
       .def("set_conditions", &ContactRhs::set_conditions, nb::arg("offset0"),
            nb::arg("force_band"), nb::arg("point_tol"), nb::arg("stick_band"))
       .def("end_eval", &ContactRhs::end_eval, nb::arg("y1"))
+      .def("eval_at", &ContactRhs::eval_at, nb::arg("y"))
       .def("set_keys", &ContactRhs::set_keys, nb::arg("keys"))
       .def("set_limits", &ContactRhs::set_limits, nb::arg("upper"), nb::arg("lower"))
       .def("end_check", &ContactRhs::end_check, nb::arg("y1"), nb::arg("swept"), nb::arg("dist"),
