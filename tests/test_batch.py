@@ -476,7 +476,9 @@ def test_regress_cli_exit_codes(tmp_path: Path) -> None:
     shutil.copytree(default_golden_dir() / SMALL, golden / SMALL)
     out = tmp_path / "out"  # kept: the second call resumes it (nothing to run again)
     cmd = _cli("regress", SMALL, "--golden", str(golden), "--workers", "0", "--out", str(out))
-    res = subprocess.run(cmd, capture_output=True, timeout=120)
+    # (cwd: not the checkout, whose source tree `python -m` would import without the extensions:
+    # its runs would take the Python paths, which the golden bands do not cover)
+    res = subprocess.run(cmd, capture_output=True, timeout=120, cwd=tmp_path)
     assert res.returncode == 0, res.stdout.decode() + res.stderr.decode()
     assert b"no drift" in res.stdout
     path = golden / SMALL / "results.json"
@@ -484,11 +486,13 @@ def test_regress_cli_exit_codes(tmp_path: Path) -> None:
     rid = next(iter(data["runs"]))
     data["runs"][rid]["rest_time"] = 0.25
     path.write_text(json.dumps(data))
-    res = subprocess.run(cmd, capture_output=True, timeout=120)
+    res = subprocess.run(cmd, capture_output=True, timeout=120, cwd=tmp_path)
     assert res.returncode == 1
     out = res.stdout.decode()
     assert "rest_time" in out and rid in out and "1 quantities moved in 1 runs" in out
-    res = subprocess.run(_cli("regress", "--golden", str(tmp_path / "none")), capture_output=True)
+    res = subprocess.run(
+        _cli("regress", "--golden", str(tmp_path / "none")), capture_output=True, cwd=tmp_path
+    )
     assert res.returncode == 2 and b"no golden results" in res.stderr
 
 
@@ -782,6 +786,7 @@ def test_batch_cli_on_a_locked_folder_exits_2_with_one_line(tmp_path: Path) -> N
             capture_output=True,
             text=True,
             timeout=120,
+            cwd=tmp_path,
         )
     finally:
         holder.communicate("")

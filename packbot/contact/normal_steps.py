@@ -14,9 +14,9 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from packbot.contact.lcp import lcp_residual, solve_lcp_psd, solve_ncp_admm
+from packbot.contact.lcp import lcp_residual, solve_ncp_admm
 from packbot.contact.normal_dynamics import ConstrainedDynamics
-from packbot.contact.normal_modes import ModeEvent, _lemke, _psd_lcp
+from packbot.contact.normal_modes import ModeEvent, _psd_lcp
 from packbot.contact.normal_tolerances import (
     CAPTURE_ACCEL,
     CAPTURE_SPEED,
@@ -155,13 +155,10 @@ class RestartSteps(ConstrainedDynamics):
             return v
         keep = np.flatnonzero(~fixed)
         Sk, wk = S[np.ix_(keep, keep)], w0[keep]
-        lamk = solve_lcp_psd(Sk, wk)
+        lamk = _psd_lcp(Sk, wk)  # (the compiled Lemke first, else least squares)
         if lcp_residual(Sk, wk, lamk) > RESIDUAL_TOL:
-            lam2 = _lemke(Sk, wk)
-            if lam2 is None or lcp_residual(Sk, wk, lam2) > RESIDUAL_TOL:
-                log.debug("stop_slow: LCP unsolved, velocity kept")
-                return v
-            lamk = lam2
+            log.debug("stop_slow: LCP unsolved, velocity kept")
+            return v
         lam[keep] = lamk
         y = y0 - GEE_pinv @ (GEI @ lam)
         imp = E.T @ y + In.T @ lam  # the generalized impulse M dv [N*m*s]
