@@ -338,8 +338,9 @@ class ContactRows(ContactSet):
 
         A patch is a set of material point pairs (p1 on body 1, p2 on body 2) and a normal fixed
         in the body whose face it is; it describes the contact while (1) the points have not
-        slid apart by more than :data:`SLIDE_TOL` tangentially since it was built (the forces
-        act where the bodies touched, not where they touch now), and (2) the patch's smallest
+        slid apart by more than :data:`SLIDE_TOL` tangentially since it was built (the rows act
+        where the bodies touch, but a face-on-face patch's corners on the other face's edges
+        stay where they were), and (2) the patch's smallest
         gap equals the pair's signed distance to :data:`POINT_TOL` (a curved body's next facet
         comes closer than the patch predicts, or a point slides off the edge of its face and the
         face's plane holds it where nothing does). A slide of 2e-8 m per step passes both: the
