@@ -408,8 +408,13 @@ def test_kill_midway_then_rerun_completes_identically(reference, tmp_path: Path,
         deadline = time.monotonic() + 60
         while not list((out / "runs").glob("*.json")) and time.monotonic() < deadline:
             time.sleep(0.02)
-        # Ctrl-C reaches the whole process group; kill -9 of the group kills the workers too.
+        # Frozen where it is first (SIGSTOP acts at once, in the kernel): a batch whose runs
+        # take a few milliseconds cannot finish between the first record and the signal.
+        # Then Ctrl-C reaches the whole process group; kill -9 of the group kills the workers
+        # too.
+        os.killpg(proc.pid, signal.SIGSTOP)
         os.killpg(proc.pid, sig)
+        os.killpg(proc.pid, signal.SIGCONT)
         _, err = proc.communicate(timeout=60)
     finally:
         if proc.poll() is None:
