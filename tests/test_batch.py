@@ -396,13 +396,26 @@ def _cli(*args: str) -> list[str]:
     return [sys.executable, "-m", "packbot.cli", *args]
 
 
+def _default_sigint() -> None:
+    """In a child before it starts: SIGINT's default disposition (Python's KeyboardInterrupt)."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 @pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGKILL])
 def test_kill_midway_then_rerun_completes_identically(reference, tmp_path: Path, sig) -> None:
     out = tmp_path / "out"
     total = len(reference.runs)
     cmd = _cli("batch", SMALL, "--out", str(out), "--workers", "1")
     proc = subprocess.Popen(
-        cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, start_new_session=True, cwd=tmp_path
+        cmd,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        start_new_session=True,
+        cwd=tmp_path,
+        # Ctrl-C's default action in the batch even when this test runs with SIGINT ignored
+        # (a shell's background job, as CI may be): an ignored SIGINT is inherited, and Python
+        # then raises no KeyboardInterrupt
+        preexec_fn=_default_sigint,
     )
     try:
         deadline = time.monotonic() + 60
