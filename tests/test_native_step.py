@@ -257,13 +257,25 @@ def test_step_torques_are_the_drives_torques(robot, rng):
             np.testing.assert_array_equal(applied + (-viscous * v - coulomb_dir), a + f)
 
 
+def _note_differences(ev, py, worst: dict[str, float]) -> None:
+    """Keep in ``worst`` the largest differences of a native evaluation from the Python one:
+    forces (relative to max(1, |lambda|)), rows (gaps, normal and centre velocities), the
+    smallest condition and the slides."""
+    lscale = max(1.0, float(np.abs(py.lam).max()))
+    worst["lam"] = max(worst["lam"], float(np.abs(ev.lam - py.lam).max()) / lscale)
+    rows = np.concatenate([ev.gap - py.gap, ev.vn - py.vn, (ev.vt - py.vt).ravel()])
+    worst["rows"] = max(worst["rows"], float(np.abs(rows).max()))
+    worst["cond"] = max(worst["cond"], abs(ev.cond - py.cond))
+    slides = np.abs(ev.slide2 - py.slide2)  # (no pair: a limit row alone)
+    worst["slide2"] = max(worst["slide2"], float(slides.max(initial=0.0)))
+
+
 def test_the_root_findings_native_evaluations_are_the_python_ones(robot, monkeypatch):
     """Inside a native step, the mode conditions' root finding evaluates them natively
     (NativeRhs.eval_at, the loaded modes and torques): the same forces, rows, smallest
-    condition and slides as NormalContacts.evaluate at that state, to rounding; the root
-    finding's states lie inside their steps."""
+    condition and slides as NormalContacts.evaluate at that state, to rounding."""
     seen = {"calls": 0}
-    worst = {"lam": 0.0, "rows": 0.0, "cond": 0.0}
+    worst = {"lam": 0.0, "rows": 0.0, "cond": 0.0, "slide2": 0.0}
     original = native.NativeRhs.eval_at
 
     def checked(self, contacts, y):
@@ -276,11 +288,7 @@ def test_the_root_findings_native_evaluations_are_the_python_ones(robot, monkeyp
         assert contacts._last_eval[6] is ev
         py = contacts.evaluate(q, v, law.free_accel(0.0, y), law.sys.minv(q))
         np.testing.assert_allclose(ev.a, py.a, rtol=1e-10, atol=1e-10)
-        lscale = max(1.0, float(np.abs(py.lam).max()))
-        worst["lam"] = max(worst["lam"], float(np.abs(ev.lam - py.lam).max()) / lscale)
-        rows = np.concatenate([ev.gap - py.gap, ev.vn - py.vn, (ev.vt - py.vt).ravel()])
-        worst["rows"] = max(worst["rows"], float(np.abs(rows).max()))
-        worst["cond"] = max(worst["cond"], abs(ev.cond - py.cond))
+        _note_differences(ev, py, worst)
         seen["calls"] += 1
         return ev
 
@@ -298,6 +306,7 @@ def test_the_root_findings_native_evaluations_are_the_python_ones(robot, monkeyp
     assert worst["lam"] <= 1e-9, worst
     assert worst["rows"] <= 1e-12, worst
     assert worst["cond"] <= 1e-8, worst
+    assert worst["slide2"] <= 1e-20, worst
 
 
 def test_eval_at_refuses_a_wrong_state_and_needs_the_torques(robot):
@@ -351,13 +360,7 @@ def test_the_step_ends_conditions_are_the_python_evaluations(
         np.testing.assert_array_equal(contacts._last_eval[0], q)
         py = contacts.evaluate(q, v, law.free_accel(0.0, y1), law.sys.minv(q))
         np.testing.assert_allclose(ev.a, py.a, rtol=1e-12, atol=1e-12)
-        lscale = max(1.0, float(np.abs(py.lam).max()))
-        worst["lam"] = max(worst["lam"], float(np.abs(ev.lam - py.lam).max()) / lscale)
-        rows = np.concatenate([ev.gap - py.gap, ev.vn - py.vn, (ev.vt - py.vt).ravel()])
-        worst["rows"] = max(worst["rows"], float(np.abs(rows).max()))
-        worst["cond"] = max(worst["cond"], abs(ev.cond - py.cond))
-        slides = np.abs(ev.slide2 - py.slide2)  # (no pair: a limit row alone)
-        worst["slide2"] = max(worst["slide2"], float(slides.max(initial=0.0)))
+        _note_differences(ev, py, worst)
         assert contacts.violated(ev) == contacts.violated(py)
         seen["ends"] += 1
         seen["violated"] += ev.cond < 0.0

@@ -322,16 +322,7 @@ class NativeRhs:
         Returns:
             The evaluation, or None: the last native call was not a step ending at y1.
         """
-        got = self._rhs.end_eval(y1)
-        if got is None:
-            return None
-        from packbot.contact.normal_dynamics import _Eval
-
-        cond, a, lam, gap, vn, vt, slide2 = got
-        ev = _Eval(a, lam, gap, vn, vt, cond=cond, slide2=slide2)
-        nv = self.nv
-        contacts._last_eval = (y1[:nv], y1[nv:], _NONE, _NONE, _NONE, contacts._plan_key, ev)
-        return ev
+        return self._kept(contacts, y1, self._rhs.end_eval(y1))
 
     def eval_at(self, contacts: NormalContacts, y: FloatArray) -> _Eval | None:
         """The evaluation at state y with the loaded modes and torques (as :meth:`end_eval`).
@@ -350,7 +341,10 @@ class NativeRhs:
             The evaluation, or None: the Delassus matrix is singular (the caller evaluates
             in Python).
         """
-        got = self._rhs.eval_at(y)
+        return self._kept(contacts, y, self._rhs.eval_at(y))
+
+    def _kept(self, contacts: NormalContacts, y: FloatArray, got: Any) -> _Eval | None:
+        """The extension's evaluation tuple at y as an ``_Eval``, kept by the contact set."""
         if got is None:
             return None
         from packbot.contact.normal_dynamics import _Eval

@@ -203,6 +203,8 @@ class MoreauJeanStepper:
         contacts: The contact set whose patches and rows the steps use (the law's own).
         config: Simulation settings (mu, restitution, zeno_speed, joint_limits, motor_lag).
         h: Time step [s].
+        reach: Per velocity index, the bound [m] :func:`reach_bounds` gives for this model and
+            world, if the caller holds it (None: computed here).
     """
 
     #: Free accelerations at the step's midpoint (False: at its start, the Euler step).
@@ -215,6 +217,7 @@ class MoreauJeanStepper:
         contacts: NormalContacts,
         config: SimConfig,
         h: float = WINDOW_STEP,
+        reach: FloatArray | None = None,
     ) -> None:
         self.sys, self.drive, self.contacts, self.cfg = system, drive, contacts, config
         self.h = float(h)
@@ -244,8 +247,9 @@ class MoreauJeanStepper:
         self._point_tol, self._slide_tol = normal.POINT_TOL, normal.SLIDE_TOL
         self._lay: _PairLayout | None = None  # see _layout
         #: Per velocity index, a bound on the distance [m] from the joint's axis to any point
-        #: it moves: a point's speed is at most reach . |v| (see reach_bounds).
-        self.reach = reach_bounds(system.model, contacts.world)
+        #: it moves: a point's speed is at most reach . |v| (see reach_bounds; ``reach``: the
+        #: caller's, for the same model and world).
+        self.reach = reach_bounds(system.model, contacts.world) if reach is None else reach
 
     def step(
         self,

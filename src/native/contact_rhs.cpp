@@ -577,19 +577,26 @@ class ContactRhs {
     return stage(z, z + n);
   }
 
+  // The arguments of an attempt (dopri, rosenbrock): Z (8, 2 nv), the others (2 nv,), and the
+  // torques set.
+  void check_attempt(const Out2 &Z, const F1 &ay0, const F1 &atol, const Out1 &y1,
+                     const Out1 &ay1) const {
+    const size_t n = 2 * static_cast<size_t>(nv_);
+    if (Z.shape(0) != 8 || Z.shape(1) != n || ay0.shape(0) != n || atol.shape(0) != n ||
+        y1.shape(0) != n || ay1.shape(0) != n)
+      throw std::invalid_argument("Z (8, 2 nv); ay0, atol, y1, ay1 (2 nv,) expected");
+    if (applied_.size() != static_cast<size_t>(nv_))
+      throw std::invalid_argument("set_torque was not called");
+  }
+
   // One Dormand-Prince 5(4) attempt of size h (packbot.ode.RK45Stepper.step's stages and error
   // norm) on y = (q, v) with the modes and torques loaded: Z (8, 2 nv) holds [y0, k0] on entry
   // and [y0, k0, ..., k6] on return (k6 = f(y1), the FSAL stage), y1 the 5th-order solution,
   // ay1 = |y1|. Returns the scaled RMS error norm, or -1 when a stage's Delassus matrix is
   // singular (the caller takes the Python stages).
   double dopri(double h, Out2 Z, F1 ay0, F1 atol, double rtol, Out1 y1, Out1 ay1) {
-    const int nv = nv_, n = 2 * nv_;
-    if (Z.shape(0) != 8 || Z.shape(1) != static_cast<size_t>(n) ||
-        ay0.shape(0) != static_cast<size_t>(n) || atol.shape(0) != static_cast<size_t>(n) ||
-        y1.shape(0) != static_cast<size_t>(n) || ay1.shape(0) != static_cast<size_t>(n))
-      throw std::invalid_argument("Z (8, 2 nv); ay0, atol, y1, ay1 (2 nv,) expected");
-    if (applied_.size() != static_cast<size_t>(nv))
-      throw std::invalid_argument("set_torque was not called");
+    const int n = 2 * nv_;
+    check_attempt(Z, ay0, atol, y1, ay1);
     static constexpr double A[7][7] = {
         {0, 0, 0, 0, 0, 0, 0},
         {1.0 / 5, 0, 0, 0, 0, 0, 0},
@@ -656,13 +663,8 @@ class ContactRhs {
   // RMS error norm (as dopri's), or -1 when a stage's Delassus matrix or I/(h gamma) - J is
   // singular.
   double rosenbrock(double h, Out2 Z, F1 ay0, F1 atol, double rtol, Out1 y1, Out1 ay1) {
-    const int nv = nv_, n = 2 * nv_;
-    if (Z.shape(0) != 8 || Z.shape(1) != static_cast<size_t>(n) ||
-        ay0.shape(0) != static_cast<size_t>(n) || atol.shape(0) != static_cast<size_t>(n) ||
-        y1.shape(0) != static_cast<size_t>(n) || ay1.shape(0) != static_cast<size_t>(n))
-      throw std::invalid_argument("Z (8, 2 nv); ay0, atol, y1, ay1 (2 nv,) expected");
-    if (applied_.size() != static_cast<size_t>(nv))
-      throw std::invalid_argument("set_torque was not called");
+    const int n = 2 * nv_;
+    check_attempt(Z, ay0, atol, y1, ay1);
     if (!(h > 0.0)) throw std::invalid_argument("h: a step size > 0 expected");
     static constexpr double gam = 0.25;
     static constexpr double A[6][5] = {
