@@ -403,14 +403,14 @@ def stale_pairs(  # pragma: no cover - compiled
     offset0: Any,
     distance: Any,
     point_tol: float,
-    slide_tol: float,
+    slide_tol2: Any,
 ) -> Any:
     """Which pairs' patches no longer describe their contact (the window step's contact set).
 
     The rule of :meth:`packbot.contact.normal.NormalContacts.stale_pairs` on every pair at
     once, from the contact set's kinematics (:func:`packbot.contact.kernels.contact_rows`):
     a pair is stale when its smallest patch gap is off its distance by more than
-    ``point_tol`` (or it has no distance: NaN), or a point slid by more than ``slide_tol``
+    ``point_tol`` (or it has no distance: NaN), or a point slid by more than its ``slide_tol2``
     tangentially since the patch was built.
 
     Args:
@@ -422,7 +422,7 @@ def stale_pairs(  # pragma: no cover - compiled
         offset0: (m_p, 2) each pair row's tangential offset when its patch was built [m].
         distance: (pairs,) each pair's signed distance [m] (NaN: none).
         point_tol: Gap tolerance [m].
-        slide_tol: Slide tolerance [m].
+        slide_tol2: (pairs,) the square of the slide each pair goes stale at [m^2].
 
     Returns:
         (pairs,) True where the pair is stale.
@@ -442,7 +442,7 @@ def stale_pairs(  # pragma: no cover - compiled
             slide2[p] = s2
     out = np.empty(n, dtype=np.bool_)
     for p in range(n):
-        out[p] = not abs(gmin[p] - distance[p]) <= point_tol or slide2[p] > slide_tol * slide_tol
+        out[p] = not abs(gmin[p] - distance[p]) <= point_tol or slide2[p] > slide_tol2[p]
     return out
 
 

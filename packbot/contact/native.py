@@ -367,7 +367,7 @@ class NativeRhs:
         active: NDArray[np.int64],
         near: float,
         pen_tol: float,
-        slide_tol2: float,
+        slide_tol2: FloatArray,
     ) -> int:
         """The step end's screen of the contact-normal mode, from the last native step's end.
 
@@ -389,7 +389,8 @@ class NativeRhs:
             active: The active pairs' indices.
             near: The proximity tolerance [m].
             pen_tol: The penetration a contact re-patches at [m].
-            slide_tol2: The square of the slide a patch goes stale at [m^2].
+            slide_tol2: (pairs,) the square of the slide each patch goes stale at [m^2] (the
+                contact set's order; inf: never by its slide).
         """
         return int(self._rhs.end_check(y1, swept, dist, active, near, pen_tol, slide_tol2))
 

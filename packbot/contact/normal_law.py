@@ -22,7 +22,7 @@ from packbot.contact import native
 from packbot.contact.base import Active, Crossing, Key
 from packbot.contact.locks import JointLocks
 from packbot.contact.normal_contacts import NormalContacts
-from packbot.contact.normal_tolerances import PENETRATION_TOL, SLIDE_TOL
+from packbot.contact.normal_tolerances import PENETRATION_TOL
 from packbot.contact.pairs import reach_bounds
 from packbot.contact.patch_events import PatchEvents
 from packbot.contact.timestep import QUIET_STEPS, MoreauJeanStepper
@@ -44,7 +44,6 @@ __all__ = [
 ]
 
 log = logging.getLogger(__name__)
-_SLIDE_TOL2 = SLIDE_TOL**2  # [m^2] (normal_rows' test: the same square)
 
 FloatArray = NDArray[np.float64]
 
@@ -342,7 +341,7 @@ class NormalLaw(PatchEvents):
             active,
             self.cfg.proximity_tolerance,
             PENETRATION_TOL,
-            _SLIDE_TOL2,
+            self.normal._layout().slide_tol2,
         )
 
     def _screened_crossings(

@@ -17,7 +17,7 @@ import pinocchio as pin
 from numpy.typing import NDArray
 
 from packbot.collision import PairInfo
-from packbot.contact.normal_tolerances import PATCH_TOL
+from packbot.contact.normal_tolerances import PATCH_TOL, SLIDE_TOL
 
 FloatArray = NDArray[np.float64]
 
@@ -36,6 +36,9 @@ class _Pair:
     local2: FloatArray  # (K, 3) points on body 2, joint2 frame [m]
     normal2: FloatArray  # (3,) normal in the frame of the joint carrying it
     on1: bool = False  # the normal is a face normal of body 1, fixed in joint1's frame
+    #: the slide [m] its patch goes stale at (``NormalContacts.stale``): SLIDE_TOL, or inf for a
+    #: vertex on a face (normal_tolerances.FACE_ALIGN)
+    slide_tol: float = SLIDE_TOL
     stick: bool = True
     slip_dir: FloatArray = field(default_factory=lambda: np.zeros(3))  # world, at onset
     # (2, K) tangential offsets (t1, t2 of the contact frame) of p2 - p1 when built [m]

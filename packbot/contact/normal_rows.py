@@ -19,7 +19,7 @@ from numpy.typing import NDArray
 
 from packbot.contact.normal_patch import _Pair
 from packbot.contact.normal_set import ContactSet
-from packbot.contact.normal_tolerances import POINT_TOL, SLIDE_TOL, STICK_SPEED
+from packbot.contact.normal_tolerances import POINT_TOL, STICK_SPEED
 
 __all__ = ["ContactRows"]
 
@@ -48,6 +48,7 @@ class _Layout:
     lim_side: FloatArray  # (limits,) +1 upper, -1 lower
     lim_value: FloatArray  # (limits,) the limit [rad]
     offset0: FloatArray  # (m_p, 2) per pair row, its tangential offset when built [m]
+    slide_tol2: FloatArray  # (pairs,) the square of the slide each patch goes stale at [m^2]
     no_bodies: FloatArray  # (0, 4, 4), the placements when no pair is in contact
     # (position in joints, Pinocchio's live reference to data.oMi[joint]) of the moving joints
     placements: list[tuple[int, Any]]
@@ -188,6 +189,7 @@ class ContactRows(ContactSet):
             lim_side=np.array([side for (_, side), _ in limits], dtype=np.float64),
             lim_value=np.array([value for _, value in limits], dtype=np.float64),
             offset0=_offset0(pairs),
+            slide_tol2=np.array([p.slide_tol**2 for p in pairs], dtype=np.float64),
             no_bodies=np.zeros((0, 4, 4)),
             no_jacobian=np.asfortranarray(np.zeros((6, self.nv))),
             placements=[(i, self.data.oMi[j]) for i, j in enumerate(joints) if j],
@@ -338,14 +340,16 @@ class ContactRows(ContactSet):
 
         A patch is a set of material point pairs (p1 on body 1, p2 on body 2) and a normal fixed
         in the body whose face it is; it describes the contact while (1) the points have not
-        slid apart by more than :data:`SLIDE_TOL` tangentially since it was built (the rows act
-        where the bodies touch, but a face-on-face patch's corners on the other face's edges
-        stay where they were), and (2) the patch's smallest
-        gap equals the pair's signed distance to :data:`POINT_TOL` (a curved body's next facet
-        comes closer than the patch predicts, or a point slides off the edge of its face and the
-        face's plane holds it where nothing does). A slide of 2e-8 m per step passes both: the
-        patch, its drift projection and its modes are kept (events still watch every row and
-        the pair's distance).
+        slid apart by more than the pair's ``slide_tol`` (normally
+        :data:`~packbot.contact.normal_tolerances.SLIDE_TOL`) tangentially since it was built
+        (the rows act where the bodies touch, but a face-on-face patch's corners on the other
+        face's edges stay where they were; a vertex on a face has no such corner and never goes
+        stale by its slide: :data:`~packbot.contact.normal_tolerances.FACE_ALIGN`), and (2) the
+        patch's smallest gap equals the pair's signed distance to :data:`POINT_TOL` (a curved body's
+        next facet comes closer than the patch predicts, or a point slides off the edge of its
+        face and the face's plane holds it where nothing does). A slide of 2e-8 m per step
+        passes both: the patch, its drift projection and its modes are kept (events still
+        watch every row and the pair's distance).
 
         Args:
             q: Configuration [rad].
@@ -396,7 +400,7 @@ class ContactRows(ContactSet):
                 ex = extra[i]
                 slide = ex["T"] @ ex["dp"].T - p.offset0  # (2, K)
                 s2 = float(np.max(slide[0] ** 2 + slide[1] ** 2))
-            if s2 > SLIDE_TOL**2:
+            if s2 > p.slide_tol**2:
                 out.append(key)
                 if engaged_only:
                     return out
@@ -421,7 +425,7 @@ class ContactRows(ContactSet):
             d = distance.get(key)
             if d is None or abs(float(gap[sl.start - i : sl.stop - i].min()) - d) > POINT_TOL:
                 return [key]
-            if float(slide2[i]) > SLIDE_TOL**2:
+            if float(slide2[i]) > self._pair_list[i].slide_tol ** 2:
                 return [key]
         return []
 

@@ -7,6 +7,7 @@ caches the rows keep (emptied whenever the set changes).
 from __future__ import annotations
 
 import logging
+import math
 from collections.abc import Sequence
 from typing import TYPE_CHECKING, Any
 
@@ -16,7 +17,7 @@ from numpy.typing import NDArray
 
 from packbot.collision import CollisionWorld, PairInfo
 from packbot.contact.normal_patch import _Pair, _planes
-from packbot.contact.normal_tolerances import PATCH_TOL
+from packbot.contact.normal_tolerances import FACE_ALIGN, PATCH_TOL
 
 if TYPE_CHECKING:
     from typing_extensions import Self
@@ -264,6 +265,8 @@ class ContactSet:
         local1, local2, normal2, frame2, centre1, centre2, offset0, on1 = made
         p = _Pair(info, local1, local2, normal2, bool(on1), offset0=offset0)
         p.frame2, p.centre1, p.centre2 = frame2, centre1, centre2
+        if len(local1) == 1 and _on_a_face(N1, Rg1, N2, Rg2, n, bool(on1)):
+            p.slide_tol = math.inf  # a vertex on a face: nothing lags as it slides
         if old is not None:
             p.stick, p.slip_dir = old.stick, old.slip_dir
         self.pairs[pair] = p  # (the caller invalidates the caches)
@@ -366,3 +369,18 @@ class ContactSet:
         if self._pairs_cache is None:
             self._pairs_cache = list(self.pairs.values())
         return self._pairs_cache
+
+
+def _on_a_face(
+    N1: FloatArray, Rg1: FloatArray, N2: FloatArray, Rg2: FloatArray, n: FloatArray, on1: bool
+) -> bool:
+    """Whether the patch normal n (world, body 1 to body 2) is a face normal of its body.
+
+    Body 1's outward face normal is +n, body 2's -n (face planes N in each piece's frame,
+    placements Rg1, Rg2); to within :data:`FACE_ALIGN` (1 - cos).
+    """
+    if on1:
+        N, m = N1, Rg1.T @ n
+    else:
+        N, m = N2, -(Rg2.T @ n)
+    return bool(len(N)) and float((N @ m).max()) >= 1.0 - FACE_ALIGN

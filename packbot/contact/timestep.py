@@ -244,7 +244,7 @@ class MoreauJeanStepper:
 
         self._conic, self._kernels = conic, kernels
         # the event-driven mode's patch rule (NormalContacts.stale_pairs), see _stale
-        self._point_tol, self._slide_tol = normal.POINT_TOL, normal.SLIDE_TOL
+        self._point_tol = normal.POINT_TOL
         self._lay: _PairLayout | None = None  # see _layout
         #: Per velocity index, a bound on the distance [m] from the joint's axis to any point
         #: it moves: a point's speed is at most reach . |v| (see reach_bounds; ``reach``: the
@@ -556,7 +556,7 @@ class MoreauJeanStepper:
 
         :meth:`NormalContacts.stale_pairs` (its rule: a pair missing from ``near``, a
         smallest patch gap off the pair's distance by more than ``POINT_TOL``, or a point
-        slid by more than ``SLIDE_TOL`` since the patch was built), on every pair at once
+        slid by more than its ``slide_tol`` since the patch was built), on every pair at once
         (:func:`packbot.contact.conic.stale_pairs`) from the set's kinematics at (q, v).
         Where the contact set holds a compiled evaluation (which computed the slides
         itself), its own method.
@@ -580,7 +580,7 @@ class MoreauJeanStepper:
         dist = np.array([near.get(k, math.nan) for k in lay.keys])
         stale = self._conic.stale_pairs(
             raw[2], raw[9], raw[11], lay.rows, lay.pair, lay.offset0, dist,
-            self._point_tol, self._slide_tol,
+            self._point_tol, lay.of.slide_tol2,
         )  # fmt: skip
         return list(compress(lay.keys, stale.tolist())), (raw, lay)
 

@@ -350,14 +350,16 @@ class ContactRhs {
   // d < -pen_tol). 2: the smallest mode condition (end_eval's cond) is negative. 4: a pair with
   // engaged rows slides faster than the stick speed (NormalContacts.sliding) and one such pair's
   // patch is stale (stale_pairs: its distance missing from the sweep, its gaps' minimum off it
-  // by more than the point tolerance, or a slide2 above slide_tol2), or a slide speed is within
+  // by more than the point tolerance, or a slide2 above its slide_tol2), or a slide speed is within
   // a relative 1e-9 of the stick speed (numpy's dot may round otherwise: the caller decides).
   // 8: a joint is at or beyond one of its limits (set_limits; JointStops._limit_crossings).
   int end_check(F1 y1, I1 swept, F1 dist, I1 active, double near, double pen_tol,
-                double slide_tol2) {
+                F1 slide_tol2) {
     const size_t ns = swept.shape(0);
     if (dist.shape(0) != ns) throw std::invalid_argument("swept, dist: one length expected");
     if (!at_end(y1) || keys_.size() != static_cast<size_t>(np_)) return -1;
+    if (slide_tol2.shape(0) != static_cast<size_t>(np_))
+      throw std::invalid_argument("slide_tol2: one entry per pair expected");
     int out = 0;
     const int64_t *sp = swept.data(), *ac = active.data();
     const size_t na = active.shape(0);
@@ -402,7 +404,7 @@ class ContactRhs {
       size_t k = 0;
       while (k < ns && sp[k] != key) ++k;
       if (k == ns || std::isnan(gap_min_[p]) || std::abs(gap_min_[p] - dp[k]) > point_tol_ ||
-          slide2_[p] > slide_tol2)
+          slide2_[p] > slide_tol2.data()[p])
         return out | 4;
     }
     return out;

@@ -1,0 +1,107 @@
+"""A vertex sliding on a face keeps its one-point patch; other patches go stale at SLIDE_TOL.
+
+A one-point patch whose normal is a face normal of its body (``FACE_ALIGN``) is a vertex on
+that face: its point is the vertex, where the bodies touch however far it slides, so it is not
+rebuilt for its slide (``NormalContacts.stale``), only when its gap leaves the pair's distance.
+The collapse (mu = 0.5, wrist locked): link 3's tube slides over the shoulder casing on one
+vertex; it was re-patched 44 times (every 1 mm), now never for its slide.
+"""
+
+import numpy as np
+import pinocchio as pin
+import pytest
+
+import packbot
+from packbot.contact import normal_law, normal_set
+from packbot.contact.normal_tolerances import FACE_ALIGN, SLIDE_TOL
+from packbot.mujoco_model import WRIST_JOINTS
+
+
+def _world_point(law, joint: int, local: np.ndarray) -> np.ndarray:
+    M = law.normal.data.oMi[joint]
+    return np.asarray(M.rotation @ local + M.translation)
+
+
+@pytest.fixture(scope="module")
+def collapse(robot):
+    """The collapse (2 s): at every accepted step's end, each vertex-on-face patch's vertex,
+    the distance from it to Coal's witness point on its body, and its slide since built."""
+    seen: list[tuple[int, float, float, float]] = []
+    after = normal_law.NormalLaw.after_step
+
+    def watched(self, t, y):
+        out = after(self, t, y)
+        q = y[: self.n] if out is None else out[: self.n]
+        pin.forwardKinematics(self.normal.model, self.normal.data, q)
+        for key, p in self.normal.pairs.items():
+            if np.isfinite(p.slide_tol):
+                continue
+            info = p.info
+            v1 = _world_point(self, info.joint1, p.local1[0])
+            v2 = _world_point(self, info.joint2, p.local2[0])
+            c = self.world.pair_contact(q, key)
+            # the vertex is on the body without the face
+            vertex, witness = (v2, c.p2) if p.on1 else (v1, c.p1)
+            n = c.normal
+            rel = v2 - v1
+            # (its p2 - p1 was along n when built: offset0 = 0)
+            assert np.abs(p.offset0).max() < 1e-9
+            slide = float(np.linalg.norm(rel - (rel @ n) * n))
+            seen.append((key, float(np.linalg.norm(vertex - witness)), slide, c.distance))
+        return out
+
+    cfg = packbot.SimConfig(contact_mode="normal", mu=0.5, locked_joints=WRIST_JOINTS)
+    mp = pytest.MonkeyPatch()
+    mp.setattr(normal_law.NormalLaw, "after_step", watched)
+    try:
+        q0, v0 = robot.pose("drive"), np.zeros(robot.model.nv)
+        res = packbot.simulate(robot, q0, v0, 2.0, config=cfg)
+    finally:
+        mp.undo()
+    return res, seen
+
+
+def test_a_vertex_on_a_face_is_kept_while_it_slides(collapse):
+    res, seen = collapse
+    assert seen, "no vertex-on-face patch in the collapse: the test covers nothing"
+    # kept beyond SLIDE_TOL (the rule before re-patched at 1 mm) ...
+    assert max(s for _, _, s, _ in seen) > 3.0 * SLIDE_TOL
+    # ... and still where the bodies touch: the vertex is Coal's witness point on its body
+    touching = [w for _, w, _, d in seen if d < 1e-4]
+    assert touching and max(touching) < 1e-6, max(touching)
+    assert -res.diagnostics.min_distance <= 1e-5
+
+
+def test_only_vertices_on_faces_skip_the_slide_rule(robot):
+    """Every one-point patch of wrist-free starts: slide_tol inf exactly when its normal is a
+    face normal of its body (the palm's edges crossing the camera head's keep SLIDE_TOL)."""
+    from test_normal_cascade import start_pose
+
+    kinds = {"vertex": 0, "other": 0}
+    put = normal_set.ContactSet._put
+
+    def recorded(self, q, pair, n, points1, points2, d, Rg1, tg1, Rg2, tg2, frames, material):
+        put(self, q, pair, n, points1, points2, d, Rg1, tg1, Rg2, tg2, frames, material)
+        p = self.pairs[pair]
+        info = self.world.pairs[pair]
+        N1, _ = self._planes_of(info.geom1)
+        N2, _ = self._planes_of(info.geom2)
+        best = max(
+            float((N1 @ (Rg1.T @ n)).max()) if len(N1) else -1.0,
+            float((-(N2 @ (Rg2.T @ n))).max()) if len(N2) else -1.0,
+        )
+        if len(p.local1) == 1 and best >= 1.0 - FACE_ALIGN:
+            kinds["vertex"] += 1
+            assert p.slide_tol == np.inf
+        else:
+            kinds["other"] += 1
+            assert p.slide_tol == SLIDE_TOL
+
+    cfg = packbot.SimConfig(contact_mode="normal", mu=0.5, restitution=0.0)
+    mp = pytest.MonkeyPatch()
+    mp.setattr(normal_set.ContactSet, "_put", recorded)
+    try:
+        packbot.simulate(robot, start_pose(robot, 1), np.zeros(robot.model.nv), 0.6, config=cfg)
+    finally:
+        mp.undo()
+    assert kinds["vertex"] > 0 and kinds["other"] > 0, kinds
