@@ -51,6 +51,10 @@ tolerance 1e-6 J).
 IMPACT_ADMM_ACCEPT = 1e-6
 """The true residual [-] under which the frictional impact's answer is used."""
 
+IMPACT_CONIC = True
+IMPACT_CONIC_TOL = 1e-10
+"""The compiled solver's target residual for a frictional impact [-] (Pinocchio's ADMM's)."""
+
 DEPENDENT_ROW = 1e-12
 """A touching row of :meth:`RestartSteps.stop_slow` whose Schur complement (its diagonal in
 the LCP after the tangential equalities) is below this times the largest one [-] lies in the
@@ -344,7 +348,7 @@ class RestartSteps(ConstrainedDynamics):
             G3 = J3 @ minv @ J3.T
             g3 = J3 @ v
             g3[2::3] += e * np.minimum(g3[2::3], 0.0)
-            x, res = _impact_admm(self.model, self.data, G3, g3, mus)
+            x, res = _impact_cones(self.model, self.data, J3, minv, G3, g3, mus)
             if res <= IMPACT_ADMM_ACCEPT:
                 dv = minv @ J3.T @ x
                 if _energy_change(x, J3 @ v, J3 @ dv) <= 0.0:
@@ -377,6 +381,43 @@ class RestartSteps(ConstrainedDynamics):
         if res > RESIDUAL_TOL:
             log.warning("impact LCP residual %.3g", res)
         return P
+
+
+def _impact_cones(
+    model: Any,
+    data: Any,
+    J3: FloatArray,
+    minv: FloatArray,
+    G3: FloatArray,
+    g3: FloatArray,
+    mus: FloatArray,
+) -> tuple[FloatArray, float]:
+    """The frictional impact's impulses: the compiled conic solver first, else Pinocchio's.
+
+    The windows' low-rank ADMM (:func:`packbot.contact.conic.solve_conic`) on the factor
+    A = J3 C of G3 = J3 M^-1 J3^T (C C^T = M^-1, Cholesky), to a true residual of
+    :data:`IMPACT_CONIC_TOL` within :data:`IMPACT_ADMM_ITERATIONS`; where its answer is above
+    :data:`IMPACT_ADMM_ACCEPT`, or M^-1 has no Cholesky factor (singular: joints held by the
+    hand-off's rows), Pinocchio's ADMM (:func:`_impact_admm`).
+
+    Returns:
+        The impulses (blocks (t1, t2, n) [N*s]) and their true residual.
+    """
+    if IMPACT_CONIC:
+        from packbot.contact import conic  # (numba's cache: loaded at the first impact)
+
+        try:
+            C = np.linalg.cholesky(minv)
+        except np.linalg.LinAlgError:  # a singular M^-1 (the hand-off's held joints)
+            return _impact_admm(model, data, G3, g3, mus)
+        A = np.ascontiguousarray(J3 @ C)
+        x, res, _, _ = conic.solve_conic(
+            A, g3, np.asarray(mus, dtype=np.float64), np.zeros(0), np.zeros(len(g3)),
+            IMPACT_CONIC_TOL, IMPACT_ADMM_ITERATIONS,
+        )  # fmt: skip
+        if res <= IMPACT_ADMM_ACCEPT:
+            return np.asarray(x, dtype=np.float64), float(res)
+    return _impact_admm(model, data, G3, g3, mus)
 
 
 def _impact_admm(
