@@ -33,7 +33,8 @@ __all__ = ["RestartSteps"]
 log = logging.getLogger(__name__)
 
 IMPACT_ADMM_ITERATIONS = 3000
-"""Iteration limit of the frictional impact's ADMM (:meth:`RestartSteps.impulse`) [-].
+"""Iteration limit of the frictional impact's ADMM (:meth:`RestartSteps.impulse`) [-]; the
+compiled conic solver tried first (:func:`_impact_cones`) has the same limit.
 
 The solver's own tolerance (1e-10, relative) is not reached on 45 % of the impacts of the
 wrist-free starts (mu = 0.5, 182 impacts of two starts replayed): those ran to the former
@@ -52,6 +53,9 @@ IMPACT_ADMM_ACCEPT = 1e-6
 """The true residual [-] under which the frictional impact's answer is used."""
 
 IMPACT_CONIC = True
+"""Whether a frictional impact tries the compiled conic solver first (:func:`_impact_cones`);
+False: Pinocchio's ADMM alone (the former path, kept for comparisons and as the fallback)."""
+
 IMPACT_CONIC_TOL = 1e-10
 """The compiled solver's target residual for a frictional impact [-] (Pinocchio's ADMM's)."""
 

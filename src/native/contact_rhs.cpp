@@ -350,8 +350,9 @@ class ContactRhs {
   // d < -pen_tol). 2: the smallest mode condition (end_eval's cond) is negative. 4: a pair with
   // engaged rows slides faster than the stick speed (NormalContacts.sliding) and one such pair's
   // patch is stale (stale_pairs: its distance missing from the sweep, its gaps' minimum off it
-  // by more than the point tolerance, or a slide2 above its slide_tol2), or a slide speed is within
-  // a relative 1e-9 of the stick speed (numpy's dot may round otherwise: the caller decides).
+  // by more than the point tolerance, or a slide2 above its slide_tol2, one per pair), or a slide
+  // speed is within a relative 1e-9 of the stick speed (numpy's dot may round otherwise: the
+  // caller decides).
   // 8: a joint is at or beyond one of its limits (set_limits; JointStops._limit_crossings).
   int end_check(F1 y1, I1 swept, F1 dist, I1 active, double near, double pen_tol,
                 F1 slide_tol2) {
