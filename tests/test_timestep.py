@@ -570,3 +570,20 @@ def test_the_reach_bounds_bound_every_pieces_distance_to_the_joints_axes(robot, 
     assert r.max() <= REACH_BOUND
     monkeypatch.setattr(pairs, "REVOLUTE", ("JointModelRX",))  # (the arm's are RZ, RY)
     assert np.array_equal(reach_bounds(model, world), np.full(model.nv, REACH_BOUND))
+
+
+def test_a_jam_cycling_every_few_milliseconds_opens_a_window(robot):
+    """Start 17, wrist free, mu 1.2: elbow1's casing on a flipper and link 3's tube on the
+    shoulder casing jam against a joint limit, cycling every ~3 ms through an impact, a
+    stick/slip and the limit. With the chatter rule's former span (32 restarts within 32 ms)
+    the cycle escaped it: 3,985 events in 3 s. CHATTER_EVENTS within CHATTER_SPAN (250 ms) hand
+    it to a window: under 300 events (96 measured), the window removing little energy."""
+    q0 = start_pose(robot, 17)
+    cfg = packbot.SimConfig(contact_mode="normal", mu=1.2, restitution=0.0)
+    res = packbot.simulate(robot, q0, np.zeros(robot.nq), 3.0, config=cfg)
+    d = res.diagnostics
+    assert d.windows >= 1
+    assert len(res.events) < 300, len(res.events)
+    assert d.window_energy_removed < 0.01
+    assert _event_gain(res) <= GAIN_TOL
+    assert -d.min_distance <= PENETRATION_TOL
