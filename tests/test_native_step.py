@@ -273,25 +273,33 @@ def _note_differences(ev, py, worst: dict[str, float]) -> None:
     worst["slide2"] = max(worst["slide2"], float(slides.max(initial=0.0)))
 
 
-def test_the_root_findings_native_evaluations_are_the_python_ones(robot, monkeypatch):
-    """Inside a native step, the mode conditions' root finding evaluates them natively
-    (NativeRhs.eval_at, the loaded modes and torques): the same forces, rows, smallest
-    condition and slides as NormalContacts.evaluate at that state, to rounding."""
+def _compare_with_python(monkeypatch, method, tol, also=None):
+    """Patch ``NativeRhs.<method>`` (``end_eval`` or ``eval_at``): each evaluation it returns
+    must be the contact set's last one and equal ``NormalContacts.evaluate`` at that state (the
+    accelerations to ``tol``, the rest noted in ``worst``: :func:`_note_differences`);
+    ``also(ev, py, contacts, q)`` adds the caller's checks.
+
+    Returns:
+        The counts ({"calls": ...}) and the worst differences, filled as the run goes.
+    """
     seen = {"calls": 0}
     worst = {"lam": 0.0, "rows": 0.0, "cond": 0.0, "slide2": 0.0}
-    original = native.NativeRhs.eval_at
+    original = getattr(native.NativeRhs, method)
+    laws: list[NormalLaw] = []
 
     def checked(self, contacts, y):
         ev = original(self, contacts, y)
         if ev is None:
             return None
         n = self.nv
-        law = checked.law
+        law = laws[-1]
         q, v = y[:n], y[n:]
         assert contacts._last_eval[6] is ev
         py = contacts.evaluate(q, v, law.free_accel(0.0, y), law.sys.minv(q))
-        np.testing.assert_allclose(ev.a, py.a, rtol=1e-10, atol=1e-10)
+        np.testing.assert_allclose(ev.a, py.a, rtol=tol, atol=tol)
         _note_differences(ev, py, worst)
+        if also is not None:
+            also(ev, py, contacts, q)
         seen["calls"] += 1
         return ev
 
@@ -299,10 +307,18 @@ def test_the_root_findings_native_evaluations_are_the_python_ones(robot, monkeyp
 
     def rebuild(self, system):
         original_rebuild(self, system)
-        checked.law = self
+        laws.append(self)
 
     monkeypatch.setattr(NormalLaw, "rebuild", rebuild)
-    monkeypatch.setattr(native.NativeRhs, "eval_at", checked)
+    monkeypatch.setattr(native.NativeRhs, method, checked)
+    return seen, worst
+
+
+def test_the_root_findings_native_evaluations_are_the_python_ones(robot, monkeypatch):
+    """Inside a native step, the mode conditions' root finding evaluates them natively
+    (NativeRhs.eval_at, the loaded modes and torques): the same forces, rows, smallest
+    condition and slides as NormalContacts.evaluate at that state, to rounding."""
+    seen, worst = _compare_with_python(monkeypatch, "eval_at", 1e-10)
     cfg = packbot.SimConfig(contact_mode="normal", mu=0.5, locked_joints=WRIST)
     packbot.simulate(robot, robot.pose("drive"), np.zeros(8), 1.0, config=cfg)
     assert seen["calls"] > 20, seen
@@ -347,41 +363,20 @@ def test_bad_step_arguments_are_refused(robot):
 def test_the_step_ends_conditions_are_the_python_evaluations(
     robot, monkeypatch, mu, locked, duration
 ):
-    seen = {"ends": 0, "violated": 0}
-    worst = {"lam": 0.0, "rows": 0.0, "cond": 0.0, "slide2": 0.0}
-    original = native.NativeRhs.end_eval
+    seen = {"violated": 0}
 
-    def checked(self, contacts, y1):
-        ev = original(self, contacts, y1)
-        if ev is None:
-            return None
-        n = self.nv
-        law = checked.law
-        q, v = y1[:n], y1[n:]
+    def also(ev, py, contacts, q):
         # kept as the contact set's last evaluation at (q, v), for sliding() and stale()
-        assert contacts._last_eval[6] is ev
         np.testing.assert_array_equal(contacts._last_eval[0], q)
-        py = contacts.evaluate(q, v, law.free_accel(0.0, y1), law.sys.minv(q))
-        np.testing.assert_allclose(ev.a, py.a, rtol=1e-12, atol=1e-12)
-        _note_differences(ev, py, worst)
         assert contacts.violated(ev) == contacts.violated(py)
-        seen["ends"] += 1
         seen["violated"] += ev.cond < 0.0
-        return ev
 
-    original_rebuild = NormalLaw.rebuild
-
-    def rebuild(self, system):
-        original_rebuild(self, system)
-        checked.law = self
-
-    monkeypatch.setattr(NormalLaw, "rebuild", rebuild)
-    monkeypatch.setattr(native.NativeRhs, "end_eval", checked)
+    ends, worst = _compare_with_python(monkeypatch, "end_eval", 1e-12, also)
     cfg = packbot.SimConfig(contact_mode="normal", mu=mu, locked_joints=locked)
     packbot.simulate(robot, robot.pose("drive"), np.zeros(8), duration, config=cfg)
     # (67 and 76 step ends evaluated: the ends the screen finds clear are not; more before
     # the slow-slide stop stopped lifting contacts and a vertex on a face kept its patch)
-    assert seen["ends"] > 50, seen
+    assert ends["calls"] > 50, ends
     assert seen["violated"] > 0, seen
     assert worst["lam"] <= 1e-10, worst
     assert worst["rows"] <= 1e-12, worst

@@ -134,18 +134,18 @@ def test_the_screen_answers_only_at_the_last_native_steps_end(monkeypatch) -> No
     rhs = law._native
     active = np.array([k[1] for k in law.active if k[0] == "pair"], dtype=np.int64)
     sw = law.world.sweep(y1[: law.n], reuse=True)
-    tol2 = law.normal._layout().slide_tol2
-    args = (sw.pairs, sw.distances, active, law.cfg.proximity_tolerance, 1e-4, tol2)
+    args = (sw.pairs, sw.distances, active, law.cfg.proximity_tolerance, 1e-4)
     assert rhs.end_check(y1, *args) >= 0  # the step's end: screened
+    lay = law.normal._layout()
     with pytest.raises(ValueError, match="one entry per pair"):
-        rhs.end_check(y1, *args[:-1], np.append(tol2, 1e-6))
+        rhs._rhs.set_conditions(lay.offset0, np.append(lay.slide_tol2, 1e-6), 0.0, 0.0, 0.0)
     other = y1.copy()
     other[0] += 1e-9
     assert rhs.end_check(other, *args) == -1  # not the step's end
     rhs.accel(y1[: law.n], y1[law.n :], np.zeros(law.n), True)  # another call since
     assert rhs.end_check(y1, *args) == -1
     with pytest.raises(ValueError):
-        rhs._rhs.end_check(y1, sw.pairs, sw.distances[:-1], active, 0.0, 0.0, tol2)
+        rhs._rhs.end_check(y1, sw.pairs, sw.distances[:-1], active, 0.0, 0.0)
 
 
 @pytest.mark.parametrize("mode", ["normal", "joint_clamp"])
@@ -190,5 +190,5 @@ def test_the_screens_inputs_of_a_wrong_size_raise() -> None:
         rhs._rhs.set_keys(np.zeros(3, dtype=np.int64))
     y = np.zeros(2 * nv)
     with pytest.raises(ValueError, match="one length"):
-        rhs.end_check(y, np.zeros(2, dtype=np.int64), np.zeros(1), none, 1e-3, 1e-4, np.zeros(0))
-    assert rhs.end_check(y, none, np.zeros(0), none, 1e-3, 1e-4, np.zeros(0)) == -1  # no step
+        rhs.end_check(y, np.zeros(2, dtype=np.int64), np.zeros(1), none, 1e-3, 1e-4)
+    assert rhs.end_check(y, none, np.zeros(0), none, 1e-3, 1e-4) == -1  # no step yet

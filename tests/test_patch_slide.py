@@ -51,13 +51,9 @@ def collapse(robot):
         return out
 
     cfg = packbot.SimConfig(contact_mode="normal", mu=0.5, locked_joints=WRIST_JOINTS)
-    mp = pytest.MonkeyPatch()
-    mp.setattr(normal_law.NormalLaw, "after_step", watched)
-    try:
-        q0, v0 = robot.pose("drive"), np.zeros(robot.model.nv)
-        res = packbot.simulate(robot, q0, v0, 2.0, config=cfg)
-    finally:
-        mp.undo()
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(normal_law.NormalLaw, "after_step", watched)
+        res = packbot.simulate(robot, robot.pose("drive"), np.zeros(8), 2.0, config=cfg)
     return res, seen
 
 
@@ -72,7 +68,7 @@ def test_a_vertex_on_a_face_is_kept_while_it_slides(collapse):
     assert -res.diagnostics.min_distance <= 1e-5
 
 
-def test_only_vertices_on_faces_skip_the_slide_rule(robot):
+def test_only_vertices_on_faces_skip_the_slide_rule(robot, monkeypatch):
     """Every one-point patch of wrist-free starts: slide_tol inf exactly when its normal is a
     face normal of its body (the palm's edges crossing the camera head's keep SLIDE_TOL)."""
     from test_normal_cascade import start_pose
@@ -98,10 +94,6 @@ def test_only_vertices_on_faces_skip_the_slide_rule(robot):
             assert p.slide_tol == SLIDE_TOL
 
     cfg = packbot.SimConfig(contact_mode="normal", mu=0.5, restitution=0.0)
-    mp = pytest.MonkeyPatch()
-    mp.setattr(normal_set.ContactSet, "_put", recorded)
-    try:
-        packbot.simulate(robot, start_pose(robot, 1), np.zeros(robot.model.nv), 0.6, config=cfg)
-    finally:
-        mp.undo()
+    monkeypatch.setattr(normal_set.ContactSet, "_put", recorded)
+    packbot.simulate(robot, start_pose(robot, 1), np.zeros(robot.model.nv), 0.6, config=cfg)
     assert kinds["vertex"] > 0 and kinds["other"] > 0, kinds

@@ -30,13 +30,9 @@ def collapse(robot):
         return v_after
 
     cfg = packbot.SimConfig(contact_mode="normal", mu=0.5, locked_joints=WRIST_JOINTS)
-    mp = pytest.MonkeyPatch()
-    mp.setattr(normal_steps.RestartSteps, "stop_slow", recorded)
-    try:
-        q0, v0 = robot.pose("drive"), np.zeros(robot.model.nv)
-        res = packbot.simulate(robot, q0, v0, 0.4, config=cfg)
-    finally:
-        mp.undo()
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(normal_steps.RestartSteps, "stop_slow", recorded)
+        res = packbot.simulate(robot, robot.pose("drive"), np.zeros(8), 0.4, config=cfg)
     return res, calls
 
 

@@ -175,7 +175,9 @@ class NativeRhs:
                 _reals(lay.lim_side),
                 _reals(lay.lim_value),
             )
-            self._rhs.set_conditions(_reals(lay.offset0), FORCE_BAND, POINT_TOL, STICK_BAND)
+            self._rhs.set_conditions(
+                _reals(lay.offset0), _reals(lay.slide_tol2), FORCE_BAND, POINT_TOL, STICK_BAND
+            )
             self._rhs.set_keys(_ints(list(contacts.pairs)))  # (in the layout's order)
             self._layout_id = lay
             self._plan_id = None
@@ -367,7 +369,6 @@ class NativeRhs:
         active: NDArray[np.int64],
         near: float,
         pen_tol: float,
-        slide_tol2: FloatArray,
     ) -> int:
         """The step end's screen of the contact-normal mode, from the last native step's end.
 
@@ -389,10 +390,11 @@ class NativeRhs:
             active: The active pairs' indices.
             near: The proximity tolerance [m].
             pen_tol: The penetration a contact re-patches at [m].
-            slide_tol2: (pairs,) the square of the slide each patch goes stale at [m^2] (the
-                contact set's order; inf: never by its slide).
+
+        Each pair's patch goes stale at its own slide (``_Layout.slide_tol2``, loaded with the
+        layout by :meth:`load`).
         """
-        return int(self._rhs.end_check(y1, swept, dist, active, near, pen_tol, slide_tol2))
+        return int(self._rhs.end_check(y1, swept, dist, active, near, pen_tol))
 
     def last(self) -> tuple[FloatArray, ...]:
         """The last call's (a_free, M^-1, lam, gap, v_n, v_t, G, rhs): copies, for tests."""

@@ -348,7 +348,6 @@ class NormalLaw(PatchEvents):
             active,
             self.cfg.proximity_tolerance,
             PENETRATION_TOL,
-            self.normal._layout().slide_tol2,
         )
 
     def _screened_crossings(

@@ -286,11 +286,17 @@ class ContactRhs {
   }
 
   // The mode conditions' constants: each patch row's tangential offset when built (rows, 2)
-  // [m], the force and stick hysteresis bands, the point tolerance (packbot.contact.normal).
-  void set_conditions(F2 offset0, double force_band, double point_tol, double stick_band) {
+  // [m], the square of the slide each pair's patch goes stale at (pairs) [m^2] (inf: never by
+  // its slide; end_check), the force and stick hysteresis bands, the point tolerance
+  // (packbot.contact.normal).
+  void set_conditions(F2 offset0, F1 slide_tol2, double force_band, double point_tol,
+                      double stick_band) {
     if (offset0.size() != static_cast<size_t>(2 * mp_))
       throw std::invalid_argument("offset0: (patch rows, 2) expected");
+    if (slide_tol2.shape(0) != static_cast<size_t>(np_))
+      throw std::invalid_argument("slide_tol2: one entry per pair expected");
     offset0_ = reals(offset0);
+    slide_tol2_ = reals(slide_tol2);
     force_band_ = force_band;
     point_tol_ = point_tol;
     stick_band_ = stick_band;
@@ -350,17 +356,14 @@ class ContactRhs {
   // d < -pen_tol). 2: the smallest mode condition (end_eval's cond) is negative. 4: a pair with
   // engaged rows slides faster than the stick speed (NormalContacts.sliding) and one such pair's
   // patch is stale (stale_pairs: its distance missing from the sweep, its gaps' minimum off it
-  // by more than the point tolerance, or a slide2 above its slide_tol2, one per pair), or a slide
-  // speed is within a relative 1e-9 of the stick speed (numpy's dot may round otherwise: the
-  // caller decides).
+  // by more than the point tolerance, or a slide2 above its set_conditions' slide_tol2), or a
+  // slide speed is within a relative 1e-9 of the stick speed (numpy's dot may round otherwise:
+  // the caller decides).
   // 8: a joint is at or beyond one of its limits (set_limits; JointStops._limit_crossings).
-  int end_check(F1 y1, I1 swept, F1 dist, I1 active, double near, double pen_tol,
-                F1 slide_tol2) {
+  int end_check(F1 y1, I1 swept, F1 dist, I1 active, double near, double pen_tol) {
     const size_t ns = swept.shape(0);
     if (dist.shape(0) != ns) throw std::invalid_argument("swept, dist: one length expected");
     if (!at_end(y1) || keys_.size() != static_cast<size_t>(np_)) return -1;
-    if (slide_tol2.shape(0) != static_cast<size_t>(np_))
-      throw std::invalid_argument("slide_tol2: one entry per pair expected");
     int out = 0;
     const int64_t *sp = swept.data(), *ac = active.data();
     const size_t na = active.shape(0);
@@ -405,7 +408,7 @@ class ContactRhs {
       size_t k = 0;
       while (k < ns && sp[k] != key) ++k;
       if (k == ns || std::isnan(gap_min_[p]) || std::abs(gap_min_[p] - dp[k]) > point_tol_ ||
-          slide2_[p] > slide_tol2.data()[p])
+          slide2_[p] > slide_tol2_[p])
         return out | 4;
     }
     return out;
@@ -1246,7 +1249,7 @@ class ContactRhs {
   std::vector<double> offset0_, y_end_;
   std::vector<int> pos_;
   std::vector<char> slipping_, engaged_pair_;
-  std::vector<double> slide2_, gap_min_;
+  std::vector<double> slide2_, gap_min_, slide_tol2_;
   std::vector<int64_t> keys_;  // (set_keys)
   std::vector<double> upper_, lower_;  // (set_limits)
   double force_band_ = 0.0, point_tol_ = 0.0, stick_band_ = 0.0;
@@ -1284,13 +1287,14 @@ NB_MODULE(_native, m) {
            nb::arg("atol"), nb::arg("rtol"), nb::arg("y1"), nb::arg("ay1"))
       .def("jac_radius", &ContactRhs::jac_radius)
       .def("set_conditions", &ContactRhs::set_conditions, nb::arg("offset0"),
-           nb::arg("force_band"), nb::arg("point_tol"), nb::arg("stick_band"))
+           nb::arg("slide_tol2"), nb::arg("force_band"), nb::arg("point_tol"),
+           nb::arg("stick_band"))
       .def("end_eval", &ContactRhs::end_eval, nb::arg("y1"))
       .def("eval_at", &ContactRhs::eval_at, nb::arg("y"))
       .def("set_keys", &ContactRhs::set_keys, nb::arg("keys"))
       .def("set_limits", &ContactRhs::set_limits, nb::arg("upper"), nb::arg("lower"))
       .def("end_check", &ContactRhs::end_check, nb::arg("y1"), nb::arg("swept"), nb::arg("dist"),
-           nb::arg("active"), nb::arg("near"), nb::arg("pen_tol"), nb::arg("slide_tol2"))
+           nb::arg("active"), nb::arg("near"), nb::arg("pen_tol"))
       .def("set_locks", &ContactRhs::set_locks, nb::arg("locked"))
       .def("energies", &ContactRhs::energies, nb::arg("Q"), nb::arg("V"), nb::arg("out"))
       .def("end_locks", &ContactRhs::end_locks, nb::arg("y1"))
