@@ -198,10 +198,21 @@ class _Run:
                 seg = law.advance(t, y, min(duration, t_sched))
                 if seg is None:
                     kernel = law.step_kernel(t, y)
-                    # (a restart's derivative left to this step: the kernel's first stage)
-                    first = law.first_stage if stepper.f_pending and kernel is not None else None
-                    stiff = law.stiff_kernel if kernel is not None else None
-                    seg = stepper.step(t_far, kernel, first, stiff)
+                    if kernel is not None and schedule.next_tick >= t_far:
+                        # the quiet steps at once (the law's compiled stretch), if it has one
+                        st = law.stretch(stepper, t_far, t_last, t_sched, rec)
+                        if st is not None:
+                            rec.record_states(st.samples)
+                            seg = st.pending
+                            if seg is None and st.steps:
+                                self.t, self.y = stepper.t, stepper.y
+                                self.report_progress()
+                                continue
+                    if seg is None:
+                        # (a restart's derivative left to this step: the kernel's first stage)
+                        pend = stepper.f_pending and kernel is not None
+                        stiff = law.stiff_kernel if kernel is not None else None
+                        seg = stepper.step(t_far, kernel, law.first_stage if pend else None, stiff)
             except StepSizeUnderflow:
                 if not law.rescue(t, y):
                     raise
@@ -239,8 +250,7 @@ class _Run:
                 self.t, self.y = t_star, y_new
                 self.diag.restarts += 1
                 self.restart()
-            if self.progress is not None:
-                self.report_progress()
+            self.report_progress()
         rec.record_final(self.y)
 
     def cut_at_tick(self, seg: DenseSegment, t: float, tau: FloatArray) -> None:

@@ -220,6 +220,9 @@ class NativeSweep:
 
     def __init__(self, world: CollisionWorld, args: dict[str, Any]) -> None:
         self._sweep = _native_coal.Sweep(**args)
+        #: the sweep's C entry point (a capsule; ``src/native/sweep_api.hpp``): the contact-normal
+        #: mode's compiled stretch of steps calls it (:mod:`packbot.contact.stretch`)
+        self.api: Any = self._sweep.api()
         #: ``sweep(q, margin) -> (pairs, distances, closest pair or -1, its distance)``.
         self.sweep = self._sweep.sweep
         #: ``last_q() -> q`` of the last sweep [rad].
@@ -344,6 +347,34 @@ class NativeDispatch:
             d.setflags(write=False)
             world._last_sweep = (key, out)
         return out
+
+    def adopt(
+        self,
+        q: NDArray[np.float64],
+        pairs: NDArray[np.int64],
+        d: NDArray[np.float64],
+        k: int,
+        dmin: float,
+    ) -> None:
+        """Keep a native sweep made at q elsewhere (a compiled stretch of steps) as the last one.
+
+        The world's next ``sweep(q, reuse=True)`` at the same q and margin returns it (as if
+        this dispatch had made it); the pieces are owed at the native sweep's q.
+
+        Args:
+            q: Its configuration [rad].
+            pairs: Its candidates' pair indices.
+            d: Their signed distances [m].
+            k: The closest pair (-1: none).
+            dmin: Its distance [m] (inf: none).
+        """
+        world = self.world
+        pairs.setflags(write=False)
+        d.setflags(write=False)
+        out: SweepResult = _tuple_new(self._result, (dmin, k, pairs, d, self._counts[len(pairs)]))
+        key = (np.asarray(q, dtype=np.float64).tobytes(), world.margin)
+        world._last_sweep = (key, out)
+        self.pending = True
 
     def place(self) -> None:
         """Place the world's pieces at the last native sweep's q if they are not."""

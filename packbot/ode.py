@@ -512,6 +512,58 @@ class RK45Stepper:
             h = self._initial_step(t, y, f, ay)
         self.h = min(float(h), self.h_max)
 
+    def take(
+        self,
+        t: float,
+        y: FloatArray,
+        f: FloatArray,
+        ay: FloatArray,
+        h: float,
+        *,
+        steps: int,
+        rejected: int,
+        rhs_calls: int,
+        stiff_steps: int,
+        stiff_run: int,
+        stiff: bool,
+    ) -> None:
+        """Take over the state after steps taken elsewhere with this stepper's arithmetic.
+
+        For a compiled loop of :meth:`step` calls with a kernel (the contact-normal mode's
+        stretch of quiet steps, :mod:`packbot.contact.stretch`): the state it ended at and the
+        counters of its steps; afterwards the stepper goes on as if :meth:`step` had taken
+        them (the next step's size, its growth cap :data:`MAX_FACTOR`, the stiffness test's
+        run).
+
+        Args:
+            t: Time [s].
+            y: State, shape (n,) (kept, not copied).
+            f: dy/dt at (t, y), shape (n,) (kept).
+            ay: ``|y|``, shape (n,) (kept).
+            h: The next step's size [s], > 0.
+            steps: Accepted steps taken.
+            rejected: Their rejected attempts.
+            rhs_calls: Their right-hand-side calls (counted as :meth:`step` counts them).
+            stiff_steps: Of them Rosenbrock steps.
+            stiff_run: Successive steps whose stiffness estimate exceeded :data:`STIFF_RATIO`.
+            stiff: Whether the next steps are Rosenbrock steps.
+        """
+        if steps == 0:
+            return
+        self.t = t
+        self.y = y
+        self.f = f
+        self._ay = ay
+        self.h = h
+        self._max_factor = MAX_FACTOR
+        self.f_pending = False
+        self.n_steps += steps
+        self.n_rejected += rejected
+        self.n_rhs += rhs_calls
+        self.n_stiff_steps += stiff_steps
+        self._stiff_run = stiff_run
+        self.stiff = stiff
+
     def restrict(self, t_new: float, y_new: ArrayLike) -> None:
         """Accept a truncated step: continue from (t_new, y_new), keeping the current h as a hint.
 

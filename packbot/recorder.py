@@ -273,6 +273,29 @@ class Recorder:
             self.point(ts, y)
             self.next_sample += 1
 
+    def record_states(self, ys: FloatArray) -> None:
+        """Keep the next regular samples from their states ys, shape (m, n), in order.
+
+        The states at ``next_sample * dt``, ``(next_sample + 1) * dt``, ... (a stretch of
+        steps taken at once evaluated its dense outputs there: :mod:`packbot.contact.stretch`),
+        measured at once as :meth:`record` does.
+        """
+        m = len(ys)
+        if m == 0:
+            return
+        k, dt = self.next_sample, self.dt
+        times = [(k + i) * dt for i in range(m)]
+        rows = list(ys)
+        if self.measure_many is not None and self._cols:
+            samples = self.measure_many(times, rows)
+            if samples is not None:
+                self._rows(times, samples)
+                self.next_sample = k + m
+                return
+        for ts, y in zip(times, rows, strict=True):
+            self.point(ts, y)
+            self.next_sample += 1
+
     def record_due(self, t: float, y: FloatArray) -> None:
         """Keep the regular samples due at t (within 1e-12 s) from the state y at t."""
         dt = self.dt

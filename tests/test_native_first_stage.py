@@ -17,6 +17,12 @@ import packbot
 from packbot import integrator, ode
 from packbot.contact import native
 
+
+@pytest.fixture(scope="module", autouse=True)
+def _steps_one_by_one(step_by_step: None) -> None:
+    """This module watches the steps the loop takes one by one (conftest.step_by_step)."""
+
+
 pytestmark = pytest.mark.skipif(not native.available(), reason="packbot._native is not built")
 
 WRIST = ("camera_tilt", "camera_pan", "gripper_roll", "gripper_jaw")

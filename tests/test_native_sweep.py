@@ -22,6 +22,12 @@ from packbot import native_sweep
 from packbot.collision import CollisionWorld
 from packbot.environment import Environment, Obstacle
 
+
+@pytest.fixture(scope="module", autouse=True)
+def _steps_one_by_one(step_by_step: None) -> None:
+    """This module watches the steps the loop takes one by one (conftest.step_by_step)."""
+
+
 pytestmark = pytest.mark.skipif(
     not native_sweep.available(), reason="packbot._native_coal is not available"
 )

@@ -17,6 +17,12 @@ from packbot.contact.lcp import SMALL_LCP, lemke
 from packbot.contact.normal import NormalContacts
 from packbot.system import System
 
+
+@pytest.fixture(scope="module", autouse=True)
+def _steps_one_by_one(step_by_step: None) -> None:
+    """This module watches the steps the loop takes one by one (conftest.step_by_step)."""
+
+
 WRIST = ("camera_tilt", "camera_pan", "gripper_roll", "gripper_jaw")
 
 

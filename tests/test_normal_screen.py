@@ -20,6 +20,12 @@ import packbot
 from packbot.contact import native
 from packbot.contact.normal_law import NormalLaw
 
+
+@pytest.fixture(scope="module", autouse=True)
+def _steps_one_by_one(step_by_step: None) -> None:
+    """This module watches the steps the loop takes one by one (conftest.step_by_step)."""
+
+
 pytestmark = pytest.mark.skipif(not native.available(), reason="packbot._native not built")
 
 WRIST = ("camera_tilt", "camera_pan", "gripper_roll", "gripper_jaw")

@@ -17,6 +17,11 @@ from packbot.contact.normal_tolerances import FACE_ALIGN, SLIDE_TOL
 from packbot.mujoco_model import WRIST_JOINTS
 
 
+@pytest.fixture(scope="module", autouse=True)
+def _steps_one_by_one(step_by_step: None) -> None:
+    """This module watches the steps the loop takes one by one (conftest.step_by_step)."""
+
+
 def _world_point(law, joint: int, local: np.ndarray) -> np.ndarray:
     M = law.normal.data.oMi[joint]
     return np.asarray(M.rotation @ local + M.translation)

@@ -30,14 +30,17 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import Any, Protocol
+from typing import TYPE_CHECKING, Any, Protocol
 
 import numpy as np
 from numpy.typing import NDArray
 
 from packbot.collision import PairInfo
-from packbot.ode import DenseSegment, StepKernel, StiffKernel
+from packbot.ode import DenseSegment, RK45Stepper, StepKernel, StiffKernel
 from packbot.system import System
+
+if TYPE_CHECKING:
+    from packbot.contact.stretch import SampleClock, Stretched
 
 __all__ = ["Active", "ContactLaw", "Crossing", "Key"]
 
@@ -145,6 +148,33 @@ class ContactLaw(Protocol):
 
     def step_bound(self, y: FloatArray) -> float:
         """The longest step [s] from y that the law's event detection allows."""
+        ...
+
+    def stretch(
+        self,
+        stepper: RK45Stepper,
+        t_end: float,
+        t_last: float,
+        t_sched: float,
+        clock: SampleClock,
+    ) -> Stretched | None:
+        """Several steps at once from the stepper's state, or None: the loop steps.
+
+        Offered by the loop right after :meth:`step_kernel` returned a kernel, with no
+        controller tick before ``t_end`` (a restart's derivative may be pending: then the
+        kernel's :attr:`first_stage` computes it; the stepper may be stiff: then the steps are
+        :attr:`stiff_kernel`'s, as the stepper's would be).
+        The steps kept are watched and accepted (the law and the stepper are past them; the
+        loop records their samples); a pending step is the stepper's last step, not yet
+        watched (:class:`~packbot.contact.stretch.Stretched`).
+
+        Args:
+            stepper: The loop's stepper.
+            t_end: No step beyond this time [s].
+            t_last: The run ends here [s].
+            t_sched: The next scheduled action [s] (a step ending there is handed back).
+            clock: The run's regular samples.
+        """
         ...
 
     def advance(self, t: float, y: FloatArray, t_end: float) -> DenseSegment | None:

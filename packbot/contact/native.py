@@ -50,6 +50,7 @@ __all__ = [
     "NativeRhs",
     "available",
     "native_rhs",
+    "stretch",
 ]
 
 log = logging.getLogger(__name__)
@@ -357,6 +358,16 @@ class NativeRhs:
         contacts._last_eval = (y[:nv], y[nv:], _NONE, _NONE, _NONE, contacts._plan_key, ev)
         return ev
 
+    def set_reach(self, reach: FloatArray, margin: float, max_step: float) -> None:
+        """Load the step bound's constants: each joint's reach [m], the margin [m], max step [s].
+
+        After it, :attr:`step_bound` ``(y) -> [s]`` is
+        ``min(max_step, margin / 2 / max(reach . |v|, 1e-9))`` (the dot product summed in
+        joint order: the compiled stretch of steps bounds its steps with the same call).
+        """
+        self._rhs.set_reach(_reals(reach), float(margin), float(max_step))
+        self.step_bound: Callable[[FloatArray], float] = self._rhs.step_bound
+
     def set_limits(self, upper: FloatArray, lower: FloatArray) -> None:
         """The joint limits [rad] :meth:`end_check` screens (empty arrays: none)."""
         self._rhs.set_limits(_reals(upper), _reals(lower))
@@ -399,6 +410,16 @@ class NativeRhs:
     def last(self) -> tuple[FloatArray, ...]:
         """The last call's (a_free, M^-1, lam, gap, v_n, v_t, G, rhs): copies, for tests."""
         return tuple(self._rhs.last())
+
+
+def stretch(rhs: NativeRhs, api: Any, **constants: Any) -> Any:
+    """The compiled stretch of quiet steps on ``rhs`` and a compiled sweep's entry point ``api``.
+
+    ``packbot._native.Stretch`` (``src/native/stretch.hpp``); ``constants`` are its keyword
+    arguments (:class:`packbot.contact.stretch.QuietStretch` passes them).
+    """
+    assert _native is not None
+    return _native.Stretch(rhs._rhs, api, **constants)
 
 
 def native_rhs(model: pin.Model) -> NativeRhs | None:

@@ -25,8 +25,9 @@ from packbot.contact.normal_contacts import NormalContacts
 from packbot.contact.normal_tolerances import PENETRATION_TOL
 from packbot.contact.pairs import reach_bounds
 from packbot.contact.patch_events import PatchEvents
+from packbot.contact.stretch import QuietStretch, SampleClock, Stretched, quiet_stretch
 from packbot.contact.timestep import QUIET_STEPS, MoreauJeanStepper
-from packbot.ode import DenseSegment, StepKernel, StiffKernel
+from packbot.ode import DenseSegment, RK45Stepper, StepKernel, StiffKernel
 from packbot.system import System
 
 __all__ = [
@@ -134,11 +135,14 @@ class NormalLaw(PatchEvents):
         self._native = native.native_rhs(system.model) if native.ENABLED else None
         if self._native is not None and self.cfg.joint_limits:  # (the step end's screen)
             self._native.set_limits(system.upper, system.lower)
+        if self._native is not None:  # (step_bound)
+            self._native.set_reach(self.reach, self.cfg.margin, self.cfg.max_step)
         self.window: _Window | None = None
         self._recent: deque[float] = deque(maxlen=CHATTER_EVENTS)
         self._steps: deque[float] = deque(maxlen=CRAWL_STEPS)  # the last steps' sizes [s]
         self._clear: FloatArray | None = None  # a step end the screen found clear (watch)
         self._ready: FloatArray | None = None  # a state the native modes are loaded for
+        self._stretch: QuietStretch | None = None  # (the compiled stretch of quiet steps)
 
     # ------------------------------------------------------------------ windows
     def advance(self, t: float, y: FloatArray, t_end: float) -> DenseSegment | None:
@@ -318,6 +322,76 @@ class NormalLaw(PatchEvents):
         self._ready = None
         rhs.hold_torque(*torques)
         return rhs.step
+
+    def step_bound(self, y: FloatArray) -> float:
+        """Largest step keeping every point's motion within half the query margin [s].
+
+        :meth:`PairLaw.step_bound <packbot.contact.pairs.PairLaw.step_bound>`'s bound, its dot
+        product summed in joint order: computed by the native right-hand side when there is
+        one, with the arithmetic of the compiled stretch's steps (:meth:`stretch`), and the
+        same arithmetic in Python without it, so that a run takes the same steps with or
+        without the stretch and the extension.
+        """
+        rhs = self._native
+        if rhs is not None:
+            return rhs.step_bound(y)
+        n = self.n
+        speed = 0.0  # (summed in joint order, as the native call: the same steps either way)
+        for r, v in zip(self.reach.tolist(), y[n : 2 * n].tolist(), strict=True):
+            speed += r * abs(v)
+        return min(self.cfg.max_step, 0.5 * self.cfg.margin / max(speed, 1e-9))
+
+    def stretch(
+        self,
+        stepper: RK45Stepper,
+        t_end: float,
+        t_last: float,
+        t_sched: float,
+        clock: SampleClock,
+    ) -> Stretched | None:
+        """The quiet steps from the stepper's state in one native call (:mod:`.stretch`).
+
+        Offered right after :meth:`step_kernel` offered the native step (its modes and torques
+        loaded), outside a window, with no conditional lock or Coulomb-sliding joint (their
+        conditions are watched in Python) and with the compiled sweep; else None.
+        """
+        if self.window is not None or self.locks.conditional or self.drive.fdir.any():
+            return None
+        st = self._stretch = quiet_stretch(self, stepper, clock, self._stretch)
+        if st is None:
+            return None
+        return st.run(self, stepper, t_end, t_last, t_sched, clock)
+
+    def stretched(
+        self,
+        y: FloatArray,
+        hs: FloatArray,
+        min_d: float,
+        min_pair: int,
+        pairs: NDArray[np.int64],
+        distances: FloatArray,
+        steps: int,
+    ) -> None:
+        """Past ``steps`` quiet steps of a stretch, ending at y: what watch and after_step keep.
+
+        Args:
+            y: The last step's end (its modes still loaded: the native step's next start).
+            hs: The steps' sizes [s], in order (the crawl rule's).
+            min_d: The smallest signed distance of the run so far [m].
+            min_pair: Its pair, if a step of the stretch lowered it (else -1).
+            pairs: The last step's swept pairs.
+            distances: Their signed distances there [m].
+            steps: How many.
+        """
+        self._steps.extend(hs.tolist())
+        self.diag.sweeps += steps
+        self.note_min(min_d, min_pair)
+        pairs.setflags(write=False)
+        distances.setflags(write=False)
+        self._pending_arr = self._last_arr = (pairs, distances)
+        self._pending_d = self._last_d = None
+        self._clear = self._ready = y
+        self.world._dispatch.pending = True  # (the pieces are owed at the last native sweep)
 
     def _pair_crossings(
         self, key: Key, p_idx: int, seg: DenseSegment, d0: float, d1: float

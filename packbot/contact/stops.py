@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Sequence
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import NDArray
@@ -43,10 +44,13 @@ from packbot.contact.lock_step import SCREEN_MARGIN as SCREEN_MARGIN
 from packbot.contact.lock_step import NativeLockStep
 from packbot.contact.locks import TORQUE_BAND, JointLocks
 from packbot.drive import Drive
-from packbot.ode import DenseSegment, StepKernel, StiffKernel
+from packbot.ode import DenseSegment, RK45Stepper, StepKernel, StiffKernel
 from packbot.recorder import EventLog
 from packbot.result import Diagnostics, Event
 from packbot.system import System
+
+if TYPE_CHECKING:
+    from packbot.contact.stretch import SampleClock, Stretched
 
 __all__ = [
     "HOLD_KICK",
@@ -245,6 +249,17 @@ class JointStops:
     @property
     def first_stage(self) -> Callable[[FloatArray], bool] | None:
         """None: a restart computes its derivative at once (ContactLaw.first_stage)."""
+        return None
+
+    def stretch(
+        self,
+        stepper: RK45Stepper,
+        t_end: float,
+        t_last: float,
+        t_sched: float,
+        clock: SampleClock,
+    ) -> Stretched | None:
+        """None: the lock modes' steps are taken one by one (ContactLaw.stretch)."""
         return None
 
     def step_kernel(self, t: float, y: FloatArray) -> StepKernel | None:

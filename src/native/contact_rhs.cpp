@@ -21,6 +21,7 @@
 #include <nanobind/stl/vector.h>
 
 #include "joints.hpp"
+#include "stretch.hpp"
 
 #include <pinocchio/algorithm/aba.hpp>
 #include <pinocchio/algorithm/crba.hpp>
@@ -195,6 +196,35 @@ class ContactRhs {
 
   int nv() const { return nv_; }
 
+  // The step bound's constants (packbot.contact.pairs.PairLaw.step_bound): each joint's reach
+  // [m] (nv), the query margin [m] and the longest step [s].
+  void set_reach(F1 reach, double margin, double max_step) {
+    if (reach.shape(0) != static_cast<size_t>(nv_))
+      throw std::invalid_argument("reach: nv entries expected");
+    reach_ = reals(reach);
+    margin_ = margin;
+    max_step_ = max_step;
+  }
+
+  // The longest step [s] from y = (q, v, ...) (2 nv entries or more: a motor lag's torques
+  // follow) keeping every point's motion within half the margin:
+  // min(max_step, margin / 2 / max(reach . |v|, 1e-9)), the dot product summed in joint order.
+  double step_bound(F1 y) const {
+    if (y.shape(0) < static_cast<size_t>(2 * nv_) || reach_.size() != static_cast<size_t>(nv_))
+      throw std::invalid_argument("y: at least 2 nv entries expected (after set_reach)");
+    return step_bound_raw(y.data() + nv_);
+  }
+
+  double step_bound_raw(const double *v) const {
+    double speed = 0.0;
+    for (int j = 0; j < nv_; ++j) speed += reach_[j] * std::abs(v[j]);
+    return std::min(max_step_, 0.5 * margin_ / std::max(speed, 1e-9));
+  }
+
+  // The joint limits set_limits loaded [rad] (empty: none).
+  const std::vector<double> &upper() const { return upper_; }
+  const std::vector<double> &lower() const { return lower_; }
+
   // The contact set's point layout (see packbot.contact.normal._Layout).
   void set_layout(I1 joints, F2 masks, I1 body, F2 local, I1 pair, I1 rows, I1 centre,
                   I1 normal_body, F3 frame2, I1 lim_joint, F1 lim_side, F1 lim_value) {
@@ -363,11 +393,17 @@ class ContactRhs {
   int end_check(F1 y1, I1 swept, F1 dist, I1 active, double near, double pen_tol) {
     const size_t ns = swept.shape(0);
     if (dist.shape(0) != ns) throw std::invalid_argument("swept, dist: one length expected");
-    if (!at_end(y1) || keys_.size() != static_cast<size_t>(np_)) return -1;
+    if (!at_end(y1)) return -1;
+    return end_check_raw(y1.data(), swept.data(), dist.data(), ns, active.data(),
+                         active.shape(0), near, pen_tol);
+  }
+
+  // end_check at the end of the last dopri (the caller knows it ended at y1), on raw arrays:
+  // ns swept pairs, na active ones.
+  int end_check_raw(const double *y1, const int64_t *sp, const double *dp, size_t ns,
+                    const int64_t *ac, size_t na, double near, double pen_tol) {
+    if (keys_.size() != static_cast<size_t>(np_)) return -1;
     int out = 0;
-    const int64_t *sp = swept.data(), *ac = active.data();
-    const size_t na = active.shape(0);
-    const double *dp = dist.data();
     for (size_t k = 0; k < ns; ++k) {
       const double d = dp[k];
       const bool in = std::find(ac, ac + na, sp[k]) != ac + na;
@@ -377,7 +413,7 @@ class ContactRhs {
       }
     }
     if (!(end_conditions() >= 0.0)) out |= 2;
-    const double *q1 = y1.data();
+    const double *q1 = y1;
     for (size_t j = 0; j < upper_.size(); ++j)
       if (q1[j] >= upper_[j] || q1[j] <= lower_[j]) {
         out |= 8;
@@ -578,9 +614,13 @@ class ContactRhs {
     if (lock_mode_ >= 0) throw std::invalid_argument("first: the contact rows' call (set_locks)");
     if (applied_.size() != static_cast<size_t>(nv_))
       throw std::invalid_argument("set_torque was not called");
+    return first_raw(Z.data());
+  }
+
+  // first on a raw z (8, 2 nv) (checked by the caller).
+  bool first_raw(double *z) {
     end_valid_ = false;
-    double *z = Z.data();
-    return stage(z, z + n);
+    return stage(z, z + 2 * nv_);
   }
 
   // The arguments of an attempt (dopri, rosenbrock): Z (8, 2 nv), the others (2 nv,), and the
@@ -601,8 +641,14 @@ class ContactRhs {
   // ay1 = |y1|. Returns the scaled RMS error norm, or -1 when a stage's Delassus matrix is
   // singular (the caller takes the Python stages).
   double dopri(double h, Out2 Z, F1 ay0, F1 atol, double rtol, Out1 y1, Out1 ay1) {
-    const int n = 2 * nv_;
     check_attempt(Z, ay0, atol, y1, ay1);
+    return dopri_raw(h, Z.data(), ay0.data(), atol.data(), rtol, y1.data(), ay1.data());
+  }
+
+  // dopri on raw arrays (sizes checked by the caller): z (8, 2 nv), the others (2 nv,).
+  double dopri_raw(double h, double *z, const double *a0, const double *at, double rtol,
+                   double *yn, double *a1) {
+    const int n = 2 * nv_;
     static constexpr double A[7][7] = {
         {0, 0, 0, 0, 0, 0, 0},
         {1.0 / 5, 0, 0, 0, 0, 0, 0},
@@ -613,14 +659,13 @@ class ContactRhs {
         {35.0 / 384, 0, 500.0 / 1113, 125.0 / 192, -2187.0 / 6784, 11.0 / 84, 0}};
     static constexpr double E[7] = {-71.0 / 57600,    0, 71.0 / 16695, -71.0 / 1920,
                                     17253.0 / 339200, -22.0 / 525, 1.0 / 40};
-    double *z = Z.data();
     end_valid_ = false;
     ys_.resize(n);
     double ah[7];
     for (int s = 1; s < 7; ++s) {
       for (int j = 0; j < s; ++j) ah[j] = A[s][j] * h;
       // the stage's argument y0 + sum_j (h a_sj) k_j (the order of RK45Stepper's np.dot)
-      double *arg = s < 6 ? ys_.data() : y1.data();
+      double *arg = s < 6 ? ys_.data() : yn;
       for (int c = 0; c < n; ++c) {
         double acc = z[c];
         for (int j = 0; j < s; ++j) acc += ah[j] * z[(1 + j) * n + c];
@@ -629,8 +674,6 @@ class ContactRhs {
       if (!stage(arg, z + (1 + s) * n)) return -1.0;
     }
     // the scaled RMS norm of h * sum_j e_j k_j
-    const double *a0 = ay0.data(), *at = atol.data(), *yn = y1.data();
-    double *a1 = ay1.data();
     double ss = 0.0;
     for (int c = 0; c < n; ++c) {
       double ev = 0.0;
@@ -669,9 +712,15 @@ class ContactRhs {
   // RMS error norm (as dopri's), or -1 when a stage's Delassus matrix or I/(h gamma) - J is
   // singular.
   double rosenbrock(double h, Out2 Z, F1 ay0, F1 atol, double rtol, Out1 y1, Out1 ay1) {
-    const int n = 2 * nv_;
     check_attempt(Z, ay0, atol, y1, ay1);
     if (!(h > 0.0)) throw std::invalid_argument("h: a step size > 0 expected");
+    return rosenbrock_raw(h, Z.data(), ay0.data(), atol.data(), rtol, y1.data(), ay1.data());
+  }
+
+  // rosenbrock on raw arrays (sizes and h > 0 checked by the caller), as dopri_raw.
+  double rosenbrock_raw(double h, double *z, const double *a0, const double *at, double rtol,
+                        double *yn, double *a1) {
+    const int n = 2 * nv_;
     static constexpr double gam = 0.25;
     static constexpr double A[6][5] = {
         {0, 0, 0, 0, 0},
@@ -688,7 +737,6 @@ class ContactRhs {
         {7.496443313967647, -10.24680431464352, -33.99990352819905, 11.70890893206160, 0},
         {8.083246795921522, -7.981132988064893, -31.52159432874371, 16.31930543123136,
          -6.058818238834054}};
-    double *z = Z.data();
     end_valid_ = false;
     ys_.resize(n);
     fs_.resize(n);
@@ -723,8 +771,6 @@ class ContactRhs {
       K_.col(s) = lu_.solve(r);
     }
     // y1 = (the 6th stage's argument) + k6; the error estimate is k6
-    const double *a0 = ay0.data(), *at = atol.data();
-    double *yn = y1.data(), *a1 = ay1.data();
     double ss = 0.0;
     for (int c = 0; c < n; ++c) {
       const double k6 = K_(c, 5);
@@ -1252,6 +1298,8 @@ class ContactRhs {
   std::vector<double> slide2_, gap_min_, slide_tol2_;
   std::vector<int64_t> keys_;  // (set_keys)
   std::vector<double> upper_, lower_;  // (set_limits)
+  std::vector<double> reach_;  // (set_reach)
+  double margin_ = 0.0, max_step_ = 0.0;
   double force_band_ = 0.0, point_tol_ = 0.0, stick_band_ = 0.0;
   bool conditions_set_ = false, end_valid_ = false;
   // the stiff steps (stiffness, rosenbrock): the last dopri's h |lambda|, the Jacobian, where
@@ -1262,6 +1310,92 @@ class ContactRhs {
   Eigen::PartialPivLU<Eigen::MatrixXd> lu_;
   std::vector<double> y_jac_, yp_, fp_, fs_;
 };
+
+
+namespace {
+
+using I2 = nb::ndarray<const int64_t, nb::ndim<2>, nb::c_contig, nb::device::cpu>;
+using StretchT = packbot_native::Stretch<ContactRhs>;
+
+template <class T>
+nb::ndarray<nb::numpy, T, nb::ndim<2>> owned(const std::vector<T> &v, size_t rows, size_t cols) {
+  T *buf = new T[rows * cols > 0 ? rows * cols : 1];
+  std::copy(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(rows * cols), buf);
+  nb::capsule owner(buf, [](void *p) noexcept { delete[] static_cast<T *>(p); });
+  return nb::ndarray<nb::numpy, T, nb::ndim<2>>(buf, {rows, cols}, owner);
+}
+
+// Stretch(rhs, api, ...): the sweep's capsule (packbot._native_coal's Sweep.api()).
+void stretch_init(StretchT *self, ContactRhs &rhs, nb::capsule api, double margin, F1 atol,
+                  double rtol, double h_min, double near,
+                  double pen_tol, int crawl_steps, double crawl_step, double sample_dt,
+                  double duration, bool stiff_switch) {
+  void *p = PyCapsule_GetPointer(api.ptr(), PACKBOT_SWEEP_API);
+  if (p == nullptr) {
+    PyErr_Clear();
+    throw std::invalid_argument("api: a capsule of packbot._native_coal's Sweep.api() expected");
+  }
+  new (self) StretchT(rhs, *static_cast<SweepApi *>(p), margin, reals(atol), rtol, h_min, near,
+                      pen_tol, crawl_steps, crawl_step, sample_dt, duration, stiff_switch);
+}
+
+// run's arguments and results as Python sees them (packbot/contact/stretch.py): a dict.
+nb::dict stretch_run(StretchT &st, bool f_pending, Out2 Z, Out1 ay, double t, double h,
+                     double max_factor, int stiff_run, bool stiff, int64_t next_sample,
+                     double min_d, double t_end, double t_last, double t_sched, I1 active,
+                     I2 limits, F1 lim_value, F1 crawl, Out1 y_pend, Out1 ay_pend) {
+  const size_t n = static_cast<size_t>(st.n());
+  if (Z.shape(0) != 8 || Z.shape(1) != n || ay.shape(0) != n || y_pend.shape(0) != n ||
+      ay_pend.shape(0) != n)
+    throw std::invalid_argument("Z (8, 2 nv); ay, y_pend, ay_pend (2 nv,) expected");
+  const size_t nl = limits.shape(0);
+  if ((nl && limits.shape(1) != 3) || lim_value.shape(0) != nl)
+    throw std::invalid_argument("limits (k, 3) and lim_value (k,) expected");
+  StretchT::State s;
+  s.t = t;
+  s.h = h;
+  s.max_factor = max_factor;
+  s.stiff_run = stiff_run;
+  s.stiff = stiff;
+  s.next_sample = next_sample;
+  s.min_d = min_d;
+  std::vector<double> ring(crawl.data(), crawl.data() + crawl.shape(0));
+  std::vector<double> samples, hs;
+  const auto c = st.run(s, f_pending, Z.data(), ay.data(), t_end, t_last, t_sched, active.data(),
+                        active.shape(0), limits.data(), lim_value.data(), nl, ring,
+                        y_pend.data(), ay_pend.data(), samples, hs);
+  nb::dict out;
+  out["status"] = c.status;
+  out["steps"] = c.steps;
+  out["rejected"] = c.rejected;
+  out["rhs_calls"] = c.rhs_calls;
+  out["stiff_steps"] = c.stiff_steps;
+  out["t"] = s.t;
+  out["h"] = s.h;
+  out["h_max"] = s.h_max;
+  out["stiff_run"] = s.stiff_run;
+  out["stiff"] = s.stiff;
+  out["min_d"] = s.min_d;
+  out["min_pair"] = s.min_pair;
+  out["samples"] = owned(samples, samples.size() / n, n);
+  out["hs"] = owned(hs, 1, hs.size());
+  out["last_pairs"] = owned(st.last_pairs(), 1, st.last_pairs().size());
+  out["last_dist"] = owned(st.last_dist(), 1, st.last_dist().size());
+  if (c.status == packbot_native::STRETCH_PENDING) {
+    out["t0"] = c.t0;
+    out["t1"] = c.t1;
+    out["pending_rejected"] = c.pending_rejected;
+    out["pending_rhs_calls"] = c.pending_rhs_calls;
+    out["pending_implicit"] = c.pending_implicit;
+    out["pending_pairs"] = owned(st.pending_pairs(), 1, st.pending_pairs().size());
+    out["pending_dist"] = owned(st.pending_dist(), 1, st.pending_dist().size());
+    out["pending_best"] = st.pending_best();
+    out["pending_best_d"] = st.pending_best_d();
+  }
+  return out;
+}
+
+}  // namespace
 
 NB_MODULE(_native, m) {
   m.doc() = "packbot's compiled right-hand side of the contact-normal mode (Pinocchio, nanobind).";
@@ -1293,6 +1427,9 @@ NB_MODULE(_native, m) {
       .def("eval_at", &ContactRhs::eval_at, nb::arg("y"))
       .def("set_keys", &ContactRhs::set_keys, nb::arg("keys"))
       .def("set_limits", &ContactRhs::set_limits, nb::arg("upper"), nb::arg("lower"))
+      .def("set_reach", &ContactRhs::set_reach, nb::arg("reach"), nb::arg("margin"),
+           nb::arg("max_step"))
+      .def("step_bound", &ContactRhs::step_bound, nb::arg("y"))
       .def("end_check", &ContactRhs::end_check, nb::arg("y1"), nb::arg("swept"), nb::arg("dist"),
            nb::arg("active"), nb::arg("near"), nb::arg("pen_tol"))
       .def("set_locks", &ContactRhs::set_locks, nb::arg("locked"))
@@ -1302,4 +1439,11 @@ NB_MODULE(_native, m) {
            nb::arg("accel_band"))
       .def("end_screen", &ContactRhs::end_screen, nb::arg("y1"), nb::arg("margin"))
       .def("last", &ContactRhs::last);
+  nb::class_<StretchT>(m, "Stretch")
+      .def("__init__", &stretch_init, nb::arg("rhs"), nb::arg("api"), nb::arg("margin"),
+           nb::arg("atol"), nb::arg("rtol"),
+           nb::arg("h_min"), nb::arg("near"), nb::arg("pen_tol"), nb::arg("crawl_steps"),
+           nb::arg("crawl_step"), nb::arg("sample_dt"), nb::arg("duration"),
+           nb::arg("stiff_switch"), nb::keep_alive<1, 2>(), nb::keep_alive<1, 3>())
+      .def("run", &stretch_run);
 }

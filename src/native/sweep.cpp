@@ -67,6 +67,7 @@
 #include <vector>
 
 #include "joints.hpp"
+#include "sweep_api.hpp"
 
 namespace nb = nanobind;
 namespace pin = pinocchio;
@@ -228,6 +229,7 @@ class Sweep {
     // cached_gjk_guess), where the pair's next query starts
     requests_.assign(K, request_);
     cand_.reserve(K);
+    dist_.resize(K);
     p1_.resize(K);
     p2_.resize(K);
     normal_.resize(K);
@@ -241,7 +243,25 @@ class Sweep {
   std::tuple<NpI1, NpF1, int64_t, double> sweep(F1 q, double margin) {
     if (q.shape(0) != static_cast<size_t>(model_.nq))
       throw std::invalid_argument("q: " + std::to_string(model_.nq) + " entries expected");
-    for (int i = 0; i < model_.nq; ++i) q_[i] = q.data()[i];
+    const size_t K = first_.size();
+    int64_t *pairs_out = new int64_t[K > 0 ? K : 1];
+    nb::capsule pairs_owner(pairs_out,
+                            [](void *p) noexcept { delete[] static_cast<int64_t *>(p); });
+    std::vector<double> &d = dist_;
+    int64_t best = -1;
+    double best_d = std::numeric_limits<double>::infinity();
+    const size_t T = sweep_into(q.data(), margin, pairs_out, d.data(), &best, &best_d);
+    double *dist_out = nullptr;
+    NpF1 distances = new_reals(T, &dist_out);
+    std::copy(d.begin(), d.begin() + static_cast<std::ptrdiff_t>(T), dist_out);
+    return {NpI1(pairs_out, {T}, pairs_owner), distances, best, best_d};
+  }
+
+  // The sweep at q (nq entries) and margin [m] into pairs and dist (room for n_pairs each):
+  // the candidates' count; best and best_d the first smallest distance's pair (-1) and value.
+  size_t sweep_into(const double *q, double margin, int64_t *pairs_out, double *dist_out,
+                    int64_t *best_out, double *best_d_out) {
+    for (int i = 0; i < model_.nq; ++i) q_[i] = q[i];
     pin::forwardKinematics(model_, data_, q_);
     const size_t G = shapes_.size();
     const double inflation = (0.0 + margin) * 0.5;  // (break_distance + security_margin) / 2
@@ -273,11 +293,6 @@ class Sweep {
       if (objects_[first_[k]]->getAABB().overlap(objects_[second_[k]]->getAABB()))
         cand_.push_back(k);
     const size_t T = cand_.size();
-    int64_t *pairs_out = new int64_t[T > 0 ? T : 1];
-    nb::capsule pairs_owner(pairs_out,
-                            [](void *p) noexcept { delete[] static_cast<int64_t *>(p); });
-    double *dist_out = nullptr;
-    NpF1 distances = new_reals(T, &dist_out);
     int64_t best = -1;
     double best_d = std::numeric_limits<double>::infinity();
     for (size_t i = 0; i < T; ++i) {
@@ -296,7 +311,29 @@ class Sweep {
         best = static_cast<int64_t>(k);
       }
     }
-    return {NpI1(pairs_out, {T}, pairs_owner), distances, best, best_d};
+    *best_out = best;
+    *best_d_out = best_d;
+    return T;
+  }
+
+  // The C entry point (sweep_api.hpp) in a capsule that keeps this Sweep alive.
+  nb::capsule api(nb::handle self) {
+    self.inc_ref();
+    auto *api = new SweepApi{this, &Sweep::c_sweep, static_cast<int64_t>(first_.size()),
+                             static_cast<int64_t>(model_.nq), self.ptr()};
+    return nb::capsule(api, PACKBOT_SWEEP_API, [](void *p) noexcept {
+      // (the capsule's destructor: the SweepApi and its reference to the Sweep)
+      auto *a = static_cast<SweepApi *>(p);
+      PyObject *owner = static_cast<PyObject *>(a->owner);
+      delete a;
+      Py_XDECREF(owner);
+    });
+  }
+
+  static int64_t c_sweep(void *self, const double *q, double margin, int64_t *pairs,
+                         double *dist, int64_t *best, double *best_d) {
+    return static_cast<int64_t>(
+        static_cast<Sweep *>(self)->sweep_into(q, margin, pairs, dist, best, best_d));
   }
 
   // The contact patches of ``pairs`` within ``tol`` [m] at q: (sizes, normals, depths, points1,
@@ -428,6 +465,7 @@ class Sweep {
   coal::DistanceResult result_;
   std::vector<coal::Vec3s> p1_, p2_, normal_;
   std::vector<coal::Vec3s> pts1_, pts2_;  // (patches' scratch)
+  std::vector<double> dist_;  // (sweep's scratch: one per pair)
 };
 
 NB_MODULE(_native_coal, m) {
@@ -450,5 +488,6 @@ NB_MODULE(_native_coal, m) {
       .def("witness", &Sweep::witness, nb::arg("p1"), nb::arg("p2"), nb::arg("normal"))
       .def("boxes", &Sweep::boxes, nb::arg("lo"), nb::arg("hi"))
       .def("last_q", &Sweep::last_q)
+      .def("api", [](nb::handle self) { return nb::cast<Sweep &>(self).api(self); })
       .def_prop_ro("n_pairs", &Sweep::n_pairs);
 }

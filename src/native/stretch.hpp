@@ -1,0 +1,428 @@
+// A stretch of quiet steps of the contact-normal mode in one native call.
+//
+// The event loop (packbot/integrator.py) takes one step at a time in Python: the step-size
+// control of packbot.ode.RK45Stepper.step around the native Dormand-Prince attempt, the collision
+// sweep at the step's end, the step end's screen (ContactRhs::end_check), the samples due in the
+// step, the crawl rule and the limit stops' release (packbot.contact.normal_law.NormalLaw.watch
+// and .after_step). Most steps find nothing to do: no event, no stale patch, no mode to change.
+// ``Stretch::run`` takes those steps here, one after another, with the same arithmetic, and
+// returns at the first step that has something for Python: that step (its stages, its state,
+// the stepper's state after it) is handed back *pending*, and the loop goes on with it as if
+// Python had taken it (its watch, then the rest). The stretch also ends, with every step it
+// took committed, at the run's end, at a scheduled action's time, where the explicit stepper
+// turns stiff (the Rosenbrock steps stay in Python), or before a step it cannot take (the
+// kernel refused an attempt: a singular Delassus matrix; or the step size underflowed): Python
+// then takes that step from the start.
+//
+// The collision sweep is packbot._native_coal's, called through its C entry point
+// (sweep_api.hpp): this module does not link libcoal.
+//
+// packbot/contact/stretch.py is the Python side; docs/performance.md, "The stretch of quiet
+// steps", says what it saves.
+#pragma once
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <limits>
+#include <stdexcept>
+#include <vector>
+
+#include "sweep_api.hpp"
+
+namespace packbot_native {
+
+// packbot.ode's step-size control constants (the same values).
+struct StepControl {
+  static constexpr double SAFETY = 0.9;
+  static constexpr double MIN_FACTOR = 0.2;
+  static constexpr double MAX_FACTOR = 10.0;
+  static constexpr double ERROR_EXPONENT = -1.0 / 5.0;
+  static constexpr double STRETCH = 0.01;
+  static constexpr double STIFF_RATIO = 3.0;
+  static constexpr int STIFF_STEPS = 3;
+  static constexpr double NONSTIFF_RATIO = 3.0;
+  static constexpr double ROS_ERROR_EXPONENT = -1.0 / 4.0;
+  static constexpr double ROS_MAX_FACTOR = 6.0;
+};
+
+// The continuous extension of Dormand-Prince 5(4) (packbot.ode._P): y(t0 + theta h) =
+// y0 + sum_m Q_m x^m ..., Q = P8^T Z (packbot.ode.DenseSegment).
+struct DenseOutput {
+  static constexpr double P[7][4] = {
+      {1, -8048581381.0 / 2820520608, 8663915743.0 / 2820520608,
+       -12715105075.0 / 11282082432},
+      {0, 0, 0, 0},
+      {0, 131558114200.0 / 32700410799, -68118460800.0 / 10900136933,
+       87487479700.0 / 32700410799},
+      {0, -1754552775.0 / 470086768, 14199869525.0 / 1410260304, -10690763975.0 / 1880347072},
+      {0, 127303824393.0 / 49829197408, -318862633887.0 / 49829197408,
+       701980252875.0 / 199316789632},
+      {0, -282668133.0 / 205662961, 2019193451.0 / 616988883, -1453857185.0 / 822651844},
+      {0, 40617522.0 / 29380423, -110615467.0 / 29380423, 69997945.0 / 29380423}};
+
+  // y(t) into out (n): the step [t0, t1] of size h with stages z (8, n), y1 its end; a
+  // Rosenbrock step (hermite) by the cubic Hermite interpolant on y0 = z[0], f0 = z[1],
+  // y1 = z[2], f1 = z[7] (packbot.ode.HermiteSegment).
+  static void at(double t, double t0, double t1, double h, const double *z, const double *y1,
+                 int n, bool hermite, double *out) {
+    if (t == t1) {
+      std::copy(y1, y1 + n, out);
+      return;
+    }
+    if (t == t0) {
+      std::copy(z, z + n, out);
+      return;
+    }
+    const double th = (t - t0) / h;
+    const double x = h * th, x2 = x * th, x3 = x2 * th;
+    const double w[5] = {1.0, x, x2, x3, x3 * th};
+    if (hermite) {
+      for (int c = 0; c < n; ++c) {
+        const double y0 = z[c], f0 = z[n + c], f1 = z[7 * n + c];
+        const double dy = (z[2 * n + c] - y0) / h;
+        const double q[4] = {y0, f0, 3.0 * dy - 2.0 * f0 - f1, f0 + f1 - 2.0 * dy};
+        double y = 0.0;
+        for (int m = 0; m < 4; ++m) y += w[m] * q[m];
+        out[c] = y;
+      }
+      return;
+    }
+    for (int c = 0; c < n; ++c) {
+      double q[5] = {z[c], 0.0, 0.0, 0.0, 0.0};
+      for (int m = 0; m < 4; ++m) {
+        double acc = 0.0;
+        for (int j = 0; j < 7; ++j) acc += P[j][m] * z[(1 + j) * n + c];
+        q[m + 1] = acc;
+      }
+      double y = 0.0;
+      for (int m = 0; m < 5; ++m) y += w[m] * q[m];
+      out[c] = y;
+    }
+  }
+};
+
+// Why a stretch ended (Stretch::run's status).
+enum StretchStatus : int {
+  STRETCH_END = 0,      // t reached t_last (the run's end) or t_end
+  STRETCH_PENDING = 1,  // a step with something for Python: handed back, not committed
+  STRETCH_SCHEDULE = 2, // a scheduled action is due at t
+  STRETCH_REFUSED = 4,  // the next step could not be taken here (Python takes it)
+};
+
+// The constants of a run's stretches and their work arrays; run() takes the steps.
+template <class Rhs>
+class Stretch {
+ public:
+  // rhs: the contact-normal mode's native right-hand side (its modes and torques loaded by
+  // the caller before each run, its step bound's constants by set_reach); api: the collision
+  // sweep's entry point; margin [m] the sweep's query margin; atol (2 nv), rtol,
+  // h_min [s] the stepper's; near [m] the proximity tolerance, pen_tol [m] the penetration
+  // tolerance (end_check); crawl_steps, crawl_step [s] (normal_law.CRAWL_STEPS, CRAWL_STEP);
+  // sample_dt [s], duration [s] the recorder's; stiff_switch: whether the stepper switches
+  // to Rosenbrock steps in stiff stretches (packbot.contact.native.STIFF_ENABLED).
+  Stretch(Rhs &rhs, const SweepApi &api, double margin, std::vector<double> atol, double rtol,
+          double h_min, double near,
+          double pen_tol, int crawl_steps, double crawl_step, double sample_dt, double duration,
+          bool stiff_switch)
+      : rhs_(rhs),
+        api_(api),
+        margin_(margin),
+        atol_(std::move(atol)),
+        rtol_(rtol),
+        h_min_(h_min),
+        near_(near),
+        pen_tol_(pen_tol),
+        crawl_steps_(crawl_steps),
+        crawl_step_(crawl_step),
+        sample_dt_(sample_dt),
+        duration_(duration),
+        stiff_switch_(stiff_switch) {
+    nv_ = rhs.nv();
+    n_ = 2 * nv_;
+    if (static_cast<int>(atol_.size()) != n_) throw std::invalid_argument("atol (2 nv) expected");
+    if (api_.nq != nv_) throw std::invalid_argument("the sweep's nq is not the model's nv");
+    const size_t K = static_cast<size_t>(std::max<int64_t>(api_.n_pairs, 1));
+    pairs_.resize(K);
+    dist_.resize(K);
+    y1_.resize(n_);
+    ay1_.resize(n_);
+    ys_.resize(n_);
+  }
+
+  // The stepper's and the law's state a run starts from and ends with (run's in/out).
+  struct State {
+    double t = 0.0;          // [s]
+    double h = 0.0;          // the next step's size [s]
+    double max_factor = 0;   // the stepper's growth cap for the next step
+    int stiff_run = 0;       // successive stiff Dormand-Prince steps
+    bool stiff = false;      // the next steps are Rosenbrock attempts
+    int64_t next_sample = 0; // the recorder's next regular sample
+    double h_max = 0.0;      // out: the last step's bound [s] (the stepper's h_max)
+    double min_d = 0.0;      // the smallest signed distance kept so far [m]
+    int64_t min_pair = -1;   // its pair (-1: none lowered it in this run)
+  };
+
+  // What a run did (besides State and the arrays).
+  struct Counts {
+    int status = STRETCH_END;
+    int64_t steps = 0;       // committed steps
+    int64_t rejected = 0;    // their rejected attempts
+    int64_t rhs_calls = 0;   // their right-hand-side calls (RK45Stepper.n_rhs's count)
+    int64_t stiff_steps = 0; // of them Rosenbrock steps
+    // the pending step (status PENDING): its start, its end, its rejections, calls and kind
+    double t0 = 0.0, t1 = 0.0;
+    int64_t pending_rejected = 0, pending_rhs_calls = 0;
+    bool pending_implicit = false;
+  };
+
+  // Take the quiet steps from s.t: z (8, n) holds [y, f(y)] on entry (Z[0], Z[1]; with
+  // f_pending only y: the first stage computes f(y) (ContactRhs::first)) and, on
+  // return, [y, f(y)] at the end of the last committed step, or (PENDING) the pending step's
+  // stages [y0, k0, ..., k6] with its end in y_pend and |y_end| in ay_pend; ay (n) |y| in/out.
+  // t_end [s]: no step beyond (the loop's t_far); t_last [s]: the run ends there; t_sched [s]:
+  // the next scheduled action; active (na) the contact set's active pairs; limits (nl x 3):
+  // the active limit stops (joint, side, held); lim_value (nl) their positions [rad]. Samples
+  // due (the recorder's rule) are appended to samples (rows of n), the committed steps' sizes
+  // to hs; the last committed step's sweep is kept (last_pairs, last_dist).
+  Counts run(State &s, bool f_pending, double *z, double *ay, double t_end, double t_last,
+             double t_sched,
+             const int64_t *active, size_t na, const int64_t *limits, const double *lim_value,
+             size_t nl, std::vector<double> &crawl, double *y_pend, double *ay_pend,
+             std::vector<double> &samples, std::vector<double> &hs) {
+    Counts c;
+    const int n = n_;
+    const double *atol = atol_.data();
+    const double crawl_sum_cap = crawl_steps_ * crawl_step_;
+    // a restart's derivative left to the first step (RK45Stepper.reset's defer): its first
+    // stage (the stepper calls the same function; when it refuses, Python's right-hand side)
+    if (f_pending && s.t < t_last && !(t_sched <= s.t + 1e-12) && !rhs_.first_raw(z)) {
+      c.status = STRETCH_REFUSED;
+      return c;
+    }
+    while (true) {
+      const double t = s.t;
+      if (!(t < t_last)) return c;  // (status END)
+      if (t_sched <= t + 1e-12) {
+        c.status = STRETCH_SCHEDULE;
+        return c;
+      }
+      // the step's bound (NormalLaw.step_bound): every point moves at most half the margin
+      const double h_max = rhs_.step_bound_raw(z + nv_);
+      s.h_max = h_max;
+      // RK45Stepper.step with the kernel and its stiff counterpart
+      double h = s.h;
+      if (h > h_max) h = h_max;
+      bool implicit = s.stiff;
+      double expo = implicit ? StepControl::ROS_ERROR_EXPONENT : StepControl::ERROR_EXPONENT;
+      int stiff_run = s.stiff_run;
+      bool rejected = false;
+      int64_t rej = 0, calls = 0;
+      double t_new = 0.0, err = 0.0, h_wanted = -1.0;
+      while (true) {
+        t_new = t + h;
+        h_wanted = -1.0;
+        if (t_new + StepControl::STRETCH * h >= t_end) {
+          h_wanted = h;
+          t_new = t_end;
+          h = t_end - t;
+        }
+        if (implicit) {
+          err = rhs_.rosenbrock_raw(h, z, ay, atol, rtol_, y1_.data(), ay1_.data());
+          if (err < 0.0) {  // the kernel could not: back to Dormand-Prince
+            implicit = false;
+            stiff_run = 0;
+            expo = StepControl::ERROR_EXPONENT;
+          }
+        }
+        if (!implicit) {
+          err = rhs_.dopri_raw(h, z, ay, atol, rtol_, y1_.data(), ay1_.data());
+          if (err < 0.0) {  // (not: Python's stages; nan is a rejection)
+            c.status = STRETCH_REFUSED;
+            return c;
+          }
+        }
+        calls += implicit ? (rejected ? 5 : 5 + 2 * n) : 6;  // (RK45Stepper.step's count)
+        if (err < 1.0) break;
+        ++rej;
+        rejected = true;
+        double fac = StepControl::SAFETY * std::pow(err, expo);
+        if (!(fac > StepControl::MIN_FACTOR)) fac = StepControl::MIN_FACTOR;
+        h *= fac;
+        const double ulp = std::nextafter(t, std::numeric_limits<double>::infinity()) - t;
+        if (h < std::max(h_min_, 10.0 * ulp)) {  // (an underflow: Python raises it)
+          c.status = STRETCH_REFUSED;
+          return c;
+        }
+      }
+      // accepted: the next step's size
+      const double max_factor = implicit ? StepControl::ROS_MAX_FACTOR : s.max_factor;
+      double fac;
+      if (err == 0.0) {
+        fac = max_factor;
+      } else {
+        fac = StepControl::SAFETY * std::pow(err, expo);
+        if (fac > max_factor) fac = max_factor;
+      }
+      if (rejected) {
+        if (fac > 1.0) fac = 1.0;
+      } else if (h_wanted > h) {
+        const double h_next = h * fac;
+        h = h_wanted > h_next ? h_wanted : h_next;
+        fac = 1.0;
+      }
+      const double step = t_new - t;
+      const double h_after = h * fac;
+      bool stiff = s.stiff && implicit;
+      if (implicit) {
+        ++calls;  // f(y1), the accepted attempt's last stage
+        if (h_after * rhs_.jac_radius() < StepControl::NONSTIFF_RATIO) {
+          stiff = false;
+          stiff_run = 0;
+        }
+      } else if (stiff_switch_) {
+        if (rhs_.stiffness() > StepControl::STIFF_RATIO) {
+          ++stiff_run;
+          if (stiff_run >= StepControl::STIFF_STEPS) stiff = true;
+        } else {
+          stiff_run = 0;
+        }
+      }
+      // the step's end: the sweep, the screen (NormalLaw.watch)
+      int64_t best = -1;
+      double best_d = std::numeric_limits<double>::infinity();
+      const int64_t ns =
+          api_.sweep(api_.self, y1_.data(), margin_, pairs_.data(), dist_.data(), &best, &best_d);
+      int code = rhs_.end_check_raw(y1_.data(), pairs_.data(), dist_.data(),
+                                    static_cast<size_t>(ns), active, na, near_, pen_tol_);
+      bool pending = code < 0 || (code & 7) != 0;
+      if (!pending && (code & 8)) pending = new_limit(y1_.data(), limits, nl);
+      // after_step: the crawl rule, the limit stops' release (JointStops.release_limits)
+      if (!pending && static_cast<int>(crawl.size()) + 1 >= crawl_steps_) {
+        double sum = 0.0;  // (the deque's sum, oldest first, with this step)
+        const size_t skip = crawl.size() + 1 - static_cast<size_t>(crawl_steps_);
+        for (size_t i = skip; i < crawl.size(); ++i) sum += crawl[i];
+        sum += step;
+        if (sum < crawl_sum_cap) pending = true;
+      }
+      if (!pending) {
+        for (size_t i = 0; i < nl; ++i) {
+          const int64_t j = limits[3 * i], side = limits[3 * i + 1], held = limits[3 * i + 2];
+          if (static_cast<double>(side) * (lim_value[i] - y1_[j]) > 1e-6 && !held) {
+            pending = true;
+            break;
+          }
+        }
+      }
+      // a step ending on a scheduled action's time is Python's (its samples, the action)
+      if (!pending && t_new >= t_sched - 1e-12 && t_new < t_last) pending = true;
+      if (pending) {
+        pend_pairs_.assign(pairs_.begin(), pairs_.begin() + ns);
+        pend_dist_.assign(dist_.begin(), dist_.begin() + ns);
+        pend_best_ = best;
+        pend_best_d_ = best_d;
+        c.status = STRETCH_PENDING;
+        c.t0 = t;
+        c.t1 = t_new;
+        c.pending_rejected = rej;
+        c.pending_rhs_calls = calls;
+        c.pending_implicit = implicit;
+        std::copy(y1_.begin(), y1_.end(), y_pend);
+        std::copy(ay1_.begin(), ay1_.end(), ay_pend);
+        s.h = h_after;
+        s.max_factor = StepControl::MAX_FACTOR;
+        s.stiff_run = stiff_run;
+        s.stiff = stiff;
+        return c;
+      }
+      // committed: the samples due (Recorder.record), the law's bookkeeping
+      record(s, t, t_new, step, z, implicit, samples);
+      if (best >= 0 && best_d < s.min_d) {
+        s.min_d = best_d;
+        s.min_pair = best;
+      }
+      last_n_ = static_cast<size_t>(ns);
+      last_pairs_.assign(pairs_.begin(), pairs_.begin() + ns);
+      last_dist_.assign(dist_.begin(), dist_.begin() + ns);
+      crawl.push_back(step);
+      hs.push_back(step);
+      ++c.steps;
+      c.rejected += rej;
+      c.rhs_calls += calls;
+      if (implicit) ++c.stiff_steps;
+      s.t = t_new;
+      s.h = h_after;
+      s.max_factor = StepControl::MAX_FACTOR;
+      s.stiff_run = stiff_run;
+      s.stiff = stiff;
+      std::copy(y1_.begin(), y1_.end(), z);  // Z[0] = y1, Z[1] = f(y1) (the FSAL stage)
+      std::copy(z + 7 * n, z + 8 * n, z + n);
+      std::copy(ay1_.begin(), ay1_.end(), ay);
+    }
+  }
+
+  // the pending step's sweep (status PENDING): its candidates, distances, closest pair
+  const std::vector<int64_t> &pending_pairs() const { return pend_pairs_; }
+  const std::vector<double> &pending_dist() const { return pend_dist_; }
+  int64_t pending_best() const { return pend_best_; }
+  double pending_best_d() const { return pend_best_d_; }
+  const std::vector<int64_t> &last_pairs() const { return last_pairs_; }
+  const std::vector<double> &last_dist() const { return last_dist_; }
+  int n() const { return n_; }
+
+ private:
+  // Whether a joint at or beyond a limit has no active stop there (a limit event).
+  bool new_limit(const double *y1, const int64_t *limits, size_t nl) const {
+    const std::vector<double> &up = rhs_.upper(), &lo = rhs_.lower();
+    for (size_t j = 0; j < up.size(); ++j) {
+      int side = 0;
+      if (y1[j] >= up[j])
+        side = 1;
+      else if (y1[j] <= lo[j])
+        side = -1;
+      if (!side) continue;
+      bool active = false;
+      for (size_t i = 0; i < nl; ++i)
+        if (limits[3 * i] == static_cast<int64_t>(j) && limits[3 * i + 1] == side) active = true;
+      if (!active) return true;
+    }
+    return false;
+  }
+
+  // The regular samples due in the step [t0, t1] (Recorder.record with t_end = t1).
+  void record(State &s, double t0, double t1, double h, const double *z, bool hermite,
+              std::vector<double> &samples) {
+    const double dt = sample_dt_;
+    int64_t k = s.next_sample;
+    const double lim = std::min(t1, duration_) + 1e-12;
+    if (static_cast<double>(k) * dt > lim) return;
+    while (true) {
+      const double ts = static_cast<double>(k) * dt;
+      if (ts > t1 + 1e-12 || ts > duration_ + 1e-12) break;
+      const size_t at = samples.size();
+      samples.resize(at + static_cast<size_t>(n_));
+      DenseOutput::at(std::min(std::max(ts, t0), t1), t0, t1, h, z, y1_.data(), n_, hermite,
+                      samples.data() + at);
+      ++k;
+    }
+    s.next_sample = k;
+  }
+
+  Rhs &rhs_;
+  SweepApi api_;
+  double margin_;
+  std::vector<double> atol_;
+  double rtol_, h_min_, near_, pen_tol_;
+  int crawl_steps_;
+  double crawl_step_, sample_dt_, duration_;
+  bool stiff_switch_;
+  int nv_ = 0, n_ = 0;
+  std::vector<int64_t> pairs_, last_pairs_, pend_pairs_;
+  std::vector<double> pend_dist_;
+  int64_t pend_best_ = -1;
+  double pend_best_d_ = 0.0;
+  std::vector<double> dist_, last_dist_, y1_, ay1_, ys_;
+  size_t last_n_ = 0;
+};
+
+}  // namespace packbot_native

@@ -1,0 +1,24 @@
+// The collision sweep's C entry point, shared by packbot._native_coal (which exports it) and
+// packbot._native (whose stretch of steps calls it): a plain function pointer in a capsule, so
+// that the two modules need no link between them (packbot._native does not link libcoal).
+//
+// ``Sweep.api()`` (packbot._native_coal) returns a capsule named PACKBOT_SWEEP_API holding a
+// SweepApi; the capsule keeps the Sweep alive. ``sweep`` does what ``Sweep.sweep(q, margin)``
+// does (forward kinematics, the broadphase boxes, Coal's distance on every candidate; the
+// witness points kept), writing the candidates' pair indices and signed distances [m] into
+// ``pairs`` and ``dist`` (room for ``cap`` each), the closest pair's index (-1: none) into
+// ``best`` and its distance (inf: none) into ``best_d``. Returns the number of candidates.
+#pragma once
+
+#include <cstdint>
+
+#define PACKBOT_SWEEP_API "packbot.sweep_api"
+
+struct SweepApi {
+  void *self;
+  int64_t (*sweep)(void *self, const double *q, double margin, int64_t *pairs, double *dist,
+                   int64_t *best, double *best_d);
+  int64_t n_pairs;  // the world's pairs: the room ``pairs`` and ``dist`` need at most
+  int64_t nq;       // the configuration's size
+  void *owner;      // the Python Sweep (a reference the capsule holds)
+};
