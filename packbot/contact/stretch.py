@@ -11,10 +11,12 @@ compiled ``Stretch`` (``src/native/stretch.hpp``, in ``packbot._native``) takes 
 after another with the same arithmetic, calling the compiled collision sweep through its C entry
 point (``src/native/sweep_api.hpp``), and stops at the first step that has something for the
 law: that step comes back *pending*, a :class:`~packbot.ode.DenseSegment` the loop watches as if
-the stepper had just taken it. A stretch also ends, its steps all kept, at the run's end, at a
-scheduled action, where the stepper turns stiff (its Rosenbrock steps stay in Python), or
-before a step it cannot take (the kernel refused an attempt, or the step size underflowed):
-the loop then takes that step itself.
+the stepper had just taken it. The steps are the stepper's: Dormand-Prince attempts, or, where
+the stepper's stiffness test switches, the native Rosenbrock attempts (with their cubic Hermite
+dense output), and a restart's derivative left to the first step is the kernel's first stage. A
+stretch also ends, its steps all kept, at the run's end, at a scheduled action, or before a step
+it cannot take (the kernel refused an attempt, or the step size underflowed): the loop then
+takes that step itself.
 
 The results are those of the step-by-step loop, to rounding: the step bound's dot product and
 the samples' dense output are summed in another order than numpy's (``tests/test_stretch.py``

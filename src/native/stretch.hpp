@@ -8,11 +8,12 @@
 // ``Stretch::run`` takes those steps here, one after another, with the same arithmetic, and
 // returns at the first step that has something for Python: that step (its stages, its state,
 // the stepper's state after it) is handed back *pending*, and the loop goes on with it as if
-// Python had taken it (its watch, then the rest). The stretch also ends, with every step it
-// took committed, at the run's end, at a scheduled action's time, where the explicit stepper
-// turns stiff (the Rosenbrock steps stay in Python), or before a step it cannot take (the
-// kernel refused an attempt: a singular Delassus matrix; or the step size underflowed): Python
-// then takes that step from the start.
+// Python had taken it (its watch, then the rest). The steps are the stepper's: Dormand-Prince
+// attempts, or Rosenbrock attempts where its stiffness test switches (RK45Stepper.step's
+// `stiff`), a restart's derivative computed by the first stage. The stretch also ends, with
+// every step it took committed, at the run's end, at a scheduled action's time, or before a
+// step it cannot take (the kernel refused an attempt: a singular Delassus matrix; or the step
+// size underflowed): Python then takes that step from the start.
 //
 // The collision sweep is packbot._native_coal's, called through its C entry point
 // (sweep_api.hpp): this module does not link libcoal.
@@ -202,7 +203,7 @@ class Stretch {
     }
     while (true) {
       const double t = s.t;
-      if (!(t < t_last)) return c;  // (status END)
+      if (!(t < t_last) || !(t < t_end)) return c;  // (status END)
       if (t_sched <= t + 1e-12) {
         c.status = STRETCH_SCHEDULE;
         return c;
