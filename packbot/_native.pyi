@@ -106,3 +106,45 @@ class ContactRhs:
         self, y1: NDArray[np.float64]
     ) -> tuple[NDArray[np.float64], NDArray[np.float64]] | None: ...
     def last(self) -> tuple[NDArray[np.float64], ...]: ...
+    def set_reach(self, reach: NDArray[np.float64], margin: float, max_step: float) -> None: ...
+    def step_bound(self, y: NDArray[np.float64]) -> float: ...
+
+class Stretch:
+    def __init__(
+        self,
+        rhs: ContactRhs,
+        api: Any,
+        margin: float,
+        atol: NDArray[np.float64],
+        rtol: float,
+        h_min: float,
+        near: float,
+        pen_tol: float,
+        crawl_steps: int,
+        crawl_step: float,
+        sample_dt: float,
+        duration: float,
+        stiff_switch: bool,
+    ) -> None: ...
+    def run(
+        self,
+        f_pending: bool,
+        Z: NDArray[np.float64],
+        ay: NDArray[np.float64],
+        t: float,
+        h: float,
+        max_factor: float,
+        stiff_run: int,
+        stiff: bool,
+        next_sample: int,
+        min_d: float,
+        t_end: float,
+        t_last: float,
+        t_sched: float,
+        active: NDArray[np.int64],
+        limits: NDArray[np.int64],
+        lim_value: NDArray[np.float64],
+        crawl: NDArray[np.float64],
+        y_pend: NDArray[np.float64],
+        ay_pend: NDArray[np.float64],
+    ) -> dict[str, Any]: ...

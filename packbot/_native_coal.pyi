@@ -1,5 +1,7 @@
 """Type stub of the compiled collision sweep (src/native/sweep.cpp)."""
 
+from typing import Any
+
 import numpy as np
 from numpy.typing import NDArray
 
@@ -40,6 +42,7 @@ class Sweep:
     ) -> None: ...
     def boxes(self, lo: NDArray[np.float64], hi: NDArray[np.float64]) -> None: ...
     def last_q(self) -> NDArray[np.float64]: ...
+    def api(self) -> Any: ...
     def patches(
         self, q: NDArray[np.float64], pairs: NDArray[np.int64], tol: float
     ) -> tuple[

@@ -363,6 +363,38 @@ class CollisionWorld:
         """
         return self._collect(self._query_margin(margin))
 
+    def keep_sweep(
+        self,
+        q: NDArray[np.float64],
+        pairs: NDArray[np.int64],
+        distances: NDArray[np.float64],
+        closest: int,
+        closest_d: float,
+    ) -> None:
+        """Keep a compiled sweep made at q elsewhere as the last one, for :meth:`sweep`'s reuse.
+
+        The contact-normal mode's compiled stretch of steps (:mod:`packbot.contact.stretch`)
+        sweeps through the compiled sweep's C entry point; the loop then watches its last
+        step, whose sweep ``sweep(q, reuse=True)`` returns from here (bit for bit: Coal's
+        warm-started GJK would not repeat it exactly). Only with the compiled sweep.
+
+        Args:
+            q: The configuration swept [rad].
+            pairs: Its candidates' pair indices.
+            distances: Their signed distances [m] (the world's margin).
+            closest: The closest pair (-1: none).
+            closest_d: Its distance [m] (inf: none).
+        """
+        self._dispatch.adopt(q, pairs, distances, closest, closest_d)
+
+    def owe_sweep(self) -> None:
+        """The compiled sweep swept elsewhere (its C entry point): the pieces are owed at its q.
+
+        After it, a reader of ``geom_data`` finds the pieces placed at the compiled sweep's
+        last q (as after :meth:`sweep`'s own compiled call).
+        """
+        self._dispatch.pending = True
+
     def sweep(
         self, q: NDArray[np.float64], margin: float | None = None, *, reuse: bool = False
     ) -> SweepResult:

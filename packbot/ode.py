@@ -52,6 +52,7 @@ from numpy.typing import ArrayLike, NDArray
 from packbot.errors import ConfigurationError, PackbotError
 
 __all__ = [
+    "ControlState",
     "DenseSegment",
     "HermiteSegment",
     "RK45Stepper",
@@ -367,6 +368,25 @@ class HermiteSegment(DenseSegment):
         return Q
 
 
+@dataclass(frozen=True, slots=True)
+class ControlState:
+    """A stepper's step-size control between two steps (:meth:`RK45Stepper.control`).
+
+    Attributes:
+        h: The next step's size [s] (before the cap at ``h_max``).
+        max_factor: The next step's growth cap [-] (:data:`MAX_FACTOR_FIRST` after a reset).
+        stiff_run: Successive steps whose stiffness estimate exceeded :data:`STIFF_RATIO`.
+        stiff: Whether the next steps are Rosenbrock steps.
+        ay: ``|y|`` of the current state, shape (n,) (do not modify).
+    """
+
+    h: float
+    max_factor: float
+    stiff_run: int
+    stiff: bool
+    ay: FloatArray
+
+
 class RK45Stepper:
     """Dormand-Prince 5(4) stepper with error control, FSAL and dense output; forward in time.
 
@@ -511,6 +531,10 @@ class RK45Stepper:
         if h is None:
             h = self._initial_step(t, y, f, ay)
         self.h = min(float(h), self.h_max)
+
+    def control(self) -> ControlState:
+        """The step-size control's state between steps (what :meth:`take` sets after others)."""
+        return ControlState(self.h, self._max_factor, self._stiff_run, self.stiff, self._ay)
 
     def take(
         self,

@@ -262,16 +262,7 @@ class Recorder:
         if not times:
             return
         t0, t1 = seg.t0, seg.t1
-        ys = [seg(min(max(ts, t0), t1)) for ts in times]
-        if self.measure_many is not None and self._cols:
-            samples = self.measure_many(times, ys)
-            if samples is not None:
-                self._rows(times, samples)
-                self.next_sample = k
-                return
-        for ts, y in zip(times, ys, strict=True):
-            self.point(ts, y)
-            self.next_sample += 1
+        self._keep(times, [seg(min(max(ts, t0), t1)) for ts in times])
 
     def record_states(self, ys: FloatArray) -> None:
         """Keep the next regular samples from their states ys, shape (m, n), in order.
@@ -280,19 +271,19 @@ class Recorder:
         steps taken at once evaluated its dense outputs there: :mod:`packbot.contact.stretch`),
         measured at once as :meth:`record` does.
         """
-        m = len(ys)
-        if m == 0:
-            return
         k, dt = self.next_sample, self.dt
-        times = [(k + i) * dt for i in range(m)]
-        rows = list(ys)
+        if len(ys):
+            self._keep([(k + i) * dt for i in range(len(ys))], list(ys))
+
+    def _keep(self, times: list[float], ys: list[FloatArray]) -> None:
+        """Keep the regular samples ys at times, the next ones due (measured at once if it can)."""
         if self.measure_many is not None and self._cols:
-            samples = self.measure_many(times, rows)
+            samples = self.measure_many(times, ys)
             if samples is not None:
                 self._rows(times, samples)
-                self.next_sample = k + m
+                self.next_sample += len(times)
                 return
-        for ts, y in zip(times, rows, strict=True):
+        for ts, y in zip(times, ys, strict=True):
             self.point(ts, y)
             self.next_sample += 1
 

@@ -48,10 +48,10 @@ def _both(robot, q0, duration, cfg, monkeypatch, failures=()):
     run = stretch.QuietStretch.run
 
     def counted(self, *args):
-        out = run(self, *args)
-        taken["steps"] += out.steps
-        taken["pending"] += out.pending is not None
-        return out
+        done, out = run(self, *args)
+        taken["steps"] += done.steps
+        taken["pending"] += done.pending is not None
+        return done, out
 
     loops = []
     loop_run = integrator._Run.run

@@ -25,7 +25,13 @@ from packbot.contact.normal_contacts import NormalContacts
 from packbot.contact.normal_tolerances import PENETRATION_TOL
 from packbot.contact.pairs import reach_bounds
 from packbot.contact.patch_events import PatchEvents
-from packbot.contact.stretch import QuietStretch, SampleClock, Stretched, quiet_stretch
+from packbot.contact.stretch import (
+    LawInputs,
+    QuietStretch,
+    SampleClock,
+    Stretched,
+    quiet_stretch,
+)
 from packbot.contact.timestep import QUIET_STEPS, MoreauJeanStepper
 from packbot.ode import DenseSegment, RK45Stepper, StepKernel, StiffKernel
 from packbot.system import System
@@ -360,38 +366,50 @@ class NormalLaw(PatchEvents):
         st = self._stretch = quiet_stretch(self, stepper, clock, self._stretch)
         if st is None:
             return None
-        return st.run(self, stepper, t_end, t_last, t_sched, clock)
+        stops = [(k[1], k[2]) for k in self.active if k[0] == "limit"]
+        upper, lower = self.sys.upper, self.sys.lower
+        inputs = LawInputs(
+            active=np.array([k[1] for k in self.active if k[0] == "pair"], dtype=np.int64),
+            limits=np.array(
+                [(j, side, self._limit_held(j, side)) for j, side in stops], dtype=np.int64
+            ).reshape(-1, 3),
+            lim_value=np.array([upper[j] if side > 0 else lower[j] for j, side in stops]),
+            crawl=np.array(self._steps, dtype=np.float64),
+            min_d=self.diag.min_distance,
+        )
+        done, out = st.run(stepper, t_end, t_last, t_sched, clock, inputs)
+        if done.steps:
+            self._stretched(stepper.y if done.pending is None else done.pending.y0, out)
+        if done.pending is not None:
+            # its sweep, for the watch to reuse (the same numbers: Coal's warm-started GJK
+            # would not give them bit for bit a second time)
+            self.world.keep_sweep(
+                done.pending.y1[: self.n],
+                out["pending_pairs"][0],
+                out["pending_dist"][0],
+                out["pending_best"],
+                out["pending_best_d"],
+            )
+        return done
 
-    def stretched(
-        self,
-        y: FloatArray,
-        hs: FloatArray,
-        min_d: float,
-        min_pair: int,
-        pairs: NDArray[np.int64],
-        distances: FloatArray,
-        steps: int,
-    ) -> None:
-        """Past ``steps`` quiet steps of a stretch, ending at y: what watch and after_step keep.
+    def _stretched(self, y: FloatArray, out: dict[str, Any]) -> None:
+        """Past a stretch's kept steps, ending at y: what watch and after_step keep.
 
         Args:
-            y: The last step's end (its modes still loaded: the native step's next start).
-            hs: The steps' sizes [s], in order (the crawl rule's).
-            min_d: The smallest signed distance of the run so far [m].
-            min_pair: Its pair, if a step of the stretch lowered it (else -1).
-            pairs: The last step's swept pairs.
-            distances: Their signed distances there [m].
-            steps: How many.
+            y: The last kept step's end (its modes still loaded: the native step's next start).
+            out: The native call's results (:meth:`QuietStretch.run
+                <packbot.contact.stretch.QuietStretch.run>`).
         """
-        self._steps.extend(hs.tolist())
-        self.diag.sweeps += steps
-        self.note_min(min_d, min_pair)
+        self._steps.extend(out["hs"][0].tolist())
+        self.diag.sweeps += out["steps"]
+        self.note_min(out["min_d"], out["min_pair"])
+        pairs, distances = out["last_pairs"][0], out["last_dist"][0]
         pairs.setflags(write=False)
         distances.setflags(write=False)
         self._pending_arr = self._last_arr = (pairs, distances)
         self._pending_d = self._last_d = None
         self._clear = self._ready = y
-        self.world._dispatch.pending = True  # (the pieces are owed at the last native sweep)
+        self.world.owe_sweep()  # (its pieces are owed at the last compiled sweep's q)
 
     def _pair_crossings(
         self, key: Key, p_idx: int, seg: DenseSegment, d0: float, d1: float

@@ -38,7 +38,15 @@ from packbot.ode import DenseSegment, HermiteSegment, RK45Stepper
 if TYPE_CHECKING:
     from packbot.contact.normal_law import NormalLaw
 
-__all__ = ["ENABLED", "PENDING", "QuietStretch", "SampleClock", "Stretched", "quiet_stretch"]
+__all__ = [
+    "ENABLED",
+    "PENDING",
+    "LawInputs",
+    "QuietStretch",
+    "SampleClock",
+    "Stretched",
+    "quiet_stretch",
+]
 
 log = logging.getLogger(__name__)
 
@@ -76,6 +84,26 @@ class Stretched:
     steps: int
     samples: FloatArray
     pending: DenseSegment | None
+
+
+@dataclass(frozen=True, slots=True)
+class LawInputs:
+    """What a stretch's step checks read of the law (:meth:`QuietStretch.run`).
+
+    Attributes:
+        active: The contact set's active pairs (their indices in the collision world).
+        limits: The active limit stops, (k, 3): joint index, side (+1 upper, -1 lower), held
+            (1: the stop's lock is engaged, it does not release).
+        lim_value: Their positions [rad], (k,).
+        crawl: The last steps' sizes [s] (the crawl rule's window, oldest first).
+        min_d: The smallest signed distance of the run so far [m].
+    """
+
+    active: NDArray[np.int64]
+    limits: NDArray[np.int64]
+    lim_value: FloatArray
+    crawl: FloatArray
+    min_d: float
 
 
 class QuietStretch:
@@ -123,26 +151,33 @@ class QuietStretch:
 
     def run(
         self,
-        law: NormalLaw,
         stepper: RK45Stepper,
         t_end: float,
         t_last: float,
         t_sched: float,
         clock: SampleClock,
-    ) -> Stretched:
+        law: LawInputs,
+    ) -> tuple[Stretched, dict[str, Any]]:
         """Take the quiet steps from the stepper's state.
 
         The law's modes and torques are loaded (its ``step_kernel`` just offered the native
-        step). Afterwards the stepper and the law are past the steps kept; the pending step,
-        if any, is the stepper's last step.
+        step). Afterwards the stepper is past the steps kept (and the pending step, if any, is
+        its last step); the law keeps its own bookkeeping from the native call's results.
 
         Args:
-            law: The law.
             stepper: The loop's stepper.
             t_end: No step beyond this time [s] (the loop's step end).
             t_last: The run ends here [s].
             t_sched: The next scheduled action [s].
             clock: The run's samples (read, not advanced: the caller records them).
+            law: What the steps' checks read of the law.
+
+        Returns:
+            What the stretch did, and the native call's results (a dict: ``steps``, ``hs``
+            (1, steps) their sizes [s], ``min_d`` and ``min_pair`` the smallest distance so far
+            and its pair if a step lowered it (else -1), ``last_pairs`` and ``last_dist`` (1, k)
+            the last kept step's sweep; with a pending step ``pending_pairs``,
+            ``pending_dist``, ``pending_best`` and ``pending_best_d``, its sweep).
         """
         n = self._n
         Z = np.empty((8, n))
@@ -150,43 +185,36 @@ class QuietStretch:
         pending_f = stepper.f_pending  # (the first stage computes it)
         if not pending_f:
             Z[1] = stepper.f
-        ay = stepper._ay.copy()
-        active = np.array([k[1] for k in law.active if k[0] == "pair"], dtype=np.int64)
-        stops = [(k[1], k[2]) for k in law.active if k[0] == "limit"]
-        upper, lower = law.sys.upper, law.sys.lower
-        limits = np.array(
-            [(j, side, law._limit_held(j, side)) for j, side in stops], dtype=np.int64
-        ).reshape(-1, 3)
-        lim_value = np.array([upper[j] if side > 0 else lower[j] for j, side in stops])
+        ctl = stepper.control()
+        ay = ctl.ay.copy()
         y_pend, ay_pend = np.empty(n), np.empty(n)
         out = self._run.run(
             pending_f,
             Z,
             ay,
             stepper.t,
-            stepper.h,
-            stepper._max_factor,
-            stepper._stiff_run,
-            stepper.stiff,
+            ctl.h,
+            ctl.max_factor,
+            ctl.stiff_run,
+            ctl.stiff,
             clock.next_sample,
-            law.diag.min_distance,
+            law.min_d,
             t_end,
             t_last,
             t_sched,
-            active,
-            limits,
-            lim_value,
-            np.array(law._steps, dtype=np.float64),
+            law.active,
+            law.limits,
+            law.lim_value,
+            law.crawl,
             y_pend,
             ay_pend,
         )
         status, steps = out["status"], out["steps"]
         pending = status == PENDING
         if steps:
-            y = Z[0].copy()
             stepper.take(
                 out["t"],
-                y,
+                Z[0].copy(),
                 Z[1].copy(),
                 ay.copy() if pending else ay,
                 out["h"],
@@ -197,28 +225,10 @@ class QuietStretch:
                 stiff_run=out["stiff_run"],
                 stiff=out["stiff"],
             )
-            law.stretched(
-                y,
-                out["hs"][0],
-                out["min_d"],
-                out["min_pair"],
-                out["last_pairs"][0],
-                out["last_dist"][0],
-                steps,
-            )
         if steps or pending:
             stepper.h_max = out["h_max"]  # (the last step's bound, as the loop set it for it)
         seg = None
         if pending:
-            # its sweep, for the law's watch to reuse (the same numbers: Coal's warm-started
-            # GJK would not give them bit for bit a second time)
-            law.world._dispatch.adopt(
-                y_pend[: law.n],
-                out["pending_pairs"][0],
-                out["pending_dist"][0],
-                out["pending_best"],
-                out["pending_best_d"],
-            )
             t0, t1 = out["t0"], out["t1"]
             implicit = out["pending_implicit"]
             kind = HermiteSegment if implicit else DenseSegment
@@ -236,7 +246,7 @@ class QuietStretch:
                 stiff_run=out["stiff_run"],
                 stiff=out["stiff"],
             )
-        return Stretched(steps, out["samples"], seg)
+        return Stretched(steps, out["samples"], seg), out
 
 
 def quiet_stretch(
