@@ -219,8 +219,9 @@ class CollisionWorld:
         gm = self.geom_model
         self._n_robot = robot.collision_model.ngeoms
         self._native: _ns.NativeSweep | None = None  # (built below, once geom_data is set)
-        # the native sweeps' calls and where they owe the pieces (placed on demand)
-        self._dispatch = _ns.NativeDispatch(self)
+        #: the native sweeps' calls and where they owe the pieces (placed on demand; a
+        #: :class:`~packbot.native_sweep.NativeDispatch`)
+        self.dispatch = _ns.NativeDispatch(self)
         self._geom_data = _cb.geometry_data(gm)
         self._point_data: pin.GeometryData | None = None  # pair_contact's (made on first use)
         # Live proxies into the C++ vector (valid while geom_data lives): indexing it costs
@@ -285,7 +286,7 @@ class CollisionWorld:
 
         At the last forward kinematics; all in C++ but the read-back of the indices.
         """
-        self._dispatch.place()
+        self.dispatch.place()
         self._place_broadphase(margin)
         self._bp.collide(self._bp_callback)
         pairs = self._bp_pairs
@@ -334,13 +335,13 @@ class CollisionWorld:
         After a native sweep the pieces are placed here on first read
         (:meth:`NativeDispatch.place <packbot.native_sweep.NativeDispatch.place>`).
         """
-        if self._dispatch.pending is not False:
-            self._dispatch.place()
+        if self.dispatch.pending is not False:
+            self.dispatch.place()
         return self._geom_data
 
     def _fk(self, q: NDArray[np.float64]) -> None:
         """Forward kinematics and piece placements; a wrong-size q is a ConfigurationError."""
-        self._dispatch.pending = False
+        self.dispatch.pending = False
         try:
             pin.updateGeometryPlacements(
                 self.robot.model, self._data, self.geom_model, self._geom_data, q
@@ -362,38 +363,6 @@ class CollisionWorld:
             ConfigurationError: A margin that is not a finite number >= 0.
         """
         return self._collect(self._query_margin(margin))
-
-    def keep_sweep(
-        self,
-        q: NDArray[np.float64],
-        pairs: NDArray[np.int64],
-        distances: NDArray[np.float64],
-        closest: int,
-        closest_d: float,
-    ) -> None:
-        """Keep a compiled sweep made at q elsewhere as the last one, for :meth:`sweep`'s reuse.
-
-        The contact-normal mode's compiled stretch of steps (:mod:`packbot.contact.stretch`)
-        sweeps through the compiled sweep's C entry point; the loop then watches its last
-        step, whose sweep ``sweep(q, reuse=True)`` returns from here (bit for bit: Coal's
-        warm-started GJK would not repeat it exactly). Only with the compiled sweep.
-
-        Args:
-            q: The configuration swept [rad].
-            pairs: Its candidates' pair indices.
-            distances: Their signed distances [m] (the world's margin).
-            closest: The closest pair (-1: none).
-            closest_d: Its distance [m] (inf: none).
-        """
-        self._dispatch.adopt(q, pairs, distances, closest, closest_d)
-
-    def owe_sweep(self) -> None:
-        """The compiled sweep swept elsewhere (its C entry point): the pieces are owed at its q.
-
-        After it, a reader of ``geom_data`` finds the pieces placed at the compiled sweep's
-        last q (as after :meth:`sweep`'s own compiled call).
-        """
-        self._dispatch.pending = True
 
     def sweep(
         self, q: NDArray[np.float64], margin: float | None = None, *, reuse: bool = False
@@ -424,7 +393,7 @@ class CollisionWorld:
         """
         m = self._query_margin(margin)
         if self._native is not None and _ns.ENABLED:
-            return self._dispatch.sweep(q, m, reuse)
+            return self.dispatch.sweep(q, m, reuse)
         self._fk(q)
         key = None
         if reuse:
@@ -491,8 +460,8 @@ class CollisionWorld:
         """
         m = self.margin if margin is None else margin
         sw = self.sweep(q, m)
-        if self._dispatch.pending is True:  # the witness points are the native sweep's
-            out = self._dispatch.contacts(sw, m)
+        if self.dispatch.pending is True:  # the witness points are the native sweep's
+            out = self.dispatch.contacts(sw, m)
         else:
             close = sw.pairs[sw.distances < m]
             out = [self._contact(int(p)) for p in close]
@@ -654,7 +623,7 @@ class CollisionWorld:
             nq = self.robot.model.nq
             raise ConfigurationError("q", np.shape(q), f"a vector of shape ({nq},) [rad]") from exc
         # the pieces of geom_data are owed at q (placed on first read, as after a reused sweep)
-        self._dispatch.pending = qa.tobytes()
+        self.dispatch.pending = qa.tobytes()
         sizes, normals, depths, pts1, pts2, rot, trans = out
         return sizes, normals, depths, pts1, pts2, rot.swapaxes(2, 3), trans
 

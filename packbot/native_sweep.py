@@ -356,10 +356,12 @@ class NativeDispatch:
         k: int,
         dmin: float,
     ) -> None:
-        """Keep a native sweep made at q elsewhere (a compiled stretch of steps) as the last one.
+        """Keep a native sweep made at q elsewhere as the world's last one, for its reuse.
 
-        The world's next ``sweep(q, reuse=True)`` at the same q and margin returns it (as if
-        this dispatch had made it); the pieces are owed at the native sweep's q.
+        The contact-normal mode's compiled stretch of steps (:mod:`packbot.contact.stretch`)
+        sweeps through the compiled sweep's C entry point; the loop then watches its last step,
+        whose sweep the world's ``sweep(q, reuse=True)`` returns from here (bit for bit: Coal's
+        warm-started GJK would not repeat it exactly). The pieces are owed at its q.
 
         Args:
             q: Its configuration [rad].
@@ -374,6 +376,14 @@ class NativeDispatch:
         out: SweepResult = _tuple_new(self._result, (dmin, k, pairs, d, self._counts[len(pairs)]))
         key = (np.asarray(q, dtype=np.float64).tobytes(), world.margin)
         world._last_sweep = (key, out)
+        self.pending = True
+
+    def owe(self) -> None:
+        """The compiled sweep swept elsewhere (its C entry point): the pieces are owed at its q.
+
+        A reader of ``geom_data`` then finds the pieces placed at the compiled sweep's last q,
+        as after this dispatch's own :meth:`sweep`.
+        """
         self.pending = True
 
     def place(self) -> None:

@@ -173,9 +173,9 @@ def test_geom_data_is_placed_at_the_patches_q(robot, rng):
     at_q1 = w.geom_data.oMg[k].homogeneous.copy()
     w.sweep(q1, reuse=True)
     w.contact_patches(q0, [0, 1, 2], 1e-3)
-    assert w._dispatch.pending == np.asarray(q0, dtype=np.float64).tobytes()
+    assert w.dispatch.pending == np.asarray(q0, dtype=np.float64).tobytes()
     placed = w.geom_data.oMg[k].homogeneous.copy()
-    assert w._dispatch.pending is False
+    assert w.dispatch.pending is False
     w._fk(q0)
     np.testing.assert_array_equal(placed, w.geom_data.oMg[k].homogeneous)
     assert not np.array_equal(placed, at_q1)

@@ -257,7 +257,7 @@ def test_the_dispatch_owes_the_placement_until_a_reader_places_the_pieces(robot,
     after a reused one at that sweep's q (its bytes); reading geom_data places them there and
     clears the debt; a sweep of the Python path places them itself."""
     w = CollisionWorld(robot)
-    dispatch = w._dispatch
+    dispatch = w.dispatch
     assert w._native is not None and dispatch.pending is False
     q0, q1 = (rng.uniform(robot.params.lower, robot.params.upper) for _ in range(2))
     k = int(np.argmax([go.parentJoint for go in w.geom_model.geometryObjects]))

@@ -383,7 +383,7 @@ class NormalLaw(PatchEvents):
         if done.pending is not None:
             # its sweep, for the watch to reuse (the same numbers: Coal's warm-started GJK
             # would not give them bit for bit a second time)
-            self.world.keep_sweep(
+            self.world.dispatch.adopt(
                 done.pending.y1[: self.n],
                 out["pending_pairs"][0],
                 out["pending_dist"][0],
@@ -409,7 +409,7 @@ class NormalLaw(PatchEvents):
         self._pending_arr = self._last_arr = (pairs, distances)
         self._pending_d = self._last_d = None
         self._clear = self._ready = y
-        self.world.owe_sweep()  # (its pieces are owed at the last compiled sweep's q)
+        self.world.dispatch.owe()  # (its pieces are owed at the last compiled sweep's q)
 
     def _pair_crossings(
         self, key: Key, p_idx: int, seg: DenseSegment, d0: float, d1: float
