@@ -13,6 +13,7 @@ import dataclasses
 
 import numpy as np
 import pytest
+from test_normal_cascade import start_pose
 
 import packbot
 from packbot import integrator, native_sweep
@@ -20,7 +21,6 @@ from packbot.contact import native, stretch
 from packbot.contact.normal_law import NormalLaw
 from packbot.failures import Failure
 from packbot.mujoco_model import WRIST_JOINTS
-from tests.test_normal_cascade import start_pose
 
 pytestmark = pytest.mark.skipif(
     not (native.available() and native_sweep.available()),
