@@ -21,6 +21,7 @@ from packbot.contact import native, stretch
 from packbot.contact.normal_law import NormalLaw
 from packbot.failures import Failure
 from packbot.mujoco_model import WRIST_JOINTS
+from packbot.scenario import load_scenario, run_scenario
 
 pytestmark = pytest.mark.skipif(
     not (native.available() and native_sweep.available()),
@@ -168,3 +169,20 @@ def test_the_stretch_refuses_what_is_not_a_sweep_entry_point(robot):
         native.stretch(rhs, object(), **constants)
     with pytest.raises(ValueError, match="capsule of packbot._native_coal"):
         native.stretch(rhs, new_capsule(8, b"another.capsule", None), **constants)
+
+
+@pytest.mark.parametrize(
+    "name",
+    ["camera_occlusion", "collapse_elastic", "frozen_elbow_reach", "loose_swing_elbow2"],
+)
+def test_shipped_scenarios_in_the_contact_normal_mode_run_alike(robot, monkeypatch, name):
+    """Shipped scenarios (restitution, a frozen joint's phase change, a loose joint, a
+    controller, the camera's environment) in the contact-normal mode, 1 s: the same run with
+    the stretch as without (controlled runs take their ticks one step at a time: unchanged)."""
+    sc = load_scenario(name)
+    sc = dataclasses.replace(sc, config=dataclasses.replace(sc.config, contact_mode="normal"))
+    res = []
+    for enabled in (False, True):
+        monkeypatch.setattr(stretch, "ENABLED", enabled)
+        res.append(run_scenario(sc, robot, duration=1.0))
+    _same(*res)
