@@ -345,7 +345,7 @@ class NormalLaw(PatchEvents):
         speed = 0.0  # (summed in joint order, as the native call: the same steps either way)
         for r, v in zip(self.reach.tolist(), y[n : 2 * n].tolist(), strict=True):
             speed += r * abs(v)
-        return min(self.cfg.max_step, 0.5 * self.cfg.margin / max(speed, 1e-9))
+        return self._bound(speed)
 
     def stretch(
         self,

@@ -107,7 +107,10 @@ class PairLaw(JointStops):
         A point's speed is bounded by ``reach . |v|`` at the step's start (:attr:`reach`), so
         a pair beyond the margin cannot pass through contact within the step unseen.
         """
-        speed = float(self.reach @ np.abs(y[self.n : 2 * self.n]))
+        return self._bound(float(self.reach @ np.abs(y[self.n : 2 * self.n])))
+
+    def _bound(self, speed: float) -> float:
+        """The step bound [s] for a bound ``speed`` [m/s] on every point's speed."""
         return min(self.cfg.max_step, 0.5 * self.cfg.margin / max(speed, 1e-9))
 
     def distance(self, pair: int, y: FloatArray) -> float:

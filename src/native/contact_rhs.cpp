@@ -1379,16 +1379,16 @@ nb::dict stretch_run(StretchT &st, bool f_pending, Out2 Z, Out1 ay, double t, do
   out["min_pair"] = s.min_pair;
   out["samples"] = owned(samples, samples.size() / n, n);
   out["hs"] = owned(hs, 1, hs.size());
-  out["last_pairs"] = owned(st.last_pairs(), 1, st.last_pairs().size());
-  out["last_dist"] = owned(st.last_dist(), 1, st.last_dist().size());
+  out["last_pairs"] = owned(st.last_pairs(), 1, st.last_n());
+  out["last_dist"] = owned(st.last_dist(), 1, st.last_n());
   if (c.status == packbot_native::STRETCH_PENDING) {
     out["t0"] = c.t0;
     out["t1"] = c.t1;
     out["pending_rejected"] = c.pending_rejected;
     out["pending_rhs_calls"] = c.pending_rhs_calls;
     out["pending_implicit"] = c.pending_implicit;
-    out["pending_pairs"] = owned(st.pending_pairs(), 1, st.pending_pairs().size());
-    out["pending_dist"] = owned(st.pending_dist(), 1, st.pending_dist().size());
+    out["pending_pairs"] = owned(st.pending_pairs(), 1, st.pending_n());
+    out["pending_dist"] = owned(st.pending_dist(), 1, st.pending_n());
     out["pending_best"] = st.pending_best();
     out["pending_best_d"] = st.pending_best_d();
   }

@@ -146,9 +146,10 @@ class Stretch {
     const size_t K = static_cast<size_t>(std::max<int64_t>(api_.n_pairs, 1));
     pairs_.resize(K);
     dist_.resize(K);
+    last_pairs_.resize(K);
+    last_dist_.resize(K);
     y1_.resize(n_);
     ay1_.resize(n_);
-    ys_.resize(n_);
   }
 
   // The stepper's and the law's state a run starts from and ends with (run's in/out).
@@ -318,8 +319,7 @@ class Stretch {
       // a step ending on a scheduled action's time is Python's (its samples, the action)
       if (!pending && t_new >= t_sched - 1e-12 && t_new < t_last) pending = true;
       if (pending) {
-        pend_pairs_.assign(pairs_.begin(), pairs_.begin() + ns);
-        pend_dist_.assign(dist_.begin(), dist_.begin() + ns);
+        pend_n_ = static_cast<size_t>(ns);  // (its sweep stays in pairs_, dist_)
         pend_best_ = best;
         pend_best_d_ = best_d;
         c.status = STRETCH_PENDING;
@@ -342,9 +342,10 @@ class Stretch {
         s.min_d = best_d;
         s.min_pair = best;
       }
+      // its sweep kept as the last one (the buffers swapped: the next sweep writes the other)
+      std::swap(pairs_, last_pairs_);
+      std::swap(dist_, last_dist_);
       last_n_ = static_cast<size_t>(ns);
-      last_pairs_.assign(pairs_.begin(), pairs_.begin() + ns);
-      last_dist_.assign(dist_.begin(), dist_.begin() + ns);
       crawl.push_back(step);
       hs.push_back(step);
       ++c.steps;
@@ -362,13 +363,16 @@ class Stretch {
     }
   }
 
-  // the pending step's sweep (status PENDING): its candidates, distances, closest pair
-  const std::vector<int64_t> &pending_pairs() const { return pend_pairs_; }
-  const std::vector<double> &pending_dist() const { return pend_dist_; }
+  // the pending step's sweep (status PENDING): its candidates (the first pending_n() of the
+  // arrays), their distances, the closest pair; the last committed step's sweep (last_n())
+  const std::vector<int64_t> &pending_pairs() const { return pairs_; }
+  const std::vector<double> &pending_dist() const { return dist_; }
+  size_t pending_n() const { return pend_n_; }
   int64_t pending_best() const { return pend_best_; }
   double pending_best_d() const { return pend_best_d_; }
   const std::vector<int64_t> &last_pairs() const { return last_pairs_; }
   const std::vector<double> &last_dist() const { return last_dist_; }
+  size_t last_n() const { return last_n_; }
   int n() const { return n_; }
 
  private:
@@ -418,12 +422,12 @@ class Stretch {
   double crawl_step_, sample_dt_, duration_;
   bool stiff_switch_;
   int nv_ = 0, n_ = 0;
-  std::vector<int64_t> pairs_, last_pairs_, pend_pairs_;
-  std::vector<double> pend_dist_;
+  // the sweeps' buffers (room for every pair): the current step's, the last committed one's
+  std::vector<int64_t> pairs_, last_pairs_;
+  std::vector<double> dist_, last_dist_, y1_, ay1_;
+  size_t last_n_ = 0, pend_n_ = 0;
   int64_t pend_best_ = -1;
   double pend_best_d_ = 0.0;
-  std::vector<double> dist_, last_dist_, y1_, ay1_, ys_;
-  size_t last_n_ = 0;
 };
 
 }  // namespace packbot_native
