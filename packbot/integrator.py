@@ -198,8 +198,9 @@ class _Run:
                 seg = law.advance(t, y, min(duration, t_sched))
                 if seg is None:
                     kernel = law.step_kernel(t, y)
-                    if kernel is not None and schedule.next_tick >= t_far:
-                        # the quiet steps at once (the law's compiled stretch), if it has one
+                    if schedule.next_tick >= t_far:
+                        # the quiet steps at once (the law's compiled stretch, or an arm at
+                        # rest held there), if it has them
                         st = law.stretch(stepper, t_far, t_last, t_sched, rec)
                         if st is not None:
                             rec.record_states(st.samples)

@@ -14,6 +14,7 @@ import math
 
 import numpy as np
 import pytest
+from test_normal_cascade import start_pose
 
 import packbot
 from packbot import ode
@@ -321,15 +322,55 @@ def _compare_with_python(monkeypatch, method, tol, also=None):
 def test_the_root_findings_native_evaluations_are_the_python_ones(robot, monkeypatch):
     """Inside a native step, the mode conditions' root finding evaluates them natively
     (NativeRhs.eval_at, the loaded modes and torques): the same forces, rows, smallest
-    condition and slides as NormalContacts.evaluate at that state, to rounding."""
+    condition and slides as NormalContacts.evaluate at that state, to rounding. (A contact
+    row's condition alone comes from NativeRhs.row_condition_at: the next test.)"""
     seen, worst = _compare_with_python(monkeypatch, "eval_at", 1e-10)
     cfg = packbot.SimConfig(contact_mode="normal", mu=0.5, locked_joints=WRIST)
-    packbot.simulate(robot, robot.pose("drive"), np.zeros(8), 1.0, config=cfg)
+    packbot.simulate(robot, robot.pose("drive"), np.zeros(8), 2.0, config=cfg)
     assert seen["calls"] > 20, seen
     assert worst["lam"] <= 1e-9, worst
     assert worst["rows"] <= 1e-12, worst
     assert worst["cond"] <= 1e-8, worst
     assert worst["slide2"] <= 1e-20, worst
+
+
+@pytest.mark.parametrize(
+    ("mu", "locked", "duration"), [(0.5, WRIST, 2.0), (0.0, (), 1.0)], ids=["mu0.5", "mu0-free"]
+)
+def test_a_rows_native_condition_is_the_one_of_the_evaluation(
+    robot, monkeypatch, mu, locked, duration
+):
+    """The root finding of a contact row's event inside a native step asks for that row's
+    condition alone (NativeRhs.row_condition_at): at every state it asks, the same float as
+    NormalContacts.condition on NativeRhs.eval_at's evaluation there, for free rows (impacts:
+    the gap) and engaged ones (releases: the force)."""
+    laws: list[NormalLaw] = []
+    original_rebuild = NormalLaw.rebuild
+
+    def rebuild(self, system):
+        original_rebuild(self, system)
+        laws.append(self)
+
+    row, eval_at = native.NativeRhs.row_condition_at, native.NativeRhs.eval_at
+    seen = {"free": 0, "engaged": 0}
+
+    def checked(self, y, r):
+        g = row(self, y, r)
+        contacts = laws[-1].normal
+        ev = eval_at(self, contacts, y)
+        assert (g is None) == (ev is None)
+        if g is not None:
+            assert g == contacts.condition(ev, ("nrow", r))
+            seen["engaged" if r in contacts.engaged else "free"] += 1
+        return g
+
+    monkeypatch.setattr(NormalLaw, "rebuild", rebuild)
+    monkeypatch.setattr(native.NativeRhs, "row_condition_at", checked)
+    cfg = packbot.SimConfig(contact_mode="normal", mu=mu, locked_joints=locked)
+    q0 = robot.pose("drive") if locked else start_pose(robot, 0)
+    packbot.simulate(robot, q0, np.zeros(8), duration, config=cfg)
+    assert seen["free"] > 20, seen
+    assert seen["engaged"] > 0 or locked, seen  # (the wrist-free start's releases: 21)
 
 
 def test_eval_at_refuses_a_wrong_state_and_needs_the_torques(robot):
@@ -342,6 +383,8 @@ def test_eval_at_refuses_a_wrong_state_and_needs_the_torques(robot):
     rhs.set_torque(np.zeros(sysm.nv), np.zeros(sysm.nv), np.zeros(sysm.nv))
     with pytest.raises(ValueError, match="2 nv"):
         rhs._rhs.eval_at(np.zeros(n - 1))
+    with pytest.raises(ValueError, match="2 nv"):
+        rhs._rhs.row_condition_at(np.zeros(n - 1), 0)
 
 
 def test_bad_step_arguments_are_refused(robot):

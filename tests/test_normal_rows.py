@@ -585,3 +585,28 @@ def test_the_mode_solve_on_its_hoisted_parts_equals_the_inline_one_to_the_bit(co
         nc.engaged = saved[0]
         for p, (s, d) in zip(nc.pairs.values(), saved[1], strict=True):
             p.stick, p.slip_dir = s, d
+
+
+def test_refresh_keeps_a_patch_built_at_the_same_state(contacts):
+    """``refresh(q)`` keeps a patch already built at q with the contact tolerance (a pair an
+    impact just put in the set, before the restart's refresh) and builds the others again: a
+    patch built again there is the same, bit for bit."""
+    _, nc, q0 = contacts
+    k = next(iter(nc.pairs))
+    q = q0 + 1e-6
+    assert nc.add_pair(q, k)
+    first = nc.pairs[k]
+    built = {j: p for j, p in nc.pairs.items() if j != k}
+    nc.refresh(q)
+    assert nc.pairs[k] is first  # kept
+    assert all(nc.pairs[j] is not p for j, p in built.items())  # the others built at q
+    again = nc.pairs[k]
+    assert nc.add_pair(q, k)  # built again at q: the same patch
+    for name in ("local1", "local2", "normal2", "offset0", "frame2"):
+        np.testing.assert_array_equal(getattr(nc.pairs[k], name), getattr(again, name))
+    assert nc.add_pairs(q, [k], tol=2.0 * nc.tol) == [True]  # another margin: built again
+    other = nc.pairs[k]
+    nc.refresh(q)
+    assert nc.pairs[k] is not other
+    for j in list(nc.pairs):  # the module's contact set back at its state
+        nc.add_pair(q0, j)

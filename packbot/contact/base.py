@@ -160,10 +160,11 @@ class ContactLaw(Protocol):
     ) -> Stretched | None:
         """Several steps at once from the stepper's state, or None: the loop steps.
 
-        Offered by the loop right after :meth:`step_kernel` returned a kernel, with no
-        controller tick before ``t_end`` (a restart's derivative may be pending: then the
-        kernel's :attr:`first_stage` computes it; the stepper may be stiff: then the steps are
-        :attr:`stiff_kernel`'s, as the stepper's would be).
+        Offered by the loop right after :meth:`step_kernel`, with no controller tick before
+        ``t_end``. When it returned a kernel, a restart's derivative may be pending (then the
+        kernel's :attr:`first_stage` computes it) and the stepper may be stiff (then the steps
+        are :attr:`stiff_kernel`'s, as the stepper's would be); without one, a law may still
+        take steps that need no kernel (the contact-normal mode holds an arm at rest).
         The steps kept are watched and accepted (the law and the stepper are past them; the
         loop records their samples); a pending step is the stepper's last step, not yet
         watched (:class:`~packbot.contact.stretch.Stretched`).

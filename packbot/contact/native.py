@@ -346,6 +346,27 @@ class NativeRhs:
         """
         return self._kept(contacts, y, self._rhs.eval_at(y))
 
+    def row_condition_at(self, y: FloatArray, row: int) -> float | None:
+        """A contact row's mode condition at state y with the loaded modes and torques.
+
+        What :meth:`eval_at` then :meth:`NormalContacts.condition
+        <packbot.contact.normal_dynamics.ConstrainedDynamics.condition>` with the key
+        ``("nrow", row)`` give (the same float: an engaged row's force plus ``FORCE_BAND``, a
+        free row's gap plus ``POINT_TOL``), in one call that builds no evaluation: for the
+        root finding of a row's event inside a native step, which asks for that one value
+        at each point. The contact set's last evaluation is left as it was.
+
+        Args:
+            y: The state, (q, v).
+            row: The contact row.
+
+        Returns:
+            The condition [N or m], or None: the Delassus matrix is singular or the mode
+            conditions' constants are not loaded (the caller evaluates in Python).
+        """
+        g = self._rhs.row_condition_at(y, row)
+        return None if g != g else g
+
     def _kept(self, contacts: NormalContacts, y: FloatArray, got: Any) -> _Eval | None:
         """The extension's evaluation tuple at y as an ``_Eval``, kept by the contact set."""
         if got is None:

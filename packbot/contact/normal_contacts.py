@@ -51,8 +51,9 @@ class NormalContacts(RestartSteps, ModeSelection):
         q = self.project(q, v, minv)
         if q is not q_in and not np.array_equal(q, q_in):
             # the impulse's energy balance is exact only with M at the q it acts on
-            Mi = np.asarray(pin.computeMinverse(self.model, self.data, q), dtype=np.float64)
-            minv = np.triu(Mi) + np.triu(Mi, 1).T
+            minv = np.array(pin.computeMinverse(self.model, self.data, q), dtype=np.float64)
+            lower = np.tril_indices(self.nv, -1)  # (Pinocchio fills the upper triangle)
+            minv[lower] = minv.T[lower]
         self.bounced = False
         v = self.impulse(q, v, minv)
         v = self.stop_slow(q, v, minv)

@@ -209,6 +209,15 @@ class ConstrainedDynamics(ContactRows):
             return float(ev.gap[r]) + POINT_TOL
         return self.conditions(ev)[key][1]
 
+    def rows_conditions_own(self) -> bool:
+        """Whether a row's condition is the row's own force or gap (:meth:`condition`'s rule).
+
+        True unless a subclass redefines :meth:`conditions`; the native root finding of a
+        row's event (:meth:`NativeRhs.row_condition_at
+        <packbot.contact.native.NativeRhs.row_condition_at>`) computes that rule.
+        """
+        return type(self).conditions is _OWN_CONDITIONS
+
     def violated(self, ev: _Eval) -> bool:
         """Whether a mode condition of :meth:`conditions` is negative (an event).
 

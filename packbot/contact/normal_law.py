@@ -32,7 +32,7 @@ from packbot.contact.stretch import (
     Stretched,
     quiet_stretch,
 )
-from packbot.contact.timestep import QUIET_STEPS, MoreauJeanStepper
+from packbot.contact.timestep import QUIET_STEPS, MoreauJeanStepper, StepSegment
 from packbot.ode import DenseSegment, RK45Stepper, StepKernel, StiffKernel
 from packbot.system import System
 
@@ -51,6 +51,11 @@ __all__ = [
 ]
 
 log = logging.getLogger(__name__)
+
+#: Whether an arm captured at rest is held there in one step to the next controller tick,
+#: scheduled action or the run's end (:meth:`NormalLaw.stretch`), instead of the stepper's
+#: steps of ``max_step`` (tests and benchmarks switch it off to compare).
+REST_HOLD = True
 
 FloatArray = NDArray[np.float64]
 
@@ -148,6 +153,7 @@ class NormalLaw(PatchEvents):
         self._steps: deque[float] = deque(maxlen=CRAWL_STEPS)  # the last steps' sizes [s]
         self._clear: FloatArray | None = None  # a step end the screen found clear (watch)
         self._ready: FloatArray | None = None  # a state the native modes are loaded for
+        self._offered = False  # whether step_kernel offered the native step at the loop's state
         self._stretch: QuietStretch | None = None  # (the compiled stretch of quiet steps)
 
     # ------------------------------------------------------------------ windows
@@ -311,6 +317,7 @@ class NormalLaw(PatchEvents):
         """
         rhs = self._native
         nc = self.normal
+        self._offered = False
         if (
             rhs is None
             or not native.STEP_ENABLED
@@ -327,6 +334,7 @@ class NormalLaw(PatchEvents):
             rhs.load(nc, nc._plan())
         self._ready = None
         rhs.hold_torque(*torques)
+        self._offered = True
         return rhs.step
 
     def step_bound(self, y: FloatArray) -> float:
@@ -359,9 +367,17 @@ class NormalLaw(PatchEvents):
 
         Offered right after :meth:`step_kernel` offered the native step (its modes and torques
         loaded), outside a window, with no conditional lock or Coulomb-sliding joint (their
-        conditions are watched in Python) and with the compiled sweep; else None.
+        conditions are watched in Python) and with the compiled sweep; else None. An arm
+        captured at rest is held there instead (:meth:`_hold_at_rest`).
         """
-        if self.window is not None or self.locks.conditional or self.drive.fdir.any():
+        if self.normal.resting:
+            return self._hold_at_rest(stepper, t_end)
+        if (
+            not self._offered
+            or self.window is not None
+            or self.locks.conditional
+            or self.drive.fdir.any()
+        ):
             return None
         st = self._stretch = quiet_stretch(self, stepper, clock, self._stretch)
         if st is None:
@@ -391,6 +407,41 @@ class NormalLaw(PatchEvents):
                 out["pending_best_d"],
             )
         return done
+
+    def _hold_at_rest(self, stepper: RK45Stepper, t_end: float) -> Stretched | None:
+        """The arm captured at rest, held there to t_end in one step (pending), or None.
+
+        The rest capture (:meth:`NormalContacts.capture
+        <packbot.contact.normal_steps.RestartSteps.capture>`) stops every joint and holds it
+        until a mode condition says otherwise (``nrest``: the accelerations the arm would
+        have without the hold). With the torques fixed (a held command, or none, and no motor
+        lag: :meth:`~packbot.drive.Drive.step_torques`) nothing changes until the next
+        controller tick or scheduled action: the stepper's steps from such a state keep it
+        bit for bit, each one a right-hand side, a sweep and the checks at its end. One step
+        to t_end does the same once; the loop watches it as any step (its end's sweep and
+        conditions: the state's) and records its samples (the state). The stepper restarts at
+        its end.
+
+        Args:
+            stepper: The loop's stepper, at the loop's state.
+            t_end: The step's end [s] (no controller tick before it).
+        """
+        t, y = stepper.t, stepper.y
+        n = self.n
+        if (
+            not REST_HOLD
+            or t_end <= t
+            or len(y) != 2 * n
+            or y[n:].any()
+            or self.window is not None
+            or self.locks.conditional
+            or self.drive.fdir.any()
+            or self.drive.step_torques(t, y) is None
+        ):
+            return None
+        seg = StepSegment(t, t_end, y, y.copy())
+        stepper.reset(t_end, seg.y1, h=stepper.h, defer=True)
+        return Stretched(0, np.zeros((0, len(y))), seg)
 
     def _stretched(self, y: FloatArray, out: dict[str, Any]) -> None:
         """Past a stretch's kept steps, ending at y: what watch and after_step keep.

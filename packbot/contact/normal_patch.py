@@ -8,6 +8,7 @@ are the face planes of a piece and the numpy reference of the patch construction
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -48,6 +49,9 @@ class _Pair:
     centre1: FloatArray = field(init=False)
     centre2: FloatArray = field(init=False)
     frame2: FloatArray = field(init=False)
+    #: the configuration (its bytes) and query margin [m] the patch was built at
+    #: (``ContactSet.refresh`` does not build it again there)
+    built: tuple[bytes, float] = (b"", math.nan)
 
 
 def _planes(shape: Any) -> tuple[FloatArray, FloatArray] | None:

@@ -104,6 +104,7 @@ class ContactSet:
         self.bounced = False  # the last impulse had restitution
         self._kin_cache: dict[tuple[bytes, bytes], Any] = {}  # see _kinematics
         self._planes_cache: dict[int, tuple[FloatArray, FloatArray]] = {}
+        self._built: tuple[bytes, float] = (b"", math.nan)  # (see add_pairs)
         self._lay: _Layout | None = None
         # the last layout built and its shape (see ContactRows._layout): a re-patch that keeps
         # every pair's patch size reuses all of it but the points, frames and offsets
@@ -165,6 +166,7 @@ class ContactSet:
         material = kernels.patch_material
         t = self.tol if tol is None else tol
         ks = [world._pair_id(k) for k in pairs]
+        self._built = (q.tobytes(), t)  # (_put marks the patches with it)
         batch = world._patch_batch(q, ks, t)
         if batch is None:  # the Python path: pair by pair
             out = []
@@ -269,6 +271,7 @@ class ContactSet:
             p.slide_tol = math.inf  # a vertex on a face: nothing lags as it slides
         if old is not None:
             p.stick, p.slip_dir = old.stick, old.slip_dir
+        p.built = self._built
         self.pairs[pair] = p  # (the caller invalidates the caches)
 
     def _planes_of(self, geom: int) -> tuple[FloatArray, FloatArray]:
@@ -322,9 +325,14 @@ class ContactSet:
         return self.data.oMi[joint] if joint > 0 else pin.SE3.Identity()
 
     def refresh(self, q: FloatArray) -> None:
-        """Recompute every pair's patch at q (drops pairs no longer within tolerance)."""
+        """Recompute every pair's patch at q (drops pairs no longer within tolerance).
+
+        A patch already built at this q with the contact tolerance (a pair that an impact
+        has just put in the set) is kept: building it again gives the same patch.
+        """
         self.resting = False
-        ks = list(self.pairs)
+        at = (q.tobytes(), self.tol)
+        ks = [k for k, p in self.pairs.items() if p.built != at]
         for k, ok in zip(ks, self.add_pairs(q, ks), strict=True):
             if not ok:
                 self.pairs.pop(k)

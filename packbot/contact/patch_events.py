@@ -79,7 +79,9 @@ class PatchEvents(PairLaw):
 
         With ``native`` (the step was the native one, its modes and torques still loaded) the
         root finding evaluates the conditions inside the step in one native call each
-        (:meth:`~packbot.contact.native.NativeRhs.eval_at`; in Python where it cannot).
+        (:meth:`~packbot.contact.native.NativeRhs.eval_at`; a row's condition alone,
+        :meth:`~packbot.contact.native.NativeRhs.row_condition_at`; in Python where it
+        cannot).
         """
         ev1 = self._contact_eval(contacts, seg.t1, y1)
         if not contacts.violated(ev1):
@@ -89,11 +91,17 @@ class PatchEvents(PairLaw):
         if not bad:
             return []
         cond0 = self._contact_conditions(contacts, seg.t0, seg.y0)
+        own = native is not None and contacts.rows_conditions_own()
         out = []
         for k in bad:
 
             def gn(t: float, k: tuple[Any, ...] = k) -> float:
                 y = seg(t)
+                if own and k[0] == "nrow":  # (the row's value alone, natively)
+                    assert native is not None
+                    g = native.row_condition_at(y, k[1])
+                    if g is not None:
+                        return g
                 ev = None if native is None else native.eval_at(contacts, y)
                 if ev is None:
                     ev = self._contact_eval(contacts, t, y)

@@ -361,6 +361,29 @@ class ContactRhs {
     return end_eval(y);
   }
 
+  // One mode condition of a contact row at y with the modes and torques loaded (an event's root
+  // finding inside a native step), as eval_at then NormalContacts.condition(ev, ("nrow", r))
+  // compute it: an engaged row's force plus the force band, a free row's gap plus the point
+  // tolerance; y becomes the state end_eval and end_check answer for, as with eval_at. NaN when
+  // the Delassus matrix is singular or the conditions' constants are not loaded (the caller
+  // evaluates in Python).
+  double row_condition_at(F1 y, int64_t r) {
+    const size_t n = 2 * static_cast<size_t>(nv_);
+    if (y.shape(0) != n) throw std::invalid_argument("y: 2 nv entries expected");
+    if (applied_.size() != static_cast<size_t>(nv_))
+      throw std::invalid_argument("set_torque was not called");
+    if (r < 0 || r >= m_) throw std::invalid_argument("r: a contact row expected");
+    end_valid_ = false;
+    std::vector<double> f(n);
+    if (!conditions_set_ || !stage(y.data(), f.data()))
+      return std::numeric_limits<double>::quiet_NaN();
+    y_end_.assign(y.data(), y.data() + n);
+    end_valid_ = true;
+    for (int e = 0; e < ne_; ++e)
+      if (engaged_[e] == r) return lam_[e] + force_band_;
+    return gap_[r] + point_tol_;
+  }
+
   // The contact set's pairs' indices in the collision world, in the layout's order (end_check).
   void set_keys(I1 keys) {
     if (keys.shape(0) != static_cast<size_t>(np_))
@@ -1425,6 +1448,7 @@ NB_MODULE(_native, m) {
            nb::arg("stick_band"))
       .def("end_eval", &ContactRhs::end_eval, nb::arg("y1"))
       .def("eval_at", &ContactRhs::eval_at, nb::arg("y"))
+      .def("row_condition_at", &ContactRhs::row_condition_at, nb::arg("y"), nb::arg("r"))
       .def("set_keys", &ContactRhs::set_keys, nb::arg("keys"))
       .def("set_limits", &ContactRhs::set_limits, nb::arg("upper"), nb::arg("lower"))
       .def("set_reach", &ContactRhs::set_reach, nb::arg("reach"), nb::arg("margin"),
