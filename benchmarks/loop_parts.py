@@ -1,13 +1,23 @@
-"""Where a run's time goes, by the event loop's parts: the joint_clamp collapse, a controlled run.
+"""Where a run's time goes, by the event loop's parts: collapses, random starts, a controlled run.
 
-    python benchmarks/loop_parts.py                  # both, 5 collapses and one 60 s run
+    python benchmarks/loop_parts.py                  # every table: 5 collapses of each law,
+                                                     # 2 wrist-free random starts, one 60 s run
     python benchmarks/loop_parts.py --duration 10    # reconfig_elbow1 for 10 s only
+
+The tables: the joint_clamp collapse (5 s from "drive", wrist locked); the contact-normal
+collapse (the same, mu 0.5: ``benchmarks/peers.py``'s); the contact-normal mode from the
+wrist-free random starts 16 and 21 of ``benchmarks/robustness.py`` (seed 2026, mu 0,
+restitution 0, 3 s each: event storms and time-stepping windows); ``reconfig_elbow1``.
 
 Timers (``time.perf_counter``) are put around the loop's parts of one run object (the stepper's
 steps, the law's end-of-step checks and its collision sweeps, the samples, the event handling,
-the ticks and the controller's ``step``); each part's time includes the parts it calls, so the
-shares of the nested rows (the sweep inside the checks, the controller inside the ticks) are not
-added to their parent's. The timers cost about 0.3 us a call; the table's shares are what
+the ticks and the controller's ``step``; for the contact-normal mode also its stretches of steps in
+one native call, the events' location and restarts, the re-patches after a step, and the
+windows' steps, split by whether the step changed its contact set: a patch rebuilt, a pair or a
+limit in or out); each part's time
+includes the parts it calls, so the shares of the nested rows (the sweep inside the checks, the
+controller inside the ticks) are not added to their parent's. Each row also gives its calls and
+the time per call. The timers cost about 0.3 us a call; the table's shares are what
 compares (on a loaded machine the wall times grow, the shares much less). Also printed: the CPU
 time of the run without timers (median of the repeats).
 """
@@ -15,15 +25,19 @@ time of the run without timers (median of the repeats).
 from __future__ import annotations
 
 import argparse
+import logging
 import time
 from collections.abc import Callable
 from typing import Any
 
 import numpy as np
+from robustness import start_poses  # (benchmarks/: the script's folder, first on sys.path)
 
 import packbot
 from packbot import integrator
 from packbot.collision import CollisionWorld
+from packbot.contact.normal_contacts import NormalContacts
+from packbot.contact.timestep import MoreauJeanStepper
 from packbot.scenario import load_scenario
 
 WRIST = ("camera_tilt", "camera_pan", "gripper_roll", "gripper_jaw")
@@ -31,16 +45,32 @@ WRIST = ("camera_tilt", "camera_pan", "gripper_roll", "gripper_jaw")
 PARTS = (
     ("building the run", None, "__init__"),
     ("steps (stepper, right-hand sides)", "stepper", "step"),
+    ("stretches of steps in one native call", "law", "stretch"),
     ("end-of-step checks (watch)", "law", "watch"),
     ("  the collision sweeps", "CollisionWorld", "sweep"),
     ("samples", "rec", "record"),
+    ("events' location", None, "locate"),
     ("events' handling", "law", "handle"),
+    ("  the contact set's restarts", "NormalContacts", "restart"),
+    ("after-step work (re-patches, windows' ends)", "law", "after_step"),
+    ("  the contact set's re-patches", "NormalContacts", "repatch"),
+    ("windows' steps", "law", "advance"),
+    ("  keeping their contact set", "MoreauJeanStepper", "step"),
+    ("  changing it (a patch rebuilt, a pair in or out)", "MoreauJeanStepper", "step"),
     ("stepper restarts", "stepper", "reset"),
     ("ticks inside held steps", "ticks", "inside"),
     ("  the controller's step()", "ctrl_obj", "step"),
     ("ticks that change the command", None, "cut_at_tick"),
     ("scheduled actions (ticks at a step's end)", None, "run_scheduled"),
 )
+
+
+#: The rows timed at their class (every phase's object), not at the run's attributes.
+CLASSES = {
+    "CollisionWorld": CollisionWorld,
+    "NormalContacts": NormalContacts,
+    "MoreauJeanStepper": MoreauJeanStepper,
+}
 
 
 def _timed(acc: dict[str, float], label: str, f: Callable[..., Any]) -> Callable[..., Any]:
@@ -50,6 +80,28 @@ def _timed(acc: dict[str, float], label: str, f: Callable[..., Any]) -> Callable
             return f(*a, **k)
         finally:
             acc[label] = acc.get(label, 0.0) + time.perf_counter() - t0
+            acc[label + "#"] = acc.get(label + "#", 0) + 1
+
+    return w
+
+
+def _window_step(acc: dict[str, float], f: Callable[..., Any]) -> Callable[..., Any]:
+    """A window's step timed into one of two rows: did it change its contact set?"""
+
+    def w(self: Any, *a: Any, **k: Any) -> Any:
+        version = self.contacts._version  # (changed by any patch built or pair removed)
+        t0 = time.perf_counter()
+        try:
+            return f(self, *a, **k)
+        finally:
+            kept = self.contacts._version == version
+            label = (
+                "  keeping their contact set"
+                if kept
+                else "  changing it (a patch rebuilt, a pair in or out)"
+            )
+            acc[label] = acc.get(label, 0.0) + time.perf_counter() - t0
+            acc[label + "#"] = acc.get(label + "#", 0) + 1
 
     return w
 
@@ -64,8 +116,8 @@ def measured(run_once: Callable[[], Any]) -> tuple[float, dict[str, float]]:
         orig_init(self, *a, **k)
         acc["building the run"] = time.perf_counter() - t0
         for label, path, name in PARTS[1:]:
-            if path == "CollisionWorld":
-                continue  # every phase's world: timed at the class (below)
+            if path in CLASSES:
+                continue  # every phase's object: timed at the class (below)
             obj: Any = self
             for attr in path.split(".") if path else ():
                 obj = getattr(obj, attr, None)
@@ -74,15 +126,24 @@ def measured(run_once: Callable[[], Any]) -> tuple[float, dict[str, float]]:
         # the stepper keeps its own reference to the right-hand side: nothing to rewire
 
     integrator._Run.__init__ = init  # type: ignore[method-assign]
-    sweep = CollisionWorld.sweep
-    CollisionWorld.sweep = _timed(acc, "  the collision sweeps", sweep)  # type: ignore[method-assign]
+    saved: list[tuple[type, str, Any]] = []
+    for label, path, name in PARTS:
+        cls = CLASSES.get(path or "")
+        if cls is None or any(c is cls and n == name for c, n, _ in saved):
+            continue  # (the window steps' two rows share one wrapper)
+        f = getattr(cls, name)
+        saved.append((cls, name, f))
+        setattr(
+            cls, name, _window_step(acc, f) if cls is MoreauJeanStepper else _timed(acc, label, f)
+        )
     try:
         t0 = time.perf_counter()
         run_once()
         wall = time.perf_counter() - t0
     finally:
         integrator._Run.__init__ = orig_init  # type: ignore[method-assign]
-        CollisionWorld.sweep = sweep  # type: ignore[method-assign]
+        for cls, name, f in saved:
+            setattr(cls, name, f)
     return wall, acc
 
 
@@ -101,10 +162,14 @@ def table(title: str, run_once: Callable[[], Any], repeats: int) -> None:
     cpu = cpu_time(run_once, repeats)
     wall, acc = measured(run_once)
     print(f"\n{title}: CPU time without timers {cpu * 1e3:.1f} ms (median of {repeats})")
-    print(f"{'part':48s} {'time [ms]':>10s} {'share':>7s}")
+    print(f"{'part':48s} {'time [ms]':>10s} {'share':>7s} {'calls':>7s} {'per call [us]':>14s}")
     for label, _, _ in PARTS:
         if label in acc:
-            print(f"{label:48s} {acc[label] * 1e3:10.1f} {acc[label] / wall:7.1%}")
+            n = int(acc.get(label + "#", 1))
+            per = acc[label] / n * 1e6
+            print(
+                f"{label:48s} {acc[label] * 1e3:10.1f} {acc[label] / wall:7.1%} {n:7d} {per:14.1f}"
+            )
     print(f"{'the whole run (with timers)':48s} {wall * 1e3:10.1f}")
 
 
@@ -119,6 +184,24 @@ def main(argv: list[str] | None = None) -> None:
 
     def collapse() -> Any:
         return packbot.simulate(robot, q0, v0, 5.0, config=cfg)
+
+    normal = packbot.SimConfig(contact_mode="normal", mu=0.5, locked_joints=WRIST)
+
+    def normal_collapse() -> Any:
+        return packbot.simulate(robot, q0, v0, 5.0, config=normal)
+
+    free = packbot.SimConfig(contact_mode="normal", mu=0.0, restitution=0.0)
+    starts = start_poses(robot, 22, 2026, 2 * free.contact_tolerance)
+
+    def random_starts() -> Any:
+        quiet = logging.getLogger("packbot")
+        level = quiet.level
+        quiet.setLevel(logging.ERROR)  # (mu = 0's warning, once a run)
+        try:
+            for k in (16, 21):
+                packbot.simulate(robot, starts[k].copy(), v0, 3.0, config=free)
+        finally:
+            quiet.setLevel(level)
 
     sc = load_scenario("reconfig_elbow1")
 
@@ -137,6 +220,8 @@ def main(argv: list[str] | None = None) -> None:
         )
 
     table("joint_clamp collapse, 5 s", collapse, args.repeats)
+    table("contact-normal collapse, mu 0.5, 5 s", normal_collapse, args.repeats)
+    table("contact-normal, wrist-free random starts 16 and 21, mu 0, 3 s each", random_starts, 1)
     table(f"reconfig_elbow1, {args.duration:g} s", reconfig, 1)
 
 

@@ -5,12 +5,10 @@ has stopped every joint, with the torques fixed and no controller tick to come, 
 change before the next scheduled action or the run's end; one step to there replaces the
 stepper's steps of ``max_step``. The runs must be the same to the last bit (samples, events,
 energies) with fewer steps, also when a failure ends the rest, and the hold must not be taken
-where the state may change (a motor lag, a controller).
+where the state may change (a motor lag) or a controller tick comes first.
 """
 
 from __future__ import annotations
-
-import dataclasses
 
 import numpy as np
 import pytest
@@ -18,9 +16,10 @@ from test_normal_cascade import start_pose
 
 import packbot
 from packbot.contact import normal_law
+from packbot.contact.normal_contacts import NormalContacts
+from packbot.control.base import Controller
 from packbot.failures import Failure
 from packbot.mujoco_model import WRIST_JOINTS
-from packbot.scenario import load_scenario, run_scenario
 
 
 def _runs(robot, monkeypatch, duration, cfg, failures=(), q0=None):
@@ -107,23 +106,52 @@ def test_no_hold_with_a_motor_lag(robot, monkeypatch):
     )
     off, on, held = _runs(robot, monkeypatch, 3.0, cfg)
     _identical(off, on)
+    assert on.rest_time is not None  # (at rest, and yet not held)
     assert held == []
 
 
-def test_no_hold_in_a_controlled_run(robot, monkeypatch):
-    """A controller's ticks come before any step's end: the loop offers no hold."""
-    calls = []
+class _Zero(Controller):
+    """A sampled controller whose command is always zero (1 ms ticks)."""
+
+    def compute(self, t, q, v):
+        return np.zeros(8)
+
+
+def test_no_hold_with_a_controller_tick_to_come(robot, monkeypatch):
+    """The collapse under a sampled controller holding a zero command: the arm is captured at
+    rest as without it, but a tick comes before any step's end (the stepper steps over the
+    ticks that keep the command): the loop offers no hold; the same run."""
+    captured = []
+    capture = NormalContacts.capture
+
+    def noted(self, *args):
+        out = capture(self, *args)
+        captured.append(out is not None)
+        return out
+
     hold = normal_law.NormalLaw._hold_at_rest
-    monkeypatch.setattr(
-        normal_law.NormalLaw,
-        "_hold_at_rest",
-        lambda self, stepper, t_end: calls.append(t_end) or hold(self, stepper, t_end),
-    )
-    sc = load_scenario("frozen_elbow_reach")
-    sc = dataclasses.replace(sc, config=dataclasses.replace(sc.config, contact_mode="normal"))
+    calls = []
+
+    def counted(self, stepper, t_end):
+        calls.append(t_end)
+        return hold(self, stepper, t_end)
+
+    monkeypatch.setattr(NormalContacts, "capture", noted)
+    monkeypatch.setattr(normal_law.NormalLaw, "_hold_at_rest", counted)
+    cfg = packbot.SimConfig(contact_mode="normal", mu=0.5, locked_joints=WRIST_JOINTS)
     res = []
     for on in (False, True):
         monkeypatch.setattr(normal_law, "REST_HOLD", on)
-        res.append(run_scenario(sc, robot, duration=1.0))
+        res.append(
+            packbot.simulate(
+                robot,
+                robot.pose("drive"),
+                np.zeros(robot.nq),
+                3.0,
+                config=cfg,
+                controller=_Zero(),
+            )
+        )
     _identical(*res)
+    assert any(captured)  # the arm is captured at rest
     assert calls == []

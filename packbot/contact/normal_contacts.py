@@ -52,7 +52,7 @@ class NormalContacts(RestartSteps, ModeSelection):
         if q is not q_in and not np.array_equal(q, q_in):
             # the impulse's energy balance is exact only with M at the q it acts on
             minv = np.array(pin.computeMinverse(self.model, self.data, q), dtype=np.float64)
-            lower = np.tril_indices(self.nv, -1)  # (Pinocchio fills the upper triangle)
+            lower = self._lower  # (Pinocchio fills the upper triangle)
             minv[lower] = minv.T[lower]
         self.bounced = False
         v = self.impulse(q, v, minv)

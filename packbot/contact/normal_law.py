@@ -433,7 +433,6 @@ class NormalLaw(PatchEvents):
             or t_end <= t
             or len(y) != 2 * n
             or y[n:].any()
-            or self.window is not None
             or self.locks.conditional
             or self.drive.fdir.any()
             or self.drive.step_torques(t, y) is None

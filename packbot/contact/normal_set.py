@@ -116,6 +116,7 @@ class ContactSet:
         for j in range(1, model.njoints):
             for s in list(model.supports[j])[1:]:
                 self._masks[j, 0, model.idx_vs[s] : model.idx_vs[s] + model.nvs[s]] = 1.0
+        self._lower = np.tril_indices(self.nv, -1)  # (an nv x nv matrix's strict lower part)
         self._joint_of = np.zeros(self.nv, dtype=np.intp)  # model joint of each velocity
         for j in range(1, model.njoints):
             self._joint_of[model.idx_vs[j] : model.idx_vs[j] + model.nvs[j]] = j

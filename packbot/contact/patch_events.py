@@ -91,15 +91,18 @@ class PatchEvents(PairLaw):
         if not bad:
             return []
         cond0 = self._contact_conditions(contacts, seg.t0, seg.y0)
-        own = native is not None and contacts.rows_conditions_own()
+        row_at = (
+            native.row_condition_at
+            if native is not None and contacts.rows_conditions_own()
+            else None
+        )
         out = []
         for k in bad:
 
             def gn(t: float, k: tuple[Any, ...] = k) -> float:
                 y = seg(t)
-                if own and k[0] == "nrow":  # (the row's value alone, natively)
-                    assert native is not None
-                    g = native.row_condition_at(y, k[1])
+                if row_at is not None and k[0] == "nrow":  # (the row's value alone, natively)
+                    g = row_at(y, k[1])
                     if g is not None:
                         return g
                 ev = None if native is None else native.eval_at(contacts, y)
