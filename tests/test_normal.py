@@ -19,6 +19,7 @@ from packbot.contact.normal import (
     SLIDE_TOL,
     NormalContacts,
 )
+from packbot.environment import FLOOR, Environment, Obstacle
 from packbot.model import JointParams, Robot
 from packbot.system import System
 
@@ -126,13 +127,23 @@ def test_block_on_slope_sticks_or_slides_with_the_analytic_acceleration(mu):
     assert distances(robot, res).min() > -1e-7
 
 
-def test_sliding_patch_is_stale_only_once_slid_or_off_its_distance():
-    """The box's face patch on the floor, its 4 rows engaged: moved along x by less than
-    SLIDE_TOL it is still valid (kept while sliding), by more it is rebuilt; a Coal distance
-    disagreeing with its smallest gap by more than POINT_TOL makes it stale too."""
+@pytest.mark.parametrize("ground", ["slab", "floor"])
+def test_sliding_patch_is_stale_only_once_slid_or_off_its_distance(ground):
+    """The box's face patch on a slab's top face (a box obstacle), its 4 rows engaged: moved
+    along x by less than SLIDE_TOL it is still valid (kept while sliding), by more it is
+    rebuilt; a Coal distance disagreeing with its smallest gap by more than POINT_TOL makes it
+    stale too. On the floor (a halfspace: its face has no edge for a corner to lag at) the
+    slide never makes it stale; the distance rule still does."""
     robot = box_robot()
     cfg = packbot.SimConfig(contact_mode="normal", mu=0.5)
-    sysm = System(robot, np.array([0.0, HALF_Z, 0.0]), cfg, None)
+    env = Environment(obstacles=(FLOOR,))
+    if ground == "slab":  # top face at z = 0, 2 m wide: the box stays well inside it
+        env = Environment(
+            obstacles=(
+                Obstacle(name="slab", kind="box", size=(2.0, 2.0, 0.1), xyz=(0.0, 0.0, -0.05)),
+            )
+        )
+    sysm = System(robot, np.array([0.0, HALF_Z, 0.0]), cfg, env)
     assert sysm.world is not None
     nc = NormalContacts.from_config(sysm.model, sysm.data, sysm.world, cfg)
     q0, v = np.array([0.0, HALF_Z, 0.0]), np.array([0.01, 0.0, 0.0])
@@ -143,7 +154,8 @@ def test_sliding_patch_is_stale_only_once_slid_or_off_its_distance():
     def dist(q: np.ndarray) -> dict[int, float]:
         return {0: sysm.world.pair_contact(q, 0).distance}
 
-    for dx, stale in ((0.0, False), (0.5 * SLIDE_TOL, False), (2.0 * SLIDE_TOL, True)):
+    far = ground == "slab"  # (stale once slid far)
+    for dx, stale in ((0.0, False), (0.5 * SLIDE_TOL, False), (2.0 * SLIDE_TOL, far), (0.1, far)):
         q = q0 + np.array([dx, 0.0, 0.0])
         assert nc.stale(q, v, dist(q)) is stale, dx
     q = q0 + np.array([0.5 * SLIDE_TOL, 0.0, 0.0])

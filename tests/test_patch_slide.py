@@ -1,18 +1,21 @@
-"""A vertex sliding on a face keeps its one-point patch; other patches go stale at SLIDE_TOL.
+"""A vertex sliding on a face, or a patch on the floor, is kept; others go stale at SLIDE_TOL.
 
 A one-point patch whose normal is a face normal of its body (``FACE_ALIGN``) is a vertex on
 that face: its point is the vertex, where the bodies touch however far it slides, so it is not
 rebuilt for its slide (``NormalContacts.stale``), only when its gap leaves the pair's distance.
 The collapse (mu = 0.5, wrist locked): link 3's tube slides over the shoulder casing on one
-vertex; it was re-patched 44 times (every 1 mm), now never for its slide.
+vertex; it was re-patched 44 times (every 1 mm), now never for its slide. A patch of any
+size whose normal is a halfspace's (the floor: a face without edges) is kept the same way: its
+points are the other body's, and its gaps their heights, however far they slide.
 """
 
+import coal
 import numpy as np
 import pinocchio as pin
 import pytest
 
 import packbot
-from packbot.contact import normal_law, normal_set
+from packbot.contact import normal_law, normal_set, timestep
 from packbot.contact.normal_tolerances import FACE_ALIGN, SLIDE_TOL
 from packbot.mujoco_model import WRIST_JOINTS
 
@@ -39,8 +42,8 @@ def collapse(robot):
         q = y[: self.n] if out is None else out[: self.n]
         pin.forwardKinematics(self.normal.model, self.normal.data, q)
         for key, p in self.normal.pairs.items():
-            if np.isfinite(p.slide_tol):
-                continue
+            if np.isfinite(p.slide_tol) or len(p.local1) > 1:
+                continue  # (a floor patch's: test_a_patch_on_the_floor_is_kept_while_it_slides)
             info = p.info
             v1 = _world_point(self, info.joint1, p.local1[0])
             v2 = _world_point(self, info.joint2, p.local2[0])
@@ -74,8 +77,9 @@ def test_a_vertex_on_a_face_is_kept_while_it_slides(collapse):
 
 
 def test_only_vertices_on_faces_skip_the_slide_rule(robot, monkeypatch):
-    """Every one-point patch of wrist-free starts: slide_tol inf exactly when its normal is a
-    face normal of its body (the palm's edges crossing the camera head's keep SLIDE_TOL)."""
+    """Every patch of wrist-free starts: slide_tol inf exactly when its normal is a face normal
+    of its body and it has one point or that body is a halfspace (the palm's edges crossing the
+    camera head's keep SLIDE_TOL)."""
     from test_normal_cascade import start_pose
 
     kinds = {"vertex": 0, "other": 0}
@@ -91,7 +95,11 @@ def test_only_vertices_on_faces_skip_the_slide_rule(robot, monkeypatch):
             float((N1 @ (Rg1.T @ n)).max()) if len(N1) else -1.0,
             float((-(N2 @ (Rg2.T @ n))).max()) if len(N2) else -1.0,
         )
-        if len(p.local1) == 1 and best >= 1.0 - FACE_ALIGN:
+        owner = info.geom1 if p.on1 else info.geom2
+        halfspace = isinstance(
+            self.world.geom_model.geometryObjects[owner].geometry, coal.Halfspace
+        )
+        if (len(p.local1) == 1 or halfspace) and best >= 1.0 - FACE_ALIGN:
             kinds["vertex"] += 1
             assert p.slide_tol == np.inf
         else:
@@ -102,3 +110,41 @@ def test_only_vertices_on_faces_skip_the_slide_rule(robot, monkeypatch):
     monkeypatch.setattr(normal_set.ContactSet, "_put", recorded)
     packbot.simulate(robot, start_pose(robot, 1), np.zeros(robot.model.nv), 0.6, config=cfg)
     assert kinds["vertex"] > 0 and kinds["other"] > 0, kinds
+
+
+def test_a_patch_on_the_floor_is_kept_while_it_slides(robot, monkeypatch):
+    """A frictionless wrist-free start (the fingers and elbow casings slide on the floor): at
+    every window step, a several-point floor patch kept beyond SLIDE_TOL of slide still has
+    its rows' gaps at its points' heights above the floor, to rounding."""
+    from test_normal_cascade import start_pose
+
+    slides: list[float] = []
+    stale = timestep.MoreauJeanStepper._stale
+
+    def watched(self, q, v, near):
+        out, raw = stale(self, q, v, near)
+        if raw is None:
+            return out, raw
+        gap, lay = raw[0][2], raw[1]
+        T, dP = raw[0][9], raw[0][11]
+        c = self.contacts
+        for i, key in enumerate(lay.keys):
+            p = c.pairs[key]
+            if len(p.local1) < 2 or np.isfinite(p.slide_tol) or key in out:
+                continue
+            assert self.contacts.world.pairs[key].piece2 == "floor"
+            rows = np.flatnonzero(lay.row_pair == i)
+            M = c.data.oMi[p.info.joint1]  # (at q: the rows' kinematics just computed)
+            heights = (p.local1 @ M.rotation.T + M.translation)[:, 2]
+            np.testing.assert_allclose(gap[rows], heights, rtol=0.0, atol=1e-12)
+            k = lay.rows[rows]
+            s = dP[k] @ T[i].T - lay.offset0[rows]
+            slides.append(float(np.sqrt((s**2).sum(axis=1)).max()))
+        return out, raw
+
+    monkeypatch.setattr(timestep.MoreauJeanStepper, "_stale", watched)
+    cfg = packbot.SimConfig(contact_mode="normal", mu=0.0, restitution=0.0)
+    res = packbot.simulate(robot, start_pose(robot, 16), np.zeros(robot.model.nv), 2.0, config=cfg)
+    assert slides, "no floor patch kept in a window: the test covers nothing"
+    assert max(slides) > 3.0 * SLIDE_TOL, max(slides)
+    assert -res.diagnostics.min_distance <= 1e-5

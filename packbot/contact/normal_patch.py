@@ -38,7 +38,7 @@ class _Pair:
     normal2: FloatArray  # (3,) normal in the frame of the joint carrying it
     on1: bool = False  # the normal is a face normal of body 1, fixed in joint1's frame
     #: the slide [m] its patch goes stale at (``NormalContacts.stale``): SLIDE_TOL, or inf for a
-    #: vertex on a face (normal_tolerances.FACE_ALIGN)
+    #: vertex on a face or a patch on a halfspace's face (normal_tolerances.FACE_ALIGN)
     slide_tol: float = SLIDE_TOL
     stick: bool = True
     slip_dir: FloatArray = field(default_factory=lambda: np.zeros(3))  # world, at onset

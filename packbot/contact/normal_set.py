@@ -11,6 +11,7 @@ import math
 from collections.abc import Sequence
 from typing import TYPE_CHECKING, Any
 
+import coal
 import numpy as np
 import pinocchio as pin
 from numpy.typing import NDArray
@@ -104,6 +105,7 @@ class ContactSet:
         self.bounced = False  # the last impulse had restitution
         self._kin_cache: dict[tuple[bytes, bytes], Any] = {}  # see _kinematics
         self._planes_cache: dict[int, tuple[FloatArray, FloatArray]] = {}
+        self._unbounded_cache: dict[int, bool] = {}
         self._built: tuple[bytes, float] = (b"", math.nan)  # (see add_pairs)
         self._lay: _Layout | None = None
         # the last layout built and its shape (see ContactRows._layout): a re-patch that keeps
@@ -268,8 +270,12 @@ class ContactSet:
         local1, local2, normal2, frame2, centre1, centre2, offset0, on1 = made
         p = _Pair(info, local1, local2, normal2, bool(on1), offset0=offset0)
         p.frame2, p.centre1, p.centre2 = frame2, centre1, centre2
-        if len(local1) == 1 and _on_a_face(N1, Rg1, N2, Rg2, n, bool(on1)):
-            p.slide_tol = math.inf  # a vertex on a face: nothing lags as it slides
+        if _on_a_face(N1, Rg1, N2, Rg2, n, bool(on1)) and (
+            len(local1) == 1 or self._unbounded(info.geom1 if on1 else info.geom2)
+        ):
+            # a vertex on a face, or any patch on a halfspace's face (the floor: no edge to
+            # slide off, its corners are the other body's material points): nothing lags
+            p.slide_tol = math.inf
         if old is not None:
             p.stick, p.slip_dir = old.stick, old.slip_dir
         p.built = self._built
@@ -285,6 +291,16 @@ class ContactSet:
             planes = _planes(shape) or (np.zeros((0, 3)), np.zeros(0))
             self._planes_cache[geom] = planes
             return planes
+
+    def _unbounded(self, geom: int) -> bool:
+        """Whether a piece is a halfspace (its one face has no edge), kept per piece."""
+        try:
+            return self._unbounded_cache[geom]
+        except KeyError:
+            assert self.world is not None
+            shape = self.world.geom_model.geometryObjects[geom].geometry
+            out = self._unbounded_cache[geom] = isinstance(shape, coal.Halfspace)
+            return out
 
     def remove_pair(self, pair: int) -> None:
         """Take a pair out of the contact set."""

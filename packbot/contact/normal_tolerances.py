@@ -53,6 +53,11 @@ SLIDE_TOL = 1e-3
 #: of wrist-free starts within 2e-13 of a face normal, the edge-on-edge ones (whose points are
 #: material points sliding along both edges: SLIDE_TOL applies) 3e-3 or more away. The
 #: collapse's re-patches (mu 0.5): 90 -> 46 (link 3's tube on the shoulder casing: 44 -> 0).
+#: A patch of any size whose normal is a halfspace's (the floor) is kept the same way: that
+#: face has no edge for a corner to lag at, its points are the other body's, and its gaps are
+#: their heights above the plane however far they slide. Measured: the collapse's restarts
+#: (mu 0.5) 80 -> 68; on two frictionless wrist-free starts, 4,232 of the windows' 4,282
+#: re-patches for a slide were the fingers' and elbow casings' on the floor.
 FACE_ALIGN = 1e-9
 #: Stiffness of the drift correction [rad/s] (a_n = -2 w g' - w^2 g on engaged rows).
 BAUMGARTE = 20.0
