@@ -106,6 +106,33 @@ class ContactRhs:
     def end_locks(
         self, y1: NDArray[np.float64]
     ) -> tuple[NDArray[np.float64], NDArray[np.float64]] | None: ...
+    def window_step(
+        self,
+        y: NDArray[np.float64],
+        h: float,
+        swept: NDArray[np.int64],
+        dist: NDArray[np.float64],
+        sweep_margin: float,
+        reach: NDArray[np.float64],
+        active_gap: float,
+        upper: NDArray[np.float64],
+        lower: NDArray[np.float64],
+        limit_gap: float,
+        mu: float,
+        restitution: float,
+        zeno: float,
+        touch_gap: float,
+        boxes: NDArray[np.int64],
+        bound: NDArray[np.float64],
+        guess: NDArray[np.float64],
+        rho0: float,
+        tol: float,
+        max_iterations: int,
+        ok: float,
+        out_vf: NDArray[np.float64],
+        out_v1: NDArray[np.float64],
+        out_q1: NDArray[np.float64],
+    ) -> tuple[Any, ...]: ...
     def last(self) -> tuple[NDArray[np.float64], ...]: ...
     def set_reach(self, reach: NDArray[np.float64], margin: float, max_step: float) -> None: ...
     def step_bound(self, y: NDArray[np.float64]) -> float: ...

@@ -313,6 +313,7 @@ def test_an_unconverged_compiled_answer_falls_back_to_pinocchios_admm(robot, mon
 
     monkeypatch.setattr(conic, "solve_conic", unconverged)
     monkeypatch.setattr(timestep, "solve_mixed_admm", counted)
+    monkeypatch.setattr(timestep, "NATIVE_STEPS", False)  # (the Python path's solver)
     monkeypatch.setattr(normal_law, "CASCADE_EVENTS", 1)
     cfg = packbot.SimConfig(contact_mode="normal", mu=0.5, restitution=0.0, locked_joints=LOCKED)
     res = packbot.simulate(robot, robot.pose("drive"), np.zeros(robot.nq), 0.3, config=cfg)

@@ -159,6 +159,25 @@ class NativeRhs:
 
     def load(self, contacts: NormalContacts, plan: Any) -> None:
         """Load the contact set's layout and the modes' plan (only when they changed)."""
+        self.load_layout(contacts)
+        if plan is not self._plan_id:
+            self._rhs.set_plan(
+                _ints(plan.engaged),
+                _ints(plan.row_slip),
+                _ints(plan.sticks),
+                contacts.mu,
+                STICK_SPEED,
+                BAUMGARTE,
+            )
+            self._plan_id = plan
+        if plan.slips:  # the onset directions (reassigned at restarts)
+            self._rhs.set_slip_dirs(_reals([p.slip_dir for p in contacts._pair_list]))
+
+    def load_layout(self, contacts: NormalContacts) -> None:
+        """Load the contact set's layout, its conditions' constants and its pairs' keys.
+
+        Only when the layout changed; the modes' plan is then loaded again by :meth:`load`.
+        """
         lay = contacts._layout()
         if lay is not self._layout_id:
             self._locked_id = None
@@ -182,18 +201,6 @@ class NativeRhs:
             self._rhs.set_keys(_ints(list(contacts.pairs)))  # (in the layout's order)
             self._layout_id = lay
             self._plan_id = None
-        if plan is not self._plan_id:
-            self._rhs.set_plan(
-                _ints(plan.engaged),
-                _ints(plan.row_slip),
-                _ints(plan.sticks),
-                contacts.mu,
-                STICK_SPEED,
-                BAUMGARTE,
-            )
-            self._plan_id = plan
-        if plan.slips:  # the onset directions (reassigned at restarts)
-            self._rhs.set_slip_dirs(_reals([p.slip_dir for p in contacts._pair_list]))
 
     def set_locks(self, locked: NDArray[np.intp]) -> None:
         """The report's law's modes instead of contact rows: these joints locked (a_j = 0).
@@ -267,6 +274,25 @@ class NativeRhs:
         out = np.empty(len(q))
         self._rhs.energies(_reals(q), _reals(v), out)
         return out
+
+    def window_step(
+        self, contacts: NormalContacts, y: FloatArray, h: float, **kw: Any
+    ) -> tuple[int, FloatArray | None, float, int, float, tuple[float, float, float] | None]:
+        """One window step with its contact set kept, in one native call.
+
+        The contact set's layout is loaded first, the torques by :meth:`hold_torque`. See
+        :meth:`packbot.contact.timestep.MoreauJeanStepper.step`, whose arithmetic it follows,
+        and the extension's ``ContactRhs.window_step`` for the arguments in ``kw``.
+
+        Returns:
+            (status, x, residual, iterations, rho, energies): status 0 the step's impulses x
+            and the energies (at the start, at the end, the end's kinetic one) [J]; else why
+            the caller takes the step in Python (1 the contact set changes, 2 a bounce, 3 no
+            converged impulses, 4 no Cholesky factor of M^-1).
+        """
+        self.load_layout(contacts)
+        status, x, res, it, rho, energies = self._rhs.window_step(y, h, **kw)
+        return int(status), x, float(res), int(it), float(rho), energies
 
     def set_torque(self, applied: FloatArray, viscous: FloatArray, coulomb_dir: FloatArray) -> None:
         """The torques of the steps to come [N*m]: ``applied + (-viscous * v - coulomb_dir)``."""

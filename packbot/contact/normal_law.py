@@ -234,7 +234,9 @@ class NormalLaw(PatchEvents):
         q, v = y[:n], y[n : 2 * n]
         self.drive.fdir[:] = 0.0  # Coulomb friction and brakes are rows of the steps
         self.locks = JointLocks()
-        stepper = MoreauJeanStepper(self.sys, self.drive, self.normal, self.cfg, reach=self.reach)
+        stepper = MoreauJeanStepper(
+            self.sys, self.drive, self.normal, self.cfg, reach=self.reach, native=self._native
+        )
         self.window = _Window(stepper, t, t + self._min_len, self.energy(q, v))
         self.diag.windows += 1
         self._steps.clear()

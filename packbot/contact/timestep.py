@@ -75,6 +75,7 @@ from packbot.ode import DenseSegment
 
 if TYPE_CHECKING:
     from packbot.config import SimConfig
+    from packbot.contact.native import NativeRhs
     from packbot.contact.normal_contacts import NormalContacts
     from packbot.drive import Drive
     from packbot.system import System
@@ -94,7 +95,11 @@ __all__ = [
 log = logging.getLogger(__name__)
 
 FloatArray = NDArray[np.float64]
+_NONE = np.zeros(0)  # (an empty argument of the native step: no guess, no limits)
 
+#: Whether a window step whose contact set stays as it is is taken in one native call
+#: (:meth:`MoreauJeanStepper._native_step`; tests and benchmarks switch it off to compare).
+NATIVE_STEPS = True
 #: Time step of a window [s].
 WINDOW_STEP = 5e-4
 #: No body turns more than this in a step [rad] (a step is shortened below WINDOW_STEP when the
@@ -218,8 +223,16 @@ class MoreauJeanStepper:
         config: SimConfig,
         h: float = WINDOW_STEP,
         reach: FloatArray | None = None,
+        native: NativeRhs | None = None,
     ) -> None:
         self.sys, self.drive, self.contacts, self.cfg = system, drive, contacts, config
+        #: The law's compiled right-hand side: a step whose contact set stays as it is, under
+        #: fixed torques, is taken in one native call (:meth:`_native_step`); None: in Python.
+        self.native = native if NATIVE_STEPS else None
+        #: Steps taken in one native call, and those it handed back to Python by why (1 the
+        #: contact set changes, 2 a bounce, 3 no converged impulses, 4 no factor of M^-1).
+        self.native_steps = 0
+        self.native_misses: dict[int, int] = {}
         self.h = float(h)
         self.n = system.nv
         #: The last step's Coulomb and brake torques [N*m] (its box impulses / h).
@@ -250,6 +263,10 @@ class MoreauJeanStepper:
         #: it moves: a point's speed is at most reach . |v| (see reach_bounds; ``reach``: the
         #: caller's, for the same model and world).
         self.reach = reach_bounds(system.model, contacts.world) if reach is None else reach
+        # (_update_limits: its joints within reach of their limits, and the limits' keys in
+        # the same order, joint by joint, upper (+1) before lower (-1))
+        self._near_limit = np.zeros((self.n, 2), dtype=bool)
+        self._limit_keys = [(j, side) for j in range(self.n) for side in (1, -1)]
 
     def step(
         self,
@@ -266,21 +283,115 @@ class MoreauJeanStepper:
             t_end: The step ends at min(t + h, t_end) [s].
             energy: Total mechanical energy [J] of (q, v).
         """
-        sys, cfg, contacts, n = self.sys, self.cfg, self.contacts, self.n
+        sys, n = self.sys, self.n
         q, v, tail = y[:n], y[n : 2 * n], y[2 * n :]
         # no body turns more than STEP_ANGLE in a step (the scheme is first order in it)
         h = min(self.h, STEP_ANGLE / max(float(np.abs(v).sum()), 1e-300), t_end - t)
         _, target, applied, _ = self.drive.torques(t, y)
+        fast = self._native_step(t, y, h) if self.native is not None else None
+        if isinstance(fast, np.ndarray):  # handed back, with its free velocity
+            v_f, v1, x, residual, closest, cj, lay, m = self._python_step(t, y, h, fast)
+            q1 = np.asarray(pin.integrate(sys.model, q, h * v1), dtype=np.float64)
+            energies = None
+        elif fast is not None:
+            v_f, v1, q1, x, residual, closest, cj, lay, energies = fast
+            m = (len(x) - len(cj)) // 3  # (the contact rows' blocks, then the joint boxes)
+        else:
+            v_f, v1, x, residual, closest, cj, lay, m = self._python_step(t, y, h)
+            q1 = np.asarray(pin.integrate(sys.model, q, h * v1), dtype=np.float64)
+            energies = None
+        # what the step decided, on the rows it solved (the projection below may change the set)
+        sig = self._signature(x, lay, len(cj), cj)
+        self.joint_torque = np.zeros(n)
+        self.joint_torque[cj] = x[3 * m :] / h
+        end = (v_f, v1, q1, energies)
+        return self._finish(t, y, h, tail, target, applied, end, sig, m, residual, closest, energy)
+
+    def _native_step(
+        self, t: float, y: FloatArray, h: float
+    ) -> tuple[Any, ...] | FloatArray | None:
+        """The step's impulses in one native call, or None: the step is Python's.
+
+        The compiled right-hand side's ``window_step`` (:meth:`NativeRhs.window_step
+        <packbot.contact.native.NativeRhs.window_step>`) takes the step's free velocity, M^-1,
+        rows, problem and impulses with the arithmetic of :meth:`_python_step`, when the torques
+        are fixed over the step (a held command or none, no motor lag, no Coulomb direction
+        outside the problem's boxes: :meth:`Drive.step_torques`) and the contact set stays as
+        it is: the last step's sweep at its end, at this q, covers the step's reach and holds
+        exactly the set's pairs within it, the set's limits are the joints' near limits, and
+        no patch is stale. It hands the step back where the set changes (this method's caller
+        then updates it), with a bounce or with no converged impulses (the fallbacks of
+        :meth:`_solve`).
+
+        Returns:
+            None when not attempted; the free velocity v_f [rad/s] when handed back (the
+            caller's Python step reuses it); else (v_f, v1, q1, x, residual, closest, cj, lay,
+            energies): as :meth:`_python_step`
+            (without m), with q1 = q (+) h v1 and the energies at the step's start and end and
+            the end's kinetic energy [J] (the guard's, the sums of ``NativeRhs.energies``).
+        """
+        contacts, n = self.contacts, self.n
+        cached = self._next_sweep
+        if (
+            len(y) != 2 * n
+            or not self.midpoint
+            or not contacts.pairs
+            or cached is None
+            or cached[0] != y[:n].tobytes()
+        ):
+            return None
+        torques = self.drive.step_torques(t, y)
+        if torques is None or torques[2].any():
+            return None
+        rhs = self.native
+        assert rhs is not None
+        rhs.hold_torque(*torques)
+        coul = self.drive.path.coulomb
+        cj = np.flatnonzero(coul > 0.0)
+        lay = self._layout()
+        rows = (lay.key, len(cj))
+        guess = self._last_x if rows == self._last_rows else None
+        cfg, sw = self.cfg, cached[2]
+        limits = (self.sys.upper, self.sys.lower) if cfg.joint_limits else (_NONE, _NONE)
+        v_f, v1, q1 = np.empty(n), np.empty(n), np.empty(n)
+        status, x, residual, _, rho, energies = rhs.window_step(
+            contacts, y, h, swept=sw.pairs, dist=sw.distances, sweep_margin=cached[1],
+            reach=self.reach, active_gap=ACTIVE_GAP, upper=limits[0], lower=limits[1],
+            limit_gap=LIMIT_GAP, mu=contacts.mu, restitution=cfg.restitution,
+            zeno=cfg.zeno_speed, touch_gap=TOUCH_GAP, boxes=cj, bound=h * coul[cj],
+            guess=_NONE if guess is None else guess,
+            rho0=self._last_rho if guess is not None else 0.0, tol=CONIC_TOL,
+            max_iterations=CONIC_ITERATIONS, ok=RESIDUAL_OK, out_vf=v_f, out_v1=v1, out_q1=q1,
+        )  # fmt: skip
+        if status != 0:
+            self.native_misses[status] = self.native_misses.get(status, 0) + 1
+            return v_f  # (its free velocity: the midpoint rule's, as Python's)
+        self.native_steps += 1
+        self._last_rows, self._last_x, self._last_rho = rows, x, rho
+        closest = (float(sw.min_distance), int(sw.min_pair))
+        return v_f, v1, q1, x, residual, closest, cj, lay, energies
+
+    def _python_step(
+        self, t: float, y: FloatArray, h: float, v_free: FloatArray | None = None
+    ) -> tuple[Any, ...]:
+        """The step's impulses in Python: (v_f, v1, x, residual, closest, cj, lay, m).
+
+        ``v_free``: the free velocity, already computed (by a native step handed back).
+        """
+        sys, cfg, contacts, n = self.sys, self.cfg, self.contacts, self.n
+        q, v = y[:n], y[n : 2 * n]
         # the free accelerations at the step's midpoint (explicit midpoint rule): an Euler step
         # v + h a_free(q, v) gains energy where a light joint spins (its gyroscopic terms)
-        a0 = self.drive.free_accel(t, y)
-        if self.midpoint:
+        if v_free is not None:
+            v_f = v_free
+        elif self.midpoint:
+            a0 = self.drive.free_accel(t, y)
             y_mid = y.copy()
             y_mid[:n] = pin.integrate(sys.model, q, 0.5 * h * v)
             y_mid[n : 2 * n] = v + 0.5 * h * a0
             v_f = v + h * self.drive.free_accel(t + 0.5 * h, y_mid)
         else:  # the Euler step (measurements only)
-            v_f = v + h * a0
+            v_f = v + h * self.drive.free_accel(t, y)
         minv = sys.minv(q)
 
         closest, raw = self._update_set(q, v, v_f, h)
@@ -317,12 +428,32 @@ class MoreauJeanStepper:
         v1 = v_f + minv @ (J.T @ x) if len(J) else v_f
         if residual > RESIDUAL_OK:  # no dual solution to trust: the primal problem instead
             v1 = self._project(v_f, Jn, np.maximum(gap, 0.0) / h, sys.mass_matrix(q))
-        # what the step decided, on the rows it solved (the projection below may change the set)
-        sig = self._signature(x, lay, len(cj), cj)
-        self.joint_torque = np.zeros(n)
-        self.joint_torque[cj] = x[3 * m :] / h
-        q1 = np.asarray(pin.integrate(sys.model, q, h * v1), dtype=np.float64)
+        return v_f, v1, x, residual, closest, cj, lay, m
 
+    def _finish(
+        self,
+        t: float,
+        y: FloatArray,
+        h: float,
+        tail: FloatArray,
+        target: FloatArray,
+        applied: FloatArray,
+        end: tuple[FloatArray, FloatArray, FloatArray, tuple[float, float, float] | None],
+        sig: Any,
+        m: int,
+        residual: float,
+        closest: tuple[float, int],
+        energy: Callable[[FloatArray, FloatArray], float],
+    ) -> tuple[StepSegment, StepInfo]:
+        """The step's end, and the step and what it decided.
+
+        The sweep at q1 (a deep pair projected out), the energy guard, the motor lag's
+        torques. ``end``: the free velocity v_f, v1 and q1 [rad/s, rad], and the native step's
+        energies (at the start, at the end, the end's kinetic one [J]; None: computed here).
+        """
+        sys, cfg, contacts, n = self.sys, self.cfg, self.contacts, self.n
+        q, v = y[:n], y[n : 2 * n]
+        v_f, v1, q1, energies = end
         projected = False
         world = contacts.world
         # the first pass's sweep at q1 also serves the next step's contact set (it starts at
@@ -351,13 +482,18 @@ class MoreauJeanStepper:
         # the energy guard (the energy at the step's start: the last step's at its end when
         # this step starts there, bit for bit)
         last = self._end_energy
-        e0 = last[1] if last is not None and last[0] == y[: 2 * n].tobytes() else energy(q, v)
+        if energies is not None and not projected:  # (the native step's, at its q1)
+            e0, e1, kin = energies
+        else:
+            same = last is not None and last[0] == y[: 2 * n].tobytes()
+            e0 = last[1] if same else energy(q, v)  # type: ignore[index]
+            e1, kin = energy(q1, v1), math.nan
         work = h * float(applied @ (0.5 * (v + v1)))
-        e1 = energy(q1, v1)
         removed = 0.0
         excess = e1 - e0 - work
         if excess > 0.0:
-            kin = 0.5 * float(v1 @ sys.mass_matrix(q1) @ v1)
+            if math.isnan(kin):
+                kin = 0.5 * float(v1 @ sys.mass_matrix(q1) @ v1)
             s = math.sqrt(max(0.0, kin - excess) / kin) if kin > 0.0 else 0.0
             v1 = s * v1
             removed = kin * (1.0 - s * s)
@@ -528,22 +664,20 @@ class MoreauJeanStepper:
         In the order of the joints, the upper limit before the lower (the rows' order).
         """
         sys, limits = self.sys, self.contacts.limits
-        up = sys.upper - q <= reach  # (an infinite limit is never within reach)
-        lo = q - sys.lower <= reach
-        if not limits and not (up.any() or lo.any()):
+        near = self._near_limit  # (joints, 2): upper, lower
+        np.less_equal(sys.upper - q, reach, out=near[:, 0])  # (an infinite limit never is)
+        np.less_equal(q - sys.lower, reach, out=near[:, 1])
+        if not limits and not near.any():
             return  # (the usual step far from the limits: none in the set, none near)
-        upper, lower = up.tolist(), lo.tolist()
-        want = [
-            (j, side)
-            for j in range(self.n)
-            for side, near in ((1, upper[j]), (-1, lower[j]))
-            if near
-        ]
+        # the limits within reach in the rows' order: by joint, the upper before the lower
+        keys = self._limit_keys
+        want = [keys[i] for i in np.flatnonzero(near).tolist()]
         if len(want) == len(limits) and all(k in limits for k in want):
             return  # (the usual step: no change)
+        upper, lower = near[:, 0].tolist(), near[:, 1].tolist()
         for j in range(self.n):
-            for side, near, lim in ((1, upper[j], sys.upper[j]), (-1, lower[j], sys.lower[j])):
-                if near:
+            for side, within, lim in ((1, upper[j], sys.upper[j]), (-1, lower[j], sys.lower[j])):
+                if within:
                     if (j, side) not in limits:
                         self.contacts.add_limit(j, side, float(lim))
                 elif (j, side) in limits:

@@ -20,6 +20,7 @@
 #include <nanobind/stl/string.h>
 #include <nanobind/stl/vector.h>
 
+#include "conic.hpp"
 #include "joints.hpp"
 #include "stretch.hpp"
 
@@ -823,6 +824,215 @@ class ContactRhs {
     return radius_;
   }
 
+  // One step of a time-stepping window (packbot.contact.timestep.MoreauJeanStepper.step) from
+  // y = (q, v) over h [s], while its contact set stays as it is, under the loaded torques
+  // (set_torque: applied + (-viscous v - coulomb_dir)) and the loaded layout, keys and
+  // conditions (set_layout, set_keys, set_conditions). The free velocity at the explicit
+  // midpoint (two ABA), M^-1 and the rows at (q, v); then the checks that the set is kept: the
+  // previous step's end sweep (swept pairs, their distances [m], its margin [m]) holds, within
+  // d_act = active_gap + 2 h max(reach . |v|, reach . |v_f|), exactly the layout's pairs; the
+  // joints within limit_gap + h max(|v|, |v_f|) of their limits (upper, lower [rad]; empty:
+  // no limits) are exactly the layout's limit rows; no pair's patch is stale (conic.stale_pairs:
+  // its smallest gap off its distance by more than the point tolerance, or a point slid beyond
+  // its slide_tol2); and, with restitution, no touching row (gap <= touch_gap) approaches
+  // faster than zeno [m/s]. Then the problem (conic.step_problem: friction mu on the pairs'
+  // blocks, the joint boxes at velocity indices `boxes` with bounds `bound` [N*m*s]) and its
+  // impulses by the low-rank ADMM from `guess` (rho0 > 0: a warm start) to `tol` within
+  // `max_iterations`; v1 = v_f + M^-1 J^T x.
+  //
+  // Returns (status, x, residual, iterations, rho, energies); v_f, v1 and q1 = q + h v1
+  // written into out_vf, out_v1, out_q1; energies (status 0): the total energy [J] at (q, v)
+  // and at (q1, v1), and the kinetic one at (q1, v1) (packbot.system.System.energy).
+  // status 0: the step's impulses x (3 m + B) with residual <= ok; 1: the contact set changes
+  // (the caller updates it); 2: a bounce row; 3: no answer within ok (the caller's fallbacks);
+  // 4: M^-1 has no Cholesky factor.
+  nb::tuple window_step(F1 y, double h, I1 swept, F1 dist, double sweep_margin, F1 reach,
+                        double active_gap, F1 upper, F1 lower, double limit_gap, double mu,
+                        double restitution, double zeno, double touch_gap, I1 boxes, F1 bound,
+                        F1 guess, double rho0, double tol, int max_iterations, double ok,
+                        Out1 out_vf, Out1 out_v1, Out1 out_q1) {
+    const int nv = nv_;
+    if (y.shape(0) < static_cast<size_t>(2 * nv) || reach.shape(0) != static_cast<size_t>(nv) ||
+        out_vf.shape(0) != static_cast<size_t>(nv) || out_v1.shape(0) != static_cast<size_t>(nv) ||
+        out_q1.shape(0) != static_cast<size_t>(nv))
+      throw std::invalid_argument("window_step: y (2 nv), reach, out_vf, out_v1, out_q1 (nv) expected");
+    if (applied_.size() != static_cast<size_t>(nv) || !conditions_set_ || lock_mode_ >= 0 ||
+        keys_.size() != static_cast<size_t>(np_))
+      throw std::invalid_argument("window_step: torques, layout, keys and conditions first");
+    if (swept.shape(0) != dist.shape(0))
+      throw std::invalid_argument("window_step: one distance per swept pair expected");
+    const int B = static_cast<int>(boxes.shape(0));
+    if (bound.shape(0) != static_cast<size_t>(B))
+      throw std::invalid_argument("window_step: one bound per box expected");
+    end_valid_ = false;
+    jac_valid_ = false;
+    auto none = [&](int status) {
+      return nb::make_tuple(status, nb::none(), 0.0, 0, 0.0, nb::none());
+    };
+    const double *yq = y.data(), *yv = y.data() + nv;
+    // the free velocity at the explicit midpoint: v_f = v + h a_free(q + h/2 v, v + h/2 a0)
+    Eigen::VectorXd qm(nv), vm(nv), tau(nv), vf(nv);
+    for (int i = 0; i < nv; ++i) {
+      q_[i] = yq[i];
+      v_[i] = yv[i];
+      tau[i] = applied_[i] + (-viscous_[i] * v_[i] - coulomb_dir_[i]);
+    }
+    pin::aba(model_, data_, q_, v_, tau, pin::Convention::LOCAL);
+    const double hh = 0.5 * h;
+    for (int i = 0; i < nv; ++i) {
+      qm[i] = q_[i] + hh * v_[i];
+      vm[i] = v_[i] + hh * data_.ddq[i];
+    }
+    for (int i = 0; i < nv; ++i) tau[i] = applied_[i] + (-viscous_[i] * vm[i] - coulomb_dir_[i]);
+    pin::aba(model_, data_, qm, vm, tau, pin::Convention::LOCAL);
+    for (int i = 0; i < nv; ++i) vf[i] = v_[i] + h * data_.ddq[i];
+    double *ovf = out_vf.data();
+    for (int i = 0; i < nv; ++i) ovf[i] = vf[i];
+    // the set kept: the pairs within reach are the layout's, the limits within reach its limits
+    double s0 = 0.0, s1 = 0.0;
+    for (int i = 0; i < nv; ++i) {
+      s0 += reach.data()[i] * std::abs(v_[i]);
+      s1 += reach.data()[i] * std::abs(vf[i]);
+    }
+    const double d_act = active_gap + 2.0 * h * std::max(s0, s1);
+    if (sweep_margin < d_act) return none(1);
+    std::vector<double> dpair(np_, std::numeric_limits<double>::quiet_NaN());
+    int found = 0;
+    for (size_t i = 0; i < swept.shape(0); ++i) {
+      const double d = dist.data()[i];
+      if (!(d <= d_act)) continue;
+      const int64_t key = swept.data()[i];
+      int p = -1;
+      for (int k = 0; k < np_; ++k)
+        if (keys_[k] == key) p = k;
+      if (p < 0) return none(1);  // a pair joins
+      dpair[p] = d;
+      ++found;
+    }
+    if (found != np_) return none(1);  // a pair leaves
+    if (upper.shape(0) == static_cast<size_t>(nv) && lower.shape(0) == static_cast<size_t>(nv)) {
+      int near = 0;
+      for (int j = 0; j < nv; ++j) {
+        const double lim = limit_gap + h * std::max(std::abs(v_[j]), std::abs(vf[j]));
+        for (int side = 1; side >= -1; side -= 2) {
+          const bool close = side > 0 ? upper.data()[j] - q_[j] <= lim : q_[j] - lower.data()[j] <= lim;
+          if (!close) continue;
+          bool held = false;
+          for (int l = 0; l < ml_; ++l)
+            if (lim_joint_[l] == j && lim_side_[l] == static_cast<double>(side)) held = true;
+          if (!held) return none(1);
+          ++near;
+        }
+      }
+      if (near != ml_) return none(1);
+    }
+    // M^-1 and the rows at (q, v)
+    pin::computeMinverse(model_, data_, q_);
+    minv_ = data_.Minv;
+    for (int i = 1; i < nv; ++i)
+      for (int c = 0; c < i; ++c) minv_(i, c) = minv_(c, i);
+    if (nb_ > 0) pin::computeJointJacobiansTimeVariation(model_, data_, q_, v_);
+    rows();
+    // the patch rule (conic.stale_pairs)
+    gap_min_.assign(np_, std::numeric_limits<double>::infinity());
+    slide2_.assign(np_, 0.0);
+    for (int r = 0; r < mp_; ++r) {
+      const int k = static_cast<int>(rows_[r]);
+      const int p = static_cast<int>(pair_[k]);
+      if (gap_[r] < gap_min_[p]) gap_min_[p] = gap_[r];
+      const double *T = &F_[9 * p];
+      const double *d = &dP_[3 * k];
+      const double a = T[0] * d[0] + T[1] * d[1] + T[2] * d[2] - offset0_[2 * r];
+      const double b = T[3] * d[0] + T[4] * d[1] + T[5] * d[2] - offset0_[2 * r + 1];
+      const double s2 = a * a + b * b;
+      if (s2 > slide2_[p]) slide2_[p] = s2;
+    }
+    for (int p = 0; p < np_; ++p)
+      if (!(std::abs(gap_min_[p] - dpair[p]) <= point_tol_) || slide2_[p] > slide_tol2_[p])
+        return none(1);
+    if (restitution > 0.0)
+      for (int r = 0; r < m_; ++r)
+        if (gap_[r] <= touch_gap && vn_[r] < -zeno) return none(2);
+    // the problem (conic.step_problem)
+    const int m = m_, rt = 3 * m + B;
+    std::vector<double> J(static_cast<size_t>(rt) * nv, 0.0);
+    for (int r = 0; r < mp_; ++r) {
+      const int k = static_cast<int>(rows_[r]);
+      const int p = static_cast<int>(pair_[k]);
+      const double *T = &F_[9 * p];
+      const double *d = &dJp_[k * 3 * nv];
+      for (int a = 0; a < 2; ++a)
+        for (int c = 0; c < nv; ++c)
+          J[(3 * r + a) * nv + c] =
+              T[3 * a] * d[c] + T[3 * a + 1] * d[nv + c] + T[3 * a + 2] * d[2 * nv + c];
+    }
+    for (int r = 0; r < m; ++r)
+      for (int c = 0; c < nv; ++c) J[(3 * r + 2) * nv + c] = Jn_[r * nv + c];
+    for (int i = 0; i < B; ++i) J[(3 * m + i) * nv + boxes.data()[i]] = 1.0;
+    std::vector<double> mus(m, 0.0);
+    for (int r = 0; r < mp_; ++r) mus[r] = mu;
+    std::vector<double> Mi(static_cast<size_t>(nv) * nv), C;
+    for (int i = 0; i < nv; ++i)
+      for (int c = 0; c < nv; ++c) Mi[i * nv + c] = minv_(i, c);
+    packbot_native::conic::factor(Mi, nv, 0.0, C);
+    for (int i = 0; i < nv; ++i)
+      if (!(C[i * nv + i] > 1e-150)) return none(4);
+    std::vector<double> A(static_cast<size_t>(rt) * nv, 0.0), g(rt, 0.0);
+    for (int i = 0; i < rt; ++i) {
+      double sv = 0.0;
+      for (int k = 0; k < nv; ++k) {
+        const double Jik = J[i * nv + k];
+        if (Jik != 0.0) {
+          sv += Jik * vf[k];
+          for (int c = 0; c <= k; ++c) A[i * nv + c] += Jik * C[k * nv + c];
+        }
+      }
+      g[i] = sv;
+    }
+    for (int r = 0; r < m; ++r) g[3 * r + 2] += std::max(gap_[r], 0.0) / h;
+    std::vector<double> bd(bound.data(), bound.data() + B);
+    std::vector<double> x(rt, 0.0);
+    if (guess.shape(0) == static_cast<size_t>(rt)) std::copy(guess.data(), guess.data() + rt, x.begin());
+    const auto sol = packbot_native::conic::solve(A.data(), rt, nv, g.data(), mus, bd, x.data(), tol,
+                                                   max_iterations, rho0);
+    if (!(sol.residual <= ok))
+      return nb::make_tuple(3, vec(x.data(), rt), sol.residual, sol.iterations, sol.rho, nb::none());
+    // v1 = v_f + M^-1 (J^T x)
+    std::vector<double> jx(nv, 0.0);
+    for (int c = 0; c < nv; ++c) {
+      double s = 0.0;
+      for (int i = 0; i < rt; ++i) s += J[i * nv + c] * x[i];
+      jx[c] = s;
+    }
+    double *ov1 = out_v1.data();
+    for (int i = 0; i < nv; ++i) {
+      double s = 0.0;
+      for (int c = 0; c < nv; ++c) s += minv_(i, c) * jx[c];
+      ov1[i] = vf[i] + s;
+    }
+    // q1 = q (+) h v1 (1-dof joints: q + h v1) and the energies of the guard (energies' sums)
+    double *oq1 = out_q1.data();
+    Eigen::VectorXd q1(nv);
+    for (int i = 0; i < nv; ++i) q1[i] = oq1[i] = q_[i] + h * ov1[i];
+    const double kin0 = kinetic(q_, yv), pot0 = pin::computePotentialEnergy(model_, data_, q_);
+    const double kin1 = kinetic(q1, ov1), pot1 = pin::computePotentialEnergy(model_, data_, q1);
+    return nb::make_tuple(0, vec(x.data(), rt), sol.residual, sol.iterations, sol.rho,
+                          nb::make_tuple(0.5 * kin0 + pot0, 0.5 * kin1 + pot1, 0.5 * kin1));
+  }
+
+  // v^T M(q) v [kg m^2/s^2] (CRBA, armature included; the sums of energies).
+  double kinetic(const Eigen::VectorXd &q, const double *v) {
+    pin::crba(model_, data_, q, pin::Convention::LOCAL);
+    const int nv = nv_;
+    double kin = 0.0;
+    for (int i = 0; i < nv; ++i) {
+      double w = 0.0;
+      for (int c = 0; c < nv; ++c) w += v[c] * (c <= i ? data_.M(c, i) : data_.M(i, c));
+      kin += w * v[i];
+    }
+    return kin;
+  }
+
   // The last call's unconstrained accelerations, M^-1, forces, gaps, normal velocities,
   // centre tangential velocities, Delassus matrix and right-hand side (copies).
   nb::tuple last() const {
@@ -1462,6 +1672,13 @@ NB_MODULE(_native, m) {
       .def("set_screen", &ContactRhs::set_screen, nb::arg("rows"), nb::arg("torque_band"),
            nb::arg("accel_band"))
       .def("end_screen", &ContactRhs::end_screen, nb::arg("y1"), nb::arg("margin"))
+      .def("window_step", &ContactRhs::window_step, nb::arg("y"), nb::arg("h"), nb::arg("swept"),
+           nb::arg("dist"), nb::arg("sweep_margin"), nb::arg("reach"), nb::arg("active_gap"),
+           nb::arg("upper"), nb::arg("lower"), nb::arg("limit_gap"), nb::arg("mu"),
+           nb::arg("restitution"), nb::arg("zeno"), nb::arg("touch_gap"), nb::arg("boxes"),
+           nb::arg("bound"), nb::arg("guess"), nb::arg("rho0"), nb::arg("tol"),
+           nb::arg("max_iterations"), nb::arg("ok"), nb::arg("out_vf"), nb::arg("out_v1"),
+           nb::arg("out_q1"))
       .def("last", &ContactRhs::last);
   nb::class_<StretchT>(m, "Stretch")
       .def("__init__", &stretch_init, nb::arg("rhs"), nb::arg("api"), nb::arg("margin"),

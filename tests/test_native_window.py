@@ -1,0 +1,128 @@
+"""A window step whose contact set stays as it is, in one native call (``_native_step``).
+
+The native step (``ContactRhs.window_step``) takes the step's free velocity, M^-1, rows,
+problem and impulses with the arithmetic of the Python step (``_python_step``: ABA at the
+explicit midpoint, the rows of kernels.contact_rows, conic.step_problem and
+conic.solve_conic ported loop for loop) and hands the step back to Python where the contact
+set changes, a row bounces or the impulses do not converge. Compared here step by step, from
+the same state and warm start, on window steps of wrist-free random starts.
+"""
+
+import numpy as np
+import pytest
+
+import packbot
+from packbot.contact import native, timestep
+from packbot.contact.normal_tolerances import PENETRATION_TOL
+
+pytestmark = pytest.mark.skipif(not native.available(), reason="packbot._native not built")
+
+
+def _compared(robot, k: int, mu: float, duration: float) -> tuple[list[dict], object]:
+    """Every native window step of start k, and the Python step from the same state."""
+    from test_normal_cascade import start_pose
+
+    seen: list[dict] = []
+    real = timestep.MoreauJeanStepper._native_step
+
+    def compared(self, t, y, h):
+        before = (self._last_rows, self._last_x, self._last_rho)
+        out = real(self, t, y, h)
+        if not isinstance(out, tuple):
+            return out
+        after = (self._last_rows, self._last_x, self._last_rho)
+        version = self.contacts._version
+        self._last_rows, self._last_x, self._last_rho = before
+        v_f, v1, x, residual, _, _, _, _ = self._python_step(t, y, h)
+        assert self.contacts._version == version  # (the Python step kept the set too)
+        self._last_rows, self._last_x, self._last_rho = after
+        n = self.n
+        q, v = y[:n], y[n:]
+        e = self.sys.energy
+        seen.append(
+            {
+                "v_f": np.abs(out[0] - v_f).max(),
+                "v1": np.abs(out[1] - v1).max() / max(1.0, np.abs(v1).max()),
+                "q1": np.abs(out[2] - (q + h * out[1])).max(),
+                "x": np.abs(out[3] - x).max() / max(1e-6, np.abs(x).max()),
+                "residual": max(out[4], residual),
+                "e0": abs(out[8][0] - e(q, v)),
+                "e1": abs(out[8][1] - e(out[2], out[1])),
+            }
+        )
+        return out
+
+    pytest.MonkeyPatch().setattr(timestep.MoreauJeanStepper, "_native_step", compared)
+    cfg = packbot.SimConfig(contact_mode="normal", mu=mu, restitution=0.0)
+    try:
+        res = packbot.simulate(
+            robot, start_pose(robot, k), np.zeros(robot.model.nv), duration, config=cfg
+        )
+    finally:
+        pytest.MonkeyPatch().setattr(timestep.MoreauJeanStepper, "_native_step", real)
+    return seen, res
+
+
+@pytest.mark.parametrize(("k", "mu"), [(16, 0.0), (16, 1.2), (5, 0.5)])
+def test_a_native_window_step_is_the_python_step(robot, k, mu):
+    seen, res = _compared(robot, k, mu, 2.0)
+    assert len(seen) > 100, len(seen)
+    worst = {key: max(s[key] for s in seen) for key in seen[0]}
+    # the same free velocity, rows, problem and iterates: equal to rounding (measured: v_f
+    # and x bit for bit, v1 within 2e-15 of it, the energies within 1e-14 J)
+    assert worst["v_f"] <= 1e-12, worst
+    assert worst["x"] <= 1e-9, worst
+    assert worst["v1"] <= 1e-12, worst
+    assert worst["q1"] == 0.0, worst  # (q + h v1: 1-dof joints)
+    assert worst["e0"] <= 1e-9 and worst["e1"] <= 1e-9, worst
+    assert worst["residual"] <= timestep.RESIDUAL_OK
+    assert -res.diagnostics.min_distance <= PENETRATION_TOL + 1e-5
+
+
+def _stepper_counts(
+    robot, k: int, mu: float, duration: float
+) -> tuple[int, dict[int, int], int, object]:
+    """A run's native window steps, those handed back (by why), its conic fallbacks, the run."""
+    from test_normal_cascade import start_pose
+
+    steppers: dict[int, timestep.MoreauJeanStepper] = {}
+    real = timestep.MoreauJeanStepper.step
+
+    def counted(self, *args):
+        steppers[id(self)] = self
+        return real(self, *args)
+
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(timestep.MoreauJeanStepper, "step", counted)
+        cfg = packbot.SimConfig(contact_mode="normal", mu=mu, restitution=0.0)
+        res = packbot.simulate(
+            robot, start_pose(robot, k), np.zeros(robot.model.nv), duration, config=cfg
+        )
+    s = list(steppers.values())
+    misses: dict[int, int] = {}
+    for x in s:
+        for why, count in x.native_misses.items():
+            misses[why] = misses.get(why, 0) + count
+    return sum(x.native_steps for x in s), misses, sum(x.conic_fallbacks for x in s), res
+
+
+def test_native_window_steps_hand_back_where_the_set_changes(robot, monkeypatch):
+    """Most window steps keep their set and are native; those that change it are Python's;
+    switched off (NATIVE_STEPS), none is native."""
+    steps, misses, _, res = _stepper_counts(robot, 16, 0.0, 2.0)
+    assert steps > 3 * misses.get(1, 0) > 0, (steps, misses)  # (1: the set changes)
+    assert res.diagnostics.window_steps >= steps + sum(misses.values())
+    assert -res.diagnostics.min_distance <= 1e-5
+    assert max((e.energy_change for e in res.events), default=0.0) <= 1e-9
+    monkeypatch.setattr(timestep, "NATIVE_STEPS", False)
+    steps, misses, _, _ = _stepper_counts(robot, 16, 0.0, 0.5)
+    assert steps == 0 and not misses
+
+
+def test_unconverged_native_impulses_hand_the_step_back(robot, monkeypatch):
+    """With one ADMM iteration allowed, the native step's impulses do not converge: it hands
+    the step back (status 3), and Python's fallbacks (Pinocchio's ADMM) take it."""
+    monkeypatch.setattr(timestep, "CONIC_ITERATIONS", 1)
+    steps, misses, fallbacks, res = _stepper_counts(robot, 16, 1.2, 1.0)
+    assert misses.get(3, 0) > 0 and fallbacks > 0, (steps, misses, fallbacks)
+    assert -res.diagnostics.min_distance <= 1e-5
