@@ -477,11 +477,13 @@ def _replace_patches(lay: _Layout, pairs: list[_Pair]) -> _Layout:
 
     The pairs, their patch sizes and the limits are those of ``lay``; its index arrays,
     masks and buffers are shared (none is written after it is built, but H, filled before
-    every kernel call).
+    every kernel call); the points, frames, offsets and slides allowed are the new patches'.
     """
     h = len(lay.pair)
     new = copy.copy(lay)  # (dataclasses.replace, without its field-by-field __init__)
     new.local, new.frame2, new.offset0 = _local(pairs, h), _frame2(pairs), _offset0(pairs)
+    # (a new patch of the same size may slide further or less: a vertex on a face, the floor)
+    new.slide_tol2 = np.array([p.slide_tol**2 for p in pairs], dtype=np.float64)
     new.fixed = _fixed(new)
     return new
 
