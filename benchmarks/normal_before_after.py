@@ -32,6 +32,7 @@ import os
 import statistics
 import subprocess
 import sys
+import tempfile
 from pathlib import Path
 from typing import Any
 
@@ -94,8 +95,16 @@ def _child(what: str, tree: str | None, mode: str, repeats: int) -> dict[str, An
     env.pop("PACKBOT_TREE", None)
     if tree is not None:
         env["PACKBOT_TREE"] = str(Path(tree).resolve())
+    # (run outside any source tree: ``python -c`` puts the working directory first on
+    # sys.path, and a checkout's packbot/ there, without its compiled extension, would be the
+    # one imported)
     out = subprocess.run(
-        [sys.executable, "-c", CHILD, what], env=env, check=True, capture_output=True, text=True
+        [sys.executable, "-c", CHILD, what],
+        env=env,
+        check=True,
+        capture_output=True,
+        text=True,
+        cwd=tempfile.gettempdir(),
     )
     return dict(json.loads(out.stdout.strip().splitlines()[-1]))
 

@@ -48,7 +48,11 @@ theta = 1, i.e. symplectic Euler with impulses):
 The step's small dense algebra (the rows, the Cholesky factor of M^-1, the Delassus factor,
 the patch rule, the signature) is compiled (:mod:`packbot.contact.conic`, numba); the sweep at a
 step's end serves the next step's contact set, and the energy at its end the next step's
-guard. What a step costs, and where: docs/performance.md, "Window steps".
+guard. A step whose contact set stays as it is, under fixed torques, is one native call with
+the same arithmetic (:meth:`MoreauJeanStepper._native_step`: the free velocity, M^-1, the rows,
+the patch rule, the problem and the solver, v1, q1 and the guard's energies); it hands the step
+back to Python where the set changes, a row bounces or the impulses do not converge. What a
+step costs, and where: docs/performance.md, "Window steps".
 
 A step's *signature* is what the solution decided: the pairs and limits pushing, the pairs
 sliding, the joints slipping. The law (:class:`~packbot.contact.normal.NormalLaw`) leaves the
