@@ -69,10 +69,12 @@ def test_a_native_window_step_is_the_python_step(robot, k, mu):
     assert len(seen) > 100, len(seen)
     worst = {key: max(s[key] for s in seen) for key in seen[0]}
     # the same free velocity, rows, problem and iterates: equal to rounding (measured: v_f
-    # and x bit for bit, v1 within 2e-15 of it, the energies within 1e-14 J)
+    # and x bit for bit, v1 within 2e-15 of it, the energies within 1e-14 J; a cold start's
+    # rho comes from G's largest eigenvalue, which numpy sums in its own order: measured once
+    # 6e-12 on x, 2e-11 on v1, from a build that re-solved after a set update)
     assert worst["v_f"] <= 1e-12, worst
     assert worst["x"] <= 1e-9, worst
-    assert worst["v1"] <= 1e-12, worst
+    assert worst["v1"] <= 1e-9, worst
     assert worst["q1"] == 0.0, worst  # (q + h v1: 1-dof joints)
     assert worst["e0"] <= 1e-9 and worst["e1"] <= 1e-9, worst
     assert worst["residual"] <= timestep.RESIDUAL_OK
