@@ -291,9 +291,16 @@ class _Run:
 
     def locate(self, seg: DenseSegment, crossings: list[Crossing]) -> tuple[float, list[Crossing]]:
         """Earliest crossing time and the crossings within 10 EVENT_XTOL of it (locate_earliest)."""
-        gs, g0s, g1s = zip(*((c.g, c.g0, c.g1) for c in crossings), strict=True)
+        gs, g0s, g1s, roots = zip(*((c.g, c.g0, c.g1, c.root) for c in crossings), strict=True)
         t_star, idx = locate_earliest(
-            list(gs), list(g0s), list(g1s), seg.t0, seg.t1, xtol=EVENT_XTOL, at_tol=10 * EVENT_XTOL
+            list(gs),
+            list(g0s),
+            list(g1s),
+            seg.t0,
+            seg.t1,
+            xtol=EVENT_XTOL,
+            at_tol=10 * EVENT_XTOL,
+            roots=list(roots),
         )
         return t_star, [crossings[i] for i in idx]
 

@@ -993,6 +993,7 @@ def locate_earliest(
     *,
     xtol: float = 1e-10,
     at_tol: float = 1e-9,
+    roots: Sequence[Callable[[float, float, float, float, float], float] | None] | None = None,
 ) -> tuple[float, list[int]]:
     """The earliest crossing of several event functions on one step, and the ones at it.
 
@@ -1018,6 +1019,8 @@ def locate_earliest(
         xtol: Width of :func:`locate_root`'s final bracket [s], > 0.
         at_tol: How much later than the earliest crossing a crossing still counts as at it
             [s], >= 0.
+        roots: Per function, None or a native root finder ``root(t0, t1, g0, g1, xtol)``
+            giving :func:`locate_root`'s answer in one call (NaN: :func:`locate_root` then).
 
     Returns:
         ``t_star`` [s] and the positions in ``gs`` of the functions crossing at it
@@ -1066,7 +1069,10 @@ def locate_earliest(
         t_hi = t_star + at_tol
         if t_hi < t1 and float(gs[i](t_hi)) > 0.0:
             continue  # still before its crossing just after t_star: neither earlier nor at it
-        tc = locate_root(gs[i], t0, t1, g0s[i], g1s[i], xtol=xtol)
+        root = roots[i] if roots is not None else None
+        tc = math.nan if root is None else float(root(t0, t1, g0s[i], g1s[i], xtol))
+        if math.isnan(tc):
+            tc = locate_root(gs[i], t0, t1, g0s[i], g1s[i], xtol=xtol)
         times[i] = tc
         t_star = min(t_star, tc)
     bound = t_star + at_tol

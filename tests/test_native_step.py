@@ -366,11 +366,58 @@ def test_a_rows_native_condition_is_the_one_of_the_evaluation(
 
     monkeypatch.setattr(NormalLaw, "rebuild", rebuild)
     monkeypatch.setattr(native.NativeRhs, "row_condition_at", checked)
+    monkeypatch.setattr(native, "ROW_ROOTS", False)  # (the root finding's evaluations in Python)
     cfg = packbot.SimConfig(contact_mode="normal", mu=mu, locked_joints=locked)
     q0 = robot.pose("drive") if locked else start_pose(robot, 0)
     packbot.simulate(robot, q0, np.zeros(8), duration, config=cfg)
     assert seen["free"] > 20, seen
     assert seen["engaged"] > 0 or locked, seen  # (the wrist-free start's releases: 21)
+
+
+@pytest.mark.parametrize(
+    ("mu", "locked", "duration"), [(0.5, WRIST, 5.0), (0.0, (), 2.0)], ids=["mu0.5", "mu0-free"]
+)
+def test_a_rows_native_root_is_the_python_root(robot, monkeypatch, mu, locked, duration):
+    """A contact row's crossing inside a native step is located in one native call
+    (NativeRhs.row_root: Brent's iterates on the row's condition at the step's dense output):
+    the time packbot.ode.locate_root finds on the same function in Python, to rounding (the
+    interpolant is summed in another order). Measured on the collapse and wrist-free starts:
+    98 % of 920 crossings the same float, all but one within 5e-11 s; one 1.4e-7 s apart (a
+    condition falling to 0 twice inside its step, where locate_root may return either)."""
+    from packbot import integrator, ode
+
+    diffs: list[float] = []
+    earliest = ode.locate_earliest
+
+    def compared(gs, g0s, g1s, t0, t1, *, xtol, at_tol, roots=None):
+        for g, g0, g1, root in zip(gs, g0s, g1s, roots or [None] * len(gs), strict=True):
+            if root is not None and g0 > 0.0:
+                diffs.append(
+                    abs(root(t0, t1, g0, g1, xtol) - ode.locate_root(g, t0, t1, g0, g1, xtol=xtol))
+                )
+        return earliest(gs, g0s, g1s, t0, t1, xtol=xtol, at_tol=at_tol, roots=roots)
+
+    monkeypatch.setattr(integrator, "locate_earliest", compared)
+    cfg = packbot.SimConfig(contact_mode="normal", mu=mu, locked_joints=locked)
+    q0 = robot.pose("drive") if locked else start_pose(robot, 0)
+    packbot.simulate(robot, q0, np.zeros(8), duration, config=cfg)
+    d = np.array(diffs)
+    assert len(d) >= 5, len(d)  # (the collapse: 7; the wrist-free start: 100 and more)
+    assert (d == 0.0).mean() > 0.8, np.sort(d)[-5:]
+    assert np.quantile(d, 0.98) <= 1e-9 and d.max() <= 1e-6, np.sort(d)[-5:]
+
+
+def test_a_rows_native_root_refuses_bad_arguments(robot):
+    cfg = packbot.SimConfig(contact_mode="normal", locked_joints=WRIST)
+    sysm = System(robot, robot.pose("drive"), cfg, None)
+    rhs = native.NativeRhs(sysm.model)
+    n = 2 * sysm.nv
+    Z, y1 = np.zeros((8, n)), np.zeros(n)
+    with pytest.raises(ValueError, match="torques and conditions"):
+        rhs._rhs.row_root(Z, 0.0, 1e-3, 1e-3, y1, False, 0, 1.0, -1.0, 1e-10)
+    rhs.set_torque(np.zeros(sysm.nv), np.zeros(sysm.nv), np.zeros(sysm.nv))
+    with pytest.raises(ValueError, match=r"Z \(8, 2 nv\)"):
+        rhs._rhs.row_root(Z[:7], 0.0, 1e-3, 1e-3, y1, False, 0, 1.0, -1.0, 1e-10)
 
 
 def test_eval_at_refuses_a_wrong_state_and_needs_the_torques(robot):

@@ -74,6 +74,9 @@ class Crossing:
         g: The function of time on the step's dense output; the event is where it falls to 0.
         g0: Its value at the step's start (<= 0: already on the event side there).
         g1: Its value at the step's end (< 0).
+        root: Where it falls to 0 found in one call, ``root(t0, t1, g0, g1, xtol)`` with the
+            result of :func:`packbot.ode.locate_root` on ``g`` (NaN: not found that way, the
+            loop locates it on ``g``); None: the loop locates it on ``g``.
     """
 
     kind: str
@@ -81,6 +84,7 @@ class Crossing:
     g: Callable[[float], float]
     g0: float
     g1: float
+    root: Callable[[float, float, float, float, float], float] | None = None
 
 
 class ContactLaw(Protocol):

@@ -36,7 +36,7 @@ from packbot.contact.normal_tolerances import (
 )
 from packbot.errors import ModelError, PackbotError
 from packbot.native_joints import SUPPORTED_JOINTS
-from packbot.ode import StiffKernel
+from packbot.ode import DenseSegment, HermiteSegment, StiffKernel
 
 if TYPE_CHECKING:
     from packbot.contact.normal_contacts import NormalContacts
@@ -81,6 +81,11 @@ except ImportError as exc:  # pragma: no cover - a build without the extension
 
 #: The inputs of an evaluation that no caller passes (never equal to an array of theirs).
 _NONE = np.empty(0)
+
+
+#: Whether a contact row's crossing inside a native step is located in one native call
+#: (:meth:`NativeRhs.row_root`; tests switch it off to watch the conditions' evaluations).
+ROW_ROOTS = True
 
 
 def available() -> bool:
@@ -392,6 +397,32 @@ class NativeRhs:
         """
         g = self._rhs.row_condition_at(y, row)
         return None if g != g else g
+
+    def row_root(
+        self, seg: DenseSegment, row: int
+    ) -> Callable[[float, float, float, float, float], float] | None:
+        """A contact row's crossing inside a native step, located in one native call.
+
+        ``root(t0, t1, g0, g1, xtol)``: :func:`packbot.ode.locate_root` on the row's condition
+        (:meth:`row_condition_at`) at the step's dense output, Brent's iterates natively (the
+        interpolant summed in the extension's order: the same time to rounding); NaN where a
+        condition cannot be evaluated. None for a segment the extension cannot interpolate
+        (with a motor lag's torques in its state).
+
+        Args:
+            seg: The native step's segment (or a truncation of it).
+            row: The contact row.
+        """
+        Z = seg._Z
+        if not ROW_ROOTS or Z.shape[1] != 2 * self.nv:
+            return None
+        hermite = isinstance(seg, HermiteSegment)
+        rhs, h, y1 = self._rhs, seg._hz, seg.y1
+
+        def root(t0: float, t1: float, g0: float, g1: float, xtol: float) -> float:
+            return float(rhs.row_root(Z, t0, t1, h, y1, hermite, row, g0, g1, xtol))
+
+        return root
 
     def _kept(self, contacts: NormalContacts, y: FloatArray, got: Any) -> _Eval | None:
         """The extension's evaluation tuple at y as an ``_Eval``, kept by the contact set."""

@@ -81,7 +81,8 @@ class PatchEvents(PairLaw):
         root finding evaluates the conditions inside the step in one native call each
         (:meth:`~packbot.contact.native.NativeRhs.eval_at`; a row's condition alone,
         :meth:`~packbot.contact.native.NativeRhs.row_condition_at`; in Python where it
-        cannot).
+        cannot), and a row's crossing is located in one native call
+        (:meth:`~packbot.contact.native.NativeRhs.row_root`).
         """
         ev1 = self._contact_eval(contacts, seg.t1, y1)
         if not contacts.violated(ev1):
@@ -111,7 +112,10 @@ class PatchEvents(PairLaw):
                 return contacts.condition(ev, k)
 
             g0 = cond0[k][1] if k in cond0 else 1.0
-            out.append(Crossing(cond1[k][0], ("mode", *k), gn, g0, cond1[k][1]))
+            root = None
+            if native is not None and row_at is not None and k[0] == "nrow":
+                root = native.row_root(seg, k[1])
+            out.append(Crossing(cond1[k][0], ("mode", *k), gn, g0, cond1[k][1], root))
         return out
 
     def _restart(

@@ -385,6 +385,125 @@ class ContactRhs {
     return gap_[r] + point_tol_;
   }
 
+  // A contact row's event inside the last native step, located natively: the time tb of
+  // packbot.ode.locate_root (SciPy's brentq, ported there, then the final bracket's event side)
+  // on g(t) = row_condition_at(y(t), r), y(t) the step's dense output (stages Z (8, 2 nv),
+  // [t0, t1] of size h, end y1; hermite: a Rosenbrock step's cubic), from g0 = g(t0) > 0 >=
+  // g1 = g(t1), to a final bracket of xtol [s]. NaN where a condition cannot be evaluated (the
+  // caller locates it in Python).
+  double row_root(F2 Z, double t0, double t1, double h, F1 y1, bool hermite, int64_t r,
+                  double g0, double g1, double xtol) {
+    const int n = 2 * nv_;
+    if (Z.shape(0) != 8 || Z.shape(1) != static_cast<size_t>(n) ||
+        y1.shape(0) != static_cast<size_t>(n))
+      throw std::invalid_argument("row_root: Z (8, 2 nv) and y1 (2 nv) expected");
+    if (applied_.size() != static_cast<size_t>(nv_) || !conditions_set_)
+      throw std::invalid_argument("row_root: torques and conditions first");
+    if (r < 0 || r >= m_) throw std::invalid_argument("r: a contact row expected");
+    if (!(t1 > t0) || !(g0 > 0.0 && g1 <= 0.0) || !(xtol > 0.0))
+      throw std::invalid_argument("row_root: g0 > 0 >= g1 on t0 < t1, xtol > 0 expected");
+    const double nan = std::numeric_limits<double>::quiet_NaN();
+    std::vector<double> y(n), f(n);
+    std::vector<double> ts{t0, t1}, gs{g0, g1};
+    bool failed = false;
+    auto g_rec = [&](double t) -> double {
+      double v;
+      if (t == t0) return g0;
+      if (t == t1) {
+        v = g1;
+      } else {
+        packbot_native::DenseOutput::at(t, t0, t1, h, Z.data(), y1.data(), n, hermite, y.data());
+        end_valid_ = false;
+        if (!stage(y.data(), f.data())) {
+          failed = true;
+          return -1e-300;
+        }
+        v = gap_[r] + point_tol_;
+        for (int e = 0; e < ne_; ++e)
+          if (engaged_[e] == r) v = lam_[e] + force_band_;
+        ts.push_back(t);
+        gs.push_back(v);
+      }
+      return v != 0.0 ? v : -1e-300;
+    };
+    // brentq (packbot.ode.brentq, SciPy's Zeros/brentq.c)
+    const double rtol = 4.0 * 2.220446049250313e-16;
+    double xpre = t0, xcur = t1, xblk = 0.0, fblk = 0.0, spre = 0.0, scur = 0.0;
+    double fpre = g_rec(xpre), fcur = g_rec(xcur);
+    double root = nan;
+    if (fpre == 0.0) {
+      root = xpre;
+    } else if (fcur == 0.0) {
+      root = xcur;
+    } else {
+      for (int it = 0; it < 100 && !failed; ++it) {
+        if (fpre != 0.0 && fcur != 0.0 && std::copysign(1.0, fpre) != std::copysign(1.0, fcur)) {
+          xblk = xpre;
+          fblk = fpre;
+          spre = scur = xcur - xpre;
+        }
+        if (std::abs(fblk) < std::abs(fcur)) {
+          xpre = xcur;
+          xcur = xblk;
+          xblk = xpre;
+          fpre = fcur;
+          fcur = fblk;
+          fblk = fpre;
+        }
+        const double delta = (xtol + rtol * std::abs(xcur)) / 2.0;
+        const double sbis = (xblk - xcur) / 2.0;
+        if (fcur == 0.0 || std::abs(sbis) < delta) {
+          root = xcur;
+          break;
+        }
+        if (std::abs(spre) > delta && std::abs(fcur) < std::abs(fpre)) {
+          double stry;
+          if (xpre == xblk) {
+            stry = -fcur * (xcur - xpre) / (fcur - fpre);
+          } else {
+            const double dpre = (fpre - fcur) / (xpre - xcur);
+            const double dblk = (fblk - fcur) / (xblk - xcur);
+            stry = -fcur * (fblk * dblk - fpre * dpre) / (dblk * dpre * (fblk - fpre));
+          }
+          if (2.0 * std::abs(stry) < std::min(std::abs(spre), 3.0 * std::abs(sbis) - delta)) {
+            spre = scur;
+            scur = stry;
+          } else {
+            spre = scur = sbis;
+          }
+        } else {
+          spre = scur = sbis;
+        }
+        xpre = xcur;
+        fpre = fcur;
+        if (std::abs(scur) > delta)
+          xcur += scur;
+        else
+          xcur += sbis > 0.0 ? delta : -delta;
+        fcur = g_rec(xcur);
+      }
+    }
+    end_valid_ = false;
+    if (failed || std::isnan(root)) return nan;
+    // the final bracket [ta, tb]: the neighbouring evaluated points with a falling sign change
+    // nearest the root (locate_root)
+    std::vector<size_t> order(ts.size());
+    for (size_t i = 0; i < order.size(); ++i) order[i] = i;
+    std::stable_sort(order.begin(), order.end(), [&](size_t a, size_t b) { return ts[a] < ts[b]; });
+    double best = std::numeric_limits<double>::infinity(), tb = t1;
+    for (size_t k = 0; k + 1 < order.size(); ++k) {
+      const size_t i = order[k], j = order[k + 1];
+      if (gs[i] > 0.0 && 0.0 >= gs[j]) {
+        const double dist = std::max(std::max(ts[i] - root, root - ts[j]), 0.0);
+        if (dist < best) {
+          best = dist;
+          tb = ts[j];
+        }
+      }
+    }
+    return tb;
+  }
+
   // The contact set's pairs' indices in the collision world, in the layout's order (end_check).
   void set_keys(I1 keys) {
     if (keys.shape(0) != static_cast<size_t>(np_))
@@ -1659,6 +1778,9 @@ NB_MODULE(_native, m) {
       .def("end_eval", &ContactRhs::end_eval, nb::arg("y1"))
       .def("eval_at", &ContactRhs::eval_at, nb::arg("y"))
       .def("row_condition_at", &ContactRhs::row_condition_at, nb::arg("y"), nb::arg("r"))
+      .def("row_root", &ContactRhs::row_root, nb::arg("Z"), nb::arg("t0"), nb::arg("t1"),
+           nb::arg("h"), nb::arg("y1"), nb::arg("hermite"), nb::arg("r"), nb::arg("g0"),
+           nb::arg("g1"), nb::arg("xtol"))
       .def("set_keys", &ContactRhs::set_keys, nb::arg("keys"))
       .def("set_limits", &ContactRhs::set_limits, nb::arg("upper"), nb::arg("lower"))
       .def("set_reach", &ContactRhs::set_reach, nb::arg("reach"), nb::arg("margin"),
