@@ -199,8 +199,7 @@ class _Run:
                 if seg is None:
                     kernel = law.step_kernel(t, y)
                     if schedule.next_tick >= t_far:
-                        # the quiet steps at once (the law's compiled stretch, or an arm at
-                        # rest held there), if it has them
+                        # the quiet steps at once (its compiled stretch, a rest held), if any
                         st = law.stretch(stepper, t_far, t_last, t_sched, rec)
                         if st is not None:
                             rec.record_states(st.samples)
@@ -291,16 +290,10 @@ class _Run:
 
     def locate(self, seg: DenseSegment, crossings: list[Crossing]) -> tuple[float, list[Crossing]]:
         """Earliest crossing time and the crossings within 10 EVENT_XTOL of it (locate_earliest)."""
-        gs, g0s, g1s, roots = zip(*((c.g, c.g0, c.g1, c.root) for c in crossings), strict=True)
+        gs, g0s, g1s = zip(*((c.g, c.g0, c.g1) for c in crossings), strict=True)
+        xtol, roots = EVENT_XTOL, [c.root for c in crossings]  # (roots: native root finders)
         t_star, idx = locate_earliest(
-            list(gs),
-            list(g0s),
-            list(g1s),
-            seg.t0,
-            seg.t1,
-            xtol=EVENT_XTOL,
-            at_tol=10 * EVENT_XTOL,
-            roots=list(roots),
+            list(gs), list(g0s), list(g1s), seg.t0, seg.t1, xtol=xtol, at_tol=10 * xtol, roots=roots
         )
         return t_star, [crossings[i] for i in idx]
 
