@@ -489,8 +489,7 @@ class MoreauJeanStepper:
         if energies is not None and not projected:  # (the native step's, at its q1)
             e0, e1, kin = energies
         else:
-            same = last is not None and last[0] == y[: 2 * n].tobytes()
-            e0 = last[1] if same else energy(q, v)  # type: ignore[index]
+            e0 = energy(q, v) if last is None or last[0] != y[: 2 * n].tobytes() else last[1]
             e1, kin = energy(q1, v1), math.nan
         work = h * float(applied @ (0.5 * (v + v1)))
         removed = 0.0
