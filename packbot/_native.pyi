@@ -133,6 +133,19 @@ class ContactRhs:
         out_v1: NDArray[np.float64],
         out_q1: NDArray[np.float64],
     ) -> tuple[Any, ...]: ...
+    def row_root(
+        self,
+        Z: NDArray[np.float64],
+        t0: float,
+        t1: float,
+        h: float,
+        y1: NDArray[np.float64],
+        hermite: bool,
+        r: int,
+        g0: float,
+        g1: float,
+        xtol: float,
+    ) -> float: ...
     def last(self) -> tuple[NDArray[np.float64], ...]: ...
     def set_reach(self, reach: NDArray[np.float64], margin: float, max_step: float) -> None: ...
     def step_bound(self, y: NDArray[np.float64]) -> float: ...

@@ -9,6 +9,7 @@ the same state and warm start, on window steps of wrist-free random starts.
 """
 
 import numpy as np
+import pinocchio as pin
 import pytest
 
 import packbot
@@ -18,7 +19,7 @@ from packbot.contact.normal_tolerances import PENETRATION_TOL
 pytestmark = pytest.mark.skipif(not native.available(), reason="packbot._native not built")
 
 
-def _compared(robot, k: int, mu: float, duration: float) -> tuple[list[dict], object]:
+def _compared(robot, k: int, mu: float, duration: float, **cfg_kw) -> tuple[list[dict], object]:
     """Every native window step of start k, and the Python step from the same state."""
     from test_normal_cascade import start_pose
 
@@ -43,7 +44,8 @@ def _compared(robot, k: int, mu: float, duration: float) -> tuple[list[dict], ob
             {
                 "v_f": np.abs(out[0] - v_f).max(),
                 "v1": np.abs(out[1] - v1).max() / max(1.0, np.abs(v1).max()),
-                "q1": np.abs(out[2] - (q + h * out[1])).max(),
+                "q1": np.abs(out[2] - pin.integrate(self.sys.model, q, h * out[1])).max(),
+                "kin": abs(out[8][2] - 0.5 * out[1] @ self.sys.mass_matrix(out[2]) @ out[1]),
                 "x": np.abs(out[3] - x).max() / max(1e-6, np.abs(x).max()),
                 "residual": max(out[4], residual),
                 "e0": abs(out[8][0] - e(q, v)),
@@ -53,7 +55,7 @@ def _compared(robot, k: int, mu: float, duration: float) -> tuple[list[dict], ob
         return out
 
     pytest.MonkeyPatch().setattr(timestep.MoreauJeanStepper, "_native_step", compared)
-    cfg = packbot.SimConfig(contact_mode="normal", mu=mu, restitution=0.0)
+    cfg = packbot.SimConfig(contact_mode="normal", mu=mu, **{"restitution": 0.0, **cfg_kw})
     try:
         res = packbot.simulate(
             robot, start_pose(robot, k), np.zeros(robot.model.nv), duration, config=cfg
@@ -63,9 +65,19 @@ def _compared(robot, k: int, mu: float, duration: float) -> tuple[list[dict], ob
     return seen, res
 
 
-@pytest.mark.parametrize(("k", "mu"), [(16, 0.0), (16, 1.2), (5, 0.5)])
-def test_a_native_window_step_is_the_python_step(robot, k, mu):
-    seen, res = _compared(robot, k, mu, 2.0)
+@pytest.mark.parametrize(
+    ("k", "mu", "kw"),
+    [
+        (16, 0.0, {}),
+        (16, 1.2, {}),
+        (5, 0.5, {}),
+        (16, 0.5, {"joint_friction": True}),  # (the joints' boxes, limit rows)
+        (16, 0.5, {"restitution": 0.5}),  # (bouncing rows handed back: status 2)
+    ],
+    ids=["mu0", "mu1.2", "mu0.5", "joint-friction", "restitution"],
+)
+def test_a_native_window_step_is_the_python_step(robot, k, mu, kw):
+    seen, res = _compared(robot, k, mu, 2.0, **kw)
     assert len(seen) > 100, len(seen)
     worst = {key: max(s[key] for s in seen) for key in seen[0]}
     # the same free velocity, rows, problem and iterates: equal to rounding (measured: v_f
@@ -75,8 +87,8 @@ def test_a_native_window_step_is_the_python_step(robot, k, mu):
     assert worst["v_f"] <= 1e-12, worst
     assert worst["x"] <= 1e-9, worst
     assert worst["v1"] <= 1e-9, worst
-    assert worst["q1"] == 0.0, worst  # (q + h v1: 1-dof joints)
-    assert worst["e0"] <= 1e-9 and worst["e1"] <= 1e-9, worst
+    assert worst["q1"] == 0.0, worst  # (pin.integrate: q + h v1 for 1-dof joints)
+    assert worst["e0"] <= 1e-9 and worst["e1"] <= 1e-9 and worst["kin"] <= 1e-9, worst
     assert worst["residual"] <= timestep.RESIDUAL_OK
     assert -res.diagnostics.min_distance <= PENETRATION_TOL + 1e-5
 

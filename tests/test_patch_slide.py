@@ -143,6 +143,7 @@ def test_a_patch_on_the_floor_is_kept_while_it_slides(robot, monkeypatch):
         return out, raw
 
     monkeypatch.setattr(timestep.MoreauJeanStepper, "_stale", watched)
+    monkeypatch.setattr(timestep, "NATIVE_STEPS", False)  # (every step's rule in Python)
     cfg = packbot.SimConfig(contact_mode="normal", mu=0.0, restitution=0.0)
     res = packbot.simulate(robot, start_pose(robot, 16), np.zeros(robot.model.nv), 2.0, config=cfg)
     assert slides, "no floor patch kept in a window: the test covers nothing"

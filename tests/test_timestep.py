@@ -15,6 +15,7 @@ import pytest
 from test_normal_cascade import GAIN_TOL, start_pose
 
 import packbot
+import packbot.contact.timestep as timestep_module
 from packbot.contact import normal_law
 from packbot.contact.lcp import box_residual, solve_mixed_admm
 from packbot.contact.normal import PENETRATION_TOL
@@ -209,6 +210,7 @@ def test_an_unconverged_step_falls_back_to_the_frictionless_rows(robot, monkeypa
     does not use them (measured once, mu = 0: a residual of 5e-3 turned 11 rad/s into
     30 rad/s): the frictionless LCP of its normal rows is used instead, and the run keeps its
     physical properties."""
+    monkeypatch.setattr(timestep_module, "NATIVE_STEPS", False)  # (the Python step's own)
     from packbot.contact import conic, timestep
 
     real = timestep.solve_mixed_admm
@@ -404,6 +406,7 @@ def test_frictionless_steps_are_solved_by_the_compiled_solver(robot, monkeypatch
     """mu = 0: the compiled ADMM on cones of friction 0 solves the steps (the LCP of the
     normal rows, eight times slower, is only its fallback) and the window still stops the
     arm at its contacts."""
+    monkeypatch.setattr(timestep_module, "NATIVE_STEPS", False)  # (the Python step's own)
     calls = {"lcp": 0}
     real = MoreauJeanStepper._frictionless
 
@@ -440,6 +443,7 @@ def _spinning_window(robot, monkeypatch, duration=0.3):
 def test_the_compiled_patch_rule_is_the_contact_sets_own(robot, monkeypatch):
     """The window step's patch rule (every pair at once, compiled) names the same stale
     pairs, in the same order, as ``NormalContacts.stale_pairs`` at every step."""
+    monkeypatch.setattr(timestep_module, "NATIVE_STEPS", False)  # (the Python step's own)
     real = MoreauJeanStepper._stale
     seen = {"steps": 0, "stale": 0, "differ": 0}
 
@@ -524,6 +528,7 @@ def test_a_window_at_rest_sweeps_once_a_step(robot, monkeypatch):
 def test_the_start_energy_is_the_last_steps_end_energy(robot, monkeypatch):
     """The energy at a step's start is the last step's at its end, computed once: the run
     with it recomputed at every step is the same run, bit for bit."""
+    monkeypatch.setattr(timestep_module, "NATIVE_STEPS", False)  # (the Python step's own)
     res = _spinning_window(robot, monkeypatch)
     assert res.diagnostics.window_steps > 500
     step = MoreauJeanStepper.step

@@ -486,10 +486,12 @@ class MoreauJeanStepper:
         # the energy guard (the energy at the step's start: the last step's at its end when
         # this step starts there, bit for bit)
         last = self._end_energy
+        kept = last[1] if last is not None and last[0] == y[: 2 * n].tobytes() else None
         if energies is not None and not projected:  # (the native step's, at its q1)
-            e0, e1, kin = energies
+            e0 = energies[0] if kept is None else kept
+            e1, kin = energies[1], energies[2]
         else:
-            e0 = energy(q, v) if last is None or last[0] != y[: 2 * n].tobytes() else last[1]
+            e0 = energy(q, v) if kept is None else kept
             e1, kin = energy(q1, v1), math.nan
         work = h * float(applied @ (0.5 * (v + v1)))
         removed = 0.0

@@ -421,6 +421,10 @@ class ContactRhs {
         v = gap_[r] + point_tol_;
         for (int e = 0; e < ne_; ++e)
           if (engaged_[e] == r) v = lam_[e] + force_band_;
+        if (!std::isfinite(v)) {  // (Python's root finding evaluates it there instead)
+          failed = true;
+          return -1e-300;
+        }
         ts.push_back(t);
         gs.push_back(v);
       }
