@@ -56,8 +56,8 @@ SLIDE_TOL = 1e-3
 #: A patch of any size whose normal is a halfspace's (the floor) is kept the same way: that
 #: face has no edge for a corner to lag at, its points are the other body's, and its gaps are
 #: their heights above the plane however far they slide. Measured: the collapse's restarts
-#: (mu 0.5) 80 -> 68; on two frictionless wrist-free starts, 4,232 of the windows' 4,282
-#: re-patches for a slide were the fingers' and elbow casings' on the floor.
+#: (mu 0.5) 80 -> 68; on two frictionless wrist-free starts, most of the windows' re-patches
+#: for a slide were the fingers' and elbow casings' on the floor.
 FACE_ALIGN = 1e-9
 #: Stiffness of the drift correction [rad/s] (a_n = -2 w g' - w^2 g on engaged rows).
 BAUMGARTE = 20.0
