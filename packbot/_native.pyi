@@ -146,6 +146,31 @@ class ContactRhs:
         g1: float,
         xtol: float,
     ) -> float: ...
+    def project_round(
+        self,
+        q: NDArray[np.float64],
+        v: NDArray[np.float64],
+        minv: NDArray[np.float64],
+        touch_gap: float,
+        pen_tol: float,
+        res_tol: float,
+        out_q: NDArray[np.float64],
+    ) -> int: ...
+    def impact(
+        self,
+        q: NDArray[np.float64],
+        v: NDArray[np.float64],
+        minv: NDArray[np.float64],
+        mu: float,
+        restitution: float,
+        zeno: float,
+        touch_gap: float,
+        res_tol: float,
+        conic_tol: float,
+        max_iterations: int,
+        accept: float,
+        out_v: NDArray[np.float64],
+    ) -> tuple[int, bool]: ...
     def last(self) -> tuple[NDArray[np.float64], ...]: ...
     def set_reach(self, reach: NDArray[np.float64], margin: float, max_step: float) -> None: ...
     def step_bound(self, y: NDArray[np.float64]) -> float: ...

@@ -116,6 +116,8 @@ def test_the_impulses_and_projections_of_a_collapse_equal_the_least_squares_ones
         return z
 
     monkeypatch.setattr(normal_steps, "_psd_lcp", checked)
+    # (the Python impulse and projection; the native ones equal them: test_native_restart)
+    monkeypatch.setattr(normal_steps, "NATIVE_RESTART", False)
     cfg = packbot.SimConfig(contact_mode="normal", mu=0.0, restitution=0.0)
     packbot.simulate(robot, robot.pose("drive"), np.zeros(8), 1.0, config=cfg)
     assert seen["calls"] > 20 and seen["rows>1"] > 5
@@ -231,6 +233,8 @@ def test_the_frictional_impacts_iteration_limit_keeps_the_impulse(robot, monkeyp
 
     monkeypatch.setattr(normal_steps, "_impact_admm", checked)
     monkeypatch.setattr(normal_steps, "IMPACT_CONIC", False)  # Pinocchio's ADMM at every impact
+    # (the Python impulse and projection; the native ones equal them: test_native_restart)
+    monkeypatch.setattr(normal_steps, "NATIVE_RESTART", False)
     cfg = packbot.SimConfig(contact_mode="normal", mu=0.5, restitution=0.0)
     packbot.simulate(robot, robot.pose("drive"), np.zeros(8), 1.0, config=cfg)
     assert seen["same"] > 5 and seen["cut"] > 0, seen
@@ -280,6 +284,8 @@ def test_the_compiled_impact_solver_gives_pinocchios_impulse(robot, monkeypatch)
         return x, res
 
     monkeypatch.setattr(normal_steps, "_impact_cones", checked)
+    # (the Python impulse and projection; the native ones equal them: test_native_restart)
+    monkeypatch.setattr(normal_steps, "NATIVE_RESTART", False)
     monkeypatch.setattr(normal_steps, "_impact_admm", pinocchio)
     for locked in ((), WRIST):
         cfg = packbot.SimConfig(

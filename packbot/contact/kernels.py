@@ -35,6 +35,7 @@ from numba import njit
 __all__ = [
     "constrained_accel",
     "contact_rows",
+    "lemke_checked",
     "lemke_small",
     "normal_owner",
     "patch_material",
@@ -787,3 +788,42 @@ def lemke_small(  # pragma: no cover - compiled
         if r < 0:
             r = first
     return np.zeros(n), False
+
+
+@njit(cache=True)
+def lemke_checked(  # pragma: no cover - compiled
+    M: Any, q: Any, max_iter: int, tol: float
+) -> Any:
+    """:func:`lemke_small` and the solution's :func:`packbot.contact.lcp.lcp_residual` in one call.
+
+    The residual is summed in index order (numpy's ``G @ z`` may sum in another order: the two
+    differ by rounding, a few ulps of the problem's scale).
+
+    Returns:
+        (z, residual, ok): ok False on ray termination or the pivot limit (z zeros, residual
+        inf).
+    """
+    n = q.shape[0]
+    z, ok = lemke_small(M, q, max_iter, tol)
+    if not ok:
+        return z, math.inf, False
+    if n == 0:
+        return z, 0.0, True
+    qmax = 0.0
+    gzmax = 0.0
+    zmin = math.inf
+    wmin = math.inf
+    zw = 0.0
+    for i in range(n):
+        s = 0.0
+        for j in range(n):
+            s += M[i, j] * z[j]
+        w = s + q[i]
+        qmax = max(qmax, abs(q[i]))
+        gzmax = max(gzmax, abs(s))
+        zmin = min(zmin, z[i])
+        wmin = min(wmin, w)
+        zw += z[i] * w
+    scale = 1.0 + qmax + gzmax
+    res = max(-zmin, -wmin, abs(zw) / scale, 0.0)
+    return z, res / scale, True

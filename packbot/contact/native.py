@@ -41,6 +41,7 @@ from packbot.ode import DenseSegment, HermiteSegment, StiffKernel
 if TYPE_CHECKING:
     from packbot.contact.normal_contacts import NormalContacts
     from packbot.contact.normal_dynamics import _Eval
+    from packbot.contact.normal_rows import ContactRows
 
 __all__ = [
     "ENABLED",
@@ -178,7 +179,7 @@ class NativeRhs:
         if plan.slips:  # the onset directions (reassigned at restarts)
             self._rhs.set_slip_dirs(_reals([p.slip_dir for p in contacts._pair_list]))
 
-    def load_layout(self, contacts: NormalContacts) -> None:
+    def load_layout(self, contacts: ContactRows) -> None:
         """Load the contact set's layout, its conditions' constants and its pairs' keys.
 
         Only when the layout changed; the modes' plan is then loaded again by :meth:`load`.
@@ -298,6 +299,52 @@ class NativeRhs:
         self.load_layout(contacts)
         status, x, res, it, rho, energies = self._rhs.window_step(y, h, **kw)
         return int(status), x, float(res), int(it), float(rho), energies
+
+    def project_round(
+        self,
+        contacts: ContactRows,
+        q: FloatArray,
+        v: FloatArray,
+        minv: FloatArray,
+        touch_gap: float,
+        pen_tol: float,
+        res_tol: float,
+    ) -> tuple[int, FloatArray]:
+        """One round of the restart's drift projection, in one native call.
+
+        See :meth:`packbot.contact.normal_steps.RestartSteps.project` and the extension's
+        ``ContactRhs.project_round``. The contact set's layout is loaded first.
+
+        Returns:
+            (status, q1): 0 no gap is negative; 1 a gap is below -``pen_tol`` (the caller's
+            round clips it); 2 Lemke's answer has a residual above ``res_tol`` (the caller's
+            round); 3 the projected configuration q1 [rad].
+        """
+        self.load_layout(contacts)
+        out = np.empty(len(q))
+        status = self._rhs.project_round(
+            _reals(q), _reals(v), _reals(minv), touch_gap, pen_tol, res_tol, out
+        )
+        return int(status), out
+
+    def impact(
+        self, contacts: ContactRows, q: FloatArray, v: FloatArray, minv: FloatArray, **kw: Any
+    ) -> tuple[int, FloatArray, bool]:
+        """The restart's impact, in one native call.
+
+        See :meth:`packbot.contact.normal_steps.RestartSteps.impulse`, whose arithmetic it
+        follows, and the extension's ``ContactRhs.impact`` for the arguments in ``kw``. The
+        contact set's layout is loaded first.
+
+        Returns:
+            (status, v1, bounced): 0 no touching row approaches (v unchanged); 1 the velocity
+            after the impact v1 [rad/s], ``bounced`` whether restitution was applied; 2 the
+            caller's own impulse (a frictional answer not taken, an LCP residual too large).
+        """
+        self.load_layout(contacts)
+        out = np.empty(len(v))
+        status, bounced = self._rhs.impact(_reals(q), _reals(v), _reals(minv), out_v=out, **kw)
+        return int(status), out, bool(bounced)
 
     def set_torque(self, applied: FloatArray, viscous: FloatArray, coulomb_dir: FloatArray) -> None:
         """The torques of the steps to come [N*m]: ``applied + (-viscous * v - coulomb_dir)``."""

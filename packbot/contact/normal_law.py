@@ -144,6 +144,7 @@ class NormalLaw(PatchEvents):
         self.reach = reach_bounds(system.model, system.world)
         self.normal = NormalContacts.from_config(system.model, system.data, system.world, self.cfg)
         self._native = native.native_rhs(system.model) if native.ENABLED else None
+        self.normal.native = self._native  # (the restart's projection and impact)
         if self._native is not None and self.cfg.joint_limits:  # (the step end's screen)
             self._native.set_limits(system.upper, system.lower)
         if self._native is not None:  # (step_bound)

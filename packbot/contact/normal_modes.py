@@ -464,17 +464,23 @@ def _psd_lcp(G: FloatArray, g: FloatArray) -> FloatArray:
     solver only changes it by rounding. Which rows carry the force can differ where the rows
     are dependent; Lemke's solution is basic, as the least-squares one (the Delassus block of
     its support is non-singular: its final basis holds those columns). The compiled pivots
-    (:func:`~packbot.contact.normal_modes._lemke`, a few microseconds on the usual 1 to 8 rows)
-    replace :func:`~packbot.contact.lcp.solve_lcp_psd` (``eigh``, ``lstsq`` and scipy's NNLS:
-    130 us a call) whenever their residual passes; otherwise the least-squares solution, or
-    Lemke's if its residual is the smaller (the caller checks and reports it).
+    and their residual in one call (``kernels.lemke_checked``: the pivots of
+    :func:`~packbot.contact.normal_modes._lemke`) replace
+    :func:`~packbot.contact.lcp.solve_lcp_psd` (``eigh``, ``lstsq`` and scipy's NNLS) whenever
+    the residual passes; otherwise the least-squares solution, or Lemke's if its residual is
+    the smaller (the caller checks and reports it).
     """
-    z = _lemke(G, g)
-    if z is not None:
-        res = lcp_residual(G, g, z)
-        if res <= RESIDUAL_TOL:
-            return z
+    n = len(g)
+    if n == 0 or bool(np.all(g >= 0.0)):
+        return np.zeros(n)
+    from packbot.contact import kernels  # lazy: numba is imported by contact runs only
+
+    z, res, ok = kernels.lemke_checked(
+        np.ascontiguousarray(G, dtype=np.float64), np.asarray(g, dtype=np.float64), 200, 1e-12
+    )
+    if ok and res <= RESIDUAL_TOL:
+        return z
     z2 = solve_lcp_psd(G, g)
-    if z is not None and res < lcp_residual(G, g, z2):
+    if ok and res < lcp_residual(G, g, z2):
         return z
     return z2

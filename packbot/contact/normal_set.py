@@ -24,6 +24,7 @@ if TYPE_CHECKING:
     from typing_extensions import Self
 
     from packbot.config import SimConfig
+    from packbot.contact.native import NativeRhs
     from packbot.contact.normal_rows import _Layout, _Plan
 
 __all__ = ["ContactSet"]
@@ -103,6 +104,9 @@ class ContactSet:
         self.joint_fdir: FloatArray | None = None
         self.resting = False  # captured at rest (see capture)
         self.bounced = False  # the last impulse had restitution
+        #: The law's compiled right-hand side (set by the law; None: the Python path), for the
+        #: restart's projection and impact (:mod:`packbot.contact.normal_steps`).
+        self.native: NativeRhs | None = None
         self._kin_cache: dict[tuple[bytes, bytes], Any] = {}  # see _kinematics
         self._planes_cache: dict[int, tuple[FloatArray, FloatArray]] = {}
         self._unbounded_cache: dict[int, bool] = {}

@@ -59,6 +59,13 @@ False: Pinocchio's ADMM alone (the former path, kept for comparisons and as the 
 IMPACT_CONIC_TOL = 1e-10
 """The compiled solver's target residual for a frictional impact [-] (Pinocchio's ADMM's)."""
 
+NATIVE_RESTART = True
+"""Whether the restart's projection rounds and impact run in one native call each when the law
+has its compiled right-hand side (``ContactRhs.project_round``, ``ContactRhs.impact``: the
+same arithmetic as :meth:`RestartSteps.project` and :meth:`RestartSteps.impulse`, handing back
+to them where they would clip gaps, fall back from Lemke or take a frictional answer the
+compiled solver does not give); False: the Python steps (kept for comparisons)."""
+
 DEPENDENT_ROW = 1e-12
 """A touching row of :meth:`RestartSteps.stop_slow` whose Schur complement (its diagonal in
 the LCP after the tangential equalities) is below this times the largest one [-] lies in the
@@ -265,21 +272,10 @@ class RestartSteps(ConstrainedDynamics):
             The corrected configuration [rad].
         """
         for _ in range(PROJECT_ROUNDS):
-            Jn, _, gap, _, _ = self._problem(q, v)
-            low = float(gap.min()) if gap.size else 0.0
-            if not low < 0.0:
+            moved = self._project_round(q, v, minv)
+            if moved is None:
                 return q
-            if low < -PENETRATION_TOL:
-                # (else the clip changes nothing: its floor min(d, 0) - PENETRATION_TOL is at
-                # most -PENETRATION_TOL, below every gap; the sweep is spared)
-                gap = self._clip_gaps(gap, self._sweep(q))
-                if not bool(np.any(gap < 0.0)):
-                    return q
-            touch = np.flatnonzero(gap <= TOUCH_GAP)
-            J = Jn[touch]
-            G = J @ minv @ J.T
-            mu = _psd_lcp(G, gap[touch])
-            q = np.asarray(q + minv @ J.T @ mu, dtype=np.float64)
+            q = moved
             if not self.check_others or self.world is None:
                 return q
             dist = self._sweep(q)
@@ -296,6 +292,37 @@ class RestartSteps(ConstrainedDynamics):
                 self.add_pair(q, k)
         log.debug("projection: still penetrating after %d rounds", PROJECT_ROUNDS)
         return q
+
+    def _project_round(self, q: FloatArray, v: FloatArray, minv: FloatArray) -> FloatArray | None:
+        """One round of :meth:`project` up to its sweep: the moved q [rad], or None (no move).
+
+        Natively when the law has its compiled right-hand side (:data:`NATIVE_RESTART`), except
+        where a gap is clipped or Lemke's answer is not taken.
+        """
+        native = self.native if NATIVE_RESTART else None
+        if native is not None:
+            status, q1 = native.project_round(
+                self, q, v, minv, TOUCH_GAP, PENETRATION_TOL, RESIDUAL_TOL
+            )
+            if status == 0:
+                return None
+            if status == 3:
+                return q1
+        Jn, _, gap, _, _ = self._problem(q, v)
+        low = float(gap.min()) if gap.size else 0.0
+        if not low < 0.0:
+            return None
+        if low < -PENETRATION_TOL:
+            # (else the clip changes nothing: its floor min(d, 0) - PENETRATION_TOL is at
+            # most -PENETRATION_TOL, below every gap; the sweep is spared)
+            gap = self._clip_gaps(gap, self._sweep(q))
+            if not bool(np.any(gap < 0.0)):
+                return None
+        touch = np.flatnonzero(gap <= TOUCH_GAP)
+        J = Jn[touch]
+        G = J @ minv @ J.T
+        mu = _psd_lcp(G, gap[touch])
+        return np.asarray(q + minv @ J.T @ mu, dtype=np.float64)
 
     def _sweep(self, q: FloatArray) -> dict[int, float]:
         """Signed distances [m] at q of the pairs within the world's margin, by pair index.
@@ -337,6 +364,18 @@ class RestartSteps(ConstrainedDynamics):
         otherwise add energy: measured 2.5e-5 J at an impact of the camera head on link 1's
         tube (the collapse from a random start, mu = 0.5, wrist locked).
         """
+        native = self.native if NATIVE_RESTART else None
+        if native is not None:
+            status, v1, bounced = native.impact(
+                self, q, v, minv, mu=self.mu, restitution=self.e, zeno=self.zeno_speed,
+                touch_gap=TOUCH_GAP, res_tol=RESIDUAL_TOL, conic_tol=IMPACT_CONIC_TOL,
+                max_iterations=IMPACT_ADMM_ITERATIONS, accept=IMPACT_ADMM_ACCEPT,
+            )  # fmt: skip
+            if status == 0:
+                return v
+            if status == 1:
+                self.bounced = bounced
+                return v1
         Jn, _, gap, vn, extra = self._problem(q, v)
         touch = np.flatnonzero(gap <= TOUCH_GAP)
         if len(touch) == 0 or float(vn[touch].min()) >= 0.0:

@@ -21,6 +21,7 @@
 #include <nanobind/stl/vector.h>
 
 #include "conic.hpp"
+#include "lcp.hpp"
 #include "joints.hpp"
 #include "stretch.hpp"
 
@@ -1143,6 +1144,132 @@ class ContactRhs {
                           nb::make_tuple(0.5 * kin0 + pot0, 0.5 * kin1 + pot1, 0.5 * kin1));
   }
 
+  // A restart's drift projection, one round (packbot.contact.normal_steps.RestartSteps.project,
+  // up to its sweep of the other pairs): the rows at (q, v) with the loaded layout; no gap
+  // negative: status 0. A gap below -pen_tol: status 1 (the caller clips the gaps at the pairs'
+  // distances: its own round). Else the LCP G mu + g >= 0 _|_ mu >= 0 on the touching rows (gap
+  // <= touch_gap), G = J M^-1 J^T with `minv` (nv x nv, symmetric); Lemke's solution with a
+  // residual above res_tol: status 2 (the caller's fallbacks); else out_q = q + M^-1 J^T mu
+  // [rad], status 3.
+  int project_round(F1 q, F1 v, F2 minv, double touch_gap, double pen_tol, double res_tol,
+                    Out1 out_q) {
+    const int nv = nv_;
+    check_restart("project_round", q, v, minv, out_q);
+    rows_at(q.data(), v.data());
+    if (m_ == 0) return 0;
+    double low = gap_[0];
+    for (int r = 1; r < m_; ++r) low = std::min(low, gap_[r]);
+    if (!(low < 0.0)) return 0;
+    if (low < -pen_tol) return 1;
+    touching(touch_gap);
+    const int nt = static_cast<int>(touch_.size());
+    delassus(minv.data(), nt);
+    for (int a = 0; a < nt; ++a) rt_[a] = gap_[touch_[a]];
+    zt_.resize(nt);
+    if (!packbot_native::lcp::lemke(Gt_.data(), rt_.data(), nt, 200, 1e-12, zt_.data(), lcp_) ||
+        !(packbot_native::lcp::residual(Gt_.data(), rt_.data(), nt, zt_.data()) <= res_tol))
+      return 2;
+    double *oq = out_q.data();
+    for (int i = 0; i < nv; ++i) {
+      double s = 0.0;
+      for (int a = 0; a < nt; ++a) s += MJt_[i * nt + a] * zt_[a];
+      oq[i] = q.data()[i] + s;
+    }
+    return 3;
+  }
+
+  // A restart's impact (packbot.contact.normal_steps.RestartSteps.impulse): the rows at (q, v)
+  // with the loaded layout; no touching row (gap <= touch_gap) approaching: (0, False). Else
+  // restitution e applies when a touching row approaches faster than zeno [m/s] (else 0).
+  // mu > 0: the frictional impact, blocks (t1, t2, n) per touching row (a limit row: no
+  // tangential part, mu 0), on the conic solver (conic::solve, from zeros, to conic_tol within
+  // max_iterations): taken when its residual is at most accept and it adds no kinetic energy,
+  // else (2, False): the caller's own impulse (its ADMM, its frictionless candidates). mu = 0
+  // (or after a frictional answer not taken: never here): Lemke on LCP(G, target), target =
+  // v_n + e min(v_n, 0), residual at most res_tol (else (2, False)), taken when e = 0 or it
+  // adds no energy, else the inelastic one. out_v = v + M^-1 J^T P [rad/s]: (1, bounced).
+  nb::tuple impact(F1 q, F1 v, F2 minv, double mu, double restitution, double zeno,
+                   double touch_gap, double res_tol, double conic_tol, int max_iterations,
+                   double accept, Out1 out_v) {
+    const int nv = nv_;
+    check_restart("impact", q, v, minv, out_v);
+    rows_at(q.data(), v.data());
+    touching(touch_gap);
+    const int nt = static_cast<int>(touch_.size());
+    double vmin = std::numeric_limits<double>::infinity();
+    for (int a = 0; a < nt; ++a) vmin = std::min(vmin, vn_[touch_[a]]);
+    if (nt == 0 || vmin >= 0.0) return nb::make_tuple(0, false);
+    const double e = vmin < -zeno ? restitution : 0.0;
+    const double *Mi = minv.data();
+    const double *vv = v.data();
+    double *ov = out_v.data();
+    if (mu > 0.0) {
+      // J3: (t1, t2, n) per touching row
+      const int rt = 3 * nt;
+      std::vector<double> J3(static_cast<size_t>(rt) * nv, 0.0), mus(nt, 0.0);
+      for (int a = 0; a < nt; ++a) {
+        const int r = touch_[a];
+        if (r < mp_) {
+          const int k = static_cast<int>(rows_[r]);
+          const double *T = &F_[9 * pair_[k]];
+          const double *d = &dJp_[k * 3 * nv];
+          for (int b = 0; b < 2; ++b)
+            for (int c = 0; c < nv; ++c)
+              J3[(3 * a + b) * nv + c] =
+                  T[3 * b] * d[c] + T[3 * b + 1] * d[nv + c] + T[3 * b + 2] * d[2 * nv + c];
+          mus[a] = mu;
+        }
+        for (int c = 0; c < nv; ++c) J3[(3 * a + 2) * nv + c] = Jn_[r * nv + c];
+      }
+      std::vector<double> Ms(Mi, Mi + static_cast<size_t>(nv) * nv), C;
+      packbot_native::conic::factor(Ms, nv, 0.0, C);
+      for (int i = 0; i < nv; ++i)
+        if (!(C[i * nv + i] > 1e-150)) return nb::make_tuple(2, false);
+      std::vector<double> A(static_cast<size_t>(rt) * nv, 0.0), g(rt, 0.0), w(rt, 0.0);
+      for (int i = 0; i < rt; ++i) {
+        double sv = 0.0;
+        for (int k = 0; k < nv; ++k) {
+          const double Jik = J3[i * nv + k];
+          if (Jik != 0.0) {
+            sv += Jik * vv[k];
+            for (int c = 0; c <= k; ++c) A[i * nv + c] += Jik * C[k * nv + c];
+          }
+        }
+        w[i] = sv;
+        g[i] = sv;
+      }
+      for (int a = 0; a < nt; ++a) g[3 * a + 2] += e * std::min(g[3 * a + 2], 0.0);
+      std::vector<double> x(rt, 0.0);
+      const auto sol = packbot_native::conic::solve(A.data(), rt, nv, g.data(), mus, {}, x.data(),
+                                                     conic_tol, max_iterations, 0.0);
+      if (!(sol.residual <= accept)) return nb::make_tuple(2, false);
+      impulse_dv(J3.data(), rt, Mi, x.data());
+      if (energy_change(J3.data(), rt, x.data(), w.data()) > 0.0) return nb::make_tuple(2, false);
+      for (int i = 0; i < nv; ++i) ov[i] = vv[i] + dv_[i];
+      return nb::make_tuple(1, e > 0.0);
+    }
+    delassus(Mi, nt);
+    std::vector<double> Jt(static_cast<size_t>(nt) * nv), vt(nt);
+    for (int a = 0; a < nt; ++a) {
+      std::copy(&Jn_[touch_[a] * nv], &Jn_[touch_[a] * nv] + nv, &Jt[a * nv]);
+      vt[a] = vn_[touch_[a]];
+    }
+    zt_.resize(nt);
+    rt_.resize(nt);
+    for (const double ek : {e, 0.0}) {  // (e = 0: the first is taken)
+      for (int a = 0; a < nt; ++a) rt_[a] = vt[a] + ek * std::min(vt[a], 0.0);
+      if (!packbot_native::lcp::lemke(Gt_.data(), rt_.data(), nt, 200, 1e-12, zt_.data(), lcp_) ||
+          !(packbot_native::lcp::residual(Gt_.data(), rt_.data(), nt, zt_.data()) <= res_tol))
+        return nb::make_tuple(2, false);
+      impulse_dv(Jt.data(), nt, Mi, zt_.data());
+      if (ek == 0.0 || energy_change(Jt.data(), nt, zt_.data(), vt.data()) <= 0.0) {
+        for (int i = 0; i < nv; ++i) ov[i] = vv[i] + dv_[i];
+        return nb::make_tuple(1, ek > 0.0);
+      }
+    }
+    return nb::make_tuple(2, false);  // (not reached: the inelastic candidate is always taken)
+  }
+
   // v^T M(q) v [kg m^2/s^2] (CRBA, armature included; the sums of energies).
   double kinetic(const Eigen::VectorXd &q, const double *v) {
     pin::crba(model_, data_, q, pin::Convention::LOCAL);
@@ -1382,6 +1509,92 @@ class ContactRhs {
       }
     }
     return ok;
+  }
+
+  // The restart steps' argument checks.
+  void check_restart(const char *who, F1 q, F1 v, F2 minv, Out1 out) const {
+    const size_t nv = static_cast<size_t>(nv_);
+    if (q.shape(0) != nv || v.shape(0) != nv || minv.shape(0) != nv || minv.shape(1) != nv ||
+        out.shape(0) != nv)
+      throw std::invalid_argument(std::string(who) + ": q, v, out (nv) and minv (nv, nv) expected");
+    if (!conditions_set_) throw std::invalid_argument(std::string(who) + ": layout first");
+  }
+
+  // The rows at (q, v) with the loaded layout (rows()); the cached evaluations are forgotten.
+  void rows_at(const double *q, const double *v) {
+    end_valid_ = false;
+    jac_valid_ = false;
+    for (int i = 0; i < nv_; ++i) {
+      q_[i] = q[i];
+      v_[i] = v[i];
+    }
+    if (nb_ > 0) pin::computeJointJacobiansTimeVariation(model_, data_, q_, v_);
+    rows();
+  }
+
+  // touch_: the rows with gap <= touch_gap, in row order.
+  void touching(double touch_gap) {
+    touch_.clear();
+    for (int r = 0; r < m_; ++r)
+      if (gap_[r] <= touch_gap) touch_.push_back(r);
+  }
+
+  // Gt_ (nt x nt) = J M^-1 J^T of the touching rows J = Jn[touch_], as numpy's (J M^-1) J^T;
+  // MJt_ (nv x nt) = M^-1 J^T.
+  void delassus(const double *Mi, int nt) {
+    const int nv = nv_;
+    JM_.assign(static_cast<size_t>(nt) * nv, 0.0);
+    for (int a = 0; a < nt; ++a) {
+      const double *J = &Jn_[touch_[a] * nv];
+      for (int c = 0; c < nv; ++c) {
+        double s = 0.0;
+        for (int k = 0; k < nv; ++k) s += J[k] * Mi[k * nv + c];
+        JM_[a * nv + c] = s;
+      }
+    }
+    Gt_.assign(static_cast<size_t>(nt) * nt, 0.0);
+    MJt_.assign(static_cast<size_t>(nv) * nt, 0.0);
+    for (int a = 0; a < nt; ++a) {
+      for (int b = 0; b < nt; ++b) {
+        const double *J = &Jn_[touch_[b] * nv];
+        double s = 0.0;
+        for (int c = 0; c < nv; ++c) s += JM_[a * nv + c] * J[c];
+        Gt_[a * nt + b] = s;
+      }
+      for (int i = 0; i < nv; ++i) MJt_[i * nt + a] = JM_[a * nv + i];  // (M^-1 symmetric)
+    }
+    rt_.resize(nt);
+  }
+
+  // dv_ = M^-1 (J^T x) for rows J (n x nv) [rad/s].
+  void impulse_dv(const double *J, int n, const double *Mi, const double *x) {
+    const int nv = nv_;
+    jx_.assign(nv, 0.0);
+    for (int c = 0; c < nv; ++c) {
+      double s = 0.0;
+      for (int i = 0; i < n; ++i) s += J[i * nv + c] * x[i];
+      jx_[c] = s;
+    }
+    dv_.assign(nv, 0.0);
+    for (int i = 0; i < nv; ++i) {
+      double s = 0.0;
+      for (int c = 0; c < nv; ++c) s += Mi[i * nv + c] * jx_[c];
+      dv_[i] = s;
+    }
+  }
+
+  // The kinetic energy change [J] of impulses x on rows J (n x nv), w = J v before, dv_ their
+  // velocity change (normal_steps._energy_change: rounding below 1e-12 of the scale is none).
+  double energy_change(const double *J, int n, const double *x, const double *w) const {
+    const int nv = nv_;
+    double pw = 0.0, pdw = 0.0;
+    for (int i = 0; i < n; ++i) {
+      double dw = 0.0;
+      for (int c = 0; c < nv; ++c) dw += J[i * nv + c] * dv_[c];
+      pw += x[i] * w[i];
+      pdw += x[i] * dw;
+    }
+    return pw + 0.5 * pdw - 1e-12 * (std::abs(pw) + std::abs(pdw));
   }
 
   // kernels.contact_rows, with H, J, dJ from data_.
@@ -1633,6 +1846,10 @@ class ContactRhs {
   std::vector<double> screen_;
   double torque_band_ = 0.0, accel_band_ = 0.0;
   Eigen::MatrixXd minv_;
+  // (the restart steps: project_round, impact)
+  std::vector<int> touch_;
+  std::vector<double> JM_, Gt_, MJt_, rt_, zt_, jx_, dv_;
+  packbot_native::lcp::Work lcp_;
   // layout
   std::vector<int64_t> joints_, body_, pair_, rows_, centre_, normal_body_, lim_joint_;
   std::vector<double> masks_, local_, frame2_, lim_side_, lim_value_;
@@ -1805,6 +2022,13 @@ NB_MODULE(_native, m) {
            nb::arg("bound"), nb::arg("guess"), nb::arg("rho0"), nb::arg("tol"),
            nb::arg("max_iterations"), nb::arg("ok"), nb::arg("out_vf"), nb::arg("out_v1"),
            nb::arg("out_q1"))
+      .def("project_round", &ContactRhs::project_round, nb::arg("q"), nb::arg("v"),
+           nb::arg("minv"), nb::arg("touch_gap"), nb::arg("pen_tol"), nb::arg("res_tol"),
+           nb::arg("out_q"))
+      .def("impact", &ContactRhs::impact, nb::arg("q"), nb::arg("v"), nb::arg("minv"),
+           nb::arg("mu"), nb::arg("restitution"), nb::arg("zeno"), nb::arg("touch_gap"),
+           nb::arg("res_tol"), nb::arg("conic_tol"), nb::arg("max_iterations"),
+           nb::arg("accept"), nb::arg("out_v"))
       .def("last", &ContactRhs::last);
   nb::class_<StretchT>(m, "Stretch")
       .def("__init__", &stretch_init, nb::arg("rhs"), nb::arg("api"), nb::arg("margin"),
