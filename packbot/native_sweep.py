@@ -348,6 +348,19 @@ class NativeDispatch:
             world._last_sweep = (key, out)
         return out
 
+    def result(
+        self, pairs: NDArray[np.int64], d: NDArray[np.float64], k: int, dmin: float
+    ) -> SweepResult:
+        """A native sweep made elsewhere as the world's sweep result.
+
+        Args:
+            pairs: Its candidates' pair indices.
+            d: Their signed distances [m].
+            k: The closest pair (-1: none).
+            dmin: Its distance [m] (inf: none).
+        """
+        return _tuple_new(self._result, (float(dmin), int(k), pairs, d, self._counts[len(pairs)]))
+
     def adopt(
         self,
         q: NDArray[np.float64],

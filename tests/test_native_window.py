@@ -13,7 +13,7 @@ import pinocchio as pin
 import pytest
 
 import packbot
-from packbot.contact import native, timestep
+from packbot.contact import native, timestep, window_run
 from packbot.contact.normal_tolerances import PENETRATION_TOL
 
 pytestmark = pytest.mark.skipif(not native.available(), reason="packbot._native not built")
@@ -55,6 +55,8 @@ def _compared(robot, k: int, mu: float, duration: float, **cfg_kw) -> tuple[list
         return out
 
     pytest.MonkeyPatch().setattr(timestep.MoreauJeanStepper, "_native_step", compared)
+    # (each step through _native_step: the native runs of steps equal them, test_window_run)
+    pytest.MonkeyPatch().setattr(window_run, "ENABLED", False)
     cfg = packbot.SimConfig(contact_mode="normal", mu=mu, **{"restitution": 0.0, **cfg_kw})
     try:
         res = packbot.simulate(
@@ -62,6 +64,7 @@ def _compared(robot, k: int, mu: float, duration: float, **cfg_kw) -> tuple[list
         )
     finally:
         pytest.MonkeyPatch().setattr(timestep.MoreauJeanStepper, "_native_step", real)
+        pytest.MonkeyPatch().setattr(window_run, "ENABLED", True)
     return seen, res
 
 
@@ -102,9 +105,9 @@ def _stepper_counts(
     steppers: dict[int, timestep.MoreauJeanStepper] = {}
     real = timestep.MoreauJeanStepper.step
 
-    def counted(self, *args):
+    def counted(self, *args, **kwargs):
         steppers[id(self)] = self
-        return real(self, *args)
+        return real(self, *args, **kwargs)
 
     with pytest.MonkeyPatch.context() as mp:
         mp.setattr(timestep.MoreauJeanStepper, "step", counted)

@@ -33,6 +33,7 @@ from packbot.contact.stretch import (
     quiet_stretch,
 )
 from packbot.contact.timestep import QUIET_STEPS, MoreauJeanStepper, StepSegment
+from packbot.contact.window_run import StepChain, run_native
 from packbot.ode import DenseSegment, RK45Stepper, StepKernel, StiffKernel
 from packbot.system import System
 
@@ -156,14 +157,40 @@ class NormalLaw(PatchEvents):
         self._ready: FloatArray | None = None  # a state the native modes are loaded for
         self._offered = False  # whether step_kernel offered the native step at the loop's state
         self._stretch: QuietStretch | None = None  # (the compiled stretch of quiet steps)
+        # (t, y bytes, pending step) where a native run of window steps stopped (see advance)
+        self._after_run: tuple[float, bytes, Any] | None = None
 
     # ------------------------------------------------------------------ windows
     def advance(self, t: float, y: FloatArray, t_end: float) -> DenseSegment | None:
-        """In a window, one time step from (t, y) (not past t_end); else None."""
+        """In a window, time steps from (t, y) (not past t_end); else None.
+
+        First the steps that keep their contact set, in one native call
+        (:func:`~packbot.contact.window_run.run_native`), returned as one segment
+        (:class:`~packbot.contact.window_run.StepChain`); the next call then takes the step
+        they stopped at (finishing it when they took it: pending), as the step-by-step loop
+        would. Else one step.
+        """
         w = self.window
         if w is None:
             return None
-        seg, info = w.stepper.step(t, y, t_end, self.energy)
+        after, self._after_run = self._after_run, None
+        if after is not None and after[0] == t and after[1] == y.tobytes():
+            pending = after[2]  # (the step the run stopped at: not offered to a run again)
+        else:
+            run = run_native(
+                w.stepper, t, y, t_end, w.until, w.quiet, w.last, self.diag.min_distance
+            )
+            pending = None if run is None else run.pending
+            if run is not None and run.steps:
+                self.diag.window_steps += run.steps
+                self.diag.sweeps += run.steps
+                for removed in run.removed.tolist():
+                    self.diag.window_energy_removed += removed
+                self.note_min(run.min_d, run.min_pair)
+                w.quiet, w.last = run.quiet, run.signature
+                self._after_run = (run.times[-1], run.states[-1].tobytes(), pending)
+                return StepChain(run.times, list(run.states))
+        seg, info = w.stepper.step(t, y, t_end, self.energy, pending=pending)
         self.diag.window_steps += 1
         self.diag.sweeps += 1
         self.diag.window_energy_removed += info.removed

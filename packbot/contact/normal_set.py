@@ -274,8 +274,8 @@ class ContactSet:
         local1, local2, normal2, frame2, centre1, centre2, offset0, on1 = made
         p = _Pair(info, local1, local2, normal2, bool(on1), offset0=offset0)
         p.frame2, p.centre1, p.centre2 = frame2, centre1, centre2
-        if _on_a_face(N1, Rg1, N2, Rg2, n, bool(on1)) and (
-            len(local1) == 1 or self._unbounded(info.geom1 if on1 else info.geom2)
+        if (len(local1) == 1 or self._unbounded(info.geom1 if on1 else info.geom2)) and _on_a_face(
+            N1, Rg1, N2, Rg2, n, bool(on1)
         ):
             # a vertex on a face, or any patch on a halfspace's face (the floor: no edge to
             # slide off, its corners are the other body's material points): nothing lags

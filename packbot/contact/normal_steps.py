@@ -278,16 +278,21 @@ class RestartSteps(ConstrainedDynamics):
             q = moved
             if not self.check_others or self.world is None:
                 return q
-            dist = self._sweep(q)
-            bad = [k for k, d in dist.items() if k not in self.pairs and d < -PENETRATION_TOL]
+            sw = self.world.sweep(q, reuse=True)
+            deep = sw.distances < -PENETRATION_TOL  # (the set's own pairs are not checked)
+            bad = [
+                (k, d)
+                for k, d in zip(sw.pairs[deep].tolist(), sw.distances[deep].tolist(), strict=True)
+                if k not in self.pairs
+            ]
             if not bad:
                 return q
-            for k in bad:
+            for k, d in bad:
                 log.debug(
                     "projection: pair %s / %s at %.3g m joins the contact set",
                     self.world.pairs[k].piece1,
                     self.world.pairs[k].piece2,
-                    dist[k],
+                    d,
                 )
                 self.add_pair(q, k)
         log.debug("projection: still penetrating after %d rounds", PROJECT_ROUNDS)

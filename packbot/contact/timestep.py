@@ -278,6 +278,7 @@ class MoreauJeanStepper:
         y: FloatArray,
         t_end: float,
         energy: Callable[[FloatArray, FloatArray], float],
+        pending: tuple[tuple[Any, ...], tuple[float, Any]] | None = None,
     ) -> tuple[StepSegment, StepInfo]:
         """One step from (t, y), not past t_end; the step and what it decided.
 
@@ -286,13 +287,19 @@ class MoreauJeanStepper:
             y: State (q, v[, tau_m]).
             t_end: The step ends at min(t + h, t_end) [s].
             energy: Total mechanical energy [J] of (q, v).
+            pending: The step already taken natively, and the sweep at its end (its margin
+                [m], the result), by :func:`packbot.contact.window_run.run_native`: it is
+                finished here (``_native_step``'s result and ``_finish``'s first sweep).
         """
         sys, n = self.sys, self.n
         q, v, tail = y[:n], y[n : 2 * n], y[2 * n :]
         # no body turns more than STEP_ANGLE in a step (the scheme is first order in it)
         h = min(self.h, STEP_ANGLE / max(float(np.abs(v).sum()), 1e-300), t_end - t)
         _, target, applied, _ = self.drive.torques(t, y)
-        fast = self._native_step(t, y, h) if self.native is not None else None
+        if pending is not None:
+            fast: Any = pending[0]
+        else:
+            fast = self._native_step(t, y, h) if self.native is not None else None
         if isinstance(fast, np.ndarray):  # handed back, with its free velocity
             v_f, v1, x, residual, closest, cj, lay, m = self._python_step(t, y, h, fast)
             q1 = np.asarray(pin.integrate(sys.model, q, h * v1), dtype=np.float64)
@@ -309,7 +316,10 @@ class MoreauJeanStepper:
         self.joint_torque = np.zeros(n)
         self.joint_torque[cj] = x[3 * m :] / h
         end = (v_f, v1, q1, energies)
-        return self._finish(t, y, h, tail, target, applied, end, sig, m, residual, closest, energy)
+        first = None if pending is None else pending[1]
+        return self._finish(
+            t, y, h, tail, target, applied, end, sig, m, residual, closest, energy, first
+        )
 
     def _native_step(
         self, t: float, y: FloatArray, h: float
@@ -448,12 +458,17 @@ class MoreauJeanStepper:
         residual: float,
         closest: tuple[float, int],
         energy: Callable[[FloatArray, FloatArray], float],
+        first: tuple[float, Any] | None = None,
     ) -> tuple[StepSegment, StepInfo]:
         """The step's end, and the step and what it decided.
 
         The sweep at q1 (a deep pair projected out), the energy guard, the motor lag's
         torques. ``end``: the free velocity v_f, v1 and q1 [rad/s, rad], and the native step's
         energies (at the start, at the end, the end's kinetic one [J]; None: computed here).
+        ``first``: the first pass's sweep at q1, already made (its margin [m], the result).
+
+        The speeds and the applied torques' work are numpy's sums of products (not ``@``,
+        BLAS's order): ``ContactRhs.window_run`` sums them in the same order, to the bit.
         """
         sys, cfg, contacts, n = self.sys, self.cfg, self.contacts, self.n
         q, v = y[:n], y[n : 2 * n]
@@ -465,12 +480,15 @@ class MoreauJeanStepper:
         # and at its free velocity, predicted with this step's change v_f - v (an arm at
         # rest has v1 = 0 and the next step's reach h |a_free|)
         r = self.reach
-        speed = max(float(r @ np.abs(v1)), float(r @ np.abs(v1 + (v_f - v))))
+        speed = max(float((r * np.abs(v1)).sum()), float((r * np.abs(v1 + (v_f - v))).sum()))
         reach = ACTIVE_GAP + 2.0 * self.h * SWEEP_SLACK * speed
         self._next_sweep = None
         for npass in range(PROJECT_PASSES if world is not None else 0):
             assert world is not None
-            sw = world.sweep(q1, margin=reach if npass == 0 else PROJECT_DEPTH)
+            if npass == 0 and first is not None:
+                reach, sw = first
+            else:
+                sw = world.sweep(q1, margin=reach if npass == 0 else PROJECT_DEPTH)
             if npass == 0:
                 self._next_sweep = (q1.tobytes(), reach, sw)
             deep = sw.pairs[sw.distances < -PROJECT_DEPTH].tolist()
@@ -493,7 +511,7 @@ class MoreauJeanStepper:
         else:
             e0 = energy(q, v) if kept is None else kept
             e1, kin = energy(q1, v1), math.nan
-        work = h * float(applied @ (0.5 * (v + v1)))
+        work = h * float((applied * (0.5 * (v + v1))).sum())
         removed = 0.0
         excess = e1 - e0 - work
         if excess > 0.0:

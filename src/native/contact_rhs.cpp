@@ -24,6 +24,7 @@
 #include "lcp.hpp"
 #include "joints.hpp"
 #include "stretch.hpp"
+#include "sweep_api.hpp"
 
 #include <pinocchio/algorithm/aba.hpp>
 #include <pinocchio/algorithm/crba.hpp>
@@ -980,20 +981,85 @@ class ContactRhs {
         out_vf.shape(0) != static_cast<size_t>(nv) || out_v1.shape(0) != static_cast<size_t>(nv) ||
         out_q1.shape(0) != static_cast<size_t>(nv))
       throw std::invalid_argument("window_step: y (2 nv), reach, out_vf, out_v1, out_q1 (nv) expected");
-    if (applied_.size() != static_cast<size_t>(nv) || !conditions_set_ || lock_mode_ >= 0 ||
-        keys_.size() != static_cast<size_t>(np_))
-      throw std::invalid_argument("window_step: torques, layout, keys and conditions first");
     if (swept.shape(0) != dist.shape(0))
       throw std::invalid_argument("window_step: one distance per swept pair expected");
-    const int B = static_cast<int>(boxes.shape(0));
-    if (bound.shape(0) != static_cast<size_t>(B))
+    if (bound.shape(0) != boxes.shape(0))
       throw std::invalid_argument("window_step: one bound per box expected");
+    WindowArgs a;
+    a.reach = reach.data();
+    a.active_gap = active_gap;
+    if (upper.shape(0) == static_cast<size_t>(nv) && lower.shape(0) == static_cast<size_t>(nv)) {
+      a.upper = upper.data();
+      a.lower = lower.data();
+    }
+    a.limit_gap = limit_gap;
+    a.mu = mu;
+    a.restitution = restitution;
+    a.zeno = zeno;
+    a.touch_gap = touch_gap;
+    a.boxes = boxes.data();
+    a.B = static_cast<int>(boxes.shape(0));
+    a.tol = tol;
+    a.max_iterations = max_iterations;
+    a.ok = ok;
+    check_window();
+    std::vector<double> x;
+    const WindowOut w = window_core(y.data(), h, swept.data(), dist.data(), swept.shape(0),
+                                    sweep_margin, a, bound.data(), guess.data(), guess.shape(0),
+                                    rho0, out_vf.data(), out_v1.data(), out_q1.data(), x);
+    if (w.status == 0)
+      return nb::make_tuple(0, vec(x.data(), x.size()), w.residual, w.iterations, w.rho,
+                            nb::make_tuple(w.energies[0], w.energies[1], w.energies[2]));
+    if (w.status == 3)
+      return nb::make_tuple(3, vec(x.data(), x.size()), w.residual, w.iterations, w.rho,
+                            nb::none());
+    return nb::make_tuple(w.status, nb::none(), 0.0, 0, 0.0, nb::none());
+  }
+
+  // window_step's arguments that stay the same from step to step (see window_step).
+  struct WindowArgs {
+    const double *reach = nullptr;
+    double active_gap = 0.0;
+    const double *upper = nullptr, *lower = nullptr;  // (nullptr: no limits)
+    double limit_gap = 0.0, mu = 0.0, restitution = 0.0, zeno = 0.0, touch_gap = 0.0;
+    const int64_t *boxes = nullptr;
+    int B = 0;
+    double tol = 0.0;
+    int max_iterations = 0;
+    double ok = 0.0;
+  };
+
+  // What window_core did: its status (window_step's), the solver's residual, iterations and
+  // last rho, and (status 0) the energies [J].
+  struct WindowOut {
+    int status = 0;
+    double residual = 0.0;
+    int iterations = 0;
+    double rho = 0.0;
+    double energies[3] = {0.0, 0.0, 0.0};
+  };
+
+  void check_window() const {
+    if (applied_.size() != static_cast<size_t>(nv_) || !conditions_set_ || lock_mode_ >= 0 ||
+        keys_.size() != static_cast<size_t>(np_))
+      throw std::invalid_argument("window_step: torques, layout, keys and conditions first");
+  }
+
+  // window_step on raw arrays: v_f, v1, q1 into ovf, ov1, oq1 (nv each), the impulses into x.
+  WindowOut window_core(const double *y, double h, const int64_t *swept, const double *dist,
+                        size_t nsw, double sweep_margin, const WindowArgs &a, const double *bound,
+                        const double *guess, size_t nguess, double rho0, double *ovf, double *ov1,
+                        double *oq1, std::vector<double> &x) {
+    const int nv = nv_;
+    const int B = a.B;
     end_valid_ = false;
     jac_valid_ = false;
+    WindowOut out;
     auto none = [&](int status) {
-      return nb::make_tuple(status, nb::none(), 0.0, 0, 0.0, nb::none());
+      out.status = status;
+      return out;
     };
-    const double *yq = y.data(), *yv = y.data() + nv;
+    const double *yq = y, *yv = y + nv;
     // the free velocity at the explicit midpoint: v_f = v + h a_free(q + h/2 v, v + h/2 a0)
     Eigen::VectorXd qm(nv), vm(nv), tau(nv), vf(nv);
     for (int i = 0; i < nv; ++i) {
@@ -1010,22 +1076,21 @@ class ContactRhs {
     for (int i = 0; i < nv; ++i) tau[i] = applied_[i] + (-viscous_[i] * vm[i] - coulomb_dir_[i]);
     pin::aba(model_, data_, qm, vm, tau, pin::Convention::LOCAL);
     for (int i = 0; i < nv; ++i) vf[i] = v_[i] + h * data_.ddq[i];
-    double *ovf = out_vf.data();
     for (int i = 0; i < nv; ++i) ovf[i] = vf[i];
     // the set kept: the pairs within reach are the layout's, the limits within reach its limits
     double s0 = 0.0, s1 = 0.0;
     for (int i = 0; i < nv; ++i) {
-      s0 += reach.data()[i] * std::abs(v_[i]);
-      s1 += reach.data()[i] * std::abs(vf[i]);
+      s0 += a.reach[i] * std::abs(v_[i]);
+      s1 += a.reach[i] * std::abs(vf[i]);
     }
-    const double d_act = active_gap + 2.0 * h * std::max(s0, s1);
+    const double d_act = a.active_gap + 2.0 * h * std::max(s0, s1);
     if (sweep_margin < d_act) return none(1);
     std::vector<double> dpair(np_, std::numeric_limits<double>::quiet_NaN());
     int found = 0;
-    for (size_t i = 0; i < swept.shape(0); ++i) {
-      const double d = dist.data()[i];
+    for (size_t i = 0; i < nsw; ++i) {
+      const double d = dist[i];
       if (!(d <= d_act)) continue;
-      const int64_t key = swept.data()[i];
+      const int64_t key = swept[i];
       int p = -1;
       for (int k = 0; k < np_; ++k)
         if (keys_[k] == key) p = k;
@@ -1034,12 +1099,12 @@ class ContactRhs {
       ++found;
     }
     if (found != np_) return none(1);  // a pair leaves
-    if (upper.shape(0) == static_cast<size_t>(nv) && lower.shape(0) == static_cast<size_t>(nv)) {
+    if (a.upper != nullptr && a.lower != nullptr) {
       int near = 0;
       for (int j = 0; j < nv; ++j) {
-        const double lim = limit_gap + h * std::max(std::abs(v_[j]), std::abs(vf[j]));
+        const double lim = a.limit_gap + h * std::max(std::abs(v_[j]), std::abs(vf[j]));
         for (int side = 1; side >= -1; side -= 2) {
-          const bool close = side > 0 ? upper.data()[j] - q_[j] <= lim : q_[j] - lower.data()[j] <= lim;
+          const bool close = side > 0 ? a.upper[j] - q_[j] <= lim : q_[j] - a.lower[j] <= lim;
           if (!close) continue;
           bool held = false;
           for (int l = 0; l < ml_; ++l)
@@ -1066,17 +1131,17 @@ class ContactRhs {
       if (gap_[r] < gap_min_[p]) gap_min_[p] = gap_[r];
       const double *T = &F_[9 * p];
       const double *d = &dP_[3 * k];
-      const double a = T[0] * d[0] + T[1] * d[1] + T[2] * d[2] - offset0_[2 * r];
+      const double aa = T[0] * d[0] + T[1] * d[1] + T[2] * d[2] - offset0_[2 * r];
       const double b = T[3] * d[0] + T[4] * d[1] + T[5] * d[2] - offset0_[2 * r + 1];
-      const double s2 = a * a + b * b;
+      const double s2 = aa * aa + b * b;
       if (s2 > slide2_[p]) slide2_[p] = s2;
     }
     for (int p = 0; p < np_; ++p)
       if (!(std::abs(gap_min_[p] - dpair[p]) <= point_tol_) || slide2_[p] > slide_tol2_[p])
         return none(1);
-    if (restitution > 0.0)
+    if (a.restitution > 0.0)
       for (int r = 0; r < m_; ++r)
-        if (gap_[r] <= touch_gap && vn_[r] < -zeno) return none(2);
+        if (gap_[r] <= a.touch_gap && vn_[r] < -a.zeno) return none(2);
     // the problem (conic.step_problem)
     const int m = m_, rt = 3 * m + B;
     std::vector<double> J(static_cast<size_t>(rt) * nv, 0.0);
@@ -1085,16 +1150,16 @@ class ContactRhs {
       const int p = static_cast<int>(pair_[k]);
       const double *T = &F_[9 * p];
       const double *d = &dJp_[k * 3 * nv];
-      for (int a = 0; a < 2; ++a)
+      for (int c2 = 0; c2 < 2; ++c2)
         for (int c = 0; c < nv; ++c)
-          J[(3 * r + a) * nv + c] =
-              T[3 * a] * d[c] + T[3 * a + 1] * d[nv + c] + T[3 * a + 2] * d[2 * nv + c];
+          J[(3 * r + c2) * nv + c] =
+              T[3 * c2] * d[c] + T[3 * c2 + 1] * d[nv + c] + T[3 * c2 + 2] * d[2 * nv + c];
     }
     for (int r = 0; r < m; ++r)
       for (int c = 0; c < nv; ++c) J[(3 * r + 2) * nv + c] = Jn_[r * nv + c];
-    for (int i = 0; i < B; ++i) J[(3 * m + i) * nv + boxes.data()[i]] = 1.0;
+    for (int i = 0; i < B; ++i) J[(3 * m + i) * nv + a.boxes[i]] = 1.0;
     std::vector<double> mus(m, 0.0);
-    for (int r = 0; r < mp_; ++r) mus[r] = mu;
+    for (int r = 0; r < mp_; ++r) mus[r] = a.mu;
     std::vector<double> Mi(static_cast<size_t>(nv) * nv), C;
     for (int i = 0; i < nv; ++i)
       for (int c = 0; c < nv; ++c) Mi[i * nv + c] = minv_(i, c);
@@ -1114,13 +1179,15 @@ class ContactRhs {
       g[i] = sv;
     }
     for (int r = 0; r < m; ++r) g[3 * r + 2] += std::max(gap_[r], 0.0) / h;
-    std::vector<double> bd(bound.data(), bound.data() + B);
-    std::vector<double> x(rt, 0.0);
-    if (guess.shape(0) == static_cast<size_t>(rt)) std::copy(guess.data(), guess.data() + rt, x.begin());
-    const auto sol = packbot_native::conic::solve(A.data(), rt, nv, g.data(), mus, bd, x.data(), tol,
-                                                   max_iterations, rho0);
-    if (!(sol.residual <= ok))
-      return nb::make_tuple(3, vec(x.data(), rt), sol.residual, sol.iterations, sol.rho, nb::none());
+    std::vector<double> bd(bound, bound + B);
+    x.assign(rt, 0.0);
+    if (nguess == static_cast<size_t>(rt)) std::copy(guess, guess + rt, x.begin());
+    const auto sol = packbot_native::conic::solve(A.data(), rt, nv, g.data(), mus, bd, x.data(),
+                                                   a.tol, a.max_iterations, rho0);
+    out.residual = sol.residual;
+    out.iterations = sol.iterations;
+    out.rho = sol.rho;
+    if (!(sol.residual <= a.ok)) return none(3);
     // v1 = v_f + M^-1 (J^T x)
     std::vector<double> jx(nv, 0.0);
     for (int c = 0; c < nv; ++c) {
@@ -1128,20 +1195,262 @@ class ContactRhs {
       for (int i = 0; i < rt; ++i) s += J[i * nv + c] * x[i];
       jx[c] = s;
     }
-    double *ov1 = out_v1.data();
     for (int i = 0; i < nv; ++i) {
       double s = 0.0;
       for (int c = 0; c < nv; ++c) s += minv_(i, c) * jx[c];
       ov1[i] = vf[i] + s;
     }
     // q1 = q (+) h v1 (1-dof joints: q + h v1) and the energies of the guard (energies' sums)
-    double *oq1 = out_q1.data();
     Eigen::VectorXd q1(nv);
     for (int i = 0; i < nv; ++i) q1[i] = oq1[i] = q_[i] + h * ov1[i];
     const double kin0 = kinetic(q_, yv), pot0 = pin::computePotentialEnergy(model_, data_, q_);
     const double kin1 = kinetic(q1, ov1), pot1 = pin::computePotentialEnergy(model_, data_, q1);
-    return nb::make_tuple(0, vec(x.data(), rt), sol.residual, sol.iterations, sol.rho,
-                          nb::make_tuple(0.5 * kin0 + pot0, 0.5 * kin1 + pot1, 0.5 * kin1));
+    out.energies[0] = 0.5 * kin0 + pot0;
+    out.energies[1] = 0.5 * kin1 + pot1;
+    out.energies[2] = 0.5 * kin1;
+    return out;
+  }
+
+  // A time-stepping window's steps that keep their contact set, one after another
+  // (packbot.contact.timestep.MoreauJeanStepper.run_native): window_core's step from the
+  // state, then what MoreauJeanStepper.step and NormalLaw.advance do after it (the step's
+  // signature and the window's quiet count; the sweep at q1 through the compiled sweep's C
+  // entry point `api`, its margin active_gap + 2 h_window sweep_slack max(reach . |v1|,
+  // reach . |v1 + v_f - v|); the energy guard). Each step's size is min(h_window, step_angle /
+  // sum |v|, t_end - t).
+  //
+  // A step is kept (committed) when it ends before t_commit, keeps its contact set (status
+  // 0), has no pair deeper than project_depth at its end and does not end the window (t1 >=
+  // until with quiet_steps quiet steps); the run stops before a step that is not taken here
+  // (it ends at or after t_commit, or window_core hands it back: the caller takes it), or
+  // after one taken but not kept (pending: the caller finishes it from its sweep), or after
+  // max_steps. The sums and dot products are numpy's (np_sum), so the steps are the Python
+  // loop's to the bit.
+  //
+  // y (2 nv) is the state in and the state after the steps kept out; the dict has the steps
+  // kept (their end states and times, the energy each removed) and, pending, the step taken
+  // (window_step's results and its sweep). The signature's flags
+  // (push, slide per pair, lim per limit row, slip per box) of the last step, and the sweep
+  // at y (swept pairs, distances [m], margin [m], closest pair and distance), come in and go
+  // out in the dict.
+  nb::dict window_run(nb::capsule api, Out1 y, double t, double t_end, double t_commit,
+                      double h_window, double until, int quiet, int quiet_steps, bool last_valid,
+                      I1 last_sig, I1 swept, F1 dist, double sweep_margin, int64_t best,
+                      double best_d, F1 reach, double active_gap, F1 upper, F1 lower,
+                      double limit_gap, double mu, double restitution, double zeno,
+                      double touch_gap, I1 boxes, F1 coul, F1 guess, double rho0, double tol,
+                      int max_iterations, double ok, F1 applied, bool has_e, double e_last,
+                      double step_angle, double sweep_slack, double project_depth,
+                      double impulse_band, double min_d, int max_steps) {
+    void *ptr = PyCapsule_GetPointer(api.ptr(), PACKBOT_SWEEP_API);
+    if (ptr == nullptr) {
+      PyErr_Clear();
+      throw std::invalid_argument("api: a capsule of packbot._native_coal's Sweep.api() expected");
+    }
+    const SweepApi &sw = *static_cast<const SweepApi *>(ptr);
+    const int nv = nv_, n2 = 2 * nv_;
+    const int B = static_cast<int>(boxes.shape(0));
+    if (y.shape(0) != static_cast<size_t>(n2) || reach.shape(0) != static_cast<size_t>(nv) ||
+        applied.shape(0) != static_cast<size_t>(nv) || coul.shape(0) != static_cast<size_t>(B) ||
+        swept.shape(0) != dist.shape(0) || sw.nq != nv)
+      throw std::invalid_argument("window_run: y (2 nv), reach, applied (nv), coul (boxes) expected");
+    check_window();
+    const int ns = np_ + np_ + ml_ + B;  // the signature's flags
+    if (last_sig.shape(0) != static_cast<size_t>(ns))
+      throw std::invalid_argument("window_run: last_sig (2 pairs + limits + boxes) expected");
+    WindowArgs a;
+    a.reach = reach.data();
+    a.active_gap = active_gap;
+    if (upper.shape(0) == static_cast<size_t>(nv) && lower.shape(0) == static_cast<size_t>(nv)) {
+      a.upper = upper.data();
+      a.lower = lower.data();
+    }
+    a.limit_gap = limit_gap;
+    a.mu = mu;
+    a.restitution = restitution;
+    a.zeno = zeno;
+    a.touch_gap = touch_gap;
+    a.boxes = boxes.data();
+    a.B = B;
+    a.tol = tol;
+    a.max_iterations = max_iterations;
+    a.ok = ok;
+    double *Y = y.data();
+    std::vector<int64_t> spairs(swept.data(), swept.data() + swept.shape(0)), npairs(sw.n_pairs);
+    std::vector<double> sdist(dist.data(), dist.data() + dist.shape(0)), ndist(sw.n_pairs);
+    std::vector<int64_t> sig(last_sig.data(), last_sig.data() + ns), nsig(ns);
+    std::vector<double> x(guess.data(), guess.data() + guess.shape(0)), xn, bound(B), work(nv);
+    std::vector<double> vf(nv), v1(nv), q1(nv), y1(n2);
+    std::vector<double> removed, states, times;  // (the steps kept: energy removed, states, ends)
+    double rho = rho0, margin = sweep_margin, h_kept = 0.0;
+    int64_t min_pair = -1;
+    int steps = 0, status = 0;
+    WindowOut w;
+    double h = 0.0, t1 = t, reach_m = 0.0;
+    int64_t nbest = -1;
+    double nbest_d = std::numeric_limits<double>::infinity();
+    while (steps < max_steps) {
+      const double *v = Y + nv;
+      for (int i = 0; i < nv; ++i) work[i] = std::abs(v[i]);
+      h = std::min(std::min(h_window, step_angle / std::max(np_sum(work.data(), nv), 1e-300)),
+                   t_end - t);
+      t1 = t + h;
+      if (!(t1 < t_commit)) break;
+      for (int i = 0; i < B; ++i) bound[i] = h * coul.data()[i];
+      w = window_core(Y, h, spairs.data(), sdist.data(), spairs.size(), margin, a, bound.data(),
+                      x.data(), x.size(), rho, vf.data(), v1.data(), q1.data(), xn);
+      if (w.status != 0) break;
+      // the signature (conic.step_signature, then the slipping boxes)
+      const int mp = mp_, m3 = 3 * m_;
+      std::vector<double> xs(np_, 0.0), t1s(np_, 0.0), t2s(np_, 0.0);
+      for (int r = 0; r < mp; ++r) {
+        const int p = static_cast<int>(pair_[rows_[r]]);
+        t1s[p] += xn[3 * r];
+        t2s[p] += xn[3 * r + 1];
+        xs[p] += xn[3 * r + 2];
+      }
+      for (int p = 0; p < np_; ++p) {
+        const bool push = xs[p] > impulse_band;
+        const double ft = std::sqrt(t1s[p] * t1s[p] + t2s[p] * t2s[p]);
+        nsig[p] = push;
+        nsig[np_ + p] = push && mu > 0.0 && ft >= mu * xs[p] * (1 - 1e-6);
+      }
+      for (int i = 0; i < ml_; ++i) nsig[2 * np_ + i] = xn[3 * (mp + i) + 2] > impulse_band;
+      for (int i = 0; i < B; ++i)
+        nsig[2 * np_ + ml_ + i] = std::abs(xn[m3 + i]) >= h_window * coul.data()[i] * (1 - 1e-6);
+      const int nquiet = last_valid && nsig == sig ? quiet + 1 : 0;
+      // the sweep at q1 (MoreauJeanStepper._finish's first pass)
+      for (int i = 0; i < nv; ++i) work[i] = reach.data()[i] * std::abs(v1[i]);
+      const double sp1 = np_sum(work.data(), nv);
+      for (int i = 0; i < nv; ++i) work[i] = reach.data()[i] * std::abs(v1[i] + (vf[i] - v[i]));
+      const double sp2 = np_sum(work.data(), nv);
+      reach_m = active_gap + 2.0 * h_window * sweep_slack * std::max(sp1, sp2);
+      const int64_t nc = sw.sweep(sw.self, q1.data(), reach_m, npairs.data(), ndist.data(),
+                                  &nbest, &nbest_d);
+      bool deep = false;
+      for (int64_t i = 0; i < nc; ++i)
+        if (ndist[i] < -project_depth) deep = true;
+      if (deep || (t1 >= until && nquiet >= quiet_steps)) {
+        status = 1;  // pending: the caller finishes it
+        npairs.resize(nc);
+        ndist.resize(nc);
+        break;
+      }
+      // the energy guard
+      const double e0 = has_e ? e_last : w.energies[0];
+      const double e1 = w.energies[1], kin = w.energies[2];
+      for (int i = 0; i < nv; ++i) work[i] = applied.data()[i] * (0.5 * (v[i] + v1[i]));
+      const double excess = e1 - e0 - h * np_sum(work.data(), nv);
+      if (excess > 0.0) {
+        const double s = kin > 0.0 ? std::sqrt(std::max(0.0, kin - excess) / kin) : 0.0;
+        for (int i = 0; i < nv; ++i) v1[i] = s * v1[i];
+        removed.push_back(kin * (1.0 - s * s));
+        has_e = false;
+      } else {
+        has_e = true;
+        e_last = e1;
+      }
+      for (int i = 0; i < nv; ++i) {
+        y1[i] = q1[i];
+        y1[nv + i] = v1[i];
+      }
+      states.insert(states.end(), y1.begin(), y1.end());
+      times.push_back(t1);
+      // the law's closest distance: the step's start sweep (NormalLaw.advance, note_min)
+      if (best >= 0 && best_d < min_d) {
+        min_d = best_d;
+        min_pair = best;
+      }
+      std::copy(y1.begin(), y1.end(), Y);
+      t = t1;
+      quiet = nquiet;
+      sig = nsig;
+      last_valid = true;
+      x = xn;
+      rho = w.rho;
+      spairs.assign(npairs.begin(), npairs.begin() + nc);
+      sdist.assign(ndist.begin(), ndist.begin() + nc);
+      margin = reach_m;
+      best = nbest;
+      best_d = nbest_d;
+      h_kept = h;
+      ++steps;
+    }
+    nb::dict out;
+    out["steps"] = steps;
+    out["status"] = status;
+    out["t"] = t;
+    out["quiet"] = quiet;
+    out["sig"] = owned_vec(sig);
+    out["x"] = owned_vec(x);
+    out["rho"] = rho;
+    out["removed"] = owned_vec(removed);
+    out["h_kept"] = h_kept;
+    out["has_e"] = has_e;
+    out["e_last"] = e_last;
+    out["min_d"] = min_d;
+    out["min_pair"] = min_pair;
+    out["states"] = owned_mat(states, states.size() / n2, n2);
+    out["times"] = owned_vec(times);
+    out["swept"] = owned_vec(spairs);
+    out["dist"] = owned_vec(sdist);
+    out["margin"] = margin;
+    out["best"] = best;
+    out["best_d"] = best_d;
+    if (status == 1) {  // the pending step: MoreauJeanStepper.step's native result, its sweep
+      out["h"] = h;
+      out["vf"] = owned_vec(vf);
+      out["v1"] = owned_vec(v1);
+      out["q1"] = owned_vec(q1);
+      out["p_x"] = owned_vec(xn);
+      out["p_residual"] = w.residual;
+      out["p_rho"] = w.rho;
+      out["p_energies"] = nb::make_tuple(w.energies[0], w.energies[1], w.energies[2]);
+      out["p_swept"] = owned_vec(npairs);
+      out["p_dist"] = owned_vec(ndist);
+      out["p_margin"] = reach_m;
+      out["p_best"] = nbest;
+      out["p_best_d"] = nbest_d;
+    }
+    return out;
+  }
+
+  // numpy's sum of n contiguous doubles (its pairwise sum: in order below 8, 8 accumulators
+  // from 8 to 128, halves above), to the bit.
+  static double np_sum(const double *a, int n) {
+    if (n < 8) {
+      double s = 0.0;
+      for (int i = 0; i < n; ++i) s += a[i];
+      return s;
+    }
+    if (n <= 128) {
+      double r[8];
+      for (int j = 0; j < 8; ++j) r[j] = a[j];
+      int i = 8;
+      for (; i < n - (n % 8); i += 8)
+        for (int j = 0; j < 8; ++j) r[j] += a[i + j];
+      double res = ((r[0] + r[1]) + (r[2] + r[3])) + ((r[4] + r[5]) + (r[6] + r[7]));
+      for (; i < n; ++i) res += a[i];
+      return res;
+    }
+    int n2 = n / 2;
+    n2 -= n2 % 8;
+    return np_sum(a, n2) + np_sum(a + n2, n - n2);
+  }
+
+  template <class T> static nb::ndarray<nb::numpy, T, nb::ndim<1>> owned_vec(const std::vector<T> &v) {
+    T *buf = new T[v.empty() ? 1 : v.size()];
+    std::copy(v.begin(), v.end(), buf);
+    nb::capsule owner(buf, [](void *p) noexcept { delete[] static_cast<T *>(p); });
+    return nb::ndarray<nb::numpy, T, nb::ndim<1>>(buf, {v.size()}, owner);
+  }
+
+  static nb::ndarray<nb::numpy, double, nb::ndim<2>> owned_mat(const std::vector<double> &v,
+                                                                size_t rows, size_t cols) {
+    double *buf = new double[rows * cols > 0 ? rows * cols : 1];
+    std::copy(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(rows * cols), buf);
+    nb::capsule owner(buf, [](void *p) noexcept { delete[] static_cast<double *>(p); });
+    return nb::ndarray<nb::numpy, double, nb::ndim<2>>(buf, {rows, cols}, owner);
   }
 
   // A restart's drift projection, one round (packbot.contact.normal_steps.RestartSteps.project,
@@ -2029,6 +2338,17 @@ NB_MODULE(_native, m) {
            nb::arg("mu"), nb::arg("restitution"), nb::arg("zeno"), nb::arg("touch_gap"),
            nb::arg("res_tol"), nb::arg("conic_tol"), nb::arg("max_iterations"),
            nb::arg("accept"), nb::arg("out_v"))
+      .def("window_run", &ContactRhs::window_run, nb::arg("api"), nb::arg("y"), nb::arg("t"),
+           nb::arg("t_end"), nb::arg("t_commit"), nb::arg("h_window"), nb::arg("until"),
+           nb::arg("quiet"), nb::arg("quiet_steps"), nb::arg("last_valid"), nb::arg("last_sig"),
+           nb::arg("swept"), nb::arg("dist"), nb::arg("sweep_margin"), nb::arg("best"),
+           nb::arg("best_d"), nb::arg("reach"), nb::arg("active_gap"), nb::arg("upper"),
+           nb::arg("lower"), nb::arg("limit_gap"), nb::arg("mu"), nb::arg("restitution"),
+           nb::arg("zeno"), nb::arg("touch_gap"), nb::arg("boxes"), nb::arg("coul"),
+           nb::arg("guess"), nb::arg("rho0"), nb::arg("tol"), nb::arg("max_iterations"),
+           nb::arg("ok"), nb::arg("applied"), nb::arg("has_e"), nb::arg("e_last"),
+           nb::arg("step_angle"), nb::arg("sweep_slack"), nb::arg("project_depth"),
+           nb::arg("impulse_band"), nb::arg("min_d"), nb::arg("max_steps"))
       .def("last", &ContactRhs::last);
   nb::class_<StretchT>(m, "Stretch")
       .def("__init__", &stretch_init, nb::arg("rhs"), nb::arg("api"), nb::arg("margin"),

@@ -1,0 +1,89 @@
+"""A window's steps that keep their contact set, in one native call (``window_run``).
+
+``ContactRhs.window_run`` takes the window steps of ``MoreauJeanStepper._native_step`` one
+after another, with the signature, the sweep at each step's end (through the compiled sweep's
+C entry point), the energy guard and the quiet count of the Python loop, their sums in numpy's
+order. The runs are compared here with the step-by-step loop (``window_run.ENABLED`` off): the
+same samples, events and diagnostics, to the bit.
+"""
+
+import numpy as np
+import pytest
+
+import packbot
+from packbot.contact import native, window_run
+from packbot.contact.timestep import StepSegment
+
+pytestmark = pytest.mark.skipif(not native.available(), reason="packbot._native not built")
+
+
+def _run(robot, k: int, mu: float, on: bool, duration: float = 3.0, **cfg_kw):
+    from test_normal_cascade import start_pose
+
+    taken = {"calls": 0, "steps": 0, "pending": 0}
+    real = window_run.run_native
+
+    def counted(*a, **kw):
+        out = real(*a, **kw)
+        if out is not None:
+            taken["calls"] += 1
+            taken["steps"] += out.steps
+            taken["pending"] += out.pending is not None
+        return out
+
+    mp = pytest.MonkeyPatch()
+    mp.setattr(window_run, "ENABLED", on)
+    from packbot.contact import normal_law
+
+    mp.setattr(normal_law, "run_native", counted)
+    cfg = packbot.SimConfig(contact_mode="normal", mu=mu, **{"restitution": 0.0, **cfg_kw})
+    try:
+        res = packbot.simulate(
+            robot, start_pose(robot, k), np.zeros(robot.model.nv), duration, config=cfg
+        )
+    finally:
+        mp.undo()
+    return res, taken
+
+
+@pytest.mark.parametrize(
+    ("k", "mu", "kw"),
+    [
+        (21, 0.0, {}),
+        (16, 0.5, {}),
+        (16, 1.2, {}),
+        (16, 0.5, {"joint_friction": True}),  # (the joints' boxes: slipping flags)
+        (16, 0.5, {"restitution": 0.5}),  # (bouncing rows handed back)
+    ],
+    ids=["start21-mu0", "start16-mu0.5", "start16-mu1.2", "joint-friction", "restitution"],
+)
+def test_the_native_run_is_the_step_by_step_loop(robot, k, mu, kw):
+    on, taken = _run(robot, k, mu, True, **kw)
+    off, _ = _run(robot, k, mu, False, **kw)
+    d_on, d_off = on.diagnostics, off.diagnostics
+    assert d_on.window_steps == d_off.window_steps > 0
+    assert taken["steps"] >= 0.3 * d_on.window_steps, taken  # most steps in the native runs
+    np.testing.assert_array_equal(on.t, off.t)
+    np.testing.assert_array_equal(on.q, off.q)
+    np.testing.assert_array_equal(on.v, off.v)
+    assert [(e.t, e.kind, e.energy_after) for e in on.events] == [
+        (e.t, e.kind, e.energy_after) for e in off.events
+    ]
+    assert d_on.window_energy_removed == d_off.window_energy_removed
+    assert d_on.min_distance == d_off.min_distance
+    assert d_on.min_distance_pair == d_off.min_distance_pair
+    assert d_on.sweeps == d_off.sweeps
+
+
+def test_a_step_chain_samples_as_its_steps(rng):
+    """StepChain reads a time from the step that would have recorded a sample at it."""
+    ts = [0.0, 5e-4, 1e-3, 1.5e-3, 1.5e-3 + 1e-13, 2e-3]
+    ys = [rng.normal(size=4) for _ in ts]
+    chain = window_run.StepChain(ts, ys)
+    steps = [StepSegment(ts[i], ts[i + 1], ys[i], ys[i + 1]) for i in range(len(ts) - 1)]
+    for t in [0.0, 2e-4, 5e-4, 5e-4 + 5e-13, 7e-4, 1.5e-3, 1.5e-3 + 5e-14, 1.9e-3, 2e-3]:
+        # the first step whose end + 1e-12 reaches t, at t clamped to it
+        seg = next(s for s in steps if t <= s.t1 + 1e-12)
+        np.testing.assert_array_equal(chain(t), seg(min(max(t, seg.t0), seg.t1)))
+    assert chain.t0 == 0.0 and chain.t1 == 2e-3
+    np.testing.assert_array_equal(chain.y1, ys[-1])
