@@ -13,7 +13,8 @@ Timers (``time.perf_counter``) are put around the loop's parts of one run object
 steps, the law's end-of-step checks and its collision sweeps, the samples, the event handling,
 the ticks and the controller's ``step``; for the contact-normal mode also its stretches of steps in
 one native call, the events' location and restarts, the re-patches after a step, and the
-windows' steps, split by whether the step changed its contact set: a patch rebuilt, a pair or a
+windows' steps: the native runs of steps that keep their contact set, and the steps taken one
+by one, split by whether the step changed its contact set: a patch rebuilt, a pair or a
 limit in or out); each part's time
 includes the parts it calls, so the shares of the nested rows (the sweep inside the checks, the
 controller inside the ticks) are not added to their parent's. Each row also gives its calls and
@@ -36,6 +37,7 @@ from robustness import start_poses  # (benchmarks/: the script's folder, first o
 import packbot
 from packbot import integrator
 from packbot.collision import CollisionWorld
+from packbot.contact import normal_law
 from packbot.contact.normal_contacts import NormalContacts
 from packbot.contact.timestep import MoreauJeanStepper
 from packbot.scenario import load_scenario
@@ -55,6 +57,7 @@ PARTS = (
     ("after-step work (re-patches, windows' ends)", "law", "after_step"),
     ("  the contact set's re-patches", "NormalContacts", "repatch"),
     ("windows' steps", "law", "advance"),
+    ("  native runs of kept steps", "normal_law", "run_native"),
     ("  keeping their contact set", "MoreauJeanStepper", "step"),
     ("  changing it (a patch rebuilt, a pair in or out)", "MoreauJeanStepper", "step"),
     ("stepper restarts", "stepper", "reset"),
@@ -65,8 +68,9 @@ PARTS = (
 )
 
 
-#: The rows timed at their class (every phase's object), not at the run's attributes.
-CLASSES = {
+#: The rows timed at their class (every phase's object) or module, not at the run's attributes.
+CLASSES: dict[str, Any] = {
+    "normal_law": normal_law,
     "CollisionWorld": CollisionWorld,
     "NormalContacts": NormalContacts,
     "MoreauJeanStepper": MoreauJeanStepper,
