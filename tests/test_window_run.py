@@ -62,10 +62,16 @@ def test_the_native_run_is_the_step_by_step_loop(robot, k, mu, kw):
     off, _ = _run(robot, k, mu, False, **kw)
     d_on, d_off = on.diagnostics, off.diagnostics
     assert d_on.window_steps == d_off.window_steps > 0
-    assert taken["steps"] >= 0.3 * d_on.window_steps, taken  # most steps in the native runs
-    np.testing.assert_array_equal(on.t, off.t)
-    np.testing.assert_array_equal(on.q, off.q)
-    np.testing.assert_array_equal(on.v, off.v)
+    if kw.get("joint_friction"):
+        # joint boxes: no run (each step's box torques are its samples' friction torques)
+        assert taken["steps"] == 0, taken
+    else:
+        assert taken["steps"] >= 0.3 * d_on.window_steps, taken  # most steps in the runs
+        assert taken["pending"] > 0, taken  # (steps taken and finished by the stepper)
+    arrays = [name for name, x in vars(on).items() if isinstance(x, np.ndarray)]
+    assert {"t", "q", "v", "tau", "tau_friction", "energy"} <= set(arrays), arrays
+    for name in arrays:  # every sampled column
+        np.testing.assert_array_equal(getattr(on, name), getattr(off, name), err_msg=name)
     assert [(e.t, e.kind, e.energy_after) for e in on.events] == [
         (e.t, e.kind, e.energy_after) for e in off.events
     ]

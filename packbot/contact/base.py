@@ -183,7 +183,10 @@ class ContactLaw(Protocol):
         ...
 
     def advance(self, t: float, y: FloatArray, t_end: float) -> DenseSegment | None:
-        """A step the law takes itself (a time-stepping window), or None: the loop's stepper.
+        """Steps the law takes itself (a time-stepping window), or None: the loop's stepper.
+
+        One step, or several as one segment (a run of window steps); the loop treats the
+        segment as one step.
 
         Args:
             t: Time [s].

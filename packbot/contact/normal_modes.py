@@ -433,6 +433,11 @@ def _norm(x: FloatArray) -> float:
     return math.sqrt(float(x.dot(x)))
 
 
+#: The compiled Lemke's pivot limit and pivot tolerance (the same in ``src/native/lcp.hpp``).
+LEMKE_PIVOTS = 200
+LEMKE_TOL = 1e-12
+
+
 def _lemke(M: FloatArray, q: FloatArray) -> FloatArray | None:
     """:func:`packbot.contact.lcp.lemke` on the compiled kernel, at any size (bit for bit).
 
@@ -448,7 +453,10 @@ def _lemke(M: FloatArray, q: FloatArray) -> FloatArray | None:
     from packbot.contact import kernels  # lazy: numba is imported by contact runs only
 
     z, ok = kernels.lemke_small(
-        np.ascontiguousarray(M, dtype=np.float64), np.asarray(q, dtype=np.float64), 200, 1e-12
+        np.ascontiguousarray(M, dtype=np.float64),
+        np.asarray(q, dtype=np.float64),
+        LEMKE_PIVOTS,
+        LEMKE_TOL,
     )
     return z if ok else None
 
@@ -476,7 +484,10 @@ def _psd_lcp(G: FloatArray, g: FloatArray) -> FloatArray:
     from packbot.contact import kernels  # lazy: numba is imported by contact runs only
 
     z, res, ok = kernels.lemke_checked(
-        np.ascontiguousarray(G, dtype=np.float64), np.asarray(g, dtype=np.float64), 200, 1e-12
+        np.ascontiguousarray(G, dtype=np.float64),
+        np.asarray(g, dtype=np.float64),
+        LEMKE_PIVOTS,
+        LEMKE_TOL,
     )
     if ok and res <= RESIDUAL_TOL:
         return z

@@ -369,8 +369,8 @@ class RestartSteps(ConstrainedDynamics):
         otherwise add energy: measured 2.5e-5 J at an impact of the camera head on link 1's
         tube (the collapse from a random start, mu = 0.5, wrist locked).
         """
-        native = self.native if NATIVE_RESTART else None
-        if native is not None:
+        native = self.native if NATIVE_RESTART and (IMPACT_CONIC or self.mu == 0.0) else None
+        if native is not None:  # (its frictional impact is the compiled conic solver's)
             status, v1, bounced = native.impact(
                 self, q, v, minv, mu=self.mu, restitution=self.e, zeno=self.zeno_speed,
                 touch_gap=TOUCH_GAP, res_tol=RESIDUAL_TOL, conic_tol=IMPACT_CONIC_TOL,

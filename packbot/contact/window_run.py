@@ -136,10 +136,11 @@ def run_native(
     """The window's steps from (t, y) that keep their contact set, in one native call.
 
     Only where ``MoreauJeanStepper._native_step`` would take the next step natively (fixed
-    torques, no Coulomb direction outside the boxes, the last step's end sweep at y) and the
-    world has its compiled sweep. Afterwards the stepper is past the steps kept (its warm
-    start, end sweep and end energy are theirs) and the world's pieces are owed at the last
-    sweep's q.
+    torques, no Coulomb direction outside the boxes, the last step's end sweep at y), without
+    joint boxes (Coulomb friction or brakes: the samples' friction torques are each step's box
+    impulses, read when the loop records them), and where the world has its compiled sweep.
+    Afterwards the stepper is past the steps kept (its warm start, end sweep and end energy are
+    theirs) and the world's pieces are owed at the last sweep's q.
 
     Args:
         stepper: The window's stepper.
@@ -173,12 +174,14 @@ def run_native(
     ):
         return None
     torques = stepper.drive.step_torques(t, y)
-    if torques is None or torques[2].any():
+    coul = stepper.drive.path.coulomb
+    cj = np.flatnonzero(coul > 0.0)
+    if torques is None or torques[2].any() or len(cj):
+        # (joint boxes: each step's box torques are its samples' friction torques, which a
+        # segment of several steps recorded at once would not keep)
         return None
     rhs.hold_torque(*torques)
     rhs.load_layout(contacts)
-    coul = stepper.drive.path.coulomb
-    cj = np.flatnonzero(coul > 0.0)
     lay = stepper._layout()
     rows = (lay.key, len(cj))
     guess = stepper._last_x if rows == stepper._last_rows else None
@@ -201,7 +204,7 @@ def run_native(
     )  # fmt: skip
     steps, pending = int(out["steps"]), int(out["status"]) == 1
     if steps or pending:  # (the world's pieces are owed at the last native sweep's q)
-        world.dispatch.pending = True
+        world.dispatch.owe()
     signature = None
     if steps:
         x = out["x"]

@@ -1295,7 +1295,8 @@ class ContactRhs {
       h = std::min(std::min(h_window, step_angle / std::max(np_sum(work.data(), nv), 1e-300)),
                    t_end - t);
       t1 = t + h;
-      if (!(t1 < t_commit)) break;
+      // (the loop's own tests at the step's end: no scheduled action due, the run not over)
+      if (!(t1 < t_commit) || !(t1 + 1e-12 < t_end)) break;
       for (int i = 0; i < B; ++i) bound[i] = h * coul.data()[i];
       w = window_core(Y, h, spairs.data(), sdist.data(), spairs.size(), margin, a, bound.data(),
                       x.data(), x.size(), rho, vf.data(), v1.data(), q1.data(), xn);
@@ -1468,6 +1469,8 @@ class ContactRhs {
     if (m_ == 0) return 0;
     double low = gap_[0];
     for (int r = 1; r < m_; ++r) low = std::min(low, gap_[r]);
+    for (int r = 0; r < m_; ++r)
+      if (std::isnan(gap_[r])) return 2;  // (numpy's min is NaN: the caller's round decides)
     if (!(low < 0.0)) return 0;
     if (low < -pen_tol) return 1;
     touching(touch_gap);
@@ -1475,7 +1478,8 @@ class ContactRhs {
     delassus(minv.data(), nt);
     for (int a = 0; a < nt; ++a) rt_[a] = gap_[touch_[a]];
     zt_.resize(nt);
-    if (!packbot_native::lcp::lemke(Gt_.data(), rt_.data(), nt, 200, 1e-12, zt_.data(), lcp_) ||
+    if (!packbot_native::lcp::lemke(Gt_.data(), rt_.data(), nt, packbot_native::lcp::MAX_PIVOTS,
+                                    packbot_native::lcp::PIVOT_TOL, zt_.data(), lcp_) ||
         !(packbot_native::lcp::residual(Gt_.data(), rt_.data(), nt, zt_.data()) <= res_tol))
       return 2;
     double *oq = out_q.data();
@@ -1507,6 +1511,8 @@ class ContactRhs {
     const int nt = static_cast<int>(touch_.size());
     double vmin = std::numeric_limits<double>::infinity();
     for (int a = 0; a < nt; ++a) vmin = std::min(vmin, vn_[touch_[a]]);
+    for (int r = 0; r < m_; ++r)
+      if (std::isnan(gap_[r]) || std::isnan(vn_[r])) return nb::make_tuple(2, false);
     if (nt == 0 || vmin >= 0.0) return nb::make_tuple(0, false);
     const double e = vmin < -zeno ? restitution : 0.0;
     const double *Mi = minv.data();
@@ -1567,7 +1573,8 @@ class ContactRhs {
     rt_.resize(nt);
     for (const double ek : {e, 0.0}) {  // (e = 0: the first is taken)
       for (int a = 0; a < nt; ++a) rt_[a] = vt[a] + ek * std::min(vt[a], 0.0);
-      if (!packbot_native::lcp::lemke(Gt_.data(), rt_.data(), nt, 200, 1e-12, zt_.data(), lcp_) ||
+      if (!packbot_native::lcp::lemke(Gt_.data(), rt_.data(), nt, packbot_native::lcp::MAX_PIVOTS,
+                                    packbot_native::lcp::PIVOT_TOL, zt_.data(), lcp_) ||
           !(packbot_native::lcp::residual(Gt_.data(), rt_.data(), nt, zt_.data()) <= res_tol))
         return nb::make_tuple(2, false);
       impulse_dv(Jt.data(), nt, Mi, zt_.data());

@@ -14,6 +14,10 @@
 namespace packbot_native {
 namespace lcp {
 
+// The pivot limit and tolerance of packbot's small LCPs (normal_modes.LEMKE_PIVOTS, LEMKE_TOL).
+constexpr int MAX_PIVOTS = 200;
+constexpr double PIVOT_TOL = 1e-12;
+
 // Lemke's pivots on LCP(M, q) (n x n) into z (n). False on ray termination or the pivot limit
 // (z then zeros). T, z2, basis, Tr and ratios: work arrays (resized here).
 struct Work {
