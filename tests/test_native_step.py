@@ -381,9 +381,10 @@ def test_a_rows_native_root_is_the_python_root(robot, monkeypatch, mu, locked, d
     """A contact row's crossing inside a native step is located in one native call
     (NativeRhs.row_root: Brent's iterates on the row's condition at the step's dense output):
     the time packbot.ode.locate_root finds on the same function in Python, to rounding (the
-    interpolant is summed in another order): most the same float, 98 % within 1e-9 s, all
-    within 1e-6 s (a condition falling to 0 twice inside its step, where locate_root may
-    return either root)."""
+    interpolant is summed in another order): most within 1e-12 s (measured: 0 to 1e-14 s; how
+    many are the same float depends on the machine's numpy), 98 % within 1e-9 s, all within
+    1e-6 s (a condition falling to 0 twice inside its step, where locate_root may return either
+    root)."""
     from packbot import integrator, ode
 
     diffs: list[float] = []
@@ -403,7 +404,7 @@ def test_a_rows_native_root_is_the_python_root(robot, monkeypatch, mu, locked, d
     packbot.simulate(robot, q0, np.zeros(8), duration, config=cfg)
     d = np.array(diffs)
     assert len(d) >= 5, len(d)  # (the collapse: 7; the wrist-free start: 100 and more)
-    assert (d == 0.0).mean() > 0.8, np.sort(d)[-5:]
+    assert (d <= 1e-12).mean() > 0.8, np.sort(d)[-5:]
     assert np.quantile(d, 0.98) <= 1e-9 and d.max() <= 1e-6, np.sort(d)[-5:]
 
 

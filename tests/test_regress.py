@@ -146,3 +146,55 @@ def test_momentum_reset_stops_the_joints_exactly() -> None:
         for e in (0.0, 0.5):
             out = impact_reset(v, rel, e, "momentum", minv)
             assert np.array_equal(out[rel], -e * v[rel])
+
+
+def _rtol_runner(run, progress):
+    """A toy run whose final pose a change of config.rtol moves (chaotic for x = 1 only)."""
+    import io
+
+    x = float(run.scenario["x"])
+    dr = float(run.scenario.get("config", {}).get("rtol", 1e-8)) / 1e-8 - 1.0
+    qa = x + (dr * 1e6 if x == 1.0 else 0.0)  # +-1e-3 rad per 1e-9 for x = 1
+    t, q = trajectory()
+    q[t >= 0.5, 0] += qa - q[-1, 0]
+    rec = record(q=(qa, q[-1, 1]))
+    buf = io.BytesIO()
+    np.savez(buf, t=t, q=q)
+    skip = ("id", "index", "params", "digest", "status", "error", "seconds", "files")
+    quantities = {k: v for k, v in rec.quantities().items() if k not in skip}
+    return quantities, {"trajectory": (f"{run.id}.npz", buf.getvalue())}
+
+
+def test_a_chaotic_run_is_sampled_by_more_copies(tmp_path) -> None:
+    """A run its three copies find chaotic is made again with CHAOTIC_PERTURBATIONS, and its
+    band spans them all; a quiet run is not; the pose's band is widened by chaotic_q."""
+    from packbot.matrix import Matrix, expand
+    from packbot.regress import CHAOTIC_PERTURBATIONS, PERTURBATIONS, read_golden, run_regression
+
+    made: list[str] = []
+
+    def runner(run, progress):
+        made.append(run.id)
+        return _rtol_runner(run, progress)
+
+    m = Matrix(name="toy", base="toy", axes={"x": [1.0, 2.0]})
+    m.validate()
+    runs = expand(m, {"x": 0.0, "config": {"rtol": 1e-8}})
+    run_regression(m, tmp_path, update=True, runs=runs, workers=0, runner=runner)
+    chaotic, quiet = runs
+    assert sum(r.startswith(chaotic.id) for r in made) == 1 + len(PERTURBATIONS) + len(
+        CHAOTIC_PERTURBATIONS
+    )
+    assert sum(r.startswith(quiet.id) for r in made) == 1 + len(PERTURBATIONS)
+    golden = read_golden(tmp_path / "toy")[1]
+    band = golden[chaotic.id]["sensitivity"]["band"]["q.a"]
+    assert band == pytest.approx([1.0 - 6e-3, 1.0 + 6e-3], abs=1e-9)  # the extra copies' +-6e-9
+    assert golden[quiet.id]["sensitivity"].get("horizon") is None
+    # Compared: the band widened by its width and chaotic_q (0.05 rad).
+    rec = {chaotic.id: record(q=(1.0 + 6e-3 + 0.012 + 0.049, 1.0)), quiet.id: record(q=(2.0, 1.0))}
+    rec = {k: RunRecord(**{**v.__dict__, "id": k}) for k, v in rec.items()}
+    drifts = compare(golden, rec, Tolerances())
+    assert "q.a (band)" not in {d.quantity for d in drifts if d.run == chaotic.id}
+    rec[chaotic.id] = RunRecord(**{**rec[chaotic.id].__dict__, "final_q": (1.0 + 0.07, 1.0)})
+    drifts = compare(golden, rec, Tolerances())
+    assert "q.a (band)" in {d.quantity for d in drifts if d.run == chaotic.id}
