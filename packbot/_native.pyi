@@ -215,6 +215,38 @@ class ContactRhs:
         accept: float,
         out_v: NDArray[np.float64],
     ) -> tuple[int, bool]: ...
+    def stop_slow(
+        self,
+        q: NDArray[np.float64],
+        v: NDArray[np.float64],
+        minv: NDArray[np.float64],
+        touch_gap: float,
+        speed_band: float,
+        stick_speed: float,
+        capture_speed: float,
+        residual_tol: float,
+        dependent_row: float,
+        out_v: NDArray[np.float64],
+    ) -> int: ...
+    def select_modes(
+        self,
+        q: NDArray[np.float64],
+        v: NDArray[np.float64],
+        a_free: NDArray[np.float64],
+        minv: NDArray[np.float64],
+        keep: bool,
+        held: NDArray[np.int64],
+        stick_io: NDArray[np.uint8],
+        slip_io: NDArray[np.float64],
+        mu: float,
+        touch_gap: float,
+        speed_band: float,
+        stick_speed: float,
+        force_band: float,
+        stick_band: float,
+        baumgarte: float,
+        residual_tol: float,
+    ) -> tuple[int, bool, Any, Any, int, bool]: ...
     def last(self) -> tuple[NDArray[np.float64], ...]: ...
     def set_reach(self, reach: NDArray[np.float64], margin: float, max_step: float) -> None: ...
     def step_bound(self, y: NDArray[np.float64]) -> float: ...

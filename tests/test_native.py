@@ -14,7 +14,7 @@ import pinocchio as pin
 import pytest
 
 import packbot
-from packbot.contact import native, normal_steps
+from packbot.contact import native, normal_modes, normal_steps
 from packbot.contact.normal import NormalLaw
 from packbot.errors import ModelError
 from packbot.system import System
@@ -132,6 +132,8 @@ def test_a_collapse_is_the_same_with_and_without_the_native_rhs(robot, monkeypat
     monkeypatch.setattr(native, "STEP_ENABLED", False)  # (the native step: test_native_step)
     # (the native restart steps' frictional impacts differ by rounding: test_native_restart)
     monkeypatch.setattr(normal_steps, "NATIVE_RESTART", False)
+    # (and the native mode selection's: test_native_modes)
+    monkeypatch.setattr(normal_modes, "NATIVE_MODES", False)
     runs = []
     for enabled in (False, True):
         monkeypatch.setattr(native, "ENABLED", enabled)

@@ -1,10 +1,11 @@
-"""The restart's projection rounds and impact in one native call each.
+"""The restart's projection rounds, impact and stop of the slow slides in one native call each.
 
-``ContactRhs.project_round`` and ``ContactRhs.impact`` take the rows, the Delassus matrix,
-Lemke's pivots (``src/native/lcp.hpp``, a port of ``kernels.lemke_small``) and the frictional
-impact's conic solver with the arithmetic of :meth:`RestartSteps.project`'s round and
-:meth:`RestartSteps.impulse`, and hand back to them where they would clip a gap, fall back
-from Lemke or take a frictional answer the compiled solver does not give. Compared here call
+``ContactRhs.project_round``, ``ContactRhs.impact`` and ``ContactRhs.stop_slow`` take the rows,
+the Delassus matrix, Lemke's pivots (``src/native/lcp.hpp``, a port of ``kernels.lemke_small``)
+and the frictional impact's conic solver with the arithmetic of :meth:`RestartSteps.project`'s
+round, :meth:`RestartSteps.impulse` and :meth:`RestartSteps.stop_slow`, and hand back to them
+where they would clip a gap, fall back from Lemke or take a frictional answer the compiled
+solver does not give. Compared here call
 by call, from the same state, on the restarts of the collapse and of wrist-free random starts.
 """
 
@@ -23,10 +24,25 @@ WRIST = ("camera_tilt", "camera_pan", "gripper_roll", "gripper_jaw")
 
 def _compared(robot, q0, mu: float, duration: float, **cfg_kw) -> tuple[dict, object]:
     """Every projection round and impact of a run, native and Python from the same state."""
-    seen: dict = {"rounds": [], "impacts": [], "round_status": [], "impact_status": []}
+    seen: dict = {
+        "rounds": [], "impacts": [], "stops": [],
+        "round_status": [], "impact_status": [], "stop_status": [],
+    }  # fmt: skip
     Steps = normal_steps.RestartSteps
-    real_round, real_impulse = Steps._project_round, Steps.impulse
+    real_round, real_impulse, real_stop = Steps._project_round, Steps.impulse, Steps.stop_slow
     real_nround, real_nimpact = native.NativeRhs.project_round, native.NativeRhs.impact
+    real_nstop = native.NativeRhs.stop_slow
+
+    def nstop(self, *a, **kw):
+        out = real_nstop(self, *a, **kw)
+        seen["stop_status"].append(out[0])
+        return out
+
+    def stop(self, q, v, minv):
+        out = real_stop(self, q, v, minv)
+        ref = python(self, real_stop, q, v, minv)
+        seen["stops"].append(np.abs(out - ref).max() / max(1e-6, np.abs(ref - v).max()))
+        return out
 
     def nround(self, *a, **kw):
         out = real_nround(self, *a, **kw)
@@ -77,6 +93,8 @@ def _compared(robot, q0, mu: float, duration: float, **cfg_kw) -> tuple[dict, ob
     mp.setattr(Steps, "impulse", impulse)
     mp.setattr(native.NativeRhs, "project_round", nround)
     mp.setattr(native.NativeRhs, "impact", nimpact)
+    mp.setattr(Steps, "stop_slow", stop)
+    mp.setattr(native.NativeRhs, "stop_slow", nstop)
     cfg = packbot.SimConfig(contact_mode="normal", mu=mu, **{"restitution": 0.0, **cfg_kw})
     try:
         res = packbot.simulate(robot, q0, np.zeros(robot.model.nv), duration, config=cfg)
@@ -129,6 +147,10 @@ def test_the_native_restart_steps_are_the_python_ones(robot, start, mu, kw):
     # impact; no energy gained
     # (the frictional impact's conic solver stops at a residual of IMPACT_CONIC_TOL: its rows'
     # velocities are within that of the problem's scale)
+    if mu > 0.0:  # the stop of the slow slides: every call native, the same change
+        stops = seen["stops"]
+        assert len(stops) >= 10 and seen["stop_status"].count(2) <= 0.2 * len(stops)
+        assert max(stops) <= 1e-9, max(stops)
     if kw.get("restitution", 0.0) == 0.0:
         assert min(i["vn_after"] for i in impacts) >= (-1e-12 if mu == 0.0 else -1e-7)
     assert max(i["energy"] for i in impacts) <= 1e-9

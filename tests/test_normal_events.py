@@ -198,6 +198,8 @@ def test_the_mode_lcps_of_a_collapse_give_the_least_squares_accelerations(robot,
         return z
 
     monkeypatch.setattr(normal_modes, "_psd_lcp", checked)
+    # (the Python selection's LCPs: the native one takes the same decisions, test_native_modes)
+    monkeypatch.setattr(normal_modes, "NATIVE_MODES", False)
     cfg = packbot.SimConfig(contact_mode="normal", mu=0.0, restitution=0.0)
     packbot.simulate(robot, robot.pose("drive"), np.zeros(8), 1.0, config=cfg)
     assert seen["calls"] > 20

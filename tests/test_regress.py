@@ -127,6 +127,9 @@ def test_a_chaotic_run_is_compared_before_its_horizon_and_on_its_band() -> None:
     # Outside the band (widened by its width): a drift.
     wild = record(q=(0.7, 0.95), kinds=("impact", "release"))
     assert [d.quantity for d in compare(golden, {"r": wild})] == ["q.a (band)"]
+    # The copies' branching event moved just before the horizon: not a drift.
+    moved = record(q=(0.1, 0.95), kinds=("impact", "stick"), times=(0.1, 0.49))
+    assert compare(golden, {"r": moved}) == []
     # Before the horizon everything is strict: an event moved at 0.1 s, the trajectory at 0.25 s.
     early = record(times=(0.1 + 1e-3, 0.5))
     assert [d.quantity for d in compare(golden, {"r": early})] == ["event[0].t (impact)"]

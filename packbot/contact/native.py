@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import logging
 from collections.abc import Callable
+from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -31,8 +32,11 @@ from packbot.contact.normal_tolerances import (
     BAUMGARTE,
     FORCE_BAND,
     POINT_TOL,
+    RESIDUAL_TOL,
+    SPEED_BAND,
     STICK_BAND,
     STICK_SPEED,
+    TOUCH_GAP,
 )
 from packbot.errors import ModelError, PackbotError
 from packbot.native_joints import SUPPORTED_JOINTS
@@ -48,6 +52,7 @@ __all__ = [
     "STEP_ENABLED",
     "STIFF_ENABLED",
     "SUPPORTED_JOINTS",
+    "NativeModes",
     "NativeRhs",
     "available",
     "native_rhs",
@@ -96,6 +101,30 @@ def available() -> bool:
 
 def _ints(x: Any) -> NDArray[np.int64]:
     return np.ascontiguousarray(x, dtype=np.int64)
+
+
+@dataclass(frozen=True)
+class NativeModes:
+    """The modes :meth:`NativeRhs.select_modes` selected.
+
+    Attributes:
+        kept: keep_modes kept the engaged rows given.
+        engaged: The engaged rows.
+        stick: Each pair's stick flag (the contact set's order).
+        slip_dir: Each pair's slip direction (pairs, 3), world.
+        events: The mode changes, (kind, pair): kind 0 stick, 1 slip, 2 painleve; pair -1 none.
+        painleve: The Painleve fallbacks taken.
+        gave_up: Friction given up for this restart (the problem unsolved with every pair
+            sticking).
+    """
+
+    kept: bool
+    engaged: list[int]
+    stick: NDArray[np.bool_]
+    slip_dir: FloatArray
+    events: list[list[int]]
+    painleve: int
+    gave_up: bool
 
 
 def _reals(x: Any) -> FloatArray:
@@ -345,6 +374,75 @@ class NativeRhs:
         out = np.empty(len(v))
         status, bounced = self._rhs.impact(_reals(q), _reals(v), _reals(minv), out_v=out, **kw)
         return int(status), out, bool(bounced)
+
+    def stop_slow(
+        self, contacts: ContactRows, q: FloatArray, v: FloatArray, minv: FloatArray, **kw: Any
+    ) -> tuple[int, FloatArray]:
+        """The restart's stop of the slow slides, in one native call.
+
+        See :meth:`packbot.contact.normal_steps.RestartSteps.stop_slow`, whose arithmetic it
+        follows, and the extension's ``ContactRhs.stop_slow`` (``src/native/stop_slow.hpp``)
+        for the arguments in ``kw``. The contact set's layout is loaded first.
+
+        Returns:
+            (status, v1): 0 the velocity kept; 1 the velocity after the stop v1 [rad/s]; 2 the
+            caller's own step (its least squares).
+        """
+        self.load_layout(contacts)
+        out = np.empty(len(v))
+        status = self._rhs.stop_slow(_reals(q), _reals(v), _reals(minv), out_v=out, **kw)
+        return int(status), out
+
+    def select_modes(
+        self,
+        contacts: ContactRows,
+        q: FloatArray,
+        v: FloatArray,
+        a_free: FloatArray,
+        minv: FloatArray,
+        keep: bool,
+        held: list[int],
+    ) -> NativeModes | None:
+        """A restart's or a re-patch's mode selection, in one native call.
+
+        :meth:`ModeSelection.select_modes <packbot.contact.normal_modes.ModeSelection.
+        select_modes>` (after :meth:`~packbot.contact.normal_modes.ModeSelection.keep_modes`
+        of the engaged rows ``held`` when not empty), whose arithmetic it follows (the
+        extension's ``ContactRhs.select_modes``, ``src/native/modes.hpp``), on the contact
+        set's rows at (q, v); the pairs' modes are read from ``contacts`` and returned, not
+        written there. The contact set's layout is loaded first; the loaded plan is changed.
+
+        Args:
+            contacts: The contact set (its layout, pairs, stick flags and slip directions).
+            q: Configuration [rad].
+            v: Velocity [rad/s].
+            a_free: Unconstrained accelerations [rad/s^2].
+            minv: M^-1 at q.
+            keep: select_modes' ``keep`` (a re-patch inside a mode).
+            held: The engaged rows to keep if they still solve the mode problem (empty: none).
+
+        Returns:
+            The modes selected, or None where the Python selection takes a branch the native
+            one does not (least squares, a singular Delassus matrix, a slide of zero speed).
+        """
+        self.load_layout(contacts)
+        pairs = contacts._pair_list
+        stick = np.array([p.stick for p in pairs], dtype=np.uint8)
+        slip = np.zeros((len(pairs), 3))
+        for i, p in enumerate(pairs):
+            slip[i] = p.slip_dir
+        status, kept, engaged, events, painleve, gave_up = self._rhs.select_modes(
+            _reals(q), _reals(v), _reals(a_free), _reals(minv), keep,
+            np.asarray(held, dtype=np.int64), stick, slip, contacts.mu, TOUCH_GAP, SPEED_BAND,
+            STICK_SPEED, FORCE_BAND, STICK_BAND, BAUMGARTE, RESIDUAL_TOL,
+        )  # fmt: skip
+        self._plan_id = None  # (the selection loaded its own plans)
+        if status != 0:
+            return None
+        return NativeModes(
+            bool(kept), engaged.tolist(), stick.astype(bool), slip, events.tolist(),
+            int(painleve), bool(gave_up),
+        )  # fmt: skip
 
     def set_torque(self, applied: FloatArray, viscous: FloatArray, coulomb_dir: FloatArray) -> None:
         """The torques of the steps to come [N*m]: ``applied + (-viscous * v - coulomb_dir)``."""

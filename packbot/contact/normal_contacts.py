@@ -76,7 +76,5 @@ class NormalContacts(RestartSteps, ModeSelection):
         signature, engaged = self.row_signature(), list(self.engaged)
         self.refresh(q)
         q = self.project(q, v, minv)
-        a_free = a_free_fn(q, v)
-        if not self.keep_modes(q, v, a_free, minv, signature, engaged):
-            self.select_modes(q, v, a_free, minv, keep=True)
+        self.repatch_modes(q, v, a_free_fn(q, v), minv, signature, engaged)
         return q

@@ -35,11 +35,20 @@ from packbot.contact.normal_tolerances import (
     TOUCH_GAP,
 )
 
-__all__ = ["ModeEvent", "ModeSelection"]
+__all__ = ["NATIVE_MODES", "ModeEvent", "ModeSelection"]
 
 log = logging.getLogger(__name__)
 
 FloatArray = NDArray[np.float64]
+
+NATIVE_MODES = True
+"""Whether the mode selection (:meth:`ModeSelection.select_modes`, with
+:meth:`ModeSelection.keep_modes` first at a re-patch) runs in one native call when the law has
+its compiled right-hand side and the contact set its own rows (``ContactRhs.select_modes``,
+``src/native/modes.hpp``: the same steps, handing back where the Python takes its least squares
+or its numpy evaluation); False: the Python selection (kept for comparisons)."""
+
+_KINDS = ("stick", "slip", "painleve")  # (the native selection's event kinds, by code)
 
 
 @dataclass
@@ -73,6 +82,9 @@ class ModeSelection(ConstrainedDynamics):
         With ``keep`` (a re-patch inside a mode), sticking pairs stay sticking and sliding
         pairs only update their direction.
         """
+        native = self._native_modes(q, v, a_free, minv, keep, [])
+        if native is not None:
+            return native
         events: list[ModeEvent] = []
         Jn, drift, gap, vn, extra = self._problem(q, v)
         touch = [int(r) for r in np.flatnonzero((gap <= TOUCH_GAP) & (vn <= SPEED_BAND))]
@@ -141,6 +153,76 @@ class ModeSelection(ConstrainedDynamics):
                 p.slip_dir = s
                 events.append(ModeEvent("slip", p.info))
         return True
+
+    def repatch_modes(
+        self,
+        q: FloatArray,
+        v: FloatArray,
+        a_free: FloatArray,
+        minv: FloatArray,
+        signature: tuple[Any, ...],
+        engaged: list[int],
+    ) -> None:
+        """The modes after a re-patch: :meth:`keep_modes`, else ``select_modes(keep=True)``.
+
+        In one native call where :meth:`select_modes` would be native (:data:`NATIVE_MODES`).
+        Arguments: see :meth:`keep_modes`.
+        """
+        if engaged and self._keeps_own_rows(signature):
+            if self._native_modes(q, v, a_free, minv, True, engaged) is not None:
+                return
+            if self.keep_modes(q, v, a_free, minv, signature, engaged):
+                return
+        self.select_modes(q, v, a_free, minv, keep=True)
+
+    def _keeps_own_rows(self, signature: tuple[Any, ...]) -> bool:
+        """Whether :meth:`keep_modes` may keep the engaged rows of before a re-patch."""
+        return (
+            type(self)._problem is _OWN_PROBLEM
+            and type(self).evaluate is _OWN_EVALUATE
+            and type(self).violated is _OWN_VIOLATED
+            and signature == self.row_signature()
+        )
+
+    def _native_modes(
+        self,
+        q: FloatArray,
+        v: FloatArray,
+        a_free: FloatArray,
+        minv: FloatArray,
+        keep: bool,
+        held: list[int],
+    ) -> list[ModeEvent] | None:
+        """:meth:`select_modes` (after :meth:`keep_modes` of ``held``) in one native call.
+
+        None where it does not run (no compiled right-hand side, :data:`NATIVE_MODES` off, a
+        subclass's own rows, a resting contact set) or hands back; else the modes are set
+        and the mode changes returned.
+        """
+        native = self.native
+        if (
+            native is None
+            or not NATIVE_MODES
+            or self.resting
+            or type(self)._problem is not _OWN_PROBLEM
+            or type(self).evaluate is not _OWN_EVALUATE
+        ):
+            return None
+        out = native.select_modes(self, q, v, a_free, minv, keep, held)
+        if out is None:
+            return None
+        pairs = self._pair_list
+        for p, st, sd in zip(pairs, out.stick.tolist(), out.slip_dir, strict=True):
+            p.stick = st
+            if not np.array_equal(sd, p.slip_dir):
+                p.slip_dir = sd.copy()
+        self.engaged = out.engaged
+        self.n_painleve += out.painleve
+        if out.gave_up:
+            log.warning("contact problem unsolved even with sticking contacts")
+        return [
+            ModeEvent(_KINDS[kind], pairs[i].info if i >= 0 else None) for kind, i in out.events
+        ]
 
     def keep_modes(
         self,

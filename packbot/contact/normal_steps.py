@@ -15,7 +15,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from packbot.contact.lcp import lcp_residual, solve_ncp_admm
-from packbot.contact.normal_dynamics import ConstrainedDynamics
+from packbot.contact.normal_dynamics import _OWN_PROBLEM, ConstrainedDynamics
 from packbot.contact.normal_modes import ModeEvent, _psd_lcp
 from packbot.contact.normal_tolerances import (
     CAPTURE_ACCEL,
@@ -60,11 +60,12 @@ IMPACT_CONIC_TOL = 1e-10
 """The compiled solver's target residual for a frictional impact [-] (Pinocchio's ADMM's)."""
 
 NATIVE_RESTART = True
-"""Whether the restart's projection rounds and impact run in one native call each when the law
-has its compiled right-hand side (``ContactRhs.project_round``, ``ContactRhs.impact``: the
-same arithmetic as :meth:`RestartSteps.project` and :meth:`RestartSteps.impulse`, handing back
-to them where they would clip gaps, fall back from Lemke or take a frictional answer the
-compiled solver does not give); False: the Python steps (kept for comparisons)."""
+"""Whether the restart's projection rounds, impact and stop of the slow slides run in one
+native call each when the law has its compiled right-hand side (``ContactRhs.project_round``,
+``ContactRhs.impact``, ``ContactRhs.stop_slow``: the same arithmetic as
+:meth:`RestartSteps.project`, :meth:`RestartSteps.impulse` and :meth:`RestartSteps.stop_slow`,
+handing back to them where they would clip gaps, fall back from Lemke or take a frictional
+answer the compiled solver does not give); False: the Python steps (kept for comparisons)."""
 
 DEPENDENT_ROW = 1e-12
 """A touching row of :meth:`RestartSteps.stop_slow` whose Schur complement (its diagonal in
@@ -148,6 +149,17 @@ class RestartSteps(ConstrainedDynamics):
         """
         if self.mu == 0.0 or not self.pairs:
             return v
+        native = self.native if NATIVE_RESTART else None
+        if native is not None and type(self)._problem is _OWN_PROBLEM:
+            status, v1 = native.stop_slow(
+                self, q, v, minv, touch_gap=TOUCH_GAP, speed_band=SPEED_BAND,
+                stick_speed=STICK_SPEED, capture_speed=CAPTURE_SPEED,
+                residual_tol=RESIDUAL_TOL, dependent_row=DEPENDENT_ROW,
+            )  # fmt: skip
+            if status == 0:
+                return v
+            if status == 1:
+                return v1
         Jn, _, gap, vn, extra = self._problem(q, v)
         resting = (gap <= TOUCH_GAP) & (vn <= SPEED_BAND)
         owner = np.full(len(gap), -1, dtype=np.intp)  # each row's pair (position), -1 a limit

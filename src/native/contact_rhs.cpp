@@ -23,6 +23,8 @@
 #include "conic.hpp"
 #include "lcp.hpp"
 #include "joints.hpp"
+#include "modes.hpp"
+#include "stop_slow.hpp"
 #include "stretch.hpp"
 #include "sweep_api.hpp"
 
@@ -61,6 +63,7 @@ using F3 = nb::ndarray<const double, nb::ndim<3>, nb::c_contig, nb::device::cpu>
 using I1 = nb::ndarray<const int64_t, nb::ndim<1>, nb::c_contig, nb::device::cpu>;
 using Out1 = nb::ndarray<double, nb::ndim<1>, nb::c_contig, nb::device::cpu>;
 using Out2 = nb::ndarray<double, nb::ndim<2>, nb::c_contig, nb::device::cpu>;
+using U1Out = nb::ndarray<uint8_t, nb::ndim<1>, nb::c_contig, nb::device::cpu>;
 
 namespace {
 
@@ -285,6 +288,13 @@ class ContactRhs {
     vt_.assign(np_ * 3, 0.0);
     slip_dir_.assign(np_ * 3, 0.0);
     set_plan_sizes(0, 0);
+    pfirst_.assign(np_, 0);  // each pair's patch rows: [pfirst_, pfirst_ + pK_)
+    pK_.assign(np_, 0);
+    for (int r = mp_ - 1; r >= 0; --r) {
+      const int p = static_cast<int>(pair_[rows_[r]]);
+      pfirst_[p] = r;
+      ++pK_[p];
+    }
   }
 
   // The current modes (see packbot.contact.normal._Plan) and the law's constants.
@@ -1446,6 +1456,14 @@ class ContactRhs {
     return nb::ndarray<nb::numpy, T, nb::ndim<1>>(buf, {v.size()}, owner);
   }
 
+  static nb::ndarray<nb::numpy, int64_t, nb::ndim<2>> owned_mat_i(const std::vector<int64_t> &v,
+                                                                   size_t rows, size_t cols) {
+    auto *buf = new int64_t[rows * cols > 0 ? rows * cols : 1];
+    std::copy(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(rows * cols), buf);
+    nb::capsule owner(buf, [](void *p) noexcept { delete[] static_cast<int64_t *>(p); });
+    return nb::ndarray<nb::numpy, int64_t, nb::ndim<2>>(buf, {rows, cols}, owner);
+  }
+
   static nb::ndarray<nb::numpy, double, nb::ndim<2>> owned_mat(const std::vector<double> &v,
                                                                 size_t rows, size_t cols) {
     double *buf = new double[rows * cols > 0 ? rows * cols : 1];
@@ -1584,6 +1602,154 @@ class ContactRhs {
       }
     }
     return nb::make_tuple(2, false);  // (not reached: the inelastic candidate is always taken)
+  }
+
+  // A restart's or a re-patch's mode selection (packbot.contact.normal_modes.ModeSelection:
+  // select_modes(keep), after keep_modes(held) when `held`, the engaged rows before a re-patch,
+  // is not empty; modes.hpp) on the rows at (q, v) with the loaded layout, a_free [rad/s^2] and
+  // minv (nv x nv, symmetric) given, and the law's constants. The pairs' modes are read from
+  // stick_io (one flag per pair) and slip_io ((pairs, 3), world) and, status 0, written back.
+  // Returns (status, kept, engaged rows, events, painleve, gave_up): status 0 done, 1 the
+  // caller's own selection (nothing written); kept: keep_modes kept `held`; events (k, 2):
+  // kind (0 stick, 1 slip, 2 painleve) and pair (-1: none); painleve: the Painleve fallbacks
+  // taken; gave_up: friction given up for this restart. The loaded plan is left changed.
+  nb::tuple select_modes(F1 q, F1 v, F1 a_free, F2 minv, bool keep, I1 held, U1Out stick_io,
+                         Out2 slip_io, double mu, double touch_gap, double speed_band,
+                         double stick_speed, double force_band, double stick_band,
+                         double baumgarte, double residual_tol) {
+    const size_t nv = static_cast<size_t>(nv_);
+    if (q.shape(0) != nv || v.shape(0) != nv || a_free.shape(0) != nv || minv.shape(0) != nv ||
+        minv.shape(1) != nv)
+      throw std::invalid_argument("select_modes: q, v, a_free (nv) and minv (nv, nv) expected");
+    if (!conditions_set_) throw std::invalid_argument("select_modes: layout first");
+    if (stick_io.shape(0) != static_cast<size_t>(np_) ||
+        slip_io.shape(0) != static_cast<size_t>(np_) || slip_io.shape(1) != 3)
+      throw std::invalid_argument("select_modes: stick (pairs) and slip_dir (pairs, 3) expected");
+    for (size_t e = 0; e < held.shape(0); ++e)
+      if (held.data()[e] < 0 || held.data()[e] >= m_)
+        throw std::invalid_argument("select_modes: held row out of range");
+    rows_at(q.data(), v.data());
+    namespace md = packbot_native::modes;
+    const packbot_native::Rows R = rows_view();
+    md::Consts c;
+    c.mu = mu;
+    c.touch_gap = touch_gap;
+    c.speed_band = speed_band;
+    c.stick_speed = stick_speed;
+    c.force_band = force_band;
+    c.stick_band = stick_band;
+    c.baumgarte = baumgarte;
+    c.residual_tol = residual_tol;
+    const double *af = a_free.data(), *Mi = minv.data();
+    const md::Evaluate evaluate = [&](const std::vector<int> &eng, const std::vector<char> &st,
+                                      const std::vector<double> &sd, double *a, double *cond,
+                                      std::vector<double> &lam) {
+      return evaluate_modes(eng, st, sd, af, Mi, mu, stick_speed, baumgarte, a, cond, lam);
+    };
+    md::Selection &S = sel_;
+    S.stick.assign(stick_io.data(), stick_io.data() + np_);
+    S.slip_dir.assign(slip_io.data(), slip_io.data() + 3 * np_);
+    bool kept = false;
+    md::Status status = md::DONE;
+    if (held.shape(0) > 0) {
+      std::vector<int> h(held.data(), held.data() + held.shape(0));
+      status = S.keep(R, c, af, Mi, h, evaluate, kept);
+    }
+    if (status == md::DONE && !kept) status = S.select(R, c, af, Mi, keep, evaluate);
+    end_valid_ = false;
+    jac_valid_ = false;
+    if (status != md::DONE) return nb::make_tuple(1, false, nb::none(), nb::none(), 0, false);
+    for (int p = 0; p < np_; ++p) stick_io.data()[p] = S.stick[p] ? 1 : 0;
+    std::copy(S.slip_dir.begin(), S.slip_dir.end(), slip_io.data());
+    std::vector<int64_t> eng(S.engaged.begin(), S.engaged.end());
+    std::vector<int64_t> ev(S.events.begin(), S.events.end());
+    return nb::make_tuple(0, kept, owned_vec(eng), owned_mat_i(ev, ev.size() / 2, 2), S.painleve,
+                          S.gave_up);
+  }
+
+  // A restart's stop of the slow slides (packbot.contact.normal_steps.RestartSteps.stop_slow;
+  // stop_slow.hpp) on the rows at (q, v) with the loaded layout, minv (nv x nv, symmetric)
+  // given, with friction. Returns 0: the velocity kept; 1: out_v = v + dv [rad/s]; 2: the
+  // caller's own step (Lemke does not solve its LCP: the least squares).
+  int stop_slow(F1 q, F1 v, F2 minv, double touch_gap, double speed_band, double stick_speed,
+                double capture_speed, double residual_tol, double dependent_row, Out1 out_v) {
+    check_restart("stop_slow", q, v, minv, out_v);
+    rows_at(q.data(), v.data());
+    namespace ss = packbot_native::stop_slow;
+    ss::Consts c;
+    c.touch_gap = touch_gap;
+    c.speed_band = speed_band;
+    c.stick_speed = stick_speed;
+    c.capture_speed = capture_speed;
+    c.residual_tol = residual_tol;
+    c.dependent_row = dependent_row;
+    for (int r = 0; r < m_; ++r)
+      if (std::isnan(gap_[r]) || std::isnan(vn_[r])) return 2;
+    return static_cast<int>(stopper_.run(rows_view(), c, v.data(), minv.data(), out_v.data()));
+  }
+
+  // The rows computed (rows_at) as the restart's native steps read them.
+  packbot_native::Rows rows_view() const {
+    packbot_native::Rows R;
+    R.nv = nv_;
+    R.m = m_;
+    R.mp = mp_;
+    R.np = np_;
+    R.Jn = Jn_.data();
+    R.drift = drift_.data();
+    R.gap = gap_.data();
+    R.vn = vn_.data();
+    R.JT = JT_.data();
+    R.bT = bT_.data();
+    R.vT = vT_.data();
+    R.vt = vt_.data();
+    R.F = F_.data();
+    R.dJp = dJp_.data();
+    R.rows = rows_.data();
+    R.first = pfirst_.data();
+    R.K = pK_.data();
+    return R;
+  }
+
+  // The constrained accelerations at the rows computed (rows_at) with the modes (the engaged
+  // rows, the pairs' stick flags and slip directions: the plan of ContactRows._plan), a_free
+  // and Mi given: a (nv), the smallest mode condition and the forces (kernels.constrained_accel,
+  // as ConstrainedDynamics.evaluate); false when the Delassus matrix is singular. The plan is
+  // loaded (set_plan's).
+  bool evaluate_modes(const std::vector<int> &eng, const std::vector<char> &stick,
+                      const std::vector<double> &slip_dir, const double *a_free, const double *Mi,
+                      double mu, double stick_speed, double baumgarte, double *a, double *cond,
+                      std::vector<double> &lam) {
+    const int nv = nv_;
+    engaged_.assign(eng.begin(), eng.end());
+    row_slip_.assign(eng.size(), -1);
+    sticks_.clear();
+    if (mu > 0.0) {
+      for (int p = 0; p < np_; ++p) {
+        bool mine = false;
+        for (size_t e = 0; e < eng.size(); ++e) {
+          if (eng[e] >= pfirst_[p] && eng[e] < pfirst_[p] + pK_[p]) {
+            mine = true;
+            if (!stick[p]) row_slip_[e] = p;
+          }
+        }
+        if (mine && stick[p]) sticks_.push_back(p);
+      }
+    }
+    mu_ = mu;
+    stick_speed_ = stick_speed;
+    baumgarte_ = baumgarte;
+    set_plan_sizes(static_cast<int>(engaged_.size()), static_cast<int>(sticks_.size()));
+    std::copy(slip_dir.begin(), slip_dir.end(), slip_dir_.begin());
+    for (int i = 0; i < nv; ++i) {
+      a_free_[i] = a_free[i];
+      for (int c = 0; c < nv; ++c) minv_(i, c) = Mi[i * nv + c];
+    }
+    if (!solve_plan()) return false;
+    for (int i = 0; i < nv; ++i) a[i] = a_[i];
+    *cond = end_conditions();
+    lam.assign(lam_.begin(), lam_.begin() + n_);
+    return true;
   }
 
   // v^T M(q) v [kg m^2/s^2] (CRBA, armature included; the sums of energies).
@@ -1751,7 +1917,13 @@ class ContactRhs {
       for (int c = 0; c < i; ++c) minv_(i, c) = minv_(c, i);
     if (nb_ > 0) pin::computeJointJacobiansTimeVariation(model_, data_, q_, v_);
     rows();
-    // ---- constrained_accel
+    return solve_plan();
+  }
+
+  // kernels.constrained_accel on the rows computed, with minv_, a_free_ and the plan loaded:
+  // a_ and the forces lam_; false when the Delassus matrix is singular.
+  bool solve_plan() {
+    const int nv = nv_;
     const double B = baumgarte_;
     for (int e = 0; e < ne_; ++e) {
       const int r = static_cast<int>(engaged_[e]);
@@ -2165,6 +2337,10 @@ class ContactRhs {
   // (the restart steps: project_round, impact)
   std::vector<int> touch_;
   std::vector<double> JM_, Gt_, MJt_, rt_, zt_, jx_, dv_;
+  // (the mode selection: select_modes) each pair's first patch row and its number of rows
+  std::vector<int> pfirst_, pK_;
+  packbot_native::modes::Selection sel_;
+  packbot_native::stop_slow::StopSlow stopper_;
   packbot_native::lcp::Work lcp_;
   // layout
   std::vector<int64_t> joints_, body_, pair_, rows_, centre_, normal_body_, lim_joint_;
@@ -2356,6 +2532,15 @@ NB_MODULE(_native, m) {
            nb::arg("ok"), nb::arg("applied"), nb::arg("has_e"), nb::arg("e_last"),
            nb::arg("step_angle"), nb::arg("sweep_slack"), nb::arg("project_depth"),
            nb::arg("impulse_band"), nb::arg("min_d"), nb::arg("max_steps"))
+      .def("select_modes", &ContactRhs::select_modes, nb::arg("q"), nb::arg("v"),
+           nb::arg("a_free"), nb::arg("minv"), nb::arg("keep"), nb::arg("held"),
+           nb::arg("stick_io"), nb::arg("slip_io"), nb::arg("mu"), nb::arg("touch_gap"),
+           nb::arg("speed_band"), nb::arg("stick_speed"), nb::arg("force_band"),
+           nb::arg("stick_band"), nb::arg("baumgarte"), nb::arg("residual_tol"))
+      .def("stop_slow", &ContactRhs::stop_slow, nb::arg("q"), nb::arg("v"), nb::arg("minv"),
+           nb::arg("touch_gap"), nb::arg("speed_band"), nb::arg("stick_speed"),
+           nb::arg("capture_speed"), nb::arg("residual_tol"), nb::arg("dependent_row"),
+           nb::arg("out_v"))
       .def("last", &ContactRhs::last);
   nb::class_<StretchT>(m, "Stretch")
       .def("__init__", &stretch_init, nb::arg("rhs"), nb::arg("api"), nb::arg("margin"),

@@ -1,0 +1,84 @@
+// The contact set's rows at one state, as the restart's native steps read them (a view into
+// ContactRhs's arrays, see ContactRhs::rows_at), and the small dense algebra they share.
+// Row-major arrays throughout.
+
+#pragma once
+
+#include <Eigen/SVD>
+
+#include <cmath>
+#include <cstdint>
+#include <vector>
+
+namespace packbot_native {
+
+// The rows of packbot.contact.normal_rows.ContactRows._problem at one state.
+struct Rows {
+  int nv = 0, m = 0, mp = 0, np = 0;  // velocities, rows, patch rows (then limits), pairs
+  const double *Jn = nullptr;         // (m, nv)
+  const double *drift = nullptr, *gap = nullptr, *vn = nullptr;  // (m)
+  const double *JT = nullptr;         // (np, 2, nv) tangential rows at the patch centres
+  const double *bT = nullptr, *vT = nullptr;  // (np, 2) their drift [m/s^2], velocities [m/s]
+  const double *vt = nullptr;         // (np, 3) world tangential velocity at the centre [m/s]
+  const double *F = nullptr;          // (np, 3, 3) rows t1, t2, n of each pair's frame, world
+  const double *dJp = nullptr;        // (h, 3, nv) J_p2 - J_p1 of every point
+  const int64_t *rows = nullptr;      // (mp) the point of each patch row
+  const int *first = nullptr;         // (np) each pair's first row
+  const int *K = nullptr;             // (np) each pair's number of rows
+
+  // The pair of a row (-1: a limit row).
+  int pair_of(int r) const {
+    for (int p = 0; p < np; ++p)
+      if (r >= first[p] && r < first[p] + K[p]) return p;
+    return -1;
+  }
+};
+
+namespace dense {
+
+inline double dot(const double *a, const double *b, int n) {
+  double s = 0.0;
+  for (int i = 0; i < n; ++i) s += a[i] * b[i];
+  return s;
+}
+
+inline double norm3(const double *x) {  // (normal_modes._norm: sqrt(x . x))
+  return std::sqrt(x[0] * x[0] + x[1] * x[1] + x[2] * x[2]);
+}
+
+// out (r x c) = A (r x k) B (k x c).
+inline void matmul(const double *A, const double *B, int r, int k, int c, double *out) {
+  for (int i = 0; i < r; ++i)
+    for (int j = 0; j < c; ++j) {
+      double s = 0.0;
+      for (int t = 0; t < k; ++t) s += A[i * k + t] * B[t * c + j];
+      out[i * c + j] = s;
+    }
+}
+
+// out (r x c) = A (r x k) B^T, B (c x k).
+inline void matmul_t(const double *A, const double *B, int r, int k, int c, double *out) {
+  for (int i = 0; i < r; ++i)
+    for (int j = 0; j < c; ++j) out[i * c + j] = dot(A + i * k, B + j * k, k);
+}
+
+// numpy.linalg.pinv(G, rcond) of an n x n matrix into out: the SVD, the singular values
+// below rcond times the largest cut (the same to rounding).
+inline void pinv(const double *G, int n, double rcond, std::vector<double> &out) {
+  out.assign(static_cast<size_t>(n) * n, 0.0);
+  if (n == 0) return;
+  Eigen::MatrixXd M(n, n);
+  for (int a = 0; a < n; ++a)
+    for (int b = 0; b < n; ++b) M(a, b) = G[a * n + b];
+  Eigen::JacobiSVD<Eigen::MatrixXd> svd(M, Eigen::ComputeThinU | Eigen::ComputeThinV);
+  const Eigen::VectorXd &sv = svd.singularValues();
+  const double cutoff = rcond * sv.maxCoeff();
+  Eigen::VectorXd inv(n);
+  for (int i = 0; i < n; ++i) inv[i] = sv[i] > cutoff ? 1.0 / sv[i] : 0.0;
+  const Eigen::MatrixXd P = svd.matrixV() * inv.asDiagonal() * svd.matrixU().transpose();
+  for (int a = 0; a < n; ++a)
+    for (int b = 0; b < n; ++b) out[a * n + b] = P(a, b);
+}
+
+}  // namespace dense
+}  // namespace packbot_native
