@@ -37,6 +37,13 @@ class ContactRhs:
         lim_side: NDArray[np.float64],
         lim_value: NDArray[np.float64],
     ) -> None: ...
+    def set_patches(
+        self,
+        local: NDArray[np.float64],
+        frame2: NDArray[np.float64],
+        offset0: NDArray[np.float64],
+        slide_tol2: NDArray[np.float64],
+    ) -> None: ...
     def set_plan(
         self,
         engaged: NDArray[np.int64],

@@ -155,3 +155,32 @@ def test_bad_plans_are_refused(robot):
         rhs._rhs.set_plan(np.array([0], dtype=np.int64), np.array([-1]), z, 0.5, 1e-3, 20.0)
     with pytest.raises(ValueError, match="nv entries"):
         rhs.accel(np.zeros(3), np.zeros(3), np.zeros(3), True)
+
+
+def test_a_repatch_loads_its_patches_alone_and_changes_nothing(robot, monkeypatch):
+    """A re-patch of the layout's shape loads its patches alone (``ContactRhs.set_patches``):
+    the collapse is the same to the bit as with every layout loaded in full."""
+    cfg = packbot.SimConfig(contact_mode="normal", mu=0.5, locked_joints=WRIST)
+    real = native.NativeRhs.load_layout
+    partial = {"n": 0}
+    set_patches = native._native.ContactRhs.set_patches
+
+    def counted(self, *a, **kw):
+        partial["n"] += 1
+        return set_patches(self, *a, **kw)
+
+    def full(self, contacts):
+        if contacts._layout() is not self._layout_id:
+            self._layout_id = None
+        return real(self, contacts)
+
+    runs = []
+    for load in (real, full):
+        monkeypatch.setattr(native.NativeRhs, "load_layout", load)
+        monkeypatch.setattr(native._native.ContactRhs, "set_patches", counted)
+        runs.append(packbot.simulate(robot, robot.pose("drive"), np.zeros(8), 2.0, config=cfg))
+    a, b = runs
+    assert partial["n"] > 10, partial  # (the first run's re-patches)
+    for k in ("t", "q", "v"):
+        np.testing.assert_array_equal(getattr(a, k), getattr(b, k))
+    assert [e.kind for e in a.events] == [e.kind for e in b.events]

@@ -211,11 +211,22 @@ class NativeRhs:
     def load_layout(self, contacts: ContactRows) -> None:
         """Load the contact set's layout, its conditions' constants and its pairs' keys.
 
-        Only when the layout changed; the modes' plan is then loaded again by :meth:`load`.
+        Only when the layout changed; the modes' plan is then loaded again by :meth:`load`. A
+        layout of the loaded one's shape (a re-patch: the same index arrays) loads its patches
+        alone.
         """
         lay = contacts._layout()
-        if lay is not self._layout_id:
-            self._locked_id = None
+        old = self._layout_id
+        if lay is old:
+            return
+        self._locked_id = None
+        self._plan_id = None
+        if old is not None and lay.body is old.body and lay.lim_value is old.lim_value:
+            # (a re-patch of the same shape: its index arrays are the loaded layout's)
+            self._rhs.set_patches(
+                _reals(lay.local), _reals(lay.frame2), _reals(lay.offset0), _reals(lay.slide_tol2)
+            )
+        else:
             self._rhs.set_layout(
                 _ints(lay.joints),
                 _reals(lay.masks),
@@ -234,8 +245,7 @@ class NativeRhs:
                 _reals(lay.offset0), _reals(lay.slide_tol2), FORCE_BAND, POINT_TOL, STICK_BAND
             )
             self._rhs.set_keys(_ints(list(contacts.pairs)))  # (in the layout's order)
-            self._layout_id = lay
-            self._plan_id = None
+        self._layout_id = lay
 
     def set_locks(self, locked: NDArray[np.intp]) -> None:
         """The report's law's modes instead of contact rows: these joints locked (a_j = 0).

@@ -297,6 +297,25 @@ class ContactRhs {
     }
   }
 
+  // A re-patch that keeps the layout's shape (the same pairs, patch sizes, normals' bodies and
+  // limits: packbot.contact.normal_rows._replace_patches): the new patches' points, frames,
+  // tangential offsets and slides allowed (set_layout's local and frame2, set_conditions'
+  // offset0 and slide_tol2); the rest as loaded. As after set_layout, the contact rows' mode
+  // (no locks) and no step end kept.
+  void set_patches(F2 local, F3 frame2, F2 offset0, F1 slide_tol2) {
+    if (local.size() != local_.size() || frame2.size() != frame2_.size() ||
+        offset0.size() != offset0_.size() || slide_tol2.size() != slide_tol2_.size() ||
+        !conditions_set_)
+      throw std::invalid_argument("set_patches: the loaded layout's shapes expected");
+    std::copy(local.data(), local.data() + local.size(), local_.begin());
+    std::copy(frame2.data(), frame2.data() + frame2.size(), frame2_.begin());
+    std::copy(offset0.data(), offset0.data() + offset0.size(), offset0_.begin());
+    std::copy(slide_tol2.data(), slide_tol2.data() + slide_tol2.size(), slide_tol2_.begin());
+    lock_mode_ = -1;
+    end_valid_ = false;
+    jac_valid_ = false;
+  }
+
   // The current modes (see packbot.contact.normal._Plan) and the law's constants.
   void set_plan(I1 engaged, I1 row_slip, I1 sticks, double mu, double stick_speed,
                 double baumgarte) {
@@ -2472,6 +2491,8 @@ NB_MODULE(_native, m) {
            nb::arg("gravity"))
       .def_prop_ro("nv", &ContactRhs::nv)
       .def("set_layout", &ContactRhs::set_layout)
+      .def("set_patches", &ContactRhs::set_patches, nb::arg("local"), nb::arg("frame2"),
+           nb::arg("offset0"), nb::arg("slide_tol2"))
       .def("set_plan", &ContactRhs::set_plan)
       .def("set_slip_dirs", &ContactRhs::set_slip_dirs)
       .def("accel", &ContactRhs::accel, nb::arg("q"), nb::arg("v"), nb::arg("x"),
