@@ -122,5 +122,13 @@ inline double residual(const double *M, const double *q, int n, const double *z)
   return res / scale;
 }
 
+// The symmetric problems' first choice (normal_modes._psd_lcp): Lemke's pivots (zeros when q
+// >= 0), true when they solve LCP(M, q) to `tol` (residual), false where the caller takes its
+// least squares instead.
+inline bool lemke_solved(const double *M, const double *q, int n, double tol, double *z,
+                         Work &wk) {
+  return lemke(M, q, n, MAX_PIVOTS, PIVOT_TOL, z, wk) && residual(M, q, n, z) <= tol;
+}
+
 }  // namespace lcp
 }  // namespace packbot_native

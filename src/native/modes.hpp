@@ -325,35 +325,20 @@ class Selection {
           for (int u = 0; u < nT; ++u) v += GNT[a * nT + u] * S.GTTi[u * nT + t];
           GNTi[a * nT + t] = v;
         }
-      for (int a = 0; a < nt; ++a) {
-        for (int b = 0; b < nt; ++b) {
-          double v = 0.0;
-          for (int t = 0; t < nT; ++t) v += GNTi[a * nT + t] * GTN_[t * nt + b];
-          Ml_[a * nt + b] -= v;
-        }
-        double v = 0.0;
-        for (int t = 0; t < nT; ++t) v += GNTi[a * nT + t] * S.bTt[t];
-        ql_[a] -= v;
-      }
+      dense::matmul_sub(GNTi.data(), GTN_.data(), nt, nT, nt, Ml_.data());
+      dense::matmul_sub(GNTi.data(), S.bTt.data(), nt, nT, 1, ql_.data());
     }
     z_.assign(nt, 0.0);
-    bool all_pos = true;
-    for (int a = 0; a < nt; ++a) all_pos = all_pos && ql_[a] >= 0.0;
-    double res = 0.0;
-    if (!all_pos) {
-      const bool ok = lcp::lemke(Ml_.data(), ql_.data(), nt, lcp::MAX_PIVOTS, lcp::PIVOT_TOL,
-                                 z_.data(), work_);
-      if (symmetric) {  // _psd_lcp: Lemke if it solves to RESIDUAL_TOL, else least squares
-        if (!ok || !(lcp::residual(Ml_.data(), ql_.data(), nt, z_.data()) <= c_.residual_tol)) {
-          st = HAND_BACK;
-          return false;
-        }
-      } else if (!ok) {
+    if (symmetric) {  // _psd_lcp: Lemke if it solves to RESIDUAL_TOL, else least squares
+      if (!lcp::lemke_solved(Ml_.data(), ql_.data(), nt, c_.residual_tol, z_.data(), work_)) {
+        st = HAND_BACK;
         return false;
       }
-      res = lcp::residual(Ml_.data(), ql_.data(), nt, z_.data());
+    } else if (!lcp::lemke(Ml_.data(), ql_.data(), nt, lcp::MAX_PIVOTS, lcp::PIVOT_TOL, z_.data(),
+                           work_) ||
+               lcp::residual(Ml_.data(), ql_.data(), nt, z_.data()) > 1e-6) {
+      return false;
     }
-    if (res > 1e-6 && !symmetric) return false;
     double zmax = 0.0;
     for (int a = 0; a < nt; ++a) zmax = std::max(zmax, std::abs(z_[a]));
     const double scale = 1e-12 * (1.0 + zmax);

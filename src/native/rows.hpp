@@ -62,6 +62,17 @@ inline void matmul_t(const double *A, const double *B, int r, int k, int c, doub
     for (int j = 0; j < c; ++j) out[i * c + j] = dot(A + i * k, B + j * k, k);
 }
 
+// out (r x c) -= A (r x k) B (k x c), each product summed before it is subtracted (a Schur
+// complement's update, as numpy's M - A @ B).
+inline void matmul_sub(const double *A, const double *B, int r, int k, int c, double *out) {
+  for (int i = 0; i < r; ++i)
+    for (int j = 0; j < c; ++j) {
+      double s = 0.0;
+      for (int t = 0; t < k; ++t) s += A[i * k + t] * B[t * c + j];
+      out[i * c + j] -= s;
+    }
+}
+
 // numpy.linalg.pinv(G, rcond) of an n x n matrix into out: the SVD, the singular values
 // below rcond times the largest cut (the same to rounding).
 inline void pinv(const double *G, int n, double rcond, std::vector<double> &out) {

@@ -114,13 +114,9 @@ class StopSlow {
         for (int u = 0; u < nE; ++u) s += GEI_[u * nt + a] * GEEp_[u * nE + t];
         GIP[a * nE + t] = s;
       }
+    dense::matmul_sub(GIP.data(), GEI_.data(), nt, nE, nt, S.data());
     std::vector<double> w0(nt);
     for (int a = 0; a < nt; ++a) {
-      for (int b = 0; b < nt; ++b) {
-        double s = 0.0;
-        for (int t = 0; t < nE; ++t) s += GIP[a * nE + t] * GEI_[t * nt + b];
-        S[a * nt + b] -= s;
-      }
       double s = 0.0;
       for (int t = 0; t < nE; ++t) s += GEI_[t * nt + a] * y0_[t];
       w0[a] = R.vn[touch_[a]] + s;
@@ -147,14 +143,8 @@ class StopSlow {
       for (int j = 0; j < nk; ++j) Sk[i * nk + j] = S[keep[i] * nt + keep[j]];
     }
     // _psd_lcp: Lemke when it solves to RESIDUAL_TOL (else the caller's least squares)
-    bool all_pos = true;
-    for (int i = 0; i < nk; ++i) all_pos = all_pos && wk[i] >= 0.0;
-    if (!all_pos) {
-      const bool ok = lcp::lemke(Sk.data(), wk.data(), nk, lcp::MAX_PIVOTS, lcp::PIVOT_TOL,
-                                 lk.data(), work_);
-      if (!ok || !(lcp::residual(Sk.data(), wk.data(), nk, lk.data()) <= c.residual_tol))
-        return HAND_BACK;
-    }
+    if (!lcp::lemke_solved(Sk.data(), wk.data(), nk, c.residual_tol, lk.data(), work_))
+      return HAND_BACK;
     std::vector<double> lam(nt, 0.0);
     for (int i = 0; i < nk; ++i) lam[keep[i]] = lk[i];
     // y = y0 - G_EE^+ (G_EI lam); the impulse E^T y + I^T lam; dv = M^-1 imp
