@@ -37,10 +37,23 @@ def _restore(contacts, state) -> None:
     contacts.n_painleve = painleve
 
 
+#: A call's answers differ when a decision, the engaged rows or a slip direction (beyond this) do.
+DIR_TOL = 1e-6
+
+
+def _differ(a: tuple, b: tuple) -> bool:
+    """Whether two selections' states differ (engaged rows, stick flags, Painleve count, slip
+    directions beyond DIR_TOL)."""
+    dirs = max((np.abs(x - y).max() for x, y in zip(a[2], b[2], strict=True)), default=0.0)
+    return a[0] != b[0] or a[1] != b[1] or a[3] != b[3] or dirs > DIR_TOL
+
+
 def _compared(robot, q0, mu: float, duration: float, **cfg_kw) -> tuple[dict, object]:
-    """Every native selection of a run, and the Python one from the same state."""
+    """Every native selection of a run, the Python one from the same state and, where they
+    differ, the Python one from inputs moved by a few ulps (does rounding decide there?)."""
     seen: dict = {"calls": [], "handed": 0}
     real = ModeSelection._native_modes
+    rng = np.random.default_rng(0)
 
     def compared(self, q, v, a_free, minv, keep, held):
         if not normal_modes.NATIVE_MODES:  # (the Python selection below asks too)
@@ -51,29 +64,36 @@ def _compared(robot, q0, mu: float, duration: float, **cfg_kw) -> tuple[dict, ob
             seen["handed"] += 1
             return None
         after = _state(self)
-        _restore(self, before)
-        normal_modes.NATIVE_MODES = False
-        try:
-            if held:
-                if not self.keep_modes(q, v, a_free, minv, self.row_signature(), held):
-                    self.select_modes(q, v, a_free, minv, keep=True)
-                events = out  # (a re-patch logs no mode change)
-            else:
-                events = self.select_modes(q, v, a_free, minv, keep)
-        finally:
-            normal_modes.NATIVE_MODES = True
-        python = _state(self)
+
+        def python(qq, vv, aa):
+            _restore(self, before)
+            normal_modes.NATIVE_MODES = False
+            try:
+                if held:
+                    if not self.keep_modes(qq, vv, aa, minv, self.row_signature(), held):
+                        self.select_modes(qq, vv, aa, minv, keep=True)
+                    events = out  # (a re-patch logs no mode change)
+                else:
+                    events = self.select_modes(qq, vv, aa, minv, keep)
+            finally:
+                normal_modes.NATIVE_MODES = True
+            return _state(self), [(e.kind, e.pair) for e in events]
+
+        ref, events = python(q, v, a_free)
+        differs = _differ(after, ref) or [(e.kind, e.pair) for e in out] != events
+        dirs = max((np.abs(a - b).max() for a, b in zip(after[2], ref[2], strict=True)), default=0)
+        sensitive = False
+        if differs:  # the Python's own answer from inputs a few ulps away
+            for _ in range(5):
+
+                def moved(x):
+                    return x * (1.0 + 4e-16 * rng.standard_normal(x.shape))
+
+                sensitive = sensitive or _differ(python(moved(q), moved(v), moved(a_free))[0], ref)
         _restore(self, after)
-        same = (
-            after[0] == python[0]
-            and after[1] == python[1]
-            and after[3] == python[3]
-            and [(e.kind, e.pair) for e in out] == [(e.kind, e.pair) for e in events]
+        seen["calls"].append(
+            {"differs": differs, "sensitive": sensitive, "dirs": dirs, "keep": bool(held)}
         )
-        dirs = max(
-            (np.abs(a - b).max() for a, b in zip(after[2], python[2], strict=True)), default=0.0
-        )
-        seen["calls"].append({"same": same, "dirs": dirs, "keep": bool(held), "kinds": out})
         return out
 
     mp = pytest.MonkeyPatch()
@@ -95,9 +115,16 @@ def _compared(robot, q0, mu: float, duration: float, **cfg_kw) -> tuple[dict, ob
         (16, 0.5, {}),
         (5, 1.2, {}),
         (16, 0.5, {"restitution": 0.5}),
+        (8, 1.0, {}),  # (two pairs leaving their cones in turn)
+        (20, 0.5, {}),
+        (27, 1.0, {}),  # (ill-conditioned mode problems: rounding decides 5 of 27 calls)
+        (29, 0.5, {}),
     ],
-    ids=["collapse", "collapse-mu0", "start21-mu0", "start16-mu0.5", "start5-mu1.2", "restitution"],
-)
+    ids=[
+        "collapse", "collapse-mu0", "start21-mu0", "start16-mu0.5", "start5-mu1.2",
+        "restitution", "start8-mu1", "start20-mu0.5", "start27-mu1", "start29-mu0.5",
+    ],
+)  # fmt: skip
 def test_the_native_selection_is_the_python_one(robot, start, mu, kw):
     from test_normal_cascade import start_pose
 
@@ -114,15 +141,17 @@ def test_the_native_selection_is_the_python_one(robot, start, mu, kw):
     assert seen["handed"] <= 0.3 * (len(calls) + seen["handed"]), seen["handed"]
     if start == "collapse" and mu > 0.0:  # (re-patches: keep_modes first)
         assert any(c["keep"] for c in calls)
-    # the same modes, events and engaged rows; the slip directions to rounding (the products
-    # are summed in another order: a decision on a threshold may go the other way, rarely;
-    # measured: every decision the same). A direction taken from a slide the slow stop left at
-    # a few um/s is as exact as that slide (measured: up to 3e-8 in 5 of 18 calls at mu 1.2,
-    # 1e-10 and less elsewhere).
-    same = [c["same"] for c in calls]
-    assert np.mean(same) >= 0.95, (np.mean(same), len(same))
-    dirs = np.array([c["dirs"] for c, s in zip(calls, same, strict=True) if s])
-    assert np.median(dirs) <= 1e-12 and dirs.max() <= 1e-6, np.sort(dirs)[-5:]
+    # The same modes, events, engaged rows and slip directions (to DIR_TOL; the products are
+    # summed in another order), except where the Python selection itself answers otherwise
+    # from inputs a few ulps away: an ill-conditioned problem (a right-hand side cancelled to
+    # 1e-13, a singular value at pinv's cut, a direction turned on a threshold), where rounding
+    # decides. Measured: every call the same in the first six runs; 5 of 27 (start 27), 1 of
+    # 33 (start 29) differing, each one rounding decides.
+    differ = [c for c in calls if c["differs"]]
+    assert all(c["sensitive"] for c in differ), [c for c in differ if not c["sensitive"]]
+    assert len(differ) <= 0.2 * len(calls), (len(differ), len(calls))
+    dirs = np.array([c["dirs"] for c in calls if not c["differs"]])
+    assert np.median(dirs) <= 1e-12, np.sort(dirs)[-5:]
     assert res.diagnostics.min_distance > -1e-5
 
 

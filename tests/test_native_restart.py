@@ -142,7 +142,7 @@ def test_the_native_restart_steps_are_the_python_ones(robot, start, mu, kw):
         # stop at different ones (measured on one install: 61 of 64 impacts within 3e-14, one
         # at 3.7e-3 where both stopped at a residual below 1e-10). Most are the same to
         # rounding; every one is checked for the physics below.
-        assert np.mean(dv <= 1e-9) >= 0.9, np.sort(dv)[-5:]
+        assert np.mean(dv <= 1e-9) >= 0.9 and dv.max() <= 1e-2, np.sort(dv)[-5:]
     # the physics the impulse guarantees: no touching row approaches after an inelastic
     # impact; no energy gained
     # (the frictional impact's conic solver stops at a residual of IMPACT_CONIC_TOL: its rows'

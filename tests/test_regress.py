@@ -127,9 +127,11 @@ def test_a_chaotic_run_is_compared_before_its_horizon_and_on_its_band() -> None:
     # Outside the band (widened by its width): a drift.
     wild = record(q=(0.7, 0.95), kinds=("impact", "release"))
     assert [d.quantity for d in compare(golden, {"r": wild})] == ["q.a (band)"]
-    # The copies' branching event moved just before the horizon: not a drift.
+    # The copies' branching event moved just before the horizon: not a drift; two more are.
     moved = record(q=(0.1, 0.95), kinds=("impact", "stick"), times=(0.1, 0.49))
     assert compare(golden, {"r": moved}) == []
+    more = record(q=(0.1, 0.95), kinds=("impact", "stick", "slip"), times=(0.1, 0.2, 0.3))
+    assert "events before the horizon" in [d.quantity for d in compare(golden, {"r": more})]
     # Before the horizon everything is strict: an event moved at 0.1 s, the trajectory at 0.25 s.
     early = record(times=(0.1 + 1e-3, 0.5))
     assert [d.quantity for d in compare(golden, {"r": early})] == ["event[0].t (impact)"]

@@ -221,6 +221,7 @@ class NativeRhs:
             return
         self._locked_id = None
         self._plan_id = None
+        self._layout_id = None  # (until loaded in full: a load that raises leaves none)
         if old is not None and lay.body is old.body and lay.lim_value is old.lim_value:
             # (a re-patch of the same shape: its index arrays are the loaded layout's)
             self._rhs.set_patches(

@@ -19,6 +19,7 @@ from numpy.typing import NDArray
 from packbot.collision import PairInfo
 from packbot.contact.lcp import lcp_residual, lemke, solve_lcp_psd
 from packbot.contact.normal_dynamics import (
+    _OWN_CONDITIONS,
     _OWN_EVALUATE,
     _OWN_PROBLEM,
     _OWN_VIOLATED,
@@ -206,6 +207,7 @@ class ModeSelection(ConstrainedDynamics):
             or self.resting
             or type(self)._problem is not _OWN_PROBLEM
             or type(self).evaluate is not _OWN_EVALUATE
+            or type(self).conditions is not _OWN_CONDITIONS  # (keep_modes' violated)
         ):
             return None
         out = native.select_modes(self, q, v, a_free, minv, keep, held)

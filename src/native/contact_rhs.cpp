@@ -1650,6 +1650,8 @@ class ContactRhs {
     rows_at(q.data(), v.data());
     namespace md = packbot_native::modes;
     const packbot_native::Rows R = rows_view();
+    if (!R.finite() || !all_finite(a_free.data(), nv) || !all_finite(minv.data(), nv * nv))
+      return nb::make_tuple(1, false, nb::none(), nb::none(), 0, false);
     md::Consts c;
     c.mu = mu;
     c.touch_gap = touch_gap;
@@ -1702,9 +1704,16 @@ class ContactRhs {
     c.capture_speed = capture_speed;
     c.residual_tol = residual_tol;
     c.dependent_row = dependent_row;
-    for (int r = 0; r < m_; ++r)
-      if (std::isnan(gap_[r]) || std::isnan(vn_[r])) return 2;
-    return static_cast<int>(stopper_.run(rows_view(), c, v.data(), minv.data(), out_v.data()));
+    const packbot_native::Rows R = rows_view();
+    const size_t nv = static_cast<size_t>(nv_);
+    if (!R.finite() || !all_finite(v.data(), nv) || !all_finite(minv.data(), nv * nv)) return 2;
+    return static_cast<int>(stopper_.run(R, c, v.data(), minv.data(), out_v.data()));
+  }
+
+  static bool all_finite(const double *x, size_t n) {
+    for (size_t i = 0; i < n; ++i)
+      if (!std::isfinite(x[i])) return false;
+    return true;
   }
 
   // The rows computed (rows_at) as the restart's native steps read them.

@@ -205,7 +205,6 @@ class Selection {
           return false;
         }
       }
-      moved_.clear();
       cone_check();
       if (moved_.empty()) break;
       for (size_t k = 0; k < moved_.size(); ++k) {
@@ -339,6 +338,11 @@ class Selection {
                lcp::residual(Ml_.data(), ql_.data(), nt, z_.data()) > 1e-6) {
       return false;
     }
+    for (int a = 0; a < nt; ++a)
+      if (!std::isfinite(z_[a])) {  // (numpy's max would be NaN: the Python's own branch)
+        st = HAND_BACK;
+        return false;
+      }
     double zmax = 0.0;
     for (int a = 0; a < nt; ++a) zmax = std::max(zmax, std::abs(z_[a]));
     const double scale = 1e-12 * (1.0 + zmax);
@@ -358,6 +362,8 @@ class Selection {
   // _cone_check: sticking pairs whose tangential force leaves the cone (moved_), with their
   // slip direction -f / |f| (moved_dir_).
   void cone_check() {
+    moved_.clear();
+    moved_dir_.clear();
     if (c_.mu == 0.0) return;
     const Rows &R = *R_;
     const int nT = static_cast<int>(lamT_.size());
@@ -383,7 +389,6 @@ class Selection {
         for (int i = 0; i < 3; ++i) moved_dir_.push_back(-(T[i] * lt[0] + T[3 + i] * lt[1]) / nt);
       }
     }
-    if (moved_.empty()) moved_dir_.clear();
   }
 
   // _consistent_directions: a slip onset from rest turned towards its tangential acceleration.

@@ -26,6 +26,19 @@ struct Rows {
   const int *first = nullptr;         // (np) each pair's first row
   const int *K = nullptr;             // (np) each pair's number of rows
 
+  // Whether every row's numbers are finite (a NaN's comparisons differ between numpy's min and
+  // max and std::min and std::max: the native steps hand such a state back to Python).
+  bool finite() const {
+    auto ok = [](const double *x, size_t n) {
+      for (size_t i = 0; i < n; ++i)
+        if (!std::isfinite(x[i])) return false;
+      return true;
+    };
+    const size_t M = static_cast<size_t>(m), P = static_cast<size_t>(np), V = static_cast<size_t>(nv);
+    return ok(Jn, M * V) && ok(drift, M) && ok(gap, M) && ok(vn, M) && ok(JT, 2 * P * V) &&
+           ok(bT, 2 * P) && ok(vT, 2 * P) && ok(vt, 3 * P) && ok(F, 9 * P);
+  }
+
   // The pair of a row (-1: a limit row).
   int pair_of(int r) const {
     for (int p = 0; p < np; ++p)
