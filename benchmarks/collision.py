@@ -346,7 +346,8 @@ def breakdown(
 
     gm, gd = world.geom_model, world.geom_data
     world.sweep(q)
-    cb, bp, pairs = world._bp_callback, world._bp, world._bp_pairs
+    bp = world._bp  # (started on first use)
+    cb, pairs = world._bp_callback, world._bp_pairs
     cand = world._collect(m)
     res = world._results
 

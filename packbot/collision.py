@@ -234,7 +234,7 @@ class CollisionWorld:
         self._active = np.zeros((G, G), dtype=bool)
         self._all_pairs = np.arange(len(self.pairs), dtype=np.intp)
         self._active_list: list[int] | None = None  # the pairs active in geom_data (None: other)
-        self._start_broadphase()
+        self._bp_started = False  # (the broadphase's data and manager: made on first use)
         # The native sweep (None: the Python path), unless a subclass prunes with another
         # manager type (the native sweep's candidates are the SSaP manager's).
         self._native = (
@@ -254,14 +254,22 @@ class CollisionWorld:
     #: boxes for the robot and the floor, the fastest type from 100 box obstacles on).
     _broadphase_type: type = pin.BroadPhaseManager_SSaPCollisionManager
 
+    @property
+    def _bp(self) -> Any:
+        """The broadphase manager, started on first use (native sweeps never need it)."""
+        if not self._bp_started:
+            self._start_broadphase()
+        return self._bp_manager
+
     def _start_broadphase(self) -> None:
         """The broadphase's data, manager and pair collector on :attr:`_bp_model`."""
+        self._bp_started = True
         bp_model = self._bp_model
         bp_data = bp_model.createData()
         for creq in bp_data.collisionRequests:
             creq.break_distance = 0.0  # (Coal's default 1e-3 m would inflate every box)
         self._bp_data = bp_data
-        self._bp = self._broadphase_type(self.robot.model, bp_model, bp_data)
+        self._bp_manager = self._broadphase_type(self.robot.model, bp_model, bp_data)
         self._bp_callback = pin.CollisionCallBackCollect(bp_model, bp_data)
         # a live proxy of the callback's C++ vector of pair indices (cleared by every collide)
         self._bp_pairs = self._bp_callback.pair_indexes
@@ -274,12 +282,13 @@ class CollisionWorld:
 
         Each piece's world box is inflated by ``margin / 2`` [m].
         """
+        bp = self._bp
         pin.updateGeometryPlacements(self.robot.model, self._data, self._bp_model, self._bp_data)
         if margin != self._bp_margin:
             self._bp_margins.fill(margin)
             self._bp_data.setSecurityMargins(self._bp_model, self._bp_margins, True, False)
             self._bp_margin = margin
-        self._bp.update(False)
+        bp.update(False)
 
     def _collect(self, margin: float) -> NDArray[np.intp]:
         """Indices (ascending) of the pairs whose boxes, inflated by ``margin`` [m], overlap.

@@ -281,8 +281,28 @@ def broadphase_model(
     return bp_model
 
 
+#: A pristine data of each geometry model built so far (never queried), by the model's id:
+#: :func:`geometry_data` hands out copies of it (0.12 ms against 0.33 ms for createData and
+#: the requests' settings). Kept beside the model it was made for (an id can be reused).
+_PRISTINE: dict[int, tuple[pin.GeometryModel, pin.GeometryData]] = {}
+
+
 def geometry_data(gm: pin.GeometryModel) -> pin.GeometryData:
-    """A data of the geometry model with the collision world's request settings."""
+    """A data of the geometry model with the collision world's request settings.
+
+    A copy of the model's pristine data (made on the first call): the same requests and
+    empty results as a new one, and no GJK warm start of an earlier query (Pinocchio's copy
+    is a deep one: each data's requests, results and distance functors are its own).
+    """
+    kept = _PRISTINE.get(id(gm))
+    if kept is None or kept[0] is not gm:
+        if len(_PRISTINE) >= _BUILT_MAX:
+            del _PRISTINE[next(iter(_PRISTINE))]
+        kept = _PRISTINE[id(gm)] = (gm, _new_geometry_data(gm))
+    return kept[1].copy()
+
+
+def _new_geometry_data(gm: pin.GeometryModel) -> pin.GeometryData:
     data = gm.createData()
     for creq in data.collisionRequests:
         creq.enable_contact = True  # Coal misses deep overlaps of near-coincident centres without

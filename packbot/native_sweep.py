@@ -288,6 +288,8 @@ def native_sweep(world: CollisionWorld) -> NativeSweep | None:
 
 
 _tuple_new = tuple.__new__
+#: NativeDispatch's SweepCounts lists, by the world's number of pairs
+_COUNTS: dict[int, list[Any]] = {}
 
 
 class NativeDispatch:
@@ -313,8 +315,12 @@ class NativeDispatch:
         self.world = world
         self.pending: bool | bytes = False
         n = len(world.pairs)
-        #: SweepCounts by the number of tests (shared by the sweeps, being immutable)
-        self._counts: list[SweepCounts] = [SweepCounts(n, n - k, k) for k in range(n + 1)]
+        #: SweepCounts by the number of tests (shared by the sweeps and the worlds with as
+        #: many pairs, being immutable)
+        counts = _COUNTS.get(n)
+        if counts is None:
+            counts = _COUNTS[n] = [SweepCounts(n, n - k, k) for k in range(n + 1)]
+        self._counts: list[SweepCounts] = counts
         self._result = SweepResult
         self._contact: Callable[..., Contact] = Contact
 

@@ -124,7 +124,7 @@ class System:
     # --------------------------------------------------------------- dynamics
     def aba(self, q: FloatArray, v: FloatArray, tau: FloatArray) -> FloatArray:
         """Joint accelerations of the unconstrained arm [rad/s^2] (armature included)."""
-        return pin.aba(self.model, self.data, q, v, tau)
+        return pin.aba(self.model, self.data, q, v, tau, pin.Convention.WORLD)
 
     def bias(self, q: FloatArray, v: FloatArray) -> FloatArray:
         """Bias torques C(q, v) v + g(q) [N*m] (Pinocchio's nonLinearEffects)."""

@@ -370,9 +370,9 @@ def test_a_relapse_after_a_window_opens_the_next_one_within_a_few_restarts(robot
         seen["restart"].append(t)
         return handle(self, t, y, crossings)
 
-    def entered(self, t, y, why):
+    def entered(self, t, y, why, *span):
         seen["enter"].append(t)
-        return enter(self, t, y, why)
+        return enter(self, t, y, why, *span)
 
     def resumed(self, t, y):
         seen["resume"].append(t)
@@ -586,7 +586,10 @@ def test_a_jam_cycling_every_few_milliseconds_opens_a_window(robot):
     shoulder casing jam against a joint limit, cycling every ~3 ms through an impact, a
     stick/slip and the limit. With the chatter rule's former span (32 restarts within 32 ms)
     the cycle escaped it: 3,985 events in 3 s. CHATTER_EVENTS within CHATTER_SPAN (250 ms) hand
-    it to a window: under 300 events (96 measured), the window removing little energy."""
+    it to a window: under 300 events, the window removing little energy. The cycle comes back
+    after a window: without the chatter's relapse rule (RELAPSE_EVENTS restarts at the chatter
+    rate within CHATTER_SPAN of a window's end open a window twice as long), 2,570 events in 19
+    windows after a rounding-level change of the dynamics; with it, 226 in 7 (measured)."""
     q0 = start_pose(robot, 17)
     cfg = packbot.SimConfig(contact_mode="normal", mu=1.2, restitution=0.0)
     res = packbot.simulate(robot, q0, np.zeros(robot.nq), 3.0, config=cfg)

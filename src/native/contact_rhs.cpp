@@ -756,8 +756,9 @@ class ContactRhs {
       x_[i] = x.data()[i];
     }
     if (from_tau) {
-      pin::aba(model_, data_, q_, v_, x_, pin::Convention::LOCAL);
+      pin::aba(model_, data_, q_, v_, x_, pin::Convention::WORLD);
       a_free_ = data_.ddq;
+      world_aba_ = true;
     } else {
       a_free_ = x_;
     }
@@ -1096,14 +1097,14 @@ class ContactRhs {
       v_[i] = yv[i];
       tau[i] = applied_[i] + (-viscous_[i] * v_[i] - coulomb_dir_[i]);
     }
-    pin::aba(model_, data_, q_, v_, tau, pin::Convention::LOCAL);
+    pin::aba(model_, data_, q_, v_, tau, pin::Convention::WORLD);
     const double hh = 0.5 * h;
     for (int i = 0; i < nv; ++i) {
       qm[i] = q_[i] + hh * v_[i];
       vm[i] = v_[i] + hh * data_.ddq[i];
     }
     for (int i = 0; i < nv; ++i) tau[i] = applied_[i] + (-viscous_[i] * vm[i] - coulomb_dir_[i]);
-    pin::aba(model_, data_, qm, vm, tau, pin::Convention::LOCAL);
+    pin::aba(model_, data_, qm, vm, tau, pin::Convention::WORLD);
     for (int i = 0; i < nv; ++i) vf[i] = v_[i] + h * data_.ddq[i];
     for (int i = 0; i < nv; ++i) ovf[i] = vf[i];
     // the set kept: the pairs within reach are the layout's, the limits within reach its limits
@@ -1851,8 +1852,9 @@ class ContactRhs {
       }
       return true;
     }
-    pin::aba(model_, data_, q_, v_, x_, pin::Convention::LOCAL);
+    pin::aba(model_, data_, q_, v_, x_, pin::Convention::WORLD);
     a_free_ = data_.ddq;
+    world_aba_ = true;
     if (!compute()) return false;
     for (int i = 0; i < nv; ++i) {
       f[i] = y[nv + i];
@@ -1890,7 +1892,7 @@ class ContactRhs {
   bool lock_accel() {
     const int nv = nv_;
     if (lock_mode_ <= 1) {
-      pin::aba(model_, data_, q_, v_, x_, pin::Convention::LOCAL);
+      pin::aba(model_, data_, q_, v_, x_, pin::Convention::WORLD);
       a_free_ = data_.ddq;
       if (lock_mode_ == 0) {
         a_ = a_free_;
@@ -1939,13 +1941,38 @@ class ContactRhs {
 
   bool compute() {
     const int nv = nv_;
-    pin::computeMinverse(model_, data_, q_);
+    if (world_aba_) {
+      // after aba(WORLD) at (q_, v_): M^-1 from its factors (Pinocchio's computeMinverse
+      // without q: the same numbers as with q), J and oMi are its own, dJ by time_variation()
+      world_aba_ = false;
+      pin::computeMinverse(model_, data_);
+      if (nb_ > 0) time_variation();
+    } else {
+      pin::computeMinverse(model_, data_, q_);
+      if (nb_ > 0) pin::computeJointJacobiansTimeVariation(model_, data_, q_, v_);
+    }
     minv_ = data_.Minv;  // the upper triangle; the lower one mirrored
     for (int i = 1; i < nv; ++i)
       for (int c = 0; c < i; ++c) minv_(i, c) = minv_(c, i);
-    if (nb_ > 0) pin::computeJointJacobiansTimeVariation(model_, data_, q_, v_);
     rows();
     return solve_plan();
+  }
+
+  // data_.dJ (and data_.v, data_.ov) after aba(WORLD) at (q_, v_), whose joint placements
+  // (liMi, oMi), joint motions and J they reuse: computeJointJacobiansTimeVariation's own
+  // arithmetic (vJ = v_J + liMi^-1 v_parent, ov = oMi vJ, dJ = ov x J), so the same numbers,
+  // without its second pass of joint transforms and Jacobian columns.
+  void time_variation() {
+    for (pin::JointIndex i = 1; i < static_cast<pin::JointIndex>(model_.njoints); ++i) {
+      const pin::JointIndex parent = model_.parents[i];
+      Data::Motion &vJ = data_.v[i];
+      vJ = data_.joints[i].v();
+      if (parent > 0) vJ += data_.liMi[i].actInv(data_.v[parent]);
+      data_.ov[i] = data_.oMi[i].act(vJ);
+      const int c0 = model_.joints[i].idx_v(), n = model_.joints[i].nv();
+      pin::motionSet::motionAction(data_.ov[i], data_.J.middleCols(c0, n),
+                                   data_.dJ.middleCols(c0, n));
+    }
   }
 
   // kernels.constrained_accel on the rows computed, with minv_, a_free_ and the plan loaded:
@@ -2351,6 +2378,7 @@ class ContactRhs {
 
   Model model_;
   Data data_;
+  bool world_aba_ = false;  // data_ holds aba(WORLD)'s pass at (q_, v_) (compute's fast path)
   int nv_ = 0;
   Eigen::VectorXd q_, v_, x_, a_free_, a_, force_;
   // the report's law's locks (set_locks): -1 the contact rows, 0 none, 1 one, 2 the unlocked block
