@@ -139,6 +139,7 @@ class ContactRhs:
         out_vf: NDArray[np.float64],
         out_v1: NDArray[np.float64],
         out_q1: NDArray[np.float64],
+        checked: bool = True,
     ) -> tuple[Any, ...]: ...
     def row_root(
         self,

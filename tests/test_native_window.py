@@ -147,3 +147,55 @@ def test_unconverged_native_impulses_hand_the_step_back(robot, monkeypatch):
     steps, misses, fallbacks, res = _stepper_counts(robot, 16, 1.2, 1.0)
     assert misses.get(3, 0) > 0 and fallbacks > 0, (steps, misses, fallbacks)
     assert -res.diagnostics.min_distance <= 1e-5
+
+
+@pytest.mark.parametrize(
+    ("k", "mu", "kw"),
+    [(16, 0.0, {}), (14, 0.5, {}), (16, 0.5, {"joint_friction": True})],
+    ids=["mu0", "mu0.5", "joint-friction"],
+)
+def test_a_native_solve_after_a_set_update_is_the_python_one(robot, k, mu, kw):
+    """A step handed back because its contact set changes: once the set is updated, the
+    native call takes its impulses (``checked=False``); compared with the Python solve of the
+    same step from the same state and warm start."""
+    from test_normal_cascade import start_pose
+
+    seen: list[dict] = []
+    real = timestep.MoreauJeanStepper._native_call
+
+    def compared(self, y, h, torques, closest, sweep):
+        if sweep is not None:
+            return real(self, y, h, torques, closest, sweep)
+        before = (self._last_rows, self._last_x, self._last_rho)
+        out = real(self, y, h, torques, closest, sweep)
+        if isinstance(out, np.ndarray):
+            return out
+        after = (self._last_rows, self._last_x, self._last_rho)
+        self._last_rows, self._last_x, self._last_rho = before
+        n = self.n
+        py = self._python_solve(y[:n], y[n : 2 * n], out[0], h, closest, None)
+        self._last_rows, self._last_x, self._last_rho = after
+        seen.append(
+            {
+                "v1": np.abs(out[1] - py.v1).max() / max(1.0, np.abs(py.v1).max()),
+                "x": np.abs(out[3] - py.x).max() / max(1e-6, np.abs(py.x).max()),
+                "residual": max(out[4], py.residual),
+            }
+        )
+        return out
+
+    pytest.MonkeyPatch().setattr(timestep.MoreauJeanStepper, "_native_call", compared)
+    cfg = packbot.SimConfig(contact_mode="normal", mu=mu, restitution=0.0, **kw)
+    try:
+        res = packbot.simulate(
+            robot, start_pose(robot, k), np.zeros(robot.model.nv), 2.0, config=cfg
+        )
+    finally:
+        pytest.MonkeyPatch().setattr(timestep.MoreauJeanStepper, "_native_call", real)
+    assert len(seen) > 50, len(seen)
+    worst = {key: max(s[key] for s in seen) for key in seen[0]}
+    assert worst["v1"] <= 1e-9, worst
+    parted = [s for s in seen if s["x"] > 1e-9]  # (redundant rows: see the test above)
+    assert len(parted) <= 0.005 * len(seen), parted
+    assert worst["residual"] <= timestep.RESIDUAL_OK
+    assert -res.diagnostics.min_distance <= PENETRATION_TOL + 1e-5

@@ -67,7 +67,7 @@ import math
 from collections.abc import Callable
 from dataclasses import dataclass
 from itertools import compress
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
 import pinocchio as pin
@@ -100,6 +100,21 @@ log = logging.getLogger(__name__)
 
 FloatArray = NDArray[np.float64]
 _NONE = np.zeros(0)  # (an empty argument of the native step: no guess, no limits)
+_NO_PAIRS = np.zeros(0, dtype=np.int64)  # (its sweep after a set update: none, unchecked)
+
+
+class _PythonStep(NamedTuple):
+    """A window step's impulses taken in Python (:meth:`MoreauJeanStepper._python_step`)."""
+
+    v_f: FloatArray
+    v1: FloatArray
+    x: FloatArray
+    residual: float
+    closest: tuple[float, int]
+    cj: NDArray[np.intp]
+    lay: Any
+    m: int
+
 
 #: Whether a window step whose contact set stays as it is is taken in one native call
 #: (:meth:`MoreauJeanStepper._native_step`; tests and benchmarks switch it off to compare).
@@ -237,6 +252,10 @@ class MoreauJeanStepper:
         #: contact set changes, 2 a bounce, 3 no converged impulses, 4 no factor of M^-1).
         self.native_steps = 0
         self.native_misses: dict[int, int] = {}
+        #: Of those handed back because the set changes: the steps whose impulses the native
+        #: call then took on the updated set (:meth:`_python_step`).
+        self.native_solves = 0
+        self._miss = 0  # (why the last native step handed back; 0: it did not)
         self.h = float(h)
         self.n = system.nv
         #: The last step's Coulomb and brake torques [N*m] (its box impulses / h).
@@ -301,7 +320,9 @@ class MoreauJeanStepper:
         else:
             fast = self._native_step(t, y, h) if self.native is not None else None
         if isinstance(fast, np.ndarray):  # handed back, with its free velocity
-            v_f, v1, x, residual, closest, cj, lay, m = self._python_step(t, y, h, fast)
+            fast = self._python_step(t, y, h, fast)
+        if isinstance(fast, _PythonStep):
+            v_f, v1, x, residual, closest, cj, lay, m = fast
             q1 = np.asarray(pin.integrate(sys.model, q, h * v1), dtype=np.float64)
             energies = None
         elif fast is not None:
@@ -357,6 +378,24 @@ class MoreauJeanStepper:
         torques = self.drive.step_torques(t, y)
         if torques is None or torques[2].any():
             return None
+        sw = cached[2]
+        closest = (float(sw.min_distance), int(sw.min_pair))
+        return self._native_call(y, h, torques, closest, (sw.pairs, sw.distances, cached[1]))
+
+    def _native_call(
+        self,
+        y: FloatArray,
+        h: float,
+        torques: tuple[FloatArray, ...],
+        closest: tuple[float, int],
+        sweep: tuple[NDArray[np.int64], FloatArray, float] | None,
+    ) -> tuple[Any, ...] | FloatArray:
+        """The native window step: :meth:`_native_step`'s results.
+
+        ``sweep``: the last sweep's pairs, distances and margin [m] that check the set; None:
+        the set was just updated for this step (:meth:`_python_step`), not checked.
+        """
+        contacts, n = self.contacts, self.n
         rhs = self.native
         assert rhs is not None
         rhs.hold_torque(*torques)
@@ -365,35 +404,46 @@ class MoreauJeanStepper:
         lay = self._layout()
         rows = (lay.key, len(cj))
         guess = self._last_x if rows == self._last_rows else None
-        cfg, sw = self.cfg, cached[2]
+        cfg = self.cfg
         limits = (self.sys.upper, self.sys.lower) if cfg.joint_limits else (_NONE, _NONE)
+        pairs, dist, margin = (_NO_PAIRS, _NONE, 0.0) if sweep is None else sweep
         v_f, v1, q1 = np.empty(n), np.empty(n), np.empty(n)
         status, x, residual, _, rho, energies = rhs.window_step(
-            contacts, y, h, swept=sw.pairs, dist=sw.distances, sweep_margin=cached[1],
+            contacts, y, h, swept=pairs, dist=dist, sweep_margin=margin,
             reach=self.reach, active_gap=ACTIVE_GAP, upper=limits[0], lower=limits[1],
             limit_gap=LIMIT_GAP, mu=contacts.mu, restitution=cfg.restitution,
             zeno=cfg.zeno_speed, touch_gap=TOUCH_GAP, boxes=cj, bound=h * coul[cj],
             guess=_NONE if guess is None else guess,
             rho0=self._last_rho if guess is not None else 0.0, tol=CONIC_TOL,
             max_iterations=CONIC_ITERATIONS, ok=RESIDUAL_OK, out_vf=v_f, out_v1=v1, out_q1=q1,
+            checked=sweep is not None,
         )  # fmt: skip
         if status != 0:
+            self._miss = status
             self.native_misses[status] = self.native_misses.get(status, 0) + 1
             return v_f  # (its free velocity: the midpoint rule's, as Python's)
-        self.native_steps += 1
+        if sweep is not None:
+            self.native_steps += 1
+        else:
+            self.native_solves += 1
         self._last_rows, self._last_x, self._last_rho = rows, x, rho
-        closest = (float(sw.min_distance), int(sw.min_pair))
         return v_f, v1, q1, x, residual, closest, cj, lay, energies
 
     def _python_step(
         self, t: float, y: FloatArray, h: float, v_free: FloatArray | None = None
-    ) -> tuple[Any, ...]:
+    ) -> _PythonStep | tuple[Any, ...]:
         """The step's impulses in Python: (v_f, v1, x, residual, closest, cj, lay, m).
 
-        ``v_free``: the free velocity, already computed (by a native step handed back).
+        ``v_free``: the free velocity, already computed (by a native step handed back). A
+        native step handed back because the contact set changes: the set is updated here,
+        then the step's impulses are the native call's (:meth:`_native_step`'s results; the
+        same arithmetic as below) unless it hands the step back again (a bounce, no
+        converged impulses: the fallbacks below).
         """
-        sys, cfg, contacts, n = self.sys, self.cfg, self.contacts, self.n
+        sys, contacts, n = self.sys, self.contacts, self.n
         q, v = y[:n], y[n : 2 * n]
+        retry = v_free is not None and self._miss == 1
+        self._miss = 0
         # the free accelerations at the step's midpoint (explicit midpoint rule): an Euler step
         # v + h a_free(q, v) gains energy where a light joint spins (its gyroscopic terms)
         if v_free is not None:
@@ -406,9 +456,31 @@ class MoreauJeanStepper:
             v_f = v + h * self.drive.free_accel(t + 0.5 * h, y_mid)
         else:  # the Euler step (measurements only)
             v_f = v + h * self.drive.free_accel(t, y)
-        minv = sys.minv(q)
 
         closest, raw = self._update_set(q, v, v_f, h)
+        if retry and contacts.pairs:
+            torques = self.drive.step_torques(t, y)
+            if torques is not None and not torques[2].any():
+                fast = self._native_call(y, h, torques, closest, None)
+                if not isinstance(fast, np.ndarray):
+                    return fast
+        return self._python_solve(q, v, v_f, h, closest, raw)
+
+    def _python_solve(
+        self,
+        q: FloatArray,
+        v: FloatArray,
+        v_f: FloatArray,
+        h: float,
+        closest: tuple[float, int],
+        raw: tuple[Any, ...] | None,
+    ) -> _PythonStep:
+        """The impulses of a step with its contact set updated (:meth:`_python_step`).
+
+        ``raw``: the set's rows at (q, v) if the update computed them (None: computed here).
+        """
+        sys, cfg, contacts = self.sys, self.cfg, self.contacts
+        minv = sys.minv(q)
         lay = self._layout()
         if raw is None:  # (the set changed since the kinematics of its patch rule)
             raw = self._kernels.contact_rows(*contacts._kernel_args(q, v))
@@ -442,7 +514,7 @@ class MoreauJeanStepper:
         v1 = v_f + minv @ (J.T @ x) if len(J) else v_f
         if residual > RESIDUAL_OK:  # no dual solution to trust: the primal problem instead
             v1 = self._project(v_f, Jn, np.maximum(gap, 0.0) / h, sys.mass_matrix(q))
-        return v_f, v1, x, residual, closest, cj, lay, m
+        return _PythonStep(v_f, v1, x, residual, closest, cj, lay, m)
 
     def _finish(
         self,

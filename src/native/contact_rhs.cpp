@@ -1005,7 +1005,7 @@ class ContactRhs {
                         double active_gap, F1 upper, F1 lower, double limit_gap, double mu,
                         double restitution, double zeno, double touch_gap, I1 boxes, F1 bound,
                         F1 guess, double rho0, double tol, int max_iterations, double ok,
-                        Out1 out_vf, Out1 out_v1, Out1 out_q1) {
+                        Out1 out_vf, Out1 out_v1, Out1 out_q1, bool checked) {
     const int nv = nv_;
     if (y.shape(0) < static_cast<size_t>(2 * nv) || reach.shape(0) != static_cast<size_t>(nv) ||
         out_vf.shape(0) != static_cast<size_t>(nv) || out_v1.shape(0) != static_cast<size_t>(nv) ||
@@ -1032,6 +1032,7 @@ class ContactRhs {
     a.tol = tol;
     a.max_iterations = max_iterations;
     a.ok = ok;
+    a.checked = checked;
     check_window();
     std::vector<double> x;
     const WindowOut w = window_core(y.data(), h, swept.data(), dist.data(), swept.shape(0),
@@ -1057,6 +1058,9 @@ class ContactRhs {
     double tol = 0.0;
     int max_iterations = 0;
     double ok = 0.0;
+    // false: the set is the caller's, just updated for this step (MoreauJeanStepper's Python
+    // step after its set update): the sweep, limit and patch checks are left out
+    bool checked = true;
   };
 
   // What window_core did: its status (window_step's), the solver's residual, iterations and
@@ -1114,10 +1118,10 @@ class ContactRhs {
       s1 += a.reach[i] * std::abs(vf[i]);
     }
     const double d_act = a.active_gap + 2.0 * h * std::max(s0, s1);
-    if (sweep_margin < d_act) return none(1);
+    if (a.checked && sweep_margin < d_act) return none(1);
     std::vector<double> dpair(np_, std::numeric_limits<double>::quiet_NaN());
     int found = 0;
-    for (size_t i = 0; i < nsw; ++i) {
+    for (size_t i = 0; i < (a.checked ? nsw : 0); ++i) {
       const double d = dist[i];
       if (!(d <= d_act)) continue;
       const int64_t key = swept[i];
@@ -1128,8 +1132,8 @@ class ContactRhs {
       dpair[p] = d;
       ++found;
     }
-    if (found != np_) return none(1);  // a pair leaves
-    if (a.upper != nullptr && a.lower != nullptr) {
+    if (a.checked && found != np_) return none(1);  // a pair leaves
+    if (a.checked && a.upper != nullptr && a.lower != nullptr) {
       int near = 0;
       for (int j = 0; j < nv; ++j) {
         const double lim = a.limit_gap + h * std::max(std::abs(v_[j]), std::abs(vf[j]));
@@ -1166,7 +1170,7 @@ class ContactRhs {
       const double s2 = aa * aa + b * b;
       if (s2 > slide2_[p]) slide2_[p] = s2;
     }
-    for (int p = 0; p < np_; ++p)
+    for (int p = 0; p < (a.checked ? np_ : 0); ++p)
       if (!(std::abs(gap_min_[p] - dpair[p]) <= point_tol_) || slide2_[p] > slide_tol2_[p])
         return none(1);
     if (a.restitution > 0.0)
@@ -2571,7 +2575,7 @@ NB_MODULE(_native, m) {
            nb::arg("restitution"), nb::arg("zeno"), nb::arg("touch_gap"), nb::arg("boxes"),
            nb::arg("bound"), nb::arg("guess"), nb::arg("rho0"), nb::arg("tol"),
            nb::arg("max_iterations"), nb::arg("ok"), nb::arg("out_vf"), nb::arg("out_v1"),
-           nb::arg("out_q1"))
+           nb::arg("out_q1"), nb::arg("checked") = true)
       .def("project_round", &ContactRhs::project_round, nb::arg("q"), nb::arg("v"),
            nb::arg("minv"), nb::arg("touch_gap"), nb::arg("pen_tol"), nb::arg("res_tol"),
            nb::arg("out_q"))
