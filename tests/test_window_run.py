@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 import packbot
-from packbot.contact import native, window_run
+from packbot.contact import native, timestep, window_run
 from packbot.contact.timestep import StepSegment
 
 pytestmark = pytest.mark.skipif(not native.available(), reason="packbot._native not built")
@@ -93,3 +93,38 @@ def test_a_step_chain_samples_as_its_steps(rng):
         np.testing.assert_array_equal(chain(t), seg(min(max(t, seg.t0), seg.t1)))
     assert chain.t0 == 0.0 and chain.t1 == 2e-3
     np.testing.assert_array_equal(chain.y1, ys[-1])
+
+
+def test_a_step_the_native_run_handed_back_is_not_asked_again(robot, monkeypatch):
+    """The step a native run of window steps stops at because its set changes (or a bounce,
+    no converged impulses) is handed to the stepper with its free velocity
+    (``MoreauJeanStepper._handed``): its step does not call the native step again. The same
+    run to the bit as when it does (the stepper's hand-back cleared), on two wrist-free
+    starts, the hand-back used at hundreds of steps."""
+    from test_normal_cascade import start_pose
+
+    real = timestep.MoreauJeanStepper._native_step
+    used = {"n": 0}
+
+    def cleared(self, t, y, h):
+        self._handed = None
+        return real(self, t, y, h)
+
+    def counted(self, t, y, h):
+        handed = self._handed
+        out = real(self, t, y, h)
+        if handed is not None and handed[0] == y.tobytes() and handed[1] == h:
+            used["n"] += 1
+        return out
+
+    for k, mu in ((16, 0.0), (14, 0.5)):
+        cfg = packbot.SimConfig(contact_mode="normal", mu=mu, restitution=0.0)
+        runs = []
+        for step in (cleared, counted):
+            monkeypatch.setattr(timestep.MoreauJeanStepper, "_native_step", step)
+            runs.append(packbot.simulate(robot, start_pose(robot, k), np.zeros(8), 2.0, config=cfg))
+        a, b = runs
+        for key in ("t", "q", "v"):
+            np.testing.assert_array_equal(getattr(a, key), getattr(b, key))
+        assert [e.kind for e in a.events] == [e.kind for e in b.events]
+    assert used["n"] > 200, used

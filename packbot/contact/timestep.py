@@ -256,6 +256,9 @@ class MoreauJeanStepper:
         #: call then took on the updated set (:meth:`_python_step`).
         self.native_solves = 0
         self._miss = 0  # (why the last native step handed back; 0: it did not)
+        #: the step a native run of steps (window_run.run_native) handed back: (the state's
+        #: bytes, the step's size [s], why, its free velocity [rad/s]); None: none
+        self._handed: tuple[bytes, float, int, FloatArray] | None = None
         self.h = float(h)
         self.n = system.nv
         #: The last step's Coulomb and brake torques [N*m] (its box impulses / h).
@@ -378,6 +381,12 @@ class MoreauJeanStepper:
         torques = self.drive.step_torques(t, y)
         if torques is None or torques[2].any():
             return None
+        handed, self._handed = self._handed, None
+        if handed is not None and handed[0] == y.tobytes() and handed[1] == h:
+            # (the window's native run stopped at this step: handed back, with its v_f)
+            self._miss = handed[2]
+            self.native_misses[handed[2]] = self.native_misses.get(handed[2], 0) + 1
+            return np.asarray(handed[3], dtype=np.float64)
         sw = cached[2]
         closest = (float(sw.min_distance), int(sw.min_pair))
         return self._native_call(y, h, torques, closest, (sw.pairs, sw.distances, cached[1]))

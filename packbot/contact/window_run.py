@@ -203,6 +203,12 @@ def run_native(
         timestep.SWEEP_SLACK, timestep.PROJECT_DEPTH, timestep.IMPULSE_BAND, min_d, MAX_STEPS,
     )  # fmt: skip
     steps, pending = int(out["steps"]), int(out["status"]) == 1
+    handed = int(out["handed"])
+    # the step after the run, handed back by the native call: the stepper's own native step
+    # from that state, of that size, would hand it back again (_native_step reads this)
+    stepper._handed = (
+        (state.tobytes(), float(out["h_handed"]), handed, out["vf_handed"]) if handed else None
+    )
     if steps or pending:  # (the world's pieces are owed at the last native sweep's q)
         world.dispatch.owe()
     signature = None

@@ -1318,7 +1318,7 @@ class ContactRhs {
     std::vector<double> removed, states, times;  // (the steps kept: energy removed, states, ends)
     double rho = rho0, margin = sweep_margin, h_kept = 0.0;
     int64_t min_pair = -1;
-    int steps = 0, status = 0;
+    int steps = 0, status = 0, handed = 0;
     WindowOut w;
     double h = 0.0, t1 = t, reach_m = 0.0;
     int64_t nbest = -1;
@@ -1334,7 +1334,10 @@ class ContactRhs {
       for (int i = 0; i < B; ++i) bound[i] = h * coul.data()[i];
       w = window_core(Y, h, spairs.data(), sdist.data(), spairs.size(), margin, a, bound.data(),
                       x.data(), x.size(), rho, vf.data(), v1.data(), q1.data(), xn);
-      if (w.status != 0) break;
+      if (w.status != 0) {
+        handed = w.status;
+        break;
+      }
       // the signature (conic.step_signature, then the slipping boxes)
       const int mp = mp_, m3 = 3 * m_;
       std::vector<double> xs(np_, 0.0), t1s(np_, 0.0), t2s(np_, 0.0);
@@ -1432,6 +1435,13 @@ class ContactRhs {
     out["margin"] = margin;
     out["best"] = best;
     out["best_d"] = best_d;
+    // the step window_core handed back (its status, size [s] and free velocity [rad/s]; 0:
+    // none): the caller's step from the state out, of that size, need not ask again
+    out["handed"] = handed;
+    if (handed != 0) {
+      out["h_handed"] = h;
+      out["vf_handed"] = owned_vec(vf);
+    }
     if (status == 1) {  // the pending step: MoreauJeanStepper.step's native result, its sweep
       out["h"] = h;
       out["vf"] = owned_vec(vf);
