@@ -208,6 +208,9 @@ def _check_request(req: coal.DistanceRequest) -> bool:
 _ARGS: dict[int, tuple[Any, dict[str, Any] | None]] = {}
 _ARGS_MAX = 16
 _ARGS_LOCK = threading.Lock()  # (Dask workers may build worlds in several threads)
+#: A Sweep per geometry model and kinematics (never swept: Sweep.fresh's prototype), the
+#: geometry model kept beside it (an id can be reused)
+_PROTOTYPES: dict[tuple[object, ...], tuple[Any, Any]] = {}
 
 
 class NativeSweep:
@@ -215,11 +218,11 @@ class NativeSweep:
 
     Args:
         world: The world (its geometry model, broadphase boxes, pairs and distance requests).
-        args: The extension's constructor arguments (:func:`native_sweep` builds them).
+        sweep: The extension's ``Sweep`` of that world, new (:func:`native_sweep` makes it).
     """
 
-    def __init__(self, world: CollisionWorld, args: dict[str, Any]) -> None:
-        self._sweep = _native_coal.Sweep(**args)
+    def __init__(self, world: CollisionWorld, sweep: Any) -> None:
+        self._sweep = sweep
         #: the sweep's C entry point (a capsule; ``src/native/sweep_api.hpp``): the contact-normal
         #: mode's compiled stretch of steps calls it (:mod:`packbot.contact.stretch`)
         self.api: Any = self._sweep.api()
@@ -280,11 +283,29 @@ def native_sweep(world: CollisionWorld) -> NativeSweep | None:
     if geometry is None or kinematics is None:
         log.debug("the native sweep cannot build this world: Python path")
         return None
-    try:
-        return NativeSweep(world, {**kinematics, **geometry})
-    except ValueError as exc:  # the extension's own checks (e.g. a degenerate hull)
-        log.warning("the native sweep cannot build this world (%s): Python path", exc)
-        return None
+    # a new Sweep: a fresh copy of the first one built for these pieces and kinematics (it
+    # shares their hulls: 0.05 ms against 0.3 ms for building them again)
+    key = (
+        id(gm),
+        tuple(kinematics["types"]),
+        kinematics["parents"].tobytes(),
+        kinematics["joint_placements"].tobytes(),
+        kinematics["axes"].tobytes(),
+    )
+    with _ARGS_LOCK:
+        proto = _PROTOTYPES.get(key)
+    if proto is None or proto[0] is not gm:
+        try:
+            made = _native_coal.Sweep(**kinematics, **geometry)
+        except ValueError as exc:  # the extension's own checks (e.g. a degenerate hull)
+            log.warning("the native sweep cannot build this world (%s): Python path", exc)
+            return None
+        proto = (gm, made)
+        with _ARGS_LOCK:
+            if len(_PROTOTYPES) >= _ARGS_MAX:
+                del _PROTOTYPES[next(iter(_PROTOTYPES))]
+            _PROTOTYPES[key] = proto
+    return NativeSweep(world, proto[1].fresh())
 
 
 _tuple_new = tuple.__new__

@@ -13,6 +13,7 @@ installed wheel they are packaged as ``packbot/_data/urdf`` and ``packbot/_data/
 
 from __future__ import annotations
 
+import functools
 from importlib.resources import files
 from pathlib import Path
 
@@ -52,8 +53,9 @@ def repo_root() -> Path | None:
     return root if (root / "pyproject.toml").is_file() and (root / "urdf").is_dir() else None
 
 
+@functools.cache
 def _data_root(name: str) -> Path:
-    """Absolute path of the top-level data folder ``urdf/`` or ``sims/``.
+    """Absolute path of the top-level data folder ``urdf/`` or ``sims/`` (found once).
 
     Raises:
         ResourceNotFound: Neither the wheel's nor the checkout's folder exists.
@@ -81,8 +83,11 @@ def data_dir(name: str) -> Path:
     return _data_root(name)
 
 
+@functools.cache
 def description_dir() -> Path:
     """Absolute path of the description package folder ``urdf/packbot`` (holds ``package.xml``).
+
+    Found once (every collision world reads the SRDF beside it).
 
     Raises:
         ResourceNotFound: The folder is missing (a broken install).

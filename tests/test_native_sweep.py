@@ -297,3 +297,36 @@ def test_point_queries_between_sweeps_change_no_sweep(robot, enabled, monkeypatc
         b = queried.sweep(q, 0.05)
         assert a.pairs.tolist() == b.pairs.tolist()
         np.testing.assert_array_equal(a.distances, b.distances)
+
+
+def test_a_fresh_sweep_is_a_new_one(robot, rng):
+    """``Sweep.fresh`` (a world's sweep copied from the first one built for its pieces and
+    kinematics, sharing its hulls) sweeps and patches as a Sweep built anew, to the bit, over
+    a sequence of sweeps (each pair's GJK warm start its own), and a sweep of one copy leaves
+    another as it was."""
+    if not native_sweep.available():
+        pytest.skip("packbot._native_coal not built")
+    from packbot import _native_coal
+
+    world = CollisionWorld(robot)
+    args = {**native_sweep._kinematics(robot.model), **native_sweep._arguments(world)}
+    built, proto = _native_coal.Sweep(**args), _native_coal.Sweep(**args)
+    copy, other = proto.fresh(), proto.fresh()
+    lo, hi = robot.model.lowerPositionLimit, robot.model.upperPositionLimit
+    qs = [rng.uniform(lo, hi) for _ in range(40)]
+    for q in qs:
+        a, b = built.sweep(q, 0.05), copy.sweep(q, 0.05)
+        np.testing.assert_array_equal(a[0], b[0])
+        np.testing.assert_array_equal(a[1], b[1])
+        assert a[2:] == b[2:]
+        close = a[0][a[1] < 0.01]
+        if len(close):
+            for x, y in zip(
+                built.patches(q, close, 0.01), copy.patches(q, close, 0.01), strict=True
+            ):
+                np.testing.assert_array_equal(x, y)
+    # the other copy, untouched by the sweeps above, sweeps the first q as a new one
+    first = _native_coal.Sweep(**args).sweep(qs[0], 0.05)
+    again = other.sweep(qs[0], 0.05)
+    np.testing.assert_array_equal(first[1], again[1])
+    assert copy.n_pairs == built.n_pairs

@@ -242,14 +242,32 @@ def reach_bounds(model: pin.Model, world: CollisionWorld | None) -> FloatArray:
     """
     nv = int(model.nv)
     flat = np.full(nv, REACH_BOUND)
-    if world is None or any(
-        j.shortname() not in REVOLUTE for j in list(model.joints)[1:]
-    ):  # (one velocity per joint below)
+    names = tuple(j.shortname() for j in list(model.joints)[1:])
+    if world is None or any(n not in REVOLUTE for n in names):  # (one velocity per joint)
         return flat
-    r = np.zeros(nv)
     offset = [
         float(np.linalg.norm(model.jointPlacements[j].translation)) for j in range(model.njoints)
     ]
+    # (the worlds of one robot share their geometry model: the bounds of the last few kept)
+    gm = world.geom_model
+    key = (id(gm), names, tuple(offset), tuple(model.parents), tuple(model.idx_vs))
+    kept = _REACH.get(key)
+    if kept is not None and kept[0] is gm:
+        return kept[1].copy()
+    r = _reach(model, world, nv, offset)
+    if len(_REACH) >= 16:
+        del _REACH[next(iter(_REACH))]
+    _REACH[key] = (gm, r)
+    return r.copy()
+
+
+#: reach_bounds' results by model and geometry model (the geometry model kept: ids are reused)
+_REACH: dict[tuple[object, ...], tuple[object, FloatArray]] = {}
+
+
+def _reach(model: pin.Model, world: CollisionWorld, nv: int, offset: list[float]) -> FloatArray:
+    """:func:`reach_bounds` of a model with revolute joints only."""
+    r = np.zeros(nv)
     for go in world.geom_model.geometryObjects:
         j = int(go.parentJoint)
         if j == 0:

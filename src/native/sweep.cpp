@@ -238,6 +238,12 @@ class Sweep {
   Sweep(const Sweep &) = delete;
   Sweep &operator=(const Sweep &) = delete;
 
+  // A new Sweep of the same model, pieces and pairs, as the constructor leaves it (no sweep
+  // yet: each pair's request without a GJK guess, no margin), sharing this one's shapes,
+  // which nothing changes after they are built (a hull's construction, its neighbours and
+  // centre, is most of the constructor's time).
+  Sweep *fresh() const { return new Sweep(*this, 0); }
+
   // (pairs, distances, closest pair index or -1, its distance or inf) of the candidates at q
   // and margin [m].
   std::tuple<NpI1, NpF1, int64_t, double> sweep(F1 q, double margin) {
@@ -450,6 +456,36 @@ class Sweep {
   }
 
  private:
+  // (fresh()'s: the fixed parts shared or copied, the state as after the constructor)
+  Sweep(const Sweep &o, int)
+      : model_(o.model_),
+        data_(o.model_),
+        joint_(o.joint_),
+        placement_(o.placement_),
+        box_placement_(o.box_placement_),
+        shapes_(o.shapes_),
+        first_(o.first_),
+        second_(o.second_),
+        request_(o.request_) {
+    q_.setZero(model_.nq);
+    pq_.setZero(model_.nq);
+    const size_t G = shapes_.size(), K = first_.size();
+    for (size_t g = 0; g < G; ++g) {
+      objects_.push_back(
+          std::make_unique<coal::CollisionObject>(o.objects_[g]->collisionGeometry(), false));
+      oMg_.push_back(pin::SE3::Identity());
+    }
+    for (size_t k = 0; k < K; ++k)
+      functors_.push_back(std::make_unique<coal::ComputeDistance>(shapes_[first_[k]].get(),
+                                                                   shapes_[second_[k]].get()));
+    requests_.assign(K, request_);
+    cand_.reserve(K);
+    dist_.resize(K);
+    p1_.resize(K);
+    p2_.resize(K);
+    normal_.resize(K);
+  }
+
   Model model_;
   Data data_;
   Eigen::VectorXd q_, pq_;  // the last sweep's q, the last patches' q
@@ -488,6 +524,7 @@ NB_MODULE(_native_coal, m) {
       .def("witness", &Sweep::witness, nb::arg("p1"), nb::arg("p2"), nb::arg("normal"))
       .def("boxes", &Sweep::boxes, nb::arg("lo"), nb::arg("hi"))
       .def("last_q", &Sweep::last_q)
+      .def("fresh", &Sweep::fresh, nb::rv_policy::take_ownership)
       .def("api", [](nb::handle self) { return nb::cast<Sweep &>(self).api(self); })
       .def_prop_ro("n_pairs", &Sweep::n_pairs);
 }
