@@ -51,7 +51,9 @@ step's end serves the next step's contact set, and the energy at its end the nex
 guard. A step whose contact set stays as it is, under fixed torques, is one native call with
 the same arithmetic (:meth:`MoreauJeanStepper._native_step`: the free velocity, M^-1, the rows,
 the patch rule, the problem and the solver, v1, q1 and the guard's energies); it hands the step
-back to Python where the set changes, a row bounces or the impulses do not converge. What a
+back to Python where the set changes, a row bounces or the impulses do not converge. Where the
+set changes, Python updates it and the same call, its set checks off, takes the impulses
+(:meth:`MoreauJeanStepper._python_step`). What a
 step costs, and where: docs/performance.md, "Window steps".
 
 A step's *signature* is what the solution decided: the pairs and limits pushing, the pairs
