@@ -123,7 +123,12 @@ class System:
 
     # --------------------------------------------------------------- dynamics
     def aba(self, q: FloatArray, v: FloatArray, tau: FloatArray) -> FloatArray:
-        """Joint accelerations of the unconstrained arm [rad/s^2] (armature included)."""
+        """Joint accelerations of the unconstrained arm [rad/s^2] (armature included).
+
+        Pinocchio's ABA in the world convention: the arithmetic of the compiled right-hand
+        side (``ContactRhs``, which takes M^-1 from the same pass), so that both give the same
+        numbers to the bit (tests/test_native*.py compare them).
+        """
         return pin.aba(self.model, self.data, q, v, tau, pin.Convention.WORLD)
 
     def bias(self, q: FloatArray, v: FloatArray) -> FloatArray:
