@@ -27,7 +27,8 @@ machine hits them alike):
 - the same sweep with each of Pinocchio's broadphase manager types, and with the broadphase's
   candidates sent one by one to ``pin.computeDistance`` (no activation, a Python loop);
 - the sweep among 0 to 200 box obstacles with three manager types;
-- the sweeps of one collapse, timed in the run (:func:`in_run`).
+- the sweeps of one collapse, timed in the run (:func:`in_run`);
+- building a world (:func:`build_time`: ``CollisionWorld(robot)``, its fixed parts shared).
 
 Every variant is checked to test the same pairs and return the same distances as ``sweep``.
 A breakdown of the sweep, each stage timed alone, follows the tables.
@@ -472,6 +473,18 @@ def in_run_table(robot: packbot.Robot) -> None:
         )
 
 
+def build_time(robot: packbot.Robot, n: int = 51) -> float:
+    """Median time [ms] of ``CollisionWorld(robot)`` after a first one (the fixed parts, the
+    pristine data and the native sweep's prototype built): what each simulation pays."""
+    CollisionWorld(robot)
+    walls = []
+    for _ in range(n):
+        t0 = time.perf_counter()
+        CollisionWorld(robot)
+        walls.append(time.perf_counter() - t0)
+    return statistics.median(walls) * 1e3
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeat", type=int, default=21, help="interleaved batches per variant")
@@ -492,7 +505,8 @@ def main() -> None:
     print(
         f"{len(world.pairs)} tested pairs ({robot.collision_model.ngeoms} robot pieces + floor), "
         f"margin {world.margin} m; times in us, medians of {args.repeat} interleaved batches of "
-        f"~1 ms; load average {load:.2f} at the start\n"
+        f"~1 ms; load average {load:.2f} at the start; building a world "
+        f"{build_time(robot):.2f} ms (median of 51)\n"
     )
     head = (
         "| configuration | tests / within margin | native | Python path | before (numpy boxes) "

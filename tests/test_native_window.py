@@ -154,7 +154,7 @@ def test_unconverged_native_impulses_hand_the_step_back(robot, monkeypatch):
     [(16, 0.0, {}), (14, 0.5, {}), (16, 0.5, {"joint_friction": True})],
     ids=["mu0", "mu0.5", "joint-friction"],
 )
-def test_a_native_solve_after_a_set_update_is_the_python_one(robot, k, mu, kw):
+def test_a_native_solve_after_a_set_update_is_the_python_one(robot, monkeypatch, k, mu, kw):
     """A step handed back because its contact set changes: once the set is updated, the
     native call takes its impulses (``checked=False``); compared with the Python solve of the
     same step from the same state and warm start."""
@@ -184,14 +184,9 @@ def test_a_native_solve_after_a_set_update_is_the_python_one(robot, k, mu, kw):
         )
         return out
 
-    pytest.MonkeyPatch().setattr(timestep.MoreauJeanStepper, "_native_call", compared)
+    monkeypatch.setattr(timestep.MoreauJeanStepper, "_native_call", compared)
     cfg = packbot.SimConfig(contact_mode="normal", mu=mu, restitution=0.0, **kw)
-    try:
-        res = packbot.simulate(
-            robot, start_pose(robot, k), np.zeros(robot.model.nv), 2.0, config=cfg
-        )
-    finally:
-        pytest.MonkeyPatch().setattr(timestep.MoreauJeanStepper, "_native_call", real)
+    res = packbot.simulate(robot, start_pose(robot, k), np.zeros(robot.model.nv), 2.0, config=cfg)
     assert len(seen) > 50, len(seen)
     worst = {key: max(s[key] for s in seen) for key in seen[0]}
     assert worst["v1"] <= 1e-9, worst

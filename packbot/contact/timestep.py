@@ -257,7 +257,8 @@ class MoreauJeanStepper:
         #: Of those handed back because the set changes: the steps whose impulses the native
         #: call then took on the updated set (:meth:`_python_step`).
         self.native_solves = 0
-        self._miss = 0  # (why the last native step handed back; 0: it did not)
+        #: why the last native step handed back and its torques (None: it did not)
+        self._miss: tuple[int, tuple[FloatArray, ...]] | None = None
         #: the step a native run of steps (window_run.run_native) handed back: (the state's
         #: bytes, the step's size [s], why, its free velocity [rad/s]); None: none
         self._handed: tuple[bytes, float, int, FloatArray] | None = None
@@ -386,7 +387,7 @@ class MoreauJeanStepper:
         handed, self._handed = self._handed, None
         if handed is not None and handed[0] == y.tobytes() and handed[1] == h:
             # (the window's native run stopped at this step: handed back, with its v_f)
-            self._miss = handed[2]
+            self._miss = (handed[2], torques)
             self.native_misses[handed[2]] = self.native_misses.get(handed[2], 0) + 1
             return np.asarray(handed[3], dtype=np.float64)
         sw = cached[2]
@@ -430,7 +431,7 @@ class MoreauJeanStepper:
             checked=sweep is not None,
         )  # fmt: skip
         if status != 0:
-            self._miss = status
+            self._miss = (status, torques)
             self.native_misses[status] = self.native_misses.get(status, 0) + 1
             return v_f  # (its free velocity: the midpoint rule's, as Python's)
         if sweep is not None:
@@ -453,8 +454,9 @@ class MoreauJeanStepper:
         """
         sys, contacts, n = self.sys, self.contacts, self.n
         q, v = y[:n], y[n : 2 * n]
-        retry = v_free is not None and self._miss == 1
-        self._miss = 0
+        # (a native step handed back because the set changes: its torques, else None)
+        miss, self._miss = self._miss, None
+        torques = miss[1] if v_free is not None and miss is not None and miss[0] == 1 else None
         # the free accelerations at the step's midpoint (explicit midpoint rule): an Euler step
         # v + h a_free(q, v) gains energy where a light joint spins (its gyroscopic terms)
         if v_free is not None:
@@ -469,12 +471,10 @@ class MoreauJeanStepper:
             v_f = v + h * self.drive.free_accel(t, y)
 
         closest, raw = self._update_set(q, v, v_f, h)
-        if retry and contacts.pairs:
-            torques = self.drive.step_torques(t, y)
-            if torques is not None and not torques[2].any():
-                fast = self._native_call(y, h, torques, closest, None)
-                if not isinstance(fast, np.ndarray):
-                    return fast
+        if torques is not None and contacts.pairs:
+            fast = self._native_call(y, h, torques, closest, None)
+            if not isinstance(fast, np.ndarray):
+                return fast
         return self._python_solve(q, v, v_f, h, closest, raw)
 
     def _python_solve(

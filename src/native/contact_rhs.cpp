@@ -758,11 +758,10 @@ class ContactRhs {
     if (from_tau) {
       pin::aba(model_, data_, q_, v_, x_, pin::Convention::WORLD);
       a_free_ = data_.ddq;
-      world_aba_ = true;
     } else {
       a_free_ = x_;
     }
-    const bool ok = compute();
+    const bool ok = compute(from_tau);
     double *o = out.data();
     for (int i = 0; i < nv_; ++i) o[i] = a_[i];
     return ok;
@@ -1868,8 +1867,7 @@ class ContactRhs {
     }
     pin::aba(model_, data_, q_, v_, x_, pin::Convention::WORLD);
     a_free_ = data_.ddq;
-    world_aba_ = true;
-    if (!compute()) return false;
+    if (!compute(true)) return false;
     for (int i = 0; i < nv; ++i) {
       f[i] = y[nv + i];
       f[nv + i] = a_[i];
@@ -1953,12 +1951,13 @@ class ContactRhs {
     return true;
   }
 
-  bool compute() {
+  // M^-1, the rows and the plan's accelerations at (q_, v_) with a_free_. after_aba: data_
+  // holds aba(WORLD)'s pass at (q_, v_), whose factors give M^-1 (Pinocchio's computeMinverse
+  // without q: the same numbers as with q) and whose J and oMi are the rows' (dJ by
+  // time_variation()); else the full passes.
+  bool compute(bool after_aba) {
     const int nv = nv_;
-    if (world_aba_) {
-      // after aba(WORLD) at (q_, v_): M^-1 from its factors (Pinocchio's computeMinverse
-      // without q: the same numbers as with q), J and oMi are its own, dJ by time_variation()
-      world_aba_ = false;
+    if (after_aba) {
       pin::computeMinverse(model_, data_);
       if (nb_ > 0) time_variation();
     } else {
@@ -2392,7 +2391,6 @@ class ContactRhs {
 
   Model model_;
   Data data_;
-  bool world_aba_ = false;  // data_ holds aba(WORLD)'s pass at (q_, v_) (compute's fast path)
   int nv_ = 0;
   Eigen::VectorXd q_, v_, x_, a_free_, a_, force_;
   // the report's law's locks (set_locks): -1 the contact rows, 0 none, 1 one, 2 the unlocked block

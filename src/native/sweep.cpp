@@ -210,8 +210,6 @@ class Sweep {
         throw std::invalid_argument("a pair's piece is out of range");
       first_.push_back(static_cast<size_t>(a));
       second_.push_back(static_cast<size_t>(b));
-      functors_.push_back(std::make_unique<coal::ComputeDistance>(shapes_[a].get(),
-                                                                   shapes_[b].get()));
     }
     request_.gjk_tolerance = gjk_tolerance;
     request_.epa_tolerance = epa_tolerance;
@@ -224,15 +222,7 @@ class Sweep {
     COAL_COMPILER_DIAGNOSTIC_IGNORED_DEPRECECATED_DECLARATIONS
     request_.enable_cached_gjk_guess = cached_guess;  // as Pinocchio's GeometryData sets it
     COAL_COMPILER_DIAGNOSTIC_POP
-    // one request per pair, as Pinocchio's GeometryData: with enable_cached_gjk_guess Coal
-    // keeps each pair's last GJK guess and support hints in its request (its mutable
-    // cached_gjk_guess), where the pair's next query starts
-    requests_.assign(K, request_);
-    cand_.reserve(K);
-    dist_.resize(K);
-    p1_.resize(K);
-    p2_.resize(K);
-    normal_.resize(K);
+    start_pairs();
   }
 
   Sweep(const Sweep &) = delete;
@@ -469,12 +459,22 @@ class Sweep {
         request_(o.request_) {
     q_.setZero(model_.nq);
     pq_.setZero(model_.nq);
-    const size_t G = shapes_.size(), K = first_.size();
+    const size_t G = shapes_.size();
     for (size_t g = 0; g < G; ++g) {
       objects_.push_back(
           std::make_unique<coal::CollisionObject>(o.objects_[g]->collisionGeometry(), false));
       oMg_.push_back(pin::SE3::Identity());
     }
+    start_pairs();
+  }
+
+  // Each pair's distance functor and request (request_'s settings, no GJK guess yet) and the
+  // sweep's buffers, from first_, second_ and shapes_. One request per pair, as Pinocchio's
+  // GeometryData: with enable_cached_gjk_guess Coal keeps each pair's last GJK guess and
+  // support hints in its request (its mutable cached_gjk_guess), where the pair's next query
+  // starts.
+  void start_pairs() {
+    const size_t K = first_.size();
     for (size_t k = 0; k < K; ++k)
       functors_.push_back(std::make_unique<coal::ComputeDistance>(shapes_[first_[k]].get(),
                                                                    shapes_[second_[k]].get()));
