@@ -8,19 +8,21 @@ contract).
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+from collections.abc import Callable
+from typing import TYPE_CHECKING, Any
 
 import coal
 import numpy as np
 import pinocchio as pin
 from numpy.typing import NDArray
 
+from packbot import native_sweep
 from packbot.errors import ConfigurationError, UnknownNameError
 
 if TYPE_CHECKING:
     from packbot.collision import CollisionWorld
 
-__all__ = ["LOS_SHORTEN", "contact_patch", "line_of_sight"]
+__all__ = ["LOS_SHORTEN", "contact_patch", "line_of_sight", "material_batch"]
 
 #: The line of sight stops this short of the target [m], so that a target on a surface is seen.
 LOS_SHORTEN = 1e-3
@@ -61,6 +63,48 @@ def contact_patch(
     pts1 = np.array([patch.getPointShape1(i) for i in range(npts)]).reshape(-1, 3)
     pts2 = np.array([patch.getPointShape2(i) for i in range(npts)]).reshape(-1, 3)
     return n, pts1, pts2, float(patch.penetration_depth)
+
+
+def material_batch(
+    world: CollisionWorld,
+    q: NDArray[np.float64],
+    pairs: list[int],
+    tol: float,
+    patch_tol: float,
+    face_align: float,
+    planes: Callable[[], tuple[NDArray[Any], ...]],
+) -> tuple[NDArray[Any], ...] | None:
+    """The native patches of checked ``pairs`` at q as material points (None: no native sweep).
+
+    The patches of :meth:`CollisionWorld._patch_batch
+    <packbot.collision.CollisionWorld._patch_batch>`, each made material points by the
+    extension (``Sweep.materials``: :func:`packbot.contact.kernels.patch_material`'s
+    arithmetic, bit for bit) with the pieces' face planes (``planes() -> (N, o, start)``,
+    loaded once per native sweep), the patch tolerance ``patch_tol`` [m], and whether nothing
+    lags on the patch (its normal a face's within ``face_align``).
+
+    Returns:
+        (sizes, flags, normals, depths, rotations, translations, local1, local2, offset0,
+        normal2, frame2, centres): see the extension's ``Sweep.materials``; the rotations
+        Fortran-ordered, as ``_patch_batch``'s.
+
+    Raises:
+        ConfigurationError: A wrong-size q.
+    """
+    native = world._native
+    if native is None or not native_sweep.ENABLED:
+        return None
+    qa = np.ascontiguousarray(q, dtype=np.float64)
+    try:
+        out = native.materials(
+            qa, np.asarray(pairs, dtype=np.int64), float(tol), patch_tol, face_align, planes
+        )
+    except (ValueError, TypeError) as exc:  # the extension's size/type check
+        nq = world.robot.model.nq
+        raise ConfigurationError("q", np.shape(q), f"a vector of shape ({nq},) [rad]") from exc
+    world.dispatch.pending = qa.tobytes()  # (as _patch_batch: the pieces owed at q)
+    rot = out[4]
+    return (*out[:4], rot.swapaxes(2, 3), *out[5:])
 
 
 def line_of_sight(

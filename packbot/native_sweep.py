@@ -221,8 +221,9 @@ class NativeSweep:
         sweep: The extension's ``Sweep`` of that world, new (:func:`native_sweep` makes it).
     """
 
-    def __init__(self, world: CollisionWorld, sweep: Any) -> None:
+    def __init__(self, world: CollisionWorld, sweep: Any, prototype: Any = None) -> None:
         self._sweep = sweep
+        self._prototype = prototype  # (the Sweep it is a fresh copy of: planes set there too)
         #: the sweep's C entry point (a capsule; ``src/native/sweep_api.hpp``): the contact-normal
         #: mode's compiled stretch of steps calls it (:mod:`packbot.contact.stretch`)
         self.api: Any = self._sweep.api()
@@ -239,6 +240,30 @@ class NativeSweep:
         self._p1 = np.zeros((n, 3))
         self._p2 = np.zeros((n, 3))
         self._normal = np.zeros((n, 3))
+
+    def materials(
+        self,
+        q: NDArray[np.float64],
+        pairs: NDArray[np.int64],
+        tol: float,
+        patch_tol: float,
+        face_align: float,
+        planes: Callable[[], tuple[NDArray[Any], ...]],
+    ) -> tuple[NDArray[Any], ...]:
+        """The contact patches of several pairs at one q as material points (``Sweep.materials``).
+
+        The pieces' face planes, ``planes() -> (N, o, start)``, are loaded at the first call
+        (into the prototype too, so that its next fresh copies have them).
+        """
+        sweep = self._sweep
+        if not sweep.has_planes:  # (a copy made before its prototype had them)
+            N, o, start = planes()
+            args = (_reals(N), _reals(o), _ints(start))
+            sweep.set_planes(*args)
+            proto = self._prototype
+            if proto is not None and not proto.has_planes:
+                proto.set_planes(*args)
+        return tuple(sweep.materials(q, pairs, tol, patch_tol, face_align))
 
     def witness(
         self,
@@ -305,7 +330,7 @@ def native_sweep(world: CollisionWorld) -> NativeSweep | None:
             if len(_PROTOTYPES) >= _ARGS_MAX:
                 del _PROTOTYPES[next(iter(_PROTOTYPES))]
             _PROTOTYPES[key] = proto
-    return NativeSweep(world, proto[1].fresh())
+    return NativeSweep(world, proto[1].fresh(), proto[1])
 
 
 _tuple_new = tuple.__new__

@@ -130,6 +130,8 @@ def _same_sets(a: ContactSet, b: ContactSet) -> int:
         pb = b.pairs[k]
         for name in ("local1", "local2", "normal2", "offset0", "frame2", "centre1", "centre2"):
             np.testing.assert_array_equal(getattr(pa, name), getattr(pb, name), err_msg=name)
+        same = ("on1", "slide_tol", "stick", "built")
+        assert [getattr(pa, n) for n in same] == [getattr(pb, n) for n in same]
     return len(a.pairs)
 
 

@@ -17,6 +17,7 @@ import pinocchio as pin
 from numpy.typing import NDArray
 
 from packbot.collision import CollisionWorld, PairInfo
+from packbot.collision_queries import material_batch
 from packbot.contact.normal_patch import _Pair, _planes
 from packbot.contact.normal_tolerances import FACE_ALIGN, PATCH_TOL
 
@@ -32,6 +33,10 @@ __all__ = ["ContactSet"]
 log = logging.getLogger(__name__)
 
 FloatArray = NDArray[np.float64]
+
+#: Build the patches' material points in the extension's sweep (``Sweep.materials``) when the
+#: world has one; False: the compiled kernel on the native patches (the same to the bit).
+MATERIALS_NATIVE = True
 
 
 class ContactSet:
@@ -174,6 +179,12 @@ class ContactSet:
         t = self.tol if tol is None else tol
         ks = [world._pair_id(k) for k in pairs]
         self._built = (q.tobytes(), t)  # (_put marks the patches with it)
+        if MATERIALS_NATIVE:
+            made = self._add_made(q, ks, t)
+            if made is not None:
+                if any(made):
+                    self._invalidate()  # (once: the caches are not read in between)
+                return made
         batch = world._patch_batch(q, ks, t)
         if batch is None:  # the Python path: pair by pair
             out = []
@@ -212,13 +223,73 @@ class ContactSet:
             self._invalidate()  # (once: the caches are not read in between)
         return out
 
+    def _add_made(self, q: FloatArray, ks: list[int], t: float) -> list[bool] | None:
+        """:meth:`add_pairs`'s patches made material points by the extension, or None.
+
+        ``Sweep.materials`` (``src/native/material.hpp``): the same Coal patches as
+        ``_patch_batch`` and :func:`~packbot.contact.kernels.patch_material`'s arithmetic on
+        them, bit for bit (``tests/test_native_material.py``); a patch off its pair's distance
+        is made here from the witness points, as :meth:`_put` does. None without the
+        extension's sweep.
+        """
+        world = self.world
+        assert world is not None
+        batch = material_batch(world, q, ks, t, PATCH_TOL, FACE_ALIGN, self._plane_arrays)
+        if batch is None:
+            return None
+        sizes, flags, normals, depths, rot, trans, l1, l2, off, n2, fr2, cen = batch
+        pin.forwardKinematics(self.model, self.data, q)  # (the readers of data.oMi expect q)
+        pairs, infos, built = self.pairs, world.pairs, self._built
+        out, s = [], 0
+        for i, k in enumerate(ks):
+            K = int(sizes[i])
+            if K == -1:
+                out.append(False)
+                continue
+            if K < 0:  # off its distance: the witness points (see _put)
+                from packbot.contact import kernels
+
+                self._put(
+                    q, k, normals[i], None, None, float(depths[i]), rot[i, 0], trans[i, 0],
+                    rot[i, 1], trans[i, 1], {}, kernels.patch_material,
+                )  # fmt: skip
+                out.append(True)
+                continue
+            flag = int(flags[i])
+            p = _Pair(
+                infos[k], l1[s : s + K], l2[s : s + K], n2[i], bool(flag & 1),
+                offset0=off[2 * s : 2 * (s + K)].reshape(2, K),
+            )  # fmt: skip
+            p.frame2, p.centre1, p.centre2 = fr2[i], cen[i, 0], cen[i, 1]
+            if flag & 2:
+                p.slide_tol = math.inf  # (nothing lags: see _put)
+            old = pairs.get(k)
+            if old is not None:
+                p.stick, p.slip_dir = old.stick, old.slip_dir
+            p.built = built
+            pairs[k] = p
+            s += K
+            out.append(True)
+        return out
+
+    def _plane_arrays(self) -> tuple[FloatArray, FloatArray, NDArray[np.int64]]:
+        """Every piece's face planes, stacked: (N (F, 3), o (F,), start (G + 1,))."""
+        assert self.world is not None
+        G = int(self.world.geom_model.ngeoms)
+        planes = [self._planes_of(g) for g in range(G)]
+        start = np.zeros(G + 1, dtype=np.int64)
+        start[1:] = np.cumsum([len(o) for _, o in planes])
+        N = np.concatenate([N for N, _ in planes]) if G else np.zeros((0, 3))
+        o = np.concatenate([o for _, o in planes]) if G else np.zeros(0)
+        return N.reshape(-1, 3), o, start
+
     def _put(
         self,
         q: FloatArray,
         pair: int,
         n: FloatArray,
-        points1: FloatArray,
-        points2: FloatArray,
+        points1: FloatArray | None,
+        points2: FloatArray | None,
         d: float,
         Rg1: FloatArray,
         tg1: FloatArray,
@@ -235,8 +306,9 @@ class ContactSet:
             q: Configuration [rad].
             pair: The pair's index.
             n: The patch normal (world, body 1 to body 2).
-            points1: Its points on piece 1, (K, 3) world [m].
-            points2: Its points on piece 2, (K, 3) world [m].
+            points1: Its points on piece 1, (K, 3) world [m] (None: the patch is known to be
+                off the pair's distance, the witness points are taken).
+            points2: Its points on piece 2, (K, 3) world [m] (None with points1).
             d: The pair's signed distance [m].
             Rg1: Piece 1's world rotation.
             tg1: Piece 1's world translation [m].
@@ -252,10 +324,12 @@ class ContactSet:
         _, R2, t2 = frames.get(info.joint2) or self._frame(frames, info.joint2)
         N1, o1 = self._planes_of(info.geom1)
         N2, o2 = self._planes_of(info.geom2)
-        ok, *made = material(
-            points1, points2, n, d, N1, o1, Rg1, tg1,
-            N2, o2, Rg2, tg2, R1, t1, R2, t2, PATCH_TOL, True,
-        )  # fmt: skip
+        ok = False
+        if points1 is not None:  # (None: the caller found the patch off its distance)
+            ok, *made = material(
+                points1, points2, n, d, N1, o1, Rg1, tg1,
+                N2, o2, Rg2, tg2, R1, t1, R2, t2, PATCH_TOL, True,
+            )  # fmt: skip
         if not ok:
             # Coal's patch of a deep or grazing penetration can place its points far off the
             # pair's distance (measured: gaps of -33 mm and +12 mm for a pair 24 um deep, the

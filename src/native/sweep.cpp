@@ -67,10 +67,12 @@
 #include <vector>
 
 #include "joints.hpp"
+#include "material.hpp"
 #include "sweep_api.hpp"
 
 namespace nb = nanobind;
 namespace pin = pinocchio;
+namespace material = packbot_native::material;
 
 using Model = pin::ModelTpl<double, 0, packbot_native::PackbotJointsTpl>;
 using Data = pin::DataTpl<double, 0, packbot_native::PackbotJointsTpl>;
@@ -148,6 +150,7 @@ class Sweep {
         point_start.shape(0) != G + 1 || triangle_start.shape(0) != G + 1 ||
         box_half.shape(0) != G || box_centre.shape(0) != G)
       throw std::invalid_argument("one entry per piece expected in every piece array");
+    halfspace_.assign(G, 0);
     for (size_t g = 0; g < G; ++g) {
       const int64_t j = joints.data()[g];
       if (j < 0 || j >= static_cast<int64_t>(nj))
@@ -184,6 +187,7 @@ class Sweep {
         box->halfSide = coal::Vec3s(p[0], p[1], p[2]);
         shape = box;
       } else if (kinds.data()[g] == HALFSPACE) {
+        halfspace_[g] = 1;
         auto hs = std::make_shared<coal::Halfspace>();
         hs->n = coal::Vec3s(p[0], p[1], p[2]);  // already unit (as the Python shape stores it)
         hs->d = p[3];
@@ -357,42 +361,28 @@ class Sweep {
     auto trans_arr = new_array<double>({n, 2, 3}, &trans);
     pts1_.clear();
     pts2_.clear();
-    coal::CollisionRequest creq;  // packbot.collision's _patch_requests: Coal's defaults,
-    creq.enable_contact = true;   // enable_contact (already the default), the margin tol
-    creq.security_margin = tol;
-    const coal::ContactPatchRequest preq;
     for (size_t i = 0; i < n; ++i) {
       const size_t k = static_cast<size_t>(pairs.data()[i]);
-      const size_t g[2] = {first_[k], second_[k]};
       pin::SE3 M[2];
-      for (int s = 0; s < 2; ++s) {
-        const size_t j = joint_[g[s]];
-        // Pinocchio's updateGeometryPlacements
-        M[s] = j > 0 ? pin::SE3(data_.oMi[j] * placement_[g[s]]) : placement_[g[s]];
+      place_pair(k, M);
+      for (int s = 0; s < 2; ++s)
         for (int r = 0; r < 3; ++r) {
           for (int c = 0; c < 3; ++c) rot[18 * i + 9 * s + 3 * c + r] = M[s].rotation()(r, c);
           trans[6 * i + 3 * s + r] = M[s].translation()(r);
         }
-      }
-      const coal::Transform3s T1 = coal_of(M[0]), T2 = coal_of(M[1]);
-      const coal::CollisionGeometry *s1 = shapes_[g[0]].get(), *s2 = shapes_[g[1]].get();
-      coal::CollisionResult cres;
       sizes[i] = -1;
       normals[3 * i] = normals[3 * i + 1] = normals[3 * i + 2] = 0.0;
       depths[i] = 0.0;
-      if (!coal::collide(s1, T1, s2, T2, creq, cres)) continue;
-      coal::ContactPatchResult pres(preq);
-      coal::computeContactPatch(s1, T1, s2, T2, cres, preq, pres);
-      if (pres.numContactPatches() == 0) continue;
-      const coal::ContactPatch &patch = pres.getContactPatch(0);
-      const coal::Vec3s nrm = patch.getNormal();
-      const size_t npts = patch.size();
+      const coal::ContactPatch *patch = contact_patch(k, M, tol);
+      if (patch == nullptr) continue;
+      const coal::Vec3s nrm = patch->getNormal();
+      const size_t npts = patch->size();
       sizes[i] = static_cast<int64_t>(npts);
       for (int c = 0; c < 3; ++c) normals[3 * i + c] = nrm[c];
-      depths[i] = patch.penetration_depth;
+      depths[i] = patch->penetration_depth;
       for (size_t m = 0; m < npts; ++m) {
-        pts1_.push_back(patch.getPointShape1(m));
-        pts2_.push_back(patch.getPointShape2(m));
+        pts1_.push_back(patch->getPointShape1(m));
+        pts2_.push_back(patch->getPointShape2(m));
       }
     }
     const size_t S = pts1_.size();
@@ -405,6 +395,142 @@ class Sweep {
         p2[3 * m + c] = pts2_[m][c];
       }
     return {sizes_arr, normals_arr, depths_arr, p1_arr, p2_arr, rot_arr, trans_arr};
+  }
+
+  // The face planes of every piece (kernels.patch_material's N and o), for ``materials``:
+  // N (sum F, 3) unit outward normals in the pieces' frames, o (sum F) offsets, start (G + 1)
+  // piece g's planes start[g] to start[g + 1] (none: a piece without faces).
+  void set_planes(F2 N, F1 o, I1 start) {
+    const size_t G = shapes_.size();
+    if (start.shape(0) != G + 1 || N.shape(1) != 3 || N.shape(0) != o.shape(0))
+      throw std::invalid_argument("set_planes: N (F, 3), o (F,) and start (G + 1,) expected");
+    auto planes = std::make_shared<PlaneSet>();
+    planes->N.assign(N.data(), N.data() + 3 * N.shape(0));
+    planes->o.assign(o.data(), o.data() + o.shape(0));
+    planes->start.assign(start.data(), start.data() + G + 1);
+    if (planes->start[0] != 0 || planes->start[G] != static_cast<int64_t>(o.shape(0)))
+      throw std::invalid_argument("set_planes: start must run from 0 to F");
+    for (size_t g = 0; g < G; ++g)
+      if (planes->start[g + 1] < planes->start[g])
+        throw std::invalid_argument("set_planes: start must not decrease");
+    planes_ = std::move(planes);
+  }
+
+  bool has_planes() const { return planes_ != nullptr; }
+
+  // The contact set's patches of ``pairs`` at q as material points (ContactSet.add_pairs):
+  // ``patches``' Coal calls, then kernels.patch_material (check on) in material.hpp, the
+  // joints' placements Pinocchio's at q. Returns (sizes, slide_free, normals, depths,
+  // rotations, translations, local1, local2, offset0, normal2, frame2, centres): sizes (n,) K,
+  // -1 for a pair farther apart than tol, -2 for a patch off the pair's distance (the caller
+  // takes the witness points); slide_free (n,) bit 0 the normal is body 1's, bit 1 nothing
+  // lags (a one-point patch or a halfspace's, on a face: ContactSet._put's slide_tol inf);
+  // normals, depths, rotations, translations as ``patches``; local1 and local2 (sum K, 3) the
+  // points in their joints' frames; offset0 (2 sum K): each pair's (2, K) block in turn;
+  // normal2 (n, 3), frame2 (n, 3, 3), centres (n, 2, 1, 3) (body 1's, body 2's).
+  nb::tuple materials(F1 q, I1 pairs, double tol, double patch_tol, double face_align) {
+    if (!planes_) throw std::invalid_argument("materials: set_planes first");
+    if (q.shape(0) != static_cast<size_t>(model_.nq))
+      throw std::invalid_argument("q: " + std::to_string(model_.nq) + " entries expected");
+    const size_t n = pairs.shape(0), K = first_.size();
+    for (size_t i = 0; i < n; ++i)
+      if (pairs.data()[i] < 0 || pairs.data()[i] >= static_cast<int64_t>(K))
+        throw std::invalid_argument("a pair index is out of range");
+    for (int i = 0; i < model_.nq; ++i) pq_[i] = q.data()[i];
+    pin::forwardKinematics(model_, data_, pq_);
+    int64_t *sizes = nullptr, *flags = nullptr;
+    double *normals = nullptr, *depths = nullptr, *rot = nullptr, *trans = nullptr;
+    double *normal2 = nullptr, *frame2 = nullptr, *centres = nullptr;
+    auto sizes_arr = new_array<int64_t>({n}, &sizes);
+    auto flags_arr = new_array<int64_t>({n}, &flags);
+    auto normals_arr = new_array<double>({n, 3}, &normals);
+    auto depths_arr = new_array<double>({n}, &depths);
+    auto rot_arr = new_array<double>({n, 2, 3, 3}, &rot);
+    auto trans_arr = new_array<double>({n, 2, 3}, &trans);
+    auto normal2_arr = new_array<double>({n, 3}, &normal2);
+    auto frame2_arr = new_array<double>({n, 3, 3}, &frame2);
+    auto centres_arr = new_array<double>({n, 2, 1, 3}, &centres);
+    loc1_.clear();
+    loc2_.clear();
+    off_.clear();
+    for (size_t i = 0; i < n; ++i) {
+      const size_t k = static_cast<size_t>(pairs.data()[i]);
+      pin::SE3 M[2];
+      place_pair(k, M);
+      double Rg[2][9], tg[2][3], RM[2][9], tM[2][3];
+      for (int s = 0; s < 2; ++s) {
+        const size_t j = joint_[s == 0 ? first_[k] : second_[k]];
+        const pin::SE3 J = j > 0 ? pin::SE3(data_.oMi[j]) : pin::SE3::Identity();
+        for (int r = 0; r < 3; ++r) {
+          for (int c = 0; c < 3; ++c) {
+            rot[18 * i + 9 * s + 3 * c + r] = M[s].rotation()(r, c);
+            Rg[s][3 * r + c] = M[s].rotation()(r, c);
+            RM[s][3 * r + c] = J.rotation()(r, c);
+          }
+          trans[6 * i + 3 * s + r] = tg[s][r] = M[s].translation()(r);
+          tM[s][r] = J.translation()(r);
+        }
+      }
+      sizes[i] = -1;
+      flags[i] = 0;
+      for (int c = 0; c < 3; ++c) normals[3 * i + c] = normal2[3 * i + c] = 0.0;
+      for (int c = 0; c < 9; ++c) frame2[9 * i + c] = 0.0;
+      for (int c = 0; c < 6; ++c) centres[6 * i + c] = 0.0;
+      depths[i] = 0.0;
+      const coal::ContactPatch *patch = contact_patch(k, M, tol);
+      if (patch == nullptr) continue;
+      const coal::Vec3s nrm = patch->getNormal();
+      const size_t npts = patch->size();
+      double nv[3];
+      for (int c = 0; c < 3; ++c) nv[c] = normals[3 * i + c] = nrm[c];
+      const double d = depths[i] = patch->penetration_depth;
+      raw_.resize(6 * npts);
+      for (size_t m = 0; m < npts; ++m) {
+        const coal::Vec3s a = patch->getPointShape1(m), b = patch->getPointShape2(m);
+        for (int c = 0; c < 3; ++c) {
+          raw_[3 * m + c] = a[c];
+          raw_[3 * (npts + m) + c] = b[c];
+        }
+      }
+      const size_t s0 = loc1_.size();
+      loc1_.resize(s0 + 3 * npts);
+      loc2_.resize(s0 + 3 * npts);
+      const size_t o0 = off_.size();
+      off_.resize(o0 + 2 * npts);
+      const material::Planes P1 = planes_of(first_[k]), P2 = planes_of(second_[k]);
+      const material::Made made = material::patch_material(
+          raw_.data(), raw_.data() + 3 * npts, npts, nv, d, P1, Rg[0], tg[0], P2, Rg[1], tg[1],
+          RM[0], tM[0], RM[1], tM[1], patch_tol, loc1_.data() + s0, loc2_.data() + s0,
+          off_.data() + o0, scratch_);
+      if (!made.ok) {  // (the caller's witness points: nothing of this patch is kept)
+        loc1_.resize(s0);
+        loc2_.resize(s0);
+        off_.resize(o0);
+        sizes[i] = -2;
+        continue;
+      }
+      sizes[i] = static_cast<int64_t>(npts);
+      const size_t owner = made.on1 ? first_[k] : second_[k];
+      const bool free = (npts == 1 || halfspace_[owner]) &&
+                        material::on_a_face(P1, Rg[0], P2, Rg[1], nv, made.on1, face_align);
+      flags[i] = (made.on1 ? 1 : 0) | (free ? 2 : 0);
+      for (int c = 0; c < 3; ++c) {
+        normal2[3 * i + c] = made.normal2[c];
+        centres[6 * i + c] = made.centre1[c];
+        centres[6 * i + 3 + c] = made.centre2[c];
+      }
+      for (int c = 0; c < 9; ++c) frame2[9 * i + c] = made.frame2[c];
+    }
+    const size_t S = loc1_.size() / 3;
+    double *l1 = nullptr, *l2 = nullptr, *o = nullptr;
+    auto l1_arr = new_array<double>({S, 3}, &l1);
+    auto l2_arr = new_array<double>({S, 3}, &l2);
+    auto o_arr = new_array<double>({2 * S}, &o);
+    std::copy(loc1_.begin(), loc1_.end(), l1);
+    std::copy(loc2_.begin(), loc2_.end(), l2);
+    std::copy(off_.begin(), off_.end(), o);
+    return nb::make_tuple(sizes_arr, flags_arr, normals_arr, depths_arr, rot_arr, trans_arr,
+                          l1_arr, l2_arr, o_arr, normal2_arr, frame2_arr, centres_arr);
   }
 
   // The last sweep's witness points and normals, one row per candidate (its order).
@@ -456,7 +582,9 @@ class Sweep {
         shapes_(o.shapes_),
         first_(o.first_),
         second_(o.second_),
-        request_(o.request_) {
+        request_(o.request_),
+        halfspace_(o.halfspace_),
+        planes_(o.planes_) {
     q_.setZero(model_.nq);
     pq_.setZero(model_.nq);
     const size_t G = shapes_.size();
@@ -486,6 +614,46 @@ class Sweep {
     normal_.resize(K);
   }
 
+  // The face planes of every piece (set_planes).
+  struct PlaneSet {
+    std::vector<double> N, o;
+    std::vector<int64_t> start;
+  };
+
+  material::Planes planes_of(size_t g) const {
+    const int64_t a = planes_->start[g], b = planes_->start[g + 1];
+    return {planes_->N.data() + 3 * a, planes_->o.data() + a, static_cast<size_t>(b - a)};
+  }
+
+  // The two pieces' world placements of pair k after forward kinematics (Pinocchio's
+  // updateGeometryPlacements).
+  void place_pair(size_t k, pin::SE3 M[2]) const {
+    const size_t g[2] = {first_[k], second_[k]};
+    for (int s = 0; s < 2; ++s) {
+      const size_t j = joint_[g[s]];
+      M[s] = j > 0 ? pin::SE3(data_.oMi[j] * placement_[g[s]]) : placement_[g[s]];
+    }
+  }
+
+  // Pair k's first contact patch at placements M within tol [m], or nullptr: Coal's collide
+  // with a default CollisionRequest whose security_margin is tol, then computeContactPatch
+  // with a default ContactPatchRequest (packbot.collision_queries.contact_patch). The patch
+  // lives until the next call.
+  const coal::ContactPatch *contact_patch(size_t k, const pin::SE3 M[2], double tol) {
+    coal::CollisionRequest creq;  // packbot.collision's _patch_requests: Coal's defaults,
+    creq.enable_contact = true;   // enable_contact (already the default), the margin tol
+    creq.security_margin = tol;
+    const coal::ContactPatchRequest preq;
+    const coal::Transform3s T1 = coal_of(M[0]), T2 = coal_of(M[1]);
+    const coal::CollisionGeometry *s1 = shapes_[first_[k]].get(), *s2 = shapes_[second_[k]].get();
+    coal::CollisionResult cres;
+    if (!coal::collide(s1, T1, s2, T2, creq, cres)) return nullptr;
+    patch_res_ = coal::ContactPatchResult(preq);
+    coal::computeContactPatch(s1, T1, s2, T2, cres, preq, patch_res_);
+    if (patch_res_.numContactPatches() == 0) return nullptr;
+    return &patch_res_.getContactPatch(0);
+  }
+
   Model model_;
   Data data_;
   Eigen::VectorXd q_, pq_;  // the last sweep's q, the last patches' q
@@ -502,6 +670,10 @@ class Sweep {
   std::vector<coal::Vec3s> p1_, p2_, normal_;
   std::vector<coal::Vec3s> pts1_, pts2_;  // (patches' scratch)
   std::vector<double> dist_;  // (sweep's scratch: one per pair)
+  std::vector<char> halfspace_;  // per piece: a halfspace (its one face has no edge)
+  std::shared_ptr<const PlaneSet> planes_;  // (set_planes; shared by fresh() copies)
+  coal::ContactPatchResult patch_res_;  // (contact_patch's)
+  std::vector<double> loc1_, loc2_, off_, raw_, scratch_;  // (materials' scratch)
 };
 
 NB_MODULE(_native_coal, m) {
@@ -521,6 +693,10 @@ NB_MODULE(_native_coal, m) {
            nb::arg("cached_guess"))
       .def("sweep", &Sweep::sweep, nb::arg("q"), nb::arg("margin"))
       .def("patches", &Sweep::patches, nb::arg("q"), nb::arg("pairs"), nb::arg("tol"))
+      .def("set_planes", &Sweep::set_planes, nb::arg("N"), nb::arg("o"), nb::arg("start"))
+      .def_prop_ro("has_planes", &Sweep::has_planes)
+      .def("materials", &Sweep::materials, nb::arg("q"), nb::arg("pairs"), nb::arg("tol"),
+           nb::arg("patch_tol"), nb::arg("face_align"))
       .def("witness", &Sweep::witness, nb::arg("p1"), nb::arg("p2"), nb::arg("normal"))
       .def("boxes", &Sweep::boxes, nb::arg("lo"), nb::arg("hi"))
       .def("last_q", &Sweep::last_q)
