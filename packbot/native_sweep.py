@@ -360,6 +360,8 @@ class NativeDispatch:
 
         self.world = world
         self.pending: bool | bytes = False
+        #: a sweep kept for one reuse at its q (:meth:`keep_spare`), or None
+        self.spare: tuple[tuple[bytes, float], SweepResult] | None = None
         n = len(world.pairs)
         #: SweepCounts by the number of tests (shared by the sweeps and the worlds with as
         #: many pairs, being immutable)
@@ -386,6 +388,12 @@ class NativeDispatch:
             if last is not None and last[0] == key:
                 self.pending = key[0]
                 return last[1]
+            spare = self.spare
+            if spare is not None and spare[0] == key:  # (see keep_spare)
+                self.spare = None
+                world._last_sweep = spare
+                self.pending = key[0]
+                return spare[1]
         try:
             pairs, d, k, dmin = native.sweep(q, m)
         except (ValueError, TypeError) as exc:  # the extension's size/type check
@@ -442,6 +450,27 @@ class NativeDispatch:
         key = (np.asarray(q, dtype=np.float64).tobytes(), world.margin)
         world._last_sweep = (key, out)
         self.pending = True
+
+    def keep_spare(
+        self,
+        q: NDArray[np.float64],
+        pairs: NDArray[np.int64],
+        d: NDArray[np.float64],
+        k: int,
+        dmin: float,
+    ) -> None:
+        """Keep a native sweep made at q elsewhere for a reuse at q to come (once).
+
+        The stretch's own re-patch (:mod:`packbot.contact.stretch`) that hands its step back
+        after its projection's sweep: the loop's re-patch then sweeps the same q with ``reuse``
+        and finds this one (bit for bit: Coal's warm-started GJK would not repeat it exactly),
+        while the world's last sweep stays the one its watch reuses first. Arguments: see
+        :meth:`adopt`.
+        """
+        pairs.setflags(write=False)
+        d.setflags(write=False)
+        out: SweepResult = _tuple_new(self._result, (dmin, k, pairs, d, self._counts[len(pairs)]))
+        self.spare = ((np.asarray(q, dtype=np.float64).tobytes(), self.world.margin), out)
 
     def owe(self) -> None:
         """The compiled sweep swept elsewhere (its C entry point): the pieces are owed at its q.

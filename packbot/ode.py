@@ -550,6 +550,7 @@ class RK45Stepper:
         stiff_steps: int,
         stiff_run: int,
         stiff: bool,
+        restarted: bool = False,
     ) -> None:
         """Take over the state after steps taken elsewhere with this stepper's arithmetic.
 
@@ -571,6 +572,9 @@ class RK45Stepper:
             stiff_steps: Of them Rosenbrock steps.
             stiff_run: Successive steps whose stiffness estimate exceeded :data:`STIFF_RATIO`.
             stiff: Whether the next steps are Rosenbrock steps.
+            restarted: The state was changed after the last step and the stepper restarted
+                there (:meth:`reset` with ``h`` and ``defer``, counted in ``rhs_calls``): ``f``
+                is pending and the next step's growth cap is :data:`MAX_FACTOR_FIRST`.
         """
         if steps == 0:
             return
@@ -587,6 +591,10 @@ class RK45Stepper:
         self.n_stiff_steps += stiff_steps
         self._stiff_run = stiff_run
         self.stiff = stiff
+        if restarted:
+            self.f_pending = True
+            self.f = _NO_F
+            self._max_factor = MAX_FACTOR_FIRST
 
     def restrict(self, t_new: float, y_new: ArrayLike) -> None:
         """Accept a truncated step: continue from (t_new, y_new), keeping the current h as a hint.

@@ -23,7 +23,7 @@ from test_native_sweep import LOCKED, _configurations, obstacle_env
 import packbot
 from packbot import native_sweep
 from packbot.collision import CollisionWorld
-from packbot.contact import normal_set
+from packbot.contact import normal_set, stretch
 from packbot.contact.normal_set import ContactSet
 
 pytestmark = pytest.mark.skipif(
@@ -148,6 +148,9 @@ def test_a_patch_off_its_distance_takes_the_witness_points_alike(
 def test_runs_are_the_same_with_native_materials(robot, mu, locked, duration, monkeypatch):
     cfg = packbot.SimConfig(contact_mode="normal", mu=mu, locked_joints=locked)
     q0, tau = robot.pose("drive"), np.zeros(robot.nq)
+    # the re-patches in Python both times (the stretch's own need the native materials:
+    # tests/test_stretch_repatch.py)
+    monkeypatch.setattr(stretch, "REPATCH_ENABLED", False)
     monkeypatch.setattr(normal_set, "MATERIALS_NATIVE", False)
     ref = packbot.simulate(robot, q0, tau, duration, config=cfg)
     monkeypatch.setattr(normal_set, "MATERIALS_NATIVE", True)

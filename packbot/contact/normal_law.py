@@ -30,7 +30,9 @@ from packbot.contact.stretch import (
     QuietStretch,
     SampleClock,
     Stretched,
+    adopt_repatches,
     quiet_stretch,
+    repatch_modes,
 )
 from packbot.contact.timestep import QUIET_STEPS, MoreauJeanStepper, StepSegment
 from packbot.contact.window_run import StepChain, run_native
@@ -430,10 +432,15 @@ class NormalLaw(PatchEvents):
             lim_value=np.array([upper[j] if side > 0 else lower[j] for j, side in stops]),
             crawl=np.array(self._steps, dtype=np.float64),
             min_d=self.diag.min_distance,
+            modes=repatch_modes(self),
         )
+        self.world.dispatch.spare = None
         done, out = st.run(stepper, t_end, t_last, t_sched, clock, inputs)
+        adopt_repatches(self, out)
         if done.steps:
             self._stretched(stepper.y if done.pending is None else done.pending.y0, out)
+            if out["repatches"]:
+                self._ready = None  # (the modes and patches loaded again from the set's)
         if done.pending is not None:
             # its sweep, for the watch to reuse (the same numbers: Coal's warm-started GJK
             # would not give them bit for bit a second time)

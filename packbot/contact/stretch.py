@@ -41,11 +41,16 @@ if TYPE_CHECKING:
 __all__ = [
     "ENABLED",
     "PENDING",
+    "REPATCHED",
+    "REPATCH_ENABLED",
     "LawInputs",
     "QuietStretch",
+    "RepatchModes",
     "SampleClock",
     "Stretched",
+    "adopt_repatches",
     "quiet_stretch",
+    "repatch_modes",
 ]
 
 log = logging.getLogger(__name__)
@@ -56,8 +61,17 @@ FloatArray = NDArray[np.float64]
 #: stretch; tests and benchmarks switch it off to run the step-by-step loop).
 ENABLED = True
 
+#: Whether a stretch re-patches a sliding contact's stale patch itself (the law allowing it:
+#: :meth:`NormalLaw.stretch <packbot.contact.normal_law.NormalLaw.stretch>`) instead of handing
+#: its step back for :meth:`NormalContacts.repatch
+#: <packbot.contact.normal_contacts.NormalContacts.repatch>` (read at every stretch).
+REPATCH_ENABLED = True
+
 #: The native run's status for a step handed back to the loop (``src/native/stretch.hpp``).
 PENDING = 1
+#: The native run's status after a re-patch it took where the loop goes on (the stepper
+#: restarted there, its derivative left to the next step).
+REPATCHED = 8
 
 
 class SampleClock(Protocol):
@@ -87,6 +101,23 @@ class Stretched:
 
 
 @dataclass(frozen=True, slots=True)
+class RepatchModes:
+    """The contact set's modes, for the stretch's own re-patches (in the layout's pair order).
+
+    Attributes:
+        stick: Each pair's stick flag (1: sticking), (pairs,) uint8.
+        on1: Whether each pair's normal is fixed in body 1, (pairs,) uint8.
+        slip: Each pair's slip direction at onset, world, (pairs, 3).
+        engaged: The engaged rows.
+    """
+
+    stick: NDArray[np.uint8]
+    on1: NDArray[np.uint8]
+    slip: FloatArray
+    engaged: NDArray[np.int64]
+
+
+@dataclass(frozen=True, slots=True)
 class LawInputs:
     """What a stretch's step checks read of the law (:meth:`QuietStretch.run`).
 
@@ -97,6 +128,8 @@ class LawInputs:
         lim_value: Their positions [rad], (k,).
         crawl: The last steps' sizes [s] (the crawl rule's window, oldest first).
         min_d: The smallest signed distance of the run so far [m].
+        modes: The contact set's modes when the stretch may re-patch (None: it hands a stale
+            patch's step back).
     """
 
     active: NDArray[np.int64]
@@ -104,6 +137,7 @@ class LawInputs:
     lim_value: FloatArray
     crawl: FloatArray
     min_d: float
+    modes: RepatchModes | None = None
 
 
 class QuietStretch:
@@ -126,7 +160,19 @@ class QuietStretch:
         clock: SampleClock,
     ) -> None:
         from packbot.contact.normal_law import CRAWL_STEP, CRAWL_STEPS
-        from packbot.contact.normal_tolerances import PENETRATION_TOL
+        from packbot.contact.normal_tolerances import (
+            BAUMGARTE,
+            FACE_ALIGN,
+            FORCE_BAND,
+            PATCH_TOL,
+            PENETRATION_TOL,
+            RESIDUAL_TOL,
+            SLIDE_TOL,
+            SPEED_BAND,
+            STICK_BAND,
+            STICK_SPEED,
+            TOUCH_GAP,
+        )
 
         n = 2 * law.n
         atol = np.broadcast_to(np.asarray(stepper.atol, dtype=np.float64), (n,)).copy()
@@ -147,6 +193,28 @@ class QuietStretch:
             sample_dt=clock.dt,
             duration=clock.duration,
             stiff_switch=native.STIFF_ENABLED,
+        )
+        # the re-patch's constants: NormalContacts.repatch's (its refresh, projection and modes)
+        self._run.set_repatch(
+            tol=law.normal.tol,
+            patch_tol=PATCH_TOL,
+            face_align=FACE_ALIGN,
+            slide_tol2=SLIDE_TOL**2,
+            touch_gap=TOUCH_GAP,
+            res_tol=RESIDUAL_TOL,
+            mu=law.normal.mu,
+            speed_band=SPEED_BAND,
+            stick_speed=STICK_SPEED,
+            force_band=FORCE_BAND,
+            stick_band=STICK_BAND,
+            baumgarte=BAUMGARTE,
+            mode_res_tol=RESIDUAL_TOL,
+        )
+        self._no_modes = (
+            np.zeros(0, dtype=np.uint8),
+            np.zeros(0, dtype=np.uint8),
+            np.zeros((0, 3)),
+            np.zeros(0, dtype=np.int64),
         )
 
     def run(
@@ -188,6 +256,11 @@ class QuietStretch:
         ctl = stepper.control()
         ay = ctl.ay.copy()
         y_pend, ay_pend = np.empty(n), np.empty(n)
+        m = law.modes
+        if m is None:
+            self._run.set_modes(False, *self._no_modes)
+        else:
+            self._run.set_modes(True, m.stick, m.on1, m.slip, m.engaged)
         out = self._run.run(
             pending_f,
             Z,
@@ -224,7 +297,14 @@ class QuietStretch:
                 stiff_steps=out["stiff_steps"],
                 stiff_run=out["stiff_run"],
                 stiff=out["stiff"],
+                restarted=status == REPATCHED,
             )
+        if out["repatches"]:
+            out["repatched"] = self._run.repatched()
+        elif m is not None and pending:
+            spare = self._run.repatched()["spare"]
+            if spare is not None:  # (a re-patch handed back after its projection's sweep)
+                out["repatched"] = {"spare": spare, "proj": None}
         if steps or pending:
             stepper.h_max = out["h_max"]  # (the last step's bound, as the loop set it for it)
         seg = None
@@ -247,6 +327,98 @@ class QuietStretch:
                 stiff=out["stiff"],
             )
         return Stretched(steps, out["samples"], seg), out
+
+
+def repatch_modes(law: NormalLaw) -> RepatchModes | None:
+    """The contact set's modes when the law's stretch may re-patch, else None.
+
+    Where :meth:`NormalLaw.after_step <packbot.contact.normal_law.NormalLaw.after_step>` would
+    re-patch with the native steps only (:meth:`NormalContacts.repatch
+    <packbot.contact.normal_contacts.NormalContacts.repatch>`'s refresh on the extension's
+    materials, its projection's native round, its native mode selection): the law and its
+    contact set of their own classes (no subclass's hooks), the projection checking the other
+    pairs, and engaged rows.
+    """
+    nc = law.normal
+    mods = _modules()
+    if (
+        not REPATCH_ENABLED
+        or type(law) is not mods.law
+        or type(nc) is not mods.contacts
+        or not nc.engaged
+        or not nc.check_others
+        or nc.world is not law.world
+        or not mods.normal_set.MATERIALS_NATIVE
+        or not mods.normal_steps.NATIVE_RESTART
+        or not mods.normal_modes.NATIVE_MODES
+    ):
+        return None
+    pairs = nc._pair_list
+    return RepatchModes(
+        stick=np.array([p.stick for p in pairs], dtype=np.uint8),
+        on1=np.array([p.on1 for p in pairs], dtype=np.uint8),
+        slip=np.array([p.slip_dir for p in pairs], dtype=np.float64).reshape(-1, 3),
+        engaged=np.array(nc.engaged, dtype=np.int64),
+    )
+
+
+def adopt_repatches(law: NormalLaw, out: dict[str, Any]) -> None:
+    """Take over a stretch's own re-patches (before the law keeps its steps' results).
+
+    The contact set as :meth:`NormalContacts.repatch
+    <packbot.contact.normal_contacts.NormalContacts.repatch>` leaves it after the last one:
+    its patches rebuilt at that re-patch's q (the extension's materials give them again bit for
+    bit), the modes selected there, the Painleve fallbacks counted, a friction given up
+    logged; the restarts counted; the world's last sweep the last projection's. A re-patch
+    handed back after its projection's sweep leaves that sweep for the loop's re-patch.
+    """
+    rp = out.get("repatched")
+    if rp is None:
+        return
+    world = law.world
+    spare = rp["spare"]
+    if spare is not None:
+        world.dispatch.keep_spare(spare[0][0], spare[1][0], spare[2][0], spare[3], spare[4])
+    n = out["repatches"]
+    if not n:
+        return
+    nc = law.normal
+    nc.refresh(rp["q_patch"][0])
+    for p, st, sd in zip(nc._pair_list, rp["stick"][0].tolist(), rp["slip"], strict=True):
+        p.stick = bool(st)
+        if not np.array_equal(sd, p.slip_dir):
+            p.slip_dir = sd.copy()
+    nc.engaged = rp["engaged"][0].tolist()
+    nc.n_painleve += rp["painleve"]
+    for _ in range(rp["gave_up"]):
+        log.warning("contact problem unsolved even with sticking contacts")
+    law.diag.restarts += n
+    proj = rp["proj"]
+    if proj is not None:  # (CollisionWorld.sweep(q, reuse=True) keeps it as the last sweep)
+        world.dispatch.adopt(proj[0][0], proj[1][0], proj[2][0], proj[3], proj[4])
+
+
+@dataclass(frozen=True, slots=True)
+class _Modules:
+    law: type
+    contacts: type
+    normal_set: Any
+    normal_steps: Any
+    normal_modes: Any
+
+
+_MODULES: list[_Modules] = []
+
+
+def _modules() -> _Modules:
+    """The law's modules (imported at the first call: they import this one), then kept."""
+    if not _MODULES:
+        from packbot.contact import normal_modes, normal_set, normal_steps
+        from packbot.contact.normal_contacts import NormalContacts
+        from packbot.contact.normal_law import NormalLaw
+
+        _MODULES.append(_Modules(NormalLaw, NormalContacts, normal_set, normal_steps, normal_modes))
+    return _MODULES[0]
 
 
 def quiet_stretch(

@@ -40,6 +40,7 @@
 #include <Eigen/LU>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdint>
 #include <limits>
@@ -64,6 +65,7 @@ using I1 = nb::ndarray<const int64_t, nb::ndim<1>, nb::c_contig, nb::device::cpu
 using Out1 = nb::ndarray<double, nb::ndim<1>, nb::c_contig, nb::device::cpu>;
 using Out2 = nb::ndarray<double, nb::ndim<2>, nb::c_contig, nb::device::cpu>;
 using U1Out = nb::ndarray<uint8_t, nb::ndim<1>, nb::c_contig, nb::device::cpu>;
+using U1 = nb::ndarray<const uint8_t, nb::ndim<1>, nb::c_contig, nb::device::cpu>;
 
 namespace {
 
@@ -614,6 +616,7 @@ class ContactRhs {
       if (std::abs(s - stick_speed_) <= 1e-9 * stick_speed_ || std::isnan(s)) unsure = true;
       if (s > stick_speed_) sliding = true;
     }
+    stale_sure_ = false;
     if (unsure) return out | 4;
     if (!sliding) return out;
     for (int p = 0; p < np_; ++p) {
@@ -622,10 +625,119 @@ class ContactRhs {
       size_t k = 0;
       while (k < ns && sp[k] != key) ++k;
       if (k == ns || std::isnan(gap_min_[p]) || std::abs(gap_min_[p] - dp[k]) > point_tol_ ||
-          slide2_[p] > slide_tol2_[p])
+          slide2_[p] > slide_tol2_[p]) {
+        stale_sure_ = true;
         return out | 4;
+      }
     }
     return out;
+  }
+
+  // Whether the last end_check_raw's bit 4 was a stale patch of a sliding pair for certain
+  // (not a slide speed at the stick speed, which the caller decides).
+  bool stale_sure() const { return stale_sure_; }
+
+  // ------------------------------------------------------------------ the stretch's re-patch
+  // (packbot.contact.normal_contacts.NormalContacts.repatch's native steps: stretch.hpp)
+  int n_pairs() const { return np_; }
+  int n_points() const { return h_; }  // the layout's points: each pair's K and its centre
+  int n_pair_rows() const { return mp_; }
+  const std::vector<int64_t> &keys() const { return keys_; }
+  const std::vector<int> &pair_rows() const { return pK_; }  // each pair's K
+  bool contact_rows() const { return conditions_set_ && lock_mode_ < 0; }
+  const std::vector<int64_t> &engaged() const { return engaged_; }
+
+  // set_patches on raw arrays of the loaded layout's shapes: local (2 h, 4), frame2 (pairs,
+  // 9), offset0 (pair rows, 2), slide_tol2 (pairs).
+  void set_patches_raw(const double *local, const double *frame2, const double *offset0,
+                       const double *slide_tol2) {
+    std::copy(local, local + local_.size(), local_.begin());
+    std::copy(frame2, frame2 + frame2_.size(), frame2_.begin());
+    std::copy(offset0, offset0 + offset0_.size(), offset0_.begin());
+    std::copy(slide_tol2, slide_tol2 + slide_tol2_.size(), slide_tol2_.begin());
+    lock_mode_ = -1;
+    end_valid_ = false;
+    jac_valid_ = false;
+  }
+
+  // The loaded patches and plan, kept (keep_loaded) and put back (restore_loaded): a
+  // re-patch that hands back leaves the extension as the caller loaded it.
+  void keep_loaded() {
+    kept_local_ = local_;
+    kept_frame2_ = frame2_;
+    kept_offset0_ = offset0_;
+    kept_slide_tol2_ = slide_tol2_;
+    kept_engaged_ = engaged_;
+    kept_row_slip_ = row_slip_;
+    kept_sticks_ = sticks_;
+    kept_slip_dir_ = slip_dir_;
+    kept_plan_ = {mu_, stick_speed_, baumgarte_};
+  }
+
+  void restore_loaded() {
+    set_patches_raw(kept_local_.data(), kept_frame2_.data(), kept_offset0_.data(),
+                    kept_slide_tol2_.data());
+    engaged_ = kept_engaged_;
+    row_slip_ = kept_row_slip_;
+    sticks_ = kept_sticks_;
+    slip_dir_ = kept_slip_dir_;
+    mu_ = kept_plan_[0];
+    stick_speed_ = kept_plan_[1];
+    baumgarte_ = kept_plan_[2];
+    set_plan_sizes(static_cast<int>(engaged_.size()), static_cast<int>(sticks_.size()));
+  }
+
+  // M(q)^-1 into out (nv x nv, row-major, symmetric): Pinocchio's computeMinverse with q, the
+  // strict lower triangle mirrored from the upper one (packbot.system.System.minv).
+  void minverse_at(const double *q, double *out) {
+    const int nv = nv_;
+    end_valid_ = false;
+    jac_valid_ = false;
+    for (int i = 0; i < nv; ++i) q_[i] = q[i];
+    pin::computeMinverse(model_, data_, q_);
+    for (int i = 0; i < nv; ++i)
+      for (int c = 0; c < nv; ++c) out[i * nv + c] = c >= i ? data_.Minv(i, c) : data_.Minv(c, i);
+  }
+
+  // The unconstrained accelerations at (q, v) under the loaded torques into out (nv):
+  // ABA(WORLD) on applied + (-viscous * v - coulomb_dir) (packbot.drive.Drive.free_accel).
+  void free_accel_raw(const double *q, const double *v, double *out) {
+    const int nv = nv_;
+    end_valid_ = false;
+    jac_valid_ = false;
+    for (int i = 0; i < nv; ++i) {
+      q_[i] = q[i];
+      v_[i] = v[i];
+      x_[i] = applied_[i] + (-viscous_[i] * v_[i] - coulomb_dir_[i]);
+    }
+    pin::aba(model_, data_, q_, v_, x_, pin::Convention::WORLD);
+    for (int i = 0; i < nv; ++i) out[i] = data_.ddq[i];
+  }
+
+  // The plan of these modes (packbot.contact.normal_rows.ContactRows._plan, as
+  // NativeRhs.load sets it): the engaged rows, each row's slipping pair, the sticking pairs
+  // with engaged rows; every pair's slip direction. mu, the stick speed and Baumgarte's
+  // constant as loaded.
+  void load_plan(const std::vector<int> &eng, const uint8_t *stick, const double *slip_dir) {
+    end_valid_ = false;
+    jac_valid_ = false;
+    engaged_.assign(eng.begin(), eng.end());
+    row_slip_.assign(eng.size(), -1);
+    sticks_.clear();
+    if (mu_ > 0.0) {
+      for (int p = 0; p < np_; ++p) {
+        bool mine = false;
+        for (size_t e = 0; e < eng.size(); ++e) {
+          if (eng[e] >= pfirst_[p] && eng[e] < pfirst_[p] + pK_[p]) {
+            mine = true;
+            if (!stick[p]) row_slip_[e] = p;
+          }
+        }
+        if (mine && stick[p]) sticks_.push_back(p);
+      }
+    }
+    std::copy(slip_dir, slip_dir + 3 * np_, slip_dir_.begin());
+    set_plan_sizes(static_cast<int>(engaged_.size()), static_cast<int>(sticks_.size()));
   }
 
   // The report's law's modes instead of the contact rows (packbot.contact.stops.JointStops
@@ -1514,9 +1626,16 @@ class ContactRhs {
   // [rad], status 3.
   int project_round(F1 q, F1 v, F2 minv, double touch_gap, double pen_tol, double res_tol,
                     Out1 out_q) {
-    const int nv = nv_;
     check_restart("project_round", q, v, minv, out_q);
-    rows_at(q.data(), v.data());
+    return project_round_raw(q.data(), v.data(), minv.data(), touch_gap, pen_tol, res_tol,
+                             out_q.data());
+  }
+
+  // project_round on raw arrays (sizes checked by the caller; the layout loaded).
+  int project_round_raw(const double *q, const double *v, const double *minv, double touch_gap,
+                        double pen_tol, double res_tol, double *oq) {
+    const int nv = nv_;
+    rows_at(q, v);
     if (m_ == 0) return 0;
     double low = gap_[0];
     for (int r = 1; r < m_; ++r) low = std::min(low, gap_[r]);
@@ -1526,18 +1645,17 @@ class ContactRhs {
     if (low < -pen_tol) return 1;
     touching(touch_gap);
     const int nt = static_cast<int>(touch_.size());
-    delassus(minv.data(), nt);
+    delassus(minv, nt);
     for (int a = 0; a < nt; ++a) rt_[a] = gap_[touch_[a]];
     zt_.resize(nt);
     if (!packbot_native::lcp::lemke(Gt_.data(), rt_.data(), nt, packbot_native::lcp::MAX_PIVOTS,
                                     packbot_native::lcp::PIVOT_TOL, zt_.data(), lcp_) ||
         !(packbot_native::lcp::residual(Gt_.data(), rt_.data(), nt, zt_.data()) <= res_tol))
       return 2;
-    double *oq = out_q.data();
     for (int i = 0; i < nv; ++i) {
       double s = 0.0;
       for (int a = 0; a < nt; ++a) s += MJt_[i * nt + a] * zt_[a];
-      oq[i] = q.data()[i] + s;
+      oq[i] = q[i] + s;
     }
     return 3;
   }
@@ -1661,45 +1779,79 @@ class ContactRhs {
     for (size_t e = 0; e < held.shape(0); ++e)
       if (held.data()[e] < 0 || held.data()[e] >= m_)
         throw std::invalid_argument("select_modes: held row out of range");
-    rows_at(q.data(), v.data());
+    ModeConsts c{mu, touch_gap, speed_band, stick_speed, force_band, stick_band, baumgarte,
+                 residual_tol};
+    ModesOut o;
+    if (select_modes_raw(q.data(), v.data(), a_free.data(), minv.data(), keep, held.data(),
+                         held.shape(0), stick_io.data(), slip_io.data(), c, o) != 0)
+      return nb::make_tuple(1, false, nb::none(), nb::none(), 0, false);
+    std::vector<int64_t> eng(o.engaged.begin(), o.engaged.end());
+    std::vector<int64_t> ev(o.events.begin(), o.events.end());
+    return nb::make_tuple(0, o.kept, owned_vec(eng), owned_mat_i(ev, ev.size() / 2, 2),
+                          o.painleve, o.gave_up);
+  }
+
+  // The law's constants of a mode selection (select_modes' arguments).
+  struct ModeConsts {
+    double mu, touch_gap, speed_band, stick_speed, force_band, stick_band, baumgarte,
+        residual_tol;
+  };
+
+  // What a mode selection decided (select_modes' results).
+  struct ModesOut {
+    bool kept = false;
+    std::vector<int> engaged, events;
+    int painleve = 0;
+    bool gave_up = false;
+  };
+
+  // select_modes on raw arrays (sizes and rows checked by the caller, the layout loaded):
+  // 0 done (stick_io, slip_io and out written), 1 the caller's own selection (nothing written).
+  int select_modes_raw(const double *q, const double *v, const double *a_free,
+                       const double *minv, bool keep, const int64_t *held, size_t nh,
+                       uint8_t *stick_io, double *slip_io, const ModeConsts &k, ModesOut &o) {
+    const size_t nv = static_cast<size_t>(nv_);
+    rows_at(q, v);
     namespace md = packbot_native::modes;
     const packbot_native::Rows R = rows_view();
-    if (!R.finite() || !all_finite(a_free.data(), nv) || !all_finite(minv.data(), nv * nv))
-      return nb::make_tuple(1, false, nb::none(), nb::none(), 0, false);
+    if (!R.finite() || !all_finite(a_free, nv) || !all_finite(minv, nv * nv)) return 1;
     md::Consts c;
-    c.mu = mu;
-    c.touch_gap = touch_gap;
-    c.speed_band = speed_band;
-    c.stick_speed = stick_speed;
-    c.force_band = force_band;
-    c.stick_band = stick_band;
-    c.baumgarte = baumgarte;
-    c.residual_tol = residual_tol;
-    const double *af = a_free.data(), *Mi = minv.data();
+    c.mu = k.mu;
+    c.touch_gap = k.touch_gap;
+    c.speed_band = k.speed_band;
+    c.stick_speed = k.stick_speed;
+    c.force_band = k.force_band;
+    c.stick_band = k.stick_band;
+    c.baumgarte = k.baumgarte;
+    c.residual_tol = k.residual_tol;
+    const double *af = a_free, *Mi = minv;
+    const double mu = k.mu, stick_speed = k.stick_speed, baumgarte = k.baumgarte;
     const md::Evaluate evaluate = [&](const std::vector<int> &eng, const std::vector<char> &st,
                                       const std::vector<double> &sd, double *a, double *cond,
                                       std::vector<double> &lam) {
       return evaluate_modes(eng, st, sd, af, Mi, mu, stick_speed, baumgarte, a, cond, lam);
     };
     md::Selection &S = sel_;
-    S.stick.assign(stick_io.data(), stick_io.data() + np_);
-    S.slip_dir.assign(slip_io.data(), slip_io.data() + 3 * np_);
+    S.stick.assign(stick_io, stick_io + np_);
+    S.slip_dir.assign(slip_io, slip_io + 3 * np_);
     bool kept = false;
     md::Status status = md::DONE;
-    if (held.shape(0) > 0) {
-      std::vector<int> h(held.data(), held.data() + held.shape(0));
+    if (nh > 0) {
+      std::vector<int> h(held, held + nh);
       status = S.keep(R, c, af, Mi, h, evaluate, kept);
     }
     if (status == md::DONE && !kept) status = S.select(R, c, af, Mi, keep, evaluate);
     end_valid_ = false;
     jac_valid_ = false;
-    if (status != md::DONE) return nb::make_tuple(1, false, nb::none(), nb::none(), 0, false);
-    for (int p = 0; p < np_; ++p) stick_io.data()[p] = S.stick[p] ? 1 : 0;
-    std::copy(S.slip_dir.begin(), S.slip_dir.end(), slip_io.data());
-    std::vector<int64_t> eng(S.engaged.begin(), S.engaged.end());
-    std::vector<int64_t> ev(S.events.begin(), S.events.end());
-    return nb::make_tuple(0, kept, owned_vec(eng), owned_mat_i(ev, ev.size() / 2, 2), S.painleve,
-                          S.gave_up);
+    if (status != md::DONE) return 1;
+    for (int p = 0; p < np_; ++p) stick_io[p] = S.stick[p] ? 1 : 0;
+    std::copy(S.slip_dir.begin(), S.slip_dir.end(), slip_io);
+    o.kept = kept;
+    o.engaged.assign(S.engaged.begin(), S.engaged.end());
+    o.events.assign(S.events.begin(), S.events.end());
+    o.painleve = S.painleve;
+    o.gave_up = S.gave_up;
+    return 0;
   }
 
   // A restart's stop of the slow slides (packbot.contact.normal_steps.RestartSteps.stop_slow;
@@ -2430,6 +2582,11 @@ class ContactRhs {
   std::vector<char> slipping_, engaged_pair_;
   std::vector<double> slide2_, gap_min_, slide_tol2_;
   std::vector<int64_t> keys_;  // (set_keys)
+  bool stale_sure_ = false;  // (end_check_raw)
+  // (keep_loaded's copies)
+  std::vector<double> kept_local_, kept_frame2_, kept_offset0_, kept_slide_tol2_, kept_slip_dir_;
+  std::vector<int64_t> kept_engaged_, kept_row_slip_, kept_sticks_;
+  std::array<double, 3> kept_plan_{};
   std::vector<double> upper_, lower_;  // (set_limits)
   std::vector<double> reach_;  // (set_reach)
   double margin_ = 0.0, max_step_ = 0.0;
@@ -2470,6 +2627,69 @@ void stretch_init(StretchT *self, ContactRhs &rhs, nb::capsule api, double margi
   }
   new (self) StretchT(rhs, *static_cast<SweepApi *>(p), margin, reals(atol), rtol, h_min, near,
                       pen_tol, crawl_steps, crawl_step, sample_dt, duration, stiff_switch);
+}
+
+// The re-patch's constants (Stretch::Repatch; packbot/contact/stretch.py passes them).
+void stretch_set_repatch(StretchT &st, double tol, double patch_tol, double face_align,
+                         double slide_tol2, double touch_gap, double res_tol, double mu,
+                         double speed_band, double stick_speed, double force_band,
+                         double stick_band, double baumgarte, double mode_res_tol,
+                         int hand_back_at) {
+  auto &rp = st.repatch();
+  rp.hand_back_at = hand_back_at;
+  rp.tol = tol;
+  rp.patch_tol = patch_tol;
+  rp.face_align = face_align;
+  rp.slide_tol2 = slide_tol2;
+  rp.touch_gap = touch_gap;
+  rp.res_tol = res_tol;
+  rp.modes = ContactRhs::ModeConsts{mu,         touch_gap,  speed_band, stick_speed,
+                                    force_band, stick_band, baumgarte,  mode_res_tol};
+}
+
+// The next run's re-patches: allowed (on) or not, and the contact set's modes (per pair its
+// stick flag, its normal's body, its slip direction (pairs, 3); the engaged rows).
+void stretch_set_modes(StretchT &st, bool on, U1 stick, U1 on1, F2 slip, I1 engaged) {
+  auto &rp = st.repatch();
+  const size_t np = stick.shape(0);
+  if (on1.shape(0) != np || slip.shape(0) != np || (np && slip.shape(1) != 3))
+    throw std::invalid_argument("stick, on1 (pairs) and slip (pairs, 3) expected");
+  rp.on = on;
+  rp.stick.assign(stick.data(), stick.data() + np);
+  rp.on1.assign(on1.data(), on1.data() + np);
+  rp.slip.assign(slip.data(), slip.data() + 3 * np);
+  rp.engaged.assign(engaged.data(), engaged.data() + engaged.shape(0));
+  rp.painleve = rp.gave_up = 0;
+  rp.proj_valid = rp.spare = false;
+  rp.q_patch.clear();
+}
+
+// The last run's re-patches as Python takes them over (stretch.py): a dict.
+nb::dict stretch_repatched(StretchT &st) {
+  auto &rp = st.repatch();
+  const size_t np = rp.stick.size();
+  nb::dict out;
+  out["q_patch"] = owned(rp.q_patch, 1, rp.q_patch.size());
+  out["stick"] = owned(rp.stick, 1, np);
+  out["slip"] = owned(rp.slip, np, 3);
+  out["engaged"] = owned(rp.engaged, 1, rp.engaged.size());
+  out["painleve"] = rp.painleve;
+  out["gave_up"] = rp.gave_up;
+  for (int w = 0; w < 2; ++w) {
+    const bool on = w == 0 ? rp.proj_valid : rp.spare;
+    const char *name = w == 0 ? "proj" : "spare";
+    if (!on) {
+      out[name] = nb::none();
+      continue;
+    }
+    const auto &q = w == 0 ? rp.q_proj : rp.q_spare;
+    const auto &pairs = w == 0 ? rp.proj_pairs : rp.spare_pairs;
+    const auto &dist = w == 0 ? rp.proj_dist : rp.spare_dist;
+    out[name] = nb::make_tuple(owned(q, 1, q.size()), owned(pairs, 1, pairs.size()),
+                               owned(dist, 1, dist.size()), w == 0 ? rp.proj_best : rp.spare_best,
+                               w == 0 ? rp.proj_best_d : rp.spare_best_d);
+  }
+  return out;
 }
 
 // run's arguments and results as Python sees them (packbot/contact/stretch.py): a dict.
@@ -2514,6 +2734,7 @@ nb::dict stretch_run(StretchT &st, bool f_pending, Out2 Z, Out1 ay, double t, do
   out["hs"] = owned(hs, 1, hs.size());
   out["last_pairs"] = owned(st.last_pairs(), 1, st.last_n());
   out["last_dist"] = owned(st.last_dist(), 1, st.last_n());
+  out["repatches"] = c.repatches;
   if (c.status == packbot_native::STRETCH_PENDING) {
     out["t0"] = c.t0;
     out["t1"] = c.t1;
@@ -2611,12 +2832,33 @@ NB_MODULE(_native, m) {
            nb::arg("touch_gap"), nb::arg("speed_band"), nb::arg("stick_speed"),
            nb::arg("capture_speed"), nb::arg("residual_tol"), nb::arg("dependent_row"),
            nb::arg("out_v"))
-      .def("last", &ContactRhs::last);
+      .def("last", &ContactRhs::last)
+      .def("minv_at",
+           [](ContactRhs &r, F1 q, Out2 out) {
+             if (q.shape(0) != static_cast<size_t>(r.nv()) || out.shape(0) != q.shape(0) ||
+                 out.shape(1) != q.shape(0))
+               throw std::invalid_argument("q (nv) and out (nv, nv) expected");
+             r.minverse_at(q.data(), out.data());
+           })
+      .def("free_accel_at", [](ContactRhs &r, F1 q, F1 v, Out1 out) {
+        if (q.shape(0) != static_cast<size_t>(r.nv()) || v.shape(0) != q.shape(0) ||
+            out.shape(0) != q.shape(0))
+          throw std::invalid_argument("q, v and out (nv) expected");
+        r.free_accel_raw(q.data(), v.data(), out.data());
+      });
   nb::class_<StretchT>(m, "Stretch")
       .def("__init__", &stretch_init, nb::arg("rhs"), nb::arg("api"), nb::arg("margin"),
            nb::arg("atol"), nb::arg("rtol"),
            nb::arg("h_min"), nb::arg("near"), nb::arg("pen_tol"), nb::arg("crawl_steps"),
            nb::arg("crawl_step"), nb::arg("sample_dt"), nb::arg("duration"),
            nb::arg("stiff_switch"), nb::keep_alive<1, 2>(), nb::keep_alive<1, 3>())
-      .def("run", &stretch_run);
+      .def("run", &stretch_run)
+      .def("set_repatch", &stretch_set_repatch, nb::arg("tol"), nb::arg("patch_tol"),
+           nb::arg("face_align"), nb::arg("slide_tol2"), nb::arg("touch_gap"),
+           nb::arg("res_tol"), nb::arg("mu"), nb::arg("speed_band"), nb::arg("stick_speed"),
+           nb::arg("force_band"), nb::arg("stick_band"), nb::arg("baumgarte"),
+           nb::arg("mode_res_tol"), nb::arg("hand_back_at") = 0)
+      .def("set_modes", &stretch_set_modes, nb::arg("on"), nb::arg("stick"), nb::arg("on1"),
+           nb::arg("slip"), nb::arg("engaged"))
+      .def("repatched", &stretch_repatched);
 }

@@ -38,6 +38,7 @@ struct StepControl {
   static constexpr double SAFETY = 0.9;
   static constexpr double MIN_FACTOR = 0.2;
   static constexpr double MAX_FACTOR = 10.0;
+  static constexpr double MAX_FACTOR_FIRST = 5.0;
   static constexpr double ERROR_EXPONENT = -1.0 / 5.0;
   static constexpr double STRETCH = 0.01;
   static constexpr double STIFF_RATIO = 3.0;
@@ -109,6 +110,7 @@ enum StretchStatus : int {
   STRETCH_PENDING = 1,  // a step with something for Python: handed back, not committed
   STRETCH_SCHEDULE = 2, // a scheduled action is due at t
   STRETCH_REFUSED = 4,  // the next step could not be taken here (Python takes it)
+  STRETCH_REPATCHED = 8, // ended right after a re-patch: the stepper restarts there (f pending)
 };
 
 // The constants of a run's stretches and their work arrays; run() takes the steps.
@@ -176,7 +178,46 @@ class Stretch {
     double t0 = 0.0, t1 = 0.0;
     int64_t pending_rejected = 0, pending_rhs_calls = 0;
     bool pending_implicit = false;
+    int64_t repatches = 0;  // re-patches taken here (Repatch)
   };
+
+  // The stretch's re-patches (packbot.contact.normal_contacts.NormalContacts.repatch after a
+  // step whose only finding is a sliding pair's stale patch), taken here when the caller
+  // allows it (set_repatch's constants, then each run's modes): the patches rebuilt at the
+  // step's end (the sweep's materials), the drift projection's round and its sweep's check,
+  // the modes kept or selected again (keep_modes, select_modes), the plan loaded, and the
+  // stepper restarted there (RK45Stepper.reset with its step size and a deferred derivative).
+  // Where Python's re-patch would take a branch not here (a pair out of tolerance or a patch of
+  // another size, a gap below the penetration tolerance, Lemke's residual, a new deep pair,
+  // the Python mode selection), the step is handed back pending, the extension as loaded.
+  struct Repatch {
+    bool on = false;  // (this run's)
+    // the constants (set_repatch): the contact tolerance, PATCH_TOL, FACE_ALIGN [-],
+    // SLIDE_TOL^2 [m^2], TOUCH_GAP [m], the projection's RESIDUAL_TOL, the mode selection's
+    double tol = 0, patch_tol = 0, face_align = 0, slide_tol2 = 0, touch_gap = 0, res_tol = 0;
+    typename Rhs::ModeConsts modes{};
+    // tests: hand every re-patch back at a stage (0 none; 1 with the patches built, nothing
+    // loaded; 2 after the projection's round; 3 at the modes, after the projection's sweep)
+    int hand_back_at = 0;
+    // the modes Python keeps per pair, in and out: stick flags, slip directions (pairs, 3), the
+    // engaged rows; the normal's body (on1) per pair, in
+    std::vector<uint8_t> stick, on1;
+    std::vector<double> slip;
+    std::vector<int64_t> engaged;
+    // out: the last re-patch's q before its projection [rad], the Painleve fallbacks and the
+    // friction given up over the run's re-patches
+    std::vector<double> q_patch;
+    int64_t painleve = 0, gave_up = 0;
+    // the last projection's sweep (valid: one was made in this run) and, after a hand-back
+    // that had swept, that sweep (spare) at q_spare
+    bool proj_valid = false, spare = false;
+    std::vector<double> q_proj, q_spare;
+    std::vector<int64_t> proj_pairs, spare_pairs;
+    std::vector<double> proj_dist, spare_dist;
+    int64_t proj_best = -1, spare_best = -1;
+    double proj_best_d = 0.0, spare_best_d = 0.0;
+  };
+  Repatch &repatch() { return rp_; }
 
   // Take the quiet steps from s.t: z (8, n) holds [y, f(y)] on entry (Z[0], Z[1]; with
   // f_pending only y: the first stage computes f(y) (ContactRhs::first)) and, on
@@ -297,7 +338,9 @@ class Stretch {
           api_.sweep(api_.self, y1_.data(), margin_, pairs_.data(), dist_.data(), &best, &best_d);
       int code = rhs_.end_check_raw(y1_.data(), pairs_.data(), dist_.data(),
                                     static_cast<size_t>(ns), active, na, near_, pen_tol_);
-      bool pending = code < 0 || (code & 7) != 0;
+      // (a stale patch alone: the re-patch below, when allowed)
+      const bool stale = code == 4 && rhs_.stale_sure();
+      bool pending = code < 0 || (code & 3) != 0 || ((code & 4) != 0 && !stale);
       if (!pending && (code & 8)) pending = new_limit(y1_.data(), limits, nl);
       // after_step: the crawl rule, the limit stops' release (JointStops.release_limits)
       if (!pending && static_cast<int>(crawl.size()) + 1 >= crawl_steps_) {
@@ -318,6 +361,13 @@ class Stretch {
       }
       // a step ending on a scheduled action's time is Python's (its samples, the action)
       if (!pending && t_new >= t_sched - 1e-12 && t_new < t_last) pending = true;
+      bool repatched = false;
+      if (!pending && stale) {
+        if (rp_.on && try_repatch() == 0)
+          repatched = true;
+        else
+          pending = true;
+      }
       if (pending) {
         pend_n_ = static_cast<size_t>(ns);  // (its sweep stays in pairs_, dist_)
         pend_best_ = best;
@@ -360,6 +410,24 @@ class Stretch {
       std::copy(y1_.begin(), y1_.end(), z);  // Z[0] = y1, Z[1] = f(y1) (the FSAL stage)
       std::copy(z + 7 * n, z + 8 * n, z + n);
       std::copy(ay1_.begin(), ay1_.end(), ay);
+      if (repatched) {
+        // the integrator's restart: RK45Stepper.reset(t, y, h=max(h, 1e-6), defer=True)
+        std::copy(q_new_.begin(), q_new_.end(), z);
+        for (int i = 0; i < n; ++i) ay[i] = std::abs(z[i]);
+        s.h = std::min(std::max(s.h, 1e-6), s.h_max);
+        s.max_factor = StepControl::MAX_FACTOR_FIRST;
+        s.stiff = false;
+        s.stiff_run = 0;
+        ++c.rhs_calls;  // (reset's count)
+        ++c.repatches;
+        // the next step's first stage, as run() starts after a restart; the stepper restarts
+        // in Python where the native step is not offered there (no engaged row: its own stages)
+        if (rp_.engaged.empty() || !(t_new < t_last) || !(t_new < t_end) ||
+            t_sched <= t_new + 1e-12 || !rhs_.first_raw(z)) {
+          c.status = STRETCH_REPATCHED;
+          return c;
+        }
+      }
     }
   }
 
@@ -394,6 +462,129 @@ class Stretch {
     return false;
   }
 
+  // The re-patch at the step's end y1_ (see Repatch): 0 done (q_new_ the projected q, the
+  // patches and the plan loaded, rp_'s modes updated); 1 not here, nothing changed; 2 not
+  // here, the extension's patches and plan put back (its step end's evaluation forgotten);
+  // with the projection's sweep made, that sweep kept as rp_'s spare.
+  int try_repatch() {
+    const int np = rhs_.n_pairs(), nv = nv_;
+    const double *q = y1_.data(), *v = y1_.data() + nv;
+    if (!rhs_.contact_rows() || static_cast<int>(rp_.stick.size()) != np ||
+        static_cast<int>(rp_.on1.size()) != np || rp_.engaged.empty())
+      return 1;
+    // the patches at q of the set's pairs, in the layout's order (ContactSet.refresh)
+    const std::vector<int64_t> &keys = rhs_.keys();
+    const std::vector<int> &K = rhs_.pair_rows();
+    const int64_t cap = rhs_.n_pair_rows();
+    m_sizes_.resize(np);
+    m_flags_.resize(np);
+    m_frame2_.resize(9 * static_cast<size_t>(np));
+    m_centres_.resize(6 * static_cast<size_t>(np));
+    m_l1_.resize(3 * static_cast<size_t>(cap));
+    m_l2_.resize(3 * static_cast<size_t>(cap));
+    m_off_.resize(2 * static_cast<size_t>(cap));
+    const int64_t S = api_.materials(api_.self, q, keys.data(), np, rp_.tol, rp_.patch_tol,
+                                     rp_.face_align, m_sizes_.data(), m_flags_.data(),
+                                     m_frame2_.data(), m_centres_.data(), m_l1_.data(),
+                                     m_l2_.data(), m_off_.data(), cap);
+    if (S != cap) return 1;
+    for (int p = 0; p < np; ++p)  // (the layout's shape: normal_rows._replace_patches)
+      if (m_sizes_[p] != K[p] || ((m_flags_[p] & 1) != 0) != (rp_.on1[p] != 0)) return 1;
+    if (rp_.hand_back_at == 1) return 1;
+    // the layout's patches (normal_rows._local, _frame2, _offset0, the slides allowed)
+    const int h = rhs_.n_points();
+    lay_local_.assign(8 * static_cast<size_t>(h), 1.0);
+    lay_off_.resize(2 * static_cast<size_t>(cap));
+    lay_slide_.resize(np);
+    int r = 0, pt = 0;
+    for (int p = 0; p < np; ++p) {
+      const int Kp = K[p];
+      for (int k = 0; k <= Kp; ++k, ++r) {
+        const double *a = k < Kp ? &m_l1_[3 * (pt + k)] : &m_centres_[6 * p];
+        const double *b = k < Kp ? &m_l2_[3 * (pt + k)] : &m_centres_[6 * p + 3];
+        for (int c = 0; c < 3; ++c) {
+          lay_local_[4 * r + c] = a[c];
+          lay_local_[4 * (h + r) + c] = b[c];
+        }
+      }
+      for (int k = 0; k < Kp; ++k)
+        for (int j = 0; j < 2; ++j) lay_off_[2 * (pt + k) + j] = m_off_[2 * pt + j * Kp + k];
+      lay_slide_[p] = (m_flags_[p] & 2) ? std::numeric_limits<double>::infinity() : rp_.slide_tol2;
+      pt += Kp;
+    }
+    rhs_.keep_loaded();
+    rhs_.set_patches_raw(lay_local_.data(), m_frame2_.data(), lay_off_.data(), lay_slide_.data());
+    // the drift projection (RestartSteps.project): its round with M^-1 at q, then the sweep's
+    // check of the pairs outside the set
+    minv_.resize(static_cast<size_t>(nv) * nv);
+    q_new_.resize(nv);
+    rhs_.minverse_at(q, minv_.data());
+    const int st = rhs_.project_round_raw(q, v, minv_.data(), rp_.touch_gap, pen_tol_,
+                                          rp_.res_tol, q_new_.data());
+    if (st == 1 || st == 2 || rp_.hand_back_at == 2) return hand_back(false);
+    bool swept = false;
+    if (st == 0) {
+      std::copy(q, q + nv, q_new_.begin());
+    } else {
+      swept = true;
+      sweep_into(rp_.q_spare, rp_.spare_pairs, rp_.spare_dist, rp_.spare_best, rp_.spare_best_d);
+      const int64_t *sp = rp_.spare_pairs.data();
+      for (size_t k = 0; k < rp_.spare_pairs.size(); ++k)
+        if (rp_.spare_dist[k] < -pen_tol_ && std::find(keys.begin(), keys.end(), sp[k]) == keys.end())
+          return hand_back(true);
+    }
+    if (rp_.hand_back_at == 3) return hand_back(swept);
+    // the modes (ModeSelection.repatch_modes: keep_modes of the engaged rows, else select_modes
+    // with keep, natively), a_free at the projected q and M^-1 at q
+    afree_.resize(nv);
+    rhs_.free_accel_raw(q_new_.data(), v, afree_.data());
+    stick_w_ = rp_.stick;
+    slip_w_ = rp_.slip;
+    typename Rhs::ModesOut o;
+    if (rhs_.select_modes_raw(q_new_.data(), v, afree_.data(), minv_.data(), true,
+                              rp_.engaged.data(), rp_.engaged.size(), stick_w_.data(),
+                              slip_w_.data(), rp_.modes, o) != 0)
+      return hand_back(swept);
+    rp_.stick.swap(stick_w_);
+    rp_.slip.swap(slip_w_);
+    rp_.engaged.assign(o.engaged.begin(), o.engaged.end());
+    rp_.painleve += o.painleve;
+    rp_.gave_up += o.gave_up ? 1 : 0;
+    rhs_.load_plan(o.engaged, rp_.stick.data(), rp_.slip.data());
+    rp_.q_patch.assign(q, q + nv);
+    if (swept) {  // (the world's last sweep, as CollisionWorld.sweep(q, reuse=True) keeps it)
+      rp_.proj_valid = true;
+      rp_.q_proj.swap(rp_.q_spare);
+      rp_.proj_pairs.swap(rp_.spare_pairs);
+      rp_.proj_dist.swap(rp_.spare_dist);
+      rp_.proj_best = rp_.spare_best;
+      rp_.proj_best_d = rp_.spare_best_d;
+    }
+    return 0;
+  }
+
+  // A re-patch handed back after the patches were loaded: the extension as loaded; with the
+  // projection's sweep made (swept), that sweep kept as the spare one (Python's re-patch then
+  // finds it at the same q: Coal's warm-started GJK would not repeat it bit for bit).
+  int hand_back(bool swept) {
+    rhs_.restore_loaded();
+    rp_.spare = swept;
+    return 2;
+  }
+
+  // The sweep at q_new_ into the given buffers (the sweep's C entry point, the stretch's margin).
+  void sweep_into(std::vector<double> &q_at, std::vector<int64_t> &pairs, std::vector<double> &dist,
+                  int64_t &best, double &best_d) {
+    const size_t cap = static_cast<size_t>(std::max<int64_t>(api_.n_pairs, 1));
+    pairs.resize(cap);
+    dist.resize(cap);
+    const int64_t ns =
+        api_.sweep(api_.self, q_new_.data(), margin_, pairs.data(), dist.data(), &best, &best_d);
+    pairs.resize(static_cast<size_t>(ns));
+    dist.resize(static_cast<size_t>(ns));
+    q_at = q_new_;
+  }
+
   // The regular samples due in the step [t0, t1] (Recorder.record with t_end = t1).
   void record(State &s, double t0, double t1, double h, const double *z, bool hermite,
               std::vector<double> &samples) {
@@ -426,6 +617,12 @@ class Stretch {
   std::vector<int64_t> pairs_, last_pairs_;
   std::vector<double> dist_, last_dist_, y1_, ay1_;
   size_t last_n_ = 0, pend_n_ = 0;
+  // the re-patch's state and work arrays (try_repatch)
+  Repatch rp_;
+  std::vector<int64_t> m_sizes_, m_flags_;
+  std::vector<double> m_frame2_, m_centres_, m_l1_, m_l2_, m_off_;
+  std::vector<double> lay_local_, lay_off_, lay_slide_, minv_, q_new_, afree_, slip_w_;
+  std::vector<uint8_t> stick_w_;
   int64_t pend_best_ = -1;
   double pend_best_d_ = 0.0;
 };

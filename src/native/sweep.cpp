@@ -319,8 +319,9 @@ class Sweep {
   // The C entry point (sweep_api.hpp) in a capsule that keeps this Sweep alive.
   nb::capsule api(nb::handle self) {
     self.inc_ref();
-    auto *api = new SweepApi{this, &Sweep::c_sweep, static_cast<int64_t>(first_.size()),
-                             static_cast<int64_t>(model_.nq), self.ptr()};
+    auto *api = new SweepApi{this, &Sweep::c_sweep, &Sweep::c_materials,
+                             static_cast<int64_t>(first_.size()), static_cast<int64_t>(model_.nq),
+                             self.ptr()};
     return nb::capsule(api, PACKBOT_SWEEP_API, [](void *p) noexcept {
       // (the capsule's destructor: the SweepApi and its reference to the Sweep)
       auto *a = static_cast<SweepApi *>(p);
@@ -436,8 +437,6 @@ class Sweep {
     for (size_t i = 0; i < n; ++i)
       if (pairs.data()[i] < 0 || pairs.data()[i] >= static_cast<int64_t>(K))
         throw std::invalid_argument("a pair index is out of range");
-    for (int i = 0; i < model_.nq; ++i) pq_[i] = q.data()[i];
-    pin::forwardKinematics(model_, data_, pq_);
     int64_t *sizes = nullptr, *flags = nullptr;
     double *normals = nullptr, *depths = nullptr, *rot = nullptr, *trans = nullptr;
     double *normal2 = nullptr, *frame2 = nullptr, *centres = nullptr;
@@ -450,77 +449,8 @@ class Sweep {
     auto normal2_arr = new_array<double>({n, 3}, &normal2);
     auto frame2_arr = new_array<double>({n, 3, 3}, &frame2);
     auto centres_arr = new_array<double>({n, 2, 1, 3}, &centres);
-    loc1_.clear();
-    loc2_.clear();
-    off_.clear();
-    for (size_t i = 0; i < n; ++i) {
-      const size_t k = static_cast<size_t>(pairs.data()[i]);
-      pin::SE3 M[2];
-      place_pair(k, M);
-      double Rg[2][9], tg[2][3], RM[2][9], tM[2][3];
-      for (int s = 0; s < 2; ++s) {
-        const size_t j = joint_[s == 0 ? first_[k] : second_[k]];
-        const pin::SE3 J = j > 0 ? pin::SE3(data_.oMi[j]) : pin::SE3::Identity();
-        for (int r = 0; r < 3; ++r) {
-          for (int c = 0; c < 3; ++c) {
-            rot[18 * i + 9 * s + 3 * c + r] = M[s].rotation()(r, c);
-            Rg[s][3 * r + c] = M[s].rotation()(r, c);
-            RM[s][3 * r + c] = J.rotation()(r, c);
-          }
-          trans[6 * i + 3 * s + r] = tg[s][r] = M[s].translation()(r);
-          tM[s][r] = J.translation()(r);
-        }
-      }
-      sizes[i] = -1;
-      flags[i] = 0;
-      for (int c = 0; c < 3; ++c) normals[3 * i + c] = normal2[3 * i + c] = 0.0;
-      for (int c = 0; c < 9; ++c) frame2[9 * i + c] = 0.0;
-      for (int c = 0; c < 6; ++c) centres[6 * i + c] = 0.0;
-      depths[i] = 0.0;
-      const coal::ContactPatch *patch = contact_patch(k, M, tol);
-      if (patch == nullptr) continue;
-      const coal::Vec3s nrm = patch->getNormal();
-      const size_t npts = patch->size();
-      double nv[3];
-      for (int c = 0; c < 3; ++c) nv[c] = normals[3 * i + c] = nrm[c];
-      const double d = depths[i] = patch->penetration_depth;
-      raw_.resize(6 * npts);
-      for (size_t m = 0; m < npts; ++m) {
-        const coal::Vec3s a = patch->getPointShape1(m), b = patch->getPointShape2(m);
-        for (int c = 0; c < 3; ++c) {
-          raw_[3 * m + c] = a[c];
-          raw_[3 * (npts + m) + c] = b[c];
-        }
-      }
-      const size_t s0 = loc1_.size();
-      loc1_.resize(s0 + 3 * npts);
-      loc2_.resize(s0 + 3 * npts);
-      const size_t o0 = off_.size();
-      off_.resize(o0 + 2 * npts);
-      const material::Planes P1 = planes_of(first_[k]), P2 = planes_of(second_[k]);
-      const material::Made made = material::patch_material(
-          raw_.data(), raw_.data() + 3 * npts, npts, nv, d, P1, Rg[0], tg[0], P2, Rg[1], tg[1],
-          RM[0], tM[0], RM[1], tM[1], patch_tol, loc1_.data() + s0, loc2_.data() + s0,
-          off_.data() + o0, scratch_);
-      if (!made.ok) {  // (the caller's witness points: nothing of this patch is kept)
-        loc1_.resize(s0);
-        loc2_.resize(s0);
-        off_.resize(o0);
-        sizes[i] = -2;
-        continue;
-      }
-      sizes[i] = static_cast<int64_t>(npts);
-      const size_t owner = made.on1 ? first_[k] : second_[k];
-      const bool free = (npts == 1 || halfspace_[owner]) &&
-                        material::on_a_face(P1, Rg[0], P2, Rg[1], nv, made.on1, face_align);
-      flags[i] = (made.on1 ? 1 : 0) | (free ? 2 : 0);
-      for (int c = 0; c < 3; ++c) {
-        normal2[3 * i + c] = made.normal2[c];
-        centres[6 * i + c] = made.centre1[c];
-        centres[6 * i + 3 + c] = made.centre2[c];
-      }
-      for (int c = 0; c < 9; ++c) frame2[9 * i + c] = made.frame2[c];
-    }
+    const MatOut out{sizes, flags, normals, depths, rot, trans, normal2, frame2, centres};
+    materials_into(q.data(), pairs.data(), n, tol, patch_tol, face_align, out);
     const size_t S = loc1_.size() / 3;
     double *l1 = nullptr, *l2 = nullptr, *o = nullptr;
     auto l1_arr = new_array<double>({S, 3}, &l1);
@@ -531,6 +461,26 @@ class Sweep {
     std::copy(off_.begin(), off_.end(), o);
     return nb::make_tuple(sizes_arr, flags_arr, normals_arr, depths_arr, rot_arr, trans_arr,
                           l1_arr, l2_arr, o_arr, normal2_arr, frame2_arr, centres_arr);
+  }
+
+  // materials for the C entry point (sweep_api.hpp): the per-pair arrays into the caller's
+  // sizes, flags (n), frame2 (n, 9) and centres (n, 6); local1 and local2 (S, 3), offset0
+  // (2 S) into the caller's buffers if S <= cap points. Returns S, or -1: no planes set or
+  // more than cap points (nothing but the per-pair arrays written).
+  static int64_t c_materials(void *self, const double *q, const int64_t *pairs, int64_t n,
+                             double tol, double patch_tol, double face_align, int64_t *sizes,
+                             int64_t *flags, double *frame2, double *centres, double *local1,
+                             double *local2, double *offset0, int64_t cap) {
+    Sweep &sw = *static_cast<Sweep *>(self);
+    if (!sw.planes_) return -1;
+    const MatOut out{sizes, flags, nullptr, nullptr, nullptr, nullptr, nullptr, frame2, centres};
+    sw.materials_into(q, pairs, static_cast<size_t>(n), tol, patch_tol, face_align, out);
+    const size_t S = sw.loc1_.size() / 3;
+    if (static_cast<int64_t>(S) > cap) return -1;
+    std::copy(sw.loc1_.begin(), sw.loc1_.end(), local1);
+    std::copy(sw.loc2_.begin(), sw.loc2_.end(), local2);
+    std::copy(sw.off_.begin(), sw.off_.end(), offset0);
+    return static_cast<int64_t>(S);
   }
 
   // The last sweep's witness points and normals, one row per candidate (its order).
@@ -612,6 +562,100 @@ class Sweep {
     p1_.resize(K);
     p2_.resize(K);
     normal_.resize(K);
+  }
+
+  // Where materials_into writes each pair's results (nullptr: not wanted): sizes, flags (n);
+  // normals (n, 3), depths (n), rotations (n, 2, 3, 3, each transposed), translations (n, 2,
+  // 3) as ``patches``; normal2 (n, 3), frame2 (n, 9), centres (n, 6).
+  struct MatOut {
+    int64_t *sizes, *flags;
+    double *normals, *depths, *rot, *trans, *normal2, *frame2, *centres;
+  };
+
+  // ``materials``' work (checked arguments, planes set): the per-pair results into out, the
+  // points and offsets into loc1_, loc2_ and off_.
+  void materials_into(const double *q, const int64_t *pairs, size_t n, double tol,
+                      double patch_tol, double face_align, const MatOut &out) {
+    for (int i = 0; i < model_.nq; ++i) pq_[i] = q[i];
+    pin::forwardKinematics(model_, data_, pq_);
+    loc1_.clear();
+    loc2_.clear();
+    off_.clear();
+    for (size_t i = 0; i < n; ++i) {
+      const size_t k = static_cast<size_t>(pairs[i]);
+      pin::SE3 M[2];
+      place_pair(k, M);
+      double Rg[2][9], tg[2][3], RM[2][9], tM[2][3];
+      for (int s = 0; s < 2; ++s) {
+        const size_t j = joint_[s == 0 ? first_[k] : second_[k]];
+        const pin::SE3 J = j > 0 ? pin::SE3(data_.oMi[j]) : pin::SE3::Identity();
+        for (int r = 0; r < 3; ++r) {
+          for (int c = 0; c < 3; ++c) {
+            if (out.rot) out.rot[18 * i + 9 * s + 3 * c + r] = M[s].rotation()(r, c);
+            Rg[s][3 * r + c] = M[s].rotation()(r, c);
+            RM[s][3 * r + c] = J.rotation()(r, c);
+          }
+          tg[s][r] = M[s].translation()(r);
+          if (out.trans) out.trans[6 * i + 3 * s + r] = tg[s][r];
+          tM[s][r] = J.translation()(r);
+        }
+      }
+      out.sizes[i] = -1;
+      out.flags[i] = 0;
+      for (int c = 0; c < 3; ++c) {
+        if (out.normals) out.normals[3 * i + c] = 0.0;
+        if (out.normal2) out.normal2[3 * i + c] = 0.0;
+      }
+      for (int c = 0; c < 9; ++c) out.frame2[9 * i + c] = 0.0;
+      for (int c = 0; c < 6; ++c) out.centres[6 * i + c] = 0.0;
+      if (out.depths) out.depths[i] = 0.0;
+      const coal::ContactPatch *patch = contact_patch(k, M, tol);
+      if (patch == nullptr) continue;
+      const coal::Vec3s nrm = patch->getNormal();
+      const size_t npts = patch->size();
+      double nv[3];
+      for (int c = 0; c < 3; ++c) nv[c] = nrm[c];
+      if (out.normals)
+        for (int c = 0; c < 3; ++c) out.normals[3 * i + c] = nv[c];
+      const double d = patch->penetration_depth;
+      if (out.depths) out.depths[i] = d;
+      raw_.resize(6 * npts);
+      for (size_t m = 0; m < npts; ++m) {
+        const coal::Vec3s a = patch->getPointShape1(m), b = patch->getPointShape2(m);
+        for (int c = 0; c < 3; ++c) {
+          raw_[3 * m + c] = a[c];
+          raw_[3 * (npts + m) + c] = b[c];
+        }
+      }
+      const size_t s0 = loc1_.size();
+      loc1_.resize(s0 + 3 * npts);
+      loc2_.resize(s0 + 3 * npts);
+      const size_t o0 = off_.size();
+      off_.resize(o0 + 2 * npts);
+      const material::Planes P1 = planes_of(first_[k]), P2 = planes_of(second_[k]);
+      const material::Made made = material::patch_material(
+          raw_.data(), raw_.data() + 3 * npts, npts, nv, d, P1, Rg[0], tg[0], P2, Rg[1], tg[1],
+          RM[0], tM[0], RM[1], tM[1], patch_tol, loc1_.data() + s0, loc2_.data() + s0,
+          off_.data() + o0, scratch_);
+      if (!made.ok) {  // (the caller's witness points: nothing of this patch is kept)
+        loc1_.resize(s0);
+        loc2_.resize(s0);
+        off_.resize(o0);
+        out.sizes[i] = -2;
+        continue;
+      }
+      out.sizes[i] = static_cast<int64_t>(npts);
+      const size_t owner = made.on1 ? first_[k] : second_[k];
+      const bool free = (npts == 1 || halfspace_[owner]) &&
+                        material::on_a_face(P1, Rg[0], P2, Rg[1], nv, made.on1, face_align);
+      out.flags[i] = (made.on1 ? 1 : 0) | (free ? 2 : 0);
+      for (int c = 0; c < 3; ++c) {
+        if (out.normal2) out.normal2[3 * i + c] = made.normal2[c];
+        out.centres[6 * i + c] = made.centre1[c];
+        out.centres[6 * i + 3 + c] = made.centre2[c];
+      }
+      for (int c = 0; c < 9; ++c) out.frame2[9 * i + c] = made.frame2[c];
+    }
   }
 
   // The face planes of every piece (set_planes).

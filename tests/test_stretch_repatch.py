@@ -1,0 +1,210 @@
+"""The compiled stretch's own re-patches are the loop's re-patches.
+
+A step whose only finding is a sliding pair's stale patch is re-patched inside the stretch
+(``src/native/stretch.hpp``, ``Stretch::try_repatch``): the patches rebuilt from the sweep's
+materials, the drift projection's native round and its sweep's check, the modes kept or
+selected again natively, the plan loaded and the stepper restarted there; Python then takes
+the contact set over (:func:`packbot.contact.stretch.adopt_repatches`). With
+:data:`packbot.contact.stretch.REPATCH_ENABLED` off the step is handed back and
+:meth:`NormalContacts.repatch <packbot.contact.normal_contacts.NormalContacts.repatch>` does
+the same in Python. Both must run the same: the same counters, events at the same instants, the
+same final state to the bit, the samples to the rounding of the dense output that records the
+re-patched steps (summed in another order than numpy's, as every stretch step's). Where the
+native re-patch hands back (forced here through its constants), nothing it did may show.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+from test_normal_cascade import start_pose
+from test_stretch import COUNTERS
+
+import packbot
+from packbot import native_sweep
+from packbot.contact import native, stretch
+from packbot.contact.normal_contacts import NormalContacts
+from packbot.mujoco_model import WRIST_JOINTS
+from packbot.native_sweep import NativeDispatch
+from packbot.system import System
+
+pytestmark = pytest.mark.skipif(
+    not (native.available() and native_sweep.available()),
+    reason="the compiled extensions are not built",
+)
+
+
+class _Counts:
+    """The re-patches taken in the stretch and in Python, and the spare sweeps kept and used."""
+
+    def __init__(self, monkeypatch: pytest.MonkeyPatch) -> None:
+        self.native = self.python = self.kept = self.used = 0
+        adopt = stretch.adopt_repatches
+        repatch = NormalContacts.repatch
+        keep = NativeDispatch.keep_spare
+        sweep = NativeDispatch.sweep
+
+        def adopted(law, out):
+            self.native += out["repatches"]
+            adopt(law, out)
+
+        def python(nc, *args):
+            self.python += 1
+            return repatch(nc, *args)
+
+        def kept(d, *args):
+            self.kept += 1
+            keep(d, *args)
+
+        def swept(d, *args):
+            spare = d.spare
+            out = sweep(d, *args)
+            self.used += spare is not None and d.spare is None
+            return out
+
+        from packbot.contact import normal_law
+
+        monkeypatch.setattr(normal_law, "adopt_repatches", adopted)
+        monkeypatch.setattr(NormalContacts, "repatch", python)
+        monkeypatch.setattr(NativeDispatch, "keep_spare", kept)
+        monkeypatch.setattr(NativeDispatch, "sweep", swept)
+
+
+def _run(robot, q0, duration, cfg, enabled, monkeypatch):
+    monkeypatch.setattr(stretch, "REPATCH_ENABLED", enabled)
+    return packbot.simulate(robot, q0, np.zeros(robot.nq), duration, config=cfg)
+
+
+def _same(off, on, exact_samples: bool):
+    d_off, d_on = dataclasses.asdict(off.diagnostics), dataclasses.asdict(on.diagnostics)
+    for name in COUNTERS:
+        assert d_on[name] == d_off[name], name
+    assert [(e.t, e.kind, e.piece1, e.piece2) for e in on.events] == [
+        (e.t, e.kind, e.piece1, e.piece2) for e in off.events
+    ]
+    np.testing.assert_array_equal(on.t, off.t)
+    np.testing.assert_array_equal(on.q[-1], off.q[-1])
+    np.testing.assert_array_equal(on.v[-1], off.v[-1])
+    if exact_samples:
+        np.testing.assert_array_equal(on.q, off.q)
+        np.testing.assert_array_equal(on.v, off.v)
+    else:  # (the re-patched steps' samples: the stretch's dense output, 1e-16 rad here)
+        np.testing.assert_allclose(on.q, off.q, rtol=0.0, atol=1e-12)
+        np.testing.assert_allclose(on.v, off.v, rtol=0.0, atol=1e-10)
+    np.testing.assert_allclose(on.energy, off.energy, rtol=0.0, atol=1e-9)
+
+
+CASES = {
+    "collapse": (dict(mu=0.5, locked_joints=WRIST_JOINTS), "drive", 5.0, 20),
+    "frictionless": (dict(mu=0.0, locked_joints=WRIST_JOINTS), "drive", 3.0, 40),
+    "sticky": (dict(mu=1.2, locked_joints=WRIST_JOINTS), "high", 3.0, 10),
+    "wrist-free": (dict(mu=0.5), "drive", 3.0, 10),
+}
+
+
+@pytest.mark.parametrize("case", list(CASES))
+def test_the_stretch_re_patches_as_the_loop(robot, monkeypatch, case):
+    kw, pose, duration, least = CASES[case]
+    cfg = packbot.SimConfig(contact_mode="normal", **kw)
+    counts = _Counts(monkeypatch)
+    off = _run(robot, robot.pose(pose), duration, cfg, False, monkeypatch)
+    python_off = counts.python
+    on = _run(robot, robot.pose(pose), duration, cfg, True, monkeypatch)
+    _same(off, on, exact_samples=False)
+    assert counts.native >= least, counts.native
+    # every re-patch taken in one of the two places (the stretch's hand-backs in Python)
+    assert counts.native + (counts.python - python_off) == python_off
+
+
+def test_a_wrist_free_start_with_limits_and_rosenbrock_steps(robot, monkeypatch):
+    cfg = packbot.SimConfig(contact_mode="normal", mu=0.5, restitution=0.0)
+    counts = _Counts(monkeypatch)
+    off = _run(robot, start_pose(robot, 3), 1.5, cfg, False, monkeypatch)
+    on = _run(robot, start_pose(robot, 3), 1.5, cfg, True, monkeypatch)
+    _same(off, on, exact_samples=False)
+    assert counts.native > 0
+
+
+def _hand_back_at(monkeypatch, stage: int) -> None:
+    """Every stretch's re-patch handed back at ``stage`` (its test setting ``hand_back_at``)."""
+    init = stretch.QuietStretch.__init__
+
+    def init_changed(self, *args):
+        init(self, *args)
+        law = args[2]
+        from packbot.contact import normal_tolerances as nt
+
+        self._run.set_repatch(
+            tol=law.normal.tol, patch_tol=nt.PATCH_TOL, face_align=nt.FACE_ALIGN,
+            slide_tol2=nt.SLIDE_TOL**2, touch_gap=nt.TOUCH_GAP, res_tol=nt.RESIDUAL_TOL,
+            mu=law.normal.mu, speed_band=nt.SPEED_BAND, stick_speed=nt.STICK_SPEED,
+            force_band=nt.FORCE_BAND, stick_band=nt.STICK_BAND, baumgarte=nt.BAUMGARTE,
+            mode_res_tol=nt.RESIDUAL_TOL, hand_back_at=stage,
+        )  # fmt: skip
+
+    monkeypatch.setattr(stretch.QuietStretch, "__init__", init_changed)
+
+
+@pytest.mark.parametrize(
+    ("stage", "why"),
+    [
+        (1, "the patches built, nothing loaded yet"),
+        (2, "after the projection's round: the patches and plan put back"),
+        (3, "at the modes: put back, the projection's sweep left for the loop's re-patch"),
+    ],
+)
+def test_a_re_patch_handed_back_leaves_no_trace(robot, monkeypatch, stage, why):
+    """Forced hand-backs: the run is the loop's to the bit, samples included."""
+    cfg = packbot.SimConfig(contact_mode="normal", mu=0.5, locked_joints=WRIST_JOINTS)
+    counts = _Counts(monkeypatch)
+    off = _run(robot, robot.pose("drive"), 5.0, cfg, False, monkeypatch)
+    python_off = counts.python
+    _hand_back_at(monkeypatch, stage)
+    on = _run(robot, robot.pose("drive"), 5.0, cfg, True, monkeypatch)
+    _same(off, on, exact_samples=True)
+    assert counts.native == 0, why
+    assert counts.python - python_off == python_off
+    if stage == 3:
+        # after a projection that moved q, its sweep is left for the loop's re-patch, which
+        # finds it (its warm-started GJK is not run a second time at that q)
+        assert counts.kept > 5 and counts.used == counts.kept, (counts.kept, counts.used)
+    else:
+        assert counts.kept == 0
+
+
+def test_native_inverse_mass_and_free_accelerations_are_the_systems(robot, rng):
+    """The re-patch's M(q)^-1 and unconstrained accelerations: the Python path's, bit for bit."""
+    for locked in (WRIST_JOINTS, []):
+        cfg = packbot.SimConfig(contact_mode="normal", mu=0.5, locked_joints=list(locked))
+        sysm = System(robot, robot.pose("drive"), cfg, None)
+        rhs = native.native_rhs(sysm.model)
+        assert rhs is not None
+        n = sysm.nv
+        viscous = rng.uniform(0.0, 2.0, n)
+        applied = rng.normal(0.0, 5.0, n)
+        rhs.set_torque(applied, viscous, np.zeros(n))
+        for _ in range(50):
+            q = rng.uniform(sysm.lower, sysm.upper)
+            v = rng.normal(0.0, 1.0, n)
+            minv = np.empty((n, n))
+            rhs._rhs.minv_at(q, minv)
+            np.testing.assert_array_equal(minv, sysm.minv(q))
+            a = np.empty(n)
+            rhs._rhs.free_accel_at(q, v, a)
+            np.testing.assert_array_equal(a, sysm.aba(q, v, applied + (-viscous * v - 0.0)))
+
+
+def test_a_restarted_take_leaves_the_derivative_pending(robot):
+    from packbot.ode import MAX_FACTOR_FIRST, RK45Stepper
+
+    st = RK45Stepper(lambda t, y: -y, rtol=1e-6, atol=1e-9)
+    st.reset(0.0, np.ones(2))
+    st.take(
+        0.5, np.full(2, 0.6), np.zeros(2), np.full(2, 0.6), 0.01, steps=3, rejected=0,
+        rhs_calls=19, stiff_steps=0, stiff_run=0, stiff=False, restarted=True,
+    )  # fmt: skip
+    assert st.f_pending and st.control().max_factor == MAX_FACTOR_FIRST
+    seg = st.step(1.0)
+    np.testing.assert_allclose(seg.y1, 0.6 * np.exp(-(seg.t1 - 0.5)), rtol=1e-5)
