@@ -222,11 +222,12 @@ class CollisionWorld:
         #: the native sweeps' calls and where they owe the pieces (placed on demand; a
         #: :class:`~packbot.native_sweep.NativeDispatch`)
         self.dispatch = _ns.NativeDispatch(self)
-        self._geom_data = _cb.geometry_data(gm)
+        # the geometry model's data and live proxies into its C++ vector of distance results
+        # (valid while it lives: indexing them costs 0.1 us against 0.45 us through
+        # distanceResults[k]), made on first use (a run whose sweeps are native never uses them)
+        self._gd: pin.GeometryData | None = None
+        self._results_list: list[Any] | None = None
         self._point_data: pin.GeometryData | None = None  # pair_contact's (made on first use)
-        # Live proxies into the C++ vector (valid while geom_data lives): indexing it costs
-        # 0.1 us against 0.45 us through distanceResults[k].
-        self._results = list(self.geom_data.distanceResults)
         self._last_sweep: tuple[tuple[bytes, float], SweepResult] | None = None  # see sweep
         self._n_pairs = len(self.pairs)
         G = gm.ngeoms
@@ -336,6 +337,22 @@ class CollisionWorld:
     def _place(self, q: NDArray[np.float64]) -> None:
         """Forward kinematics and piece placements (the broadphase is placed on demand)."""
         self._fk(q)
+
+    @property
+    def _geom_data(self) -> pin.GeometryData:
+        """The geometry model's data as it is (made on first use; :attr:`geom_data` places it)."""
+        gd = self._gd
+        if gd is None:
+            gd = self._gd = _cb.geometry_data(self.geom_model)
+        return gd
+
+    @property
+    def _results(self) -> list[Any]:
+        """Live proxies of :attr:`geom_data`'s distance results, one per pair (made once)."""
+        res = self._results_list
+        if res is None:
+            res = self._results_list = list(self._geom_data.distanceResults)
+        return res
 
     @property
     def geom_data(self) -> pin.GeometryData:
@@ -582,7 +599,7 @@ class CollisionWorld:
             ConfigurationError: A pair that is not the index of a tested pair, or a wrong-size q.
         """
         ks = [self._pair_id(p) for p in pairs]
-        batch = self._patch_batch(q, ks, tol)
+        batch = _cq.patch_batch(self, q, ks, tol)
         if batch is None:
             out: list[ContactPatch | None] = []
             for k in ks:
@@ -606,35 +623,6 @@ class CollisionWorld:
             out.append(patch)
             s += K
         return out
-
-    def _patch_batch(
-        self, q: NDArray[np.float64], pairs: list[int], tol: float
-    ) -> tuple[NDArray[Any], ...] | None:
-        """The native patches of checked ``pairs`` at q (None: the native sweep cannot serve).
-
-        Returns:
-            (sizes, normals, depths, points1, points2, rotations, translations): per pair its
-            number of patch points K (-1: farther apart than ``tol``), normal, signed distance
-            [m]; the patches' points on pieces 1 and 2, pair after pair, (sum K, 3) [m]; the
-            two pieces' world placements, rotations (n, 2, 3, 3) (each Fortran-ordered, as
-            Pinocchio's) and translations (n, 2, 3) [m].
-
-        Raises:
-            ConfigurationError: A wrong-size q.
-        """
-        native = self._native
-        if native is None or not _ns.ENABLED:
-            return None
-        qa = np.ascontiguousarray(q, dtype=np.float64)
-        try:
-            out = native.patches(qa, np.asarray(pairs, dtype=np.int64), float(tol))
-        except (ValueError, TypeError) as exc:  # the extension's size/type check
-            nq = self.robot.model.nq
-            raise ConfigurationError("q", np.shape(q), f"a vector of shape ({nq},) [rad]") from exc
-        # the pieces of geom_data are owed at q (placed on first read, as after a reused sweep)
-        self.dispatch.pending = qa.tobytes()
-        sizes, normals, depths, pts1, pts2, rot, trans = out
-        return sizes, normals, depths, pts1, pts2, rot.swapaxes(2, 3), trans
 
     # ------------------------------------------------------------------ line of sight
     def line_of_sight(

@@ -22,7 +22,7 @@ from packbot.errors import ConfigurationError, UnknownNameError
 if TYPE_CHECKING:
     from packbot.collision import CollisionWorld
 
-__all__ = ["LOS_SHORTEN", "contact_patch", "line_of_sight", "material_batch"]
+__all__ = ["LOS_SHORTEN", "contact_patch", "line_of_sight", "material_batch", "patch_batch"]
 
 #: The line of sight stops this short of the target [m], so that a target on a surface is seen.
 LOS_SHORTEN = 1e-3
@@ -65,6 +65,36 @@ def contact_patch(
     return n, pts1, pts2, float(patch.penetration_depth)
 
 
+def patch_batch(
+    world: CollisionWorld, q: NDArray[np.float64], pairs: list[int], tol: float
+) -> tuple[NDArray[Any], ...] | None:
+    """The native patches of checked ``pairs`` at q (None: the native sweep cannot serve).
+
+    Returns:
+        (sizes, normals, depths, points1, points2, rotations, translations): per pair its
+        number of patch points K (-1: farther apart than ``tol``), normal, signed distance [m];
+        the patches' points on pieces 1 and 2, pair after pair, (sum K, 3) [m]; the two pieces'
+        world placements, rotations (n, 2, 3, 3) (each Fortran-ordered, as Pinocchio's) and
+        translations (n, 2, 3) [m].
+
+    Raises:
+        ConfigurationError: A wrong-size q.
+    """
+    native = world._native
+    if native is None or not native_sweep.ENABLED:
+        return None
+    qa = np.ascontiguousarray(q, dtype=np.float64)
+    try:
+        out = native.patches(qa, np.asarray(pairs, dtype=np.int64), float(tol))
+    except (ValueError, TypeError) as exc:  # the extension's size/type check
+        nq = world.robot.model.nq
+        raise ConfigurationError("q", np.shape(q), f"a vector of shape ({nq},) [rad]") from exc
+    # the pieces of geom_data are owed at q (placed on first read, as after a reused sweep)
+    world.dispatch.pending = qa.tobytes()
+    sizes, normals, depths, pts1, pts2, rot, trans = out
+    return sizes, normals, depths, pts1, pts2, rot.swapaxes(2, 3), trans
+
+
 def material_batch(
     world: CollisionWorld,
     q: NDArray[np.float64],
@@ -76,8 +106,7 @@ def material_batch(
 ) -> tuple[NDArray[Any], ...] | None:
     """The native patches of checked ``pairs`` at q as material points (None: no native sweep).
 
-    The patches of :meth:`CollisionWorld._patch_batch
-    <packbot.collision.CollisionWorld._patch_batch>`, each made material points by the
+    The patches of :func:`patch_batch`, each made material points by the
     extension (``Sweep.materials``: :func:`packbot.contact.kernels.patch_material`'s
     arithmetic, bit for bit) with the pieces' face planes (``planes() -> (N, o, start)``,
     loaded once per native sweep), the patch tolerance ``patch_tol`` [m], and whether nothing
@@ -86,7 +115,7 @@ def material_batch(
     Returns:
         (sizes, flags, normals, depths, rotations, translations, local1, local2, offset0,
         normal2, frame2, centres): see the extension's ``Sweep.materials``; the rotations
-        Fortran-ordered, as ``_patch_batch``'s.
+        Fortran-ordered, as :func:`patch_batch`'s.
 
     Raises:
         ConfigurationError: A wrong-size q.
@@ -102,7 +131,7 @@ def material_batch(
     except (ValueError, TypeError) as exc:  # the extension's size/type check
         nq = world.robot.model.nq
         raise ConfigurationError("q", np.shape(q), f"a vector of shape ({nq},) [rad]") from exc
-    world.dispatch.pending = qa.tobytes()  # (as _patch_batch: the pieces owed at q)
+    world.dispatch.pending = qa.tobytes()  # (as patch_batch: the pieces owed at q)
     rot = out[4]
     return (*out[:4], rot.swapaxes(2, 3), *out[5:])
 

@@ -81,7 +81,7 @@ class System:
         self.lower = self.robot.params.lower
         self.upper = self.robot.params.upper
         self.nv = int(self.model.nv)
-        self._lower = np.tril_indices(self.nv, -1)
+        self._lower = strict_lower(self.nv)
         # the strict lower triangle's flat indices in an (nv, nv) C-ordered matrix, and those
         # of the upper entries mirroring them
         self._lower_flat = self._lower[0] * self.nv + self._lower[1]
@@ -177,6 +177,21 @@ class System:
         J = np.asarray(J).reshape(6, self.nv)  # pin returns a flat 6-vector when nv == 1
         r = np.asarray(point) - self.data.oMi[joint].translation
         return J[:3] - _skew(r) @ J[3:]
+
+
+#: strict_lower's arrays, by size
+_STRICT_LOWER: dict[int, tuple[NDArray[np.intp], NDArray[np.intp]]] = {}
+
+
+def strict_lower(n: int) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
+    """``np.tril_indices(n, -1)``, made once per n (read-only: index arrays to share)."""
+    out = _STRICT_LOWER.get(n)
+    if out is None:
+        rows, cols = np.tril_indices(n, -1)
+        rows.setflags(write=False)
+        cols.setflags(write=False)
+        out = _STRICT_LOWER[n] = (rows, cols)
+    return out
 
 
 def _reduced(robot: Robot, locked: list[int], q_ref: FloatArray) -> Robot:

@@ -53,7 +53,7 @@ def test_native_patches_equal_the_python_path_bit_for_bit(robot, collapse_states
         for tol in TOLS:
             got = nat.contact_patches(q, pairs, tol)
             assert len(got) == len(pairs)
-            batch = nat._patch_batch(q, pairs, tol)
+            batch = collision_queries.patch_batch(nat, q, pairs, tol)
             assert batch is not None
             rot, trans = batch[5], batch[6]
             for i, (k, a) in enumerate(zip(pairs, got, strict=True)):

@@ -17,9 +17,10 @@ import pinocchio as pin
 from numpy.typing import NDArray
 
 from packbot.collision import CollisionWorld, PairInfo
-from packbot.collision_queries import material_batch
+from packbot.collision_queries import material_batch, patch_batch
 from packbot.contact.normal_patch import _Pair, _planes
 from packbot.contact.normal_tolerances import FACE_ALIGN, PATCH_TOL
+from packbot.system import strict_lower
 
 if TYPE_CHECKING:
     from typing_extensions import Self
@@ -127,7 +128,7 @@ class ContactSet:
         for j in range(1, model.njoints):
             for s in list(model.supports[j])[1:]:
                 self._masks[j, 0, model.idx_vs[s] : model.idx_vs[s] + model.nvs[s]] = 1.0
-        self._lower = np.tril_indices(self.nv, -1)  # (an nv x nv matrix's strict lower part)
+        self._lower = strict_lower(self.nv)  # (an nv x nv matrix's strict lower part)
         self._joint_of = np.zeros(self.nv, dtype=np.intp)  # model joint of each velocity
         for j in range(1, model.njoints):
             self._joint_of[model.idx_vs[j] : model.idx_vs[j] + model.nvs[j]] = j
@@ -185,7 +186,7 @@ class ContactSet:
                 if any(made):
                     self._invalidate()  # (once: the caches are not read in between)
                 return made
-        batch = world._patch_batch(q, ks, t)
+        batch = patch_batch(world, q, ks, t)
         if batch is None:  # the Python path: pair by pair
             out = []
             for k in ks:
@@ -227,8 +228,9 @@ class ContactSet:
         """:meth:`add_pairs`'s patches made material points by the extension, or None.
 
         ``Sweep.materials`` (``src/native/material.hpp``): the same Coal patches as
-        ``_patch_batch`` and :func:`~packbot.contact.kernels.patch_material`'s arithmetic on
-        them, bit for bit (``tests/test_native_material.py``); a patch off its pair's distance
+        :func:`~packbot.collision_queries.patch_batch` and
+        :func:`~packbot.contact.kernels.patch_material`'s arithmetic on them, bit for bit
+        (``tests/test_native_material.py``); a patch off its pair's distance
         is made here from the witness points, as :meth:`_put` does. None without the
         extension's sweep.
         """
