@@ -511,6 +511,9 @@ class CollisionWorld:
             ConfigurationError: ``pair`` is not the index of a tested pair, or a wrong-size q.
         """
         k = self._pair_id(pair)
+        native = self._native
+        if native is not None and _ns.ENABLED and _ns.POINT_ENABLED:  # (in one native call)
+            return _cq.point_contact(self, native, q, k)
         self._place(q)
         # Its own requests: Coal warm-starts GJK from a request's last answer, so the sweep's
         # distances (native or not) never depend on the point queries made between sweeps.

@@ -20,9 +20,17 @@ from packbot import native_sweep
 from packbot.errors import ConfigurationError, UnknownNameError
 
 if TYPE_CHECKING:
-    from packbot.collision import CollisionWorld
+    from packbot.collision import CollisionWorld, Contact
+    from packbot.native_sweep import NativeSweep
 
-__all__ = ["LOS_SHORTEN", "contact_patch", "line_of_sight", "material_batch", "patch_batch"]
+__all__ = [
+    "LOS_SHORTEN",
+    "contact_patch",
+    "line_of_sight",
+    "material_batch",
+    "patch_batch",
+    "point_contact",
+]
 
 #: The line of sight stops this short of the target [m], so that a target on a surface is seen.
 LOS_SHORTEN = 1e-3
@@ -63,6 +71,32 @@ def contact_patch(
     pts1 = np.array([patch.getPointShape1(i) for i in range(npts)]).reshape(-1, 3)
     pts2 = np.array([patch.getPointShape2(i) for i in range(npts)]).reshape(-1, 3)
     return n, pts1, pts2, float(patch.penetration_depth)
+
+
+def point_contact(
+    world: CollisionWorld, native: NativeSweep, q: NDArray[np.float64], k: int
+) -> Contact:
+    """One pair's signed distance, witness points and normal at q, in one native call.
+
+    :meth:`CollisionWorld.pair_contact <packbot.collision.CollisionWorld.pair_contact>` of the
+    tested pair ``k`` by the world's native sweep (``Sweep.point_distance``: the same
+    point-query requests and GJK warm starts as the Python path's second ``GeometryData``, so
+    the same numbers to the bit).
+
+    Raises:
+        ConfigurationError: A wrong-size q.
+    """
+    qa = np.ascontiguousarray(q, dtype=np.float64)
+    try:
+        d, p1, p2, normal = native.point_distance(qa, k)
+    except (ValueError, TypeError) as exc:  # the extension's size/type check
+        nq = world.robot.model.nq
+        raise ConfigurationError("q", np.shape(q), f"a vector of shape ({nq},) [rad]") from exc
+    dispatch = world.dispatch
+    dispatch.pending = qa.tobytes()  # (the pieces owed at q, as after _place(q))
+    return dispatch._contact(  # (collision.Contact: no import cycle)
+        world.pairs[k], float(d), p1, p2, normal
+    )
 
 
 def patch_batch(

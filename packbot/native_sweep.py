@@ -57,6 +57,10 @@ log = logging.getLogger(__name__)
 #: benchmarks switch it off to run the Python path).
 ENABLED = True
 
+#: Whether a world with the native sweep also answers its one-pair queries
+#: (``CollisionWorld.pair_contact``) natively (read at every query; with :data:`ENABLED`).
+POINT_ENABLED = True
+
 #: The extension's piece kinds.
 _CONVEX, _BOX, _HALFSPACE = 0, 1, 2
 
@@ -235,6 +239,9 @@ class NativeSweep:
         #: translations)``: the contact patches of several pairs at one q (see
         #: ``CollisionWorld.contact_patches``; the rotations are stored transposed).
         self.patches = self._sweep.patches
+        #: ``point_distance(q, k) -> (distance, point1, point2, normal)``: one pair's query at
+        #: q with its own warm starts (``CollisionWorld.pair_contact``'s).
+        self.point_distance = self._sweep.point_distance
         n = len(world.pairs)
         self._n_geoms = int(world.geom_model.ngeoms)
         self._p1 = np.zeros((n, 3))

@@ -169,24 +169,43 @@ def measure_many(
     qf[:, free] = Y[:, :n]
     vf = np.zeros((k, nq))
     vf[:, free] = Y[:, n : 2 * n]
-    rows = []
-    shared = True
     tau_zero = drive.tau_zero
-    for t, y in zip(ts, ys, strict=True):
-        cmd, _, applied, friction = drive.torques(t, y)
-        friction = held(y[:n], y[n : 2 * n], applied, friction)
-        shared = shared and cmd is tau_zero and applied is cmd and friction is cmd
-        rows.append((cmd, applied, friction))
+    y0 = ys[0]
+    cmd, _, applied, friction = drive.torques(ts[0], y0)
+    if not drive.lag and held(y0[:n], y0[n : 2 * n], applied, friction) is friction:
+        # Without a torque function or a motor lag the command and the applied torque are the
+        # same at every state (a held command, or none): the state enters through the friction
+        # only, -viscous v - coulomb s (ActuatorPath.friction, s the drive's sliding
+        # directions, fixed between events), or not at all (friction is the command: none).
+        # The law passing the first state's friction through (no held joint) passes them all.
+        # The rows at once: the same numbers as row by row.
+        shared = cmd is tau_zero and applied is cmd and friction is cmd
+        fric: Any = (
+            friction if friction is cmd else drive.path.friction(Y[:, n : 2 * n], drive.fdir)
+        )
+        rows_cmd: Any = cmd
+        rows_app: Any = applied
+    else:
+        rows = []
+        shared = True
+        for t, y in zip(ts, ys, strict=True):
+            cmd, _, applied, friction = drive.torques(t, y)
+            friction = held(y[:n], y[n : 2 * n], applied, friction)
+            shared = shared and cmd is tau_zero and applied is cmd and friction is cmd
+            rows.append((cmd, applied, friction))
+        rows_cmd = [r[0] for r in rows]
+        rows_app = [r[1] for r in rows]
+        fric = [r[2] for r in rows]
     cmd_f: Any = zero
     app_f: Any = zero
     fr_f: Any = zero
     if not shared:
         app_f, fr_f = np.zeros((k, nq)), np.zeros((k, nq))
-        app_f[:, free] = [r[1] for r in rows]
-        fr_f[:, free] = [r[2] for r in rows]
+        app_f[:, free] = rows_app
+        fr_f[:, free] = fric
         if drive.ctrl_obj is None:
             cmd_f = np.zeros((k, nq))
-            cmd_f[:, free] = [r[0] for r in rows]
+            cmd_f[:, free] = rows_cmd
     if drive.ctrl_obj is not None:
         cmd_f = drive.hold_full
     rhs = _compiled(sys) if compiled else None

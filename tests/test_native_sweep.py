@@ -330,3 +330,47 @@ def test_a_fresh_sweep_is_a_new_one(robot, rng):
     again = other.sweep(qs[0], 0.05)
     np.testing.assert_array_equal(first[1], again[1])
     assert copy.n_pairs == built.n_pairs
+
+
+@pytest.mark.parametrize("obstacles", [False, True], ids=["floor", "obstacles"])
+def test_native_point_queries_are_the_python_paths_bit_for_bit(
+    robot, collapse_states, rng, obstacles
+):
+    """pair_contact in one native call (Sweep.point_distance: the point queries' own requests
+    and GJK warm starts) against the Python path's second GeometryData, queried alike: the
+    same distances, witness points and normals, bit for bit, sweeps in between included."""
+    env = obstacle_env() if obstacles else None
+    nat, py = CollisionWorld(robot, env), python_world(robot, env)
+    n = 0
+    for q in _configurations(robot, collapse_states, rng)[::3]:
+        pairs = nat.sweep(q, 0.02).pairs.tolist()
+        py.sweep(q, 0.02)
+        for k in pairs[:6]:
+            for qq in (q, q + 1e-4):  # (a second query of the pair: its warm start)
+                a, b = nat.pair_contact(qq, k), py.pair_contact(qq, k)
+                assert a.pair == b.pair and a.distance == b.distance
+                np.testing.assert_array_equal(a.p1, b.p1)
+                np.testing.assert_array_equal(a.p2, b.p2)
+                np.testing.assert_array_equal(a.normal, b.normal)
+                n += 1
+        # the pieces are owed at the last query's q: read, they are there
+        M = nat.geom_data.oMg[-1].homogeneous
+        np.testing.assert_array_equal(M, py.geom_data.oMg[-1].homogeneous)
+    assert n > 200
+    with pytest.raises(packbot.ConfigurationError, match="q"):
+        nat.pair_contact(np.zeros(robot.nq - 1), 0)
+
+
+def test_a_run_is_the_same_with_native_point_queries(robot, monkeypatch):
+    cfg = packbot.SimConfig(contact_mode="normal", mu=0.5, locked_joints=LOCKED)
+    runs = []
+    for on in (False, True):
+        monkeypatch.setattr(native_sweep, "POINT_ENABLED", on)
+        runs.append(
+            packbot.simulate(robot, robot.pose("drive"), np.zeros(robot.nq), 2.0, config=cfg)
+        )
+    off, on = runs
+    assert off.diagnostics.distance_queries > 50
+    for name in ("t", "q", "v", "energy"):
+        np.testing.assert_array_equal(getattr(on, name), getattr(off, name))
+    assert [(e.t, e.kind) for e in on.events] == [(e.t, e.kind) for e in off.events]

@@ -398,6 +398,44 @@ class Sweep {
     return {sizes_arr, normals_arr, depths_arr, p1_arr, p2_arr, rot_arr, trans_arr};
   }
 
+  // The signed distance [m], nearest points on pieces 1 and 2 (world [m]) and normal of pair k
+  // at q: CollisionWorld.pair_contact's query (Pinocchio's computeDistance on the world's
+  // second GeometryData, made pristine at its first point query), with that data's own request
+  // and functor per pair, which no sweep shares: the same GJK warm starts, so the same numbers
+  // to the bit. Leaves the sweep's state (its q, boxes, witness points) as it was.
+  nb::tuple point_distance(F1 q, int64_t k) {
+    if (q.shape(0) != static_cast<size_t>(model_.nq))
+      throw std::invalid_argument("q: " + std::to_string(model_.nq) + " entries expected");
+    const size_t K = first_.size();
+    if (k < 0 || k >= static_cast<int64_t>(K))
+      throw std::invalid_argument("a pair index is out of range");
+    for (int i = 0; i < model_.nq; ++i) pq_[i] = q.data()[i];
+    pin::forwardKinematics(model_, data_, pq_);
+    const size_t p = static_cast<size_t>(k);
+    if (point_requests_.empty()) {  // (the second data's requests, as a new copy has them)
+      point_requests_.assign(K, request_);
+      point_functors_.resize(K);
+    }
+    if (!point_functors_[p])
+      point_functors_[p] = std::make_unique<coal::ComputeDistance>(shapes_[first_[p]].get(),
+                                                                   shapes_[second_[p]].get());
+    pin::SE3 M[2];
+    place_pair(p, M);
+    coal::DistanceResult &res = point_result_;
+    res.clear();
+    (*point_functors_[p])(coal_of(M[0]), coal_of(M[1]), point_requests_[p], res);
+    double *a = nullptr, *b = nullptr, *n = nullptr;
+    auto a_arr = new_array<double>({3}, &a);
+    auto b_arr = new_array<double>({3}, &b);
+    auto n_arr = new_array<double>({3}, &n);
+    for (int c = 0; c < 3; ++c) {
+      a[c] = res.nearest_points[0][c];
+      b[c] = res.nearest_points[1][c];
+      n[c] = res.normal[c];
+    }
+    return nb::make_tuple(res.min_distance, a_arr, b_arr, n_arr);
+  }
+
   // The face planes of every piece (kernels.patch_material's N and o), for ``materials``:
   // N (sum F, 3) unit outward normals in the pieces' frames, o (sum F) offsets, start (G + 1)
   // piece g's planes start[g] to start[g + 1] (none: a piece without faces).
@@ -718,6 +756,10 @@ class Sweep {
   std::shared_ptr<const PlaneSet> planes_;  // (set_planes; shared by fresh() copies)
   coal::ContactPatchResult patch_res_;  // (contact_patch's)
   std::vector<double> loc1_, loc2_, off_, raw_, scratch_;  // (materials' scratch)
+  // (point_distance's: the second data's requests and functors, made on first use)
+  std::vector<coal::DistanceRequest> point_requests_;
+  std::vector<std::unique_ptr<coal::ComputeDistance>> point_functors_;
+  coal::DistanceResult point_result_;
 };
 
 NB_MODULE(_native_coal, m) {
@@ -737,6 +779,7 @@ NB_MODULE(_native_coal, m) {
            nb::arg("cached_guess"))
       .def("sweep", &Sweep::sweep, nb::arg("q"), nb::arg("margin"))
       .def("patches", &Sweep::patches, nb::arg("q"), nb::arg("pairs"), nb::arg("tol"))
+      .def("point_distance", &Sweep::point_distance, nb::arg("q"), nb::arg("k"))
       .def("set_planes", &Sweep::set_planes, nb::arg("N"), nb::arg("o"), nb::arg("start"))
       .def_prop_ro("has_planes", &Sweep::has_planes)
       .def("materials", &Sweep::materials, nb::arg("q"), nb::arg("pairs"), nb::arg("tol"),
