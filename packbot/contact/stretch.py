@@ -18,6 +18,14 @@ stretch also ends, its steps all kept, at the run's end, at a scheduled action, 
 it cannot take (the kernel refused an attempt, or the step size underflowed): the loop then
 takes that step itself.
 
+A step whose only finding is a sliding contact's stale patch is re-patched in the stretch
+itself, as :meth:`NormalContacts.repatch
+<packbot.contact.normal_contacts.NormalContacts.repatch>` does it (the patches' material points,
+the drift projection and its sweep's check, the modes kept or selected again, the stepper
+restarted there), and the stretch goes on; :func:`adopt_repatches` then gives the contact set
+the state the last one left (:data:`REPATCH_ENABLED`; where the loop's re-patch would take a
+branch the native one does not, the step is handed back as before).
+
 The results are those of the step-by-step loop, to rounding: the step bound's dot product and
 the samples' dense output are summed in another order than numpy's (``tests/test_stretch.py``
 compares the two loops). :data:`ENABLED` switches the stretch off (the step-by-step loop).

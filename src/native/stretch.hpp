@@ -18,6 +18,9 @@
 // The collision sweep is packbot._native_coal's, called through its C entry point
 // (sweep_api.hpp): this module does not link libcoal.
 //
+// A step whose only finding is a sliding pair's stale patch is re-patched here (Repatch,
+// try_repatch: NormalContacts.repatch's native steps) and the stretch goes on.
+//
 // packbot/contact/stretch.py is the Python side; docs/performance.md, "The stretch of quiet
 // steps", says what it saves.
 #pragma once
