@@ -256,6 +256,10 @@ class ContactRhs:
         residual_tol: float,
     ) -> tuple[int, bool, Any, Any, int, bool]: ...
     def last(self) -> tuple[NDArray[np.float64], ...]: ...
+    def minv_at(self, q: NDArray[np.float64], out: NDArray[np.float64]) -> None: ...
+    def free_accel_at(
+        self, q: NDArray[np.float64], v: NDArray[np.float64], out: NDArray[np.float64]
+    ) -> None: ...
     def set_reach(self, reach: NDArray[np.float64], margin: float, max_step: float) -> None: ...
     def step_bound(self, y: NDArray[np.float64]) -> float: ...
 
@@ -298,3 +302,29 @@ class Stretch:
         y_pend: NDArray[np.float64],
         ay_pend: NDArray[np.float64],
     ) -> dict[str, Any]: ...
+    def set_repatch(
+        self,
+        tol: float,
+        patch_tol: float,
+        face_align: float,
+        slide_tol2: float,
+        touch_gap: float,
+        res_tol: float,
+        mu: float,
+        speed_band: float,
+        stick_speed: float,
+        force_band: float,
+        stick_band: float,
+        baumgarte: float,
+        mode_res_tol: float,
+        hand_back_at: int = 0,
+    ) -> None: ...
+    def set_modes(
+        self,
+        on: bool,
+        stick: NDArray[np.uint8],
+        on1: NDArray[np.uint8],
+        slip: NDArray[np.float64],
+        engaged: NDArray[np.int64],
+    ) -> None: ...
+    def repatched(self) -> dict[str, Any]: ...

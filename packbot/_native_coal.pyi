@@ -55,5 +55,21 @@ class Sweep:
         NDArray[np.float64],
         NDArray[np.float64],
     ]: ...
+    def point_distance(
+        self, q: NDArray[np.float64], k: int
+    ) -> tuple[float, NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]: ...
+    def set_planes(
+        self, N: NDArray[np.float64], o: NDArray[np.float64], start: NDArray[np.int64]
+    ) -> None: ...
+    @property
+    def has_planes(self) -> bool: ...
+    def materials(
+        self,
+        q: NDArray[np.float64],
+        pairs: NDArray[np.int64],
+        tol: float,
+        patch_tol: float,
+        face_align: float,
+    ) -> tuple[NDArray[Any], ...]: ...
     @property
     def n_pairs(self) -> int: ...

@@ -114,17 +114,9 @@ def patch_batch(
     Raises:
         ConfigurationError: A wrong-size q.
     """
-    native = world._native
-    if native is None or not native_sweep.ENABLED:
+    out = _native_query(world, q, "patches", pairs, float(tol))
+    if out is None:
         return None
-    qa = np.ascontiguousarray(q, dtype=np.float64)
-    try:
-        out = native.patches(qa, np.asarray(pairs, dtype=np.int64), float(tol))
-    except (ValueError, TypeError) as exc:  # the extension's size/type check
-        nq = world.robot.model.nq
-        raise ConfigurationError("q", np.shape(q), f"a vector of shape ({nq},) [rad]") from exc
-    # the pieces of geom_data are owed at q (placed on first read, as after a reused sweep)
-    world.dispatch.pending = qa.tobytes()
     sizes, normals, depths, pts1, pts2, rot, trans = out
     return sizes, normals, depths, pts1, pts2, rot.swapaxes(2, 3), trans
 
@@ -154,20 +146,35 @@ def material_batch(
     Raises:
         ConfigurationError: A wrong-size q.
     """
+    out = _native_query(world, q, "materials", pairs, float(tol), patch_tol, face_align, planes)
+    if out is None:
+        return None
+    rot = out[4]
+    return (*out[:4], rot.swapaxes(2, 3), *out[5:])
+
+
+def _native_query(
+    world: CollisionWorld, q: NDArray[np.float64], name: str, pairs: list[int], *args: Any
+) -> tuple[NDArray[Any], ...] | None:
+    """The world's native sweep's ``name(q, pairs, *args)`` (None: it has none, or it is off).
+
+    The pieces of ``geom_data`` are then owed at q (placed on first read, as after a reused
+    sweep).
+
+    Raises:
+        ConfigurationError: A wrong-size q.
+    """
     native = world._native
     if native is None or not native_sweep.ENABLED:
         return None
     qa = np.ascontiguousarray(q, dtype=np.float64)
     try:
-        out = native.materials(
-            qa, np.asarray(pairs, dtype=np.int64), float(tol), patch_tol, face_align, planes
-        )
+        out = getattr(native, name)(qa, np.asarray(pairs, dtype=np.int64), *args)
     except (ValueError, TypeError) as exc:  # the extension's size/type check
         nq = world.robot.model.nq
         raise ConfigurationError("q", np.shape(q), f"a vector of shape ({nq},) [rad]") from exc
-    world.dispatch.pending = qa.tobytes()  # (as patch_batch: the pieces owed at q)
-    rot = out[4]
-    return (*out[:4], rot.swapaxes(2, 3), *out[5:])
+    world.dispatch.pending = qa.tobytes()
+    return tuple(out)
 
 
 def line_of_sight(

@@ -450,12 +450,7 @@ class NativeDispatch:
             k: The closest pair (-1: none).
             dmin: Its distance [m] (inf: none).
         """
-        world = self.world
-        pairs.setflags(write=False)
-        d.setflags(write=False)
-        out: SweepResult = _tuple_new(self._result, (dmin, k, pairs, d, self._counts[len(pairs)]))
-        key = (np.asarray(q, dtype=np.float64).tobytes(), world.margin)
-        world._last_sweep = (key, out)
+        self.world._last_sweep = self._kept(q, pairs, d, k, dmin)
         self.pending = True
 
     def keep_spare(
@@ -474,10 +469,21 @@ class NativeDispatch:
         while the world's last sweep stays the one its watch reuses first. Arguments: see
         :meth:`adopt`.
         """
+        self.spare = self._kept(q, pairs, d, k, dmin)
+
+    def _kept(
+        self,
+        q: NDArray[np.float64],
+        pairs: NDArray[np.int64],
+        d: NDArray[np.float64],
+        k: int,
+        dmin: float,
+    ) -> tuple[tuple[bytes, float], SweepResult]:
+        """A sweep made elsewhere as the world keeps one: (its reuse key, its result)."""
         pairs.setflags(write=False)
         d.setflags(write=False)
         out: SweepResult = _tuple_new(self._result, (dmin, k, pairs, d, self._counts[len(pairs)]))
-        self.spare = ((np.asarray(q, dtype=np.float64).tobytes(), self.world.margin), out)
+        return (np.asarray(q, dtype=np.float64).tobytes(), self.world.margin), out
 
     def owe(self) -> None:
         """The compiled sweep swept elsewhere (its C entry point): the pieces are owed at its q.

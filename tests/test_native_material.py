@@ -17,7 +17,7 @@ import math
 
 import numpy as np
 import pytest
-from test_native_patches import _same_sets
+from test_native_patches import _same_sets, _set
 from test_native_sweep import LOCKED, _configurations, obstacle_env
 
 import packbot
@@ -37,19 +37,6 @@ def collapse_states(robot) -> np.ndarray:
     cfg = packbot.SimConfig(contact_mode="normal", mu=0.5, locked_joints=LOCKED)
     res = packbot.simulate(robot, robot.pose("drive"), np.zeros(robot.nq), 1.5, config=cfg)
     return np.asarray(res.q)
-
-
-def _set(world: CollisionWorld) -> ContactSet:
-    model = world.robot.model
-    return ContactSet(
-        model,
-        model.createData(),
-        world,
-        mu=0.5,
-        restitution=0.0,
-        zeno_speed=0.01,
-        contact_tolerance=1e-3,
-    )
 
 
 class _Counted:

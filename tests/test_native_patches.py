@@ -105,23 +105,23 @@ def test_one_pair_and_the_python_function_agree(robot, rng):
     assert n > 10
 
 
+def _set(world: CollisionWorld) -> ContactSet:
+    """A contact set on the world (mu 0.5, contact tolerance 1 mm)."""
+    model = world.robot.model
+    return ContactSet(
+        model,
+        model.createData(),
+        world,
+        mu=0.5,
+        restitution=0.0,
+        zeno_speed=0.01,
+        contact_tolerance=1e-3,
+    )
+
+
 def _sets(robot, env=None):
     """Two contact sets on worlds of the same structure: native patches and Python ones."""
-    out = []
-    for world in (CollisionWorld(robot, env), python_world(robot, env)):
-        model = world.robot.model
-        out.append(
-            ContactSet(
-                model,
-                model.createData(),
-                world,
-                mu=0.5,
-                restitution=0.0,
-                zeno_speed=0.01,
-                contact_tolerance=1e-3,
-            )
-        )
-    return out
+    return [_set(world) for world in (CollisionWorld(robot, env), python_world(robot, env))]
 
 
 def _same_sets(a: ContactSet, b: ContactSet) -> int:

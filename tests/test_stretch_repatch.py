@@ -15,12 +15,10 @@ native re-patch hands back (forced here through its constants), nothing it did m
 
 from __future__ import annotations
 
-import dataclasses
-
 import numpy as np
 import pytest
 from test_normal_cascade import start_pose
-from test_stretch import COUNTERS
+from test_stretch import _same as _same_counters_events_samples
 
 import packbot
 from packbot import native_sweep
@@ -78,22 +76,14 @@ def _run(robot, q0, duration, cfg, enabled, monkeypatch):
 
 
 def _same(off, on, exact_samples: bool):
-    d_off, d_on = dataclasses.asdict(off.diagnostics), dataclasses.asdict(on.diagnostics)
-    for name in COUNTERS:
-        assert d_on[name] == d_off[name], name
-    assert [(e.t, e.kind, e.piece1, e.piece2) for e in on.events] == [
-        (e.t, e.kind, e.piece1, e.piece2) for e in off.events
-    ]
-    np.testing.assert_array_equal(on.t, off.t)
+    """test_stretch's comparison (the samples to the dense output's rounding), the final state
+    to the bit, and with ``exact_samples`` every sample to the bit."""
+    _same_counters_events_samples(off, on)
     np.testing.assert_array_equal(on.q[-1], off.q[-1])
     np.testing.assert_array_equal(on.v[-1], off.v[-1])
     if exact_samples:
         np.testing.assert_array_equal(on.q, off.q)
         np.testing.assert_array_equal(on.v, off.v)
-    else:  # (the re-patched steps' samples: the stretch's dense output, 1e-16 rad here)
-        np.testing.assert_allclose(on.q, off.q, rtol=0.0, atol=1e-12)
-        np.testing.assert_allclose(on.v, off.v, rtol=0.0, atol=1e-10)
-    np.testing.assert_allclose(on.energy, off.energy, rtol=0.0, atol=1e-9)
 
 
 CASES = {

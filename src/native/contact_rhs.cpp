@@ -721,23 +721,29 @@ class ContactRhs {
   void load_plan(const std::vector<int> &eng, const uint8_t *stick, const double *slip_dir) {
     end_valid_ = false;
     jac_valid_ = false;
+    plan_rows(eng, stick);
+    std::copy(slip_dir, slip_dir + 3 * np_, slip_dir_.begin());
+    set_plan_sizes(static_cast<int>(engaged_.size()), static_cast<int>(sticks_.size()));
+  }
+
+  // The plan's rows of these modes with mu_ loaded: the engaged rows, each one's slipping pair
+  // (-1: none), the sticking pairs with engaged rows (ContactRows._plan; stick: a flag per pair).
+  template <class Flag>
+  void plan_rows(const std::vector<int> &eng, const Flag *stick) {
     engaged_.assign(eng.begin(), eng.end());
     row_slip_.assign(eng.size(), -1);
     sticks_.clear();
-    if (mu_ > 0.0) {
-      for (int p = 0; p < np_; ++p) {
-        bool mine = false;
-        for (size_t e = 0; e < eng.size(); ++e) {
-          if (eng[e] >= pfirst_[p] && eng[e] < pfirst_[p] + pK_[p]) {
-            mine = true;
-            if (!stick[p]) row_slip_[e] = p;
-          }
+    if (!(mu_ > 0.0)) return;
+    for (int p = 0; p < np_; ++p) {
+      bool mine = false;
+      for (size_t e = 0; e < eng.size(); ++e) {
+        if (eng[e] >= pfirst_[p] && eng[e] < pfirst_[p] + pK_[p]) {
+          mine = true;
+          if (!stick[p]) row_slip_[e] = p;
         }
-        if (mine && stick[p]) sticks_.push_back(p);
       }
+      if (mine && stick[p]) sticks_.push_back(p);
     }
-    std::copy(slip_dir, slip_dir + 3 * np_, slip_dir_.begin());
-    set_plan_sizes(static_cast<int>(engaged_.size()), static_cast<int>(sticks_.size()));
   }
 
   // The report's law's modes instead of the contact rows (packbot.contact.stops.JointStops
@@ -1915,24 +1921,10 @@ class ContactRhs {
                       double mu, double stick_speed, double baumgarte, double *a, double *cond,
                       std::vector<double> &lam) {
     const int nv = nv_;
-    engaged_.assign(eng.begin(), eng.end());
-    row_slip_.assign(eng.size(), -1);
-    sticks_.clear();
-    if (mu > 0.0) {
-      for (int p = 0; p < np_; ++p) {
-        bool mine = false;
-        for (size_t e = 0; e < eng.size(); ++e) {
-          if (eng[e] >= pfirst_[p] && eng[e] < pfirst_[p] + pK_[p]) {
-            mine = true;
-            if (!stick[p]) row_slip_[e] = p;
-          }
-        }
-        if (mine && stick[p]) sticks_.push_back(p);
-      }
-    }
     mu_ = mu;
     stick_speed_ = stick_speed;
     baumgarte_ = baumgarte;
+    plan_rows(eng, stick.data());
     set_plan_sizes(static_cast<int>(engaged_.size()), static_cast<int>(sticks_.size()));
     std::copy(slip_dir.begin(), slip_dir.end(), slip_dir_.begin());
     for (int i = 0; i < nv; ++i) {

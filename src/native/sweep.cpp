@@ -345,12 +345,7 @@ class Sweep {
   // 3, 3) the two pieces' world rotations, each stored TRANSPOSED (so that rotations.swapaxes(2,
   // 3)[i, j] is the Fortran-ordered matrix Pinocchio's SE3.rotation is), translations (n, 2, 3).
   std::tuple<NpI, NpF, NpF, NpF, NpF, NpF, NpF> patches(F1 q, I1 pairs, double tol) {
-    if (q.shape(0) != static_cast<size_t>(model_.nq))
-      throw std::invalid_argument("q: " + std::to_string(model_.nq) + " entries expected");
-    const size_t n = pairs.shape(0), K = first_.size();
-    for (size_t i = 0; i < n; ++i)
-      if (pairs.data()[i] < 0 || pairs.data()[i] >= static_cast<int64_t>(K))
-        throw std::invalid_argument("a pair index is out of range");
+    const size_t n = check_query(q, pairs);
     for (int i = 0; i < model_.nq; ++i) pq_[i] = q.data()[i];
     pin::forwardKinematics(model_, data_, pq_);
     int64_t *sizes = nullptr;
@@ -404,9 +399,8 @@ class Sweep {
   // and functor per pair, which no sweep shares: the same GJK warm starts, so the same numbers
   // to the bit. Leaves the sweep's state (its q, boxes, witness points) as it was.
   nb::tuple point_distance(F1 q, int64_t k) {
-    if (q.shape(0) != static_cast<size_t>(model_.nq))
-      throw std::invalid_argument("q: " + std::to_string(model_.nq) + " entries expected");
     const size_t K = first_.size();
+    check_q(q);
     if (k < 0 || k >= static_cast<int64_t>(K))
       throw std::invalid_argument("a pair index is out of range");
     for (int i = 0; i < model_.nq; ++i) pq_[i] = q.data()[i];
@@ -469,12 +463,7 @@ class Sweep {
   // normal2 (n, 3), frame2 (n, 3, 3), centres (n, 2, 1, 3) (body 1's, body 2's).
   nb::tuple materials(F1 q, I1 pairs, double tol, double patch_tol, double face_align) {
     if (!planes_) throw std::invalid_argument("materials: set_planes first");
-    if (q.shape(0) != static_cast<size_t>(model_.nq))
-      throw std::invalid_argument("q: " + std::to_string(model_.nq) + " entries expected");
-    const size_t n = pairs.shape(0), K = first_.size();
-    for (size_t i = 0; i < n; ++i)
-      if (pairs.data()[i] < 0 || pairs.data()[i] >= static_cast<int64_t>(K))
-        throw std::invalid_argument("a pair index is out of range");
+    const size_t n = check_query(q, pairs);
     int64_t *sizes = nullptr, *flags = nullptr;
     double *normals = nullptr, *depths = nullptr, *rot = nullptr, *trans = nullptr;
     double *normal2 = nullptr, *frame2 = nullptr, *centres = nullptr;
@@ -694,6 +683,21 @@ class Sweep {
       }
       for (int c = 0; c < 9; ++c) out.frame2[9 * i + c] = made.frame2[c];
     }
+  }
+
+  void check_q(const F1 &q) const {
+    if (q.shape(0) != static_cast<size_t>(model_.nq))
+      throw std::invalid_argument("q: " + std::to_string(model_.nq) + " entries expected");
+  }
+
+  // A query's q (nq entries) and pair indices (each in range) checked: the number of pairs.
+  size_t check_query(const F1 &q, const I1 &pairs) const {
+    check_q(q);
+    const size_t n = pairs.shape(0), K = first_.size();
+    for (size_t i = 0; i < n; ++i)
+      if (pairs.data()[i] < 0 || pairs.data()[i] >= static_cast<int64_t>(K))
+        throw std::invalid_argument("a pair index is out of range");
+    return n;
   }
 
   // The face planes of every piece (set_planes).
