@@ -38,7 +38,7 @@ class _Counts:
     """The re-patches taken in the stretch and in Python, and the spare sweeps kept and used."""
 
     def __init__(self, monkeypatch: pytest.MonkeyPatch) -> None:
-        self.native = self.python = self.kept = self.used = 0
+        self.native = self.python = self.kept = self.used = self.relaid = 0
         adopt = stretch.adopt_repatches
         repatch = NormalContacts.repatch
         keep = NativeDispatch.keep_spare
@@ -46,6 +46,8 @@ class _Counts:
 
         def adopted(law, out):
             self.native += out["repatches"]
+            if out["repatches"]:
+                self.relaid += out["repatched"]["relaid"]  # (patches of another size)
             adopt(law, out)
 
         def python(nc, *args):
@@ -86,17 +88,17 @@ def _same(off, on, exact_samples: bool):
         np.testing.assert_array_equal(on.v, off.v)
 
 
-CASES = {
-    "collapse": (dict(mu=0.5, locked_joints=WRIST_JOINTS), "drive", 5.0, 20),
-    "frictionless": (dict(mu=0.0, locked_joints=WRIST_JOINTS), "drive", 3.0, 40),
-    "sticky": (dict(mu=1.2, locked_joints=WRIST_JOINTS), "high", 3.0, 10),
-    "wrist-free": (dict(mu=0.5), "drive", 3.0, 10),
+CASES = {  # (config, start pose, duration [s], least re-patches in the stretch, of a new shape)
+    "collapse": (dict(mu=0.5, locked_joints=WRIST_JOINTS), "drive", 5.0, 20, 2),
+    "frictionless": (dict(mu=0.0, locked_joints=WRIST_JOINTS), "drive", 3.0, 40, 5),
+    "sticky": (dict(mu=1.2, locked_joints=WRIST_JOINTS), "high", 3.0, 10, 0),
+    "wrist-free": (dict(mu=0.5), "drive", 3.0, 10, 0),
 }
 
 
 @pytest.mark.parametrize("case", list(CASES))
 def test_the_stretch_re_patches_as_the_loop(robot, monkeypatch, case):
-    kw, pose, duration, least = CASES[case]
+    kw, pose, duration, least, relaid = CASES[case]
     cfg = packbot.SimConfig(contact_mode="normal", **kw)
     counts = _Counts(monkeypatch)
     off = _run(robot, robot.pose(pose), duration, cfg, False, monkeypatch)
@@ -104,6 +106,7 @@ def test_the_stretch_re_patches_as_the_loop(robot, monkeypatch, case):
     on = _run(robot, robot.pose(pose), duration, cfg, True, monkeypatch)
     _same(off, on, exact_samples=False)
     assert counts.native >= least, counts.native
+    assert counts.relaid >= relaid, counts.relaid
     # every re-patch taken in one of the two places (the stretch's hand-backs in Python)
     assert counts.native + (counts.python - python_off) == python_off
 

@@ -248,6 +248,14 @@ class NativeRhs:
             self._rhs.set_keys(_ints(list(contacts.pairs)))  # (in the layout's order)
         self._layout_id = lay
 
+    def forget_loaded(self) -> None:
+        """Forget what is loaded: the next :meth:`load` loads the layout and plan in full.
+
+        For a layout and plan changed elsewhere (the stretch's re-patch of a new shape).
+        """
+        self._layout_id = None
+        self._plan_id = None
+
     def set_locks(self, locked: NDArray[np.intp]) -> None:
         """The report's law's modes instead of contact rows: these joints locked (a_j = 0).
 

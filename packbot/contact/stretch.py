@@ -401,6 +401,8 @@ def adopt_repatches(law: NormalLaw, out: dict[str, Any]) -> None:
     for _ in range(rp["gave_up"]):
         log.warning("contact problem unsolved even with sticking contacts")
     law.diag.restarts += n
+    if rp["relaid"] and law._native is not None:  # (the extension's layout of another shape)
+        law._native.forget_loaded()
     proj = rp["proj"]
     if proj is not None:  # (CollisionWorld.sweep(q, reuse=True) keeps it as the last sweep)
         world.dispatch.adopt(proj[0][0], proj[1][0], proj[2][0], proj[3], proj[4])

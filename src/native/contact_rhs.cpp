@@ -248,6 +248,12 @@ class ContactRhs {
     lim_joint_ = ints(lim_joint);
     lim_side_ = reals(lim_side);
     lim_value_ = reals(lim_value);
+    layout_changed();
+  }
+
+  // After the layout's arrays changed (set_layout, a re-patch's relayout): its sizes checked,
+  // the work arrays made again, no plan, no conditions, the contact rows' mode.
+  void layout_changed() {
     lock_mode_ = -1;
     end_valid_ = false;
     conditions_set_ = false;
@@ -660,9 +666,54 @@ class ContactRhs {
     jac_valid_ = false;
   }
 
+  // A re-patch whose patches change size (the same pairs, normals on the same bodies and
+  // limits: normal_rows.ContactRows._layout's full build): each pair's K (pairs), the new
+  // points and centres local (2 h, 4), frame2 (pairs, 9), offset0 (pair rows, 2) and
+  // slide_tol2 (pairs); the body, pair, row and centre indices made from the Ks. As after
+  // set_layout and set_conditions: no plan, the contact rows' mode.
+  void relayout_raw(const std::vector<int> &K, const double *local, const double *frame2,
+                    const double *offset0, const double *slide_tol2) {
+    const int np = np_, h = h_;
+    std::vector<int64_t> b1(np), b2(np);
+    for (int p = 0; p < np; ++p) {
+      const int64_t first = centre_[p] - pK_[p];  // (the pair's first point)
+      b1[p] = body_[first];
+      b2[p] = body_[h + first];
+    }
+    std::vector<int64_t> body2;
+    body_.clear();
+    pair_.clear();
+    rows_.clear();
+    centre_.clear();
+    int64_t k = 0;
+    for (int p = 0; p < np; ++p) {
+      for (int j = 0; j <= K[p]; ++j) {
+        body_.push_back(b1[p]);
+        body2.push_back(b2[p]);
+        pair_.push_back(p);
+      }
+      for (int j = 0; j < K[p]; ++j) rows_.push_back(k + j);
+      centre_.push_back(k + K[p]);
+      k += K[p] + 1;
+    }
+    body_.insert(body_.end(), body2.begin(), body2.end());
+    local_.assign(local, local + 8 * k);
+    frame2_.assign(frame2, frame2 + 9 * np);
+    layout_changed();
+    offset0_.assign(offset0, offset0 + 2 * mp_);
+    slide_tol2_.assign(slide_tol2, slide_tol2 + np_);
+    conditions_set_ = true;
+    relaid_ = true;
+  }
+
   // The loaded patches and plan, kept (keep_loaded) and put back (restore_loaded): a
   // re-patch that hands back leaves the extension as the caller loaded it.
   void keep_loaded() {
+    relaid_ = false;
+    kept_body_ = body_;
+    kept_pair_ = pair_;
+    kept_rows_ = rows_;
+    kept_centre_ = centre_;
     kept_local_ = local_;
     kept_frame2_ = frame2_;
     kept_offset0_ = offset0_;
@@ -675,8 +726,22 @@ class ContactRhs {
   }
 
   void restore_loaded() {
-    set_patches_raw(kept_local_.data(), kept_frame2_.data(), kept_offset0_.data(),
-                    kept_slide_tol2_.data());
+    if (relaid_) {
+      relaid_ = false;
+      body_ = kept_body_;  // (a relayout: the layout's shapes back too)
+      pair_ = kept_pair_;
+      rows_ = kept_rows_;
+      centre_ = kept_centre_;
+      local_ = kept_local_;
+      frame2_ = kept_frame2_;
+      layout_changed();
+      offset0_ = kept_offset0_;
+      slide_tol2_ = kept_slide_tol2_;
+      conditions_set_ = true;
+    } else {
+      set_patches_raw(kept_local_.data(), kept_frame2_.data(), kept_offset0_.data(),
+                      kept_slide_tol2_.data());
+    }
     engaged_ = kept_engaged_;
     row_slip_ = kept_row_slip_;
     sticks_ = kept_sticks_;
@@ -2578,6 +2643,8 @@ class ContactRhs {
   // (keep_loaded's copies)
   std::vector<double> kept_local_, kept_frame2_, kept_offset0_, kept_slide_tol2_, kept_slip_dir_;
   std::vector<int64_t> kept_engaged_, kept_row_slip_, kept_sticks_;
+  std::vector<int64_t> kept_body_, kept_pair_, kept_rows_, kept_centre_;
+  bool relaid_ = false;  // (relayout_raw since keep_loaded)
   std::array<double, 3> kept_plan_{};
   std::vector<double> upper_, lower_;  // (set_limits)
   std::vector<double> reach_;  // (set_reach)
@@ -2651,7 +2718,7 @@ void stretch_set_modes(StretchT &st, bool on, U1 stick, U1 on1, F2 slip, I1 enga
   rp.on1.assign(on1.data(), on1.data() + np);
   rp.slip.assign(slip.data(), slip.data() + 3 * np);
   rp.engaged.assign(engaged.data(), engaged.data() + engaged.shape(0));
-  rp.painleve = rp.gave_up = 0;
+  rp.painleve = rp.gave_up = rp.relaid = 0;
   rp.proj_valid = rp.spare = false;
   rp.q_patch.clear();
 }
@@ -2667,6 +2734,7 @@ nb::dict stretch_repatched(StretchT &st) {
   out["engaged"] = owned(rp.engaged, 1, rp.engaged.size());
   out["painleve"] = rp.painleve;
   out["gave_up"] = rp.gave_up;
+  out["relaid"] = rp.relaid;
   for (int w = 0; w < 2; ++w) {
     const bool on = w == 0 ? rp.proj_valid : rp.spare;
     const char *name = w == 0 ? "proj" : "spare";

@@ -210,7 +210,7 @@ class Stretch {
     // out: the last re-patch's q before its projection [rad], the Painleve fallbacks and the
     // friction given up over the run's re-patches
     std::vector<double> q_patch;
-    int64_t painleve = 0, gave_up = 0;
+    int64_t painleve = 0, gave_up = 0, relaid = 0;  // (relaid: re-patches of a new shape)
     // the last projection's sweep (valid: one was made in this run) and, after a hand-back
     // that had swept, that sweep (spare) at q_spare
     bool proj_valid = false, spare = false;
@@ -477,8 +477,7 @@ class Stretch {
       return 1;
     // the patches at q of the set's pairs, in the layout's order (ContactSet.refresh)
     const std::vector<int64_t> &keys = rhs_.keys();
-    const std::vector<int> &K = rhs_.pair_rows();
-    const int64_t cap = rhs_.n_pair_rows();
+    const int64_t cap = std::max<int64_t>(rhs_.n_pair_rows(), 16 * static_cast<int64_t>(np));
     m_sizes_.resize(np);
     m_flags_.resize(np);
     m_frame2_.resize(9 * static_cast<size_t>(np));
@@ -490,12 +489,24 @@ class Stretch {
                                      rp_.face_align, m_sizes_.data(), m_flags_.data(),
                                      m_frame2_.data(), m_centres_.data(), m_l1_.data(),
                                      m_l2_.data(), m_off_.data(), cap);
-    if (S != cap) return 1;
-    for (int p = 0; p < np; ++p)  // (the layout's shape: normal_rows._replace_patches)
-      if (m_sizes_[p] != K[p] || ((m_flags_[p] & 1) != 0) != (rp_.on1[p] != 0)) return 1;
+    if (S < 0) return 1;
+    // every pair still within tolerance with a patch on its distance, its normal on the same
+    // body: the same pairs (else the loop's refresh drops one); a patch of another size
+    // changes the layout's shape (normal_rows.ContactRows._layout's full build) and the
+    // engaged rows' meaning (repatch_modes then selects from none held)
+    const std::vector<int> &K0 = rhs_.pair_rows();
+    bool same_shape = true;
+    K_.resize(np);
+    int h = 0;
+    for (int p = 0; p < np; ++p) {
+      if (m_sizes_[p] < 1 || ((m_flags_[p] & 1) != 0) != (rp_.on1[p] != 0)) return 1;
+      K_[p] = static_cast<int>(m_sizes_[p]);
+      same_shape = same_shape && K_[p] == K0[p];
+      h += K_[p] + 1;
+    }
     if (rp_.hand_back_at == 1) return 1;
+    const std::vector<int> &K = K_;
     // the layout's patches (normal_rows._local, _frame2, _offset0, the slides allowed)
-    const int h = rhs_.n_points();
     lay_local_.assign(8 * static_cast<size_t>(h), 1.0);
     lay_off_.resize(2 * static_cast<size_t>(cap));
     lay_slide_.resize(np);
@@ -516,7 +527,12 @@ class Stretch {
       pt += Kp;
     }
     rhs_.keep_loaded();
-    rhs_.set_patches_raw(lay_local_.data(), m_frame2_.data(), lay_off_.data(), lay_slide_.data());
+    if (same_shape)
+      rhs_.set_patches_raw(lay_local_.data(), m_frame2_.data(), lay_off_.data(),
+                           lay_slide_.data());
+    else
+      rhs_.relayout_raw(K, lay_local_.data(), m_frame2_.data(), lay_off_.data(),
+                        lay_slide_.data());
     // the drift projection (RestartSteps.project): its round with M^-1 at q, then the sweep's
     // check of the pairs outside the set
     minv_.resize(static_cast<size_t>(nv) * nv);
@@ -545,14 +561,15 @@ class Stretch {
     slip_w_ = rp_.slip;
     typename Rhs::ModesOut o;
     if (rhs_.select_modes_raw(q_new_.data(), v, afree_.data(), minv_.data(), true,
-                              rp_.engaged.data(), rp_.engaged.size(), stick_w_.data(),
-                              slip_w_.data(), rp_.modes, o) != 0)
+                              rp_.engaged.data(), same_shape ? rp_.engaged.size() : 0,
+                              stick_w_.data(), slip_w_.data(), rp_.modes, o) != 0)
       return hand_back(swept);
     rp_.stick.swap(stick_w_);
     rp_.slip.swap(slip_w_);
     rp_.engaged.assign(o.engaged.begin(), o.engaged.end());
     rp_.painleve += o.painleve;
     rp_.gave_up += o.gave_up ? 1 : 0;
+    rp_.relaid += same_shape ? 0 : 1;
     rhs_.load_plan(o.engaged, rp_.stick.data(), rp_.slip.data());
     rp_.q_patch.assign(q, q + nv);
     if (swept) {  // (the world's last sweep, as CollisionWorld.sweep(q, reuse=True) keeps it)
@@ -626,6 +643,7 @@ class Stretch {
   std::vector<double> m_frame2_, m_centres_, m_l1_, m_l2_, m_off_;
   std::vector<double> lay_local_, lay_off_, lay_slide_, minv_, q_new_, afree_, slip_w_;
   std::vector<uint8_t> stick_w_;
+  std::vector<int> K_;  // (the new patches' sizes)
   int64_t pend_best_ = -1;
   double pend_best_d_ = 0.0;
 };
