@@ -307,12 +307,8 @@ class QuietStretch:
                 stiff=out["stiff"],
                 restarted=status == REPATCHED,
             )
-        if out["repatches"]:
+        if out["repatches"] or out["spare"]:  # (its re-patches, or a hand-back's sweep)
             out["repatched"] = self._run.repatched()
-        elif m is not None and pending:
-            spare = self._run.repatched()["spare"]
-            if spare is not None:  # (a re-patch handed back after its projection's sweep)
-                out["repatched"] = {"spare": spare, "proj": None}
         if steps or pending:
             stepper.h_max = out["h_max"]  # (the last step's bound, as the loop set it for it)
         seg = None

@@ -1,10 +1,10 @@
 // A contact patch as material points: packbot.contact.kernels.patch_material in C++.
 //
-// Line for line the compiled kernel's arithmetic (the same loops, the same order of operations,
-// no fused multiply-adds: the extension is built for the baseline x86-64 or aarch64 target,
-// where GCC and Clang contract nothing across statements it cannot fuse), so the same points,
-// frames and offsets to the last bit (tests/test_native_material.py compares them on every
-// patch of the collapse and of wrist-free random starts).
+// Line for line the compiled kernel's arithmetic (the same loops, the same order of operations;
+// no fused multiply-adds on the baseline x86-64 target the extension is built for, which has
+// none, as in the rest of the extension), so the same points, frames and offsets to the last
+// bit (tests/test_native_material.py compares them on named, random and collapse
+// configurations with every kind of obstacle).
 //
 // Conventions: a rotation R (3x3) is row-major, R[3 * r + c] = R(r, c), as Pinocchio's
 // SE3::rotation(); a face plane j of a piece is N[3 * j + i] (unit outward normal, piece frame)
@@ -176,9 +176,10 @@ inline Made patch_material(const double *p1, const double *p2, size_t K, const d
     const double *a = pts1 + 3 * k, *b = pts2 + 3 * k;
     for (int i = 0; i < 3; ++i)
       d[i] = RMn[0 + i] * (b[0] - a[0]) + RMn[3 + i] * (b[1] - a[1]) + RMn[6 + i] * (b[2] - a[2]);
-    for (int r = 0; r < 2; ++r)
-      offset0[r * K + k] =
-          out.frame2[3 * r + 0] * d[0] + out.frame2[3 * r + 1] * d[1] + out.frame2[3 * r + 2] * d[2];
+    for (int r = 0; r < 2; ++r) {
+      const double *f = out.frame2 + 3 * r;
+      offset0[r * K + k] = f[0] * d[0] + f[1] * d[1] + f[2] * d[2];
+    }
   }
   return out;
 }

@@ -190,9 +190,11 @@ class Stretch {
   // step's end (the sweep's materials), the drift projection's round and its sweep's check,
   // the modes kept or selected again (keep_modes, select_modes), the plan loaded, and the
   // stepper restarted there (RK45Stepper.reset with its step size and a deferred derivative).
-  // Where Python's re-patch would take a branch not here (a pair out of tolerance or a patch of
-  // another size, a gap below the penetration tolerance, Lemke's residual, a new deep pair,
-  // the Python mode selection), the step is handed back pending, the extension as loaded.
+  // A patch of another size changes the layout's shape (ContactRhs::relayout_raw). Where
+  // Python's re-patch would take a branch not here (a pair out of tolerance or its patch off
+  // its distance, a normal on the other body, a gap below the penetration tolerance, Lemke's
+  // residual, a new deep pair, the Python mode selection), the step is handed back pending,
+  // the extension as loaded.
   struct Repatch {
     bool on = false;  // (this run's)
     // the constants (set_repatch): the contact tolerance, PATCH_TOL, FACE_ALIGN [-],
@@ -523,7 +525,8 @@ class Stretch {
       }
       for (int k = 0; k < Kp; ++k)
         for (int j = 0; j < 2; ++j) lay_off_[2 * (pt + k) + j] = m_off_[2 * pt + j * Kp + k];
-      lay_slide_[p] = (m_flags_[p] & 2) ? std::numeric_limits<double>::infinity() : rp_.slide_tol2;
+      lay_slide_[p] =
+          (m_flags_[p] & 2) ? std::numeric_limits<double>::infinity() : rp_.slide_tol2;
       pt += Kp;
     }
     rhs_.keep_loaded();
@@ -549,7 +552,8 @@ class Stretch {
       sweep_into(rp_.q_spare, rp_.spare_pairs, rp_.spare_dist, rp_.spare_best, rp_.spare_best_d);
       const int64_t *sp = rp_.spare_pairs.data();
       for (size_t k = 0; k < rp_.spare_pairs.size(); ++k)
-        if (rp_.spare_dist[k] < -pen_tol_ && std::find(keys.begin(), keys.end(), sp[k]) == keys.end())
+        if (rp_.spare_dist[k] < -pen_tol_ &&
+            std::find(keys.begin(), keys.end(), sp[k]) == keys.end())
           return hand_back(true);
     }
     if (rp_.hand_back_at == 3) return hand_back(swept);
@@ -593,8 +597,8 @@ class Stretch {
   }
 
   // The sweep at q_new_ into the given buffers (the sweep's C entry point, the stretch's margin).
-  void sweep_into(std::vector<double> &q_at, std::vector<int64_t> &pairs, std::vector<double> &dist,
-                  int64_t &best, double &best_d) {
+  void sweep_into(std::vector<double> &q_at, std::vector<int64_t> &pairs,
+                  std::vector<double> &dist, int64_t &best, double &best_d) {
     const size_t cap = static_cast<size_t>(std::max<int64_t>(api_.n_pairs, 1));
     pairs.resize(cap);
     dist.resize(cap);

@@ -731,7 +731,8 @@ class Sweep {
     creq.security_margin = tol;
     const coal::ContactPatchRequest preq;
     const coal::Transform3s T1 = coal_of(M[0]), T2 = coal_of(M[1]);
-    const coal::CollisionGeometry *s1 = shapes_[first_[k]].get(), *s2 = shapes_[second_[k]].get();
+    const coal::CollisionGeometry *s1 = shapes_[first_[k]].get();
+    const coal::CollisionGeometry *s2 = shapes_[second_[k]].get();
     coal::CollisionResult cres;
     if (!coal::collide(s1, T1, s2, T2, creq, cres)) return nullptr;
     patch_res_ = coal::ContactPatchResult(preq);
