@@ -2,7 +2,7 @@
 
 Used by ``tests/test_bad_inputs.py`` (one pytest case each) and ``benchmarks/bad_inputs.py``
 (a table of outcomes, each case in a worker process with a timeout, so that a hang is counted
-instead of stopping the run). Five categories:
+instead of stopping the run). Its categories (:data:`CATEGORIES`):
 
 - ``api``: the Python API (settings, failures, payloads, obstacles, environments, controllers,
   ``simulate()`` arguments, ``load_robot``, ``Robot`` and result helpers);
@@ -12,7 +12,10 @@ instead of stopping the run). Five categories:
 - ``cli``: every subcommand with bad options, values and paths (``packbot.cli.main`` in process);
 - ``matrix``: matrix files, loaded with ``packbot.matrix.load_matrix`` and expanded over their
   base scenario, some run through ``packbot batch`` and ``packbot regress``;
-- ``urdf``: broken copies of ``urdf/packbot_eod.urdf`` given to ``load_robot`` and ``packbot info``.
+- ``urdf``: broken copies of ``urdf/packbot_eod.urdf`` given to ``load_robot`` and ``packbot info``;
+- ``keywords``, ``result_file``, ``sizes``, ``content``, ``paths``, ``signals``: in their own
+  modules (:data:`EXTENSIONS`, ``tests/bad_inputs_*.py``), each registering its cases through
+  ``register(catalogue)``.
 
 A case's outcome (:func:`run_case`) is one of:
 
@@ -101,7 +104,29 @@ from packbot.scenario import (  # noqa: E402
     scenario_from_dict,
 )
 
-CATEGORIES = ("api", "scenario", "cli", "matrix", "urdf")
+CATEGORIES = (
+    "api",
+    "scenario",
+    "cli",
+    "matrix",
+    "urdf",
+    "keywords",  # unknown, misspelt and missing keywords of every public entry point
+    "result_file",  # damaged, hand-made and inconsistent result files for SimResult.load
+    "sizes",  # sizes past their documented bounds (samples, obstacles, cells, depth, lengths)
+    "content",  # hostile strings reaching HTML pages and CSV cells
+    "paths",  # stems, names and manifests that would write or delete outside the folder
+    "signals",  # runs interrupted by signals; a batch's main process killed
+)
+#: The modules holding the newer categories' cases, each with ``register(catalogue)``
+#: (this module), which adds its cases with :func:`add`, :func:`api`, :func:`cli`, ...
+EXTENSIONS = (
+    "bad_inputs_keywords",
+    "bad_inputs_result_files",
+    "bad_inputs_sizes",
+    "bad_inputs_content",
+    "bad_inputs_paths",
+    "bad_inputs_signals",
+)
 OUTCOMES = ("clean", "unclear", "traceback", "hang", "accepted")
 
 NQ = 8
@@ -2436,6 +2461,19 @@ add("matrix", "run_batch-out-empty", _batch(out_dir=""), "out_dir", error=Config
 
 
 # ------------------------------------------------------------------------ the catalogue
+def _register_extensions() -> None:
+    """Add the cases of the extension modules (:data:`EXTENSIONS`) that exist."""
+    import importlib
+
+    me = sys.modules[__name__]
+    for name in EXTENSIONS:
+        if (HERE / f"{name}.py").is_file():
+            importlib.import_module(name).register(me)
+
+
+_register_extensions()
+
+
 def _check_unique() -> None:
     seen: set[str] = set()
     for case in CASES:
