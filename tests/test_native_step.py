@@ -33,6 +33,11 @@ def _steps_one_by_one(step_by_step: None) -> None:
 pytestmark = pytest.mark.skipif(not native.available(), reason="packbot._native is not built")
 
 WRIST = ("camera_tilt", "camera_pan", "gripper_roll", "gripper_jaw")
+#: Relative difference of the native and Python stages that rounding can leave (see the test).
+SLOPE_TOL = 1e-6
+#: Relative difference of their error norms: the slopes' divided by atol + rtol |y|, which
+#: is up to ~1e2 smaller than the slopes it scales.
+ERR_TOL = 1e-4
 
 
 def _python_attempt(stepper: ode.RK45Stepper, h: float, Z: np.ndarray) -> tuple:
@@ -87,10 +92,10 @@ def test_every_native_attempt_matches_the_python_stages(robot, monkeypatch, mu, 
             )
             worst["norm"] = max(worst["norm"], abs(err - errz) / max(errz, 1.0))
             np.testing.assert_array_equal(ay1, np.abs(y1))
-            # the FSAL slope is the right-hand side at the native y1, to the last bit
+            # the FSAL slope is the right-hand side at the native y1
             f1 = stepper._rhs(stepper.t + h, y1.copy())
-            worst["fsal"] = max(worst["fsal"], float(np.abs(Z[7] - f1).max()))
-            if abs(errp - 1.0) > 1e-6:  # the same decision (accepted or rejected)
+            worst["fsal"] = max(worst["fsal"], float(np.abs(Z[7] - f1).max() / scale.max()))
+            if abs(errp - 1.0) > ERR_TOL:  # the same decision (accepted or rejected)
                 assert (err < 1.0) == (errp < 1.0)
             seen["attempts"] += 1
             seen["rejected"] += errp >= 1.0
@@ -123,17 +128,23 @@ def test_every_native_attempt_matches_the_python_stages(robot, monkeypatch, mu, 
         assert seen["slip"] > 0, seen
         if locked:
             assert seen["stick"] > 0, seen
-    # y1 to rounding; the norm's arithmetic too (2e-12 here: sum_j e_j k_j, the difference of
-    # the 5th- and 4th-order solutions, cancels, and its terms are summed in another order).
-    # The slopes to the rounding of their arguments
-    # (numpy's BLAS sums the stage arguments in another order: 1e-16) times the stiff
-    # right-hand side's Lipschitz constant (1e4 to 1e5 1/s in the slides): 3.5e-11 of the row
-    # at worst here; the error norm, which divides them by atol + rtol |y|, to 3e-8.
-    assert worst["y1"] <= 1e-13, worst
-    assert worst["norm"] <= 1e-10, worst
-    assert worst["Z"] <= 1e-8, worst
-    assert worst["err"] <= 1e-6, worst
-    assert worst["fsal"] == 0.0, worst
+    # The two compute the same stages with their sums in other orders (numpy's BLAS kernel,
+    # chosen per CPU, against Eigen's loops), so they differ by rounding amplified by the
+    # stiff right-hand side: a slope's argument differs by ~1e-16 relative, and the sliding
+    # contacts' right-hand side has Lipschitz constants of 1e4 to 1e5 1/s and Delassus
+    # matrices with condition numbers up to ~1e6. Measured worst relative slope difference:
+    # 2.6e-9 under OpenBLAS's Haswell kernel (FMA), 0 under its Sandybridge and Prescott
+    # kernels (the same order as Eigen's), 1.17e-8 on another machine (AVX-512). The bounds
+    # below are 100x the largest seen anywhere: rounding
+    # passes on any machine; a wrong stage coefficient or a stale plan shows as O(1e-3) or
+    # more. y1 and the norm are sums of those slopes (the norm's terms cancel: sum_j e_j k_j).
+    assert worst["Z"] <= SLOPE_TOL, worst
+    assert worst["y1"] <= SLOPE_TOL, worst
+    assert worst["norm"] <= SLOPE_TOL, worst
+    assert worst["err"] <= ERR_TOL, worst
+    # the FSAL slope is the right-hand side at the kernel's own y1: the same function of the
+    # same input, to rounding
+    assert worst["fsal"] <= 1e-12, worst
 
 
 def test_a_collapse_with_the_native_step_is_the_python_steps_within_rounding(robot, monkeypatch):
