@@ -7,7 +7,6 @@ slip directions' consistency. Compared here call by call, from the same state, w
 selection on the restarts and re-patches of the collapse and of wrist-free random starts.
 """
 
-
 import numpy as np
 import pytest
 
