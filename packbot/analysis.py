@@ -39,6 +39,7 @@ from scipy.spatial import cKDTree
 from packbot.collision import CollisionWorld
 from packbot.control.ik import solve_position_ik
 from packbot.errors import ConfigurationError, UnknownNameError
+from packbot.keywords import checked_arguments
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
@@ -69,6 +70,7 @@ FloatArray = NDArray[np.float64]
 GRAVITY: tuple[float, float, float] = (0.0, 0.0, -9.81)
 
 
+@checked_arguments
 @dataclass(frozen=True, kw_only=True)
 class Equilibrium:
     """A rest position of a loose joint, the other joints held.
@@ -109,6 +111,7 @@ def _gravity_model(robot: Robot, gravity: ArrayLike) -> tuple[pin.Model, pin.Dat
     return model, model.createData()
 
 
+@checked_arguments
 def gravity_torque_on(
     robot: Robot, joint: str, q_hold: ArrayLike, angles: ArrayLike, gravity: ArrayLike = GRAVITY
 ) -> FloatArray:
@@ -123,6 +126,7 @@ def gravity_torque_on(
     return np.array(out)
 
 
+@checked_arguments
 def loose_joint_equilibria(
     robot: Robot,
     joint: str,
@@ -216,6 +220,7 @@ def _attr_names(model: pin.Model, frame: str) -> list[int]:
     return sorted(model.joints[i].idx_q for i in model.supports[parent] if i > 0)
 
 
+@checked_arguments
 @dataclass(frozen=True, kw_only=True)
 class Workspace:
     """Sampled reachable positions of a frame.
@@ -241,6 +246,7 @@ class Workspace:
         """Fraction of the samples that were collision free."""
         return len(self.points) / max(self.n_samples, 1)
 
+    @checked_arguments
     def volume(self, voxel: float = 0.05) -> float:
         """Volume of the voxels [m^3] (edge ``voxel`` [m]) holding at least one point.
 
@@ -262,6 +268,7 @@ class Workspace:
         return float(len(cells) * voxel**3)
 
 
+@checked_arguments
 @dataclass(frozen=True, kw_only=True)
 class VolumeEstimate:
     """A Monte Carlo volume with its uncertainty.
@@ -289,6 +296,7 @@ class VolumeEstimate:
         return f"{self.volume_m3:.3f} +- {self.stderr_m3:.3f} m^3 ({self.samples} points){flag}"
 
 
+@checked_arguments
 @dataclass(frozen=True, kw_only=True)
 class ReachAnswer:
     """Whether a position is reachable, with the evidence.
@@ -309,6 +317,7 @@ class ReachAnswer:
     tol_m: float
 
 
+@checked_arguments
 def workspace(
     robot: Robot,
     frozen: tuple[str, float] | str | None = None,
@@ -386,6 +395,7 @@ def workspace(
     )
 
 
+@checked_arguments
 def monte_carlo_volume(
     inside: Callable[[FloatArray], NDArray[np.bool_]],
     lower: ArrayLike,
@@ -518,6 +528,7 @@ def _check_reach_args(seeds: int, tol: float, max_iter: int) -> None:
         raise ConfigurationError("max_iter", max_iter, "a positive integer")
 
 
+@checked_arguments
 def reach(
     robot: Robot,
     ws: Workspace,
@@ -558,6 +569,7 @@ def reach(
     return _reach_one(robot, ws, tree, active, world, p, seeds=seeds, tol=tol, max_iter=max_iter)
 
 
+@checked_arguments
 def reachable(
     robot: Robot,
     ws: Workspace,
@@ -585,6 +597,7 @@ def reachable(
     )
 
 
+@checked_arguments
 def reachable_volume(
     robot: Robot,
     ws: Workspace,
@@ -641,6 +654,7 @@ def reachable_volume(
     )
 
 
+@checked_arguments
 def plot_workspace(
     spaces: Sequence[Workspace],
     path: str | Path | None = None,

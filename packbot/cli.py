@@ -27,7 +27,7 @@ from pathlib import Path
 from types import FrameType
 from typing import TYPE_CHECKING, Any, NoReturn
 
-from packbot.errors import PackbotError, SimulationError
+from packbot.errors import PackbotError, SimulationError, close_match
 
 if TYPE_CHECKING:
     from packbot.result import SimResult
@@ -889,9 +889,37 @@ def _interrupted_line(text: str) -> None:
 
 
 class _Parser(argparse.ArgumentParser):
-    """argparse, reporting a usage error in one line (exit code 2)."""
+    """argparse, reporting a usage error in one line (exit code 2).
+
+    An unrecognized option gets the closest option of its subcommand, if one is close
+    (``packbot run collapse --duraton 1``: "did you mean '--duration'?").
+    """
+
+    _argv: list[str] | None = None
+
+    def parse_known_args(  # type: ignore[override]
+        self, args: Sequence[str] | None = None, namespace: argparse.Namespace | None = None
+    ) -> tuple[argparse.Namespace, list[str]]:
+        self._argv = list(sys.argv[1:] if args is None else args)
+        return super().parse_known_args(args, namespace)
+
+    def _option_hint(self, message: str) -> str:
+        if not message.startswith("unrecognized arguments: ") or self._argv is None:
+            return ""
+        options = list(self._option_string_actions)
+        for action in self._actions:
+            if isinstance(action, argparse._SubParsersAction):
+                command = next((a for a in self._argv if a in action.choices), None)
+                if command is not None:
+                    options += list(action.choices[command]._option_string_actions)
+        for word in message.split(": ", 1)[1].split():
+            match = close_match(word.split("=", 1)[0], options) if word.startswith("-") else None
+            if match is not None:
+                return f"; did you mean {match!r}?"
+        return ""
 
     def error(self, message: str) -> NoReturn:
+        message += self._option_hint(message)
         self.exit(EXIT_USAGE, f"{self.prog}: error: {message} (see `{self.prog} --help`)\n")
 
 

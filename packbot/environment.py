@@ -15,6 +15,7 @@ import pinocchio as pin
 from numpy.typing import NDArray
 
 from packbot.errors import ConfigurationError, ConvexityError
+from packbot.keywords import checked_arguments
 from packbot.validation import choice, finite_number, name_str, real_array, vector
 
 __all__ = ["FLOOR", "OBSTACLE_KINDS", "Environment", "Obstacle"]
@@ -30,6 +31,7 @@ FLATNESS_RTOL = 1e-6
 COORD_MAX = 1000.0
 
 
+@checked_arguments
 @dataclass(frozen=True, kw_only=True)
 class Obstacle:
     """A static convex obstacle. Its fields are checked at construction.
@@ -177,6 +179,7 @@ class Obstacle:
 FLOOR = Obstacle(name="floor", kind="halfspace", normal=(0.0, 0.0, 1.0), offset=0.0)
 
 
+@checked_arguments
 @dataclass(frozen=True)
 class Environment:
     """The static obstacles of a simulation. ``Environment()`` is the floor alone.
@@ -192,6 +195,7 @@ class Environment:
         """No obstacles at all, not even the floor."""
         return cls(obstacles=())
 
+    @checked_arguments
     def with_obstacles(self, *obstacles: Obstacle) -> Environment:
         """A copy with more obstacles."""
         return Environment(obstacles=(*self.obstacles, *obstacles))

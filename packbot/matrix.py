@@ -64,6 +64,7 @@ from pathlib import Path
 from typing import Any
 
 from packbot.errors import ConfigurationError, ResourceNotFound, UnknownNameError
+from packbot.keywords import checked_arguments
 from packbot.tolerances import Tolerances
 
 if sys.version_info >= (3, 11):
@@ -110,6 +111,7 @@ _SLUG_MAX = 80
 _HASH_DIGITS = 10
 
 
+@checked_arguments
 @dataclass(frozen=True, kw_only=True)
 class Run:
     """One run of a matrix: the base scenario with its overrides applied.
@@ -137,6 +139,7 @@ class Run:
     source_text: str = ""
 
 
+@checked_arguments
 @dataclass(kw_only=True)
 class Matrix:
     """A matrix file: a base scenario and the values to sweep.
@@ -256,6 +259,7 @@ class Matrix:
                 return beside
         return self.base
 
+    @checked_arguments
     def runs(self, base: Mapping[str, Any] | None = None) -> list[Run]:
         """Expand into runs.
 
@@ -276,6 +280,7 @@ class Matrix:
         return expand(self, base, base_text=text)
 
 
+@checked_arguments
 def find_matrix(name_or_path: str | Path) -> Path:
     """The matrix file: an existing path, or a name in the shipped ``sims/matrices/``.
 
@@ -298,6 +303,7 @@ def find_matrix(name_or_path: str | Path) -> Path:
     raise UnknownNameError("matrix", str(name_or_path), matrix_names())
 
 
+@checked_arguments
 def matrix_names() -> list[str]:
     """Names of the matrices shipped in ``sims/matrices/``."""
     from packbot.resources import data_dir
@@ -309,6 +315,7 @@ def matrix_names() -> list[str]:
     return sorted(p.stem for p in folder.glob("*.toml"))
 
 
+@checked_arguments
 def load_matrix(name_or_path: str | Path) -> Matrix:
     """Read and validate a matrix file (see the module docstring for its format).
 
@@ -327,6 +334,7 @@ def load_matrix(name_or_path: str | Path) -> Matrix:
     return parse_matrix(text, path=path.resolve(), default_name=path.stem)
 
 
+@checked_arguments
 def parse_matrix(text: str, *, path: Path | None = None, default_name: str = "") -> Matrix:
     """Parse and validate a matrix file's text.
 
@@ -370,6 +378,7 @@ def parse_matrix(text: str, *, path: Path | None = None, default_name: str = "")
     return matrix
 
 
+@checked_arguments
 def expand(matrix: Matrix, base: Mapping[str, Any], *, base_text: str = "") -> list[Run]:
     """Expand a matrix over a base scenario dict into runs.
 
@@ -426,16 +435,19 @@ def _source_text(matrix: Matrix, base_text: str, params: Mapping[str, Any]) -> s
     return base_text.rstrip("\n") + "\n\n" + "\n".join(lines) + "\n"
 
 
+@checked_arguments
 def canonical_json(value: Any) -> str:
     """The canonical JSON of a value: sorted keys, no spaces, ASCII, exact floats."""
     return json.dumps(value, sort_keys=True, separators=(",", ":"), ensure_ascii=True)
 
 
+@checked_arguments
 def digest(value: Any) -> str:
     """SHA-256 (hex) of the canonical JSON of a value."""
     return hashlib.sha256(canonical_json(value).encode()).hexdigest()
 
 
+@checked_arguments
 def run_id(params: Mapping[str, Any]) -> str:
     """The stable id of a run: ``<slug>-<hash>``.
 
@@ -454,6 +466,7 @@ def run_id(params: Mapping[str, Any]) -> str:
     return f"{slug}-{h}" if slug else h
 
 
+@checked_arguments
 def apply_overrides(
     data: Mapping[str, Any], overrides: Mapping[str, Any], *, field_prefix: str = "axes"
 ) -> dict[str, Any]:
@@ -474,6 +487,7 @@ def apply_overrides(
     return out
 
 
+@checked_arguments
 def set_dotted(data: dict[str, Any], key: str, value: Any, *, field: str = "") -> None:
     """Set ``data[a][b][...] = value`` for the dotted name ``"a.b...."``, in place.
 

@@ -55,8 +55,15 @@ from numpy.typing import NDArray
 
 from packbot.config import SimConfig
 from packbot.environment import FLOOR, Environment, Obstacle
-from packbot.errors import ConfigurationError, ConvexityError, UnknownNameError
+from packbot.errors import (
+    ConfigurationError,
+    ConvexityError,
+    KeywordError,
+    UnknownNameError,
+    close_match,
+)
 from packbot.failures import Failure
+from packbot.keywords import checked_arguments
 from packbot.payload import Payload
 from packbot.validation import finite_number, real_array
 
@@ -113,6 +120,7 @@ _FORMATS = ("png", "svg")
 
 
 # ---------------------------------------------------------------------------------- dataclasses
+@checked_arguments
 @dataclass(frozen=True, kw_only=True)
 class OcclusionCheck:
     """Is the camera's view of target points blocked (by the arm, the chassis, obstacles)?
@@ -148,6 +156,7 @@ class OcclusionCheck:
             )
 
 
+@checked_arguments
 @dataclass(frozen=True, kw_only=True)
 class Outputs:
     """What a run writes besides its trajectory and event log.
@@ -213,6 +222,7 @@ class Outputs:
             self.occlusion.validate()
 
 
+@checked_arguments
 @dataclass(kw_only=True)
 class Scenario:
     """A simulation described by a scenario file.
@@ -576,10 +586,12 @@ def _check_keys(data: Mapping[str, Any], path: str, valid: Sequence[str]) -> Non
     for key, value in data.items():
         if key not in valid:
             where = f"[{path}]" if path else "the top level"
+            match = close_match(key, valid)
+            hint = f" (did you mean {match!r}?)" if match else ""
             raise ConfigurationError(
                 f"{path}.{key}" if path else key,
                 value,
-                f"a key of {where}, one of: {', '.join(valid)}",
+                f"a key of {where}{hint}, one of: {', '.join(valid)}",
             )
 
 
@@ -594,24 +606,17 @@ def _dataclass_from(
     kwargs = {k: _coerce(f"{path}.{k}", v, hints.get(k, Any)) for k, v in table.items()}
     try:
         return cls(**kwargs, **extra)
+    except KeywordError as exc:  # a required field is missing (the keys are checked above)
+        if exc.missing:
+            name = exc.missing[0]
+            raise ConfigurationError(
+                f"{path}.{name}", None, f"a value: {path}.{name} is required"
+            ) from None
+        raise ConfigurationError(path, table, str(exc)) from None
     except ConvexityError as exc:  # an obstacle's points (checked at construction)
         raise ConfigurationError(f"{path}.points", table.get("name"), str(exc)) from None
     except ConfigurationError as exc:  # a bad value (checked at construction): name its path
         raise ConfigurationError(f"{path}.{_last(exc.field)}", exc.value, exc.expected) from None
-    except TypeError as exc:  # a required field is missing
-        missing = [
-            f.name
-            for f in dataclasses.fields(cls)
-            if f.init
-            and f.name not in table
-            and f.default is dataclasses.MISSING
-            and f.default_factory is dataclasses.MISSING
-        ]
-        if missing:
-            raise ConfigurationError(
-                f"{path}.{missing[0]}", None, f"a value: {path}.{missing[0]} is required"
-            ) from None
-        raise ConfigurationError(path, table, str(exc)) from None
 
 
 def _joint_values(data: Any, path: str) -> tuple[float, ...] | dict[str, float]:
@@ -622,6 +627,7 @@ def _joint_values(data: Any, path: str) -> tuple[float, ...] | dict[str, float]:
     raise ConfigurationError(path, data, "a list of joint values or a table joint = value")
 
 
+@checked_arguments
 def scenario_from_dict(data: Mapping[str, Any], *, name: str, source_text: str = "") -> Scenario:
     """Build a :class:`Scenario` from a scenario file's table (as parsed from TOML).
 
@@ -714,6 +720,7 @@ def scenario_from_dict(data: Mapping[str, Any], *, name: str, source_text: str =
     return scenario
 
 
+@checked_arguments
 def json_schema(robot: Robot | None = None) -> dict[str, Any]:
     """The JSON Schema (draft 7) of scenario files, for editors (docs/scenarios.md).
 
@@ -742,11 +749,13 @@ def _sims_dir() -> Path:
 RENAMED_SCENARIOS: dict[str, str] = {"collapse_normal": "collapse_physical"}
 
 
+@checked_arguments
 def list_scenarios() -> dict[str, Path]:
     """The shipped scenarios: name -> file (``sims/*.toml``), sorted by name."""
     return {p.stem: p for p in sorted(_sims_dir().glob("*.toml"))}
 
 
+@checked_arguments
 def scenario_path(name_or_path: str | Path) -> Path:
     """The file of a scenario: a name in ``sims/`` (``"collapse"``) or a path to a TOML file.
 
@@ -780,6 +789,7 @@ def scenario_path(name_or_path: str | Path) -> Path:
     return shipped[text]
 
 
+@checked_arguments
 def read_scenario_dict(name_or_path: str | Path) -> dict[str, Any]:
     """The raw table of a scenario file (parsed TOML, not checked).
 
@@ -798,6 +808,7 @@ def _parse(path: Path) -> tuple[dict[str, Any], str]:
         raise ConfigurationError("scenario", str(path), f"valid TOML: {exc}") from None
 
 
+@checked_arguments
 def load_scenario(name_or_path: str | Path) -> Scenario:
     """Load and check a scenario (a name in ``sims/`` or a path); see :func:`scenario_from_dict`.
 
@@ -813,6 +824,7 @@ def load_scenario(name_or_path: str | Path) -> Scenario:
 
 
 # ---------------------------------------------------------------------------------- running
+@checked_arguments
 def run_scenario(
     scenario: Scenario,
     robot: Robot | None = None,
@@ -902,6 +914,7 @@ def _atomic_write(path: Path, write: Callable[[Any], None], binary: bool) -> Non
         raise
 
 
+@checked_arguments
 def save_run(
     result: SimResult, scenario: Scenario, out_dir: str | Path, stem: str | None = None
 ) -> dict[str, Path]:
@@ -963,6 +976,7 @@ def save_run(
     return {"trajectory": traj, "events": events}
 
 
+@checked_arguments
 def write_outputs(
     result: SimResult,
     scenario: Scenario,

@@ -51,6 +51,7 @@ from typing import Any
 
 from packbot.batch import BatchReport, RunFiles, check_runs, run_batch
 from packbot.errors import ConfigurationError, PackbotError, SimulationError, UnknownNameError
+from packbot.keywords import checked_arguments
 from packbot.matrix import Matrix, Run, load_matrix
 from packbot.validation import integer, is_number
 
@@ -84,6 +85,7 @@ class CellTimeout(PackbotError):
     """A study cell exceeded its wall-time limit (``timeout``); the cell is recorded failed."""
 
 
+@checked_arguments
 @dataclass(frozen=True, kw_only=True)
 class StudyOptions:
     """The ``[study]`` table: how each cell is studied (:func:`packbot.study`'s arguments).
@@ -111,6 +113,7 @@ class StudyOptions:
         object.__setattr__(self, "tolerance", float(tol))
 
     @classmethod
+    @checked_arguments
     def from_mapping(cls, table: Mapping[str, Any]) -> StudyOptions:
         """Read a ``[study]`` table.
 
@@ -133,6 +136,7 @@ class StudyOptions:
         }
 
 
+@checked_arguments
 @dataclass(kw_only=True)
 class StudyMatrix:
     """A study matrix: the matrix, its study options and the failure its axes vary.
@@ -157,6 +161,7 @@ class StudyMatrix:
         return self.matrix.runs()
 
     @classmethod
+    @checked_arguments
     def from_matrix(cls, matrix: Matrix) -> StudyMatrix:
         """Check a matrix as a study matrix.
 
@@ -234,6 +239,7 @@ class StudyMatrix:
             self.failure_of(run)
 
 
+@checked_arguments
 def load_study_matrix(name_or_path: str | os.PathLike[str]) -> StudyMatrix:
     """Read and check a study matrix (a name in ``sims/matrices/`` or a path).
 
@@ -245,6 +251,7 @@ def load_study_matrix(name_or_path: str | os.PathLike[str]) -> StudyMatrix:
 
 
 # ---------------------------------------------------------------------------------- a cell
+@checked_arguments
 def study_cell(
     run: Run, progress: Callable[[float], None], *, options: StudyOptions
 ) -> tuple[dict[str, Any], RunFiles]:
@@ -311,6 +318,7 @@ def study_cell(
 
 
 # ---------------------------------------------------------------------------------- the matrix
+@checked_arguments
 @dataclass(kw_only=True)
 class StudyMatrixReport:
     """What :func:`run_study_matrix` did.
@@ -343,6 +351,7 @@ class StudyMatrixReport:
         return "\n".join(lines)
 
 
+@checked_arguments
 def run_study_matrix(
     matrix: StudyMatrix | Matrix | str | os.PathLike[str],
     out_dir: str | os.PathLike[str],
@@ -409,6 +418,7 @@ def _median(values: Sequence[float | None]) -> float | None:
     return statistics.median(got) if got else None
 
 
+@checked_arguments
 def study_matrix_summary(
     sm: StudyMatrix,
     out_dir: str | os.PathLike[str],

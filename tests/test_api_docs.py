@@ -75,6 +75,7 @@ INTERNAL_MODULES = {
     "packbot.drive",
     "packbot.geometry",
     "packbot.inputs",
+    "packbot.keywords",
     "packbot.labels",
     "packbot.mujoco_model",
     "packbot.ode",

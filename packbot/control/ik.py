@@ -17,12 +17,14 @@ import pinocchio as pin
 from numpy.typing import ArrayLike, NDArray
 
 from packbot.errors import ConfigurationError
+from packbot.keywords import checked_arguments
 
 __all__ = ["IKResult", "solve_position_ik"]
 
 FloatArray = NDArray[np.float64]
 
 
+@checked_arguments
 @dataclass(kw_only=True)
 class IKResult:
     """The outcome of :func:`solve_position_ik`.
@@ -40,6 +42,7 @@ class IKResult:
     success: bool
 
 
+@checked_arguments
 def solve_position_ik(
     model: pin.Model,
     frame: str,
