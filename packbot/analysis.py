@@ -40,6 +40,13 @@ from packbot.collision import CollisionWorld
 from packbot.control.ik import solve_position_ik
 from packbot.errors import ConfigurationError, UnknownNameError
 from packbot.keywords import checked_arguments
+from packbot.validation import (
+    MAX_CONFIG_SAMPLES,
+    MAX_IK_ITERATIONS,
+    MAX_SCAN_SAMPLES,
+    MAX_VOLUME_POINTS,
+    integer,
+)
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
@@ -159,8 +166,7 @@ def loose_joint_equilibria(
     q0 = np.array(q_hold, dtype=float)
     if q0.shape != (robot.nq,) or not np.all(np.isfinite(q0)):
         raise ConfigurationError("q_hold", q_hold, f"{robot.nq} finite angles [rad]")
-    if not isinstance(samples, int) or samples < 3:
-        raise ConfigurationError("samples", samples, "an integer >= 3")
+    integer("samples", samples, low=3, high=MAX_SCAN_SAMPLES)
     model, data = _gravity_model(robot, gravity)
     lo, hi = float(robot.params.lower[j]), float(robot.params.upper[j])
 
@@ -350,8 +356,7 @@ def workspace(
     base = robot.pose("stand") if q_ref is None else np.array(q_ref, dtype=float)
     if base.shape != (robot.nq,):
         raise ConfigurationError("q_ref", q_ref, f"{robot.nq} angles [rad]")
-    if not isinstance(samples, int) or samples < 1:
-        raise ConfigurationError("samples", samples, "a positive integer")
+    integer("samples", samples, low=1, high=MAX_CONFIG_SAMPLES, what="a positive integer")
     fz: tuple[str, float] | None = None
     if isinstance(frozen, str):
         fz = (frozen, float(base[robot.params.index(frozen)]))
@@ -436,10 +441,8 @@ def monte_carlo_volume(
         raise ConfigurationError("box", (lower, upper), "upper > lower on every axis")
     if not (isinstance(rel_tol, (int, float)) and 0 < rel_tol < 1):
         raise ConfigurationError("rel_tol", rel_tol, "a number in (0, 1)")
-    if not isinstance(batch, int) or isinstance(batch, bool) or batch < 1:
-        raise ConfigurationError("batch", batch, "a positive integer")
-    if not isinstance(max_points, int) or isinstance(max_points, bool) or max_points < batch:
-        raise ConfigurationError("max_points", max_points, f"an integer >= batch ({batch})")
+    integer("batch", batch, low=1, high=MAX_VOLUME_POINTS, what="a positive integer")
+    integer("max_points", max_points, low=batch, high=MAX_VOLUME_POINTS, what="an integer >= batch")
     box = float(np.prod(hi - lo))
     rng = np.random.default_rng(seed)
     n = hits = 0
@@ -524,8 +527,7 @@ def _check_reach_args(seeds: int, tol: float, max_iter: int) -> None:
         raise ConfigurationError("seeds", seeds, "a positive integer")
     if not (isinstance(tol, (int, float)) and math.isfinite(tol) and tol > 0):
         raise ConfigurationError("tol", tol, "a positive distance [m]")
-    if not isinstance(max_iter, int) or isinstance(max_iter, bool) or max_iter < 1:
-        raise ConfigurationError("max_iter", max_iter, "a positive integer")
+    integer("max_iter", max_iter, low=1, high=MAX_IK_ITERATIONS, what="a positive integer")
 
 
 @checked_arguments
@@ -632,6 +634,7 @@ def reachable_volume(
         ConfigurationError: Bad arguments or an empty workspace.
     """
     _check_reach_args(seeds, tol, 1)
+    integer("max_points", max_points, low=250, high=MAX_VOLUME_POINTS, what="an integer >= 250")
     if not (isinstance(pad, (int, float)) and math.isfinite(pad) and pad >= 0):
         raise ConfigurationError("pad", pad, "a distance >= 0 [m]")
     tree, active, world = _reach_setup(robot, ws, environment)

@@ -66,7 +66,7 @@ from typing import TYPE_CHECKING, Any, NamedTuple, TextIO
 from packbot.errors import ConfigurationError, PackbotError, SimulationError
 from packbot.keywords import checked_arguments
 from packbot.matrix import Matrix, Run, canonical_json, parse_matrix
-from packbot.validation import is_number
+from packbot.validation import MAX_WORKERS, integer, is_number
 
 try:
     import fcntl
@@ -681,10 +681,8 @@ def run_batch(
             scenario is bad (:func:`check_runs`; nothing run or written), or a study matrix
             (its ``[study]`` table: :mod:`packbot.study_matrix` runs those).
     """
-    if workers is not None and (
-        not isinstance(workers, int) or isinstance(workers, bool) or workers < 0
-    ):
-        raise ConfigurationError("workers", workers, "an integer >= 0")
+    if workers is not None:
+        integer("workers", workers, low=0, high=MAX_WORKERS, what="an integer >= 0")
     if timeout is not None and not (is_number(timeout) and math.isfinite(timeout) and timeout > 0):
         raise ConfigurationError("timeout", timeout, "a finite positive time [s], or None")
     if not isinstance(out_dir, (str, os.PathLike)) or not str(out_dir):

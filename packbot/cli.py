@@ -773,19 +773,16 @@ def _is_study_matrix(text: str) -> bool:
     A file is a matrix if its TOML has ``base``, ``axes`` or ``study`` (a scenario has none of
     them); a name is a shipped scenario's first, else a shipped matrix's.
     """
-    if sys.version_info >= (3, 11):
-        import tomllib
-    else:  # pragma: no cover
-        import tomli as tomllib
-
+    from packbot import tomlfile
     from packbot.matrix import matrix_names
     from packbot.scenario import list_scenarios
 
     path = Path(text)
     if path.is_file():
         try:
-            data = tomllib.loads(path.read_text(encoding="utf-8"))
-        except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError):
+            tomlfile.check_file_size(path, "scenario", text)
+            data = tomlfile.loads(path.read_text(encoding="utf-8"), "scenario", text)
+        except (OSError, UnicodeDecodeError, PackbotError):
             return False  # the scenario reader reports it
         return any(k in data for k in ("base", "axes", "study"))
     if path.parent != Path(".") or text in list_scenarios():

@@ -16,7 +16,16 @@ from numpy.typing import NDArray
 
 from packbot.errors import ConfigurationError, ConvexityError
 from packbot.keywords import checked_arguments
-from packbot.validation import choice, finite_number, name_str, real_array, vector
+from packbot.validation import (
+    MAX_CONVEX_POINTS,
+    MAX_OBSTACLES,
+    at_most,
+    choice,
+    finite_number,
+    name_str,
+    real_array,
+    vector,
+)
 
 __all__ = ["FLOOR", "OBSTACLE_KINDS", "Environment", "Obstacle"]
 
@@ -108,6 +117,8 @@ class Obstacle:
         expected = f"(N, 3) finite coordinates [m], N >= 4, each within +/-{COORD_MAX:g} m"
         if isinstance(self.points, (list, tuple, np.ndarray)) and len(self.points) == 0:
             raise ConvexityError(self.name, "needs >= 4 points (N, 3), got none")
+        if isinstance(self.points, (list, tuple, np.ndarray)):
+            at_most(f"{where}points", self.points, len(self.points), MAX_CONVEX_POINTS, "points")
         pts = real_array(f"{where}points", self.points, expected=expected)
         if pts.ndim != 2 or pts.shape[1] != 3 or len(pts) < 4:
             raise ConvexityError(self.name, f"needs >= 4 points (N, 3), got shape {pts.shape}")
@@ -218,6 +229,7 @@ class Environment:
             raise ConfigurationError(
                 "environment.obstacles", obstacles, "a tuple of packbot.Obstacle"
             )
+        at_most("environment.obstacles", obstacles, len(obstacles), MAX_OBSTACLES, "obstacles")
         seen: set[str] = set()
         for k, ob in enumerate(obstacles):
             if not isinstance(ob, Obstacle):

@@ -55,22 +55,19 @@ import copy
 import hashlib
 import itertools
 import json
+import math
 import os
 import re
-import sys
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from packbot import tomlfile
 from packbot.errors import ConfigurationError, ResourceNotFound, UnknownNameError
 from packbot.keywords import checked_arguments
 from packbot.tolerances import Tolerances
-
-if sys.version_info >= (3, 11):
-    import tomllib
-else:  # pragma: no cover
-    import tomli as tomllib
+from packbot.validation import MAX_MATRIX_RUNS, at_most
 
 __all__ = [
     "MATRIX_FORMAT",
@@ -189,6 +186,7 @@ class Matrix:
             _check_json(f"set.{key}", value)
         if not self.axes and not self.include:
             raise ConfigurationError("axes", self.axes, "at least one axis or [[include]] table")
+        at_most("axes", self.axes, self.run_count(), MAX_MATRIX_RUNS, "runs (the axes' product)")
         for key, values in self.axes.items():
             _check_dotted(f"axes.{key}", key)
             if not isinstance(values, list) or not values:
@@ -221,6 +219,15 @@ class Matrix:
             for i, overrides in enumerate(group):
                 for key, value in overrides.items():
                     _check_json(f"{title}.{i}.{key}", value)
+
+    def run_count(self) -> int:
+        """The number of runs before the excludes, computed without expanding anything.
+
+        The product of the axes' lengths, plus one per ``[[include]]`` table; the bound
+        :data:`~packbot.validation.MAX_MATRIX_RUNS` is on it.
+        """
+        sizes = [len(v) if isinstance(v, list) else 1 for v in self.axes.values()]
+        return (math.prod(sizes) if sizes else 0) + len(self.include)
 
     def canonical(self) -> dict[str, Any]:
         """What defines the matrix's runs, as a JSON-ready dict.
@@ -327,6 +334,7 @@ def load_matrix(name_or_path: str | Path) -> Matrix:
         ConfigurationError: A bad value (the message names its key) or a TOML syntax error.
     """
     path = find_matrix(name_or_path)
+    tomlfile.check_file_size(path, str(path), "(file)")
     try:
         text = path.read_text(encoding="utf-8")
     except (OSError, UnicodeDecodeError) as exc:
@@ -348,10 +356,7 @@ def parse_matrix(text: str, *, path: Path | None = None, default_name: str = "")
         ConfigurationError: A bad value (the message names its key) or a TOML syntax error.
     """
     where = str(path) if path is not None else "matrix"
-    try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise ConfigurationError(where, "(file)", f"valid TOML ({exc})") from exc
+    data = tomlfile.loads(text, where, "(file)")
     for key in data:
         if key not in MATRIX_KEYS:
             raise UnknownNameError("matrix key", key, MATRIX_KEYS)

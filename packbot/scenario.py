@@ -39,7 +39,6 @@ import io
 import logging
 import math
 import os
-import sys
 import tempfile
 import types
 import typing
@@ -53,6 +52,7 @@ from typing import IO, TYPE_CHECKING, Any, Literal, get_args, get_origin
 import numpy as np
 from numpy.typing import NDArray
 
+from packbot import tomlfile
 from packbot.config import SimConfig
 from packbot.environment import FLOOR, Environment, Obstacle
 from packbot.errors import (
@@ -65,12 +65,14 @@ from packbot.errors import (
 from packbot.failures import Failure
 from packbot.keywords import checked_arguments
 from packbot.payload import Payload
-from packbot.validation import finite_number, real_array
-
-if sys.version_info >= (3, 11):
-    import tomllib
-else:  # pragma: no cover
-    import tomli as tomllib
+from packbot.validation import (
+    MAX_OBSTACLES,
+    MAX_OCCLUSION_TARGETS,
+    at_most,
+    finite_number,
+    name_str,
+    real_array,
+)
 
 if TYPE_CHECKING:
     from packbot.collision import CollisionWorld
@@ -144,6 +146,14 @@ class OcclusionCheck:
         if not self.targets:
             raise ConfigurationError(
                 "outputs.occlusion.targets", self.targets, "at least one (x, y, z) point [m]"
+            )
+        if isinstance(self.targets, (list, tuple)):
+            at_most(
+                "outputs.occlusion.targets",
+                self.targets,
+                len(self.targets),
+                MAX_OCCLUSION_TARGETS,
+                "targets",
             )
         for k, p in enumerate(self.targets):
             if len(p) != 3 or not all(_finite(x) for x in p):
@@ -644,8 +654,7 @@ def scenario_from_dict(data: Mapping[str, Any], *, name: str, source_text: str =
     """
     if not isinstance(data, Mapping):
         raise ConfigurationError("scenario", data, "a table (the parsed TOML of a scenario file)")
-    if not isinstance(name, str) or not name:
-        raise ConfigurationError("name", name, "a non-empty string")
+    name_str("name", name, "a non-empty string")
     data = dict(data)
     _check_keys(data, "", TOP_LEVEL_KEYS)
     if "duration" not in data:
@@ -682,6 +691,7 @@ def scenario_from_dict(data: Mapping[str, Any], *, name: str, source_text: str =
         raise ConfigurationError(
             "environment.obstacles", raw_obstacles, "an array of tables [[environment.obstacles]]"
         )
+    at_most("environment.obstacles", raw_obstacles, len(raw_obstacles), MAX_OBSTACLES, "obstacles")
     obstacles = tuple(
         _dataclass_from(Obstacle, o, f"environment.obstacles[{k}]")
         for k, o in enumerate(raw_obstacles)
@@ -801,11 +811,9 @@ def read_scenario_dict(name_or_path: str | Path) -> dict[str, Any]:
 
 
 def _parse(path: Path) -> tuple[dict[str, Any], str]:
+    tomlfile.check_file_size(path, "scenario", str(path))
     text = path.read_bytes().decode("utf-8", errors="replace")
-    try:
-        return tomllib.loads(text), text
-    except tomllib.TOMLDecodeError as exc:
-        raise ConfigurationError("scenario", str(path), f"valid TOML: {exc}") from None
+    return tomlfile.loads(text, "scenario", str(path)), text
 
 
 @checked_arguments

@@ -43,7 +43,7 @@ from numpy.typing import NDArray
 
 from packbot.errors import ConfigurationError, PackbotError, SimulationError
 from packbot.keywords import checked_arguments
-from packbot.validation import finite_number, integer
+from packbot.validation import MAX_CONFIG_SAMPLES, finite_number, integer
 
 if TYPE_CHECKING:
     from packbot.analysis import Equilibrium
@@ -382,7 +382,7 @@ def _check_inputs(
     finite_number("tolerance", tolerance, low=0.0, low_open=True, unit="m", what="a distance")
     if contact_mode is not None and contact_mode not in CONTACT_MODES:
         raise ConfigurationError("contact_mode", contact_mode, CONTACT_MODES)
-    integer("workspace_samples", workspace_samples, low=100, high=1_000_000)
+    integer("workspace_samples", workspace_samples, low=100, high=MAX_CONFIG_SAMPLES)
     scenario.validate(robot)
     return scenario, robot
 

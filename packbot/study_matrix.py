@@ -53,7 +53,7 @@ from packbot.batch import BatchReport, RunFiles, check_runs, run_batch
 from packbot.errors import ConfigurationError, PackbotError, SimulationError, UnknownNameError
 from packbot.keywords import checked_arguments
 from packbot.matrix import Matrix, Run, load_matrix
-from packbot.validation import integer, is_number
+from packbot.validation import MAX_CONFIG_SAMPLES, MAX_STUDY_CELLS, at_most, integer, is_number
 
 __all__ = [
     "FAILURE_FIELDS",
@@ -106,7 +106,7 @@ class StudyOptions:
         tol = self.tolerance
         if not (is_number(tol) and math.isfinite(tol) and tol > 0):
             raise ConfigurationError("study.tolerance", tol, "a finite distance > 0 [m]")
-        integer("study.workspace_samples", self.workspace_samples, low=100, high=1_000_000)
+        integer("study.workspace_samples", self.workspace_samples, low=100, high=MAX_CONFIG_SAMPLES)
         integer("study.seed", self.seed, low=0, what="an integer seed >= 0")
         if not isinstance(self.html, bool):
             raise ConfigurationError("study.html", self.html, "true or false")
@@ -180,6 +180,7 @@ class StudyMatrix:
                 "simulations, for `packbot batch`; add [study] to study its failures)",
             )
         options = StudyOptions.from_mapping(matrix.study)
+        at_most("axes", matrix.axes, matrix.run_count(), MAX_STUDY_CELLS, "cells")
         keys = [*matrix.axes, *(k for t in matrix.include for k in t)]
         indices: dict[int, list[str]] = {}
         for key in keys:

@@ -86,6 +86,7 @@ INTERNAL_MODULES = {
     "packbot.system",
     "packbot.ticks",
     "packbot.tolerances",
+    "packbot.tomlfile",
     "packbot.urdfgen",
     "packbot.validation",
 }

@@ -18,6 +18,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from packbot.errors import ConfigurationError
 from packbot.keywords import checked_arguments
+from packbot.validation import MAX_IK_ITERATIONS, integer
 
 __all__ = ["IKResult", "solve_position_ik"]
 
@@ -77,6 +78,7 @@ def solve_position_ik(
     Raises:
         ConfigurationError: Unknown frame, or a bad target or q0 shape.
     """
+    integer("ik.max_iter", max_iter, low=1, high=MAX_IK_ITERATIONS, what="a positive integer")
     if not model.existFrame(frame):
         raise ConfigurationError("ik.frame", frame, "a frame of the model")
     fid = model.getFrameId(frame)

@@ -17,7 +17,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from packbot.errors import ConfigurationError
 from packbot.keywords import checked_arguments
-from packbot.validation import finite_number, real_array
+from packbot.validation import MAX_WAYPOINTS, at_most, finite_number, real_array
 
 __all__ = ["JointTrajectory", "QuinticSegment", "min_jerk_duration"]
 
@@ -197,6 +197,8 @@ class JointTrajectory:
         v_max: ArrayLike | None = None,
     ) -> None:
         expected = "an (m, n) array of finite angles [rad], m >= 2, n >= 1"
+        if isinstance(waypoints, (list, tuple, np.ndarray)):
+            at_most("trajectory.waypoints", waypoints, len(waypoints), MAX_WAYPOINTS, "waypoints")
         W = real_array("trajectory.waypoints", waypoints, ndim=2, expected=expected)
         if W.shape[0] < 2 or W.shape[1] < 1:
             raise ConfigurationError("trajectory.waypoints", W.shape, expected)
