@@ -202,6 +202,7 @@ class Environment:
     obstacles: tuple[Obstacle, ...] = field(default=(FLOOR,))
 
     @classmethod
+    @checked_arguments
     def empty(cls) -> Environment:
         """No obstacles at all, not even the floor."""
         return cls(obstacles=())

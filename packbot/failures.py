@@ -91,6 +91,7 @@ class Failure:
             "threshold": threshold,
         }
 
+    @checked_arguments
     def validate(self, joint_names: Sequence[str]) -> None:
         """Raise a :class:`~packbot.errors.PackbotError` naming the first bad field.
 

@@ -67,7 +67,7 @@ from packbot import tomlfile
 from packbot.errors import ConfigurationError, ResourceNotFound, UnknownNameError
 from packbot.keywords import checked_arguments
 from packbot.tolerances import Tolerances
-from packbot.validation import MAX_MATRIX_RUNS, at_most
+from packbot.validation import MAX_MATRIX_RUNS, at_most, name_str
 
 __all__ = [
     "MATRIX_FORMAT",
@@ -177,6 +177,7 @@ class Matrix:
             raise ConfigurationError(
                 "name", self.name, "a non-empty name of letters, digits, '_' and '-'"
             )
+        name_str("name", self.name, "a name of letters, digits, '_' and '-'")
         if not isinstance(self.base, str) or not self.base:
             raise ConfigurationError("base", self.base, "a scenario name or path")
         if not isinstance(self.description, str):

@@ -275,6 +275,7 @@ class Scenario:
     source_text: str = ""
     source_path: Path | None = None
 
+    @checked_arguments
     def validate(self, robot: Robot | None = None) -> None:
         """Check every field; raise a :class:`ConfigurationError` naming the first bad one.
 
@@ -381,6 +382,7 @@ class Scenario:
             if not isinstance(f, Failure):
                 raise ConfigurationError(f"failures[{k}]", f, "a packbot.Failure")
 
+    @checked_arguments
     def initial_state(self, robot: Robot) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """The initial joint positions [rad] and velocities [rad/s], shape (nq,) each.
 
@@ -412,6 +414,7 @@ class Scenario:
         robot.check_within_limits(q, "initial.q")
         return q, v
 
+    @checked_arguments
     def build_controller(self, robot: Robot) -> Controller | None:
         """The controller (None for ``"zero"``), built by ``packbot.control.build_controller``.
 

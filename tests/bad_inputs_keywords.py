@@ -160,6 +160,16 @@ def entries() -> list[Entry]:
         ),
         ep("Environment", lambda c: packbot.Environment, _none, _nokw, ("obstacle", "obstacles")),
         ep("Environment.with_obstacles", lambda c: packbot.Environment().with_obstacles),
+        ep("Environment.empty", lambda c: packbot.Environment.empty),
+        ep(
+            "Scenario.validate",
+            lambda c: _scenario().validate,
+            _none,
+            _nokw,
+            ("robots", "robot"),
+        ),
+        ep("Scenario.initial_state", lambda c: _scenario().initial_state, lambda c: (None,)),
+        ep("Failure.validate", lambda c: _failure().validate, lambda c: ((),)),
         ep(
             "simulate",
             lambda c: packbot.simulate,
@@ -633,6 +643,14 @@ def entries() -> list[Entry]:
     ]
 
 
+def _scenario() -> Any:
+    return _mod("packbot.scenario").Scenario(name="x", duration=1.0)
+
+
+def _failure() -> Any:
+    return packbot.Failure(joint="shoulder", kind="loose")
+
+
 def _workspace_kw() -> dict[str, Any]:
     return {
         "points": np.zeros((0, 3)),
@@ -745,6 +763,9 @@ class _Probe:
             "SimResult.to_dataframe": packbot.SimResult.to_dataframe,
             "Workspace.volume": _mod("packbot.analysis").Workspace.volume,
             "Environment.with_obstacles": packbot.Environment.with_obstacles,
+            "Scenario.validate": _mod("packbot.scenario").Scenario.validate,
+            "Scenario.initial_state": _mod("packbot.scenario").Scenario.initial_state,
+            "Failure.validate": packbot.Failure.validate,
         }
         if entry.name in static:
             return static[entry.name]

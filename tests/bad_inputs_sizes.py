@@ -395,6 +395,12 @@ def register(cat: ModuleType) -> None:
         "controller.frame",
     )
     api(
+        "Matrix-name-long",
+        lambda c: Matrix(name=LONG, base="collapse", axes={"config.mu": [0.1]}).validate(),
+        "name",
+        f"{MAX_NAME_LENGTH}",
+    )
+    api(
         "scenario_from_dict-name-long",
         lambda c: scenario_from_dict({"duration": 1.0}, name=LONG),
         "name",
