@@ -39,6 +39,14 @@ from scipy.spatial import cKDTree
 from packbot.collision import CollisionWorld
 from packbot.control.ik import solve_position_ik
 from packbot.errors import ConfigurationError, UnknownNameError
+from packbot.keywords import checked_arguments
+from packbot.validation import (
+    MAX_CONFIG_SAMPLES,
+    MAX_IK_ITERATIONS,
+    MAX_SCAN_SAMPLES,
+    MAX_VOLUME_POINTS,
+    integer,
+)
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
@@ -69,6 +77,7 @@ FloatArray = NDArray[np.float64]
 GRAVITY: tuple[float, float, float] = (0.0, 0.0, -9.81)
 
 
+@checked_arguments
 @dataclass(frozen=True, kw_only=True)
 class Equilibrium:
     """A rest position of a loose joint, the other joints held.
@@ -109,6 +118,7 @@ def _gravity_model(robot: Robot, gravity: ArrayLike) -> tuple[pin.Model, pin.Dat
     return model, model.createData()
 
 
+@checked_arguments
 def gravity_torque_on(
     robot: Robot, joint: str, q_hold: ArrayLike, angles: ArrayLike, gravity: ArrayLike = GRAVITY
 ) -> FloatArray:
@@ -123,6 +133,7 @@ def gravity_torque_on(
     return np.array(out)
 
 
+@checked_arguments
 def loose_joint_equilibria(
     robot: Robot,
     joint: str,
@@ -155,8 +166,7 @@ def loose_joint_equilibria(
     q0 = np.array(q_hold, dtype=float)
     if q0.shape != (robot.nq,) or not np.all(np.isfinite(q0)):
         raise ConfigurationError("q_hold", q_hold, f"{robot.nq} finite angles [rad]")
-    if not isinstance(samples, int) or samples < 3:
-        raise ConfigurationError("samples", samples, "an integer >= 3")
+    integer("samples", samples, low=3, high=MAX_SCAN_SAMPLES)
     model, data = _gravity_model(robot, gravity)
     lo, hi = float(robot.params.lower[j]), float(robot.params.upper[j])
 
@@ -216,6 +226,7 @@ def _attr_names(model: pin.Model, frame: str) -> list[int]:
     return sorted(model.joints[i].idx_q for i in model.supports[parent] if i > 0)
 
 
+@checked_arguments
 @dataclass(frozen=True, kw_only=True)
 class Workspace:
     """Sampled reachable positions of a frame.
@@ -241,6 +252,7 @@ class Workspace:
         """Fraction of the samples that were collision free."""
         return len(self.points) / max(self.n_samples, 1)
 
+    @checked_arguments
     def volume(self, voxel: float = 0.05) -> float:
         """Volume of the voxels [m^3] (edge ``voxel`` [m]) holding at least one point.
 
@@ -262,6 +274,7 @@ class Workspace:
         return float(len(cells) * voxel**3)
 
 
+@checked_arguments
 @dataclass(frozen=True, kw_only=True)
 class VolumeEstimate:
     """A Monte Carlo volume with its uncertainty.
@@ -289,6 +302,7 @@ class VolumeEstimate:
         return f"{self.volume_m3:.3f} +- {self.stderr_m3:.3f} m^3 ({self.samples} points){flag}"
 
 
+@checked_arguments
 @dataclass(frozen=True, kw_only=True)
 class ReachAnswer:
     """Whether a position is reachable, with the evidence.
@@ -309,6 +323,7 @@ class ReachAnswer:
     tol_m: float
 
 
+@checked_arguments
 def workspace(
     robot: Robot,
     frozen: tuple[str, float] | str | None = None,
@@ -341,8 +356,7 @@ def workspace(
     base = robot.pose("stand") if q_ref is None else np.array(q_ref, dtype=float)
     if base.shape != (robot.nq,):
         raise ConfigurationError("q_ref", q_ref, f"{robot.nq} angles [rad]")
-    if not isinstance(samples, int) or samples < 1:
-        raise ConfigurationError("samples", samples, "a positive integer")
+    integer("samples", samples, low=1, high=MAX_CONFIG_SAMPLES, what="a positive integer")
     fz: tuple[str, float] | None = None
     if isinstance(frozen, str):
         fz = (frozen, float(base[robot.params.index(frozen)]))
@@ -386,6 +400,7 @@ def workspace(
     )
 
 
+@checked_arguments
 def monte_carlo_volume(
     inside: Callable[[FloatArray], NDArray[np.bool_]],
     lower: ArrayLike,
@@ -426,10 +441,8 @@ def monte_carlo_volume(
         raise ConfigurationError("box", (lower, upper), "upper > lower on every axis")
     if not (isinstance(rel_tol, (int, float)) and 0 < rel_tol < 1):
         raise ConfigurationError("rel_tol", rel_tol, "a number in (0, 1)")
-    if not isinstance(batch, int) or isinstance(batch, bool) or batch < 1:
-        raise ConfigurationError("batch", batch, "a positive integer")
-    if not isinstance(max_points, int) or isinstance(max_points, bool) or max_points < batch:
-        raise ConfigurationError("max_points", max_points, f"an integer >= batch ({batch})")
+    integer("batch", batch, low=1, high=MAX_VOLUME_POINTS, what="a positive integer")
+    integer("max_points", max_points, low=batch, high=MAX_VOLUME_POINTS, what="an integer >= batch")
     box = float(np.prod(hi - lo))
     rng = np.random.default_rng(seed)
     n = hits = 0
@@ -514,10 +527,10 @@ def _check_reach_args(seeds: int, tol: float, max_iter: int) -> None:
         raise ConfigurationError("seeds", seeds, "a positive integer")
     if not (isinstance(tol, (int, float)) and math.isfinite(tol) and tol > 0):
         raise ConfigurationError("tol", tol, "a positive distance [m]")
-    if not isinstance(max_iter, int) or isinstance(max_iter, bool) or max_iter < 1:
-        raise ConfigurationError("max_iter", max_iter, "a positive integer")
+    integer("max_iter", max_iter, low=1, high=MAX_IK_ITERATIONS, what="a positive integer")
 
 
+@checked_arguments
 def reach(
     robot: Robot,
     ws: Workspace,
@@ -558,6 +571,7 @@ def reach(
     return _reach_one(robot, ws, tree, active, world, p, seeds=seeds, tol=tol, max_iter=max_iter)
 
 
+@checked_arguments
 def reachable(
     robot: Robot,
     ws: Workspace,
@@ -585,6 +599,7 @@ def reachable(
     )
 
 
+@checked_arguments
 def reachable_volume(
     robot: Robot,
     ws: Workspace,
@@ -619,6 +634,7 @@ def reachable_volume(
         ConfigurationError: Bad arguments or an empty workspace.
     """
     _check_reach_args(seeds, tol, 1)
+    integer("max_points", max_points, low=250, high=MAX_VOLUME_POINTS, what="an integer >= 250")
     if not (isinstance(pad, (int, float)) and math.isfinite(pad) and pad >= 0):
         raise ConfigurationError("pad", pad, "a distance >= 0 [m]")
     tree, active, world = _reach_setup(robot, ws, environment)
@@ -641,6 +657,7 @@ def reachable_volume(
     )
 
 
+@checked_arguments
 def plot_workspace(
     spaces: Sequence[Workspace],
     path: str | Path | None = None,

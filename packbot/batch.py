@@ -64,8 +64,9 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, NamedTuple, TextIO
 
 from packbot.errors import ConfigurationError, PackbotError, SimulationError
+from packbot.keywords import checked_arguments
 from packbot.matrix import Matrix, Run, canonical_json, parse_matrix
-from packbot.validation import is_number
+from packbot.validation import MAX_WORKERS, integer, is_number
 
 try:
     import fcntl
@@ -162,6 +163,7 @@ _FLOAT_FIELDS = ("rest_time", "min_distance", "energy_change", "t_end", "wall_ti
 _NON_FINITE = ("inf", "-inf", "nan")
 
 
+@checked_arguments
 @dataclass(kw_only=True)
 class RunRecord:
     """What a run produced: one JSON file per run, ``runs/<id>.json``.
@@ -286,6 +288,7 @@ class RunRecord:
         return out
 
     @classmethod
+    @checked_arguments
     def from_json(cls, data: Mapping[str, Any]) -> RunRecord:
         """Read a record written by :meth:`to_json` (or of a :data:`LEGACY_RECORD_FORMATS`).
 
@@ -337,6 +340,7 @@ class RunRecord:
         return record
 
 
+@checked_arguments
 @dataclass(kw_only=True)
 class BatchReport:
     """What :func:`run_batch` did.
@@ -404,6 +408,7 @@ def _duration_text(seconds: float) -> str:
     return f"{s // 3600} h {s % 3600 // 60:02d} min"
 
 
+@checked_arguments
 class ProgressBar:
     """A text progress bar counting finished runs: ``progress(done, failed, total)``.
 
@@ -503,6 +508,7 @@ class ProgressBar:
 
 
 # ---------------------------------------------------------------------------------- running
+@checked_arguments
 def summarize(result: SimResult) -> dict[str, Any]:
     """The summary quantities of a result, as :class:`RunRecord` fields."""
     events = result.events
@@ -521,6 +527,7 @@ def summarize(result: SimResult) -> dict[str, Any]:
     }
 
 
+@checked_arguments
 def scenario_runner(run: Run, progress: Callable[[float], None]) -> tuple[dict[str, Any], RunFiles]:
     """The default :data:`Runner`: build the run's scenario, simulate it, save its trajectory.
 
@@ -540,6 +547,7 @@ def scenario_runner(run: Run, progress: Callable[[float], None]) -> tuple[dict[s
     return quantities, files
 
 
+@checked_arguments
 def check_runs(runs: Sequence[Run]) -> None:
     """Check every run's scenario before any is made: a bad value in a matrix is bad input.
 
@@ -577,6 +585,7 @@ def _params_text(run: Run) -> str:
     return ", ".join(f"{k} = {canonical_json(v)}" for k, v in run.params.items())
 
 
+@checked_arguments
 def execute(
     run: Run,
     runner: Runner = scenario_runner,
@@ -631,6 +640,7 @@ def execute(
     return record, files
 
 
+@checked_arguments
 def run_batch(
     matrix: Matrix,
     out_dir: str | Path,
@@ -671,10 +681,8 @@ def run_batch(
             scenario is bad (:func:`check_runs`; nothing run or written), or a study matrix
             (its ``[study]`` table: :mod:`packbot.study_matrix` runs those).
     """
-    if workers is not None and (
-        not isinstance(workers, int) or isinstance(workers, bool) or workers < 0
-    ):
-        raise ConfigurationError("workers", workers, "an integer >= 0")
+    if workers is not None:
+        integer("workers", workers, low=0, high=MAX_WORKERS, what="an integer >= 0")
     if timeout is not None and not (is_number(timeout) and math.isfinite(timeout) and timeout > 0):
         raise ConfigurationError("timeout", timeout, "a finite positive time [s], or None")
     if not isinstance(out_dir, (str, os.PathLike)) or not str(out_dir):
@@ -799,6 +807,7 @@ class BatchLockedError(PackbotError):
         super().__init__(f"batch folder {folder} {why}")
 
 
+@checked_arguments
 class BatchLock:
     """The lock of a batch folder: one batch at a time (``<folder>/batch.lock``).
 
@@ -997,6 +1006,7 @@ def _holder_alive(holder: Mapping[str, Any]) -> bool | None:
 
 
 # ---------------------------------------------------------------------------------- matrix
+@checked_arguments
 def check_matrix(out_dir: str | Path, matrix: Matrix) -> None:
     """Refuse a batch folder that holds another matrix's runs.
 
@@ -1045,6 +1055,7 @@ def check_matrix(out_dir: str | Path, matrix: Matrix) -> None:
     )
 
 
+@checked_arguments
 def write_matrix(out_dir: str | Path, matrix: Matrix) -> None:
     """Write ``matrix.json`` (canonical form and SHA-256) and ``matrix.toml`` (its text)."""
     out = Path(out_dir)
@@ -1253,6 +1264,7 @@ def _failed(run: Run, message: str, worker: str) -> RunRecord:
 
 
 # ---------------------------------------------------------------------------------- files
+@checked_arguments
 def read_records(out_dir: str | Path, runs: Sequence[Run] | None = None) -> dict[str, RunRecord]:
     """The run records in ``out_dir/runs/`` (of ``runs`` only, if given), by id.
 
@@ -1327,6 +1339,7 @@ def _sha256_json(data: Mapping[str, Any]) -> str:
     return hashlib.sha256(canonical_json(data).encode()).hexdigest()
 
 
+@checked_arguments
 def file_sha256(path: str | Path) -> str:
     """SHA-256 (hex) of a file's bytes, read in blocks of 1 MiB."""
     h = hashlib.sha256()
@@ -1431,6 +1444,7 @@ def _log_reruns(out: Path, rerun: Mapping[str, str], details: Mapping[str, str])
             log.info("%s: %d runs made again: %s", out, n, why)
 
 
+@checked_arguments
 def csv_text(rows: Sequence[Mapping[str, Any]], columns: Sequence[str]) -> str:
     """Rows as CSV text: a header, floats exact (shortest repr), None as an empty cell."""
     import csv
@@ -1445,6 +1459,7 @@ def csv_text(rows: Sequence[Mapping[str, Any]], columns: Sequence[str]) -> str:
     return buf.getvalue()
 
 
+@checked_arguments
 def atomic_write(path: Path, data: bytes) -> None:
     """Write a file atomically: a temporary file in the same folder, then renamed over ``path``.
 
@@ -1462,6 +1477,7 @@ def atomic_write(path: Path, data: bytes) -> None:
         raise
 
 
+@checked_arguments
 def summary_rows(runs: Sequence[Run], records: Mapping[str, RunRecord]) -> list[dict[str, Any]]:
     """One row per run of the matrix (status ``"missing"`` for a run without a record).
 
@@ -1505,6 +1521,7 @@ def summary_rows(runs: Sequence[Run], records: Mapping[str, RunRecord]) -> list[
     return rows
 
 
+@checked_arguments
 def write_summary(
     out_dir: str | Path, runs: Sequence[Run], records: Mapping[str, RunRecord]
 ) -> list[Path]:

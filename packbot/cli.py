@@ -27,7 +27,7 @@ from pathlib import Path
 from types import FrameType
 from typing import TYPE_CHECKING, Any, NoReturn
 
-from packbot.errors import PackbotError, SimulationError
+from packbot.errors import PackbotError, SimulationError, close_match
 
 if TYPE_CHECKING:
     from packbot.result import SimResult
@@ -773,19 +773,16 @@ def _is_study_matrix(text: str) -> bool:
     A file is a matrix if its TOML has ``base``, ``axes`` or ``study`` (a scenario has none of
     them); a name is a shipped scenario's first, else a shipped matrix's.
     """
-    if sys.version_info >= (3, 11):
-        import tomllib
-    else:  # pragma: no cover
-        import tomli as tomllib
-
+    from packbot import tomlfile
     from packbot.matrix import matrix_names
     from packbot.scenario import list_scenarios
 
     path = Path(text)
     if path.is_file():
         try:
-            data = tomllib.loads(path.read_text(encoding="utf-8"))
-        except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError):
+            tomlfile.check_file_size(path, "scenario", text)
+            data = tomlfile.loads(path.read_text(encoding="utf-8"), "scenario", text)
+        except (OSError, UnicodeDecodeError, PackbotError):
             return False  # the scenario reader reports it
         return any(k in data for k in ("base", "axes", "study"))
     if path.parent != Path(".") or text in list_scenarios():
@@ -889,9 +886,37 @@ def _interrupted_line(text: str) -> None:
 
 
 class _Parser(argparse.ArgumentParser):
-    """argparse, reporting a usage error in one line (exit code 2)."""
+    """argparse, reporting a usage error in one line (exit code 2).
+
+    An unrecognized option gets the closest option of its subcommand, if one is close
+    (``packbot run collapse --duraton 1``: "did you mean '--duration'?").
+    """
+
+    _argv: list[str] | None = None
+
+    def parse_known_args(  # type: ignore[override]
+        self, args: Sequence[str] | None = None, namespace: argparse.Namespace | None = None
+    ) -> tuple[argparse.Namespace, list[str]]:
+        self._argv = list(sys.argv[1:] if args is None else args)
+        return super().parse_known_args(args, namespace)
+
+    def _option_hint(self, message: str) -> str:
+        if not message.startswith("unrecognized arguments: ") or self._argv is None:
+            return ""
+        options = list(self._option_string_actions)
+        for action in self._actions:
+            if isinstance(action, argparse._SubParsersAction):
+                command = next((a for a in self._argv if a in action.choices), None)
+                if command is not None:
+                    options += list(action.choices[command]._option_string_actions)
+        for word in message.split(": ", 1)[1].split():
+            match = close_match(word.split("=", 1)[0], options) if word.startswith("-") else None
+            if match is not None:
+                return f"; did you mean {match!r}?"
+        return ""
 
     def error(self, message: str) -> NoReturn:
+        message += self._option_hint(message)
         self.exit(EXIT_USAGE, f"{self.prog}: error: {message} (see `{self.prog} --help`)\n")
 
 

@@ -49,6 +49,7 @@ from packbot.collision_build import HALFSPACE_BOX as HALFSPACE_BOX
 from packbot.collision_queries import LOS_SHORTEN as LOS_SHORTEN
 from packbot.environment import Environment
 from packbot.errors import ConfigurationError, ResourceNotFound, UnknownNameError
+from packbot.keywords import checked_arguments
 from packbot.model import Robot
 from packbot.resources import data_dir
 
@@ -71,6 +72,7 @@ DEFAULT_MARGIN = 0.05
 GJK_TOLERANCE = _cb.GJK_TOLERANCE
 
 
+@checked_arguments
 @dataclass(frozen=True)
 class PairInfo:
     """One tested pair of convex pieces.
@@ -98,6 +100,7 @@ class PairInfo:
     joint2: int
 
 
+@checked_arguments
 @dataclass(frozen=True)
 class Contact:
     """Signed distance of one pair with its witness points and normal (world frame).
@@ -117,6 +120,7 @@ class Contact:
     normal: NDArray[np.float64]
 
 
+@checked_arguments
 @dataclass(frozen=True)
 class ContactPatch:
     """Where two touching pieces meet: a polygon (4 points face on face, 2 edge on face).
@@ -164,6 +168,7 @@ class SweepResult(NamedTuple):
     counts: SweepCounts
 
 
+@checked_arguments
 class CollisionWorld:
     """Convex pieces of a robot and its static environment, answering distance queries at q.
 

@@ -6,6 +6,7 @@ from dataclasses import dataclass
 from typing import Literal, get_args
 
 from packbot.errors import ConfigurationError
+from packbot.keywords import checked_arguments
 from packbot.validation import (
     GRAVITY_MAX,
     MAX_EVENTS_LIMIT,
@@ -46,6 +47,7 @@ MOTOR_LAG_MIN = 1e-5
 MU_MAX = 10.0
 
 
+@checked_arguments
 @dataclass(kw_only=True)
 class SimConfig:
     """Settings of :func:`packbot.simulate`.

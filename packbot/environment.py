@@ -15,7 +15,17 @@ import pinocchio as pin
 from numpy.typing import NDArray
 
 from packbot.errors import ConfigurationError, ConvexityError
-from packbot.validation import choice, finite_number, name_str, real_array, vector
+from packbot.keywords import checked_arguments
+from packbot.validation import (
+    MAX_CONVEX_POINTS,
+    MAX_OBSTACLES,
+    at_most,
+    choice,
+    finite_number,
+    name_str,
+    real_array,
+    vector,
+)
 
 __all__ = ["FLOOR", "OBSTACLE_KINDS", "Environment", "Obstacle"]
 
@@ -30,6 +40,7 @@ FLATNESS_RTOL = 1e-6
 COORD_MAX = 1000.0
 
 
+@checked_arguments
 @dataclass(frozen=True, kw_only=True)
 class Obstacle:
     """A static convex obstacle. Its fields are checked at construction.
@@ -106,6 +117,8 @@ class Obstacle:
         expected = f"(N, 3) finite coordinates [m], N >= 4, each within +/-{COORD_MAX:g} m"
         if isinstance(self.points, (list, tuple, np.ndarray)) and len(self.points) == 0:
             raise ConvexityError(self.name, "needs >= 4 points (N, 3), got none")
+        if isinstance(self.points, (list, tuple, np.ndarray)):
+            at_most(f"{where}points", self.points, len(self.points), MAX_CONVEX_POINTS, "points")
         pts = real_array(f"{where}points", self.points, expected=expected)
         if pts.ndim != 2 or pts.shape[1] != 3 or len(pts) < 4:
             raise ConvexityError(self.name, f"needs >= 4 points (N, 3), got shape {pts.shape}")
@@ -177,6 +190,7 @@ class Obstacle:
 FLOOR = Obstacle(name="floor", kind="halfspace", normal=(0.0, 0.0, 1.0), offset=0.0)
 
 
+@checked_arguments
 @dataclass(frozen=True)
 class Environment:
     """The static obstacles of a simulation. ``Environment()`` is the floor alone.
@@ -188,10 +202,12 @@ class Environment:
     obstacles: tuple[Obstacle, ...] = field(default=(FLOOR,))
 
     @classmethod
+    @checked_arguments
     def empty(cls) -> Environment:
         """No obstacles at all, not even the floor."""
         return cls(obstacles=())
 
+    @checked_arguments
     def with_obstacles(self, *obstacles: Obstacle) -> Environment:
         """A copy with more obstacles."""
         return Environment(obstacles=(*self.obstacles, *obstacles))
@@ -214,6 +230,7 @@ class Environment:
             raise ConfigurationError(
                 "environment.obstacles", obstacles, "a tuple of packbot.Obstacle"
             )
+        at_most("environment.obstacles", obstacles, len(obstacles), MAX_OBSTACLES, "obstacles")
         seen: set[str] = set()
         for k, ob in enumerate(obstacles):
             if not isinstance(ob, Obstacle):

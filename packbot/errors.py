@@ -7,11 +7,14 @@ bad name, the list of valid names).
 
 from __future__ import annotations
 
+import difflib
+import reprlib
 from collections.abc import Iterable, Sequence
 from pathlib import Path
 from typing import Any
 
 __all__ = [
+    "MESSAGE_VALUE_MAX",
     "ConfigurationError",
     "ControllerError",
     "ConvexityError",
@@ -19,6 +22,7 @@ __all__ = [
     "InitialCollisionError",
     "JointError",
     "JointMismatchError",
+    "KeywordError",
     "MeshError",
     "ModelError",
     "PackbotError",
@@ -29,6 +33,112 @@ __all__ = [
     "URDFSyntaxError",
     "UnknownNameError",
 ]
+
+
+#: Longest repr of a value (or a name, a field) in an error message [characters]: a longer one
+#: is shortened to its type, its size and its first items (``list of 1,000,000 items: [0.0,
+#: 0.0, ...]``), so that a message stays one readable line (under about 300 characters with
+#: the field and the expected value) whatever the input's size; the attribute keeps the value.
+MESSAGE_VALUE_MAX = 120
+#: Longest ``expected`` text of a :class:`ConfigurationError` message [characters] (the valid
+#: choices of a table's keys, the text of a nested error).
+_EXPECTED_MAX = 600
+_PREVIEW = reprlib.Repr()
+_PREVIEW.maxlevel = 2
+_PREVIEW.maxstring = 40
+_PREVIEW.maxother = 40
+_PREVIEW.maxlong = 40
+for _attr in ("maxtuple", "maxlist", "maxarray", "maxdict", "maxset", "maxfrozenset", "maxdeque"):
+    setattr(_PREVIEW, _attr, 4)
+
+
+def _is_large(value: Any, budget: int) -> bool:
+    """Whether ``value`` holds more than ``budget`` items and characters (nested ones counted).
+
+    Its repr is then longer than ``budget`` characters; it is never built.
+    """
+    stack, seen = [value], 0
+    while stack:
+        x = stack.pop()
+        if isinstance(x, (str, bytes)):
+            seen += len(x)
+        elif isinstance(x, dict):
+            seen += len(x)
+            if seen <= budget:
+                stack.extend(x.keys())
+                stack.extend(x.values())
+        elif isinstance(x, (list, tuple, set, frozenset)):
+            seen += len(x)
+            if seen <= budget:
+                stack.extend(x)
+        else:
+            size = getattr(x, "size", None)  # an array: its repr is summarised by NumPy
+            seen += size if isinstance(size, int) and size > 16 else 1
+        if seen > budget:
+            return True
+    return False
+
+
+def short_repr(value: Any, limit: int = MESSAGE_VALUE_MAX) -> str:
+    """``repr(value)`` for an error message, shortened if longer than ``limit`` characters.
+
+    A large string shows its start and its length, a large container its type, its length and
+    its first items, an array its shape and type (the full repr of a large value is never
+    built).
+
+    Args:
+        value: The value.
+        limit: Longest repr kept as it is [characters].
+    """
+    if not _is_large(value, limit):
+        text = repr(value)
+        if len(text) <= limit:
+            return text
+    if isinstance(value, (str, bytes)):
+        return f"{value[: limit // 2]!r}... ({len(value):,} characters)"
+    shape = getattr(value, "shape", None)
+    dtype = getattr(value, "dtype", None)
+    if isinstance(shape, tuple) and dtype is not None:
+        size = getattr(value, "size", 0)
+        return f"array of {size:,} {getattr(dtype, 'name', dtype)} values, shape {shape}"
+    preview = _PREVIEW.repr(value)
+    if len(preview) > limit:
+        preview = preview[: limit - 3] + "..."
+    if isinstance(value, (list, tuple, dict, set, frozenset)):
+        unit = "keys" if isinstance(value, dict) else "items"
+        return f"{type(value).__name__} of {len(value):,} {unit}: {preview}"
+    return preview
+
+
+def short_name(name: object, limit: int = MESSAGE_VALUE_MAX) -> str:
+    """A name or field for a message (``str``), cut to ``limit`` characters with its length."""
+    text = str(name) if isinstance(name, str) else short_repr(name, limit)
+    if len(text) <= limit:
+        return text
+    return f"{text[: limit // 2]}... ({len(text):,} characters)"
+
+
+#: Closest-match cutoff of :func:`close_match`: :func:`difflib.get_close_matches`' default
+#: ratio (a dropped or doubled letter scores 0.8 to 0.95; 0.5 would offer 'stand' for
+#: 'sitting' and 'gravity' for 'gain').
+_CLOSE_MATCH_CUTOFF = 0.6
+
+
+def close_match(word: object, valid: Iterable[object]) -> str | None:
+    """The valid name closest to ``word`` (a likely misspelling), or None if none is close.
+
+    Args:
+        word: The name given (not a string, or a very long one: no suggestion).
+        valid: The valid names (those that are not strings are skipped).
+    """
+    if not isinstance(word, str) or not word or len(word) > 200:
+        return None
+    names = [v for v in valid if isinstance(v, str)]
+    match = difflib.get_close_matches(word, names, n=1, cutoff=_CLOSE_MATCH_CUTOFF)
+    if not match:  # another case ("Restitution") is a misspelling too
+        lower = {v.lower(): v for v in names}
+        match = [lower[word.lower()]] if word.lower() in lower else []
+    return match[0] if match else None
 
 
 class PackbotError(Exception):
@@ -191,18 +301,25 @@ class JointMismatchError(URDFError):
 class UnknownNameError(PackbotError, KeyError):
     """A name (joint, link, pose, obstacle, ...) is not one of the valid choices.
 
+    The message suggests the closest valid name, if one is close (a likely misspelling):
+    ``unknown pose 'stnd'; did you mean 'stand'? valid pose names are: ...``.
+
     Attributes:
         kind: What was being named ("joint", "pose", ...).
         name: The name that was given.
         valid: The valid names.
+        suggestion: The valid name closest to ``name`` (None if none is close).
     """
 
     def __init__(self, kind: str, name: object, valid: Iterable[str]) -> None:
         self.kind = kind
         self.name = name
         self.valid = sorted(valid)
+        self.suggestion = close_match(name, self.valid)
+        hint = f"did you mean {self.suggestion!r}? " if self.suggestion else ""
         super().__init__(
-            f"unknown {kind} {name!r}; valid {kind} names are: {', '.join(self.valid)}"
+            f"unknown {kind} {short_repr(name)}; {hint}valid {kind} names are: "
+            f"{', '.join(self.valid)}"
         )
 
     def __str__(self) -> str:  # KeyError would quote the message
@@ -211,6 +328,9 @@ class UnknownNameError(PackbotError, KeyError):
 
 class ConfigurationError(PackbotError, ValueError):
     """A setting, argument or array has an invalid value.
+
+    The message shows a large value shortened (:func:`short_repr`: its type, size and first
+    items), so that it stays one readable line; the attribute keeps the value as given.
 
     Attributes:
         field: Name of the offending field or argument.
@@ -224,8 +344,85 @@ class ConfigurationError(PackbotError, ValueError):
         if isinstance(expected, str):
             self.expected = expected
         else:
-            self.expected = "one of " + ", ".join(repr(x) for x in expected)
-        super().__init__(f"invalid {field}={value!r}: expected {self.expected}")
+            self.expected = "one of " + ", ".join(short_repr(x) for x in expected)
+        shown = " ".join(self.expected.split("\n"))
+        if len(shown) > _EXPECTED_MAX:
+            shown = shown[: _EXPECTED_MAX - 3] + "..."
+        super().__init__(f"invalid {short_name(field)}={short_repr(value)}: expected {shown}")
+
+
+class KeywordError(ConfigurationError, TypeError):
+    """A call's arguments do not fit the signature: an unknown or missing keyword, too many.
+
+    Raised by every public constructor and entry point (:mod:`packbot.keywords`) instead of
+    Python's bare ``TypeError``; it is a ``TypeError`` too, so code catching one keeps working.
+    The message names the keyword, the closest valid one (a likely misspelling) and the valid
+    keywords: ``unknown keyword 'restitutio' of SimConfig; did you mean 'restitution'? valid
+    keywords: contact_mode, restitution, ...``.
+
+    Attributes:
+        function: What was called (``"SimConfig"``, ``"simulate"``, ``"SimResult.save"``).
+        keyword: The unknown keyword, or the one given twice (None for a missing keyword or too
+            many positional arguments).
+        missing: The required keywords that were not given (empty unless some are missing).
+        valid: The valid keywords, in the signature's order.
+        suggestion: The valid keyword closest to :attr:`keyword` (None if none is close).
+        given: The number of positional arguments given (None unless too many were).
+    """
+
+    def __init__(
+        self,
+        function: str,
+        valid: Sequence[str],
+        *,
+        keyword: str | None = None,
+        value: Any = None,
+        suggestion: str | None = None,
+        missing: Sequence[str] = (),
+        required: Sequence[str] = (),
+        given: int | None = None,
+        positional: Sequence[str] = (),
+        twice: bool = False,
+    ) -> None:
+        self.function = function
+        self.keyword = keyword
+        self.missing = tuple(missing)
+        self.valid = tuple(valid)
+        self.suggestion = suggestion
+        self.given = given
+        names = ", ".join(self.valid) or "none"
+        if self.missing:
+            s = "s" if len(self.missing) > 1 else ""
+            what = ", ".join(repr(m) for m in self.missing)
+            msg = (
+                f"missing keyword{s} {what} of {function} (required: {', '.join(required)}; "
+                f"valid keywords: {names})"
+            )
+            field, shown, expected = self.missing[0], None, f"a value ({function} requires it)"
+        elif given is not None:
+            most = len(positional)
+            takes = f"at most {most}" if most else "none"
+            msg = (
+                f"too many positional arguments to {function}: {given} given, it takes {takes}"
+                + (f" ({', '.join(positional)})" if positional else "")
+                + f"; pass {'the others' if most else 'them'} by keyword "
+                f"(valid keywords: {names})"
+            )
+            field, shown, expected = "arguments", given, f"at most {most} positional arguments"
+        elif twice:
+            msg = (
+                f"keyword {short_name(keyword)!r} of {function} given twice (by position and by "
+                f"keyword); valid keywords: {names}"
+            )
+            field, shown, expected = str(keyword), value, "one value"
+        else:
+            hint = f"; did you mean {suggestion!r}? " if suggestion else "; "
+            msg = (
+                f"unknown keyword {short_repr(keyword)} of {function}{hint}valid keywords: {names}"
+            )
+            field, shown, expected = str(keyword), value, f"one of the keywords: {names}"
+        PackbotError.__init__(self, msg)
+        self.field, self.value, self.expected = field, shown, expected
 
 
 class ConvexityError(ModelError):

@@ -24,6 +24,7 @@ from dataclasses import dataclass
 from typing import Literal, get_args
 
 from packbot.errors import ConfigurationError, UnknownNameError
+from packbot.keywords import checked_arguments
 from packbot.validation import choice, finite_number, name_str
 
 __all__ = ["FAILURE_KINDS", "Failure", "FailureKind", "validate_failures"]
@@ -34,6 +35,7 @@ FailureKind = Literal["loose", "frozen", "weak", "stuck", "brake"]
 FAILURE_KINDS: tuple[str, ...] = get_args(FailureKind)
 
 
+@checked_arguments
 @dataclass(frozen=True, kw_only=True)
 class Failure:
     """A joint failure.
@@ -89,6 +91,7 @@ class Failure:
             "threshold": threshold,
         }
 
+    @checked_arguments
     def validate(self, joint_names: Sequence[str]) -> None:
         """Raise a :class:`~packbot.errors.PackbotError` naming the first bad field.
 
@@ -103,6 +106,7 @@ class Failure:
             raise UnknownNameError("joint", self.joint, joint_names)
 
 
+@checked_arguments
 def validate_failures(failures: Sequence[Failure], joint_names: Sequence[str]) -> None:
     """Validate a list of failures: each one, and at most one failure per joint.
 

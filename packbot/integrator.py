@@ -41,6 +41,7 @@ from packbot.environment import Environment
 from packbot.errors import PackbotError, SimulationError
 from packbot.failures import Failure
 from packbot.inputs import check_inputs, warn_settings
+from packbot.keywords import checked_arguments
 from packbot.model import Robot
 from packbot.ode import DenseSegment, RK45Stepper, StepSizeUnderflow, locate_earliest
 from packbot.payload import Payload
@@ -401,6 +402,7 @@ class _Run:
         )
 
 
+@checked_arguments
 def simulate(
     robot: Robot,
     q0: Any,

@@ -55,21 +55,19 @@ import copy
 import hashlib
 import itertools
 import json
+import math
 import os
 import re
-import sys
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from packbot import tomlfile
 from packbot.errors import ConfigurationError, ResourceNotFound, UnknownNameError
+from packbot.keywords import checked_arguments
 from packbot.tolerances import Tolerances
-
-if sys.version_info >= (3, 11):
-    import tomllib
-else:  # pragma: no cover
-    import tomli as tomllib
+from packbot.validation import MAX_MATRIX_RUNS, at_most, name_str
 
 __all__ = [
     "MATRIX_FORMAT",
@@ -110,6 +108,7 @@ _SLUG_MAX = 80
 _HASH_DIGITS = 10
 
 
+@checked_arguments
 @dataclass(frozen=True, kw_only=True)
 class Run:
     """One run of a matrix: the base scenario with its overrides applied.
@@ -137,6 +136,7 @@ class Run:
     source_text: str = ""
 
 
+@checked_arguments
 @dataclass(kw_only=True)
 class Matrix:
     """A matrix file: a base scenario and the values to sweep.
@@ -177,6 +177,7 @@ class Matrix:
             raise ConfigurationError(
                 "name", self.name, "a non-empty name of letters, digits, '_' and '-'"
             )
+        name_str("name", self.name, "a name of letters, digits, '_' and '-'")
         if not isinstance(self.base, str) or not self.base:
             raise ConfigurationError("base", self.base, "a scenario name or path")
         if not isinstance(self.description, str):
@@ -186,6 +187,7 @@ class Matrix:
             _check_json(f"set.{key}", value)
         if not self.axes and not self.include:
             raise ConfigurationError("axes", self.axes, "at least one axis or [[include]] table")
+        at_most("axes", self.axes, self.run_count(), MAX_MATRIX_RUNS, "runs (the axes' product)")
         for key, values in self.axes.items():
             _check_dotted(f"axes.{key}", key)
             if not isinstance(values, list) or not values:
@@ -218,6 +220,15 @@ class Matrix:
             for i, overrides in enumerate(group):
                 for key, value in overrides.items():
                     _check_json(f"{title}.{i}.{key}", value)
+
+    def run_count(self) -> int:
+        """The number of runs before the excludes, computed without expanding anything.
+
+        The product of the axes' lengths, plus one per ``[[include]]`` table; the bound
+        :data:`~packbot.validation.MAX_MATRIX_RUNS` is on it.
+        """
+        sizes = [len(v) if isinstance(v, list) else 1 for v in self.axes.values()]
+        return (math.prod(sizes) if sizes else 0) + len(self.include)
 
     def canonical(self) -> dict[str, Any]:
         """What defines the matrix's runs, as a JSON-ready dict.
@@ -256,6 +267,7 @@ class Matrix:
                 return beside
         return self.base
 
+    @checked_arguments
     def runs(self, base: Mapping[str, Any] | None = None) -> list[Run]:
         """Expand into runs.
 
@@ -276,6 +288,7 @@ class Matrix:
         return expand(self, base, base_text=text)
 
 
+@checked_arguments
 def find_matrix(name_or_path: str | Path) -> Path:
     """The matrix file: an existing path, or a name in the shipped ``sims/matrices/``.
 
@@ -298,6 +311,7 @@ def find_matrix(name_or_path: str | Path) -> Path:
     raise UnknownNameError("matrix", str(name_or_path), matrix_names())
 
 
+@checked_arguments
 def matrix_names() -> list[str]:
     """Names of the matrices shipped in ``sims/matrices/``."""
     from packbot.resources import data_dir
@@ -309,6 +323,7 @@ def matrix_names() -> list[str]:
     return sorted(p.stem for p in folder.glob("*.toml"))
 
 
+@checked_arguments
 def load_matrix(name_or_path: str | Path) -> Matrix:
     """Read and validate a matrix file (see the module docstring for its format).
 
@@ -320,6 +335,7 @@ def load_matrix(name_or_path: str | Path) -> Matrix:
         ConfigurationError: A bad value (the message names its key) or a TOML syntax error.
     """
     path = find_matrix(name_or_path)
+    tomlfile.check_file_size(path, str(path), "(file)")
     try:
         text = path.read_text(encoding="utf-8")
     except (OSError, UnicodeDecodeError) as exc:
@@ -327,6 +343,7 @@ def load_matrix(name_or_path: str | Path) -> Matrix:
     return parse_matrix(text, path=path.resolve(), default_name=path.stem)
 
 
+@checked_arguments
 def parse_matrix(text: str, *, path: Path | None = None, default_name: str = "") -> Matrix:
     """Parse and validate a matrix file's text.
 
@@ -340,10 +357,7 @@ def parse_matrix(text: str, *, path: Path | None = None, default_name: str = "")
         ConfigurationError: A bad value (the message names its key) or a TOML syntax error.
     """
     where = str(path) if path is not None else "matrix"
-    try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise ConfigurationError(where, "(file)", f"valid TOML ({exc})") from exc
+    data = tomlfile.loads(text, where, "(file)")
     for key in data:
         if key not in MATRIX_KEYS:
             raise UnknownNameError("matrix key", key, MATRIX_KEYS)
@@ -370,6 +384,7 @@ def parse_matrix(text: str, *, path: Path | None = None, default_name: str = "")
     return matrix
 
 
+@checked_arguments
 def expand(matrix: Matrix, base: Mapping[str, Any], *, base_text: str = "") -> list[Run]:
     """Expand a matrix over a base scenario dict into runs.
 
@@ -426,16 +441,19 @@ def _source_text(matrix: Matrix, base_text: str, params: Mapping[str, Any]) -> s
     return base_text.rstrip("\n") + "\n\n" + "\n".join(lines) + "\n"
 
 
+@checked_arguments
 def canonical_json(value: Any) -> str:
     """The canonical JSON of a value: sorted keys, no spaces, ASCII, exact floats."""
     return json.dumps(value, sort_keys=True, separators=(",", ":"), ensure_ascii=True)
 
 
+@checked_arguments
 def digest(value: Any) -> str:
     """SHA-256 (hex) of the canonical JSON of a value."""
     return hashlib.sha256(canonical_json(value).encode()).hexdigest()
 
 
+@checked_arguments
 def run_id(params: Mapping[str, Any]) -> str:
     """The stable id of a run: ``<slug>-<hash>``.
 
@@ -454,6 +472,7 @@ def run_id(params: Mapping[str, Any]) -> str:
     return f"{slug}-{h}" if slug else h
 
 
+@checked_arguments
 def apply_overrides(
     data: Mapping[str, Any], overrides: Mapping[str, Any], *, field_prefix: str = "axes"
 ) -> dict[str, Any]:
@@ -474,6 +493,7 @@ def apply_overrides(
     return out
 
 
+@checked_arguments
 def set_dotted(data: dict[str, Any], key: str, value: Any, *, field: str = "") -> None:
     """Set ``data[a][b][...] = value`` for the dotted name ``"a.b...."``, in place.
 

@@ -42,6 +42,7 @@ from packbot.errors import (
     URDFError,
     URDFSyntaxError,
 )
+from packbot.keywords import checked_arguments
 from packbot.resources import URDF_NAME, data_dir, resolve_mesh_uri
 from packbot.validation import finite_number
 
@@ -57,6 +58,7 @@ CONVEXITY_RTOL = 1e-6
 INERTIA_RTOL = 1e-9
 
 
+@checked_arguments
 @dataclass(frozen=True)
 class JointParams:
     """Per-joint actuator and limit data, as arrays in the model's velocity order (shape (nv,)).
@@ -87,6 +89,7 @@ class JointParams:
     coulomb: NDArray[np.float64]
     table: Mapping[str, P.Param] = field(repr=False)
 
+    @checked_arguments
     def index(self, joint: str) -> int:
         """Index of a joint in these arrays (and in q and v).
 
@@ -99,6 +102,7 @@ class JointParams:
             raise UnknownNameError("joint", joint, self.names) from None
 
 
+@checked_arguments
 @dataclass
 class Robot:
     """The PackBot EOD arm on its chassis.
@@ -138,6 +142,7 @@ class Robot:
         """Number of configuration coordinates."""
         return int(self.model.nq)
 
+    @checked_arguments
     def pose(self, name: str) -> NDArray[np.float64]:
         """A copy of a named pose's q [rad].
 
@@ -148,6 +153,7 @@ class Robot:
             raise UnknownNameError("pose", name, self.poses)
         return self.poses[name].copy()
 
+    @checked_arguments
     def q_from(self, values: Mapping[str, float], base: str | None = None) -> NDArray[np.float64]:
         """Build q [rad] from joint values by name, the others from pose ``base`` (or zero).
 
@@ -165,6 +171,7 @@ class Robot:
             )
         return q
 
+    @checked_arguments
     def check_within_limits(self, q: NDArray[np.float64], field_name: str = "q") -> None:
         """Raise :class:`ConfigurationError` naming the joints of q outside their limits."""
         q = np.asarray(q, dtype=float)
@@ -807,6 +814,7 @@ class _URDFChecker:
         )
 
 
+@checked_arguments
 def check_urdf(path: str | Path) -> str:
     """Parse and check a URDF file for :func:`load_robot`.
 
@@ -836,6 +844,7 @@ def check_urdf(path: str | Path) -> str:
     return _URDFChecker(Path(path)).run()
 
 
+@checked_arguments
 def load_robot(urdf: str | Path | None = None) -> Robot:
     """Load the PackBot EOD model.
 

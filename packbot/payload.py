@@ -17,6 +17,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from packbot.errors import ConfigurationError
+from packbot.keywords import checked_arguments
 from packbot.validation import finite_number, name_str, vector
 
 __all__ = ["Payload"]
@@ -30,6 +31,7 @@ COM_MAX = 10.0
 INERTIA_MAX = MASS_MAX * COM_MAX**2
 
 
+@checked_arguments
 @dataclass(frozen=True, kw_only=True)
 class Payload:
     """A payload. Its fields are checked at construction (a ConfigurationError names the field).

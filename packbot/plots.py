@@ -44,6 +44,7 @@ from numpy.typing import NDArray
 
 from packbot.collision import CollisionWorld
 from packbot.errors import ConfigurationError, UnknownNameError
+from packbot.keywords import checked_arguments
 from packbot.labels import event_label
 from packbot.result import SimResult
 
@@ -153,6 +154,7 @@ def _save(fig: Figure, path: str | Path | None, formats: Sequence[str], dpi: int
 
 
 # --------------------------------------------------------------------------- events and zoom
+@checked_arguments
 def time_window(
     result: SimResult, event_kinds: Iterable[str] = MARKED_EVENTS
 ) -> tuple[float, float]:
@@ -464,6 +466,7 @@ def _fit_y(ax: Axes, values: Sequence[NDArray[np.float64]], mask: NDArray[np.boo
     ax.set_ylim(lo - pad, hi + pad)
 
 
+@checked_arguments
 def plot_joints(
     result: SimResult,
     joints: Sequence[str] = PLANAR_JOINTS,
@@ -548,6 +551,7 @@ def _tested_pairs(result: SimResult, world: CollisionWorld) -> NDArray[np.intp]:
     return np.array(keep, dtype=np.intp)
 
 
+@checked_arguments
 def sample_distances(result: SimResult, world: CollisionWorld) -> NDArray[np.float64]:
     """Smallest signed distance [m] at every sample of a result, over the tested pairs.
 
@@ -573,6 +577,7 @@ def sample_distances(result: SimResult, world: CollisionWorld) -> NDArray[np.flo
     return np.array([float(world.all_distances(q)[pairs].min()) for q in result.q])
 
 
+@checked_arguments
 def plot_distance(
     result: SimResult,
     world: CollisionWorld,
@@ -642,6 +647,7 @@ def plot_distance(
     return tf.fig
 
 
+@checked_arguments
 def plot_energy(
     result: SimResult,
     path: str | Path | None = None,
@@ -725,6 +731,7 @@ def _runs_beyond(values: NDArray[np.float64], edge: float) -> list[tuple[int, in
     ]
 
 
+@checked_arguments
 def plot_torques(
     result: SimResult,
     joints: Sequence[str] = PLANAR_JOINTS,
@@ -848,6 +855,7 @@ def _mark_clipped(
     )
 
 
+@checked_arguments
 def plot_tracking(
     result: SimResult,
     q_ref: NDArray[np.float64],
@@ -923,6 +931,7 @@ def _mark_events(ax: Axes, result: SimResult, kinds: Iterable[str]) -> list[tupl
     return list(drawn.items())
 
 
+@checked_arguments
 def sample_occlusion(
     result: SimResult,
     world: CollisionWorld,
@@ -966,6 +975,7 @@ def _runs(values: Sequence[str | None]) -> list[tuple[int, int, str]]:
     return out
 
 
+@checked_arguments
 def plot_occlusion(
     result: SimResult,
     blocked: Sequence[Sequence[str | None]],

@@ -59,6 +59,7 @@ from packbot.batch import (
 )
 from packbot.config import SimConfig
 from packbot.errors import ConfigurationError, ResourceNotFound
+from packbot.keywords import checked_arguments
 from packbot.matrix import Matrix, Run, apply_overrides, digest
 from packbot.tolerances import Tolerances
 
@@ -123,6 +124,7 @@ FloatArray = NDArray[np.float64]
 Trajectory = tuple[FloatArray, FloatArray]
 
 
+@checked_arguments
 @dataclass(frozen=True, kw_only=True)
 class Sensitivity:
     """How far a run's perturbed copies (:data:`PERTURBATIONS`) land from it.
@@ -160,6 +162,7 @@ class Sensitivity:
         }
 
     @classmethod
+    @checked_arguments
     def from_json(cls, data: Mapping[str, Any]) -> Sensitivity:
         """Inverse of :meth:`to_json`."""
         return cls(
@@ -217,6 +220,7 @@ def checkpoints(traj: Trajectory, duration: float) -> tuple[list[float], list[li
     return times, rows
 
 
+@checked_arguments
 def measure_sensitivity(
     nominal: RunRecord,
     traj: Trajectory,
@@ -291,6 +295,7 @@ def measure_sensitivity(
     )
 
 
+@checked_arguments
 @dataclass(frozen=True)
 class Drift:
     """One quantity of one run that moved beyond its tolerance.
@@ -312,6 +317,7 @@ class Drift:
     tolerance: float = math.nan
 
 
+@checked_arguments
 def compare(
     golden: Mapping[str, Mapping[str, Any]],
     new: Mapping[str, RunRecord],
@@ -513,6 +519,7 @@ def _fmt(x: float | None) -> str:
     return "None" if x is None else f"{x:.10g}"
 
 
+@checked_arguments
 def format_drifts(drifts: Sequence[Drift], n_runs: int) -> str:
     """A table of the drifts (one line each) and a last line counting them."""
     if not drifts:
@@ -561,6 +568,7 @@ def _golden_json(data: Mapping[str, Any]) -> str:
     return "\n".join(lines) + "\n"
 
 
+@checked_arguments
 def read_golden(folder: str | Path) -> tuple[str, dict[str, dict[str, Any]]]:
     """Read ``folder/results.json``.
 
@@ -585,6 +593,7 @@ def read_golden(folder: str | Path) -> tuple[str, dict[str, dict[str, Any]]]:
     return str(data["matrix"]), dict(data["runs"])
 
 
+@checked_arguments
 def write_golden(
     folder: str | Path,
     matrix_name: str,
@@ -631,6 +640,7 @@ def write_golden(
     return [results, summary]
 
 
+@checked_arguments
 @dataclass(kw_only=True)
 class RegressionResult:
     """What :func:`run_regression` found.
@@ -664,6 +674,7 @@ class RegressionResult:
         return "\n".join(lines)
 
 
+@checked_arguments
 def default_golden_dir() -> Path:
     """The shipped golden results folder, ``sims/golden/``."""
     from packbot.resources import data_dir
@@ -671,12 +682,14 @@ def default_golden_dir() -> Path:
     return data_dir("sims") / "golden"
 
 
+@checked_arguments
 def golden_matrices(golden_root: str | Path) -> list[str]:
     """Names of the matrices that have golden results in ``golden_root``."""
     root = Path(golden_root)
     return sorted(p.parent.name for p in root.glob("*/results.json"))
 
 
+@checked_arguments
 def run_regression(
     matrix: Matrix,
     golden_root: str | Path,
@@ -810,6 +823,7 @@ def _sensitivity(
 _EMPTY: Trajectory = (np.zeros(0), np.zeros((0, 0)))
 
 
+@checked_arguments
 def read_trajectories(
     out_dir: str | Path, records: Mapping[str, RunRecord]
 ) -> dict[str, Trajectory]:

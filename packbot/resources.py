@@ -18,6 +18,7 @@ from importlib.resources import files
 from pathlib import Path
 
 from packbot.errors import ResourceNotFound
+from packbot.keywords import checked_arguments
 
 __all__ = [
     "DESCRIPTION_PACKAGE",
@@ -47,6 +48,7 @@ SRDF_NAME = "packbot_eod.srdf"
 MJCF_NAME = "packbot_eod.xml"
 
 
+@checked_arguments
 def repo_root() -> Path | None:
     """The source checkout holding this package, or None when installed from a wheel."""
     root = Path(__file__).resolve().parent.parent
@@ -69,6 +71,7 @@ def _data_root(name: str) -> Path:
     raise ResourceNotFound(packaged, "reinstall packbot (pip install .) or run from a checkout")
 
 
+@checked_arguments
 def data_dir(name: str) -> Path:
     """Absolute path of a data folder: ``"urdf"`` (the description package) or ``"sims"``.
 
@@ -83,6 +86,7 @@ def data_dir(name: str) -> Path:
     return _data_root(name)
 
 
+@checked_arguments
 @functools.cache
 def description_dir() -> Path:
     """Absolute path of the description package folder ``urdf/packbot`` (holds ``package.xml``).
@@ -98,6 +102,7 @@ def description_dir() -> Path:
     return path
 
 
+@checked_arguments
 def package_dirs() -> list[str]:
     """The package directories under which ``package://packbot/...`` mesh URIs resolve.
 
@@ -107,21 +112,25 @@ def package_dirs() -> list[str]:
     return [str(description_dir().parent)]
 
 
+@checked_arguments
 def urdf_path() -> Path:
     """Absolute path of the shipped URDF, ``urdf/packbot/packbot_eod.urdf``."""
     return description_dir() / URDF_NAME
 
 
+@checked_arguments
 def srdf_path() -> Path:
     """Absolute path of the shipped SRDF (collision pairs, groups, named poses)."""
     return description_dir() / SRDF_NAME
 
 
+@checked_arguments
 def mjcf_path() -> Path:
     """Absolute path of the shipped MuJoCo model (MJCF) generated from the same parameters."""
     return description_dir() / MJCF_NAME
 
 
+@checked_arguments
 def resolve_mesh_uri(uri: str, urdf_dir: Path) -> Path | None:
     """The file a mesh URI written in a URDF stands for.
 

@@ -18,6 +18,7 @@ from numpy.typing import NDArray
 from packbot.config import SimConfig
 from packbot.errors import ConfigurationError, PackbotError, ResultFileError, UnknownNameError
 from packbot.failures import Failure
+from packbot.keywords import checked_arguments
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -84,6 +85,7 @@ EVENT_KINDS: tuple[str, ...] = (
 )
 
 
+@checked_arguments
 @dataclass(frozen=True)
 class Event:
     """One entry of the event log.
@@ -123,6 +125,7 @@ class Event:
         return self.energy_after - self.energy_before
 
 
+@checked_arguments
 @dataclass
 class Diagnostics:
     """Work done and invariants seen by a run.
@@ -163,6 +166,7 @@ class Diagnostics:
     window_energy_removed: float = 0.0
 
 
+@checked_arguments
 @dataclass
 class SimResult:
     """The outcome of :func:`packbot.simulate`.
@@ -213,6 +217,7 @@ class SimResult:
     payload: Payload | None = None
     scenario_text: str = ""
 
+    @checked_arguments
     def events_of(self, *kinds: str) -> list[Event]:
         """The events of the given kinds (each one of :data:`EVENT_KINDS`).
 
@@ -224,6 +229,7 @@ class SimResult:
                 raise UnknownNameError("event kind", kind, EVENT_KINDS)
         return [e for e in self.events if e.kind in kinds]
 
+    @checked_arguments
     def joint(self, name: str) -> int:
         """Column index of a joint.
 
@@ -234,6 +240,7 @@ class SimResult:
             raise UnknownNameError("joint", name, self.joint_names)
         return self.joint_names.index(name)
 
+    @checked_arguments
     def save(self, path: str | Path, *, extra: Mapping[str, str] | None = None) -> Path:
         """Write the whole result to one compressed ``.npz`` file, atomically.
 
@@ -326,6 +333,7 @@ class SimResult:
         return out
 
     @classmethod
+    @checked_arguments
     def load(cls, path: str | Path) -> SimResult:
         """Read a result written by :meth:`save`.
 
@@ -426,6 +434,7 @@ class SimResult:
             scenario_text=str(meta["scenario_text"]),
         )
 
+    @checked_arguments
     def to_dataframe(self) -> pd.DataFrame:
         """The samples as a pandas DataFrame (needs the optional extra ``packbot[pandas]``).
 

@@ -39,7 +39,6 @@ import io
 import logging
 import math
 import os
-import sys
 import tempfile
 import types
 import typing
@@ -53,17 +52,27 @@ from typing import IO, TYPE_CHECKING, Any, Literal, get_args, get_origin
 import numpy as np
 from numpy.typing import NDArray
 
+from packbot import tomlfile
 from packbot.config import SimConfig
 from packbot.environment import FLOOR, Environment, Obstacle
-from packbot.errors import ConfigurationError, ConvexityError, UnknownNameError
+from packbot.errors import (
+    ConfigurationError,
+    ConvexityError,
+    KeywordError,
+    UnknownNameError,
+    close_match,
+)
 from packbot.failures import Failure
+from packbot.keywords import checked_arguments
 from packbot.payload import Payload
-from packbot.validation import finite_number, real_array
-
-if sys.version_info >= (3, 11):
-    import tomllib
-else:  # pragma: no cover
-    import tomli as tomllib
+from packbot.validation import (
+    MAX_OBSTACLES,
+    MAX_OCCLUSION_TARGETS,
+    at_most,
+    finite_number,
+    name_str,
+    real_array,
+)
 
 if TYPE_CHECKING:
     from packbot.collision import CollisionWorld
@@ -113,6 +122,7 @@ _FORMATS = ("png", "svg")
 
 
 # ---------------------------------------------------------------------------------- dataclasses
+@checked_arguments
 @dataclass(frozen=True, kw_only=True)
 class OcclusionCheck:
     """Is the camera's view of target points blocked (by the arm, the chassis, obstacles)?
@@ -137,6 +147,14 @@ class OcclusionCheck:
             raise ConfigurationError(
                 "outputs.occlusion.targets", self.targets, "at least one (x, y, z) point [m]"
             )
+        if isinstance(self.targets, (list, tuple)):
+            at_most(
+                "outputs.occlusion.targets",
+                self.targets,
+                len(self.targets),
+                MAX_OCCLUSION_TARGETS,
+                "targets",
+            )
         for k, p in enumerate(self.targets):
             if len(p) != 3 or not all(_finite(x) for x in p):
                 raise ConfigurationError(
@@ -148,6 +166,7 @@ class OcclusionCheck:
             )
 
 
+@checked_arguments
 @dataclass(frozen=True, kw_only=True)
 class Outputs:
     """What a run writes besides its trajectory and event log.
@@ -213,6 +232,7 @@ class Outputs:
             self.occlusion.validate()
 
 
+@checked_arguments
 @dataclass(kw_only=True)
 class Scenario:
     """A simulation described by a scenario file.
@@ -255,6 +275,7 @@ class Scenario:
     source_text: str = ""
     source_path: Path | None = None
 
+    @checked_arguments
     def validate(self, robot: Robot | None = None) -> None:
         """Check every field; raise a :class:`ConfigurationError` naming the first bad one.
 
@@ -361,6 +382,7 @@ class Scenario:
             if not isinstance(f, Failure):
                 raise ConfigurationError(f"failures[{k}]", f, "a packbot.Failure")
 
+    @checked_arguments
     def initial_state(self, robot: Robot) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """The initial joint positions [rad] and velocities [rad/s], shape (nq,) each.
 
@@ -392,6 +414,7 @@ class Scenario:
         robot.check_within_limits(q, "initial.q")
         return q, v
 
+    @checked_arguments
     def build_controller(self, robot: Robot) -> Controller | None:
         """The controller (None for ``"zero"``), built by ``packbot.control.build_controller``.
 
@@ -576,10 +599,12 @@ def _check_keys(data: Mapping[str, Any], path: str, valid: Sequence[str]) -> Non
     for key, value in data.items():
         if key not in valid:
             where = f"[{path}]" if path else "the top level"
+            match = close_match(key, valid)
+            hint = f" (did you mean {match!r}?)" if match else ""
             raise ConfigurationError(
                 f"{path}.{key}" if path else key,
                 value,
-                f"a key of {where}, one of: {', '.join(valid)}",
+                f"a key of {where}{hint}, one of: {', '.join(valid)}",
             )
 
 
@@ -594,24 +619,17 @@ def _dataclass_from(
     kwargs = {k: _coerce(f"{path}.{k}", v, hints.get(k, Any)) for k, v in table.items()}
     try:
         return cls(**kwargs, **extra)
+    except KeywordError as exc:  # a required field is missing (the keys are checked above)
+        if exc.missing:
+            name = exc.missing[0]
+            raise ConfigurationError(
+                f"{path}.{name}", None, f"a value: {path}.{name} is required"
+            ) from None
+        raise ConfigurationError(path, table, str(exc)) from None
     except ConvexityError as exc:  # an obstacle's points (checked at construction)
         raise ConfigurationError(f"{path}.points", table.get("name"), str(exc)) from None
     except ConfigurationError as exc:  # a bad value (checked at construction): name its path
         raise ConfigurationError(f"{path}.{_last(exc.field)}", exc.value, exc.expected) from None
-    except TypeError as exc:  # a required field is missing
-        missing = [
-            f.name
-            for f in dataclasses.fields(cls)
-            if f.init
-            and f.name not in table
-            and f.default is dataclasses.MISSING
-            and f.default_factory is dataclasses.MISSING
-        ]
-        if missing:
-            raise ConfigurationError(
-                f"{path}.{missing[0]}", None, f"a value: {path}.{missing[0]} is required"
-            ) from None
-        raise ConfigurationError(path, table, str(exc)) from None
 
 
 def _joint_values(data: Any, path: str) -> tuple[float, ...] | dict[str, float]:
@@ -622,6 +640,7 @@ def _joint_values(data: Any, path: str) -> tuple[float, ...] | dict[str, float]:
     raise ConfigurationError(path, data, "a list of joint values or a table joint = value")
 
 
+@checked_arguments
 def scenario_from_dict(data: Mapping[str, Any], *, name: str, source_text: str = "") -> Scenario:
     """Build a :class:`Scenario` from a scenario file's table (as parsed from TOML).
 
@@ -638,8 +657,7 @@ def scenario_from_dict(data: Mapping[str, Any], *, name: str, source_text: str =
     """
     if not isinstance(data, Mapping):
         raise ConfigurationError("scenario", data, "a table (the parsed TOML of a scenario file)")
-    if not isinstance(name, str) or not name:
-        raise ConfigurationError("name", name, "a non-empty string")
+    name_str("name", name, "a non-empty string")
     data = dict(data)
     _check_keys(data, "", TOP_LEVEL_KEYS)
     if "duration" not in data:
@@ -676,6 +694,7 @@ def scenario_from_dict(data: Mapping[str, Any], *, name: str, source_text: str =
         raise ConfigurationError(
             "environment.obstacles", raw_obstacles, "an array of tables [[environment.obstacles]]"
         )
+    at_most("environment.obstacles", raw_obstacles, len(raw_obstacles), MAX_OBSTACLES, "obstacles")
     obstacles = tuple(
         _dataclass_from(Obstacle, o, f"environment.obstacles[{k}]")
         for k, o in enumerate(raw_obstacles)
@@ -714,6 +733,7 @@ def scenario_from_dict(data: Mapping[str, Any], *, name: str, source_text: str =
     return scenario
 
 
+@checked_arguments
 def json_schema(robot: Robot | None = None) -> dict[str, Any]:
     """The JSON Schema (draft 7) of scenario files, for editors (docs/scenarios.md).
 
@@ -742,11 +762,13 @@ def _sims_dir() -> Path:
 RENAMED_SCENARIOS: dict[str, str] = {"collapse_normal": "collapse_physical"}
 
 
+@checked_arguments
 def list_scenarios() -> dict[str, Path]:
     """The shipped scenarios: name -> file (``sims/*.toml``), sorted by name."""
     return {p.stem: p for p in sorted(_sims_dir().glob("*.toml"))}
 
 
+@checked_arguments
 def scenario_path(name_or_path: str | Path) -> Path:
     """The file of a scenario: a name in ``sims/`` (``"collapse"``) or a path to a TOML file.
 
@@ -780,6 +802,7 @@ def scenario_path(name_or_path: str | Path) -> Path:
     return shipped[text]
 
 
+@checked_arguments
 def read_scenario_dict(name_or_path: str | Path) -> dict[str, Any]:
     """The raw table of a scenario file (parsed TOML, not checked).
 
@@ -791,13 +814,12 @@ def read_scenario_dict(name_or_path: str | Path) -> dict[str, Any]:
 
 
 def _parse(path: Path) -> tuple[dict[str, Any], str]:
+    tomlfile.check_file_size(path, "scenario", str(path))
     text = path.read_bytes().decode("utf-8", errors="replace")
-    try:
-        return tomllib.loads(text), text
-    except tomllib.TOMLDecodeError as exc:
-        raise ConfigurationError("scenario", str(path), f"valid TOML: {exc}") from None
+    return tomlfile.loads(text, "scenario", str(path)), text
 
 
+@checked_arguments
 def load_scenario(name_or_path: str | Path) -> Scenario:
     """Load and check a scenario (a name in ``sims/`` or a path); see :func:`scenario_from_dict`.
 
@@ -813,6 +835,7 @@ def load_scenario(name_or_path: str | Path) -> Scenario:
 
 
 # ---------------------------------------------------------------------------------- running
+@checked_arguments
 def run_scenario(
     scenario: Scenario,
     robot: Robot | None = None,
@@ -902,6 +925,7 @@ def _atomic_write(path: Path, write: Callable[[Any], None], binary: bool) -> Non
         raise
 
 
+@checked_arguments
 def save_run(
     result: SimResult, scenario: Scenario, out_dir: str | Path, stem: str | None = None
 ) -> dict[str, Path]:
@@ -963,6 +987,7 @@ def save_run(
     return {"trajectory": traj, "events": events}
 
 
+@checked_arguments
 def write_outputs(
     result: SimResult,
     scenario: Scenario,

@@ -30,6 +30,7 @@ from packbot.environment import Environment
 from packbot.errors import ModelError
 from packbot.model import Robot
 from packbot.resources import DESCRIPTION_PACKAGE
+from packbot.validation import MAX_CONFIG_SAMPLES, integer
 
 __all__ = [
     "DEFAULT_CLEARANCE",
@@ -59,7 +60,12 @@ WHOLE_GROUP = "packbot"
 def sample_link_distances(
     robot: Robot, samples: int, seed: int = DEFAULT_SEED
 ) -> dict[tuple[str, str], tuple[float, float]]:
-    """Smallest and largest signed distance [m] of every non-adjacent link pair over samples."""
+    """Smallest and largest signed distance [m] of every non-adjacent link pair over samples.
+
+    Raises:
+        ConfigurationError: ``samples`` not an integer in [1, :data:`MAX_CONFIG_SAMPLES`].
+    """
+    integer("samples", samples, low=1, high=MAX_CONFIG_SAMPLES, what="a positive integer")
     world = CollisionWorld(robot, Environment.empty(), srdf=False)
     rng = np.random.default_rng(seed)
     lo, hi = robot.params.lower, robot.params.upper
@@ -83,7 +89,12 @@ def generate_srdf(
     clearance: float = DEFAULT_CLEARANCE,
     seed: int = DEFAULT_SEED,
 ) -> str:
-    """The SRDF text: adjacent, never-close and always-colliding link pairs."""
+    """The SRDF text: adjacent, never-close and always-colliding link pairs.
+
+    Raises:
+        ConfigurationError: ``samples`` not an integer in [1, :data:`MAX_CONFIG_SAMPLES`].
+    """
+    integer("samples", samples, low=1, high=MAX_CONFIG_SAMPLES, what="a positive integer")
     model = robot.model
     lines = [
         '<?xml version="1.0"?>',

@@ -42,7 +42,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from packbot.errors import ConfigurationError, PackbotError, SimulationError
-from packbot.validation import finite_number, integer
+from packbot.keywords import checked_arguments
+from packbot.validation import MAX_CONFIG_SAMPLES, finite_number, integer
 
 if TYPE_CHECKING:
     from packbot.analysis import Equilibrium
@@ -80,6 +81,7 @@ REST_SPEED = 0.01
 RunStatus = Literal["ok", "refused", "error"]
 
 
+@checked_arguments
 @dataclass(frozen=True, kw_only=True)
 class RunMetrics:
     """What one run of a study measured, against the task (the healthy run's tool path).
@@ -140,6 +142,7 @@ class RunMetrics:
         return {k: _json_number(v) for k, v in dataclasses.asdict(self).items()}
 
 
+@checked_arguments
 @dataclass(kw_only=True)
 class StudyRun:
     """One run of a study.
@@ -167,6 +170,7 @@ class StudyRun:
     controller_log: tuple[RecoveryEvent, ...] = ()
 
 
+@checked_arguments
 @dataclass(frozen=True, kw_only=True)
 class Recovery:
     """Whether recovering the task is possible, and why not.
@@ -182,6 +186,7 @@ class Recovery:
     checks: tuple[dict[str, Any], ...] = ()
 
 
+@checked_arguments
 @dataclass(frozen=True, kw_only=True)
 class LooseSettling:
     """Where a loose joint came to rest in one run, against the predicted equilibria.
@@ -248,6 +253,7 @@ class LooseSettling:
         }
 
 
+@checked_arguments
 @dataclass(kw_only=True)
 class StudyResult:
     """The outcome of :func:`study`.
@@ -376,12 +382,13 @@ def _check_inputs(
     finite_number("tolerance", tolerance, low=0.0, low_open=True, unit="m", what="a distance")
     if contact_mode is not None and contact_mode not in CONTACT_MODES:
         raise ConfigurationError("contact_mode", contact_mode, CONTACT_MODES)
-    integer("workspace_samples", workspace_samples, low=100, high=1_000_000)
+    integer("workspace_samples", workspace_samples, low=100, high=MAX_CONFIG_SAMPLES)
     scenario.validate(robot)
     return scenario, robot
 
 
 # ---------------------------------------------------------------------------------- study
+@checked_arguments
 def study(
     scenario: Scenario | str | Path,
     *,

@@ -51,8 +51,9 @@ from typing import Any
 
 from packbot.batch import BatchReport, RunFiles, check_runs, run_batch
 from packbot.errors import ConfigurationError, PackbotError, SimulationError, UnknownNameError
+from packbot.keywords import checked_arguments
 from packbot.matrix import Matrix, Run, load_matrix
-from packbot.validation import integer, is_number
+from packbot.validation import MAX_CONFIG_SAMPLES, MAX_STUDY_CELLS, at_most, integer, is_number
 
 __all__ = [
     "FAILURE_FIELDS",
@@ -84,6 +85,7 @@ class CellTimeout(PackbotError):
     """A study cell exceeded its wall-time limit (``timeout``); the cell is recorded failed."""
 
 
+@checked_arguments
 @dataclass(frozen=True, kw_only=True)
 class StudyOptions:
     """The ``[study]`` table: how each cell is studied (:func:`packbot.study`'s arguments).
@@ -104,13 +106,14 @@ class StudyOptions:
         tol = self.tolerance
         if not (is_number(tol) and math.isfinite(tol) and tol > 0):
             raise ConfigurationError("study.tolerance", tol, "a finite distance > 0 [m]")
-        integer("study.workspace_samples", self.workspace_samples, low=100, high=1_000_000)
+        integer("study.workspace_samples", self.workspace_samples, low=100, high=MAX_CONFIG_SAMPLES)
         integer("study.seed", self.seed, low=0, what="an integer seed >= 0")
         if not isinstance(self.html, bool):
             raise ConfigurationError("study.html", self.html, "true or false")
         object.__setattr__(self, "tolerance", float(tol))
 
     @classmethod
+    @checked_arguments
     def from_mapping(cls, table: Mapping[str, Any]) -> StudyOptions:
         """Read a ``[study]`` table.
 
@@ -133,6 +136,7 @@ class StudyOptions:
         }
 
 
+@checked_arguments
 @dataclass(kw_only=True)
 class StudyMatrix:
     """A study matrix: the matrix, its study options and the failure its axes vary.
@@ -157,6 +161,7 @@ class StudyMatrix:
         return self.matrix.runs()
 
     @classmethod
+    @checked_arguments
     def from_matrix(cls, matrix: Matrix) -> StudyMatrix:
         """Check a matrix as a study matrix.
 
@@ -175,6 +180,7 @@ class StudyMatrix:
                 "simulations, for `packbot batch`; add [study] to study its failures)",
             )
         options = StudyOptions.from_mapping(matrix.study)
+        at_most("axes", matrix.axes, matrix.run_count(), MAX_STUDY_CELLS, "cells")
         keys = [*matrix.axes, *(k for t in matrix.include for k in t)]
         indices: dict[int, list[str]] = {}
         for key in keys:
@@ -234,6 +240,7 @@ class StudyMatrix:
             self.failure_of(run)
 
 
+@checked_arguments
 def load_study_matrix(name_or_path: str | os.PathLike[str]) -> StudyMatrix:
     """Read and check a study matrix (a name in ``sims/matrices/`` or a path).
 
@@ -245,6 +252,7 @@ def load_study_matrix(name_or_path: str | os.PathLike[str]) -> StudyMatrix:
 
 
 # ---------------------------------------------------------------------------------- a cell
+@checked_arguments
 def study_cell(
     run: Run, progress: Callable[[float], None], *, options: StudyOptions
 ) -> tuple[dict[str, Any], RunFiles]:
@@ -311,6 +319,7 @@ def study_cell(
 
 
 # ---------------------------------------------------------------------------------- the matrix
+@checked_arguments
 @dataclass(kw_only=True)
 class StudyMatrixReport:
     """What :func:`run_study_matrix` did.
@@ -343,6 +352,7 @@ class StudyMatrixReport:
         return "\n".join(lines)
 
 
+@checked_arguments
 def run_study_matrix(
     matrix: StudyMatrix | Matrix | str | os.PathLike[str],
     out_dir: str | os.PathLike[str],
@@ -409,6 +419,7 @@ def _median(values: Sequence[float | None]) -> float | None:
     return statistics.median(got) if got else None
 
 
+@checked_arguments
 def study_matrix_summary(
     sm: StudyMatrix,
     out_dir: str | os.PathLike[str],

@@ -11,11 +11,13 @@ from dataclasses import dataclass, fields
 from typing import Any
 
 from packbot.errors import UnknownNameError
+from packbot.keywords import checked_arguments
 from packbot.validation import finite_number
 
 __all__ = ["Tolerances"]
 
 
+@checked_arguments
 @dataclass(frozen=True, kw_only=True)
 class Tolerances:
     """Absolute tolerances of :func:`packbot.regress.compare`.

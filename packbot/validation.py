@@ -11,8 +11,10 @@ and what a valid value looks like. The rules are the same everywhere:
 - a string is not a list of names (``"camera_tilt"`` is not ``("camera_tilt",)``);
 - a vector is a list, tuple or array of numbers of the right shape (no bools, no strings).
 
-The limits that protect the machine (samples, control ticks, forced steps, events per run) are
-here too; docs/simulator.md ("Limits") explains each.
+The limits that protect the machine (samples, control ticks, forced steps, events per run, and
+every other size a user can ask for: sampled configurations, obstacles, convex vertices, matrix
+runs, workers, TOML nesting, file sizes, name lengths) are here too, each derived from what one
+unit costs; docs/simulator.md ("Limits") lists them.
 """
 
 from __future__ import annotations
@@ -29,14 +31,29 @@ from packbot.errors import ConfigurationError, UnknownNameError
 __all__ = [
     "CONTROL_DT_MIN",
     "GRAVITY_MAX",
+    "MAX_CONFIG_SAMPLES",
+    "MAX_CONVEX_POINTS",
     "MAX_EVENTS_LIMIT",
+    "MAX_IK_ITERATIONS",
+    "MAX_MATRIX_RUNS",
+    "MAX_NAME_LENGTH",
+    "MAX_OBSTACLES",
+    "MAX_OCCLUSION_TARGETS",
     "MAX_SAMPLES",
+    "MAX_SCAN_SAMPLES",
     "MAX_STEPS",
     "MAX_STEP_MIN",
+    "MAX_STUDY_CELLS",
+    "MAX_TOML_BYTES",
+    "MAX_TOML_DEPTH",
+    "MAX_VOLUME_POINTS",
+    "MAX_WAYPOINTS",
+    "MAX_WORKERS",
     "RTOL_MAX",
     "RTOL_MIN",
     "SAMPLE_DT_MIN",
     "V0_MAX",
+    "at_most",
     "boolean",
     "choice",
     "expected_number",
@@ -62,6 +79,61 @@ MAX_STEPS = 1_000_000
 #: Largest accepted ``SimConfig.max_events``: each event keeps two samples and its record
 #: (about 4 kB), so the cap is under 0.5 GB.
 MAX_EVENTS_LIMIT = 100_000
+#: Most configurations a sampling analysis may draw (``analysis.workspace(samples=...)``, a
+#: study's ``workspace_samples``, ``packbot generate-srdf --samples``): each is a collision test
+#: of every pair (about 0.26 ms) and a kept sample takes about 230 B, so the cap is about four
+#: minutes and 230 MB (10**9 samples used to grow past 2.5 GB).
+MAX_CONFIG_SAMPLES = 1_000_000
+#: Most angles of a loose joint's scan (``analysis.loose_joint_equilibria(samples=...)``): each
+#: is a gravity-torque evaluation (about 10 us) and about 50 B, and the roots are refined by
+#: Brent's method to 1e-12 rad anyway, so a finer scan finds nothing more: 10 s and 50 MB.
+MAX_SCAN_SAMPLES = 1_000_000
+#: Most points of a Monte Carlo volume estimate (``max_points`` and ``batch`` of
+#: ``analysis.monte_carlo_volume`` and ``reachable_volume``): a point of ``reachable_volume`` is
+#: an IK test (about 10 ms), so the cap is about 15 minutes; a batch holds 24 B per point.
+MAX_VOLUME_POINTS = 100_000
+#: Most iterations of a position IK solve (``max_iter``): an iteration is a Jacobian and a
+#: damped solve (about 0.3 ms), so a solve stops within 3 s; it converges in tens.
+MAX_IK_ITERATIONS = 10_000
+#: Most obstacles of an environment: each adds about 20 collision pairs (one per link piece),
+#: about 4 ms to build the collision world and about 3 ms per simulated second of a collapse
+#: (the broad phase sweeps every pair at each step), so 1,000 obstacles cost about 4 s and 3 s
+#: per simulated second (5,000 used to run for minutes).
+MAX_OBSTACLES = 1_000
+#: Most vertices of a convex obstacle: building its hull and the collision world takes about
+#: 0.15 ms per vertex (1.7 s at the cap; 100,000 vertices took 15 s).
+MAX_CONVEX_POINTS = 10_000
+#: Most occlusion targets (``[outputs.occlusion] targets``): each is a line-of-sight query per
+#: sample (about 1.7 ms), so 100 targets over a 5 s run sampled at 100 Hz take about 90 s.
+MAX_OCCLUSION_TARGETS = 100
+#: Most waypoints of a joint trajectory: one per control tick of the longest run a controller
+#: may take (:data:`MAX_STEPS`); more could not be followed.
+MAX_WAYPOINTS = MAX_STEPS
+#: Most runs of a matrix (the product of its axes' lengths, plus its ``[[include]]`` tables),
+#: checked before it is expanded: a run is a simulation (about 0.3 s with its process and
+#: files, at least) and about 20 kB of files and 5 kB of expanded scenario, so the cap is about
+#: an hour of one core and 200 MB (a product of six axes of 100 values used to expand forever).
+MAX_MATRIX_RUNS = 10_000
+#: Most cells of a study matrix: a cell is a study (healthy, failed and reconfigured runs and a
+#: workspace: about 10 s, the shipped ``study-frozen-elbows`` takes 40 s for 4), so the cap is
+#: about three hours of one core.
+MAX_STUDY_CELLS = 1_000
+#: Most worker processes of a batch: each holds the robot and its collision world (about
+#: 100 MB), so 64 workers take about 6.4 GB; more than the machine's cores only wait.
+MAX_WORKERS = 64
+#: Deepest nesting of a scenario or matrix file (tables and arrays): the deepest a file needs
+#: is 5 (``outputs.occlusion.targets``, a list of points); deeper input used to exhaust the
+#: parser's recursion (a RecursionError and 3,000 lines of traceback). 32 is also NumPy's
+#: dimension limit.
+MAX_TOML_DEPTH = 32
+#: Largest scenario or matrix file [bytes]: the TOML parser reads about 0.35 MB/s of obstacle
+#: tables, so 1 MB is about 3 s; it holds 1,000 box obstacles (100 kB) or a convex obstacle of
+#: 10,000 vertices (300 kB). The shipped files are under 5 kB.
+MAX_TOML_BYTES = 1_000_000
+#: Longest name (an obstacle, a frame, a joint, a scenario or matrix) [characters]: names become
+#: parts of file names (at most 255 bytes on ext4, APFS and NTFS, with suffixes such as
+#: ``_occlusion.svg``) and of one-line messages.
+MAX_NAME_LENGTH = 100
 #: Smallest sampling interval [s]: sample times are matched to 1e-12 s, and the state just before
 #: and after every event is sampled anyway.
 SAMPLE_DT_MIN = 1e-6
@@ -207,14 +279,26 @@ def choice(field: str, value: Any, valid: Sequence[str]) -> str:
 
 
 def name_str(field: str, value: Any, what: str = "a non-empty name (a string)") -> str:
-    """A non-empty string.
+    """A non-empty string of at most :data:`MAX_NAME_LENGTH` characters.
 
     Raises:
-        ConfigurationError: Not a string, or empty.
+        ConfigurationError: Not a string, empty, or too long.
     """
     if not isinstance(value, str) or not value:
         raise ConfigurationError(field, value, what)
+    if len(value) > MAX_NAME_LENGTH:
+        raise ConfigurationError(field, value, f"{what}, at most {MAX_NAME_LENGTH} characters")
     return str(value)
+
+
+def at_most(field: str, value: Any, n: int, high: int, what: str) -> None:
+    """Refuse a collection of ``n`` items when ``n > high`` (``what``: the items, plural).
+
+    Raises:
+        ConfigurationError: More than ``high`` items; the value is shown shortened.
+    """
+    if n > high:
+        raise ConfigurationError(field, value, f"at most {high:,} {what} (got {n:,})")
 
 
 def joint_names(field: str, value: Any, valid: Iterable[str] | None = None) -> tuple[str, ...]:
@@ -255,10 +339,15 @@ def joint_names(field: str, value: Any, valid: Iterable[str] | None = None) -> t
     return tuple(out)
 
 
-def _has_non_number_leaf(value: Any) -> bool:
-    """Whether a nested list/tuple holds a bool, a complex, a string or None."""
+def _has_non_number_leaf(value: Any, depth: int = 0) -> bool:
+    """Whether a nested list/tuple holds a bool, a complex, a string or None.
+
+    Nesting deeper than :data:`MAX_TOML_DEPTH` (NumPy's dimension limit) counts as such a leaf.
+    """
     if isinstance(value, (list, tuple)):
-        return any(_has_non_number_leaf(x) for x in value)
+        if depth >= MAX_TOML_DEPTH:
+            return True
+        return any(_has_non_number_leaf(x, depth + 1) for x in value)
     return not (is_number(value) or isinstance(value, np.ndarray))
 
 

@@ -75,6 +75,7 @@ INTERNAL_MODULES = {
     "packbot.drive",
     "packbot.geometry",
     "packbot.inputs",
+    "packbot.keywords",
     "packbot.labels",
     "packbot.mujoco_model",
     "packbot.ode",
@@ -85,6 +86,7 @@ INTERNAL_MODULES = {
     "packbot.system",
     "packbot.ticks",
     "packbot.tolerances",
+    "packbot.tomlfile",
     "packbot.urdfgen",
     "packbot.validation",
 }

@@ -18,12 +18,13 @@ from __future__ import annotations
 import math
 from abc import ABC, abstractmethod
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import NDArray
 
 from packbot.errors import ConfigurationError
+from packbot.keywords import check_subclass, checked_arguments
 from packbot.validation import CONTROL_DT_MIN, finite_number, integer
 
 if TYPE_CHECKING:
@@ -38,6 +39,7 @@ FloatArray = NDArray[np.float64]
 NOISE_V_MAX = 100.0
 
 
+@checked_arguments
 @dataclass(kw_only=True)
 class Sensor:
     """What the controller measures: joint encoders (and velocities derived from them).
@@ -92,11 +94,17 @@ class Sensor:
         return qm, vm
 
 
+@checked_arguments
 class Controller(ABC):
     """Base class of sampled-data controllers.
 
     Subclasses implement :meth:`compute` (and :meth:`on_reset` / :meth:`on_failure` if they keep
     state). All vectors are in the full model's coordinates, shape (nv,).
+
+    Every subclass (a user's own too) gets its constructor's arguments checked
+    (:func:`packbot.keywords.check_subclass`, from ``__init_subclass__``): an unknown, misspelt
+    or missing keyword raises :class:`~packbot.errors.KeywordError` naming it and the valid
+    ones.
 
     Args:
         dt: Control period [s] (default 1 ms), >= 1e-6 s.
@@ -104,7 +112,12 @@ class Controller(ABC):
 
     Raises:
         ConfigurationError: A bad ``dt`` or ``sensor`` (checked at construction).
+        KeywordError: An unknown or missing keyword, or too many positional arguments.
     """
+
+    def __init_subclass__(cls, **kwargs: Any) -> None:
+        super().__init_subclass__(**kwargs)
+        check_subclass(cls)
 
     def __init__(self, *, dt: float = 1e-3, sensor: Sensor | None = None) -> None:
         self.dt = finite_number(

@@ -33,6 +33,7 @@ import pinocchio as pin
 from numpy.typing import NDArray
 
 from packbot.errors import ConfigurationError
+from packbot.keywords import checked_arguments
 from packbot.validation import finite_number, real_array
 
 __all__ = ["Detection", "MomentumObserver", "default_threshold"]
@@ -40,6 +41,7 @@ __all__ = ["Detection", "MomentumObserver", "default_threshold"]
 FloatArray = NDArray[np.float64]
 
 
+@checked_arguments
 @dataclass(frozen=True, kw_only=True)
 class Detection:
     """A failure found by the observer.
@@ -73,6 +75,7 @@ def default_threshold(params: Any) -> FloatArray:
     )
 
 
+@checked_arguments
 class MomentumObserver:
     """Generalized-momentum residual and a threshold/persistence detector.
 

@@ -17,12 +17,15 @@ import pinocchio as pin
 from numpy.typing import ArrayLike, NDArray
 
 from packbot.errors import ConfigurationError
+from packbot.keywords import checked_arguments
+from packbot.validation import MAX_IK_ITERATIONS, integer
 
 __all__ = ["IKResult", "solve_position_ik"]
 
 FloatArray = NDArray[np.float64]
 
 
+@checked_arguments
 @dataclass(kw_only=True)
 class IKResult:
     """The outcome of :func:`solve_position_ik`.
@@ -40,6 +43,7 @@ class IKResult:
     success: bool
 
 
+@checked_arguments
 def solve_position_ik(
     model: pin.Model,
     frame: str,
@@ -74,6 +78,7 @@ def solve_position_ik(
     Raises:
         ConfigurationError: Unknown frame, or a bad target or q0 shape.
     """
+    integer("ik.max_iter", max_iter, low=1, high=MAX_IK_ITERATIONS, what="a positive integer")
     if not model.existFrame(frame):
         raise ConfigurationError("ik.frame", frame, "a frame of the model")
     fid = model.getFrameId(frame)

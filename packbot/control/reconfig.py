@@ -65,6 +65,7 @@ from packbot.control.model_based import ModelBasedController
 from packbot.control.trajectory import MIN_JERK_PEAK_SPEED, QuinticSegment
 from packbot.environment import Environment
 from packbot.errors import ConfigurationError, UnknownNameError
+from packbot.keywords import checked_arguments
 from packbot.validation import boolean, finite_number, integer, name_str
 
 if TYPE_CHECKING:
@@ -81,6 +82,7 @@ FloatArray = NDArray[np.float64]
 IK_SEEDS_MAX = 1000
 
 
+@checked_arguments
 @dataclass(frozen=True, kw_only=True)
 class ReconfigEvent:
     """An entry of the controller's log.

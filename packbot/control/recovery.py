@@ -55,6 +55,7 @@ from packbot.control.model_based import ModelBasedController
 from packbot.control.reconfig import ReconfigurableController
 from packbot.environment import Environment
 from packbot.errors import ConfigurationError, UnknownNameError
+from packbot.keywords import checked_arguments
 from packbot.validation import finite_number, name_str, real_array
 
 if TYPE_CHECKING:
@@ -82,6 +83,7 @@ LOOSE_OPTIONS: tuple[str, ...] = (
 )
 
 
+@checked_arguments
 @dataclass(frozen=True, kw_only=True)
 class RecoveryEvent:
     """An entry of :attr:`TaskRecovery.log`.

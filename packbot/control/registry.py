@@ -38,7 +38,8 @@ from packbot.control.gravity import GravityCompensation
 from packbot.control.pd import JointPD
 from packbot.control.reconfig import ReconfigurableController
 from packbot.control.trajectory import JointTrajectory, min_jerk_duration
-from packbot.errors import ConfigurationError, PackbotError
+from packbot.errors import ConfigurationError, PackbotError, close_match
+from packbot.keywords import checked_arguments
 from packbot.validation import finite_number
 
 if TYPE_CHECKING:
@@ -95,13 +96,22 @@ CONTROLLER_PARAMS: dict[str, tuple[str, ...]] = {
 CONTROLLER_KINDS: tuple[str, ...] = tuple(CONTROLLER_PARAMS)
 
 
+def _unknown_key(field: str, value: Any, valid: Sequence[str]) -> ConfigurationError:
+    """The error of an unknown parameter: the valid ones, and the closest if one is close."""
+    choices = "one of " + ", ".join(repr(v) for v in valid)
+    match = close_match(field.rsplit(".", 1)[-1], valid)
+    return ConfigurationError(
+        field, value, f"did you mean {match!r}? {choices}" if match else choices
+    )
+
+
 def _sensor(value: Any) -> Sensor:
     if not isinstance(value, Mapping):
         raise ConfigurationError("controller.sensor", value, "a table (resolution, noise_q, ...)")
     valid = ("resolution", "noise_q", "noise_v", "seed")
     for key in value:
         if key not in valid:
-            raise ConfigurationError(f"controller.sensor.{key}", value[key], valid)
+            raise _unknown_key(f"controller.sensor.{key}", value[key], valid)
     seed = value.get("seed", 0)
     if not isinstance(seed, int) or isinstance(seed, bool):
         raise ConfigurationError("controller.sensor.seed", seed, "an integer")
@@ -137,6 +147,7 @@ def _trajectory(robot: Robot, p: dict[str, Any]) -> JointTrajectory:
         raise ConfigurationError(field, exc.value, exc.expected) from None
 
 
+@checked_arguments
 def build_controller(
     kind: str,
     robot: Robot,
@@ -164,7 +175,7 @@ def build_controller(
     valid = CONTROLLER_PARAMS[kind] + _COMMON
     for key in params:
         if key not in valid:
-            raise ConfigurationError(f"controller.{key}", params[key], valid)
+            raise _unknown_key(f"controller.{key}", params[key], valid)
     if kind == "zero":
         return None
     p = dict(params)

@@ -16,7 +16,8 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from packbot.errors import ConfigurationError
-from packbot.validation import finite_number, real_array
+from packbot.keywords import checked_arguments
+from packbot.validation import MAX_WAYPOINTS, at_most, finite_number, real_array
 
 __all__ = ["JointTrajectory", "QuinticSegment", "min_jerk_duration"]
 
@@ -38,6 +39,7 @@ def _vec(x: ArrayLike | None, n: int, field_name: str) -> FloatArray:
     return real_array(field_name, x, shape=(n,), expected=f"{n} finite numbers")
 
 
+@checked_arguments
 @dataclass(kw_only=True)
 class QuinticSegment:
     """A quintic polynomial joint trajectory from (q0, v0, a0) at t0 to (q1, v1, a1) at t0 + T.
@@ -144,6 +146,7 @@ class QuinticSegment:
         return q, v / T, a / T**2
 
 
+@checked_arguments
 def min_jerk_duration(
     q0: ArrayLike,
     q1: ArrayLike,
@@ -168,6 +171,7 @@ def min_jerk_duration(
     return T
 
 
+@checked_arguments
 class JointTrajectory:
     """Rest-to-rest minimum-jerk segments through waypoints.
 
@@ -193,6 +197,8 @@ class JointTrajectory:
         v_max: ArrayLike | None = None,
     ) -> None:
         expected = "an (m, n) array of finite angles [rad], m >= 2, n >= 1"
+        if isinstance(waypoints, (list, tuple, np.ndarray)):
+            at_most("trajectory.waypoints", waypoints, len(waypoints), MAX_WAYPOINTS, "waypoints")
         W = real_array("trajectory.waypoints", waypoints, ndim=2, expected=expected)
         if W.shape[0] < 2 or W.shape[1] < 1:
             raise ConfigurationError("trajectory.waypoints", W.shape, expected)

@@ -5,11 +5,13 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass
 
+from packbot.keywords import checked_arguments
 from packbot.result import SimResult
 
 __all__ = ["ContactSpan", "contact_spans"]
 
 
+@checked_arguments
 @dataclass(frozen=True)
 class ContactSpan:
     """A time span over which a pair of pieces is in contact.
@@ -36,6 +38,7 @@ class ContactSpan:
         return (self.link1, self.link2, self.piece1, self.piece2)
 
 
+@checked_arguments
 def contact_spans(result: SimResult) -> list[ContactSpan]:
     """The contact spans of a result's event log, in order of start.
 

@@ -31,6 +31,7 @@ from numpy.typing import NDArray
 
 from packbot.environment import Environment
 from packbot.errors import ConfigurationError, PackbotError
+from packbot.keywords import checked_arguments
 from packbot.model import Robot
 from packbot.result import SimResult
 from packbot.viz.keyframes import _check_speed
@@ -126,6 +127,7 @@ def _check_port(port: object) -> int | None:
     return int(port)
 
 
+@checked_arguments
 class LiveViewer:
     """A meshcat viewer served on 127.0.0.1, its server running in a background thread.
 
@@ -243,6 +245,7 @@ class LiveViewer:
         self.close()
 
 
+@checked_arguments
 def start_viewer(
     robot: Robot,
     *,

@@ -8,10 +8,12 @@ import umsgpack
 from meshcat.servers.tree import SceneTree, find_node, walk
 
 from packbot.errors import ConfigurationError
+from packbot.keywords import checked_arguments
 
 __all__ = ["SceneRecorder"]
 
 
+@checked_arguments
 class SceneRecorder:
     """A meshcat window that records commands into a scene tree instead of sending them.
 
