@@ -141,6 +141,11 @@ _ZIP_ERRORS: tuple[type[BaseException], ...] = (
 )
 
 
+def _name(exc: BaseException) -> str:
+    """The exception's class name, with its module for zlib's (whose class is ``error``)."""
+    return "zlib.error" if isinstance(exc, zlib.error) else type(exc).__name__
+
+
 def _short(value: object, n: int = 80) -> str:
     """``repr(value)``, cut to ``n`` characters (a hostile value may be huge)."""
     text = repr(value)
@@ -279,7 +284,7 @@ class ResultArchive:
         try:
             return self._zip.open(info)
         except _ZIP_ERRORS as exc:
-            self.fail(entry, f"a damaged zip member ({type(exc).__name__}: {exc})")
+            self.fail(entry, f"a damaged zip member ({_name(exc)}: {exc})")
 
     def header(self, entry: str) -> NpyHeader:
         """The ``.npy`` header of ``entry``, checked against the member's size.
@@ -302,7 +307,7 @@ class ResultArchive:
                 else:
                     raise ValueError(f"npy format version {version} (expected 1.0 or 2.0)")
             except _STREAM_ERRORS as exc:
-                self.fail(entry, f"a damaged zip member ({type(exc).__name__}: {exc})")
+                self.fail(entry, f"a damaged zip member ({_name(exc)}: {exc})")
             except Exception as exc:  # NumPy's header parser on untrusted bytes: any error
                 self.fail(entry, f"not a valid .npy header ({type(exc).__name__}: {exc})")
         head = NpyHeader(tuple(shape), bool(fortran), np.dtype(dtype), fp.pos)
@@ -341,7 +346,7 @@ class ResultArchive:
                         )
                     buf += chunk
             except _ZIP_ERRORS as exc:
-                self.fail(entry, f"a damaged zip member ({type(exc).__name__}: {exc})")
+                self.fail(entry, f"a damaged zip member ({_name(exc)}: {exc})")
         arr = np.frombuffer(buf, dtype=head.dtype, count=math.prod(head.shape))
         return arr.reshape(head.shape, order="F" if head.fortran_order else "C")
 
@@ -532,7 +537,7 @@ def _floats(archive: ResultArchive, entry: str, nan_ok: bool = False) -> NDArray
         index = ", ".join(str(int(i)) for i in k)
         archive.fail(
             entry,
-            f"{entry}[{index}] = {arr[k]!r} (expected finite values"
+            f"{entry}[{index}] = {float(arr[k])!r} (expected finite values"
             + (" or NaN)" if nan_ok else ")"),
         )
     return arr
