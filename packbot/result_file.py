@@ -219,7 +219,8 @@ class ResultArchive:
     def __init__(self, path: str | Path) -> None:
         self.path = Path(path)
         if not self.path.is_file():
-            raise ResultFileError(self.path, "no such file")
+            what = "not a regular file" if self.path.exists() else "no such file"
+            raise ResultFileError(self.path, what)
         try:
             self._zip = zipfile.ZipFile(self.path)
             infos = self._zip.infolist()
@@ -455,14 +456,15 @@ def read_saved(path: str | Path) -> SavedResult:
             k = int(np.flatnonzero(t[1:] < t[:-1])[0])
             archive.fail(
                 "t",
-                f"t[{k + 1}] = {t[k + 1]!r} < t[{k}] = {t[k]!r} (expected times "
+                f"t[{k + 1}] = {float(t[k + 1])!r} < t[{k}] = {float(t[k])!r} (expected times "
                 "that never decrease)",
             )
         rest = meta["rest_time"]
         if rest is not None and not t[0] <= rest <= t[-1]:
             archive.fail(
                 "meta_json.rest_time",
-                f"{rest!r} (expected None or a time in [{t[0]!r}, {t[-1]!r}], the samples' span)",
+                f"{rest!r} (expected None or a time in [{float(t[0])!r}, {float(t[-1])!r}], the "
+                "samples' span)",
             )
         floats = {
             name: _floats(archive, f"event_{name}", nan_ok=name in _EVENT_NAN_OK)
