@@ -327,6 +327,6 @@ class ResultValueError(ResultFileError, ConfigurationError):
 
     def __init__(self, path: str | Path, entry: str, error: ConfigurationError) -> None:
         ResultFileError.__init__(self, path, str(error), entry)
-        self.field = error.field
-        self.value = error.value
-        self.expected = error.expected
+        self.field = getattr(error, "field", entry)
+        self.value = getattr(error, "value", None)
+        self.expected = getattr(error, "expected", "")
