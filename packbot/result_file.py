@@ -35,13 +35,27 @@ from packbot.errors import ResultFileError
 from packbot.validation import MAX_EVENTS_LIMIT, MAX_SAMPLES
 
 __all__ = [
+    "COLUMN_ARRAYS",
+    "ENTRIES",
+    "EVENT_FLOATS",
+    "EVENT_STRINGS",
+    "EVENT_VELOCITIES",
     "MAX_JSON_DEPTH",
+    "MAX_MEMBERS",
     "MAX_META_CHARS",
     "MAX_RESULT_BYTES",
     "MAX_RESULT_SAMPLES",
+    "META_FIELDS",
+    "PLAIN_COPIES",
+    "READ_ENTRIES",
     "RESULT_FORMAT",
+    "SAMPLE_ARRAYS",
+    "NpyHeader",
     "ResultArchive",
     "SavedResult",
+    "check_meta",
+    "check_value",
+    "parse_json",
     "read_saved",
     "read_trajectory",
 ]
