@@ -119,8 +119,8 @@ def _damage(raw: bytes, ops: list[tuple]) -> bytes:
     return bytes(out)
 
 
-# 250 examples take about 3 s on the project's 2-core machine (each a zip rebuilt, damaged and
-# loaded); the deadline is off because the machine is shared.
+# 250 examples take 6 to 12 s on the project's shared 2-core machine (about 4 s of CPU: each a
+# zip rebuilt, damaged and loaded); the deadline is off because the machine is shared.
 @settings(
     max_examples=250, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture]
 )
