@@ -28,6 +28,7 @@ __all__ = [
     "PackbotError",
     "ResourceNotFound",
     "ResultFileError",
+    "ResultValueError",
     "SimulationError",
     "URDFError",
     "URDFSyntaxError",
@@ -496,10 +497,33 @@ class ResultFileError(PackbotError):
 
     Attributes:
         path: The file.
-        reason: What is wrong with it.
+        reason: What is wrong with it (the value found and what was expected).
+        entry: The entry of the file at fault: an array (``"q"``), the JSON metadata or one of
+            its fields (``"meta_json.config"``, ``"meta_json.events[3].kind"``), a zip member
+            that is not an entry; "" for the file as a whole (missing, not a zip archive).
     """
 
-    def __init__(self, path: str | Path, reason: str) -> None:
-        super().__init__(f"cannot load a packbot result from {str(path)!r}: {reason}")
+    def __init__(self, path: str | Path, reason: str, entry: str = "") -> None:
+        where = f"entry {entry!r}: " if entry else ""
+        # PackbotError's own initialiser: a subclass may also derive from ConfigurationError
+        PackbotError.__init__(
+            self, f"cannot load a packbot result from {str(path)!r}: {where}{reason}"
+        )
         self.path = str(path)
         self.reason = reason
+        self.entry = entry
+
+
+class ResultValueError(ResultFileError, ConfigurationError):
+    """A result file's stored setting, obstacle, failure or payload that its constructor refuses.
+
+    Both a :class:`ResultFileError` (naming the file and the entry, e.g.
+    ``"meta_json.payload"``) and the constructor's :class:`ConfigurationError` (its ``field``,
+    ``value`` and ``expected``).
+    """
+
+    def __init__(self, path: str | Path, entry: str, error: ConfigurationError) -> None:
+        ResultFileError.__init__(self, path, str(error), entry)
+        self.field = getattr(error, "field", entry)
+        self.value = getattr(error, "value", None)
+        self.expected = getattr(error, "expected", "")

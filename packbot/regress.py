@@ -61,6 +61,7 @@ from packbot.config import SimConfig
 from packbot.errors import ConfigurationError, ResourceNotFound
 from packbot.keywords import checked_arguments
 from packbot.matrix import Matrix, Run, apply_overrides, digest
+from packbot.result_file import read_trajectory
 from packbot.tolerances import Tolerances
 
 __all__ = [
@@ -832,6 +833,11 @@ def read_trajectories(
     Args:
         out_dir: The batch folder.
         records: Run id -> record (its ``files["trajectory"]`` is relative to ``out_dir``).
+
+    Raises:
+        ResultFileError: A trajectory file that is damaged, or whose ``t`` or ``q`` is of
+            another dtype or shape or not finite (read with the bounds of
+            :func:`packbot.result_file.read_trajectory`).
     """
     out: dict[str, Trajectory] = {}
     for rid, rec in records.items():
@@ -841,7 +847,7 @@ def read_trajectories(
         path = Path(out_dir) / name
         if not path.is_file():
             continue
-        with np.load(path) as z:
-            if "t" in z and "q" in z:
-                out[rid] = (np.asarray(z["t"], dtype=float), np.asarray(z["q"], dtype=float))
+        traj = read_trajectory(path)  # bounded and checked, as SimResult.load reads
+        if traj is not None:
+            out[rid] = traj
     return out

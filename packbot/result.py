@@ -6,19 +6,33 @@ import io
 import json
 import os
 import tempfile
-import zipfile
-from collections.abc import Mapping
-from dataclasses import asdict, dataclass, field
+from collections.abc import Callable, Mapping
+from dataclasses import asdict, dataclass, field, fields
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Literal
+from typing import TYPE_CHECKING, Any, Literal, TypeVar
 
 import numpy as np
 from numpy.typing import NDArray
 
+from packbot import result_file
 from packbot.config import SimConfig
-from packbot.errors import ConfigurationError, PackbotError, ResultFileError, UnknownNameError
+from packbot.errors import (
+    ConfigurationError,
+    PackbotError,
+    ResultFileError,
+    ResultValueError,
+    UnknownNameError,
+)
 from packbot.failures import Failure
 from packbot.keywords import checked_arguments
+from packbot.result_file import (
+    EVENT_FLOATS,
+    EVENT_STRINGS,
+    SAMPLE_ARRAYS,
+    SavedResult,
+    check_value,
+    read_saved,
+)
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -29,13 +43,14 @@ if TYPE_CHECKING:
 __all__ = ["EVENT_KINDS", "RESULT_FORMAT", "Diagnostics", "Event", "ResultFileError", "SimResult"]
 
 #: The format tag of a file written by :meth:`SimResult.save` (its version after the slash).
-RESULT_FORMAT = "packbot.SimResult/1"
+RESULT_FORMAT = result_file.RESULT_FORMAT
 #: The arrays of a result, each saved as it is.
-_ARRAYS = ("t", "q", "v", "tau", "energy", "tau_cmd", "tau_friction", "effort")
+_ARRAYS = SAMPLE_ARRAYS
 #: The float fields of an event (saved as arrays, so NaN and every bit survive).
-_EVENT_FLOATS = ("t", "distance", "energy_before", "energy_after")
+_EVENT_FLOATS = EVENT_FLOATS
 #: The string fields of an event (saved as JSON).
-_EVENT_STRINGS = ("kind", "link1", "link2", "piece1", "piece2")
+_EVENT_STRINGS = EVENT_STRINGS
+T = TypeVar("T")
 
 
 EventKind = Literal[
@@ -335,103 +350,90 @@ class SimResult:
     @classmethod
     @checked_arguments
     def load(cls, path: str | Path) -> SimResult:
-        """Read a result written by :meth:`save`.
+        """Read a result written by :meth:`save`, checking the file before trusting it.
 
-        The settings, environment, failures and payload are rebuilt with their own
-        constructors, so their checks run again.
+        The file is read with bounds (:mod:`packbot.result_file`): each entry's header first,
+        then only the entries a result needs, each to exactly its size; every dtype, shape,
+        count and value range is checked, and the JSON metadata's structure (docs/simulator.md,
+        "Saving and loading results", lists the checks). The settings, environment, failures
+        and payload are then rebuilt with their own constructors, so their checks run again.
 
         Args:
             path: The file.
 
         Raises:
             ResultFileError: The file is missing, is not a packbot result (no or another
-                format tag) or is corrupt (a missing or inconsistent entry).
-            ConfigurationError: A stored setting, obstacle, failure or payload that is no longer
-                valid.
+                format tag), or is damaged or inconsistent (a missing, unknown, damaged or
+                inconsistent entry): the error names the entry.
+            ResultValueError: A stored setting, obstacle, failure or payload that its
+                constructor refuses (both a ``ResultFileError`` and a ``ConfigurationError``).
         """
-        p = Path(path)
-        if not p.is_file():
-            raise ResultFileError(p, "no such file")
-        try:
-            with np.load(p, allow_pickle=False) as npz:
-                data = {k: npz[k] for k in npz.files}
-        except (OSError, ValueError, zipfile.BadZipFile, EOFError) as exc:
-            raise ResultFileError(p, f"not a readable .npz file ({exc})") from exc
-        if "format" not in data or "meta_json" not in data:
-            raise ResultFileError(p, f"no format tag (expected {RESULT_FORMAT!r})")
-        tag = str(data["format"])
-        if tag != RESULT_FORMAT:
-            raise ResultFileError(p, f"format {tag!r}, expected {RESULT_FORMAT!r}")
-        try:
-            meta = json.loads(str(data["meta_json"]))
-            return cls._from_saved(data, meta)
-        except PackbotError:
-            raise
-        except (KeyError, TypeError, ValueError, IndexError) as exc:
-            raise ResultFileError(p, f"corrupt ({type(exc).__name__}: {exc})") from exc
+        return cls._from_saved(read_saved(path))
 
     @classmethod
-    def _from_saved(cls, data: dict[str, NDArray[Any]], meta: dict[str, Any]) -> SimResult:
-        """The result from the arrays and JSON of a saved file (KeyError etc. when corrupt)."""
+    def _from_saved(cls, saved: SavedResult) -> SimResult:
+        """The result from a file's checked contents (the objects through their constructors)."""
         from packbot.environment import Environment, Obstacle
         from packbot.payload import Payload
 
-        cfg = {k: _tuples(v) for k, v in meta["config"].items()}
+        meta = saved.meta
         env = meta["environment"]
-        environment = (
-            None
-            if env is None
-            else Environment(
-                obstacles=tuple(
-                    Obstacle(**{k: _tuples(v) for k, v in ob.items()}) for ob in env["obstacles"]
-                )
+        environment = None
+        if env is not None:
+            obstacles = tuple(
+                _rebuild(saved, f"meta_json.environment.obstacles[{k}]", Obstacle, ob)
+                for k, ob in enumerate(env["obstacles"])
             )
-        )
+            environment = _rebuild(
+                saved, "meta_json.environment", Environment, {"obstacles": obstacles}
+            )
         pay = meta["payload"]
-        payload = None if pay is None else Payload(**{k: _tuples(v) for k, v in pay.items()})
         ev_meta = meta["events"]
-        n_ev = len(ev_meta)
-        vels: dict[str, list[NDArray[np.float64]]] = {}
-        for name in ("v_before", "v_after"):
-            lens = data[f"event_{name}_len"]
-            flat = data[f"event_{name}"]
-            if len(lens) != n_ev or int(lens.sum()) != len(flat):
-                raise ValueError(f"event {name} arrays do not match the event list")
-            vels[name] = list(np.split(flat, np.cumsum(lens)[:-1])) if n_ev else []
-        floats = {name: data[f"event_{name}"] for name in _EVENT_FLOATS}
-        for name, arr in floats.items():
-            if len(arr) != n_ev:
-                raise ValueError(f"event {name} array does not match the event list")
+        for k, em in enumerate(ev_meta):
+            if em["kind"] not in EVENT_KINDS:
+                saved.fail(
+                    f"meta_json.events[{k}].kind",
+                    f"{em['kind']!r} (expected one of {', '.join(EVENT_KINDS)})",
+                )
+        floats, vels = saved.event_floats, saved.event_velocities
         events = [
             Event(
                 t=float(floats["t"][k]),
-                kind=str(em["kind"]),
-                link1=str(em["link1"]),
-                link2=str(em["link2"]),
-                piece1=str(em["piece1"]),
-                piece2=str(em["piece2"]),
+                kind=em["kind"],
+                link1=em["link1"],
+                link2=em["link2"],
+                piece1=em["piece1"],
+                piece2=em["piece2"],
                 distance=float(floats["distance"][k]),
-                relevant_joints=tuple(str(j) for j in em["relevant_joints"]),
-                v_before=vels["v_before"][k].copy(),
-                v_after=vels["v_after"][k].copy(),
+                relevant_joints=tuple(em["relevant_joints"]),
+                v_before=vels["v_before"][k],
+                v_after=vels["v_after"][k],
                 energy_before=float(floats["energy_before"][k]),
                 energy_after=float(floats["energy_after"][k]),
             )
             for k, em in enumerate(ev_meta)
         ]
-        rest = meta["rest_time"]
+        diag = meta["diagnostics"]
+        _known_fields(saved, "meta_json.diagnostics", Diagnostics, diag)
+        for f in fields(Diagnostics):
+            if f.name in diag:
+                kind = type(f.default).__name__  # int, float or str
+                check_value(diag[f.name], saved.fail, f"meta_json.diagnostics.{f.name}", kind)
         return cls(
-            **{name: data[name] for name in _ARRAYS},
+            **saved.arrays,
             events=events,
-            rest_time=None if rest is None else float(rest),
-            joint_names=tuple(str(j) for j in meta["joint_names"]),
-            config=SimConfig(**cfg),
-            diagnostics=Diagnostics(**meta["diagnostics"]),
-            failures=tuple(Failure(**f) for f in meta["failures"]),
-            control_ticks=int(meta["control_ticks"]),
+            rest_time=meta["rest_time"],
+            joint_names=tuple(meta["joint_names"]),
+            config=_rebuild(saved, "meta_json.config", SimConfig, meta["config"]),
+            diagnostics=Diagnostics(**diag),
+            failures=tuple(
+                _rebuild(saved, f"meta_json.failures[{k}]", Failure, f)
+                for k, f in enumerate(meta["failures"])
+            ),
+            control_ticks=meta["control_ticks"],
             environment=environment,
-            payload=payload,
-            scenario_text=str(meta["scenario_text"]),
+            payload=None if pay is None else _rebuild(saved, "meta_json.payload", Payload, pay),
+            scenario_text=meta["scenario_text"],
         )
 
     @checked_arguments
@@ -466,6 +468,30 @@ def _tuples(value: Any) -> Any:
     if isinstance(value, list):
         return tuple(_tuples(v) for v in value)
     return value
+
+
+def _known_fields(saved: SavedResult, entry: str, cls: type, values: Mapping[str, Any]) -> None:
+    """Every key of ``values`` is a field of the dataclass ``cls`` (else the entry's error)."""
+    names = [f.name for f in fields(cls)]
+    for key in values:
+        if key not in names:
+            saved.fail(f"{entry}.{key}", f"an unknown field (expected one of {', '.join(names)})")
+
+
+def _rebuild(saved: SavedResult, entry: str, cls: Callable[..., T], values: Mapping[str, Any]) -> T:
+    """``cls(**values)`` (JSON lists as tuples), its refusal an error naming the file's entry.
+
+    Raises:
+        ResultValueError: The constructor refused a value (a ``ConfigurationError``).
+        ResultFileError: An unknown or missing field, or another refusal of the constructor.
+    """
+    _known_fields(saved, entry, cls, values)  # type: ignore[arg-type]
+    try:
+        return cls(**{k: _tuples(v) for k, v in values.items()})
+    except ConfigurationError as exc:
+        raise ResultValueError(saved.path, entry, exc) from exc
+    except (PackbotError, TypeError, ValueError, OverflowError) as exc:
+        saved.fail(entry, f"{type(exc).__name__}: {exc}")
 
 
 def rest_time(t: NDArray[np.float64], v: NDArray[np.float64], speed: float) -> float | None:

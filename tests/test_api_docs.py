@@ -80,6 +80,7 @@ INTERNAL_MODULES = {
     "packbot.mujoco_model",
     "packbot.ode",
     "packbot.recorder",
+    "packbot.result_file",
     "packbot.scenario_schema",
     "packbot.schedule",
     "packbot.srdfgen",
