@@ -1569,17 +1569,23 @@ def csv_text(rows: Sequence[Mapping[str, Any]], columns: Sequence[str]) -> str:
     import csv
     import io
 
+    # Rows end in "\n"; written with "\r\n" so that a cell holding a carriage return is quoted
+    # (the writer quotes the characters of its line terminator), then the row's end replaced.
     buf = io.StringIO()
-    w = csv.writer(buf, lineterminator="\n")
-    w.writerow(spreadsheet_row(columns))
-    for row in rows:
-        cells = [row.get(c) for c in columns]
-        w.writerow(
-            spreadsheet_row(
-                "" if v is None else repr(v) if isinstance(v, float) else v for v in cells
-            )
-        )
-    return buf.getvalue()
+    w = csv.writer(buf, lineterminator="\r\n")
+    lines = []
+    for cells in (
+        columns,
+        *(
+            ["" if v is None else repr(v) if isinstance(v, float) else v for v in cells]
+            for cells in ([row.get(c) for c in columns] for row in rows)
+        ),
+    ):
+        buf.seek(0)
+        buf.truncate()
+        w.writerow(spreadsheet_row(cells))
+        lines.append(buf.getvalue()[:-2] + "\n")
+    return "".join(lines)
 
 
 def atomic_write(path: Path, data: bytes) -> None:

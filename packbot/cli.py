@@ -324,32 +324,36 @@ class _Manifest(NamedTuple):
 
     checksums: dict[str, tuple[str, int]]  # name -> (SHA-256, size [bytes]) of each written file
     unverified: set[str]  # names listed without a checksum (an older packbot, an unfinished run)
+    ignored: list[str]  # what was ignored and why (said in the refusal's line, logged at INFO)
 
 
 def _read_manifest(out: Path) -> _Manifest | None:
     """The files ``out``'s manifest lists (bare names only), or None if it has none.
 
-    A manifest that is a symbolic link, unreadable or not packbot's counts as none (with a
-    warning); an entry that is not a bare file name is ignored (with a warning).
+    A manifest that is a symbolic link, unreadable or not packbot's lists nothing; an entry that
+    is not a bare file name is ignored (:attr:`_Manifest.ignored` says which and why).
     """
     path = out / MANIFEST_NAME
-    if path.is_symlink() or not path.is_file():
+    if not (path.is_symlink() or path.exists()):
         return None
+    manifest = _Manifest({}, set(), [])
+    if path.is_symlink() or not path.is_file():
+        manifest.ignored.append(f"{MANIFEST_NAME} ignored: not a plain file")
+        return manifest
     try:
         data = json.loads(path.read_text(encoding="utf-8"))
     except (OSError, ValueError) as exc:  # unreadable, not UTF-8, not JSON
-        log.warning("%s ignored: not a packbot manifest (%s)", path, exc)
-        return None
+        manifest.ignored.append(f"{MANIFEST_NAME} ignored: not a packbot manifest ({exc})")
+        return manifest
     files = data.get("files") if isinstance(data, dict) else None
     if not isinstance(data, dict) or data.get("tool") != "packbot" or not isinstance(files, list):
-        log.warning("%s ignored: not a packbot manifest", path)
-        return None
+        manifest.ignored.append(f"{MANIFEST_NAME} ignored: not a packbot manifest")
+        return manifest
     sums = data.get("checksums")
     sums = sums if isinstance(sums, dict) else {}
-    manifest = _Manifest({}, set())
     for name in files:
         if not _is_plain_name(name):
-            log.warning("%s: entry %r ignored (not a file name inside the folder)", path, name)
+            manifest.ignored.append(f"entry {name!r} ignored (not a file name inside the folder)")
             continue
         entry = sums.get(name)
         sha = entry.get("sha256") if isinstance(entry, dict) else None
@@ -425,6 +429,8 @@ def _prepare_out(out_arg: str, overwrite: bool) -> tuple[Path, list[Path]]:
     except OSError as exc:
         raise _UsageError(f"--out {out}: cannot list the directory ({exc.strerror})") from None
     manifest = _read_manifest(out)
+    for note in manifest.ignored if manifest is not None else ():
+        log.info("%s: %s", out, note)
     why = {n: _why_foreign(out, n, manifest) for n in names}
     foreign = [n for n in names if why[n] is not None]
     if foreign and not overwrite:
@@ -437,6 +443,8 @@ def _prepare_out(out_arg: str, overwrite: bool) -> tuple[Path, list[Path]]:
             if any(why[n] == "listed without a checksum" for n in foreign)
             else ""
         )
+        if manifest is not None and manifest.ignored:
+            old += f" ({'; '.join(manifest.ignored)})"
         raise _UsageError(
             f"--out {out} holds files an earlier packbot run did not list ({shown}){old}; pass "
             "--overwrite to write into it anyway (those files are kept), or choose another folder"
