@@ -3,12 +3,15 @@
 Exit codes (:data:`EXIT_OK`, ...): 0 success; 1 failure of the task itself (a simulation that
 could not continue: the message says what and when; a regression that drifted); 2 bad input
 (usage, a bad option value, a bad or missing file, an ``--out`` folder that cannot be used: one
-line on stderr, no traceback); 130 interrupted by Ctrl-C (``packbot run`` saves the trajectory
-up to then, as a failed run does).
+line on stderr, no traceback); 130 interrupted by Ctrl-C, 143 by SIGTERM, 129 by SIGHUP (128 +
+the signal: every command stops on these as on Ctrl-C; ``packbot run`` saves the trajectory up
+to then, as a failed run does). The handlers are installed for the time of the command only.
 
 ``packbot run`` keeps a manifest in its ``--out`` folder (:data:`MANIFEST_NAME`) listing the files
-it wrote; the next run into that folder deletes exactly those files first, so a rerun leaves only
-its own files. A folder holding anything else is refused unless ``--overwrite`` is given.
+it wrote with the SHA-256 and size of each; the next run into that folder deletes those files
+first, if they still match (and are plain files, not symbolic links), so a rerun leaves only its
+own files. A folder holding anything else (a file packbot cannot prove it wrote) is refused unless
+``--overwrite`` is given.
 """
 
 from __future__ import annotations
@@ -1067,7 +1070,8 @@ def build_parser() -> argparse.ArgumentParser:
         "collisions and joint failures.",
         epilog="Exit codes: 0 success; 1 a simulation failed or a regression drifted; 2 bad input "
         "(usage, option values, files, the output folder: one line on stderr); 130 interrupted "
-        "(Ctrl-C; `packbot run` saves the trajectory up to then as <name>_partial.npz).",
+        "(Ctrl-C), 143 SIGTERM, 129 SIGHUP (`packbot run` saves the trajectory up to then as "
+        "<name>_partial.npz).",
     )
     parser.add_argument("-v", "--verbose", action="count", default=0, help="more log output")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
@@ -1113,8 +1117,8 @@ def build_parser() -> argparse.ArgumentParser:
         "run",
         help="run a scenario (a name in sims/ or a TOML file): trajectory, event log, plots",
         epilog="Exit codes: 0 done; 1 the simulation failed (the trajectory up to then is saved "
-        "as <name>_partial.npz); 2 bad input; 130 Ctrl-C (the trajectory up to then is saved "
-        "as <name>_partial.npz).",
+        "as <name>_partial.npz); 2 bad input; 130 Ctrl-C, 143 SIGTERM, 129 SIGHUP (the trajectory "
+        "up to then is saved as <name>_partial.npz).",
     )
     p.add_argument(
         "scenario", metavar="SCENARIO", help="scenario name (see `packbot list`) or path"
