@@ -63,10 +63,12 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, NamedTuple, TextIO
 
+from packbot.csv_cells import spreadsheet_row
 from packbot.errors import ConfigurationError, PackbotError, SimulationError
 from packbot.keywords import checked_arguments
 from packbot.matrix import Matrix, Run, canonical_json, parse_matrix
 from packbot.validation import MAX_WORKERS, integer, is_number
+from packbot.paths import check_stem
 
 try:
     import fcntl
@@ -90,6 +92,7 @@ __all__ = [
     "RERUN_MISSING_FILE",
     "RERUN_OLD_FORMAT",
     "RERUN_STALE",
+    "RERUN_UNREADABLE_FILE",
     "RUN_STATUSES",
     "SINGLE_THREAD_ENV",
     "BatchLock",
@@ -129,6 +132,10 @@ RERUN_FAILED = "failed before"
 RERUN_STALE = "stale (its scenario changed)"
 #: Rerun reason: a file the record lists is missing.
 RERUN_MISSING_FILE = "file missing"
+#: Rerun reason: a file the record lists (or the record itself) is there but cannot be read: a
+#: directory, a special file or an unreadable one (moved aside to ``<name>.bad-<n>``, then made
+#: again).
+RERUN_UNREADABLE_FILE = "file unreadable (a directory or not a readable file: moved aside)"
 #: Rerun reason: a file's SHA-256 differs from the record's.
 RERUN_CORRUPT_FILE = "file corrupted (SHA-256 differs)"
 #: Rerun reason: the record's own SHA-256 does not match its content.
@@ -355,6 +362,9 @@ class BatchReport:
             ``RERUN_*`` reasons: failed before, stale, a file missing or corrupted, the record
             edited, malformed or of an older format).
         summary: The summary files written.
+        moved_aside: Path -> new path (relative to the output directory) of each file that was
+            in the way of a run's file or record and could not be read (a directory, a special
+            or unreadable file): renamed ``<name>.bad-<n>`` beside it, kept for a look.
     """
 
     out_dir: Path
@@ -364,6 +374,7 @@ class BatchReport:
     skipped: list[str] = field(default_factory=list)
     rerun: dict[str, str] = field(default_factory=dict)
     summary: list[Path] = field(default_factory=list)
+    moved_aside: dict[str, str] = field(default_factory=dict)
 
     @property
     def failed(self) -> list[str]:
@@ -390,6 +401,11 @@ class BatchReport:
             counts = _count_reasons(self.rerun)
             lines.append(
                 f"rerun {len(self.rerun)}: " + ", ".join(f"{n} {why}" for why, n in counts.items())
+            )
+        if self.moved_aside:
+            lines.append(
+                f"moved aside {len(self.moved_aside)} unreadable files: "
+                + ", ".join(f"{a} -> {b}" for a, b in self.moved_aside.items())
             )
         for rid in self.failed:
             lines.append(f"  failed {rid}: {self.records[rid].error}")
@@ -698,6 +714,12 @@ def run_batch(
             "studies, run by packbot.study_matrix.run_study_matrix or `packbot study`)",
         )
     runs = list(matrix.runs() if runs is None else runs)
+    for k, run in enumerate(runs):  # a run's id names its files: one file name each
+        if not isinstance(run, Run):
+            raise ConfigurationError(f"runs[{k}]", type(run).__name__, "a packbot.matrix.Run")
+        check_stem(f"runs[{k}].id", run.id)
+        if run.id.startswith("."):
+            raise ConfigurationError(f"runs[{k}].id", run.id, "a file name not beginning with '.'")
     if runner is scenario_runner:  # a bad value in the matrix is refused before anything runs
         check_runs(runs)
     try:
@@ -754,11 +776,14 @@ def _run_locked(
         progress(state["done"], 0, total)
 
     def store(record: RunRecord, files: RunFiles) -> None:
-        _store(out, record, files)
+        _store(out, record, files, report.moved_aside)
         keep = {out / p for p in record.files.values()}
         for path in old_files.pop(record.id, ()):  # an earlier run's files it did not rewrite
             if path not in keep:
-                path.unlink(missing_ok=True)
+                if path.is_symlink() or path.is_file():
+                    path.unlink(missing_ok=True)
+                elif path.exists():  # a directory in its place: not ours to delete
+                    _move_aside(out, path, report.moved_aside)
         report.records[record.id] = record
         report.executed.append(record.id)
         state["done"] += 1
@@ -1094,8 +1119,51 @@ def _pin_threads() -> None:
     threadpool_limits(1)
 
 
-def _init_worker() -> None:
-    """Initializer of the local pool's workers."""
+#: How often a local worker without ``prctl`` checks that its parent still runs [s].
+_PARENT_POLL_S = 0.5
+_PR_SET_PDEATHSIG = 1  # linux/prctl.h
+
+
+def _die_with_parent(parent: int) -> None:
+    """Make this process (a local worker) end when its parent, the batch's process, ends.
+
+    A batch's process killed outright (``kill -9``) cannot stop its workers: they would run on,
+    holding the caller's pipes open. On Linux the kernel sends the worker SIGKILL when its
+    parent dies (``prctl(PR_SET_PDEATHSIG)``; the pool's workers are started by the batch's
+    main thread, which lives as long as the process); elsewhere, or if that call fails, a
+    daemon thread polls ``os.getppid()`` every :data:`_PARENT_POLL_S` seconds and ends the
+    process once the parent changed.
+    """
+    if sys.platform.startswith("linux"):
+        try:
+            import ctypes
+
+            libc = ctypes.CDLL(None, use_errno=True)
+            if libc.prctl(_PR_SET_PDEATHSIG, signal.SIGKILL, 0, 0, 0) == 0:
+                if os.getppid() != parent:  # died before the call: nobody would signal
+                    os._exit(1)
+                return
+        except (OSError, AttributeError):  # pragma: no cover - no libc, no prctl
+            pass
+
+    def watch() -> None:  # pragma: no cover - not Linux
+        while os.getppid() == parent:
+            time.sleep(_PARENT_POLL_S)
+        os._exit(1)
+
+    import threading
+
+    threading.Thread(target=watch, name="packbot-parent-watch", daemon=True).start()
+
+
+def _init_worker(parent: int | None = None) -> None:
+    """Initializer of the local pool's workers.
+
+    Args:
+        parent: The batch's process id: the worker ends when it does (:func:`_die_with_parent`).
+    """
+    if parent is not None:
+        _die_with_parent(parent)
     _pin_threads()
     # Ctrl-C goes to the whole process group: the parent stops the workers itself.
     signal.signal(signal.SIGINT, signal.SIG_IGN)
@@ -1120,7 +1188,12 @@ def _run_pool(
     ctx = multiprocessing.get_context("spawn")
     with _single_thread_env():
         while queue or isolate:
-            pool = ProcessPoolExecutor(max_workers=n, mp_context=ctx, initializer=_init_worker)
+            pool = ProcessPoolExecutor(
+                max_workers=n,
+                mp_context=ctx,
+                initializer=_init_worker,
+                initargs=(os.getpid(),),
+            )
             inflight: dict[Future[tuple[RunRecord, RunFiles]], Run] = {}
             alone: Run | None = None  # the run submitted alone, if any
             lost: list[Run] = []
@@ -1289,8 +1362,15 @@ def read_records(out_dir: str | Path, runs: Sequence[Run] | None = None) -> dict
     return out
 
 
-def _store(out: Path, record: RunRecord, files: RunFiles) -> None:
-    """Write a run's files, then its record (last: it marks the run finished)."""
+def _store(
+    out: Path, record: RunRecord, files: RunFiles, moved: dict[str, str] | None = None
+) -> None:
+    """Write a run's files, then its record (last: it marks the run finished).
+
+    Whatever is in the way and cannot be read (a directory where a file goes, a file where the
+    run's folder goes) is moved aside first (:func:`_move_aside`; noted in ``moved``).
+    """
+    moved = {} if moved is None else moved
     record.files = {}
     record.file_sha256 = {}
     for role, (name, data) in files.items():
@@ -1299,11 +1379,54 @@ def _store(out: Path, record: RunRecord, files: RunFiles) -> None:
             raise ConfigurationError(
                 f"files.{role}", name, f"a plain file name, or {record.id}/<plain file name>"
             )
+        _clear_way(out, rel, moved)
         (out / rel).parent.mkdir(parents=True, exist_ok=True)
         atomic_write(out / rel, data)
         record.files[role] = rel
         record.file_sha256[role] = hashlib.sha256(data).hexdigest()
+    _clear_way(out, f"runs/{record.id}.json", moved)
     atomic_write(out / "runs" / f"{record.id}.json", _record_bytes(record))
+
+
+def _unreadable(path: Path) -> bool:
+    """Whether something is at ``path`` that is not a regular file this process can read."""
+    if path.is_symlink() and not path.exists():
+        return False  # a dangling link: replaced by the rename as it is
+    return path.exists() and not (path.is_file() and os.access(path, os.R_OK))
+
+
+def _clear_way(out: Path, rel: str, moved: dict[str, str]) -> None:
+    """Move aside what is in the way of writing ``out/rel``.
+
+    That is a non-folder where a folder goes, or an unreadable thing (a directory, a special
+    file) where the file goes.
+    """
+    parts = Path(rel).parts
+    for k in range(1, len(parts)):
+        folder = out.joinpath(*parts[:k])
+        if (folder.exists() or folder.is_symlink()) and not folder.is_dir():
+            _move_aside(out, folder, moved)
+    target = out / rel
+    if _unreadable(target):
+        _move_aside(out, target, moved)
+
+
+def _move_aside(out: Path, path: Path, moved: dict[str, str]) -> Path:
+    """Rename ``path`` to ``<name>.bad-<n>`` beside it (the first free n), with a warning."""
+    n = 1
+    while True:
+        new = path.with_name(f"{path.name}.bad-{n}")
+        if not (new.exists() or new.is_symlink()):
+            break
+        n += 1
+    os.rename(path, new)
+    what = "a directory" if new.is_dir() else "not a readable file"
+    rel_old, rel_new = path.relative_to(out).as_posix(), new.relative_to(out).as_posix()
+    log.warning(
+        "%s: %s is %s: moved aside to %s (its run is made again)", out, rel_old, what, rel_new
+    )
+    moved[rel_old] = rel_new
+    return new
 
 
 def _plain_name(name: str) -> bool:
@@ -1366,6 +1489,8 @@ def _check_record(out: Path, run: Run) -> _Check:
     checksum matches) and its files (removed if the run, made again, does not rewrite them).
     """
     path = out / "runs" / f"{run.id}.json"
+    if _unreadable(path):
+        return _Check(None, RERUN_UNREADABLE_FILE, f"runs/{run.id}.json is not a readable file")
     if not path.is_file():
         return _Check(None, None)
     try:
@@ -1412,6 +1537,9 @@ def _check_record(out: Path, run: Run) -> _Check:
     if rec.digest != run.digest:
         return _Check(rec, RERUN_STALE, f"digest {rec.digest}, scenario now {run.digest}", files)
     for role, file in zip(rec.files, files, strict=True):
+        if _unreadable(file):
+            detail = f"{rec.files[role]} ({role}) is not a readable file"
+            return _Check(None, RERUN_UNREADABLE_FILE, detail, files)
         if not file.is_file():
             return _Check(None, RERUN_MISSING_FILE, f"{rec.files[role]} ({role})", files)
         try:
@@ -1446,17 +1574,32 @@ def _log_reruns(out: Path, rerun: Mapping[str, str], details: Mapping[str, str])
 
 @checked_arguments
 def csv_text(rows: Sequence[Mapping[str, Any]], columns: Sequence[str]) -> str:
-    """Rows as CSV text: a header, floats exact (shortest repr), None as an empty cell."""
+    """Rows as CSV text: a header, floats exact (shortest repr), None as an empty cell.
+
+    A text cell a spreadsheet would run as a formula (beginning with ``=``, ``+``, ``-``, ``@``,
+    a tab or a carriage return, and not a number) gets a leading ``'``
+    (:func:`packbot.csv_cells.spreadsheet_safe`); numbers, ``-0.5`` among them, stay numbers.
+    """
     import csv
     import io
 
+    # Rows end in "\n"; written with "\r\n" so that a cell holding a carriage return is quoted
+    # (the writer quotes the characters of its line terminator), then the row's end replaced.
     buf = io.StringIO()
-    w = csv.writer(buf, lineterminator="\n")
-    w.writerow(columns)
-    for row in rows:
-        cells = [row.get(c) for c in columns]
-        w.writerow(["" if v is None else repr(v) if isinstance(v, float) else v for v in cells])
-    return buf.getvalue()
+    w = csv.writer(buf, lineterminator="\r\n")
+    lines = []
+    for cells in (
+        columns,
+        *(
+            ["" if v is None else repr(v) if isinstance(v, float) else v for v in cells]
+            for cells in ([row.get(c) for c in columns] for row in rows)
+        ),
+    ):
+        buf.seek(0)
+        buf.truncate()
+        w.writerow(spreadsheet_row(cells))
+        lines.append(buf.getvalue()[:-2] + "\n")
+    return "".join(lines)
 
 
 @checked_arguments

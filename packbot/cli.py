@@ -3,12 +3,15 @@
 Exit codes (:data:`EXIT_OK`, ...): 0 success; 1 failure of the task itself (a simulation that
 could not continue: the message says what and when; a regression that drifted); 2 bad input
 (usage, a bad option value, a bad or missing file, an ``--out`` folder that cannot be used: one
-line on stderr, no traceback); 130 interrupted by Ctrl-C (``packbot run`` saves the trajectory
-up to then, as a failed run does).
+line on stderr, no traceback); 130 interrupted by Ctrl-C, 143 by SIGTERM, 129 by SIGHUP (128 +
+the signal: every command stops on these as on Ctrl-C; ``packbot run`` saves the trajectory up
+to then, as a failed run does). The handlers are installed for the time of the command only.
 
 ``packbot run`` keeps a manifest in its ``--out`` folder (:data:`MANIFEST_NAME`) listing the files
-it wrote; the next run into that folder deletes exactly those files first, so a rerun leaves only
-its own files. A folder holding anything else is refused unless ``--overwrite`` is given.
+it wrote with the SHA-256 and size of each; the next run into that folder deletes those files
+first, if they still match (and are plain files, not symbolic links), so a rerun leaves only its
+own files. A folder holding anything else (a file packbot cannot prove it wrote) is refused unless
+``--overwrite`` is given.
 """
 
 from __future__ import annotations
@@ -25,7 +28,7 @@ import threading
 from collections.abc import Callable, Iterable, Sequence
 from pathlib import Path
 from types import FrameType
-from typing import TYPE_CHECKING, Any, NoReturn
+from typing import TYPE_CHECKING, Any, NamedTuple, NoReturn
 
 from packbot.errors import PackbotError, SimulationError, close_match
 
@@ -35,8 +38,10 @@ if TYPE_CHECKING:
 
 __all__ = [
     "EXIT_FAILED",
+    "EXIT_HANGUP",
     "EXIT_INTERRUPTED",
     "EXIT_OK",
+    "EXIT_TERMINATED",
     "EXIT_USAGE",
     "MANIFEST_NAME",
     "build_parser",
@@ -53,9 +58,13 @@ EXIT_FAILED = 1
 EXIT_USAGE = 2
 #: Exit code: interrupted by Ctrl-C (128 + SIGINT, as a shell reports it).
 EXIT_INTERRUPTED = 130
+#: Exit code: stopped by SIGTERM (128 + 15), as by Ctrl-C (``packbot run`` saves the partial run).
+EXIT_TERMINATED = 143
+#: Exit code: stopped by SIGHUP (128 + 1; a closed terminal), as by Ctrl-C.
+EXIT_HANGUP = 129
 #: The file in a ``packbot run --out`` folder listing the files that run wrote there.
 MANIFEST_NAME = "packbot-manifest.json"
-_MANIFEST_FORMAT = 1
+_MANIFEST_FORMAT = 2  # 2: with each file's SHA-256 and size
 #: The Dask schemes ``--scheduler`` accepts (besides "local").
 _DASK_SCHEMES = ("tcp", "tls", "ws", "wss", "ucx")
 
@@ -65,10 +74,15 @@ class _UsageError(PackbotError):
 
 
 class _Interrupted(SimulationError):
-    """Ctrl-C during a simulation, raised at its next step (the result up to then is kept)."""
+    """Ctrl-C (or SIGTERM, SIGHUP) during a simulation, raised at its next step.
 
-    def __init__(self, t: float) -> None:
-        super().__init__("interrupted (Ctrl-C)", t)
+    The result up to then is kept.
+    """
+
+    def __init__(self, t: float, signum: int = signal.SIGINT) -> None:
+        what = "Ctrl-C" if signum == signal.SIGINT else signal.Signals(signum).name
+        super().__init__(f"interrupted ({what})", t)
+        self.signum = int(signum)
 
 
 # ---------------------------------------------------------------------------------- option types
@@ -110,6 +124,8 @@ def _folder(text: str) -> str:
         raise argparse.ArgumentTypeError(
             f"invalid folder {text!r}: expected a path (write . for the current folder)"
         )
+    if "\0" in text:
+        raise argparse.ArgumentTypeError(f"invalid folder {text!r}: a path has no NUL character")
     return text
 
 
@@ -301,59 +317,100 @@ def _summary(res: SimResult, scenario: Scenario, duration: float, dist: Any) -> 
 # ---------------------------------------------------------------------------------- --out folder
 def _is_plain_name(name: object) -> bool:
     """Whether a manifest entry is a bare file name (nothing outside the folder, no ``..``)."""
-    return (
-        isinstance(name, str)
-        and name not in ("", ".", "..", MANIFEST_NAME)
-        and not any(c in name for c in "/\\:\0")
-    )
+    from packbot.paths import is_plain_name
+
+    return is_plain_name(name) and name != MANIFEST_NAME
 
 
-def _read_manifest(out: Path) -> list[str] | None:
-    """The file names listed by ``out``'s manifest (bare names only), or None if it has none."""
+class _Manifest(NamedTuple):
+    """What an ``--out`` folder's manifest says (:func:`_read_manifest`)."""
+
+    checksums: dict[str, tuple[str, int]]  # name -> (SHA-256, size [bytes]) of each written file
+    unverified: set[str]  # names listed without a checksum (an older packbot, an unfinished run)
+    ignored: list[str]  # what was ignored and why (said in the refusal's line, logged at INFO)
+
+
+def _read_manifest(out: Path) -> _Manifest | None:
+    """The files ``out``'s manifest lists (bare names only), or None if it has none.
+
+    A manifest that is a symbolic link, unreadable or not packbot's lists nothing; an entry that
+    is not a bare file name is ignored (:attr:`_Manifest.ignored` says which and why).
+    """
     path = out / MANIFEST_NAME
-    if not path.is_file():
+    if not (path.is_symlink() or path.exists()):
         return None
+    manifest = _Manifest({}, set(), [])
+    if path.is_symlink() or not path.is_file():
+        manifest.ignored.append(f"{MANIFEST_NAME} ignored: not a plain file")
+        return manifest
     try:
         data = json.loads(path.read_text(encoding="utf-8"))
     except (OSError, ValueError) as exc:  # unreadable, not UTF-8, not JSON
-        log.warning("%s ignored: not a packbot manifest (%s)", path, exc)
-        return None
+        manifest.ignored.append(f"{MANIFEST_NAME} ignored: not a packbot manifest ({exc})")
+        return manifest
     files = data.get("files") if isinstance(data, dict) else None
     if not isinstance(data, dict) or data.get("tool") != "packbot" or not isinstance(files, list):
-        log.warning("%s ignored: not a packbot manifest", path)
-        return None
-    names = []
+        manifest.ignored.append(f"{MANIFEST_NAME} ignored: not a packbot manifest")
+        return manifest
+    sums = data.get("checksums")
+    sums = sums if isinstance(sums, dict) else {}
     for name in files:
-        if _is_plain_name(name):
-            names.append(name)
+        if not _is_plain_name(name):
+            manifest.ignored.append(f"entry {name!r} ignored (not a file name inside the folder)")
+            continue
+        entry = sums.get(name)
+        sha = entry.get("sha256") if isinstance(entry, dict) else None
+        size = entry.get("size") if isinstance(entry, dict) else None
+        if (
+            isinstance(sha, str)
+            and len(sha) == 64
+            and isinstance(size, int)
+            and not isinstance(size, bool)
+        ):
+            manifest.checksums[name] = (sha.lower(), size)
         else:
-            log.warning("%s: entry %r ignored (not a file name inside the folder)", path, name)
-    return names
+            manifest.unverified.add(name)
+    return manifest
 
 
-def _is_ours(out: Path, name: str, listed: set[str]) -> bool:
-    """A file of an earlier run: listed (or its temporary file, left by a killed run)."""
+def _why_foreign(out: Path, name: str, manifest: _Manifest | None) -> str | None:
+    """Why ``out/name`` is not a file an earlier packbot run can be proven to have written.
+
+    None: it is (listed by the manifest with the SHA-256 and size it has now, a plain file, not
+    a symbolic link), or it is the manifest itself; else the reason, for the message.
+    """
+    from packbot.batch import file_sha256
+
     path = out / name
-    if not (path.is_symlink() or path.is_file()):
-        return False
-    if name in listed or name == MANIFEST_NAME:
-        return True
-    return (
-        name.startswith(".")
-        and name.endswith(".tmp")
-        and any(name.startswith(f".{e}.") for e in (*listed, MANIFEST_NAME))
-    )
+    if path.is_symlink():
+        return "a symbolic link"
+    if not path.is_file():
+        return "a directory" if path.is_dir() else "not a plain file"
+    if name == MANIFEST_NAME:
+        return None
+    if manifest is not None and name in manifest.unverified:
+        return "listed without a checksum"
+    if manifest is None or name not in manifest.checksums:
+        return "not listed"
+    sha, size = manifest.checksums[name]
+    try:
+        if path.stat().st_size != size or file_sha256(path) != sha:
+            return "changed since packbot wrote it"
+    except OSError as exc:
+        return f"unreadable ({exc.strerror or exc})"
+    return None
 
 
 def _prepare_out(out_arg: str, overwrite: bool) -> tuple[Path, list[Path]]:
     """Check (or create) a run's ``--out`` folder.
 
     Returns:
-        The folder, and the files of the earlier packbot run in it (to delete before writing).
+        The folder, and the files of the earlier packbot run in it (to delete before writing):
+        only files its manifest lists with the SHA-256 and size they still have.
 
     Raises:
         _UsageError: A path that is a file or cannot be created, a folder that is not writable,
-            or one holding files packbot did not write (without ``overwrite``).
+            or one holding files packbot cannot prove it wrote (without ``overwrite``).
     """
     out = Path(out_arg)
     if out.exists() and not out.is_dir():
@@ -374,18 +431,28 @@ def _prepare_out(out_arg: str, overwrite: bool) -> tuple[Path, list[Path]]:
         names = sorted(p.name for p in out.iterdir())
     except OSError as exc:
         raise _UsageError(f"--out {out}: cannot list the directory ({exc.strerror})") from None
-    listed = set(_read_manifest(out) or ())
-    ours = [n for n in names if _is_ours(out, n, listed)]
-    foreign = [n for n in names if n not in ours]
+    manifest = _read_manifest(out)
+    for note in manifest.ignored if manifest is not None else ():
+        log.info("%s: %s", out, note)
+    why = {n: _why_foreign(out, n, manifest) for n in names}
+    foreign = [n for n in names if why[n] is not None]
     if foreign and not overwrite:
-        shown = ", ".join(foreign[:3]) + (
-            f" and {len(foreign) - 3} more" if len(foreign) > 3 else ""
+        shown = ", ".join(
+            n if why[n] == "not listed" else f"{n} ({why[n]})" for n in foreign[:3]
+        ) + (f" and {len(foreign) - 3} more" if len(foreign) > 3 else "")
+        old = (
+            " (an older packbot's manifest, or a run that did not finish, lists files without "
+            "their SHA-256: packbot deletes only files it can prove it wrote)"
+            if any(why[n] == "listed without a checksum" for n in foreign)
+            else ""
         )
+        if manifest is not None and manifest.ignored:
+            old += f" ({'; '.join(manifest.ignored)})"
         raise _UsageError(
-            f"--out {out} holds files an earlier packbot run did not list ({shown}); pass "
+            f"--out {out} holds files an earlier packbot run did not list ({shown}){old}; pass "
             "--overwrite to write into it anyway (those files are kept), or choose another folder"
         )
-    return out, [out / n for n in ours if n != MANIFEST_NAME]
+    return out, [out / n for n in names if why[n] is None and n != MANIFEST_NAME]
 
 
 def _planned_files(out: Path, scenario: Scenario, *, plots: bool, html: bool) -> list[Path]:
@@ -404,17 +471,30 @@ def _planned_files(out: Path, scenario: Scenario, *, plots: bool, html: bool) ->
 
 
 def _write_manifest(out: Path, scenario: Scenario, status: str, files: Iterable[Path]) -> None:
-    """Write ``out/packbot-manifest.json``: the files of this run (bare names), its status."""
+    """Write ``out/packbot-manifest.json``: the files of this run (bare names), its status.
+
+    Each file that exists (a plain file, written by this run) is listed with its SHA-256 and
+    size under ``checksums``: the next run deletes only the files that still match. The files
+    a running run may still write are listed without (``status = "running"``).
+    """
     from packbot import __version__
+    from packbot.batch import file_sha256
     from packbot.scenario import _atomic_write
 
+    names = sorted({p.name for p in files if p.parent == out and _is_plain_name(p.name)})
+    checksums = {}
+    for name in names:
+        path = out / name
+        if path.is_file() and not path.is_symlink():
+            checksums[name] = {"sha256": file_sha256(path), "size": path.stat().st_size}
     data = {
         "tool": "packbot",
         "format": _MANIFEST_FORMAT,
         "packbot_version": __version__,
         "scenario": scenario.name,
         "status": status,
-        "files": sorted({p.name for p in files if p.parent == out and _is_plain_name(p.name)}),
+        "files": names,
+        "checksums": checksums,
     }
     text = json.dumps(data, indent=2) + "\n"
     _atomic_write(out / MANIFEST_NAME, lambda fh: fh.write(text), binary=False)
@@ -435,36 +515,115 @@ def _written_files(paths: dict[str, Any], scenario: Scenario) -> list[Path]:
     return files
 
 
-class _SigintFlag:
-    """Ctrl-C as a request to stop a simulation at its next step.
+# ---------------------------------------------------------------------------------- signals
+#: The signals that stop a command as Ctrl-C does: SIGINT, SIGTERM (``timeout``, systemd,
+#: docker, cluster schedulers) and SIGHUP (a closed terminal), where the platform has them.
+STOP_SIGNALS: tuple[int, ...] = tuple(
+    int(s) for s in (signal.SIGINT, signal.SIGTERM, getattr(signal, "SIGHUP", None)) if s
+)
 
-    While active (in the main thread only), the first Ctrl-C sets :attr:`requested`; a second
-    one raises KeyboardInterrupt at once.
+
+class _Stopped(KeyboardInterrupt):
+    """SIGTERM or SIGHUP, raised where Ctrl-C raises KeyboardInterrupt (the same clean-up runs).
+
+    Attributes:
+        signum: The signal's number (the exit code is 128 + it).
     """
 
-    def __init__(self) -> None:
-        self.requested = False
-        self._previous: Any = None
-        self._installed = False
+    def __init__(self, signum: int) -> None:
+        super().__init__(signal.Signals(signum).name)
+        self.signum = signum
 
-    def _handle(self, signum: int, frame: FrameType | None) -> None:
-        if self.requested:
-            raise KeyboardInterrupt
-        self.requested = True
 
-    def __enter__(self) -> _SigintFlag:
+def _signum(exc: BaseException | None) -> int:
+    """The signal behind a KeyboardInterrupt: SIGINT unless it is a :class:`_Stopped`."""
+    return int(getattr(exc, "signum", signal.SIGINT))
+
+
+def _exit_code(signum: int) -> int:
+    """The exit code of a command stopped by a signal: 128 + its number, as a shell says."""
+    return 128 + int(signum)
+
+
+def _by(signum: int) -> str:
+    """``""`` for Ctrl-C (the messages as they were), else ``" by SIGTERM"``."""
+    return "" if signum == signal.SIGINT else f" by {signal.Signals(signum).name}"
+
+
+class _Handlers:
+    """Signal handlers installed (in the main thread only), the earlier ones put back on leaving.
+
+    Only the command line installs any: a library call never does.
+    """
+
+    def __init__(self, handler: Callable[[int, FrameType | None], None], signals: Sequence[int]):
+        self._handler = handler
+        self._signals = tuple(signals)
+        self._previous: dict[int, Any] = {}
+
+    def __enter__(self) -> _Handlers:
         if threading.current_thread() is threading.main_thread():
-            self._previous = signal.signal(signal.SIGINT, self._handle)
-            self._installed = True
+            for s in self._signals:
+                self._previous[s] = signal.signal(s, self._handler)
         return self
 
     def __exit__(self, *exc: object) -> None:
-        if self._installed:
-            previous = self._previous
-            signal.signal(
-                signal.SIGINT, signal.default_int_handler if previous is None else previous
-            )
-            self._installed = False
+        for s, previous in self._previous.items():
+            if previous is None:  # set outside Python: back to the default
+                previous = signal.default_int_handler if s == signal.SIGINT else signal.SIG_DFL
+            signal.signal(s, previous)
+        self._previous.clear()
+
+
+def _raise_stopped(signum: int, frame: FrameType | None) -> None:
+    raise _Stopped(signum)
+
+
+def _terminate_as_interrupt() -> _Handlers:
+    """SIGTERM and SIGHUP raise :class:`_Stopped` (a KeyboardInterrupt) while active.
+
+    Every command then stops on them as on Ctrl-C (its clean-up, its message, exit 128 + the
+    signal).
+    """
+    return _Handlers(_raise_stopped, [s for s in STOP_SIGNALS if s != signal.SIGINT])
+
+
+class _SigintFlag:
+    """Ctrl-C, SIGTERM or SIGHUP as a request to stop a simulation at its next step.
+
+    While active (in the main thread only), the first of these signals sets :attr:`requested`
+    (its number); a second one raises KeyboardInterrupt (:class:`_Stopped` for SIGTERM and
+    SIGHUP) at once.
+    """
+
+    def __init__(self) -> None:
+        self.requested = 0
+        self._handlers = _Handlers(self._handle, STOP_SIGNALS)
+
+    def _handle(self, signum: int, frame: FrameType | None) -> None:
+        if self.requested:
+            if signum == signal.SIGINT:
+                raise KeyboardInterrupt
+            raise _Stopped(signum)
+        self.requested = signum
+
+    def __enter__(self) -> _SigintFlag:
+        self._handlers.__enter__()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self._handlers.__exit__()
+
+
+def _check_name(scenario: Scenario) -> None:
+    """A scenario's name names its files (``<name>.npz``, ``out/<name>``): one file name."""
+    from packbot.errors import ConfigurationError
+    from packbot.paths import check_stem
+
+    try:
+        check_stem("scenario.name", scenario.name)
+    except ConfigurationError as exc:
+        raise _UsageError(f"scenario {scenario.name!r}: {exc}") from None
 
 
 def _duration(value: float | None) -> None:
@@ -500,6 +659,7 @@ def _run(
         scenario = load_scenario(scenario_name)
     except ConfigurationError as exc:
         raise _UsageError(f"scenario {scenario_name}: {exc}") from None
+    _check_name(scenario)
     out, old = _prepare_out(out_arg if out_arg is not None else f"out/{scenario.name}", overwrite)
     robot = load_robot()
     try:
@@ -520,7 +680,7 @@ def _run(
 
     def progress(t: float) -> None:
         if stop.requested:
-            raise _Interrupted(t)
+            raise _Interrupted(t, stop.requested)
         if bar is not None:
             bar(t)
 
@@ -535,7 +695,7 @@ def _run(
             _write_manifest(out, scenario, "running", [p for p in planned if not p.exists()])
             res = run_scenario(scenario, robot, duration=duration, progress=progress)
         if stop.requested:  # Ctrl-C after the last step: stopped all the same
-            interrupted = _Interrupted(float(res.t[-1]))
+            interrupted = _Interrupted(float(res.t[-1]), stop.requested)
             interrupted.result = res
     except _Interrupted as exc:
         interrupted = exc
@@ -551,12 +711,14 @@ def _run(
         _write_manifest(out, scenario, "failed", written)
         _stderr_line(f"error: the simulation of {scenario.name} failed: {exc}{partial}")
         return EXIT_FAILED
-    except KeyboardInterrupt:  # a second Ctrl-C: no result to save
+    except KeyboardInterrupt as exc:  # a second Ctrl-C: no result to save
         if bar is not None:
             bar.close()
         _write_manifest(out, scenario, "interrupted", [])
-        _stderr_line(f"interrupted: {scenario.name} stopped at once, nothing saved")
-        return EXIT_INTERRUPTED
+        _stderr_line(
+            f"interrupted{_by(_signum(exc))}: {scenario.name} stopped at once, nothing saved"
+        )
+        return _exit_code(_signum(exc))
     if bar is not None:
         bar.close()
     if interrupted is not None:
@@ -567,8 +729,9 @@ def _run(
             written = list(saved.values())
             where = f"the trajectory up to then is in {saved['trajectory']}"
         _write_manifest(out, scenario, "interrupted", written)
-        _stderr_line(f"interrupted at t = {interrupted.t:.6g} s: {where}")
-        return EXIT_INTERRUPTED
+        by = _by(interrupted.signum)
+        _stderr_line(f"interrupted{by} at t = {interrupted.t:.6g} s: {where}")
+        return _exit_code(interrupted.signum)
     paths: dict[str, Any] = dict(save_run(res, scenario, out))
     try:
         paths |= write_outputs(res, scenario, robot, out, plots=plot)
@@ -577,12 +740,13 @@ def _run(
             from packbot.viz import write_html
 
             paths["html"] = write_html(robot, res, out / f"{scenario.name}.html")
-    except KeyboardInterrupt:
+    except KeyboardInterrupt as exc:
         _write_manifest(out, scenario, "interrupted", _written_files(paths, scenario))
         _stderr_line(
-            f"interrupted while writing the plots: the trajectory is in {paths['trajectory']}"
+            f"interrupted{_by(_signum(exc))} while writing the plots: the trajectory is in "
+            f"{paths['trajectory']}"
         )
-        return EXIT_INTERRUPTED
+        return _exit_code(_signum(exc))
     _write_manifest(out, scenario, "ok", _written_files(paths, scenario))
     print("\n".join(_summary(res, scenario, duration, dist)))
     print(f"  wrote ({time.perf_counter() - wall0:.2f} s in all):")
@@ -708,11 +872,12 @@ def _cmd_batch(args: argparse.Namespace) -> int:
             timeout=args.timeout,
             progress=bar,
         )
-    except KeyboardInterrupt:
+    except KeyboardInterrupt as exc:
         _interrupted_line(
-            "interrupted: the finished runs are kept; rerun the same command to finish"
+            f"interrupted{_by(_signum(exc))}: the finished runs are kept; rerun the same command "
+            "to finish"
         )
-        return EXIT_INTERRUPTED
+        return _exit_code(_signum(exc))
     print(f"matrix {matrix.name}: {report.describe()}")
     return EXIT_FAILED if report.failed else EXIT_OK
 
@@ -742,9 +907,9 @@ def _cmd_regress(args: argparse.Namespace) -> int:
                 scheduler=args.scheduler,
                 progress=None if args.no_progress else ProgressBar(),
             )
-        except KeyboardInterrupt:
-            _interrupted_line("interrupted: no comparison made")
-            return EXIT_INTERRUPTED
+        except KeyboardInterrupt as exc:
+            _interrupted_line(f"interrupted{_by(_signum(exc))}: no comparison made")
+            return _exit_code(_signum(exc))
         print(result.text())
         drift = drift or (bool(result.drifts) and not args.update)
     return EXIT_FAILED if drift else EXIT_OK
@@ -812,11 +977,12 @@ def _cmd_study_matrix(args: argparse.Namespace) -> int:
             timeout=args.timeout,
             progress=bar,
         )
-    except KeyboardInterrupt:
+    except KeyboardInterrupt as exc:
         _interrupted_line(
-            "interrupted: the finished cells are kept; rerun the same command to finish"
+            f"interrupted{_by(_signum(exc))}: the finished cells are kept; rerun the same "
+            "command to finish"
         )
-        return EXIT_INTERRUPTED
+        return _exit_code(_signum(exc))
     print(f"study matrix {matrix.name}: {report.describe()}")
     return EXIT_FAILED if report.batch.failed else EXIT_OK
 
@@ -847,6 +1013,7 @@ def _cmd_study(args: argparse.Namespace) -> int:
             f"failed and a reconfigured run (shipped scenarios with failures: "
             f"{', '.join(shipped)})"
         )
+    _check_name(scenario)
     out, old = _prepare_out(args.out or f"out/{scenario.name}_study", args.overwrite)
     for path in old:
         path.unlink(missing_ok=True)
@@ -928,7 +1095,8 @@ def build_parser() -> argparse.ArgumentParser:
         "collisions and joint failures.",
         epilog="Exit codes: 0 success; 1 a simulation failed or a regression drifted; 2 bad input "
         "(usage, option values, files, the output folder: one line on stderr); 130 interrupted "
-        "(Ctrl-C; `packbot run` saves the trajectory up to then as <name>_partial.npz).",
+        "(Ctrl-C), 143 SIGTERM, 129 SIGHUP (`packbot run` saves the trajectory up to then as "
+        "<name>_partial.npz).",
     )
     parser.add_argument("-v", "--verbose", action="count", default=0, help="more log output")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
@@ -974,8 +1142,8 @@ def build_parser() -> argparse.ArgumentParser:
         "run",
         help="run a scenario (a name in sims/ or a TOML file): trajectory, event log, plots",
         epilog="Exit codes: 0 done; 1 the simulation failed (the trajectory up to then is saved "
-        "as <name>_partial.npz); 2 bad input; 130 Ctrl-C (the trajectory up to then is saved "
-        "as <name>_partial.npz).",
+        "as <name>_partial.npz); 2 bad input; 130 Ctrl-C, 143 SIGTERM, 129 SIGHUP (the trajectory "
+        "up to then is saved as <name>_partial.npz).",
     )
     p.add_argument(
         "scenario", metavar="SCENARIO", help="scenario name (see `packbot list`) or path"
@@ -1150,16 +1318,17 @@ def main(argv: Sequence[str] | None = None) -> int:
         return EXIT_USAGE
     func: Callable[[argparse.Namespace], int] = args.func
     try:
-        return int(func(args))
+        with _terminate_as_interrupt():  # SIGTERM, SIGHUP: as Ctrl-C (restored on return)
+            return int(func(args))
     except PackbotError as exc:
         _stderr_line(f"error: {exc}")
         return EXIT_USAGE
     except OSError as exc:  # a file or folder that cannot be read or written, a refused connection
         _stderr_line(f"error: {_os_error_text(exc)}")
         return EXIT_USAGE
-    except KeyboardInterrupt:
-        _interrupted_line("interrupted")
-        return EXIT_INTERRUPTED
+    except KeyboardInterrupt as exc:
+        _interrupted_line(f"interrupted{_by(_signum(exc))}")
+        return _exit_code(_signum(exc))
 
 
 if __name__ == "__main__":  # pragma: no cover

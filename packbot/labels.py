@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from packbot.result import Event
 
-__all__ = ["event_label"]
+__all__ = ["event_label", "plain_text"]
 
 
 def event_label(event: Event) -> str:
@@ -34,3 +34,12 @@ def event_label(event: Event) -> str:
     if a and b:
         return f"{kind} {a}\u2013{b}"
     return f"{kind} {a}".rstrip()
+
+
+def plain_text(text: str) -> str:
+    """Text for a matplotlib label drawn as it is: ``$`` escaped (no mathtext).
+
+    A name holding two ``$`` (a scenario named ``x$_$y``) would otherwise be parsed as TeX
+    math, and fail to draw.
+    """
+    return text.replace("$", "\\$")

@@ -45,7 +45,7 @@ from numpy.typing import NDArray
 from packbot.collision import CollisionWorld
 from packbot.errors import ConfigurationError, UnknownNameError
 from packbot.keywords import checked_arguments
-from packbot.labels import event_label
+from packbot.labels import event_label, plain_text
 from packbot.result import SimResult
 
 __all__ = [
@@ -375,7 +375,7 @@ class _TimeFigure:
             ax.text(
                 x + pad if lb.left else x - pad,
                 y,
-                lb.text,
+                plain_text(lb.text),  # names drawn as they are (no TeX math)
                 ha="left" if lb.left else "right",
                 va="center",
                 fontsize=_LABEL_PT,
@@ -1024,7 +1024,10 @@ def plot_occlusion(
         labels.append(f"({xyz}) m\nclear {100 * clear:.0f}%")
     drawn = _mark_events(ax, result, event_kinds)
     handles = [Line2D([], [], color="tab:green", alpha=0.4, lw=6, label="clear view")]
-    handles += [Line2D([], [], color=c, lw=6, label=f"blocked by {n}") for n, c in colors.items()]
+    handles += [
+        Line2D([], [], color=c, lw=6, label=plain_text(f"blocked by {n}"))
+        for n, c in colors.items()
+    ]
     for kind, color in drawn:
         handles.append(Line2D([], [], color=color, lw=1.2, label=kind))
     ax.legend(

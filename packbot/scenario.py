@@ -54,6 +54,7 @@ from numpy.typing import NDArray
 
 from packbot import tomlfile
 from packbot.config import SimConfig
+from packbot.csv_cells import spreadsheet_row
 from packbot.environment import FLOOR, Environment, Obstacle
 from packbot.errors import (
     ConfigurationError,
@@ -64,6 +65,7 @@ from packbot.errors import (
 )
 from packbot.failures import Failure
 from packbot.keywords import checked_arguments
+from packbot.paths import check_stem, inside
 from packbot.payload import Payload
 from packbot.validation import (
     MAX_OBSTACLES,
@@ -939,7 +941,13 @@ def save_run(
       ``packbot_version``, ``config_json`` (the settings) and ``rest_time`` [s] (NaN: none).
       The diagnostics' wall time is stored as 0, so that a rerun writes the same bytes;
     - ``<stem>_events.csv``: one row per event (time, kind, pair, distance, relevant joints,
-      energy before, after and change).
+      energy before, after and change). A text cell a spreadsheet would run as a formula (an
+      obstacle named ``=cmd|...``: beginning with ``=``, ``+``, ``-``, ``@``, a tab or a carriage
+      return, and not a number) is written with a leading ``'``
+      (:func:`packbot.csv_cells.spreadsheet_safe`).
+
+    Both files are inside ``out_dir``: the stem must be a single file name
+    (:func:`packbot.paths.check_stem`: no separator, not ``..``).
 
     Args:
         result: The run's result.
@@ -949,11 +957,16 @@ def save_run(
 
     Returns:
         ``{"trajectory": path, "events": path}``.
+
+    Raises:
+        ConfigurationError: ``out_dir`` is a file, or the stem (``stem``, or ``scenario.name``
+            by default) is not a single file name; nothing is written.
     """
     out = Path(out_dir)
     if out.exists() and not out.is_dir():
         raise ConfigurationError("out_dir", str(out), "a directory (this is a file)")
-    stem = scenario.name if stem is None else stem
+    stem = _checked_stem(scenario, stem)
+    inside("out_dir", out, out / f"{stem}.npz")
     if not result.scenario_text:  # a partial result, or one made outside run_scenario
         result = dataclasses.replace(result, scenario_text=scenario.source_text)
     # The wall time is left out (0): the file is then a function of the run's inputs, so a
@@ -967,24 +980,33 @@ def save_run(
         w.writerow(_EVENT_COLUMNS)
         for e in result.events:
             w.writerow(
-                [
-                    f"{e.t:.10f}",
-                    e.kind,
-                    e.link1,
-                    e.link2,
-                    e.piece1,
-                    e.piece2,
-                    f"{e.distance:.6g}",
-                    " ".join(e.relevant_joints),
-                    f"{e.energy_before:.6f}",
-                    f"{e.energy_after:.6f}",
-                    f"{e.energy_change:.6f}",
-                ]
+                spreadsheet_row(
+                    [
+                        f"{e.t:.10f}",
+                        e.kind,
+                        e.link1,
+                        e.link2,
+                        e.piece1,
+                        e.piece2,
+                        f"{e.distance:.6g}",
+                        " ".join(e.relevant_joints),
+                        f"{e.energy_before:.6f}",
+                        f"{e.energy_after:.6f}",
+                        f"{e.energy_change:.6f}",
+                    ]
+                )
             )
 
     events = out / f"{stem}_events.csv"
     _atomic_write(events, write_events, binary=False)
     return {"trajectory": traj, "events": events}
+
+
+def _checked_stem(scenario: Scenario, stem: Any) -> str:
+    """The stem of a run's files: ``stem``, or the scenario's name; a single file name."""
+    if stem is None:
+        return check_stem("scenario.name", scenario.name)
+    return check_stem("stem", stem)
 
 
 @checked_arguments
@@ -1019,7 +1041,8 @@ def write_outputs(
     from packbot.collision import CollisionWorld
 
     out = Path(out_dir)
-    stem = scenario.name if stem is None else stem
+    stem = _checked_stem(scenario, stem)
+    inside("out_dir", out, out / stem)
     written: dict[str, Any] = {}
     kinds = scenario.plot_kinds() if plots else ()
     occ = scenario.outputs.occlusion
@@ -1043,7 +1066,7 @@ def write_outputs(
             w = csv.writer(fh)
             w.writerow(["time_s", *(f"target{k} {list(p)}" for k, p in enumerate(occ.targets))])
             for i, t in enumerate(result.t):
-                w.writerow([f"{t:.6f}", *(col[i] or "" for col in blocked)])
+                w.writerow(spreadsheet_row([f"{t:.6f}", *(col[i] or "" for col in blocked)]))
 
         _atomic_write(path, write_table, binary=False)
         written["occlusion_table"] = path

@@ -28,6 +28,13 @@ A case's outcome (:func:`run_case`) is one of:
 - ``accepted``: no error at all (silently accepted nonsense);
 - ``hang``: (worker mode only) the case did not finish within the timeout.
 
+A case may instead hold input that is legal but hostile (an obstacle named ``<img onerror=...>``
+must be escaped on the pages, not refused; a run stopped by SIGTERM must save its partial
+result): its ``check`` is called with what the action returned and says whether the outcome is
+right. None: ``clean`` (the input was handled as it must be); a string: ``accepted``, with that
+string (the problem) as the detail. An action that raises is classified as any other (a
+PackbotError is then ``clean`` or ``unclear``); a check that raises is a ``traceback``.
+
 Run as a script, this module is the worker: ``python tests/bad_input_cases.py --worker`` reads
 case ids on stdin and answers one JSON line per case; ``--case ID`` runs one case.
 """
@@ -197,6 +204,8 @@ class Case:
         cli: Whether ``action`` returns argv for ``packbot.cli.main``.
         code: The exit code expected (command line).
         guard: The input used to hang: pytest runs it in a subprocess with a timeout.
+        check: For legal but hostile input: called with the action's return value, returns
+            None when the outcome is right (``clean``) or the problem (``accepted``).
     """
 
     category: str
@@ -207,6 +216,7 @@ class Case:
     cli: bool = False
     code: int = 2
     guard: bool = False
+    check: Callable[[Any], str | None] | None = None
 
     @property
     def key(self) -> str:
@@ -290,6 +300,15 @@ def run_case(case: Case, tmp: Path) -> Outcome:
     except Exception as e:
         tb = traceback.format_exc(limit=-3)
         return Outcome("traceback", f"{type(e).__name__}: {e}", {"traceback": tb})
+    if case.check is not None:
+        try:
+            problem = case.check(value)
+        except Exception as e:
+            tb = traceback.format_exc(limit=-3)
+            return Outcome("traceback", f"check: {type(e).__name__}: {e}", {"traceback": tb})
+        if problem is None:
+            return Outcome("clean", f"checked: {value!r:.200}")
+        return Outcome("accepted", problem)
     return Outcome("accepted", f"returned {value!r:.200}")
 
 

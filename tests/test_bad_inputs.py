@@ -80,6 +80,16 @@ def test_the_harness_reports_what_is_not_clean(tmp_path):
     assert ok_cli.status == "accepted"
     other_code = Case("cli", "code", lambda c: ["run", "colapse"], cli=True, code=1)
     assert run_case(other_code, tmp_path).status == "unclear"  # exit 2, not the 1 asked for
+    # hostile but legal input: its check says whether the outcome is right
+    right = Case("content", "ok", lambda c: "&lt;b&gt;", check=lambda v: None)
+    assert run_case(right, tmp_path).status == "clean"
+    wrong = Case("content", "raw", lambda c: "<b>", check=lambda v: f"raw {v}")
+    assert (run_case(wrong, tmp_path).status, run_case(wrong, tmp_path).detail) == (
+        "accepted",
+        "raw <b>",
+    )
+    refused = Case("content", "err", lambda c: SimConfig(mu=-1), ("mu",), check=lambda v: None)
+    assert run_case(refused, tmp_path).status == "clean"  # an error: classified as before
 
 
 INSIDE_A_BOX = (

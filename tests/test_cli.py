@@ -1,6 +1,7 @@
 """The ``packbot`` command line: run, list, collapse; exit codes and messages."""
 
 import csv
+import hashlib
 import json
 import os
 import signal
@@ -494,13 +495,30 @@ def test_manifest_entries_outside_the_folder_are_never_followed(tmp_path, capsys
     (out / "sub" / "x.txt").write_text("keep")
     if isinstance(entry, str):
         entry = entry.format(outside=outside)
-    manifest = {"tool": "packbot", "format": 1, "files": [entry, "old.npz"]}
+    old = {"sha256": hashlib.sha256(b"old").hexdigest(), "size": 3}
+    manifest = {"tool": "packbot", "format": 2, "files": [entry, "old.npz"]}
+    manifest["checksums"] = {"old.npz": old, str(entry): old}
     (out / MANIFEST_NAME).write_text(json.dumps(manifest))
     (out / "old.npz").write_text("old")
     argv = ["run", "collapse", "--out", str(out), "--duration", "0.3", "--overwrite"]
     assert main(argv) == 0
     assert outside.read_text() == "keep" and (out / "sub" / "x.txt").read_text() == "keep"
-    assert not (out / "old.npz").exists()  # the plain entry was the earlier run's
+    assert not (out / "old.npz").exists()  # the plain entry was the earlier run's (its SHA-256)
+
+
+def test_an_older_manifest_without_checksums_deletes_nothing(tmp_path, capsys):
+    # format 1 listed bare names: packbot cannot prove it wrote them, so they are foreign
+    out = tmp_path / "o"
+    out.mkdir()
+    (out / MANIFEST_NAME).write_text(
+        json.dumps({"tool": "packbot", "format": 1, "files": ["a.npz"]})
+    )
+    (out / "a.npz").write_text("whose?")
+    code, err = run_cli(["run", "collapse", "--out", str(out), "--duration", "0.3"], capsys)
+    assert code == 2 and "a.npz (listed without a checksum)" in err and "SHA-256" in err
+    assert_one_line(err)
+    assert main(["run", "collapse", "--out", str(out), "--duration", "0.3", "--overwrite"]) == 0
+    assert (out / "a.npz").read_text() == "whose?"
 
 
 def test_a_broken_manifest_counts_as_no_manifest(tmp_path, capsys):

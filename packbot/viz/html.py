@@ -11,6 +11,7 @@ its start, with play/pause, speed, a time slider and the list of events to jump 
 from __future__ import annotations
 
 import base64
+import html as html_lib
 import json
 import logging
 import os
@@ -33,7 +34,13 @@ from packbot.viz.keyframes import FPS, _check_speed, _keyframes
 from packbot.viz.recorder import SceneRecorder
 from packbot.viz.scene import CAMERA_FOV, CAMERA_OFFSET, _Scene
 
-__all__ = ["EVENT_CSS", "html_page", "screenshot_command", "write_html"]
+__all__ = [
+    "EVENT_CSS",
+    "html_page",
+    "screenshot_command",
+    "script_json",
+    "write_html",
+]
 
 log = logging.getLogger(__name__)
 
@@ -267,14 +274,28 @@ def html_page(commands: Sequence[bytes], *, title: str, caption: str = "", **set
         raise PackbotError("meshcat's main.min.js contains '</script': cannot inline it")
     data = {"t0": 0.0, "t1": 0.0, "speed": 1.0, "events": [], "camera": None, **settings}
     data["commands"] = [base64.b64encode(c).decode("ascii") for c in commands]
-    esc = {"&": "&amp;", "<": "&lt;", ">": "&gt;"}
     return _PAGE.format(
-        title="".join(esc.get(c, c) for c in title),
-        caption="".join(esc.get(c, c) for c in caption),
+        title=html_lib.escape(title),
+        caption=html_lib.escape(caption),
         viewer_js=viewer_js,
-        # "<" escaped: a label with "</script" cannot close the script early
-        settings=json.dumps(data, separators=(",", ":")).replace("<", "\\u003c"),
+        settings=script_json(data),  # a label with "</script" cannot close the script early
     )
+
+
+#: What :func:`script_json` writes as ``\\uXXXX`` escapes.
+_SCRIPT_ESCAPES = {c: f"\\u{ord(c):04x}" for c in "<>&\u2028\u2029"}
+
+
+def script_json(data: Any) -> str:
+    r"""JSON to embed in an inline ``<script>``: data, never markup.
+
+    ``<``, ``>``, ``&`` (and the line separators U+2028, U+2029) are written as ``\uXXXX``
+    escapes, which JSON and JavaScript read back as the same characters: a string holding
+    ``</script>`` or ``<!--`` cannot end the script or change how the page parses it. The page
+    must then set such strings as text (``textContent``), never as ``innerHTML``.
+    """
+    text = json.dumps(data, separators=(",", ":"))
+    return "".join(_SCRIPT_ESCAPES.get(c, c) for c in text)
 
 
 def _write_atomic(path: Path, text: str) -> None:

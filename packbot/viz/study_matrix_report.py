@@ -24,6 +24,7 @@ import io
 import json
 import math
 import os
+import re
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -64,7 +65,22 @@ def _cell_link(summary: Mapping[str, Any], ids: Sequence[str], r: int, k: int) -
     if len(ids) > 1:
         return f"report.html#bin-{r}-{k}"
     cell = next(c for c in summary["cells"] if c["id"] == ids[0])
-    return cell["report"] or cell["study_json"]
+    return _relative_link(cell["report"] or cell["study_json"])
+
+
+def _relative_link(target: Any) -> str | None:
+    """A cell's file as a link: a relative path inside the folder, else None (no link).
+
+    A summary read back from ``study-matrix.json`` is data: a ``javascript:`` or absolute
+    target (an edited file) is not linked.
+    """
+    if not isinstance(target, str) or not target:
+        return None
+    if re.match(r"[A-Za-z][A-Za-z0-9+.-]*:", target) or target.startswith(("/", "\\")):
+        return None
+    if ".." in target.replace("\\", "/").split("/"):
+        return None
+    return target
 
 
 def _norms(summary: Mapping[str, Any]) -> tuple[Normalize, Normalize]:
@@ -320,7 +336,7 @@ def matrix_page(summary: Mapping[str, Any], heat_map_png: bytes | None = None) -
             links = []
             for cid in ids:
                 cell = cells[cid]
-                target = cell["report"] or cell["study_json"]
+                target = _relative_link(cell["report"] or cell["study_json"])
                 label = esc(_cell_label(cell, failure))
                 if target:
                     links.append(f'<a href="{esc(target)}">{label}</a>')
@@ -344,8 +360,8 @@ def matrix_page(summary: Mapping[str, Any], heat_map_png: bytes | None = None) -
         "<th>within tolerance from</th><th>why / error</th></tr>"
     ]
     for cell in summary["cells"]:
-        target = cell["report"] or cell["study_json"]
-        name = esc(cell["id"])
+        target = _relative_link(cell["report"] or cell["study_json"])
+        name = esc(str(cell["id"]))
         link = f'<a href="{esc(target)}">{name}</a>' if target else name
         runs = cell["runs"]
         failed = runs.get("failed", {}).get("final_task_error_m")
@@ -366,14 +382,14 @@ def matrix_page(summary: Mapping[str, Any], heat_map_png: bytes | None = None) -
         )
         other_td = f"<td>{esc(other)}</td>" if show_other else ""
         crow.append(
-            f'<tr id="cell-{name}"><td><a href="#bin-{r}-{k}">{cell["index"]}</a></td>'
+            f'<tr id="cell-{name}"><td><a href="#bin-{r}-{k}">{esc(str(cell["index"]))}</a></td>'
             f"<td>{link}</td><td>{esc(str(cell['joint']))}</td><td>{esc(str(cell['kind']))}</td>"
             f"<td>{cell['failure_time_s']:g} s</td>{other_td}"
             f"<td>{esc(cell['status'])}</td>"
             f"<td>{_verdict(cell['recovery_possible']) if cell['status'] == 'ok' else '&mdash;'}"
             f"</td><td>{rec_text}</td><td>{_mm(failed)}</td><td>{_mm(reconf)}</td>"
             f"<td>{_s(cell.get('detect_time_s'))}</td><td>{_s(cell.get('recover_time_s'))}</td>"
-            f'<td class="small">{esc(why)}</td></tr>'
+            f'<td class="small">{esc(str(why))}</td></tr>'
         )
     table = '<table class="grid">' + "".join(crow) + "</table>"
     img = base64.b64encode(heat_map_png).decode("ascii")

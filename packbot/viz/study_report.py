@@ -36,7 +36,9 @@ import numpy as np
 from meshcat.servers.zmqserver import VIEWER_ROOT
 
 from packbot.errors import ConfigurationError, PackbotError
+from packbot.labels import plain_text
 from packbot.study import RUN_NAMES, StudyResult, impact_speeds
+from packbot.viz.html import script_json
 from packbot.viz.recorder import SceneRecorder
 from packbot.viz.scene import _Scene
 
@@ -190,7 +192,7 @@ def study_figures(result: StudyResult) -> dict[str, Figure]:
     figs: dict[str, Figure] = {}
     robot = result.robot
     runs = [(n, r) for n, r in result.runs.items() if r.result is not None]
-    title = (
+    title = plain_text(
         f"{result.scenario.name}: {result.scenario.controller} controller, {result.contact_mode}"
     )
 
@@ -402,6 +404,7 @@ def _events_table(result: StudyResult) -> str:
 def _loose_table(result: StudyResult) -> str:
     if not result.loose:
         return ""
+    esc = html_lib.escape
     rows = []
     for s in result.loose:
         eqs = (
@@ -413,7 +416,7 @@ def _loose_table(result: StudyResult) -> str:
             or "none (no gravity torque)"
         )
         rows.append(
-            f'<tr><td style="color:{RUN_COLORS[s.run]}">{s.run}</td><td>{s.joint}</td>'
+            f'<tr><td style="color:{RUN_COLORS[s.run]}">{esc(s.run)}</td><td>{esc(s.joint)}</td>'
             f"<td>{s.settled_angle_rad:.4f}</td><td>{_fmt(s.final_speed_rad_s, 'rad/s')}</td>"
             f"<td>{_fmt(s.nearest_angle_rad)} ({html_lib.escape(s.nearest_kind)}"
             f"{', stable' if s.nearest_stable else ', unstable'})</td>"
@@ -458,8 +461,15 @@ var study = STUDY_DATA;
 var viewers = [];
 study.runs.forEach(function (run, k) {
   var el = document.getElementById("view" + k);
-  if (!run.commands.length) { el.innerHTML = "<p style='padding:8px'>no animation: " +
-    run.reason + "</p>"; viewers.push(null); return; }
+  if (!run.commands.length) {
+    // the reason quotes names (obstacles, joints): text, never markup
+    var p = document.createElement("p");
+    p.style.padding = "8px";
+    p.textContent = "no animation: " + run.reason;
+    el.appendChild(p);
+    viewers.push(null);
+    return;
+  }
   var v = new MeshCat.Viewer(el);
   // meshcat sizes its canvas to the window's height: size it to its pane instead
   var size = v.set_3d_pane_size;
@@ -573,7 +583,7 @@ def study_page(result: StudyResult, pngs: dict[str, bytes] | None = None) -> str
         f'src="data:image/png;base64,{base64.b64encode(png).decode("ascii")}">'
         for name, png in pngs.items()
     )
-    settings = json.dumps(data, separators=(",", ":")).replace("</", "<\\/")
+    settings = script_json(data)
     body = f"""<h1>Failure study: {esc(sc.name)}</h1>
 <p>{esc(sc.description)}<br>controller <b>{esc(sc.controller)}</b>, contact mode
 <b>{esc(result.contact_mode)}</b>, failures: <b>{esc(fails)}</b>, {result.duration_s:g} s simulated,
