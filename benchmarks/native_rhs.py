@@ -1,6 +1,6 @@
 """The contact-normal mode's native right-hand side against the Python path.
 
-Two tables (docs/dev/issue17/native.md quotes them):
+Two tables (docs/performance.md, "Where the time goes", quotes the first):
 
 1. Per right-hand-side call [us], at states of a collapse (every 50th call with engaged rows,
    mu 0.5, timed inside the run): the Python path (``pin.aba`` then ``NormalLaw.accel``:

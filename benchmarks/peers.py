@@ -15,8 +15,8 @@ same URDF, mu = 0.5, the same armature. Rows:
 - ``PyBullet 240 Hz`` and ``Drake discrete 1 ms``: run only if ``pybullet`` / ``pydrake`` is
   importable (neither is a packbot dependency), otherwise printed as "not installed". PyBullet:
   the same URDF with the locked joints welded, ``p.stepSimulation()`` in a loop, motors off,
-  mu 0.5, SRDF pairs filtered (PyBullet has no armature; run for the seventh session's table
-  with pybullet 3.2.7 installed by hand); Drake: ``drake_reference.collapse`` (discrete point
+  mu 0.5, SRDF pairs filtered (PyBullet has no armature; measured with
+  pybullet 3.2.7 installed by hand); Drake: ``drake_reference.collapse`` (discrete point
   contact, lagged approximation, ``AdvanceTo`` every 2 ms).
 
 Columns: wall time [s] (median over ``--repeats`` rounds, interleaved: round r runs every row
