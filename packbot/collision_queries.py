@@ -95,9 +95,7 @@ def point_contact(
         raise ConfigurationError("q", np.shape(q), f"a vector of shape ({nq},) [rad]") from exc
     dispatch = world.dispatch
     dispatch.pending = qa.tobytes()  # (the pieces owed at q, as after _place(q))
-    return dispatch._contact(
-        world.pairs[k], float(d), p1, p2, normal
-    )
+    return dispatch._contact(world.pairs[k], float(d), p1, p2, normal)
 
 
 def patch_batch(
