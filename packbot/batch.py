@@ -67,8 +67,8 @@ from packbot.csv_cells import spreadsheet_row
 from packbot.errors import ConfigurationError, PackbotError, SimulationError
 from packbot.keywords import checked_arguments
 from packbot.matrix import Matrix, Run, canonical_json, parse_matrix
-from packbot.validation import MAX_WORKERS, integer, is_number
 from packbot.paths import check_stem
+from packbot.validation import MAX_WORKERS, integer, is_number
 
 try:
     import fcntl

@@ -22,7 +22,7 @@ from packbot.errors import ConfigurationError
 from packbot.model import Robot
 
 if TYPE_CHECKING:
-    from packbot.collision import PairInfo
+    from packbot.collision_records import PairInfo
 
 __all__ = [
     "BOX_PAD",
@@ -216,7 +216,7 @@ def pair_infos(
     gm: pin.GeometryModel, link_of_geom: list[str], body_of_geom: NDArray[np.intp]
 ) -> tuple[PairInfo, ...]:
     """The pairs of the geometry model ``gm``, in its order (piece 1 distal)."""
-    from packbot.collision import PairInfo  # (packbot.collision imports this module)
+    from packbot.collision_records import PairInfo
 
     gos = gm.geometryObjects
     out = []

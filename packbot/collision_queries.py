@@ -20,7 +20,8 @@ from packbot import native_sweep
 from packbot.errors import ConfigurationError, UnknownNameError
 
 if TYPE_CHECKING:
-    from packbot.collision import CollisionWorld, Contact
+    from packbot.collision import CollisionWorld
+    from packbot.collision_records import Contact
     from packbot.native_sweep import NativeSweep
 
 __all__ = [
@@ -94,9 +95,7 @@ def point_contact(
         raise ConfigurationError("q", np.shape(q), f"a vector of shape ({nq},) [rad]") from exc
     dispatch = world.dispatch
     dispatch.pending = qa.tobytes()  # (the pieces owed at q, as after _place(q))
-    return dispatch._contact(  # (collision.Contact: no import cycle)
-        world.pairs[k], float(d), p1, p2, normal
-    )
+    return dispatch._contact(world.pairs[k], float(d), p1, p2, normal)
 
 
 def patch_batch(

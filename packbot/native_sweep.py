@@ -35,11 +35,12 @@ import coal
 import numpy as np
 from numpy.typing import NDArray
 
+from packbot.collision_records import Contact, SweepCounts, SweepResult
 from packbot.errors import ConfigurationError
 from packbot.native_joints import SUPPORTED_JOINTS
 
 if TYPE_CHECKING:
-    from packbot.collision import CollisionWorld, Contact, SweepCounts, SweepResult
+    from packbot.collision import CollisionWorld
 
 __all__ = [
     "ENABLED",
@@ -363,7 +364,6 @@ class NativeDispatch:
     """
 
     def __init__(self, world: CollisionWorld) -> None:
-        from packbot.collision import Contact, SweepCounts, SweepResult
 
         self.world = world
         self.pending: bool | bytes = False
