@@ -69,6 +69,8 @@ __all__ = [
     "StudyRun",
     "contact_gate",
     "study",
+    "verdict_lines",
+    "verdict_text",
 ]
 
 log = logging.getLogger(__name__)
@@ -607,6 +609,39 @@ def study(
         reconfiguration=decision,
         attempt=attempt,
     )
+
+
+def verdict_lines(result: StudyResult) -> tuple[str, list[str]]:
+    """The study's verdict: a headline and its sentences (what ``packbot study`` prints).
+
+    The headline says whether recovery is possible (or that the failure does no harm); the
+    sentences give the reasons, and whether the strategy's run was applied, with both final
+    errors.
+    """
+    rec = result.recovery
+    name = result.scenario.name
+    who = f"controller {result.controller or result.scenario.controller}"
+    if rec.harmless and result.failed.metrics is not None:
+        head = f"study {name} ({who}): the failure does no harm"
+        m = result.failed.metrics
+        lines = [
+            f"the unaware controller ends {m.final_task_error_m * 1000:,.1f} mm from the task, "
+            f"within the tolerance ({result.tolerance_m * 1000:g} mm)"
+        ]
+    else:
+        verdict = {True: "possible", False: "not possible", None: "not assessed"}[rec.possible]
+        head = f"study {name} ({who}): recovery {verdict}"
+        lines = []
+    lines += list(rec.reasons)
+    if result.reconfiguration is not None:
+        lines.append(result.reconfiguration.verdict)
+    return head, lines
+
+
+def verdict_text(result: StudyResult) -> str:
+    """:func:`verdict_lines` as text: the headline, then one ``  - `` line per sentence."""
+    head, lines = verdict_lines(result)
+    return "\n".join([head, *(f"  - {x}" for x in lines)])
 
 
 #: The strategy's run is applied unless it ends more than this farther from the task than the

@@ -34,7 +34,8 @@ is a = mean(tau_m) + tau_ext. With c = mean(tau_m) the healthy motor's torque:
 
 - ``"frozen"``: the joint's measured speed stayed below ``frozen_speed`` (a lock: a frozen joint
   or a brake that holds);
-- ``"loose"``: |a| is below the joint's threshold (the motor gives nothing);
+- ``"loose"``: |a| is below the joint's threshold or ``LOOSE_SHARE`` |c| (the motor gives
+  nothing, up to the unmodelled part of the friction and the window's estimate);
 - ``"weak"``: a has the command's sign and a smaller size; the estimated scale is |a| / E_j;
 - ``"stuck"``: otherwise (the motor gives a torque of the other sign, or more than commanded);
   its estimated torque is a. Over a window of 20 ms in which the command hardly changes, a
@@ -70,6 +71,9 @@ FloatArray = NDArray[np.float64]
 
 #: The kinds a detection reports.
 DETECTED_KINDS: tuple[str, ...] = ("frozen", "loose", "weak", "stuck", "brake")
+#: A motor giving less than this share of the healthy command (or less than the threshold) is
+#: loose [-].
+LOOSE_SHARE = 0.1
 #: A joint flagged frozen that moves this far from its locked angle is a slipping brake [rad].
 BRAKE_SLIP = 5e-3
 #: Suspension after a contact, in observer time constants (the residual decays to e^-5).
@@ -403,7 +407,7 @@ class MomentumObserver:
         if not moving:
             kind = "frozen"
             self._locked_at[j] = angle
-        elif abs(applied) < self.threshold[j]:
+        elif abs(applied) < max(float(self.threshold[j]), LOOSE_SHARE * abs(cmd)):
             kind = "loose"
         elif applied * cmd > 0 and abs(applied) < abs(cmd):
             kind = "weak"
