@@ -967,6 +967,7 @@ def _cmd_study_matrix(args: argparse.Namespace) -> int:
                 "is resumed"
             )
     matrix = load_study_matrix(args.scenario)
+    controller, recovery = _user_code(args)
     bar = None if args.no_progress else ProgressBar()
     try:
         report = run_study_matrix(
@@ -976,6 +977,8 @@ def _cmd_study_matrix(args: argparse.Namespace) -> int:
             scheduler=args.scheduler,
             timeout=args.timeout,
             progress=bar,
+            controller=controller,
+            recovery=recovery,
         )
     except KeyboardInterrupt as exc:
         _interrupted_line(
@@ -987,9 +990,27 @@ def _cmd_study_matrix(args: argparse.Namespace) -> int:
     return EXIT_FAILED if report.batch.failed else EXIT_OK
 
 
+def _user_code(args: argparse.Namespace) -> tuple[str | None, str]:
+    """``--controller`` and ``--recovery``, checked (imported) before anything runs.
+
+    The current folder goes first on ``sys.path``, as ``python -m`` puts it, so that a module
+    beside the user is found. A bad path is a ConfigurationError (one line, exit 2).
+    """
+    from packbot.control.user_code import controller_factory, strategy_factory
+
+    if args.controller is not None or ":" in args.recovery:
+        cwd = os.getcwd()
+        if cwd not in sys.path:
+            sys.path.insert(0, cwd)
+    if args.controller is not None:
+        controller_factory(args.controller, "--controller")
+    strategy_factory(args.recovery, "--recovery")
+    return args.controller, args.recovery
+
+
 def _cmd_study(args: argparse.Namespace) -> int:
     from packbot.scenario import list_scenarios, load_scenario
-    from packbot.study import DEFAULT_TOLERANCE, study
+    from packbot.study import DEFAULT_TOLERANCE, study, verdict_text
     from packbot.viz.study_report import write_study
 
     if _is_study_matrix(args.scenario):
@@ -1014,6 +1035,7 @@ def _cmd_study(args: argparse.Namespace) -> int:
             f"{', '.join(shipped)})"
         )
     _check_name(scenario)
+    controller, recovery = _user_code(args)
     out, old = _prepare_out(args.out or f"out/{scenario.name}_study", args.overwrite)
     for path in old:
         path.unlink(missing_ok=True)
@@ -1022,21 +1044,23 @@ def _cmd_study(args: argparse.Namespace) -> int:
         duration=args.duration,
         tolerance=args.tolerance,
         contact_mode=args.contact_mode,
+        controller=controller,
+        recovery=recovery,
         progress=lambda text: log.info("%s", text),
     )
     written = write_study(result, out, html=not args.no_html)
     _write_manifest(out, scenario, "study", written.values())
-    rec = result.recovery
-    verdict = {True: "possible", False: "not possible", None: "not assessed"}[rec.possible]
-    print(f"study {scenario.name}: recovery {verdict}")
-    for reason in rec.reasons:
-        print(f"  - {reason}")
+    print(verdict_text(result))
     for name, run in result.runs.items():
         m = run.metrics
         if m is None:
             print(f"  {name:<13} {run.status}: {run.reason}")
             continue
-        detect = "" if m.detect_time_s is None else f", detected at {m.detect_time_s:.3f} s"
+        detect = (
+            ""
+            if m.detect_time_s is None
+            else f", detected {m.detected_joint} {m.detected_kind} at {m.detect_time_s:.3f} s"
+        )
         print(
             f"  {name:<13} final task error {m.final_task_error_m * 1000:8.1f} mm, RMS "
             f"{m.rms_task_error_m * 1000:7.1f} mm, peak torque {m.peak_torque_ratio:.0%} of its "
@@ -1241,6 +1265,21 @@ def build_parser() -> argparse.ArgumentParser:
         "reported per run)",
     )
     p.add_argument("--no-html", action="store_true", help="no report.html (JSON and figures)")
+    p.add_argument(
+        "--controller",
+        metavar="MODULE:NAME",
+        default=None,
+        help="your controller instead of the scenario's: a packbot.control.Controller subclass "
+        "or a factory robot -> Controller, imported from MODULE (the current folder first on "
+        "sys.path)",
+    )
+    p.add_argument(
+        "--recovery",
+        metavar="builtin|none|MODULE:NAME",
+        default="builtin",
+        help="the reconfigured run's strategy: the built-in one (builtin), your controller's own "
+        "on_failure hook (none), or your packbot.control.RecoveryStrategy",
+    )
     p.add_argument(
         "--workers", type=int, default=None, help="a matrix: processes (CPUs; 0: this one)"
     )

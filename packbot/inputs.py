@@ -178,6 +178,14 @@ def warn_settings(config: SimConfig) -> None:
             "faceted pieces can chatter (an impact every few ms) and an arm may never come to "
             "rest (docs/contact.md, 'Open problems')"
         )
+    default_mu = SimConfig.__dataclass_fields__["mu"].default
+    if config.contact_mode == "joint_clamp" and config.mu != default_mu:
+        log.warning(
+            "mu = %g is set but contact_mode='joint_clamp' (the report's law) has no friction: "
+            "a clamped joint holds whatever the friction, mu does nothing here (the "
+            "contact-normal mode, contact_mode='normal', uses it)",
+            config.mu,
+        )
 
 
 def check_arguments(

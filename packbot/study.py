@@ -48,21 +48,30 @@ from packbot.validation import MAX_CONFIG_SAMPLES, finite_number, integer
 if TYPE_CHECKING:
     from packbot.analysis import Equilibrium
     from packbot.collision import CollisionWorld
-    from packbot.control.recovery import RecoveryEvent
+    from packbot.control.base import Controller
+    from packbot.control.context import RecoveryEvent
+    from packbot.control.strategies import RecoveryStrategy
+    from packbot.control.user_code import ControllerSpec, StrategySpec
     from packbot.failures import Failure
     from packbot.model import Robot
     from packbot.result import SimResult
     from packbot.scenario import Scenario
 
 __all__ = [
+    "CONTACT_GATE",
     "DEFAULT_TOLERANCE",
+    "KEEP_MARGIN",
     "RUN_NAMES",
     "LooseSettling",
+    "Reconfiguration",
     "Recovery",
     "RunMetrics",
     "StudyResult",
     "StudyRun",
+    "contact_gate",
     "study",
+    "verdict_lines",
+    "verdict_text",
 ]
 
 log = logging.getLogger(__name__)
@@ -91,7 +100,10 @@ class RunMetrics:
             observer); None if nothing was detected or the run has no detector.
         detect_delay_s: ``detect_time_s`` minus the first failure's time [s], or None.
         detected_joint: The joint flagged first, or None.
-        detected_kind: Its classification (``"frozen"``, ``"loose"``), or None.
+        detected_kind: Its classification (``"frozen"``, ``"loose"``, ``"weak"``, ``"stuck"``,
+            ``"brake"``), or None.
+        detected_scale: A weak joint's estimated effort scale [-], or None.
+        false_detections: Detections of a joint that has not failed, or before its failure.
         recover_time_s: First time at or after the first failure from which the task error
             stays within the tolerance to the end [s]; None if it ends outside (the healthy
             run: the failure's time).
@@ -102,7 +114,9 @@ class RunMetrics:
         max_task_error_m: Largest task error after the first failure [m].
         peak_torque_nm: Largest applied joint torque magnitude [N*m].
         peak_torque_joint: The joint where it occurred.
-        peak_torque_ratio: Largest |applied torque| / effort limit over joints and time [-].
+        peak_torque_ratio: Largest |applied torque| / effort limit over joints and time [-],
+            the limit as it is at each sample (a weak joint's reduced one: ``SimResult.effort``).
+        peak_torque_ratio_joint: The joint where that ratio is largest.
         contacts: Number of impacts (pairs of pieces coming into contact).
         limit_hits: Number of joint-stop events.
         peak_impact_speed_m_s: Largest approach speed of a pair at an impact [m/s] (the relative
@@ -119,6 +133,8 @@ class RunMetrics:
     detect_delay_s: float | None
     detected_joint: str | None
     detected_kind: str | None
+    detected_scale: float | None
+    false_detections: int
     recover_time_s: float | None
     recovered: bool
     final_task_error_m: float
@@ -127,6 +143,7 @@ class RunMetrics:
     peak_torque_nm: float
     peak_torque_joint: str
     peak_torque_ratio: float
+    peak_torque_ratio_joint: str
     contacts: int
     limit_hits: int
     peak_impact_speed_m_s: float
@@ -158,6 +175,8 @@ class StudyRun:
         task_error: Task error at each sample of ``result`` [m], or None.
         tool: ``gripper_tool`` position at each sample [m], shape (N, 3), or None.
         controller_log: The reconfigured run's :attr:`TaskRecovery.log` (empty otherwise).
+        suspended: Intervals [s] in which its observer judged no joint (the arm touched
+            something).
     """
 
     name: str
@@ -168,6 +187,40 @@ class StudyRun:
     task_error: FloatArray | None = None
     tool: FloatArray | None = None
     controller_log: tuple[RecoveryEvent, ...] = ()
+    suspended: tuple[tuple[float, float], ...] = ()
+
+    @property
+    def detections(self) -> list[RecoveryEvent]:
+        """The ``"detect"`` entries of the controller log."""
+        return [e for e in self.controller_log if e.kind == "detect"]
+
+
+@dataclass(frozen=True, kw_only=True)
+class Reconfiguration:
+    """Whether the reconfigured run's strategy was applied, against leaving the arm unaware.
+
+    The study runs the strategy and compares its final task error with the failed run's: a
+    strategy that ends more than :data:`KEEP_MARGIN` farther from the task is not applied (the
+    reconfigured run is then the unaware one, its detections kept; the strategy's run is kept as
+    :attr:`StudyResult.attempt`).
+
+    Attributes:
+        applied: Whether the strategy's run is the reconfigured run.
+        strategy: The strategy's name.
+        attempted_final_task_error_m: Where the strategy's run ends [m] (None: no such run).
+        unaware_final_task_error_m: Where the failed run ends [m] (None: no such run).
+        verdict: The comparison in words, both numbers given.
+    """
+
+    applied: bool
+    strategy: str
+    attempted_final_task_error_m: float | None
+    unaware_final_task_error_m: float | None
+    verdict: str
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready."""
+        return {k: _json_number(v) for k, v in dataclasses.asdict(self).items()}
 
 
 @checked_arguments
@@ -179,11 +232,13 @@ class Recovery:
         possible: True, False, or None (not decided: e.g. no healthy task).
         reasons: Sentences: why not, or what limits it.
         checks: Per failure, what was tested (JSON-ready dicts).
+        harmless: The failure does no harm: the unaware controller ends within the tolerance.
     """
 
     possible: bool | None
     reasons: tuple[str, ...] = ()
     checks: tuple[dict[str, Any], ...] = ()
+    harmless: bool = False
 
 
 @checked_arguments
@@ -271,6 +326,10 @@ class StudyResult:
         reconfigured: The reconfigured run.
         recovery: Whether recovery is possible, and why not.
         loose: For each loose joint and run, where it settled against the predicted equilibria.
+        controller: What controlled the runs: the scenario's controller kind, or the user's
+            controller's name.
+        reconfiguration: Whether the strategy's run was applied, and both final errors.
+        attempt: The strategy's own run when it was not applied (else None).
     """
 
     scenario: Scenario
@@ -285,6 +344,9 @@ class StudyResult:
     reconfigured: StudyRun
     recovery: Recovery
     loose: tuple[LooseSettling, ...] = ()
+    controller: str = ""
+    reconfiguration: Reconfiguration | None = None
+    attempt: StudyRun | None = None
 
     @property
     def runs(self) -> dict[str, StudyRun]:
@@ -313,11 +375,16 @@ class StudyResult:
                     {"t_s": e.t, "kind": e.kind, "joint": e.joint, "detail": e.detail}
                     for e in run.controller_log
                 ]
+                entry["detections"] = self._detections(run)
+            if run.suspended:
+                entry["detection_suspended_s"] = [list(iv) for iv in run.suspended]
             runs[name] = entry
+        if self.attempt is not None and self.attempt.metrics is not None:
+            runs["reconfigured"]["attempt"] = self.attempt.metrics.to_dict()
         return {
             "scenario": self.scenario.name,
             "description": self.scenario.description,
-            "controller": self.scenario.controller,
+            "controller": self.controller or self.scenario.controller,
             "contact_mode": self.contact_mode,
             "duration_s": self.duration_s,
             "tolerance_m": self.tolerance_m,
@@ -330,10 +397,45 @@ class StudyResult:
                 "possible": self.recovery.possible,
                 "reasons": list(self.recovery.reasons),
                 "checks": list(self.recovery.checks),
+                "harmless": self.recovery.harmless,
             },
+            "reconfiguration": (
+                None if self.reconfiguration is None else self.reconfiguration.to_dict()
+            ),
             "runs": runs,
             "loose_equilibria": [s.to_dict() for s in self.loose],
         }
+
+    def _detections(self, run: StudyRun) -> list[dict[str, Any]]:
+        """Each detection: time, joint, kind, estimates, delay after the joint's failure."""
+        return [
+            {
+                "t_s": e.t,
+                "joint": e.joint,
+                "kind": None if e.detection is None else e.detection.kind,
+                "scale": None if e.detection is None else _json_number(e.detection.scale),
+                "torque_nm": None if e.detection is None else _json_number(e.detection.torque),
+                "delay_s": _delay(self.scenario, e),
+                "false": _is_false(self.scenario, e),
+            }
+            for e in run.detections
+        ]
+
+
+def _failure_of(scenario: Scenario, joint: str) -> Failure | None:
+    return next((f for f in scenario.failures if f.joint == joint), None)
+
+
+def _delay(scenario: Scenario, event: RecoveryEvent) -> float | None:
+    """A detection's delay after its joint's failure [s] (None: that joint did not fail)."""
+    f = _failure_of(scenario, event.joint)
+    return None if f is None else float(event.t - f.t)
+
+
+def _is_false(scenario: Scenario, event: RecoveryEvent) -> bool:
+    """A detection of a joint that has not failed, or before its failure."""
+    f = _failure_of(scenario, event.joint)
+    return f is None or event.t < f.t
 
 
 def _json_number(x: Any) -> Any:
@@ -398,6 +500,8 @@ def study(
     contact_mode: str | None = None,
     workspace_samples: int = 2000,
     seed: int = 0,
+    controller: ControllerSpec | None = None,
+    recovery: StrategySpec = "builtin",
     progress: Callable[[str], None] | None = None,
     step: Callable[[float], None] | None = None,
 ) -> StudyResult:
@@ -413,6 +517,15 @@ def study(
             combination the simulator refuses is reported per run with its reason.
         workspace_samples: Samples of the frozen arm's workspace seeding the reach test.
         seed: Seed of the workspace sampler.
+        controller: Your controller instead of the scenario's: a
+            :class:`~packbot.control.Controller` subclass (made with no arguments, a fresh one
+            per run), a factory ``robot -> Controller``, or an import path ``"module:Name"``
+            of either (:mod:`packbot.control.user_code`). None: the scenario's ``[controller]``.
+        recovery: The reconfigured run's strategy: ``"builtin"``
+            (:class:`~packbot.control.strategies.BaselineRecovery`), ``"none"`` (the detections
+            go to the controller's own ``on_failure`` hook), a
+            :class:`~packbot.control.strategies.RecoveryStrategy` subclass, a factory of one, or
+            an import path.
         progress: Called with a line of text as each step starts.
         step: Called with the simulated time [s] after every accepted integration step of each
             run (e.g. to enforce a wall-time limit). A :class:`SimulationError` it raises stops
@@ -420,23 +533,40 @@ def study(
             (it propagates).
 
     Returns:
-        The three runs, their metrics, whether recovery is possible and, for a loose joint,
-        where it settled against the predicted equilibria.
+        The three runs, their metrics, whether recovery is possible, whether the strategy was
+        applied (:class:`Reconfiguration`) and, for a loose joint, where it settled against the
+        predicted equilibria.
 
     Raises:
         ConfigurationError: A bad argument (names it), a scenario without failures.
         UnknownNameError: An unknown scenario name.
     """
+    from packbot.control.user_code import controller_factory, describe_spec, strategy_factory
+
     scenario, robot = _check_inputs(
         scenario, robot, duration, tolerance, contact_mode, workspace_samples
     )
     integer("seed", seed, low=0, what="an integer seed")
+    make_ctrl = None if controller is None else controller_factory(controller)
+    make_strategy = strategy_factory(recovery)
+    if make_ctrl is not None:
+        make_ctrl(robot)  # a factory that fails does so before any run
+    strategy_name = make_strategy().name or describe_spec(recovery)
     say = progress if progress is not None else (lambda text: log.info("%s", text))
     T = scenario.duration if duration is None else float(duration)
     cm = scenario.config.contact_mode if contact_mode is None else contact_mode
+    setup = _RunSetup(
+        scenario=scenario,
+        robot=robot,
+        duration=T,
+        contact_mode=contact_mode,
+        make_controller=make_ctrl,
+        make_strategy=make_strategy,
+        step=step,
+    )
 
     say(f"{scenario.name}: healthy run")
-    healthy = _run(scenario, robot, "healthy", T, contact_mode, None, step)
+    healthy = _run(setup, "healthy", None)
     task_t = np.zeros(0)
     task_x = np.zeros((0, 3))
     if healthy.result is not None and healthy.status == "ok":
@@ -445,10 +575,10 @@ def study(
             _tool_path(robot, healthy.result),
         )
     say(f"{scenario.name}: failed run")
-    failed = _run(scenario, robot, "failed", T, contact_mode, None, step)
+    failed = _run(setup, "failed", None)
     say(f"{scenario.name}: reconfigured run")
     if len(task_t) >= 2:
-        reconf = _run(scenario, robot, "reconfigured", T, contact_mode, (task_t, task_x), step)
+        reconf = _run(setup, "reconfigured", (task_t, task_x))
     else:
         reconf = StudyRun(
             name="reconfigured",
@@ -459,11 +589,15 @@ def study(
     world = _world(robot, scenario)
     for run in (healthy, failed, reconf):
         if run.result is not None and len(task_t) >= 2:
-            _measure(run, robot, world, task_t, task_x, t_fail, float(tolerance))
+            _measure(run, robot, world, scenario, task_t, task_x, t_fail, float(tolerance))
+    reconf, attempt, decision = _keep_better(failed, reconf, strategy_name)
     say(f"{scenario.name}: is recovery possible?")
-    recovery = _assess(
+    recovery_ = _assess(
         scenario, robot, healthy, reconf, task_t, task_x, workspace_samples, seed, float(tolerance)
     )
+    f_m = failed.metrics
+    if f_m is not None and f_m.recovered and recovery_.possible is not None:
+        recovery_ = dataclasses.replace(recovery_, harmless=True)
     loose = _loose_settling(scenario, robot, (failed, reconf))
     return StudyResult(
         scenario=scenario,
@@ -476,8 +610,136 @@ def study(
         healthy=healthy,
         failed=failed,
         reconfigured=reconf,
-        recovery=recovery,
+        recovery=recovery_,
         loose=loose,
+        controller=scenario.controller if controller is None else describe_spec(controller),
+        reconfiguration=decision,
+        attempt=attempt,
+    )
+
+
+def verdict_lines(result: StudyResult) -> tuple[str, list[str]]:
+    """The study's verdict: a headline and its sentences (what ``packbot study`` prints).
+
+    The headline says whether recovery is possible (or that the failure does no harm); the
+    sentences give the reasons, and whether the strategy's run was applied, with both final
+    errors.
+    """
+    rec = result.recovery
+    name = result.scenario.name
+    who = f"controller {result.controller or result.scenario.controller}"
+    if rec.harmless and result.failed.metrics is not None:
+        head = f"study {name} ({who}): the failure does no harm"
+        m = result.failed.metrics
+        lines = [
+            f"the unaware controller ends {m.final_task_error_m * 1000:,.1f} mm from the task, "
+            f"within the tolerance ({result.tolerance_m * 1000:g} mm)"
+        ]
+    else:
+        verdict = {True: "possible", False: "not possible", None: "not assessed"}[rec.possible]
+        head = f"study {name} ({who}): recovery {verdict}"
+        lines = []
+    lines += list(rec.reasons)
+    if result.reconfiguration is not None:
+        lines.append(result.reconfiguration.verdict)
+    return head, lines
+
+
+def verdict_text(result: StudyResult) -> str:
+    """:func:`verdict_lines` as text: the headline, then one ``  - `` line per sentence."""
+    head, lines = verdict_lines(result)
+    return "\n".join([head, *(f"  - {x}" for x in lines)])
+
+
+#: The strategy's run is applied unless it ends more than this farther from the task than the
+#: unaware run [m]: a millimetre, above the runs' rounding and the observer's sampling, below
+#: any tolerance a study is read with.
+KEEP_MARGIN = 1e-3
+
+
+def _keep_better(
+    failed: StudyRun, reconf: StudyRun, strategy: str
+) -> tuple[StudyRun, StudyRun | None, Reconfiguration | None]:
+    """The reconfigured run to report: the strategy's, or the unaware one where that is better.
+
+    Returns:
+        The reconfigured run, the strategy's run if it was not applied (else None), and the
+        decision (None where either run has no metrics).
+    """
+    from packbot.control.context import RecoveryEvent
+
+    fm, rm = failed.metrics, reconf.metrics
+    if fm is None or rm is None:
+        return reconf, None, None
+    a, u = rm.final_task_error_m, fm.final_task_error_m
+    if not reconf.detections:
+        text = (
+            f"the observer flagged no joint: the reconfigured run is the unaware controller's "
+            f"(ends {a * 1000:,.1f} mm off)"
+        )
+        return (
+            reconf,
+            None,
+            Reconfiguration(
+                applied=False,
+                strategy=strategy,
+                attempted_final_task_error_m=a,
+                unaware_final_task_error_m=u,
+                verdict=text,
+            ),
+        )
+    if a <= u + KEEP_MARGIN:
+        text = (
+            f"reconfiguration ({strategy}) ends {a * 1000:,.1f} mm off against "
+            f"{u * 1000:,.1f} mm unaware: applied"
+        )
+        return (
+            reconf,
+            None,
+            Reconfiguration(
+                applied=True,
+                strategy=strategy,
+                attempted_final_task_error_m=a,
+                unaware_final_task_error_m=u,
+                verdict=text,
+            ),
+        )
+    text = (
+        f"reconfiguration ({strategy}) would end {a * 1000:,.1f} mm off against "
+        f"{u * 1000:,.1f} mm unaware: not applied"
+    )
+    detect = {
+        k: getattr(rm, k)
+        for k in (
+            "detect_time_s",
+            "detect_delay_s",
+            "detected_joint",
+            "detected_kind",
+            "detected_scale",
+            "false_detections",
+        )
+    }
+    kept = dataclasses.replace(
+        failed,
+        name="reconfigured",
+        reason=text,
+        metrics=dataclasses.replace(fm, **detect),
+        controller_log=(
+            *reconf.controller_log,
+            RecoveryEvent(t=reconf.detections[0].t, kind="not applied", detail=text),
+        ),
+        suspended=reconf.suspended,
+    )
+    return (
+        kept,
+        reconf,
+        Reconfiguration(
+            applied=False,
+            strategy=strategy,
+            attempted_final_task_error_m=a,
+            unaware_final_task_error_m=u,
+            verdict=text,
+        ),
     )
 
 
@@ -495,46 +757,79 @@ def _unaware_params(scenario: Scenario) -> dict[str, Any]:
     return params
 
 
-def _run(
-    scenario: Scenario,
-    robot: Robot,
-    name: str,
-    T: float,
-    contact_mode: str | None,
-    task: tuple[FloatArray, FloatArray] | None,
-    step: Callable[[float], None] | None = None,
-) -> StudyRun:
+#: The arm touches something when its smallest signed distance is below this [m]: the contact
+#: tolerance of the joint-clamp law's events (1 mm) and the contact-normal mode's patches
+#: (within it) with a millimetre to spare.
+CONTACT_GATE = 2e-3
+
+
+def contact_gate(robot: Robot, scenario: Scenario) -> Callable[[FloatArray], bool]:
+    """Whether the arm touches something at q (its smallest distance below CONTACT_GATE).
+
+    The reconfigured run's observer asks it while a residual is over its threshold: it has no
+    contact forces, so it judges no joint while the arm touches something.
+    """
+    world = _world(robot, scenario)
+
+    def touching(q: FloatArray) -> bool:
+        return bool(world.closest(np.asarray(q, dtype=float)).distance < CONTACT_GATE)
+
+    return touching
+
+
+@dataclass(frozen=True, kw_only=True)
+class _RunSetup:
+    """What every run of a study shares."""
+
+    scenario: Scenario
+    robot: Robot
+    duration: float
+    contact_mode: str | None
+    make_controller: Callable[[Robot], Controller | None] | None
+    make_strategy: Callable[[], RecoveryStrategy]
+    step: Callable[[float], None] | None
+
+
+def _run(setup: _RunSetup, name: str, task: tuple[FloatArray, FloatArray] | None) -> StudyRun:
     """One run; a refusal (ConfigurationError) or a stop (SimulationError) becomes its status."""
     from packbot.control import build_controller
     from packbot.control.recovery import LOOSE_OPTIONS, TaskRecovery
     from packbot.integrator import simulate
 
+    scenario, robot = setup.scenario, setup.robot
+    contact_mode = setup.contact_mode
     try:
         config = scenario.config
         if contact_mode is not None and contact_mode != config.contact_mode:
             config = dataclasses.replace(config, contact_mode=contact_mode)  # type: ignore[arg-type]
         failures = [] if name == "healthy" else list(scenario.failures)
-        params = (
-            dict(scenario.controller_params) if name == "healthy" else _unaware_params(scenario)
-        )
-        ctrl = build_controller(
-            scenario.controller, robot, params, environment=scenario.environment
-        )
+        if setup.make_controller is not None:
+            ctrl = setup.make_controller(robot)
+        else:
+            params = (
+                dict(scenario.controller_params) if name == "healthy" else _unaware_params(scenario)
+            )
+            ctrl = build_controller(
+                scenario.controller, robot, params, environment=scenario.environment
+            )
         recovery: TaskRecovery | None = None
         if name == "reconfigured":
             assert task is not None
             opts = {k: v for k, v in scenario.controller_params.items() if k in LOOSE_OPTIONS}
-            if scenario.controller != "reconfig":
+            if scenario.controller != "reconfig" or setup.make_controller is not None:
                 opts = {}
             recovery = TaskRecovery(
                 nominal=ctrl,
                 task_t=task[0],
                 task_x=task[1],
+                strategy=setup.make_strategy(),
                 loose_options=opts,
                 environment=scenario.environment,
                 gravity=tuple(config.gravity),
                 joint_friction=bool(config.joint_friction),
                 locked=tuple(config.locked_joints),
+                payload=scenario.payload,
+                in_contact=contact_gate(robot, scenario),
             )
             ctrl = recovery
         q0, v0 = scenario.initial_state(robot)
@@ -547,9 +842,9 @@ def _run(
             kwargs["failures"] = failures
         if scenario.payload is not None:
             kwargs["payload"] = scenario.payload
-        if step is not None:
-            kwargs["progress"] = step
-        result = simulate(robot, q0, v0, T, **kwargs)
+        if setup.step is not None:
+            kwargs["progress"] = setup.step
+        result = simulate(robot, q0, v0, setup.duration, **kwargs)
         result.scenario_text = scenario.source_text
     except ConfigurationError as exc:
         log.warning("%s run refused: %s", name, exc)
@@ -558,8 +853,15 @@ def _run(
         log.warning("%s run stopped: %s", name, exc)
         partial = exc.result if exc.result is not None else None
         return StudyRun(name=name, status="error", reason=str(exc), result=partial)
-    log_ = tuple(recovery.log) if recovery is not None else ()
-    return StudyRun(name=name, status="ok", result=result, controller_log=log_)
+    if recovery is None:
+        return StudyRun(name=name, status="ok", result=result)
+    return StudyRun(
+        name=name,
+        status="ok",
+        result=result,
+        controller_log=tuple(recovery.log),
+        suspended=tuple(recovery.suspended()),
+    )
 
 
 def _tool_path(robot: Robot, result: SimResult) -> FloatArray:
@@ -586,6 +888,7 @@ def _measure(
     run: StudyRun,
     robot: Robot,
     world: CollisionWorld,
+    scenario: Scenario,
     task_t: FloatArray,
     task_x: FloatArray,
     t_fail: float,
@@ -611,17 +914,24 @@ def _measure(
         recover = None
     else:
         recover = float(t[outside[-1] + 1])
-    effort = np.asarray(robot.params.effort, dtype=float)
+    # the limit as it is at each sample (a weak joint's reduced one)
+    effort = np.asarray(res.effort, dtype=float)
     tau = np.abs(np.asarray(res.tau, dtype=float))
     k = np.unravel_index(int(np.argmax(tau)), tau.shape)
     with np.errstate(divide="ignore", invalid="ignore"):
-        ratio = np.where(effort > 0, tau / effort, 0.0)
-    detect = next((e for e in run.controller_log if e.kind == "detect"), None)
+        ratio = np.where(effort > 0, tau / np.where(effort > 0, effort, 1.0), 0.0)
+    kr = np.unravel_index(int(np.argmax(ratio)), ratio.shape)
+    detections = run.detections
+    detect = detections[0] if detections else None
+    det = None if detect is None else detect.detection
+    scale = None if det is None or det.kind != "weak" else float(det.scale)
     run.metrics = RunMetrics(
         detect_time_s=None if detect is None else detect.t,
         detect_delay_s=None if detect is None else detect.t - t_fail,
         detected_joint=None if detect is None else detect.joint,
-        detected_kind=None if detect is None else detect.detail.split(":")[0],
+        detected_kind=None if det is None else det.kind,
+        detected_scale=scale,
+        false_detections=sum(_is_false(scenario, e) for e in detections),
         recover_time_s=recover,
         recovered=bool(err[-1] <= tol),
         final_task_error_m=float(err[-1]),
@@ -629,7 +939,8 @@ def _measure(
         max_task_error_m=float(np.max(ea)) if len(ea) else float(err[-1]),
         peak_torque_nm=float(tau[k]),
         peak_torque_joint=res.joint_names[int(k[1])],
-        peak_torque_ratio=float(np.max(ratio)),
+        peak_torque_ratio=float(ratio[kr]),
+        peak_torque_ratio_joint=res.joint_names[int(kr[1])],
         contacts=len(res.events_of("impact")),
         limit_hits=len(res.events_of("limit")),
         peak_impact_speed_m_s=_peak_impact_speed(robot, world, res),
@@ -752,7 +1063,7 @@ def _assess(
                 possible = False
                 reasons.append(
                     f"{f.joint} is stuck at {f.torque:g} N*m whatever the command: no controller "
-                    "holds it (if flagged, it is handled as loose)"
+                    "holds it (if flagged, the other joints track the task where it drifts)"
                 )
                 check["note"] = "stuck joint"
             eqs = loose_joint_equilibria(
@@ -773,8 +1084,12 @@ def _assess(
         elif f.kind == "weak":
             import pinocchio as pin
 
+            from packbot.system import with_payload
+
             limit = float(robot.params.effort[j] * f.scale)
-            model = robot.model.copy()
+            p = scenario.payload
+            held = p is not None and (p.t_drop is None or p.t_drop > float(res.t[-1]))
+            model = (with_payload(robot, p) if held and p is not None else robot).model.copy()
             model.gravity.linear = np.asarray(scenario.config.gravity, dtype=float)
             g_end = float(
                 pin.computeGeneralizedGravity(model, model.createData(), np.asarray(res.q[-1]))[j]
@@ -791,8 +1106,8 @@ def _assess(
             elif need > limit:
                 reasons.append(
                     f"{f.joint} is weak: the task needs up to {need:.3g} N*m there, the motor "
-                    f"gives {limit:.3g} N*m: it lags (no weak-motor strategy; if the observer "
-                    "flags the joint it is handled as frozen or loose)"
+                    f"gives {limit:.3g} N*m: it lags (if the observer flags it, the built-in "
+                    "strategy moves to a posture the motor holds)"
                 )
             else:
                 check["note"] = "within the weak motor's limit"

@@ -37,6 +37,7 @@ local pool or Dask; resumable: records, checksums, the folder's lock) and writes
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import json
 import logging
@@ -254,11 +255,18 @@ def load_study_matrix(name_or_path: str | os.PathLike[str]) -> StudyMatrix:
 # ---------------------------------------------------------------------------------- a cell
 @checked_arguments
 def study_cell(
-    run: Run, progress: Callable[[float], None], *, options: StudyOptions
+    run: Run,
+    progress: Callable[[float], None],
+    *,
+    options: StudyOptions,
+    controller: Any = None,
+    recovery: Any = "builtin",
 ) -> tuple[dict[str, Any], RunFiles]:
     """The batch's run function of a study cell (bound with ``functools.partial``).
 
-    ``functools.partial(study_cell, options=...)`` is a :data:`packbot.batch.Runner`.
+    ``functools.partial(study_cell, options=..., controller=..., recovery=...)`` is a
+    :data:`packbot.batch.Runner`; ``controller`` and ``recovery`` are :func:`packbot.study`'s
+    (import paths or picklable classes: they travel to the worker processes).
 
     Studies the cell's scenario (:func:`packbot.study`, a fresh robot), writes its study
     (:func:`packbot.viz.study_report.write_study`) into a temporary folder and returns its
@@ -295,6 +303,8 @@ def study_cell(
         tolerance=options.tolerance,
         workspace_samples=options.workspace_samples,
         seed=options.seed,
+        controller=controller,
+        recovery=recovery,
         progress=say,
         step=step,
     )
@@ -306,6 +316,8 @@ def study_cell(
         }
     summary = result.summary()
     metrics: dict[str, Any] = {"recovery_possible": summary["recovery"]["possible"]}
+    decision = summary.get("reconfiguration") or {}
+    metrics["reconfiguration_applied"] = decision.get("applied")
     for name in _RUNS:
         entry = summary["runs"][name]
         metrics[f"{name}_status"] = entry["status"]
@@ -361,6 +373,8 @@ def run_study_matrix(
     scheduler: Any = None,
     timeout: float | None = None,
     progress: Callable[[int, int, int], None] | None = None,
+    controller: Any = None,
+    recovery: Any = "builtin",
 ) -> StudyMatrixReport:
     """Study every cell of a study matrix through the batch machinery; write the summary.
 
@@ -375,6 +389,11 @@ def run_study_matrix(
             ``distributed.Client`` (as :func:`packbot.batch.run_batch`).
         timeout: Wall-time limit of each cell [s] (its three runs), or None.
         progress: Called as ``progress(done, failed, total)`` (cells).
+        controller: Every cell's controller instead of the scenario's (:func:`packbot.study`):
+            an import path ``"module:Name"`` or a class or factory defined at a module's top
+            level. It must reach the worker processes: a lambda or a function defined inside
+            another does not pickle and is refused.
+        recovery: Every cell's recovery strategy (:func:`packbot.study`), likewise.
 
     Returns:
         The report; a cell that raised is recorded failed (the summary lists it), not raised.
@@ -395,19 +414,47 @@ def run_study_matrix(
         raise ConfigurationError(
             "matrix", matrix, "a StudyMatrix, a Matrix with [study], or a matrix name or path"
         )
+    from packbot.control.user_code import (
+        check_picklable,
+        controller_factory,
+        describe_spec,
+        strategy_factory,
+    )
+
+    batch_matrix = sm.matrix
+    if controller is not None or recovery != "builtin":
+        if controller is not None:
+            controller_factory(controller)
+            check_picklable(controller, "controller")
+        strategy_factory(recovery)
+        check_picklable(recovery, "recovery")
+        # part of the batch's identity: a folder studied with another controller is refused
+        assert batch_matrix.study is not None
+        batch_matrix = dataclasses.replace(
+            batch_matrix,
+            study={
+                **batch_matrix.study,
+                "controller": None if controller is None else describe_spec(controller),
+                "recovery": describe_spec(recovery),
+            },
+        )
     runs = sm.runs()
     sm.check(runs)
     batch = run_batch(
-        sm.matrix,
+        batch_matrix,
         Path(out_dir) if isinstance(out_dir, os.PathLike) else out_dir,
         runs=runs,
         workers=workers,
         scheduler=scheduler,
-        runner=functools.partial(study_cell, options=sm.options),
+        runner=functools.partial(
+            study_cell, options=sm.options, controller=controller, recovery=recovery
+        ),
         timeout=timeout,
         progress=progress,
     )
     summary = study_matrix_summary(sm, batch.out_dir, runs, batch)
+    summary["study"]["controller"] = None if controller is None else describe_spec(controller)
+    summary["study"]["recovery"] = describe_spec(recovery)
     from packbot.viz.study_matrix_report import write_matrix_report
 
     files = write_matrix_report(summary, batch.out_dir)
@@ -486,6 +533,7 @@ def study_matrix_summary(
                     "rms_task_error_m": entry.get("rms_task_error_m"),
                     "recovered": entry.get("recovered"),
                 }
+            cell["reconfiguration"] = data.get("reconfiguration")
             reconf = data["runs"]["reconfigured"]
             cell["recovered"] = bool(reconf.get("recovered", False))
             cell["detect_time_s"] = reconf.get("detect_time_s")

@@ -8,23 +8,53 @@ the model does not explain:
 which obeys r' = K_O (tau_ext - r): a first-order filter (time constant 1 / K_O) of the unexplained
 torque tau_ext. The motor torque tau_m is the controller's own command, clipped to the effort
 limits (what a healthy actuator applies). On a healthy arm r stays near zero (up to the sampling
-error of the integral); after a failure the unexplained torque appears on the failed joint alone:
-
-- frozen joint: the lock's constraint torque (it holds the joint against the command),
-- loose joint: minus the command (the motor gives nothing),
-
+error of the integral); after a failure the unexplained torque appears on the failed joint alone,
 so the residual also isolates the joint. A joint is declared failed when |r_i| exceeds
-``threshold_i`` for ``persistence`` seconds without interruption; it is classified ``"frozen"``
-if its measured speed stayed below ``frozen_speed`` over that window, ``"loose"`` otherwise.
+``threshold_i`` for ``persistence`` seconds without interruption.
+
+**What the observer knows.** Everything declared about the arm enters its model, so that it is
+not mistaken for a failure:
+
+- the joints' viscous and sliding Coulomb friction (``viscous``, ``coulomb``), and the joints
+  held rigid (``ignored``: never judged);
+- a scheduled payload (``payload_model``, ``t_pick``, ``t_drop``): from its pick-up on, M(q),
+  C and g are the model's with the payload's inertia (:func:`packbot.system.with_payload`);
+  picking it up keeps the generalized momentum (as the simulator's plastic impact does), dropping
+  it keeps the velocities (the momentum's jump is taken into p(0));
+- contacts (``in_contact``): the observer has no contact forces, so while the arm touches
+  something (a callable of the measured q says so, asked only when a residual is over its
+  threshold) no joint is judged, and not before ``contact_hold`` seconds after the last touch
+  (five time constants: the contact's residual has decayed to 1 %). The suspended intervals are
+  kept in :attr:`MomentumObserver.contact_intervals`. A failure during a contact is found after it.
+
+**Classification.** Over the persistence window [t_onset, t] the mean unexplained torque is
+estimated from the filter's own equation, tau_ext ~ mean(r) + (r(t) - r(t_onset)) / (K_O T)
+(exact for a constant tau_ext, whatever the filter's lag), and the torque the motor actually gave
+is a = mean(tau_m) + tau_ext. With c = mean(tau_m) the healthy motor's torque:
+
+- ``"frozen"``: the joint's measured speed stayed below ``frozen_speed`` (a lock: a frozen joint
+  or a brake that holds);
+- ``"loose"``: |a| is below the joint's threshold or ``LOOSE_SHARE`` |c| (the motor gives
+  nothing, up to the unmodelled part of the friction and the window's estimate);
+- ``"weak"``: a has the command's sign and a smaller size; the estimated scale is |a| / E_j;
+- ``"stuck"``: otherwise (the motor gives a torque of the other sign, or more than commanded);
+  its estimated torque is a. Over a window of 20 ms in which the command hardly changes, a
+  driver stuck at a torque of the command's sign and below it looks like a weak motor: it is
+  reported weak;
+- ``"brake"``: a joint flagged frozen that then moves more than ``BRAKE_SLIP`` from where it
+  was locked (a brake that slipped): a second detection of that joint, with the brake torque
+  estimated as |r|.
 
 Contacts with the joint-clamp law also produce joint-level constraint torques (a clamped joint
-looks frozen while it stays clamped), and unmodelled friction or motor lag add residual: the
-thresholds must exceed them (the reconfigurable controller's default, the friction torque of the
+looks frozen while it stays clamped) unless ``in_contact`` reports them; unmodelled friction or
+motor lag add residual: the thresholds must exceed them (the default, the friction torque of the
 parameter table at the joint's speed limit plus 1 % of its effort limit, does).
 """
 
 from __future__ import annotations
 
+import math
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
@@ -36,9 +66,19 @@ from packbot.errors import ConfigurationError
 from packbot.keywords import checked_arguments
 from packbot.validation import finite_number, real_array
 
-__all__ = ["Detection", "MomentumObserver", "default_threshold"]
+__all__ = ["DETECTED_KINDS", "Detection", "MomentumObserver", "default_threshold"]
 
 FloatArray = NDArray[np.float64]
+
+#: The kinds a detection reports.
+DETECTED_KINDS: tuple[str, ...] = ("frozen", "loose", "weak", "stuck", "brake")
+#: A motor giving less than this share of the healthy command (or less than the threshold) is
+#: loose [-].
+LOOSE_SHARE = 0.1
+#: A joint flagged frozen that moves this far from its locked angle is a slipping brake [rad].
+BRAKE_SLIP = 5e-3
+#: Suspension after a contact, in observer time constants (the residual decays to e^-5).
+CONTACT_HOLD_TIME_CONSTANTS = 5.0
 
 
 @checked_arguments
@@ -48,10 +88,17 @@ class Detection:
 
     Attributes:
         joint: Index of the joint (into q).
-        kind: ``"frozen"`` or ``"loose"``.
+        kind: One of :data:`DETECTED_KINDS`.
         t: Time of the detection [s].
         t_onset: Time the residual first exceeded the threshold [s].
         residual: The residual at detection [N*m].
+        applied_nm: Estimated mean torque the motor gave over the window [N*m].
+        commanded_nm: Mean healthy command (clipped to the effort limit) over the window [N*m].
+        scale: ``"weak"``: the estimated effort scale |applied| / effort limit, in (0, 1]
+            [-]; NaN otherwise.
+        torque: ``"stuck"``: the estimated constant torque [N*m]; ``"brake"``: the estimated
+            brake torque [N*m]; NaN otherwise.
+        moving: Whether the joint moved over the window (faster than the frozen speed).
     """
 
     joint: int
@@ -59,6 +106,24 @@ class Detection:
     t: float
     t_onset: float
     residual: float
+    applied_nm: float = math.nan
+    commanded_nm: float = math.nan
+    scale: float = math.nan
+    torque: float = math.nan
+    moving: bool = True
+
+    @property
+    def motion_kind(self) -> str:
+        """``"frozen"`` for a joint that did not move, else ``"loose"`` (the two-way split)."""
+        return "loose" if self.moving else "frozen"
+
+    def describe(self) -> str:
+        """The kind with its estimate, e.g. ``"weak (scale 0.26)"``."""
+        if self.kind == "weak":
+            return f"weak (scale {self.scale:.2f})"
+        if self.kind in ("stuck", "brake"):
+            return f"{self.kind} ({self.torque:.3g} N*m)"
+        return self.kind
 
 
 def default_threshold(params: Any) -> FloatArray:
@@ -91,6 +156,13 @@ class MomentumObserver:
         coulomb: Known sliding Coulomb friction F_j [N*m] (None: none); -F_j sign(v_j) on a
             joint sliding faster than ``frozen_speed`` (a held joint's static friction is left
             to the threshold).
+        payload_model: The model with a scheduled payload's inertia (same gravity), or None.
+        t_pick: Time the payload is picked up [s] (the model's from then on).
+        t_drop: Time it is dropped [s], or None.
+        in_contact: Callable of the measured q [rad]: whether the arm touches something (None:
+            never asked).
+        contact_hold: Time after the last touch before joints are judged again [s] (None:
+            :data:`CONTACT_HOLD_TIME_CONSTANTS` / gain).
     """
 
     def __init__(
@@ -104,6 +176,11 @@ class MomentumObserver:
         frozen_speed: float = 1e-3,
         viscous: FloatArray | None = None,
         coulomb: FloatArray | None = None,
+        payload_model: pin.Model | None = None,
+        t_pick: float = 0.0,
+        t_drop: float | None = None,
+        in_contact: Callable[[FloatArray], bool] | None = None,
+        contact_hold: float | None = None,
     ) -> None:
         for name, x, unit in (
             ("gain", gain, "1/s"),
@@ -114,8 +191,27 @@ class MomentumObserver:
         if not isinstance(model, pin.Model):
             raise ConfigurationError("observer.model", model, "a pinocchio.Model")
         n = model.nv
-        self.model = model
-        self.data = model.createData()
+        self.base_model = model
+        self.base_data = model.createData()
+        if payload_model is not None and (
+            not isinstance(payload_model, pin.Model) or payload_model.nv != n
+        ):
+            raise ConfigurationError(
+                "observer.payload_model", payload_model, f"None or a pinocchio.Model with nv {n}"
+            )
+        self.payload_model = payload_model
+        self.payload_data = None if payload_model is None else payload_model.createData()
+        self.t_pick = finite_number("observer.t_pick", t_pick, low=0.0, unit="s")
+        self.t_drop = None if t_drop is None else finite_number("observer.t_drop", t_drop, unit="s")
+        if in_contact is not None and not callable(in_contact):
+            raise ConfigurationError("observer.in_contact", in_contact, "None or a callable(q)")
+        self.in_contact = in_contact
+        self.contact_hold = (
+            CONTACT_HOLD_TIME_CONSTANTS / float(gain)
+            if contact_hold is None
+            else finite_number("observer.contact_hold", contact_hold, low=0.0, unit="s")
+        )
+        self.model, self.data = model, self.base_data
         self.effort = real_array(
             "observer.effort", effort, shape=(n,), expected=f"{n} finite effort limits [N*m]"
         )
@@ -149,6 +245,8 @@ class MomentumObserver:
         self._v_prev = np.zeros(n)
         self.residual = np.zeros(n)
         self.ignored = np.zeros(n, dtype=bool)
+        #: Intervals [s] in which no joint was judged because the arm touched something.
+        self.contact_intervals: list[tuple[float, float]] = []
         self._integral = np.zeros(n)
         self._p0 = np.zeros(n)
         self._f_prev = np.zeros(n)
@@ -156,9 +254,40 @@ class MomentumObserver:
         self._onset = np.full(n, np.nan)
         self._pending = False  # some onset is set
         self._max_speed = np.zeros(n)
+        self._sum_r = np.zeros(n)
+        self._sum_cmd = np.zeros(n)
+        self._r_onset = np.zeros(n)
+        self._locked_at: dict[int, float] = {}  # joints flagged frozen -> their angle
+        self._contact_until = -math.inf
+
+    # ------------------------------------------------------------------ model
+    def _payload_held(self, t: float) -> bool:
+        if self.payload_model is None:
+            return False
+        return t >= self.t_pick - 1e-12 and (self.t_drop is None or t < self.t_drop - 1e-12)
+
+    def _select_model(self, t: float, q: FloatArray, v: FloatArray) -> None:
+        """Switch to the payload's model at its pick-up and back at its drop."""
+        held = self._payload_held(t)
+        if held == (self.model is self.payload_model):
+            return
+        before = self._momentum(q, v)
+        if held:
+            assert self.payload_model is not None and self.payload_data is not None
+            self.model, self.data = self.payload_model, self.payload_data
+        else:
+            self.model, self.data = self.base_model, self.base_data
+        if not held:  # a drop keeps the velocities: the momentum jumps by (M_new - M_old) v
+            self._p0 += self._momentum(q, v) - before
+        self._f_prev = self._drift(q, v)
 
     def reset(self, t: float, q: FloatArray, v: FloatArray) -> None:
         """Start the observer at (q [rad], v [rad/s]) at time t [s]."""
+        if self._payload_held(t):
+            assert self.payload_model is not None and self.payload_data is not None
+            self.model, self.data = self.payload_model, self.payload_data
+        else:
+            self.model, self.data = self.base_model, self.base_data
         self._p0 = self._momentum(q, v)
         self._f_prev = self._drift(q, v)
         self._integral[:] = 0.0
@@ -168,6 +297,9 @@ class MomentumObserver:
         self._onset[:] = np.nan
         self._pending = False
         self._max_speed[:] = 0.0
+        self._locked_at = {}
+        self._contact_until = -math.inf
+        self.contact_intervals = []
 
     def _drift(self, q: FloatArray, v: FloatArray) -> FloatArray:
         """C(q, v)^T v - g(q) [N*m]: the momentum's rate of change besides the torques."""
@@ -178,6 +310,7 @@ class MomentumObserver:
         M = pin.crba(self.model, self.data, q)  # Pinocchio fills the upper triangle
         return np.where(self._upper, M, M.T) @ v
 
+    # ------------------------------------------------------------------ update
     def update(
         self, t: float, q: FloatArray, v: FloatArray, tau_prev: FloatArray
     ) -> Detection | None:
@@ -198,7 +331,10 @@ class MomentumObserver:
             return None
         h = t - self._t_prev
         self._t_prev = t
-        tau_m = np.minimum(np.maximum(tau_prev, self._neg_effort), self.effort)  # np.clip
+        if self.payload_model is not None:
+            self._select_model(t, q, v)
+        cmd = np.minimum(np.maximum(tau_prev, self._neg_effort), self.effort)  # np.clip
+        tau_m = cmd
         if self._rubs:
             # the known joint friction of a sliding joint, at the period's mean speed
             vm = 0.5 * (self._v_prev + v)
@@ -210,6 +346,10 @@ class MomentumObserver:
         self._integral += h * (tau_m + 0.5 * (f + self._f_prev) + self.residual)
         self._f_prev = f
         self.residual = r = self.gain * (self._momentum(q, v) - self._p0 - self._integral)
+        if self._locked_at:
+            slipped = self._slipped(t, q)
+            if slipped is not None:
+                return slipped
         over = np.abs(r) > self.threshold
         # (count_nonzero: a C call; ndarray.any goes through Python. The common case, nothing
         # over its threshold, skips the mask of the ignored joints.)
@@ -217,6 +357,8 @@ class MomentumObserver:
             over &= ~self.ignored
             quiet = not np.count_nonzero(over)
         else:
+            quiet = True
+        if not quiet and self._touching(t, q):
             quiet = True
         if quiet:  # nothing over its threshold: no onset pending, nothing due
             if self._pending:
@@ -227,14 +369,75 @@ class MomentumObserver:
         fresh = over & np.isnan(self._onset)
         self._onset[fresh] = t
         self._max_speed[fresh] = 0.0
+        self._sum_r[fresh] = 0.0
+        self._sum_cmd[fresh] = 0.0
+        self._r_onset[fresh] = r[fresh]
         self._onset[~over] = np.nan
         self._max_speed = np.maximum(self._max_speed, np.abs(v))
+        grown = ~fresh  # the window's sums cover (t_onset, t]
+        self._sum_r[grown] += h * r[grown]
+        self._sum_cmd[grown] += h * cmd[grown]
         due = np.flatnonzero(over & (t - self._onset >= self.persistence - 1e-12))
         if len(due) == 0:
             return None
         j = int(due[np.argmax(np.abs(self.residual[due]) / self.threshold[due])])
-        kind = "frozen" if self._max_speed[j] < self.frozen_speed else "loose"
         self.ignored[j] = True
+        return self._classify(j, t, float(np.asarray(q)[j]))
+
+    def _touching(self, t: float, q: FloatArray) -> bool:
+        """Whether detection is suspended at t: the arm touches something, or did lately."""
+        if self.in_contact is None:
+            return False
+        if self.in_contact(np.asarray(q, dtype=float)):
+            if t > self._contact_until:
+                self.contact_intervals.append((t, t))
+            self._contact_until = t + self.contact_hold
+            start = self.contact_intervals[-1][0]
+            self.contact_intervals[-1] = (start, t)
+            return True
+        return t <= self._contact_until
+
+    def _classify(self, j: int, t: float, angle: float) -> Detection:
+        """The kind of joint j's failure from its window's torques (module docstring)."""
+        onset = float(self._onset[j])
+        span = max(t - onset, 1e-12)
+        r = float(self.residual[j])
+        ext = float(self._sum_r[j]) / span + (r - float(self._r_onset[j])) / (self.gain * span)
+        cmd = float(self._sum_cmd[j]) / span
+        applied = cmd + ext
+        moving = bool(self._max_speed[j] >= self.frozen_speed)
+        scale, torque = math.nan, math.nan
+        if not moving:
+            kind = "frozen"
+            self._locked_at[j] = angle
+        elif abs(applied) < max(float(self.threshold[j]), LOOSE_SHARE * abs(cmd)):
+            kind = "loose"
+        elif applied * cmd > 0 and abs(applied) < abs(cmd):
+            kind = "weak"
+            effort = float(self.effort[j])
+            scale = min(max(abs(applied) / effort, 1e-3), 1.0) if effort > 0 else math.nan
+        else:
+            kind, torque = "stuck", applied
         return Detection(
-            joint=j, kind=kind, t=t, t_onset=float(self._onset[j]), residual=float(self.residual[j])
+            joint=j,
+            kind=kind,
+            t=t,
+            t_onset=onset,
+            residual=r,
+            applied_nm=applied,
+            commanded_nm=cmd,
+            scale=scale,
+            torque=torque,
+            moving=moving,
         )
+
+    def _slipped(self, t: float, q: FloatArray) -> Detection | None:
+        """A joint flagged frozen that moved away from its locked angle: a brake."""
+        for j, angle in self._locked_at.items():
+            if abs(float(q[j]) - angle) > BRAKE_SLIP:
+                del self._locked_at[j]
+                r = float(self.residual[j])
+                return Detection(
+                    joint=j, kind="brake", t=t, t_onset=t, residual=r, torque=abs(r), moving=True
+                )
+        return None

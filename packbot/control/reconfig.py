@@ -512,11 +512,11 @@ class ReconfigurableController(ModelBasedController):
                         t=t,
                         kind="detect",
                         joint=name,
-                        detail=f"{det.kind}: residual {det.residual:.3g} N*m since "
+                        detail=f"{det.motion_kind}: residual {det.residual:.3g} N*m since "
                         f"t = {det.t_onset:.4g} s",
                     )
                 )
-                self._pending.append((det.joint, det.kind))
+                self._pending.append((det.joint, det.motion_kind))
         while self._pending:
             j, kind = self._pending.pop(0)
             self._handle(t, j, kind, q, v)

@@ -1,67 +1,49 @@
-"""Task recovery: run any controller, detect a failed joint, then track a task with what is left.
+"""Task recovery: run any controller, detect a failed joint, hand over to a recovery strategy.
 
-:class:`TaskRecovery` is the "reconfigured" arm of a failure study (:func:`packbot.study`). It
-wraps a scenario's own controller (``nominal``: PD, computed torque, Cartesian, reconfigurable,
-or None for zero torque) and a task: the positions [m] of a frame (default ``gripper_tool``)
-against time [s], as recorded on a healthy run. Until a failure is detected it returns exactly
-the nominal controller's command, so that a healthy arm does what the scenario does. It is not
-told of failures: a momentum observer (:class:`~packbot.control.detector.MomentumObserver`,
-thresholds as :class:`~packbot.control.reconfig.ReconfigurableController`'s) watches the
-commanded against the measured motion and flags the failed joint, classified ``"frozen"`` or
-``"loose"``. From then on the failed joint is commanded zero and:
+:class:`TaskRecovery` is the controller of the "reconfigured" run of a failure study
+(:func:`packbot.study`). It wraps the scenario's own controller (``nominal``: a built-in one,
+a user's :class:`~packbot.control.Controller`, or None for zero torque) and a task: the
+positions [m] of a frame (default ``gripper_tool``) against time [s], as recorded on a healthy
+run. Until a failure is detected it returns exactly the nominal controller's command, so that a
+healthy arm does what the scenario does. It is not told of failures: a momentum observer
+(:class:`~packbot.control.detector.MomentumObserver`, thresholds as
+:class:`~packbot.control.reconfig.ReconfigurableController`'s) watches the commanded against
+the measured motion, knowing what was declared (the joints' friction, the locked joints, a
+scheduled payload, and, through ``in_contact``, when the arm touches something), and flags the
+failed joint with its kind and estimate.
 
-- frozen (also a brake that holds, a joint pinned by a contact): the task is tracked with the
-  joints that still move the frame, by closed-loop inverse kinematics on the reference
-  configuration q_r (q_r' = J^T (J J^T + lambda^2 I)^-1 (x*'(t) + K (x*(t) - p(q_r))), J the
-  frame's position Jacobian on the working joints, the joint rates scaled to within
-  ``speed_fraction`` of their limits, q_r clipped to the joint limits) and computed torque
-  (RNEA of the full model with the frozen joint's speed and acceleration zero: the same torques
-  as on the reduced model). The other working joints hold their angle at the detection;
-- loose: an underactuated arm cannot follow a moving task; a static one needs the loose link
-  at a stable equilibrium of its gravity torque. A
-  :class:`~packbot.control.reconfig.ReconfigurableController` (``loose_options`` its settings)
-  is started at the detection, told of the failures found so far, and holds the frame at the
-  task's final point with the loose link hanging (its joint solve, partial feedback
-  linearisation and swing damper). If no stable, collision-free equilibrium puts the frame
-  there, it holds where it is (its log says so).
-
-No collision avoidance is planned in the frozen case (the run's contacts are reported).
-:attr:`TaskRecovery.log` lists what happened: detections, the switch of strategy and the loose
-controller's plans.
+Each detection goes to the recovery ``strategy`` (:mod:`packbot.control.strategies`; default
+:class:`~packbot.control.strategies.BaselineRecovery`) as a
+:class:`~packbot.control.context.FailureReport`; the controller it returns is in charge from
+then on (a new one reset at the detection's state and told of the failures so far).
+:attr:`TaskRecovery.log` lists what happened: detections, switches, the strategy's notes, the
+loose-joint controller's plans and the intervals in which no joint was judged (a contact).
 """
 
 from __future__ import annotations
 
 import logging
-from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from collections.abc import Callable, Mapping, Sequence
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
-import pinocchio as pin
 from numpy.typing import ArrayLike, NDArray
 
-from packbot.control._common import (
-    DEFAULT_GRAVITY,
-    GainLike,
-    check_gain_spec,
-    damping_ratio,
-    loop_frequency,
-    resolve_gains,
-)
+from packbot.control._common import DEFAULT_GRAVITY, GainLike, check_gain_spec, resolve_gains
 from packbot.control.base import Controller
-from packbot.control.detector import MomentumObserver, default_threshold
-from packbot.control.model_based import ModelBasedController
-from packbot.control.reconfig import ReconfigurableController
+from packbot.control.context import FailureReport, ModelSwitch, RecoveryContext, RecoveryEvent
+from packbot.control.detector import Detection, MomentumObserver, default_threshold
+from packbot.control.strategies import BaselineRecovery, RecoveryStrategy
 from packbot.environment import Environment
-from packbot.errors import ConfigurationError, UnknownNameError
-from packbot.keywords import checked_arguments
+from packbot.errors import ConfigurationError
+from packbot.failures import Failure
+from packbot.payload import Payload
 from packbot.validation import finite_number, name_str, real_array
 
 if TYPE_CHECKING:
     from packbot.model import Robot
 
-__all__ = ["RecoveryEvent", "TaskRecovery"]
+__all__ = ["LOOSE_OPTIONS", "RecoveryEvent", "TaskRecovery"]
 
 log = logging.getLogger(__name__)
 
@@ -83,29 +65,20 @@ LOOSE_OPTIONS: tuple[str, ...] = (
 )
 
 
-@checked_arguments
-@dataclass(frozen=True, kw_only=True)
-class RecoveryEvent:
-    """An entry of :attr:`TaskRecovery.log`.
-
-    Attributes:
-        t: Time [s].
-        kind: ``"detect"`` (the observer flagged a joint), ``"track"`` (task tracking with the
-            working joints started), ``"loose"`` (the loose-joint controller took over),
-            ``"plan"`` / ``"replan"`` (the loose-joint controller's plans), ``"ignored"`` (a
-            joint flagged while the loose-joint controller is in charge: not acted on).
-        joint: The joint concerned ("" if none).
-        detail: What, in words (failure kind, residual, plan result).
-    """
-
-    t: float
-    kind: str
-    joint: str = ""
-    detail: str = ""
+def estimated_failure(det: Detection, joint: str) -> Failure:
+    """The :class:`~packbot.failures.Failure` a detection estimates (kind, time, estimates)."""
+    kw: dict[str, Any] = {}
+    if det.kind == "weak" and np.isfinite(det.scale):
+        kw["scale"] = float(det.scale)
+    elif det.kind == "stuck" and np.isfinite(det.torque):
+        kw["torque"] = float(det.torque)
+    elif det.kind == "brake" and np.isfinite(det.torque) and det.torque > 0:
+        kw["threshold"] = float(det.torque)
+    return Failure(joint=joint, kind=det.kind, t=det.t, **kw)  # type: ignore[arg-type]
 
 
-class TaskRecovery(ModelBasedController):
-    """Run a controller; after a detected failure, track a frame's task with the working joints.
+class TaskRecovery(Controller):
+    """Run a controller; on each detected failure, let a recovery strategy take over.
 
     Args:
         nominal: The controller run until a failure is detected (None: zero torque). It must not
@@ -113,37 +86,39 @@ class TaskRecovery(ModelBasedController):
         task_t: Times of the task samples [s], shape (N,), non-decreasing, N >= 2.
         task_x: Frame positions [m], world frame, shape (N, 3).
         frame: The frame that follows the task.
-        omega: Natural frequency of the tracking loop after a detection [rad/s].
-        zeta: Its damping ratio [-].
-        task_gain: Gain K of the task error in the inverse kinematics [1/s].
-        max_task_speed: Largest correction speed K e [m/s] (a large error after a failure is
-            closed at this speed).
-        speed_fraction: The reference's joint rates stay within this fraction of the speed
-            limits [-], in (0, 1] (the whole limit by default: the reduced arm may need faster
-            joints than the healthy one to follow the same path).
+        strategy: The recovery strategy (None: a :class:`BaselineRecovery` with the tracking
+            settings below). Made for this run (it may keep state).
+        omega: Natural frequency of the built-in strategy's tracking loops [rad/s].
+        zeta: Their damping ratio [-].
+        task_gain: Gain K of the task error in the reduced arm's inverse kinematics [1/s].
+        max_task_speed: Largest correction speed K e [m/s].
+        speed_fraction: The reduced arm's joint rates within this fraction of the speed
+            limits [-], in (0, 1].
         damping: Damping lambda of the pseudo-inverse [m].
         observer_gain: Observer gain K_O [1/s], below 2 / dt.
         threshold: Detection threshold [N*m] per joint (a number, nv numbers or {joint: value});
             None: coulomb + viscous * velocity limit + 0.01 * effort limit.
         persistence: Time the residual must stay above the threshold [s].
-        joint_friction: The arm's joints have the parameter table's viscous and sliding Coulomb
-            friction (``SimConfig.joint_friction``): the observer counts it as a known torque
-            (without it, a joint driven past its speed limit reads its viscous torque as a
-            failure: a PD hold drove camera_tilt at 7.6 rad/s and it was flagged "loose").
-        locked: Joints held rigid by the arm's configuration (``SimConfig.locked_joints``):
-            never judged by the observer (they look frozen from the start) and never moved by
-            the tracking.
         frozen_speed: A flagged joint slower than this is frozen [rad/s].
         loose_options: Settings of the loose-joint :class:`ReconfigurableController` (keys of
             :data:`LOOSE_OPTIONS`).
-        environment: Obstacles the loose-joint controller avoids (None: the floor).
+        environment: Obstacles (None: the floor).
         gravity: Gravity the controller assumes [m/s^2].
+        joint_friction: The arm's joints have the parameter table's viscous and sliding Coulomb
+            friction (``SimConfig.joint_friction``): the observer counts it as a known torque.
+        locked: Joints held rigid by the arm's configuration (``SimConfig.locked_joints``):
+            never judged by the observer and never moved by the strategies.
+        payload: The scenario's declared payload: the observer's model holds it from its pick-up
+            to its drop (None: none).
+        in_contact: Callable of the measured q [rad]: whether the arm touches something; no
+            joint is judged then (None: the observer is not told of contacts).
 
     Attributes:
         log: What happened (:class:`RecoveryEvent`).
-        failed: Detected failed joints, index -> ``"frozen"`` or ``"loose"``.
-        mode: ``"nominal"``, ``"track"`` or ``"loose"``.
-        loose_controller: The loose-joint controller once started, else None.
+        failed: Detected failed joints, index -> kind.
+        detections: The observer's detections, in order.
+        mode: ``"nominal"`` until the first detection, then ``"recovery"``.
+        active: The controller in charge (None: zero torque).
     """
 
     def __init__(
@@ -153,6 +128,7 @@ class TaskRecovery(ModelBasedController):
         task_t: ArrayLike,
         task_x: ArrayLike,
         frame: str = "gripper_tool",
+        strategy: RecoveryStrategy | None = None,
         omega: float = 20.0,
         zeta: float = 1.0,
         task_gain: float = 5.0,
@@ -168,17 +144,17 @@ class TaskRecovery(ModelBasedController):
         gravity: Sequence[float] = DEFAULT_GRAVITY,
         joint_friction: bool = False,
         locked: Sequence[str] = (),
+        payload: Payload | None = None,
+        in_contact: Callable[[FloatArray], bool] | None = None,
     ) -> None:
         if nominal is not None and not isinstance(nominal, Controller):
             raise ConfigurationError("nominal", nominal, "None or a packbot.control.Controller")
         dt = 1e-3 if nominal is None else nominal.dt
         sensor = None if nominal is None else nominal.sensor
-        super().__init__(dt=dt, sensor=sensor, gravity=gravity)
+        super().__init__(dt=dt, sensor=sensor)
         self.nominal = nominal
         if not isinstance(joint_friction, bool):
             raise ConfigurationError("joint_friction", joint_friction, "True or False")
-        self.joint_friction = joint_friction
-        self.locked = tuple(str(x) for x in locked)
         t = real_array("task_t", task_t, expected="task times [s], shape (N,)")
         if t.ndim != 1 or len(t) < 2 or np.any(np.diff(t) < 0):
             raise ConfigurationError("task_t", task_t, "N >= 2 non-decreasing times [s]")
@@ -189,18 +165,27 @@ class TaskRecovery(ModelBasedController):
         self.task_t, self.task_x = t[keep], x[keep]
         if len(self.task_t) < 2:
             raise ConfigurationError("task_t", task_t, "at least 2 distinct times [s]")
-        self._task_v = np.gradient(self.task_x, self.task_t, axis=0)
         self.frame = name_str("frame", frame, "a frame name (a non-empty string)")
-        self.omega = loop_frequency(omega, "omega", self.dt)
-        self.zeta = damping_ratio(zeta, "zeta")
-        self.task_gain = finite_number("task_gain", task_gain, low=0.0, unit="1/s")
-        self.max_task_speed = finite_number(
-            "max_task_speed", max_task_speed, low=0.0, low_open=True, unit="m/s"
+        if strategy is not None and not isinstance(strategy, RecoveryStrategy):
+            raise ConfigurationError(
+                "strategy", strategy, "None (built-in) or a packbot.control.RecoveryStrategy"
+            )
+        self.strategy = strategy or BaselineRecovery(
+            omega=omega,
+            zeta=zeta,
+            task_gain=task_gain,
+            max_task_speed=max_task_speed,
+            speed_fraction=speed_fraction,
+            damping=damping,
         )
-        self.speed_fraction = finite_number(
-            "speed_fraction", speed_fraction, low=0.0, high=1.0, low_open=True
-        )
-        self.damping = finite_number("damping", damping, low=0.0, unit="m")
+        # the tracking settings are checked even when a strategy of one's own is given
+        for name, value, unit in (
+            ("task_gain", task_gain, "1/s"),
+            ("damping", damping, "m"),
+        ):
+            finite_number(name, value, low=0.0, unit=unit)
+        finite_number("max_task_speed", max_task_speed, low=0.0, low_open=True, unit="m/s")
+        finite_number("speed_fraction", speed_fraction, low=0.0, high=1.0, low_open=True)
         self.observer_gain = finite_number(
             "observer_gain",
             observer_gain,
@@ -218,226 +203,162 @@ class TaskRecovery(ModelBasedController):
         self.frozen_speed = finite_number(
             "frozen_speed", frozen_speed, low=0.0, low_open=True, unit="rad/s"
         )
-        opts = dict(loose_options or {})
         if not isinstance(loose_options, (Mapping, type(None))):
             raise ConfigurationError("loose_options", loose_options, "a table of settings")
+        opts = dict(loose_options or {})
         for key in opts:
             if key not in LOOSE_OPTIONS:
                 raise ConfigurationError(f"loose_options.{key}", opts[key], LOOSE_OPTIONS)
         self.loose_options = opts
         if environment is not None and not isinstance(environment, Environment):
             raise ConfigurationError("environment", environment, "None or a packbot.Environment")
+        if payload is not None and not isinstance(payload, Payload):
+            raise ConfigurationError("payload", payload, "None or a packbot.Payload")
+        if in_contact is not None and not callable(in_contact):
+            raise ConfigurationError("in_contact", in_contact, "None or a callable(q) -> bool")
         self.environment = environment
+        self.gravity = tuple(float(g) for g in gravity)
+        self.joint_friction = joint_friction
+        self.locked = tuple(str(x) for x in locked)
+        self.payload = payload
+        self.in_contact = in_contact
+        self.context: RecoveryContext | None = None
         self.log: list[RecoveryEvent] = []
         self.failed: dict[int, str] = {}
+        self.detections: list[Detection] = []
         self.mode = "nominal"
-        self.loose_controller: ReconfigurableController | None = None
+        self.active: Controller | None = nominal
         self.observer: MomentumObserver | None = None
         self._tau_prev = np.zeros(0)
-        self._movers = np.zeros(0, dtype=int)
-        self._q_ref = np.zeros(0)
-        self._v_ref = np.zeros(0)
-        self._q_hold = np.zeros(0)
-        self._t_last = 0.0
-        self._fid = -1
-        self._frame_joints: list[int] = []
-        self._loose_seen = 0
+        self._seen = 0  # entries of the active controller's own event list copied
 
     # ------------------------------------------------------------------ setup
-    def prepare(self, robot: Robot) -> None:
-        """Bind to a robot: the model, the frame, the thresholds (raises ConfigurationError)."""
-        super().prepare(robot)
-        model, _ = self._md()
-        if not model.existFrame(self.frame):
-            raise UnknownNameError("frame", self.frame, [f.name for f in model.frames])
-        self._fid = model.getFrameId(self.frame)
-        parent = model.frames[self._fid].parentJoint
-        self._frame_joints = sorted(model.joints[j].idx_q for j in model.supports[parent] if j > 0)
-        pp = robot.params
-        default = default_threshold(pp)
-        self.threshold = resolve_gains(robot, self.threshold_spec, "threshold", default)
-        if np.any(self.threshold <= 0):
-            raise ConfigurationError("threshold", self.threshold_spec, "values > 0 [N*m]")
-
     def on_reset(self, robot: Robot, t0: float, q0: FloatArray, v0: FloatArray) -> None:
         """Reset the nominal controller and the observer at (q0 [rad], v0 [rad/s])."""
-        self.prepare(robot)
-        model, _ = self._md()
         q0 = np.asarray(q0, dtype=float)
         v0 = np.asarray(v0, dtype=float)
+        if not robot.model.existFrame(self.frame):
+            from packbot.errors import UnknownNameError
+
+            raise UnknownNameError("frame", self.frame, [f.name for f in robot.model.frames])
+        threshold = resolve_gains(
+            robot, self.threshold_spec, "threshold", default_threshold(robot.params)
+        )
+        if np.any(threshold <= 0):
+            raise ConfigurationError("threshold", self.threshold_spec, "values > 0 [N*m]")
+        self.context = RecoveryContext(
+            robot=robot,
+            task_t=self.task_t,
+            task_x=self.task_x,
+            frame=self.frame,
+            environment=self.environment,
+            gravity=self.gravity,  # type: ignore[arg-type]
+            joint_friction=self.joint_friction,
+            locked=self.locked,
+            payload=self.payload,
+            loose_options=self.loose_options,
+        )
         if self.nominal is not None:
             self.nominal.reset(robot, t0, q0, v0)
+        models = ModelSwitch(self.context, self.gravity)
+        p = self.payload
         self.observer = MomentumObserver(
-            model,
+            models.base[0],
             robot.params.effort,
             gain=self.observer_gain,
-            threshold=self.threshold,
+            threshold=threshold,
             persistence=self.persistence,
             frozen_speed=self.frozen_speed,
             viscous=robot.params.viscous if self.joint_friction else None,
             coulomb=robot.params.coulomb if self.joint_friction else None,
+            payload_model=None if models.loaded is None else models.loaded[0],
+            t_pick=0.0 if p is None else p.t_pick,
+            t_drop=None if p is None else p.t_drop,
+            in_contact=self.in_contact,
         )
         self.observer.reset(t0, q0, v0)
         for name in self.locked:
             self.observer.ignored[robot.params.index(name)] = True
-        self.log, self.failed, self.mode = [], {}, "nominal"
-        self.loose_controller = None
-        self._loose_seen = 0
+        self.log, self.failed, self.detections, self.mode = [], {}, [], "nominal"
+        self.active = self.nominal
+        self.strategy.events.clear()
+        self._seen = 0
         self._tau_prev = np.zeros(robot.nq)
-
-    # ------------------------------------------------------------------ task
-    def task(self, t: float) -> tuple[FloatArray, FloatArray]:
-        """The task's position [m] and velocity [m/s] at time t [s] (held after its end)."""
-        tt = self.task_t
-        tc = min(max(t, float(tt[0])), float(tt[-1]))
-        x = np.array([np.interp(tc, tt, self.task_x[:, k]) for k in range(3)])
-        if t > tt[-1] or t < tt[0]:
-            return x, np.zeros(3)
-        return x, np.array([np.interp(tc, tt, self._task_v[:, k]) for k in range(3)])
 
     # ------------------------------------------------------------------ control
     def compute(self, t: float, q: FloatArray, v: FloatArray) -> FloatArray:
-        """Detect, switch strategy if needed, and return the command [N*m], shape (nv,)."""
+        """Detect, hand over if needed, and return the command [N*m], shape (nv,)."""
         assert self.robot is not None and self.observer is not None
         det = self.observer.update(t, q, v, self._tau_prev)
         if det is not None:
-            name = self.robot.joint_names[det.joint]
-            self.log.append(
-                RecoveryEvent(
-                    t=t,
-                    kind="detect",
-                    joint=name,
-                    detail=f"{det.kind}: residual {det.residual:.3g} N*m since "
-                    f"t = {det.t_onset:.4g} s",
-                )
-            )
-            self._on_detection(t, det.joint, det.kind, q, v)
-        if self.mode == "nominal":
-            tau = (
-                np.zeros(len(q))
-                if self.nominal is None
-                else np.array(self.nominal.compute(t, q, v), dtype=float)
-            )
-        elif self.mode == "track":
-            tau = self._track(t, q, v)
+            self._on_detection(det, t, q, v)
+        if self.active is None:
+            tau = np.zeros(len(q))
         else:
-            assert self.loose_controller is not None
-            tau = np.array(self.loose_controller.compute(t, q, v), dtype=float)
-            self._copy_loose_log()
-        for j in self.failed:
-            tau[j] = 0.0
+            tau = np.array(self.active.compute(t, q, v), dtype=float)
+            self._copy_events()
         self._tau_prev = tau.copy()
         return tau
 
-    def _on_detection(self, t: float, j: int, kind: str, q: FloatArray, v: FloatArray) -> None:
-        assert self.robot is not None
-        names = self.robot.joint_names
-        if self.mode == "loose":
-            # The swinging link's transient can push other joints' residuals over their
-            # thresholds; the loose-joint controller handles one failed joint at a time.
-            self.log.append(
-                RecoveryEvent(
-                    t=t, kind="ignored", joint=names[j], detail=f"{kind}: a loose joint is handled"
-                )
-            )
-            return
-        self.failed[j] = kind
-        if kind == "loose":
-            self._start_loose(t, q, v)
-            return
-        # frozen: track the task with the joints that still move the frame
-        self.mode = "track"
-        rigid = {self.robot.params.index(x) for x in self.locked}
-        self._movers = np.array(
-            [i for i in self._frame_joints if i not in self.failed and i not in rigid], dtype=int
-        )
-        self._q_ref = np.array(q, dtype=float)
-        self._v_ref = np.array(v, dtype=float)
-        for i in self.failed:
-            self._v_ref[i] = 0.0
-        self._q_hold = np.array(q, dtype=float)
-        self._t_last = t
-        moving = ", ".join(names[i] for i in self._movers)
-        self.log.append(
-            RecoveryEvent(t=t, kind="track", joint=names[j], detail=f"tracking with {moving}")
-        )
-
-    def _start_loose(self, t: float, q: FloatArray, v: FloatArray) -> None:
-        assert self.robot is not None
-        from packbot.failures import Failure
-
-        ctrl = ReconfigurableController(
-            target=self.task_x[-1],
-            frame=self.frame,
-            detect=False,
-            environment=self.environment,
-            dt=self.dt,
-            gravity=tuple(self.gravity),
-            **self.loose_options,
-        )
-        ctrl.reset(self.robot, t, np.asarray(q, dtype=float), np.asarray(v, dtype=float))
-        names = self.robot.joint_names
-        for i, kind in self.failed.items():
-            ctrl.on_failure(Failure(joint=names[i], kind=kind), t)  # type: ignore[arg-type]
-        self.loose_controller = ctrl
-        self.mode = "loose"
-        self._loose_seen = len(ctrl.events)  # its initial (healthy) plan is not reported
-        x = self.task_x[-1]
+    def _on_detection(self, det: Detection, t: float, q: FloatArray, v: FloatArray) -> None:
+        assert self.robot is not None and self.context is not None
+        name = self.robot.joint_names[det.joint]
         self.log.append(
             RecoveryEvent(
                 t=t,
-                kind="loose",
-                joint=", ".join(names[i] for i in self.failed),
-                detail=f"holding the task's final point ({x[0]:.3f}, {x[1]:.3f}, {x[2]:.3f}) m "
-                "with the loose link at a stable equilibrium",
+                kind="detect",
+                joint=name,
+                detail=f"{det.describe()}: residual {det.residual:.3g} N*m since "
+                f"t = {det.t_onset:.4g} s",
+                detection=det,
             )
         )
+        earlier = tuple(
+            estimated_failure(d, self.robot.joint_names[d.joint]) for d in self.detections
+        )
+        self.detections.append(det)
+        self.failed[det.joint] = det.kind
+        report = FailureReport(
+            failure=estimated_failure(det, name),
+            detection=det,
+            t=t,
+            q=np.array(q, dtype=float),
+            v=np.array(v, dtype=float),
+            earlier=earlier,
+            context=self.context,
+        )
+        before = self.active
+        after = self.strategy.on_failure(report, before)
+        self.log.extend(self.strategy.events)
+        self.strategy.events.clear()
+        self.mode = "recovery"
+        if after is not None and not isinstance(after, Controller):
+            raise ConfigurationError(
+                f"{type(self.strategy).__name__}.on_failure",
+                after,
+                "the controller in charge: a packbot.control.Controller or None",
+            )
+        if after is not before:
+            if after is not None:
+                after.reset(self.robot, t, report.q, report.v)
+                events = getattr(after, "events", None)
+                self._seen = len(events) if isinstance(events, list) else 0
+                for f in report.all_failures:
+                    after.on_failure(f, t)
+            what = "zero torque" if after is None else type(after).__name__
+            self.log.append(RecoveryEvent(t=t, kind="switch", joint=name, detail=what))
+        self.active = after
 
-    def _copy_loose_log(self) -> None:
-        assert self.loose_controller is not None
-        events = self.loose_controller.events
-        for e in events[self._loose_seen :]:
-            if e.kind in ("plan", "replan"):
+    def _copy_events(self) -> None:
+        """The loose-joint controller's plans, into the log."""
+        events = getattr(self.active, "events", None)
+        if not isinstance(events, list) or self.active is self.nominal:
+            return
+        for e in events[self._seen :]:
+            if getattr(e, "kind", "") in ("plan", "replan"):
                 self.log.append(RecoveryEvent(t=e.t, kind=e.kind, joint=e.joint, detail=e.detail))
-        self._loose_seen = len(events)
+        self._seen = len(events)
 
-    def _track(self, t: float, q: FloatArray, v: FloatArray) -> FloatArray:
-        assert self.robot is not None
-        model, data = self._md()
-        h = max(t - self._t_last, 0.0)
-        self._t_last = t
-        m = self._movers
-        if h > 0 and len(m):
-            x_star, xd_star = self.task(t)
-            J = pin.computeFrameJacobian(
-                model, data, self._q_ref, self._fid, pin.LOCAL_WORLD_ALIGNED
-            )
-            Jm = np.asarray(J)[:3, m]
-            e = x_star - data.oMf[self._fid].translation
-            corr = self.task_gain * e
-            n_corr = float(np.linalg.norm(corr))
-            if n_corr > self.max_task_speed:
-                corr *= self.max_task_speed / n_corr
-            xd = xd_star + corr
-            qd = Jm.T @ np.linalg.solve(Jm @ Jm.T + self.damping**2 * np.eye(3), xd)
-            vmax = self.speed_fraction * self.robot.params.velocity[m]
-            s = float(np.max(np.abs(qd) / vmax))
-            if s > 1:
-                qd /= s
-            lower = np.asarray(model.lowerPositionLimit)[m]
-            upper = np.asarray(model.upperPositionLimit)[m]
-            self._q_ref[m] = np.clip(self._q_ref[m] + h * qd, lower, upper)
-            self._v_ref[m] = qd
-        kp, kd = self.omega**2, 2 * self.zeta * self.omega
-        a = np.zeros(len(q))
-        held = np.array(
-            [i for i in range(len(q)) if i not in self.failed and i not in set(m.tolist())],
-            dtype=int,
-        )
-        a[m] = kp * (self._q_ref[m] - q[m]) + kd * (self._v_ref[m] - v[m])
-        if len(held):
-            a[held] = kp * (self._q_hold[held] - q[held]) - kd * v[held]
-        vv = np.array(v, dtype=float)
-        for i in self.failed:
-            vv[i] = 0.0
-        return np.array(pin.rnea(model, data, np.asarray(q, dtype=float), vv, a), dtype=float)
+    def suspended(self) -> list[tuple[float, float]]:
+        """Intervals [s] in which no joint was judged because the arm touched something."""
+        return [] if self.observer is None else list(self.observer.contact_intervals)

@@ -111,7 +111,9 @@ def heat_map_figure(summary: Mapping[str, Any]) -> Figure:
     """The heat maps (one figure, three panels: :data:`PANELS`) of a study matrix's summary.
 
     Rows: the failed joint; columns: the failure time [s]. Each square is annotated with its
-    value (the rate as ``recovered/studied``); a bin without a study is grey.
+    value (the rate as ``recovered/studied``); a bin without a study is grey and hatched
+    (``not studied``, or ``missing`` where the matrix has no cell), a 0 mm bin takes the error
+    scale's lowest colour.
     """
     from matplotlib import colormaps
     from matplotlib.backends.backend_agg import FigureCanvasAgg
@@ -135,24 +137,45 @@ def heat_map_figure(summary: Mapping[str, Any]) -> Figure:
             for k in range(len(times)):
                 ids = hm["cells"][r][k] or []
                 value = hm[key][r][k]
+                hatch = None
                 if value is None:
                     face: Any = _EMPTY
-                    text = ("not studied" if hm["studied"][r][k] == 0 else "") if ids else ""
+                    hatch = "//"  # a missing bin is marked, never left blank
+                    text = ("not studied" if hm["studied"][r][k] == 0 else "") if ids else "missing"
                 elif is_rate:
                     face = cmap(norm(value))
                     text = f"{hm['recovered'][r][k]}/{hm['studied'][r][k]}"
                     if len(ids) > hm["studied"][r][k]:
                         text += f"\n({len(ids) - hm['studied'][r][k]} not studied)"
                 else:
-                    face = cmap(norm(1000.0 * value))
+                    # a 0 mm bin (or below the scale) takes the scale's lowest colour: a
+                    # logarithmic norm masks it, and it would not be drawn
+                    face = cmap(norm(max(1000.0 * value, float(norm.vmin or 0.0))))
                     text = f"{1000.0 * value:.3g} mm"
                 rect = Rectangle(
-                    (k - 0.5, r - 0.5), 1.0, 1.0, facecolor=face, edgecolor="white", lw=2.0
+                    (k - 0.5, r - 0.5),
+                    1.0,
+                    1.0,
+                    facecolor=face,
+                    edgecolor="white",
+                    lw=2.0,
                 )
                 link = _cell_link(summary, ids, r, k)
                 if link is not None:
                     rect.set_url(link)
                 ax.add_patch(rect)
+                if hatch is not None:
+                    ax.add_patch(
+                        Rectangle(
+                            (k - 0.45, r - 0.45),
+                            0.9,
+                            0.9,
+                            fill=False,
+                            hatch=hatch,
+                            edgecolor="#a0a0a0",
+                            lw=0.0,
+                        )
+                    )
                 if text:
                     color = "black" if value is None else _text_color(face)
                     ax.text(k, r, text, ha="center", va="center", fontsize="small", color=color)

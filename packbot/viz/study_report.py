@@ -37,7 +37,7 @@ from meshcat.servers.zmqserver import VIEWER_ROOT
 
 from packbot.errors import ConfigurationError, PackbotError
 from packbot.labels import plain_text
-from packbot.study import RUN_NAMES, StudyResult, impact_speeds
+from packbot.study import RUN_NAMES, StudyResult, impact_speeds, verdict_lines
 from packbot.viz.html import script_json
 from packbot.viz.recorder import SceneRecorder
 from packbot.viz.scene import _Scene
@@ -193,7 +193,8 @@ def study_figures(result: StudyResult) -> dict[str, Figure]:
     robot = result.robot
     runs = [(n, r) for n, r in result.runs.items() if r.result is not None]
     title = plain_text(
-        f"{result.scenario.name}: {result.scenario.controller} controller, {result.contact_mode}"
+        f"{result.scenario.name}: {result.controller or result.scenario.controller} controller, "
+        f"{result.contact_mode}"
     )
 
     fig, (ax,) = _figure(1, 3.6)
@@ -214,7 +215,7 @@ def study_figures(result: StudyResult) -> dict[str, Figure]:
     joints = list(result.scenario.outputs.joints)
     for kind, caption in (
         ("joints", "angles against their limits (dashed)"),
-        ("torques", "torques against their effort limits (dashed)"),
+        ("torques", "torques against their limits in force (dashed)"),
     ):
         fig, axes = _figure(len(joints), 1.6 * len(joints) + 0.8)
         for ax, joint in zip(axes, joints, strict=True):
@@ -224,14 +225,25 @@ def study_figures(result: StudyResult) -> dict[str, Figure]:
                 y = run.result.q[:, j] if kind == "joints" else run.result.tau[:, j]
                 ax.plot(run.result.t, y, color=RUN_COLORS[name], lw=1.3, label=name)
             if kind == "joints":
-                lims = (robot.params.lower[j], robot.params.upper[j])
+                for lim in (robot.params.lower[j], robot.params.upper[j]):
+                    ax.axhline(lim, color="gray", ls="--", lw=0.9)
                 ax.set_ylabel(f"{joint} [rad]")
             else:
-                e = float(robot.params.effort[j])
-                lims = (-e, e)
+                # each run's limit as it is at each sample (a weak joint's drops at its failure)
+                for name, run in runs:
+                    assert run.result is not None
+                    e = np.asarray(run.result.effort, dtype=float)[:, j]
+                    for sign in (-1.0, 1.0):
+                        ax.plot(
+                            run.result.t,
+                            sign * e,
+                            color=RUN_COLORS[name],
+                            ls="--",
+                            lw=0.9,
+                            alpha=0.8,
+                            drawstyle="steps-post",
+                        )
                 ax.set_ylabel(f"{joint} [N*m]")
-            for lim in lims:
-                ax.axhline(lim, color="gray", ls="--", lw=0.9)
             _mark_failure(ax, result, label=False)
             ax.grid(alpha=0.3)
         if runs:
@@ -287,13 +299,37 @@ def study_figures(result: StudyResult) -> dict[str, Figure]:
 
 
 # ---------------------------------------------------------------------------------- page
-def _commands(result: StudyResult, name: str) -> list[str]:
+#: Width / height of a pane the camera frames the motion for [-] (a pane is a third of the
+#: page wide and 340 px high: about 1.2 on a laptop; the narrower 1.0 frames it on any).
+PANE_ASPECT = 1.0
+
+
+def _motion_box(result: StudyResult) -> tuple[Any, Any] | None:
+    """The world box [m] holding the arm at every keyframe of every run (one framing)."""
+    from packbot.viz.keyframes import FPS, _keyframes
+
+    scene = _Scene.load(
+        result.robot, meshcat.Visualizer(window=SceneRecorder()), result.scenario.environment, False
+    )
+    boxes = [
+        scene.motion_bounds(_keyframes(run.result, FPS)[1])
+        for run in result.runs.values()
+        if run.result is not None and len(run.result.t)
+    ]
+    if not boxes:
+        return None
+    return np.min([b[0] for b in boxes], axis=0), np.max([b[1] for b in boxes], axis=0)
+
+
+def _commands(result: StudyResult, name: str, box: tuple[Any, Any] | None = None) -> list[str]:
     run = result.runs[name]
     if run.result is None or len(run.result.t) == 0:
         return []
     recorder = SceneRecorder()
     viewer = meshcat.Visualizer(window=recorder)
     scene = _Scene.load(result.robot, viewer, result.scenario.environment, False)
+    if box is not None:  # the whole motion in view (an outstretched gripper is not cut off)
+        scene.frame(box[0], box[1], PANE_ASPECT)
     scene.place(np.asarray(run.result.q[0], dtype=float))
     viewer.set_animation(scene.animation(run.result, 1.0), play=True, repetitions=1)
     return [base64.b64encode(c).decode("ascii") for c in recorder.commands()]
@@ -325,7 +361,10 @@ _ROWS: tuple[tuple[str, str, str, float], ...] = (
     ("largest task error after the failure", "max_task_error_m", "mm", 1000.0),
     ("peak torque", "peak_torque_nm", "N*m", 1.0),
     ("at joint", "peak_torque_joint", "", 1.0),
-    ("peak torque / effort limit", "peak_torque_ratio", "", 1.0),
+    ("peak torque / effort limit in force", "peak_torque_ratio", "", 1.0),
+    ("at joint", "peak_torque_ratio_joint", "", 1.0),
+    ("detected weak scale", "detected_scale", "", 1.0),
+    ("false detections", "false_detections", "", 1.0),
     ("contacts (impacts)", "contacts", "", 1.0),
     ("peak impact speed", "peak_impact_speed_m_s", "m/s", 1.0),
     ("joint-stop events", "limit_hits", "", 1.0),
@@ -520,6 +559,11 @@ window.addEventListener("load", function () { seek(parseFloat(slider.value)); })
 """
 
 
+def _strategy(result: StudyResult) -> str:
+    r = result.reconfiguration
+    return "" if r is None else r.strategy
+
+
 def study_page(result: StudyResult, pngs: dict[str, bytes] | None = None) -> str:
     """The self-contained report page (HTML text).
 
@@ -542,9 +586,10 @@ def study_page(result: StudyResult, pngs: dict[str, bytes] | None = None) -> str
     sc = result.scenario
     runs_data = []
     t0s, t1s = [], []
+    box = _motion_box(result)
     for name in RUN_NAMES:
         run = result.runs[name]
-        cmds = _commands(result, name)
+        cmds = _commands(result, name, box)
         t0 = float(run.result.t[0]) if run.result is not None and len(run.result.t) else 0.0
         t1 = float(run.result.t[-1]) if run.result is not None and len(run.result.t) else 0.0
         if cmds:
@@ -570,13 +615,11 @@ def study_page(result: StudyResult, pngs: dict[str, bytes] | None = None) -> str
             f'{extra}</div><div class="view" id="view{k}"></div></div>'
         )
     rec = result.recovery
-    cls = {True: "yes", False: "no", None: "unknown"}[rec.possible]
-    verdict = {
-        True: "Recovery is possible",
-        False: "Recovery is not possible",
-        None: "Recovery not assessed",
-    }[rec.possible]
-    reasons = "".join(f"<li>{esc(r)}</li>" for r in rec.reasons)
+    cls = "yes" if rec.harmless else {True: "yes", False: "no", None: "unknown"}[rec.possible]
+    head, lines = verdict_lines(result)
+    verdict = head.split(": ", 1)[-1]
+    verdict = verdict[:1].upper() + verdict[1:]
+    reasons = "".join(f"<li>{esc(r)}</li>" for r in lines)
     fails = ", ".join(f"{f.joint} {f.kind} at {f.t:g} s" for f in result.failures)
     figs = "".join(
         f'<h3>{esc(name)}</h3><img class="fig" alt="{esc(name)}" '
@@ -585,7 +628,8 @@ def study_page(result: StudyResult, pngs: dict[str, bytes] | None = None) -> str
     )
     settings = script_json(data)
     body = f"""<h1>Failure study: {esc(sc.name)}</h1>
-<p>{esc(sc.description)}<br>controller <b>{esc(sc.controller)}</b>, contact mode
+<p>{esc(sc.description)}<br>controller <b>{esc(result.controller or sc.controller)}</b>,
+recovery strategy <b>{esc(_strategy(result))}</b>, contact mode
 <b>{esc(result.contact_mode)}</b>, failures: <b>{esc(fails)}</b>, {result.duration_s:g} s simulated,
 tolerance {result.tolerance_m * 1000:g} mm. The task is the healthy run's <code>gripper_tool</code>
 path.</p>
