@@ -14,12 +14,11 @@ What the events are and what happens at each is the law's (:mod:`packbot.contact
 actions (:mod:`packbot.schedule`) cut the steps at their times: failure injections (``failure``,
 and ``freeze`` for the impulse that stops a freezing joint), payload ``pick`` / ``drop``. The
 ticks of a sampled-data :class:`~packbot.control.Controller` (not logged) cut a step only when
-they change the held command (:mod:`packbot.ticks`). A frozen joint or
-a payload change starts a new *phase*: the integrated model is rebuilt (``pin.buildReducedModel``,
-the payload's inertia added), the law rebuilt on it and the contacts found again; the result
-stays in full coordinates. Samples and events are kept by :mod:`packbot.recorder`; the torques
-come from :mod:`packbot.drive`. docs/simulator.md, "The loop and the contact laws", says who
-calls whom and in which order.
+they change the held command (:mod:`packbot.ticks`). A frozen joint or a payload change starts a
+new *phase*: the integrated model is rebuilt (``pin.buildReducedModel``, the payload's inertia
+added), the law rebuilt on it and the contacts found again; the result stays in full coordinates.
+Samples and events are kept by :mod:`packbot.recorder`; the torques come from :mod:`packbot.drive`.
+docs/simulator.md, "The loop and the contact laws", says who calls whom and in which order.
 """
 
 from __future__ import annotations
@@ -228,8 +227,7 @@ class _Run:
                 t1 = seg.t1
                 t_sched = schedule.next_time()
                 on_schedule = t1 >= t_sched - 1e-12 and t1 < t_last
-                # A sample on a scheduled time shows the state after the action (a new held
-                # command applies from its tick on).
+                # a sample on a scheduled time shows the state after the action (a held command)
                 rec.record(seg, t1 - 1e-11 if on_schedule else t1)
                 self.t, self.y = t1, seg.y1
                 y_new = law.after_step(t1, seg.y1)
