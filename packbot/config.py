@@ -69,7 +69,7 @@ class SimConfig:
             side by side"). The report's law is kept to reproduce the report
             (``sims/collapse.toml``; ``sims/collapse_physical.toml`` is the same start in the
             default mode): it props link 3 upright on the shoulder casing (elbow2 -0.48 rad), a
-            rest pose no physics engine reaches, and runs the collapse 47x faster.
+            rest pose no physics engine reaches, and runs the collapse about 3x faster.
         restitution: Coefficient of restitution e in [0, 1] (0: perfectly inelastic).
         contact_tolerance: Contact tolerance [m]: a contact event fires when a pair's signed
             distance falls to +tol; the simulation keeps every distance >= -tol. In (0, 0.5].

@@ -5,7 +5,7 @@ The right-hand side of the contact-normal mode with its modes fixed is a few Pin
 algebra on a few contact points: the rows J_n, their drift, gaps and normal velocities, the
 tangential rows of the sticking pairs, then the Delassus system of the engaged rows. That
 algebra works on arrays of 2 to 20 rows, where numpy's per-call overhead (a few microseconds
-per operation, some 40 operations) cost 60 % of a run (docs/performance.md). Here it is one
+per operation, some 40 operations) would cost most of a run. Here it is one
 compiled function per purpose, with plain loops:
 
 - :func:`contact_rows`: every contact row of the contact set (patch points of the pairs, then
