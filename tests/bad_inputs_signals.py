@@ -30,6 +30,16 @@ _SLOW_MATRIX = (
 )
 
 
+def _default_sigint() -> None:
+    """In the child: SIGINT back to its default disposition before Python starts.
+
+    A command started in the background by a shell without job control (`cmd &` in a CI script)
+    inherits SIGINT ignored, and Python then installs no KeyboardInterrupt handler: Ctrl-C
+    cases would wait for a signal the child never sees.
+    """
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 def _start(c: Any, args: list[str]) -> subprocess.Popen[str]:
     # (cwd: the case's folder, not the checkout, whose source tree `python -m` would import)
     return subprocess.Popen(
@@ -38,6 +48,7 @@ def _start(c: Any, args: list[str]) -> subprocess.Popen[str]:
         stderr=subprocess.PIPE,
         text=True,
         cwd=c.tmp,
+        preexec_fn=_default_sigint,
     )
 
 

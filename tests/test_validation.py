@@ -150,22 +150,26 @@ def test_the_default_is_the_contact_normal_mode_with_friction():
 
 
 @pytest.mark.parametrize(
-    ("fields", "warned"),
+    ("fields", "frictionless", "ignored"),
     [
-        ({}, False),  # the default: mu = 0.5
-        ({"mu": 0.0}, True),  # frictionless contact-normal mode: it may never rest
-        ({"contact_mode": "joint_clamp"}, False),  # the report's law has no friction
-        ({"contact_mode": "joint_clamp", "mu": 0.0}, False),
-        ({"contact_mode": "none", "mu": 0.0}, False),
+        ({}, False, False),  # the default: mu = 0.5
+        ({"mu": 0.0}, True, False),  # frictionless contact-normal mode: it may never rest
+        ({"contact_mode": "joint_clamp"}, False, False),  # the report's law has no friction
+        ({"contact_mode": "joint_clamp", "mu": 0.0}, False, True),  # mu set: it does nothing
+        ({"contact_mode": "joint_clamp", "mu": 1.2}, False, True),
+        ({"contact_mode": "none", "mu": 0.0}, False, False),
     ],
 )
-def test_simulate_warns_of_a_frictionless_contact_normal_mode(robot, caplog, fields, warned):
+def test_simulate_warns_of_friction_settings_that_do_not_do_what_one_expects(
+    robot, caplog, fields, frictionless, ignored
+):
     cfg = SimConfig(locked_joints=WRIST, **fields)
     with caplog.at_level("WARNING", logger="packbot.integrator"):
         packbot.simulate(robot, robot.pose("drive"), np.zeros(8), 0.01, config=cfg)
-    assert ("mu = 0" in caplog.text) == warned
-    if warned:
+    assert ("frictionless contact" in caplog.text) == frictionless
+    if frictionless:
         assert "the default is 0.5" in caplog.text
+    assert ("mu does nothing here" in caplog.text) == ignored
 
 
 # ---------------------------------------------------------------------------- final sample
