@@ -148,6 +148,17 @@ def test_no_command_prints_help(capsys):
     assert "run" in capsys.readouterr().out
 
 
+def test_version_prints_the_package_version(capsys):
+    with pytest.raises(SystemExit) as exc:
+        main(["--version"])
+    assert exc.value.code == 0
+    assert capsys.readouterr().out.strip() == f"packbot {packbot.__version__}"
+    done = subprocess.run(
+        [sys.executable, "-m", "packbot.cli", "--version"], capture_output=True, text=True
+    )
+    assert (done.returncode, done.stdout.strip()) == (0, f"packbot {packbot.__version__}")
+
+
 def test_generate_srdf_without_urdf_folder_names_the_option(tmp_path, capsys):
     assert main(["generate-srdf", "--root", str(tmp_path)]) == 2
     err = capsys.readouterr().err

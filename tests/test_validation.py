@@ -155,7 +155,7 @@ def test_the_default_is_the_contact_normal_mode_with_friction():
         ({}, False),  # the default: mu = 0.5
         ({"mu": 0.0}, True),  # frictionless contact-normal mode: it may never rest
         ({"contact_mode": "joint_clamp"}, False),  # the report's law has no friction
-        ({"contact_mode": "joint_clamp", "mu": 0.0}, False),
+        ({"contact_mode": "joint_clamp", "mu": 0.0}, False),  # (warned of mu instead: below)
         ({"contact_mode": "none", "mu": 0.0}, False),
     ],
 )
@@ -163,9 +163,31 @@ def test_simulate_warns_of_a_frictionless_contact_normal_mode(robot, caplog, fie
     cfg = SimConfig(locked_joints=WRIST, **fields)
     with caplog.at_level("WARNING", logger="packbot.integrator"):
         packbot.simulate(robot, robot.pose("drive"), np.zeros(8), 0.01, config=cfg)
-    assert ("mu = 0" in caplog.text) == warned
+    assert ("the default is 0.5" in caplog.text) == warned
     if warned:
-        assert "the default is 0.5" in caplog.text
+        assert "mu = 0" in caplog.text
+
+
+@pytest.mark.parametrize(
+    ("fields", "warned"),
+    [
+        ({"contact_mode": "joint_clamp"}, False),  # the default mu: nothing set
+        ({"contact_mode": "joint_clamp", "mu": 0.0}, True),
+        ({"contact_mode": "joint_clamp", "mu": 0.9}, True),
+        ({"mu": 0.9}, False),  # the contact-normal mode uses it
+        ({"contact_mode": "none", "mu": 0.9}, False),  # no contact law at all: nothing to say
+    ],
+)
+def test_simulate_warns_of_mu_set_under_the_joint_clamp_law(robot, caplog, fields, warned):
+    """A non-default mu under joint_clamp does nothing: the run says so (logging.warning)."""
+    cfg = SimConfig(locked_joints=WRIST, **fields)
+    with caplog.at_level("WARNING", logger="packbot.integrator"):
+        packbot.simulate(robot, robot.pose("drive"), np.zeros(8), 0.01, config=cfg)
+    said = [r for r in caplog.records if "has no friction" in r.getMessage()]
+    assert bool(said) == warned
+    if warned:
+        assert said[0].levelname == "WARNING"
+        assert f"mu = {cfg.mu:g}" in said[0].getMessage()
 
 
 # ---------------------------------------------------------------------------- final sample
