@@ -12,6 +12,8 @@ and ``out/collapse_joints.svg`` (see ``formats``).
 - :func:`plot_energy`: total mechanical energy [J] against time, with the jumps of the events;
 - :func:`plot_torques`: applied (and commanded) joint torques [N*m], scaled to the effort limits;
 - :func:`plot_tracking`: joint positions against a controller's reference, and the error [rad];
+- :func:`plot_tool_path`: the path of a frame (the tool) [m] in the x-z and x-y planes, with
+  a controller's target;
 - :func:`plot_occlusion`: whether the camera's view of target points is blocked, and by what
   (:func:`sample_occlusion`).
 
@@ -40,12 +42,13 @@ from matplotlib.axes import Axes
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
 from packbot.collision import CollisionWorld
 from packbot.errors import ConfigurationError, UnknownNameError
 from packbot.keywords import checked_arguments
 from packbot.labels import event_label, plain_text
+from packbot.model import Robot
 from packbot.result import SimResult
 
 __all__ = [
@@ -58,6 +61,7 @@ __all__ = [
     "plot_energy",
     "plot_joints",
     "plot_occlusion",
+    "plot_tool_path",
     "plot_torques",
     "plot_tracking",
     "sample_distances",
@@ -914,6 +918,94 @@ def plot_tracking(
     tf.context(result, errors, event_kinds)
     _save(tf.fig, path, formats, dpi)
     return tf.fig
+
+
+#: Event kinds placed on a tool path: where the tool was when they happened.
+_PATH_EVENTS: tuple[str, ...] = ("impact", "failure", "freeze", "pick", "drop")
+
+
+@checked_arguments
+def plot_tool_path(
+    result: SimResult,
+    path: str | Path | None = None,
+    *,
+    frame: str = "gripper_tool",
+    robot: Robot | None = None,
+    target: ArrayLike | None = None,
+    formats: Sequence[str] = _FORMATS,
+    dpi: int = 120,
+) -> Figure:
+    """The path of a frame's origin [m]: side view (x-z plane) and top view (x-y plane).
+
+    World frame (``base_link``'s: x forward, y left, z up), equal scales on both axes. The
+    start is a green circle, the end a black square, the target (if given) a red star with
+    the final distance to it [mm]; impacts, failures, freezes and payload changes are placed
+    where the tool was when they happened; the floor (z = 0) is a grey line in the side view.
+
+    Args:
+        result: A simulation result.
+        path: Where to save, without suffix; None saves nothing.
+        frame: The frame whose path is drawn (:meth:`SimResult.frame_positions`).
+        robot: The robot the run simulated (None: the shipped one).
+        target: The frame's target [m], world frame, shape (3,), or None.
+        formats: File formats written when ``path`` is given ("png", "svg").
+        dpi: Resolution of the PNG [dots per inch].
+
+    Returns:
+        The figure.
+
+    Raises:
+        UnknownNameError: ``frame`` is not a frame of the model.
+        ConfigurationError: ``target`` is not 3 finite coordinates [m].
+    """
+    xyz = result.frame_positions(frame, robot)
+    goal = None
+    if target is not None:
+        goal = np.asarray(target, dtype=float)
+        if goal.shape != (3,) or not np.all(np.isfinite(goal)):
+            raise ConfigurationError("target", target, "None or 3 finite coordinates [m]")
+    fig = Figure(figsize=(_WIDTH, 4.4), layout="constrained")
+    FigureCanvasAgg(fig)
+    ax_side, ax_top = fig.subplots(1, 2)
+    t = np.asarray(result.t, dtype=float)
+    marks: dict[str, list[int]] = {}
+    for ev in result.events:
+        if ev.kind in _PATH_EVENTS and len(t):
+            i = min(int(np.searchsorted(t, ev.t)), len(t) - 1)
+            marks.setdefault(ev.kind, []).append(i)
+    for ax, (a, b), names in ((ax_side, (0, 2), ("x", "z")), (ax_top, (0, 1), ("x", "y"))):
+        ax.plot(xyz[:, a], xyz[:, b], color="tab:blue", lw=1.5, label=f"{plain_text(frame)} path")
+        ax.plot(xyz[0, a], xyz[0, b], "o", color="tab:green", ms=7, label="start")
+        ax.plot(xyz[-1, a], xyz[-1, b], "s", color="black", ms=6, label="end")
+        if goal is not None:
+            ax.plot(goal[a], goal[b], "*", color="tab:red", ms=13, label="target")
+        for kind, idx in marks.items():
+            ax.plot(
+                xyz[idx, a],
+                xyz[idx, b],
+                {"impact": "x", "failure": "v"}.get(kind, "^"),
+                color=EVENT_COLORS.get(kind, "black"),
+                ms=7,
+                mew=1.5,
+                ls="none",
+                label=f"{kind} ({len(idx)})",
+            )
+        ax.set_xlabel(f"{names[0]} [m]")
+        ax.set_ylabel(f"{names[1]} [m]")
+        ax.set_aspect("equal", adjustable="datalim")
+        ax.grid(True, alpha=0.3)
+    ax_side.axhline(0.0, color="grey", lw=1.5, zorder=0, label="floor")
+    ax_side.set_title("side view (x-z)", fontsize="medium")
+    ax_top.set_title("top view (x-y)", fontsize="medium")
+    ax_side.legend(loc="best", fontsize="small", framealpha=0.85)
+    title = f"Path of {plain_text(frame)}\n({_title(result)})"
+    if goal is not None:
+        miss = 1000.0 * float(np.linalg.norm(xyz[-1] - goal))
+        title = f"Path of {plain_text(frame)}: {miss:.1f} mm from the target at the end\n"
+        title += f"({_title(result)})"
+    fig.suptitle(title)
+    _save(fig, path, formats, dpi)
+    return fig
 
 
 def _mark_events(ax: Axes, result: SimResult, kinds: Iterable[str]) -> list[tuple[str, str]]:

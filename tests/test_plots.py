@@ -17,6 +17,7 @@ from packbot.plots import (
     plot_energy,
     plot_joints,
     plot_occlusion,
+    plot_tool_path,
     plot_torques,
     plot_tracking,
     sample_distances,
@@ -277,6 +278,31 @@ def test_plot_tracking_draws_the_error(short_collapse, tmp_path):
     np.testing.assert_allclose(err, short_collapse.q[:, 1] - short_collapse.q[0, 1])
     with pytest.raises(packbot.ConfigurationError, match="q_ref"):
         plot_tracking(short_collapse, q_ref[:, :3])
+
+
+def test_plot_tool_path_side_and_top_views_with_the_target(short_collapse, tmp_path):
+    target = (1.0, 0.2, 0.3)
+    fig = plot_tool_path(short_collapse, path=tmp_path / "tp", target=target)
+    assert_not_blank(tmp_path / "tp.png")
+    assert (tmp_path / "tp.svg").is_file()
+    side, top = panel(fig, "z [m]"), panel(fig, "y [m]")
+    xyz = short_collapse.frame_positions("gripper_tool")
+    path = side.get_lines()[0]
+    np.testing.assert_allclose(path.get_xdata(), xyz[:, 0])
+    np.testing.assert_allclose(path.get_ydata(), xyz[:, 2])
+    np.testing.assert_allclose(top.get_lines()[0].get_ydata(), xyz[:, 1])
+    labels = [line.get_label() for line in side.get_lines()]
+    assert {"start", "end", "target", "floor"} <= set(labels)
+    impacts = len(short_collapse.events_of("impact"))
+    assert f"impact ({impacts})" in labels
+    miss = 1000 * np.linalg.norm(xyz[-1] - np.array(target))
+    assert f"{miss:.1f} mm from the target" in fig.get_suptitle()
+    no_target = plot_tool_path(short_collapse, frame="camera_optical")
+    assert "target" not in [line.get_label() for line in panel(no_target, "z [m]").get_lines()]
+    with pytest.raises(packbot.ConfigurationError, match="target"):
+        plot_tool_path(short_collapse, target=(1.0, 2.0))
+    with pytest.raises(packbot.UnknownNameError, match="gripper_tool"):
+        plot_tool_path(short_collapse, frame="tool")
 
 
 def test_sample_and_plot_occlusion(short_collapse, world, tmp_path):
