@@ -17,9 +17,10 @@ and ``out/collapse_joints.svg`` (see ``formats``).
 - :func:`plot_occlusion`: whether the camera's view of target points is blocked, and by what
   (:func:`sample_occlusion`).
 
-The time plots show the action: the time axis is zoomed to the events (first to last marked
-event and the rest time, plus a margin; the start of the run is kept when it is near) and a
-strip at the bottom shows the whole run with the zoomed interval shaded (see :func:`time_window`).
+The time plots show the action: the time axis is zoomed to the motion and the events (first
+to last marked event, moving sample and the rest time, plus a margin; the start of the run is
+kept when it is near) and a strip at the bottom shows the whole run with the zoomed interval
+shaded (see :func:`time_window`).
 Every marked event is a vertical line coloured by kind and is labelled, in a lane above the
 panels, with its kind and its joint or pair (:func:`event_label`; a failure names the joint and
 the failure's kind); labels never overlap (they stack in rows; repeats of one label close in
@@ -54,6 +55,7 @@ from packbot.result import SimResult
 __all__ = [
     "EVENT_COLORS",
     "MARKED_EVENTS",
+    "MOVING_FRACTION",
     "PLANAR_JOINTS",
     "TORQUE_AXIS",
     "event_label",
@@ -122,6 +124,8 @@ _STRIP_BOTTOM = 0.3
 _LABEL_PT = 7.5  # event label font size [pt]
 # The zoom: shown when the events' interval is under this fraction of the run.
 _ZOOM_BELOW = 0.6
+#: A joint moves, for the zoom, above this fraction of the run's peak joint speed [-].
+MOVING_FRACTION = 0.02
 
 
 def _new_figure(height: float, nrows: int = 1) -> tuple[Figure, list[Axes]]:
@@ -162,13 +166,16 @@ def _save(fig: Figure, path: str | Path | None, formats: Sequence[str], dpi: int
 def time_window(
     result: SimResult, event_kinds: Iterable[str] = MARKED_EVENTS
 ) -> tuple[float, float]:
-    """The time interval [s] the plots zoom to: where the marked events happen.
+    """The time interval [s] the plots zoom to: where the arm moves and the events happen.
 
-    From the first to the last event of ``event_kinds`` and the rest time (when the arm never
-    comes to rest, the end of the run), plus a margin of a tenth of that span (at least 2 % of
-    the run); widened to the start (end) of the run when that is less than half the span away.
-    The whole run when the events fill most of it (the zoom would show little more than 60 %
-    of it) or when there is no event and no rest.
+    From the first to the last of: the events of ``event_kinds``, the motion (the first and
+    the last sample where a joint moves faster than :data:`MOVING_FRACTION` of the run's
+    peak joint speed, and at least ``config.rest_speed``: a controlled reach is framed whole,
+    not only around its events) and the rest time (when the arm never comes to rest, the end
+    of the run); plus a margin of a tenth of that span (at least 2 % of the run); widened to
+    the start (end) of the run when that is less than half the span away. The whole run when
+    these fill most of it (the zoom would show little more than 60 % of it) or when there is
+    no event, no motion and no rest.
 
     Args:
         result: A simulation result.
@@ -177,12 +184,19 @@ def time_window(
     Returns:
         ``(start, end)`` [s], within the run.
     """
-    t0, t1 = float(result.t[0]), float(result.t[-1])
+    t = np.asarray(result.t, dtype=float)
+    t0, t1 = float(t[0]), float(t[-1])
     kinds = set(event_kinds)
     times = [e.t for e in result.events if e.kind in kinds and t0 <= e.t <= t1]
+    v = np.asarray(result.v, dtype=float)
+    speed = np.abs(v).max(axis=1) if v.size else np.zeros(len(t))
+    peak = float(speed.max()) if len(speed) else 0.0
+    moving = np.flatnonzero(speed >= max(MOVING_FRACTION * peak, result.config.rest_speed))
+    if len(moving):
+        times += [float(t[moving[0]]), float(t[moving[-1]])]
     if (not times and result.rest_time is None) or t1 <= t0:
         return t0, t1
-    if not times:  # no event: from the start to the rest
+    if not times:  # no event, no motion: from the start to the rest
         times.append(t0)
     times.append(t1 if result.rest_time is None else float(result.rest_time))
     first, last = min(times), max(times)

@@ -11,6 +11,7 @@ from matplotlib.image import imread
 import packbot
 from packbot.plots import (
     MARKED_EVENTS,
+    MOVING_FRACTION,
     TORQUE_AXIS,
     event_label,
     plot_distance,
@@ -111,13 +112,41 @@ def test_time_axis_zooms_to_the_events_with_the_whole_run_below(short_collapse):
     assert not any(ax.get_title(loc="left") for ax in fig.axes)
 
 
+def test_time_window_frames_the_motion_of_a_controlled_run(robot):
+    """A computed-torque reach whose elbow freezes at 1 s: the zoom was on the failure and the
+    rest (0.9-2.1 s of 3 s) and cut the first second of the reach; now every moving sample is
+    shown."""
+    from packbot.scenario import load_scenario, run_scenario
+
+    res = run_scenario(load_scenario("frozen_elbow_reach"), robot)
+    a, b = time_window(res)
+    speed = np.abs(res.v).max(axis=1)
+    moving = res.t[speed >= max(MOVING_FRACTION * speed.max(), res.config.rest_speed)]
+    assert moving[0] < 0.5 < moving[-1]  # the reach starts at once, before the failure
+    assert a <= moving[0] and moving[-1] <= b
+
+
+def test_time_window_zooms_to_late_motion_without_events(short_collapse):
+    """The arm still for most of a run, moving from 1.4 s to 1.6 s alone: the zoom frames that
+    motion (plus its margin), as it frames events."""
+    t = short_collapse.t
+    v = np.zeros_like(short_collapse.v)
+    move = (t >= 1.4) & (t <= 1.6)
+    v[move, 1] = 0.5 * np.sin(np.pi * (t[move] - 1.4) / 0.2)
+    rest = float(t[np.flatnonzero(move)[-1] + 1])  # the first still sample after the motion
+    quiet = dataclasses.replace(short_collapse, v=v, events=[], rest_time=rest)
+    a, b = time_window(quiet)
+    assert 1.2 < a < 1.42 and 1.58 < b < 1.8, (a, b)
+
+
 def test_time_window_whole_run_when_events_fill_it(short_collapse):
     res = short_collapse
     late = dataclasses.replace(res.events[0], t=1.9)
     assert time_window(dataclasses.replace(res, events=[*res.events, late])) == (0.0, 2.0)
     quiet = dataclasses.replace(res, events=[], rest_time=None)
     assert time_window(quiet) == (0.0, 2.0)
-    still = dataclasses.replace(res, events=[], rest_time=0.3)  # no event: start to rest
+    v = np.where((res.t > 0.3)[:, None], 0.0, res.v)  # at rest from 0.3 s
+    still = dataclasses.replace(res, v=v, events=[], rest_time=0.3)  # no event: start to rest
     t0, t1 = time_window(still)
     assert t0 == 0.0 and 0.3 < t1 < 0.4
 
