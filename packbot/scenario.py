@@ -63,7 +63,7 @@ from packbot.errors import (
     UnknownNameError,
     close_match,
 )
-from packbot.failures import Failure
+from packbot.failures import Failure, check_sequence
 from packbot.keywords import checked_arguments
 from packbot.paths import check_stem, inside
 from packbot.payload import Payload
@@ -300,6 +300,7 @@ class Scenario:
         for k, f in enumerate(self.failures):
             # joint names are checked against the robot below
             _prefixed(partial(f.validate, (f.joint,)), f"failures[{k}]")
+        check_sequence(self.failures)  # a joint's several failures: a sequence that can happen
         if self.payload is not None:
             self.payload.validate()
         _validate_environment(self.environment)
@@ -317,15 +318,9 @@ class Scenario:
         for k, j in enumerate(self.config.locked_joints):
             if j not in names:
                 raise ConfigurationError(f"config.locked_joints[{k}]", j, names)
-        seen: set[str] = set()
         for k, f in enumerate(self.failures):
             if f.joint not in names:
                 raise ConfigurationError(f"failures[{k}].joint", f.joint, names)
-            if f.joint in seen:
-                raise ConfigurationError(
-                    f"failures[{k}].joint", f.joint, "at most one failure per joint"
-                )
-            seen.add(f.joint)
         if self.payload is not None and not robot.model.existFrame(self.payload.frame):
             raise ConfigurationError(
                 "payload.frame", self.payload.frame, tuple(f.name for f in robot.model.frames)
