@@ -278,7 +278,7 @@ class SimResult:
         """
         import pinocchio as pin
 
-        from packbot.model import Robot
+        from packbot.model import Robot, _shipped_robot
 
         if robot is None:
             robot = _shipped_robot()
@@ -508,18 +508,6 @@ class SimResult:
                 columns[f"{name}:{joint}"] = arr[:, k]
         columns["energy"] = np.asarray(self.energy)
         return pd.DataFrame(columns, index=pd.Index(np.asarray(self.t), name="t"))
-
-
-_SHIPPED: list[Robot] = []
-
-
-def _shipped_robot() -> Robot:
-    """The shipped robot, loaded once (read only here: its model places frames)."""
-    if not _SHIPPED:
-        from packbot.model import load_robot
-
-        _SHIPPED.append(load_robot())
-    return _SHIPPED[0]
 
 
 def _tuples(value: Any) -> Any:
