@@ -77,6 +77,7 @@ class PathCollision:
         )
 
 
+@checked_arguments
 def reach_bounds(robot: Robot) -> FloatArray:
     """Bounds r_j [m] on the distance of a collision piece from each joint j that carries it.
 
