@@ -7,7 +7,8 @@ simulator evaluates at every right-hand side. For joint j (all torques at the jo
 1. Command: ``tau_cmd`` from the controller (zero-order hold between ticks).
 2. Saturation (``SimConfig.effort_saturation``, always for a ``"weak"`` joint):
    ``tau_sat = clip(tau_cmd, -E_j, E_j)`` with E_j = ``robot.params.effort[j]``, scaled by the
-   failure's ``scale`` for a weak joint.
+   failure's ``scale`` for a weak joint (the latest weak failure of the joint: a degrading motor
+   steps down, each scale of the nominal limit).
 3. Motor lag (``SimConfig.motor_lag`` = T > 0 [s]): the motor torque tau_m is a state,
    ``d tau_m / dt = (tau_sat - tau_m) / T``; with T = 0, tau_m = tau_sat.
 4. Failures: a ``"loose"`` joint's motor torque is 0, a ``"stuck"`` joint's is the failure's
@@ -82,7 +83,10 @@ class TorquePath:
             params: The full robot's joint parameters.
             free: Indices (full coordinates) of the integrated joints.
             config: Simulation settings (joint_friction, effort_saturation, motor_lag).
-            failures: The failures injected so far (frozen ones are not integrated).
+            failures: The failures injected so far, in injection order (frozen ones are not
+                integrated). A joint's later failure adds to its earlier ones: a later weak
+                scale replaces the earlier (both of the nominal limit), a loose motor stops a
+                stuck one.
         """
         n_full = len(params.names)
         effort = np.array(params.effort, dtype=float)
@@ -93,13 +97,14 @@ class TorquePath:
         on = 1.0 if config.joint_friction else 0.0
         viscous = on * np.array(params.viscous, dtype=float)
         coulomb = on * np.array(params.coulomb, dtype=float)
-        for f in failures:
+        for f in failures:  # in injection order: a later failure of a joint adds to the earlier
             j = params.index(f.joint)
             if f.kind == "weak":
-                effort[j] *= f.scale
+                effort[j] = params.effort[j] * f.scale  # of the nominal limit: the latest holds
                 saturate[j] = True
             elif f.kind == "loose":
                 loose[j] = True
+                stuck[j] = False  # a runaway driver cut
             elif f.kind == "stuck":
                 stuck[j] = True
             elif f.kind == "brake":

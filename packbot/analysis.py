@@ -512,7 +512,8 @@ def _reach_one(
             active=active,
             tol=tol,
             max_iter=max_iter,
-            accept=lambda q: not world.in_collision(q),
+            accept=lambda q: not world.in_collision(q),  # the workspace's own world
+            collision_free=False,
         )
         if res.success:
             return ReachAnswer(reachable=True, error_m=res.error, q=res.q, tol_m=tol)

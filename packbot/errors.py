@@ -18,6 +18,7 @@ __all__ = [
     "ConfigurationError",
     "ControllerError",
     "ConvexityError",
+    "IKCollisionError",
     "InertialError",
     "InitialCollisionError",
     "JointError",
@@ -464,6 +465,39 @@ class InitialCollisionError(ConfigurationError):
             "configuration where every signed distance is >= 0",
         )
         self.field, self.value, self.expected = "q0", desc, "a collision-free configuration"
+
+
+class IKCollisionError(PackbotError):
+    """Every solution the inverse kinematics found for a target collides.
+
+    Attributes:
+        frame: The frame placed.
+        target: The target position [m], world frame.
+        pair: The colliding pieces of the least penetrating solution, ``(piece1, piece2)``.
+        distance: Their signed distance there [m] (negative: a penetration).
+        seeds: How many starts were tried.
+        result: That solution, an :class:`~packbot.control.IKResult`.
+    """
+
+    def __init__(
+        self,
+        frame: str,
+        target: Any,
+        pair: tuple[str, str],
+        distance: float,
+        seeds: int,
+        result: Any = None,
+    ) -> None:
+        self.frame, self.target, self.pair = frame, tuple(float(x) for x in target), pair
+        self.distance, self.seeds, self.result = float(distance), seeds, result
+        xyz = ", ".join(f"{x:.3f}" for x in self.target)
+        super().__init__(
+            f"no collision-free inverse kinematics of {frame!r} at ({xyz}) m from {seeds} starts: "
+            f"the least penetrating solution puts {pair[0]} into {pair[1]} "
+            f"({self.distance * 1000:.1f} mm); "
+            "choose another target or start, or pass collision_free=False to get the "
+            "solution flagged (IKResult.colliding)"
+        )
 
 
 class SimulationError(PackbotError):

@@ -430,7 +430,9 @@ def simulate(
         environment: Static obstacles; None means the floor alone.
         config: Settings; None means ``SimConfig()``.
         failures: Joint failures (:class:`~packbot.failures.Failure`), each injected at its
-            time ``t`` (at most one per joint, none on a joint in ``config.locked_joints``).
+            time ``t``; a joint may fail again later (a degrading motor:
+            :func:`~packbot.failures.check_sequence`), none on a joint in
+            ``config.locked_joints``.
         payload: A payload held in the gripper from ``payload.t_pick`` to ``payload.t_drop``.
         inform_controller: Call ``controller.on_failure(failure, t)`` at each injection (the
             scenario tells the controller; otherwise it must detect the failure itself).

@@ -896,6 +896,30 @@ def load_robot(urdf: str | Path | None = None) -> Robot:
     return Robot(model, collision, visual, poses, params, path)
 
 
+_SHIPPED: list[Robot] = []
+
+
+def _shipped_robot() -> Robot:
+    """The shipped robot, loaded once (for reading: frames, kinematics, collision pieces)."""
+    if not _SHIPPED:
+        _SHIPPED.append(load_robot())
+    return _SHIPPED[0]
+
+
+def _same_arm(a: pin.Model, b: pin.Model) -> bool:
+    """Whether two models have the same joints and joint placements (the same kinematics).
+
+    A copy, a model with a payload's body appended or other gravity is the same arm; a
+    reduced model (locked joints merged) or another URDF's is not.
+    """
+    if a.nq != b.nq or a.njoints != b.njoints or list(a.names) != list(b.names):
+        return False
+    return all(
+        np.allclose(pa.homogeneous, pb.homogeneous, rtol=0.0, atol=1e-12)
+        for pa, pb in zip(a.jointPlacements, b.jointPlacements, strict=True)
+    )
+
+
 def link_adjacency(model: pin.Model) -> frozenset[frozenset[str]]:
     """Pairs of links (BODY frames) on one joint's body or on a joint and its parent joint.
 

@@ -12,12 +12,15 @@ and ``out/collapse_joints.svg`` (see ``formats``).
 - :func:`plot_energy`: total mechanical energy [J] against time, with the jumps of the events;
 - :func:`plot_torques`: applied (and commanded) joint torques [N*m], scaled to the effort limits;
 - :func:`plot_tracking`: joint positions against a controller's reference, and the error [rad];
+- :func:`plot_tool_path`: the path of a frame (the tool) [m] in the x-z and x-y planes, with
+  a controller's target;
 - :func:`plot_occlusion`: whether the camera's view of target points is blocked, and by what
   (:func:`sample_occlusion`).
 
-The time plots show the action: the time axis is zoomed to the events (first to last marked
-event and the rest time, plus a margin; the start of the run is kept when it is near) and a
-strip at the bottom shows the whole run with the zoomed interval shaded (see :func:`time_window`).
+The time plots show the action: the time axis is zoomed to the motion and the events (first
+to last marked event, moving sample and the rest time, plus a margin; the start of the run is
+kept when it is near) and a strip at the bottom shows the whole run with the zoomed interval
+shaded (see :func:`time_window`).
 Every marked event is a vertical line coloured by kind and is labelled, in a lane above the
 panels, with its kind and its joint or pair (:func:`event_label`; a failure names the joint and
 the failure's kind); labels never overlap (they stack in rows; repeats of one label close in
@@ -40,17 +43,19 @@ from matplotlib.axes import Axes
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
 from packbot.collision import CollisionWorld
 from packbot.errors import ConfigurationError, UnknownNameError
 from packbot.keywords import checked_arguments
 from packbot.labels import event_label, plain_text
+from packbot.model import Robot
 from packbot.result import SimResult
 
 __all__ = [
     "EVENT_COLORS",
     "MARKED_EVENTS",
+    "MOVING_FRACTION",
     "PLANAR_JOINTS",
     "TORQUE_AXIS",
     "event_label",
@@ -58,6 +63,7 @@ __all__ = [
     "plot_energy",
     "plot_joints",
     "plot_occlusion",
+    "plot_tool_path",
     "plot_torques",
     "plot_tracking",
     "sample_distances",
@@ -118,6 +124,8 @@ _STRIP_BOTTOM = 0.3
 _LABEL_PT = 7.5  # event label font size [pt]
 # The zoom: shown when the events' interval is under this fraction of the run.
 _ZOOM_BELOW = 0.6
+#: A joint moves, for the zoom, above this fraction of the run's peak joint speed [-].
+MOVING_FRACTION = 0.02
 
 
 def _new_figure(height: float, nrows: int = 1) -> tuple[Figure, list[Axes]]:
@@ -158,13 +166,16 @@ def _save(fig: Figure, path: str | Path | None, formats: Sequence[str], dpi: int
 def time_window(
     result: SimResult, event_kinds: Iterable[str] = MARKED_EVENTS
 ) -> tuple[float, float]:
-    """The time interval [s] the plots zoom to: where the marked events happen.
+    """The time interval [s] the plots zoom to: where the arm moves and the events happen.
 
-    From the first to the last event of ``event_kinds`` and the rest time (when the arm never
-    comes to rest, the end of the run), plus a margin of a tenth of that span (at least 2 % of
-    the run); widened to the start (end) of the run when that is less than half the span away.
-    The whole run when the events fill most of it (the zoom would show little more than 60 %
-    of it) or when there is no event and no rest.
+    From the first to the last of: the events of ``event_kinds``, the motion (the first and
+    the last sample where a joint moves faster than :data:`MOVING_FRACTION` of the run's
+    peak joint speed, and at least ``config.rest_speed``: a controlled reach is framed whole,
+    not only around its events) and the rest time (when the arm never comes to rest, the end
+    of the run); plus a margin of a tenth of that span (at least 2 % of the run); widened to
+    the start (end) of the run when that is less than half the span away. The whole run when
+    these fill most of it (the zoom would show little more than 60 % of it) or when there is
+    no event, no motion and no rest.
 
     Args:
         result: A simulation result.
@@ -173,12 +184,19 @@ def time_window(
     Returns:
         ``(start, end)`` [s], within the run.
     """
-    t0, t1 = float(result.t[0]), float(result.t[-1])
+    t = np.asarray(result.t, dtype=float)
+    t0, t1 = float(t[0]), float(t[-1])
     kinds = set(event_kinds)
     times = [e.t for e in result.events if e.kind in kinds and t0 <= e.t <= t1]
+    v = np.asarray(result.v, dtype=float)
+    speed = np.abs(v).max(axis=1) if v.size else np.zeros(len(t))
+    peak = float(speed.max()) if len(speed) else 0.0
+    moving = np.flatnonzero(speed >= max(MOVING_FRACTION * peak, result.config.rest_speed))
+    if len(moving):
+        times += [float(t[moving[0]]), float(t[moving[-1]])]
     if (not times and result.rest_time is None) or t1 <= t0:
         return t0, t1
-    if not times:  # no event: from the start to the rest
+    if not times:  # no event, no motion: from the start to the rest
         times.append(t0)
     times.append(t1 if result.rest_time is None else float(result.rest_time))
     first, last = min(times), max(times)
@@ -914,6 +932,94 @@ def plot_tracking(
     tf.context(result, errors, event_kinds)
     _save(tf.fig, path, formats, dpi)
     return tf.fig
+
+
+#: Event kinds placed on a tool path: where the tool was when they happened.
+_PATH_EVENTS: tuple[str, ...] = ("impact", "failure", "freeze", "pick", "drop")
+
+
+@checked_arguments
+def plot_tool_path(
+    result: SimResult,
+    path: str | Path | None = None,
+    *,
+    frame: str = "gripper_tool",
+    robot: Robot | None = None,
+    target: ArrayLike | None = None,
+    formats: Sequence[str] = _FORMATS,
+    dpi: int = 120,
+) -> Figure:
+    """The path of a frame's origin [m]: side view (x-z plane) and top view (x-y plane).
+
+    World frame (``base_link``'s: x forward, y left, z up), equal scales on both axes. The
+    start is a green circle, the end a black square, the target (if given) a red star with
+    the final distance to it [mm]; impacts, failures, freezes and payload changes are placed
+    where the tool was when they happened; the floor (z = 0) is a grey line in the side view.
+
+    Args:
+        result: A simulation result.
+        path: Where to save, without suffix; None saves nothing.
+        frame: The frame whose path is drawn (:meth:`SimResult.frame_positions`).
+        robot: The robot the run simulated (None: the shipped one).
+        target: The frame's target [m], world frame, shape (3,), or None.
+        formats: File formats written when ``path`` is given ("png", "svg").
+        dpi: Resolution of the PNG [dots per inch].
+
+    Returns:
+        The figure.
+
+    Raises:
+        UnknownNameError: ``frame`` is not a frame of the model.
+        ConfigurationError: ``target`` is not 3 finite coordinates [m].
+    """
+    xyz = result.frame_positions(frame, robot)
+    goal = None
+    if target is not None:
+        goal = np.asarray(target, dtype=float)
+        if goal.shape != (3,) or not np.all(np.isfinite(goal)):
+            raise ConfigurationError("target", target, "None or 3 finite coordinates [m]")
+    fig = Figure(figsize=(_WIDTH, 4.4), layout="constrained")
+    FigureCanvasAgg(fig)
+    ax_side, ax_top = fig.subplots(1, 2)
+    t = np.asarray(result.t, dtype=float)
+    marks: dict[str, list[int]] = {}
+    for ev in result.events:
+        if ev.kind in _PATH_EVENTS and len(t):
+            i = min(int(np.searchsorted(t, ev.t)), len(t) - 1)
+            marks.setdefault(ev.kind, []).append(i)
+    for ax, (a, b), names in ((ax_side, (0, 2), ("x", "z")), (ax_top, (0, 1), ("x", "y"))):
+        ax.plot(xyz[:, a], xyz[:, b], color="tab:blue", lw=1.5, label=f"{plain_text(frame)} path")
+        ax.plot(xyz[0, a], xyz[0, b], "o", color="tab:green", ms=7, label="start")
+        ax.plot(xyz[-1, a], xyz[-1, b], "s", color="black", ms=6, label="end")
+        if goal is not None:
+            ax.plot(goal[a], goal[b], "*", color="tab:red", ms=13, label="target")
+        for kind, idx in marks.items():
+            ax.plot(
+                xyz[idx, a],
+                xyz[idx, b],
+                {"impact": "x", "failure": "v"}.get(kind, "^"),
+                color=EVENT_COLORS.get(kind, "black"),
+                ms=7,
+                mew=1.5,
+                ls="none",
+                label=f"{kind} ({len(idx)})",
+            )
+        ax.set_xlabel(f"{names[0]} [m]")
+        ax.set_ylabel(f"{names[1]} [m]")
+        ax.set_aspect("equal", adjustable="datalim")
+        ax.grid(True, alpha=0.3)
+    ax_side.axhline(0.0, color="grey", lw=1.5, zorder=0, label="floor")
+    ax_side.set_title("side view (x-z)", fontsize="medium")
+    ax_top.set_title("top view (x-y)", fontsize="medium")
+    ax_side.legend(loc="best", fontsize="small", framealpha=0.85)
+    title = f"Path of {plain_text(frame)}\n({_title(result)})"
+    if goal is not None:
+        miss = 1000.0 * float(np.linalg.norm(xyz[-1] - goal))
+        title = f"Path of {plain_text(frame)}: {miss:.1f} mm from the target at the end\n"
+        title += f"({_title(result)})"
+    fig.suptitle(title)
+    _save(fig, path, formats, dpi)
+    return fig
 
 
 def _mark_events(ax: Axes, result: SimResult, kinds: Iterable[str]) -> list[tuple[str, str]]:

@@ -38,6 +38,7 @@ if TYPE_CHECKING:
     import pandas as pd
 
     from packbot.environment import Environment
+    from packbot.model import Robot
     from packbot.payload import Payload
 
 __all__ = ["EVENT_KINDS", "RESULT_FORMAT", "Diagnostics", "Event", "ResultFileError", "SimResult"]
@@ -254,6 +255,52 @@ class SimResult:
         if name not in self.joint_names:
             raise UnknownNameError("joint", name, self.joint_names)
         return self.joint_names.index(name)
+
+    @checked_arguments
+    def frame_positions(
+        self, frame: str = "gripper_tool", robot: Robot | None = None
+    ) -> NDArray[np.float64]:
+        """World positions [m] of a frame's origin at every sample, shape (N, 3).
+
+        Pinocchio's forward kinematics on :attr:`q` (full coordinates: a locked or frozen
+        joint at its angle), in the world frame (``base_link``'s: x forward, z up).
+
+        Args:
+            frame: A frame of the model (a link, a joint or a tool frame such as
+                ``"gripper_tool"`` or ``"camera_optical"``).
+            robot: The robot the run simulated; None: the shipped one
+                (:func:`packbot.load_robot`, loaded once). A result does not store its model:
+                a run of another URDF needs that robot here.
+
+        Raises:
+            UnknownNameError: ``frame`` is not a frame of the model (lists the valid ones).
+            ConfigurationError: ``robot`` is not a Robot, or its joints are not the result's.
+        """
+        import pinocchio as pin
+
+        from packbot.model import Robot, _shipped_robot
+
+        if robot is None:
+            robot = _shipped_robot()
+        elif not isinstance(robot, Robot):
+            raise ConfigurationError("robot", robot, "None or a packbot.Robot")
+        if tuple(robot.joint_names) != tuple(self.joint_names):
+            raise ConfigurationError(
+                "robot",
+                list(robot.joint_names),
+                f"a robot with the result's joints {list(self.joint_names)}",
+            )
+        model = robot.model
+        if not isinstance(frame, str) or not model.existFrame(frame):
+            raise UnknownNameError("frame", frame, sorted({str(f.name) for f in model.frames}))
+        fid = model.getFrameId(frame)
+        data = model.createData()
+        q = np.asarray(self.q, dtype=np.float64)
+        out = np.empty((len(q), 3))
+        for i, qi in enumerate(q):
+            pin.framesForwardKinematics(model, data, qi)
+            out[i] = data.oMf[fid].translation
+        return out
 
     @checked_arguments
     def save(self, path: str | Path, *, extra: Mapping[str, str] | None = None) -> Path:

@@ -63,7 +63,7 @@ from packbot.errors import (
     UnknownNameError,
     close_match,
 )
-from packbot.failures import Failure
+from packbot.failures import Failure, check_sequence
 from packbot.keywords import checked_arguments
 from packbot.paths import check_stem, inside
 from packbot.payload import Payload
@@ -103,7 +103,15 @@ __all__ = [
 log = logging.getLogger(__name__)
 
 #: The plots a scenario can ask for (``[outputs] plots``).
-PLOT_KINDS: tuple[str, ...] = ("joints", "distance", "energy", "tracking", "torques", "occlusion")
+PLOT_KINDS: tuple[str, ...] = (
+    "joints",
+    "distance",
+    "energy",
+    "tracking",
+    "torques",
+    "tool_path",
+    "occlusion",
+)
 #: The valid top-level keys of a scenario file.
 TOP_LEVEL_KEYS: tuple[str, ...] = (
     "description",
@@ -175,7 +183,8 @@ class Outputs:
 
     Attributes:
         plots: Plot kinds (:data:`PLOT_KINDS`); None: automatic (joints, distance, energy; plus
-            tracking and torques with a controller, occlusion with an occlusion check).
+            tracking, torques and tool_path with a controller, occlusion with an occlusion
+            check).
         joints: Joints shown in the joint, tracking and torque plots.
         formats: Image formats of the plots ("png", "svg").
         html: Whether ``packbot run`` also writes the browser animation.
@@ -291,6 +300,7 @@ class Scenario:
         for k, f in enumerate(self.failures):
             # joint names are checked against the robot below
             _prefixed(partial(f.validate, (f.joint,)), f"failures[{k}]")
+        check_sequence(self.failures)  # a joint's several failures: a sequence that can happen
         if self.payload is not None:
             self.payload.validate()
         _validate_environment(self.environment)
@@ -308,15 +318,9 @@ class Scenario:
         for k, j in enumerate(self.config.locked_joints):
             if j not in names:
                 raise ConfigurationError(f"config.locked_joints[{k}]", j, names)
-        seen: set[str] = set()
         for k, f in enumerate(self.failures):
             if f.joint not in names:
                 raise ConfigurationError(f"failures[{k}].joint", f.joint, names)
-            if f.joint in seen:
-                raise ConfigurationError(
-                    f"failures[{k}].joint", f.joint, "at most one failure per joint"
-                )
-            seen.add(f.joint)
         if self.payload is not None and not robot.model.existFrame(self.payload.frame):
             raise ConfigurationError(
                 "payload.frame", self.payload.frame, tuple(f.name for f in robot.model.frames)
@@ -448,7 +452,7 @@ class Scenario:
             return self.outputs.plots
         kinds = ["joints", "distance", "energy"]
         if self.controller != "zero":
-            kinds += ["tracking", "torques"]
+            kinds += ["tracking", "torques", "tool_path"]
         if self.outputs.occlusion is not None:
             kinds.append("occlusion")
         return tuple(kinds)
@@ -1090,11 +1094,44 @@ def write_outputs(
                 log.info("no tracking plot: the controller has no reference(t) method")
                 continue
             P.plot_tracking(result, q_ref, joints, path=base, formats=fmts)
+        elif kind == "tool_path":
+            frame, target = _tool_target(scenario, robot)
+            P.plot_tool_path(
+                result, path=base, frame=frame, robot=robot, target=target, formats=fmts
+            )
         elif kind == "occlusion":
             assert occ is not None and blocked is not None
             P.plot_occlusion(result, blocked, occ.targets, path=base, formats=fmts)
         written[kind] = base.with_suffix(f".{fmts[0]}")
     return written
+
+
+def _tool_target(scenario: Scenario, robot: Robot) -> tuple[str, NDArray[np.float64] | None]:
+    """The frame a controller places (default ``gripper_tool``) and its target [m], if any.
+
+    A controller's ``target`` of 3 coordinates is the frame's target (world frame [m]); a
+    joint target (shape (nq,), a regulator) or the last waypoint of a joint trajectory gives
+    the frame's position there.
+    """
+    import pinocchio as pin
+
+    ctrl = scenario.build_controller(robot)
+    frame = getattr(ctrl, "frame", None)
+    if not isinstance(frame, str) or not robot.model.existFrame(frame):
+        frame = "gripper_tool"
+    target = getattr(ctrl, "target", None)
+    waypoints = getattr(getattr(ctrl, "trajectory", None), "waypoints", None)
+    if target is None and isinstance(waypoints, np.ndarray) and waypoints.ndim == 2:
+        target = waypoints[-1]
+    if not isinstance(target, np.ndarray):
+        return frame, None
+    if target.shape == (3,):
+        return frame, target.astype(float)
+    if target.shape == (robot.nq,):
+        data = robot.model.createData()
+        pin.framesForwardKinematics(robot.model, data, target.astype(float))
+        return frame, np.array(data.oMf[robot.model.getFrameId(frame)].translation)
+    return frame, None
 
 
 def _reference(scenario: Scenario, robot: Robot, result: SimResult) -> NDArray[np.float64] | None:

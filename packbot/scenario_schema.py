@@ -277,7 +277,8 @@ def json_schema(robot: Robot | None = None) -> dict[str, Any]:
             ),
             "failures": {
                 "type": "array",
-                "description": "Joint failures, each a [[failures]] table; at most one per joint.",
+                "description": "Joint failures, each a [[failures]] table; a joint may fail "
+                "again later (docs/failures.md).",
                 "items": _dataclass_schema(Failure, title="Failure", override={"joint": joints}),
             },
             "payload": _dataclass_schema(Payload, title="Payload", override={"frame": frames}),

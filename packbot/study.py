@@ -423,7 +423,15 @@ class StudyResult:
 
 
 def _failure_of(scenario: Scenario, joint: str) -> Failure | None:
-    return next((f for f in scenario.failures if f.joint == joint), None)
+    """The joint's first failure in time (a joint may fail again later), or None."""
+    of_joint = [f for f in scenario.failures if f.joint == joint]
+    return min(of_joint, key=lambda f: f.t) if of_joint else None
+
+
+def _next_failure_time(scenario: Scenario, failure: Failure) -> float:
+    """When the failure's joint fails again [s] (inf: never): the end of this failure's span."""
+    later = [f.t for f in scenario.failures if f.joint == failure.joint and f.t > failure.t]
+    return min(later, default=math.inf)
 
 
 def _delay(scenario: Scenario, event: RecoveryEvent) -> float | None:
@@ -1027,8 +1035,9 @@ def _assess(
     possible: bool | None = True
     reasons: list[str] = []
     checks: list[dict[str, Any]] = []
-    frozen_like = [f for f in scenario.failures if f.kind in ("frozen", "brake")]
-    for f in scenario.failures:
+    frozen_like = {f.joint for f in scenario.failures if f.kind in ("frozen", "brake")}
+    for f in sorted(scenario.failures, key=lambda f: f.t):
+        until = _next_failure_time(scenario, f)  # a joint's next failure ends this one's span
         j = robot.params.index(f.joint)
         q_f = _state_at(res, f.t)
         check: dict[str, Any] = {"joint": f.joint, "kind": f.kind, "t_s": f.t}
@@ -1094,10 +1103,13 @@ def _assess(
             g_end = float(
                 pin.computeGeneralizedGravity(model, model.createData(), np.asarray(res.q[-1]))[j]
             )
-            after = np.asarray(res.t) >= f.t
+            t_res = np.asarray(res.t)
+            after = (t_res >= f.t) & (t_res < until)  # while this scale is the limit
             need = float(np.max(np.abs(np.asarray(res.tau)[after, j]), initial=0.0))
             check |= {"limit_nm": limit, "hold_torque_nm": abs(g_end), "task_torque_nm": need}
-            if abs(g_end) > limit:
+            if until < math.inf:
+                check["until_s"] = until
+            if abs(g_end) > limit and until == math.inf:  # the final pose: the last limit
                 possible = False
                 reasons.append(
                     f"{f.joint} is weak: holding the task's final pose needs {abs(g_end):.3g} N*m, "
@@ -1218,7 +1230,12 @@ def _loose_settling(
     from packbot.analysis import gravity_torque_on, loose_joint_equilibria
 
     out: list[LooseSettling] = []
-    loose = [f for f in scenario.failures if f.kind == "loose"]
+    # a loose joint that stays loose to the end (not one that then freezes or is braked)
+    loose = [
+        f
+        for f in scenario.failures
+        if f.kind == "loose" and _next_failure_time(scenario, f) == math.inf
+    ]
     world = _world(robot, scenario) if loose else None
     for f in loose:
         j = robot.params.index(f.joint)

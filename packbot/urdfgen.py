@@ -442,7 +442,7 @@ def _same_mjcf(path: Path, data: bytes, gen: GeneratedModel) -> bool:
     MuJoCo writes the MJCF itself, and another MuJoCo release may write the same model in other
     words (attribute order, defaults, its version in the header): the check compares the compiled
     models (joints, ranges, armature, damping, friction, bodies' masses, inertias and poses,
-    geometry sizes, excluded pairs), not the text.
+    geometry sizes, excluded pairs, the motors and lights), not the text.
     """
     import mujoco
     import numpy as np
@@ -476,6 +476,12 @@ def _same_mjcf(path: Path, data: bytes, gen: GeneratedModel) -> bool:
         "geom_size",
         "geom_pos",
         "exclude_signature",
+        "actuator_trnid",
+        "actuator_gear",
+        "actuator_ctrlrange",
+        "actuator_forcerange",
+        "light_dir",
+        "light_pos",
     )
     return all(
         np.shape(getattr(old, f)) == np.shape(getattr(new, f))

@@ -860,14 +860,25 @@ _sim_cases: list[tuple[str, dict[str, Any], str, type[PackbotError]]] = [
         UnknownNameError,
     ),
     (
-        "failures-twice-one-joint",
+        "failures-one-joint-twice-at-once",
         {
             "failures": [
                 Failure(joint="elbow1", kind="loose"),
                 Failure(joint="elbow1", kind="frozen"),
             ]
         },
-        "elbow1",
+        "failures[1].t",
+        ConfigurationError,
+    ),
+    (
+        "failures-loose-then-weak",
+        {
+            "failures": [
+                Failure(joint="elbow1", kind="loose", t=0.1),
+                Failure(joint="elbow1", kind="weak", t=0.2),
+            ]
+        },
+        "failures[1].kind",
         ConfigurationError,
     ),
     ("failures-none", {"failures": None}, "failures", ConfigurationError),
@@ -1253,10 +1264,22 @@ scenario(
     "failures[0].when",
 )
 scenario(
-    "failure-duplicate-joint",
+    "failure-one-joint-twice-at-once",
     "[[failures]]\njoint = 'elbow1'\nkind = 'loose'\n"
     "[[failures]]\njoint = 'elbow1'\nkind = 'frozen'\n",
-    "failures[1].joint",
+    "failures[1].t",
+)
+scenario(
+    "failure-after-frozen",
+    "[[failures]]\njoint = 'elbow1'\nkind = 'frozen'\nt = 0.1\n"
+    "[[failures]]\njoint = 'elbow1'\nkind = 'weak'\nt = 0.2\n",
+    "failures[1].kind",
+)
+scenario(
+    "failure-weak-recovering",
+    "[[failures]]\njoint = 'elbow1'\nkind = 'weak'\nscale = 0.3\nt = 0.1\n"
+    "[[failures]]\njoint = 'elbow1'\nkind = 'weak'\nscale = 0.6\nt = 0.2\n",
+    "failures[1].scale",
 )
 scenario(
     "failure-scale-range",

@@ -7,7 +7,8 @@
   right after it: what the API site renders), read from the source, as the site builder does.
 - Each public module has a page ``docs/api/<name>.md`` that renders it (``::: module``), listed
   in mkdocs.yml's nav; with mkdocs installed (the ``docs`` extra), the site is built with
-  ``--strict`` and each public name must have its entry (its HTML anchor) on its module's page.
+  ``--strict`` and each public name must have its entry (its HTML anchor) on its module's page;
+  every relative link and ``#anchor`` of the built site leads to a file and an anchor in it.
 - Every ```python block of README.md and docs/ (but docs/dev/) runs, page by page in one
   namespace, in a fresh folder, unless the line before it is ``<!-- docs-test: skip (why) -->``
   (or ``<!-- docs-test: requires MODULE -->`` and MODULE, an optional extra, is not installed);
@@ -24,7 +25,9 @@ import pkgutil
 import re
 import subprocess
 import sys
+from html.parser import HTMLParser
 from pathlib import Path
+from urllib.parse import unquote, urlsplit
 
 import pytest
 
@@ -273,6 +276,83 @@ def test_public_names_have_entries_on_their_page(site: Path, module: str) -> Non
         return
     missing = [n for n in public_names(module) if f"{module}.{n}" not in ids]
     assert not missing, f"names of {module} without an entry on api/{page}: {missing}"
+
+
+class _Links(HTMLParser):
+    """A page's link targets (``href`` of a, link; ``src`` of img, script) and its anchors."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.targets: list[str] = []
+        self.ids: set[str] = set()
+
+    def handle_starttag(self, tag: str, attrs: list[tuple[str, str | None]]) -> None:
+        a = dict(attrs)
+        for key in ("id", "name") if tag == "a" else ("id",):
+            if a.get(key):
+                self.ids.add(str(a[key]))
+        key = {"a": "href", "link": "href", "img": "src", "script": "src"}.get(tag)
+        if key and a.get(key):
+            self.targets.append(str(a[key]))
+
+
+def broken_links(site: Path) -> list[str]:
+    """Every relative link of the built site whose file, or whose ``#anchor`` in it, is missing.
+
+    External links (a scheme or a host), ``mailto:`` and ``data:`` are not followed; a path
+    from the site's root (``/assets/...``, the 404 page's) is read from the site's root; a
+    folder stands for its ``index.html``.
+    """
+    root = site.resolve()
+    pages: dict[Path, _Links] = {}
+    for f in sorted(root.rglob("*.html")):
+        parser = _Links()
+        parser.feed(f.read_text(errors="replace"))
+        pages[f] = parser
+    bad = []
+    for f, parser in pages.items():
+        for link in parser.targets:
+            url = urlsplit(link)
+            if url.scheme or url.netloc:
+                continue
+            path = unquote(url.path)
+            if path.startswith("/"):
+                target = (root / path.lstrip("/")).resolve()
+            else:
+                target = (f.parent / path).resolve() if path else f
+            if target.is_dir():
+                target = target / "index.html"
+            where = f"{f.relative_to(root)}: {link}"
+            if not target.is_file():
+                bad.append(f"{where} (no file {target.relative_to(root)})")
+            elif (
+                url.fragment
+                and target.suffix == ".html"
+                and unquote(url.fragment) not in pages[target].ids
+            ):
+                bad.append(f"{where} (no anchor in {target.relative_to(root)})")
+    return bad
+
+
+def test_no_broken_link_in_the_site(site: Path) -> None:
+    """Every relative link and anchor of the built site (the guide, the API pages, their
+    cross-references) leads somewhere."""
+    assert len(list(site.rglob("*.html"))) > 30
+    bad = broken_links(site)
+    assert not bad, f"{len(bad)} broken links:\n" + "\n".join(bad[:40])
+
+
+def test_the_link_check_finds_missing_files_and_anchors(tmp_path: Path) -> None:
+    (tmp_path / "a").mkdir()
+    (tmp_path / "a" / "index.html").write_text('<h2 id="here">x</h2><a href="#here">ok</a>')
+    (tmp_path / "index.html").write_text(
+        '<a href="a/">ok</a> <a href="a/#here">ok</a> <a href="/a/index.html">ok</a>'
+        '<a href="https://example.org/x">external</a> <a href="mailto:x@y">mail</a>'
+        '<a href="a/#gone">anchor</a> <a href="b/">file</a> <img src="figures/x.png">'
+    )
+    bad = broken_links(tmp_path)
+    assert len(bad) == 3, bad
+    assert "a/#gone (no anchor" in bad[0] and "b/ (no file" in bad[1] and "x.png" in bad[2]
 
 
 def test_site_excludes_developer_notes(site: Path) -> None:

@@ -148,6 +148,29 @@ def test_no_command_prints_help(capsys):
     assert "run" in capsys.readouterr().out
 
 
+def test_run_of_a_controlled_scenario_plots_the_tool_path(tmp_path):
+    """A computed-torque reach: the tool's path, and the target (its last waypoint's tool)."""
+    out = tmp_path / "o"
+    assert (
+        main(["run", "frozen_elbow_reach", "--out", str(out), "--plot", "--duration", "0.3"]) == 0
+    )
+    png = out / "frozen_elbow_reach_tool_path.png"
+    assert png.is_file() and png.stat().st_size > 1000
+    img = imread(png)
+    assert img.ndim == 3 and float(img[..., :3].std()) > 0.02
+
+
+def test_version_prints_the_package_version(capsys):
+    with pytest.raises(SystemExit) as exc:
+        main(["--version"])
+    assert exc.value.code == 0
+    assert capsys.readouterr().out.strip() == f"packbot {packbot.__version__}"
+    done = subprocess.run(
+        [sys.executable, "-m", "packbot.cli", "--version"], capture_output=True, text=True
+    )
+    assert (done.returncode, done.stdout.strip()) == (0, f"packbot {packbot.__version__}")
+
+
 def test_generate_srdf_without_urdf_folder_names_the_option(tmp_path, capsys):
     assert main(["generate-srdf", "--root", str(tmp_path)]) == 2
     err = capsys.readouterr().err

@@ -140,12 +140,19 @@ def test_ik_reaches_with_frozen_joint(robot) -> None:
     jid = robot.model.getJointId("elbow1")
     red = pin.buildReducedModel(robot.model, [jid], q)
     target = np.array([0.8, 0.3, 0.5])
-    res = solve_position_ik(red, "gripper_tool", target, np.delete(q, 2), active=[0, 1, 2])
-    assert res.success and res.error < 1e-4
+    with pytest.raises(ConfigurationError, match="collision_free") as exc:
+        solve_position_ik(red, "gripper_tool", target, np.delete(q, 2))  # no collision pieces
+    assert "reduced" in str(exc.value)
+    res = solve_position_ik(
+        red, "gripper_tool", target, np.delete(q, 2), active=[0, 1, 2], collision_free=False
+    )
+    assert res.success and res.error < 1e-4 and res.colliding is None
     q_full = np.insert(res.q, 2, q[2])
     assert q_full[2] == q[2]  # the frozen joint did not move
     assert np.linalg.norm(tool_positions(robot, [q_full])[0] - target) < 1e-4
-    far = solve_position_ik(red, "gripper_tool", [5.0, 0.0, 0.0], np.delete(q, 2), max_iter=50)
+    far = solve_position_ik(
+        red, "gripper_tool", [5.0, 0.0, 0.0], np.delete(q, 2), max_iter=50, collision_free=False
+    )
     assert not far.success and far.error > 3.0
 
 

@@ -186,6 +186,87 @@ def test_plain_mujoco_loads_the_mjcf_with_our_joints_armature_and_pairs():
         assert model.body_mass[body[child[joint]]] == pytest.approx(mass, rel=1e-9)
 
 
+def test_the_mjcf_has_a_torque_motor_per_joint_at_its_effort_limit():
+    """nu = 8 motors named as their joints, gear 1, ctrl and force within +/- the effort limit;
+    a ctrl on the turret (vertical axis: no gravity torque) turns it, a zero ctrl does not, a
+    ctrl beyond the limit applies the limit."""
+    mujoco = pytest.importorskip("mujoco")
+    model = mujoco.MjModel.from_xml_path(str(mjcf_path()))
+    robot = packbot.load_robot()
+    effort = np.asarray(robot.params.effort, dtype=float)
+    assert model.nu == model.njnt == len(robot.joint_names)
+    assert "<motor " in mjcf_path().read_text()
+    for i, name in enumerate(robot.joint_names):
+        a = model.actuator(name)
+        assert model.actuator_trntype[a.id] == mujoco.mjtTrn.mjTRN_JOINT
+        assert model.actuator_trnid[a.id, 0] == model.joint(name).id
+        assert model.actuator_gear[a.id, 0] == 1.0
+        assert model.actuator_gaintype[a.id] == mujoco.mjtGain.mjGAIN_FIXED
+        assert model.actuator_gainprm[a.id, 0] == 1.0  # ctrl is the joint torque [N*m]
+        assert model.actuator_biastype[a.id] == mujoco.mjtBias.mjBIAS_NONE
+        np.testing.assert_allclose(model.actuator_ctrlrange[a.id], [-effort[i], effort[i]])
+        np.testing.assert_allclose(model.actuator_forcerange[a.id], [-effort[i], effort[i]])
+    turret = model.joint("turret").dofadr[0]
+
+    def spin(torque: float) -> tuple[float, float]:
+        data = mujoco.MjData(model)
+        data.qpos[:] = robot.pose("stand")
+        data.ctrl[model.actuator("turret").id] = torque
+        for _ in range(200):  # 0.1 s
+            mujoco.mj_step(model, data)
+        return float(data.qvel[turret]), float(data.actuator_force[model.actuator("turret").id])
+
+    speed, force = spin(30.0)
+    assert speed > 0.1 and force == pytest.approx(30.0)  # [rad/s] after 0.1 s at 30 N*m
+    # no torque: held by its friction (1.5 N*m, MuJoCo's soft frictionloss creeps a little
+    # while the arm above it falls)
+    assert abs(spin(0.0)[0]) < 0.01 * speed
+    assert spin(1e4)[1] == pytest.approx(effort[0])  # clamped to ctrlrange: the limit
+
+
+RENDER = """
+import sys
+import mujoco
+m = mujoco.MjModel.from_xml_path(sys.argv[1])
+d = mujoco.MjData(m)
+mujoco.mj_forward(m, d)
+with mujoco.Renderer(m, 240, 320) as r:
+    r.update_scene(d)
+    img = r.render()
+print(img.shape[0], img.shape[1], float(img.std()), float(img.mean()))
+"""
+
+
+def test_the_mjcf_has_lights_and_renders_where_opengl_is():
+    """A headlight and a directional sun; mujoco.Renderer draws a lit, non-blank image with
+    the first OpenGL backend that works here (osmesa, then egl: skipped without either)."""
+    import os
+    import subprocess
+    import sys
+
+    mujoco = pytest.importorskip("mujoco")
+    model = mujoco.MjModel.from_xml_path(str(mjcf_path()))
+    assert model.vis.headlight.active == 1 and model.vis.headlight.diffuse[0] > 0
+    assert model.nlight >= 1 and model.light_dir[0][2] < 0  # shining down
+    reasons = []
+    for backend in ("osmesa", "egl"):
+        env = {**os.environ, "MUJOCO_GL": backend, "PYOPENGL_PLATFORM": backend}
+        done = subprocess.run(
+            [sys.executable, "-c", RENDER, str(mjcf_path())],
+            capture_output=True,
+            text=True,
+            env=env,
+            timeout=120,
+        )
+        if done.returncode == 0:
+            h, w, std, mean = (float(x) for x in done.stdout.split())
+            assert (h, w) == (240, 320)
+            assert std > 5.0 and 10.0 < mean < 245.0, (std, mean)  # not blank, not black
+            return
+        reasons.append(f"{backend}: {done.stderr.strip().splitlines()[-1:]}")
+    pytest.skip(f"no OpenGL backend for mujoco.Renderer here ({'; '.join(reasons)})")
+
+
 def test_generate_model_writes_the_package_and_its_mjcf(tmp_path):
     pytest.importorskip("mujoco")
     from packbot.urdfgen import generate

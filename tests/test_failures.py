@@ -177,6 +177,157 @@ def test_weak_joint_saturates_at_the_scaled_limit(robot):
     assert np.all(res.tau_cmd[:, j] == 5 * effort)
 
 
+# ------------------------------------------------------------------ several failures of a joint
+def test_a_degrading_motor_steps_its_effort_limit_down(robot):
+    """weak 0.7 at 1 s, then weak 0.3 at 2 s (each of the nominal limit): the effort column and
+    the saturated torque step 1 -> 0.7 -> 0.3 of E at the failure instants (the sample pair at
+    each: before, then after), and the elbow, whose gravity torque needs about 0.38 E here,
+    holds until the second step and sags after it."""
+    cfg = packbot.SimConfig(locked_joints=WRIST, sample_dt=0.01)
+    j = robot.params.index("elbow1")
+    E = robot.params.effort[j]
+    fails = [
+        Failure(joint="elbow1", kind="weak", scale=0.3, t=2.0),  # any order: sorted by time
+        Failure(joint="elbow1", kind="weak", scale=0.7, t=1.0),
+    ]
+    res = packbot.simulate(
+        robot,
+        robot.pose("stand"),
+        np.zeros(8),
+        3.0,
+        config=cfg,
+        controller=gravity_comp(robot),
+        failures=fails,
+    )
+    t, eff = res.t, res.effort[:, j] / E
+    np.testing.assert_allclose(eff[t < 1.0], 1.0, rtol=1e-12)
+    np.testing.assert_allclose(eff[(t > 1.0) & (t < 2.0)], 0.7, rtol=1e-12)
+    np.testing.assert_allclose(eff[t > 2.0], 0.3, rtol=1e-12)
+    for t_f, (pre, post) in ((1.0, (1.0, 0.7)), (2.0, (0.7, 0.3))):
+        at = np.flatnonzero(t == t_f)  # the states before and after (and the regular sample)
+        assert len(at) >= 2, at
+        np.testing.assert_allclose(eff[at[[0, -1]]], [pre, post], rtol=1e-12)
+    assert np.all(np.abs(res.tau[:, j]) <= res.effort[:, j] * (1 + 1e-12))  # within the limit
+    g = np.abs(res.tau_cmd[0, j])  # the gravity torque at the start [N*m]
+    assert 0.3 * E < g < 0.7 * E
+    holding = (t > 1.0) & (t < 2.0)
+    np.testing.assert_allclose(res.tau[holding, j], res.tau_cmd[holding, j])  # 0.7 E suffices
+    late = t > 2.0
+    assert np.abs(res.tau[late, j]).max() == pytest.approx(0.3 * E, rel=1e-12)  # saturated
+    sag = np.abs(res.q[-1, j] - res.q[0, j])
+    assert sag > 0.05  # the elbow fell after the second step [rad]
+    assert [(e.t, e.link1, e.link2) for e in res.events_of("failure")] == [
+        (1.0, "elbow1", "weak"),
+        (2.0, "elbow1", "weak"),
+    ]
+    assert [f.scale for f in res.failures] == [0.7, 0.3]
+
+
+def test_a_weak_joint_that_then_freezes(robot):
+    cfg = packbot.SimConfig(locked_joints=WRIST, contact_mode="none")
+    j = robot.params.index("elbow1")
+    res = packbot.simulate(
+        robot,
+        robot.pose("high"),
+        np.zeros(8),
+        0.4,
+        config=cfg,
+        failures=[
+            Failure(joint="elbow1", kind="weak", scale=0.5, t=0.1),
+            Failure(joint="elbow1", kind="frozen", t=0.2),
+        ],
+    )
+    assert [e.kind for e in res.events_of("failure", "freeze")] == ["failure", "failure", "freeze"]
+    k = after(res, 0.2)
+    assert np.all(res.v[k, j] == 0.0) and np.all(res.q[k, j] == res.q[k, j][0])
+
+
+def test_a_loose_motor_stops_a_stuck_one():
+    from packbot.actuators import TorquePath
+
+    robot = packbot.load_robot()
+    free = np.arange(robot.nq)
+    cfg = packbot.SimConfig()
+    stuck = Failure(joint="turret", kind="stuck", torque=20.0, t=0.1)
+    loose = Failure(joint="turret", kind="loose", t=0.2)
+    j = robot.params.index("turret")
+    assert TorquePath.build(robot.params, free, cfg, [stuck]).applied(np.zeros(8))[j] == 20.0
+    assert TorquePath.build(robot.params, free, cfg, [stuck, loose]).applied(np.ones(8))[j] == 0.0
+
+
+@pytest.mark.parametrize(
+    ("second", "field", "words"),
+    [
+        (dict(kind="weak", scale=0.5, t=1.0), "failures[1].t", "one failure of a joint at a time"),
+        (dict(kind="weak", scale=0.8, t=2.0), "failures[1].scale", "below 0.7"),
+        (dict(kind="weak", scale=0.7, t=2.0), "failures[1].scale", "does not recover"),
+    ],
+)
+def test_a_nonsensical_weak_sequence_is_refused_naming_the_field(robot, second, field, words):
+    first = Failure(joint="elbow1", kind="weak", scale=0.7, t=1.0)
+    with pytest.raises(packbot.ConfigurationError) as exc:
+        packbot.simulate(
+            robot,
+            robot.pose("high"),
+            np.zeros(8),
+            0.1,
+            config=packbot.SimConfig(locked_joints=WRIST),
+            failures=[first, Failure(joint="elbow1", **second)],
+        )
+    assert exc.value.field == field and words in str(exc.value)
+
+
+@pytest.mark.parametrize(
+    ("kinds", "ok"),
+    [
+        (("weak", "weak"), True),
+        (("weak", "frozen"), True),
+        (("weak", "loose"), True),
+        (("loose", "frozen"), True),
+        (("loose", "brake"), True),
+        (("stuck", "loose"), True),
+        (("brake", "frozen"), True),
+        (("brake", "weak"), True),
+        (("frozen", "weak"), False),  # frozen for good
+        (("frozen", "loose"), False),
+        (("loose", "weak"), False),  # the motor is cut
+        (("loose", "stuck"), False),
+        (("stuck", "stuck"), False),  # a runaway runs away once
+        (("brake", "brake"), False),  # a brake stays on: no release
+    ],
+)
+def test_which_failure_may_follow_which(kinds, ok):
+    from packbot.failures import FOLLOWERS, check_sequence
+
+    seq = [
+        Failure(joint="elbow2", kind=kinds[0], scale=0.6, t=0.5),
+        Failure(joint="elbow2", kind=kinds[1], scale=0.4, t=1.5),
+    ]
+    assert (kinds[1] in FOLLOWERS[kinds[0]]) == ok
+    if ok:
+        check_sequence(seq)
+        check_sequence([seq[1], Failure(joint="shoulder", kind="loose"), seq[0]])  # any order
+        return
+    with pytest.raises(packbot.ConfigurationError) as exc:
+        check_sequence(seq, field="scenario.failures")
+    assert exc.value.field == "scenario.failures[1].kind"
+    assert "elbow2" in str(exc.value) and kinds[0] in str(exc.value)
+
+
+def test_a_stuck_joint_runs_away_once():
+    from packbot.failures import check_sequence
+
+    seq = [
+        Failure(joint="turret", kind="stuck", torque=5.0, t=0.1),
+        Failure(joint="turret", kind="weak", scale=0.5, t=0.2),  # a weaker runaway
+        Failure(joint="turret", kind="stuck", torque=-5.0, t=0.3),
+    ]
+    check_sequence(seq[:2])
+    with pytest.raises(packbot.ConfigurationError, match="runs away once") as exc:
+        check_sequence(seq)
+    assert exc.value.field == "failures[2].kind"
+
+
 def test_unsaturated_command_passes_through(robot):
     cfg = packbot.SimConfig(locked_joints=WRIST, contact_mode="none", effort_saturation=False)
     j = robot.params.index("shoulder")
@@ -455,7 +606,7 @@ def test_every_failure_kind_runs_with_collisions_on(robot, kind, mode):
                     Failure(joint="elbow1", kind="weak"),
                 ]
             ),
-            ["at most one failure per joint"],
+            ["failures[1].t", "one failure of a joint at a time"],
         ),
         (lambda: dict(failures=[Failure(joint="gripper_jaw", kind="loose")]), ["locked_joints"]),
         (lambda: dict(payload=Payload(mass=-1.0)), ["payload.mass"]),

@@ -11,12 +11,14 @@ from matplotlib.image import imread
 import packbot
 from packbot.plots import (
     MARKED_EVENTS,
+    MOVING_FRACTION,
     TORQUE_AXIS,
     event_label,
     plot_distance,
     plot_energy,
     plot_joints,
     plot_occlusion,
+    plot_tool_path,
     plot_torques,
     plot_tracking,
     sample_distances,
@@ -110,13 +112,41 @@ def test_time_axis_zooms_to_the_events_with_the_whole_run_below(short_collapse):
     assert not any(ax.get_title(loc="left") for ax in fig.axes)
 
 
+def test_time_window_frames_the_motion_of_a_controlled_run(robot):
+    """A computed-torque reach whose elbow freezes at 1 s: the zoom was on the failure and the
+    rest (0.9-2.1 s of 3 s) and cut the first second of the reach; now every moving sample is
+    shown."""
+    from packbot.scenario import load_scenario, run_scenario
+
+    res = run_scenario(load_scenario("frozen_elbow_reach"), robot)
+    a, b = time_window(res)
+    speed = np.abs(res.v).max(axis=1)
+    moving = res.t[speed >= max(MOVING_FRACTION * speed.max(), res.config.rest_speed)]
+    assert moving[0] < 0.5 < moving[-1]  # the reach starts at once, before the failure
+    assert a <= moving[0] and moving[-1] <= b
+
+
+def test_time_window_zooms_to_late_motion_without_events(short_collapse):
+    """The arm still for most of a run, moving from 1.4 s to 1.6 s alone: the zoom frames that
+    motion (plus its margin), as it frames events."""
+    t = short_collapse.t
+    v = np.zeros_like(short_collapse.v)
+    move = (t >= 1.4) & (t <= 1.6)
+    v[move, 1] = 0.5 * np.sin(np.pi * (t[move] - 1.4) / 0.2)
+    rest = float(t[np.flatnonzero(move)[-1] + 1])  # the first still sample after the motion
+    quiet = dataclasses.replace(short_collapse, v=v, events=[], rest_time=rest)
+    a, b = time_window(quiet)
+    assert 1.2 < a < 1.42 and 1.58 < b < 1.8, (a, b)
+
+
 def test_time_window_whole_run_when_events_fill_it(short_collapse):
     res = short_collapse
     late = dataclasses.replace(res.events[0], t=1.9)
     assert time_window(dataclasses.replace(res, events=[*res.events, late])) == (0.0, 2.0)
     quiet = dataclasses.replace(res, events=[], rest_time=None)
     assert time_window(quiet) == (0.0, 2.0)
-    still = dataclasses.replace(res, events=[], rest_time=0.3)  # no event: start to rest
+    v = np.where((res.t > 0.3)[:, None], 0.0, res.v)  # at rest from 0.3 s
+    still = dataclasses.replace(res, v=v, events=[], rest_time=0.3)  # no event: start to rest
     t0, t1 = time_window(still)
     assert t0 == 0.0 and 0.3 < t1 < 0.4
 
@@ -277,6 +307,31 @@ def test_plot_tracking_draws_the_error(short_collapse, tmp_path):
     np.testing.assert_allclose(err, short_collapse.q[:, 1] - short_collapse.q[0, 1])
     with pytest.raises(packbot.ConfigurationError, match="q_ref"):
         plot_tracking(short_collapse, q_ref[:, :3])
+
+
+def test_plot_tool_path_side_and_top_views_with_the_target(short_collapse, tmp_path):
+    target = (1.0, 0.2, 0.3)
+    fig = plot_tool_path(short_collapse, path=tmp_path / "tp", target=target)
+    assert_not_blank(tmp_path / "tp.png")
+    assert (tmp_path / "tp.svg").is_file()
+    side, top = panel(fig, "z [m]"), panel(fig, "y [m]")
+    xyz = short_collapse.frame_positions("gripper_tool")
+    path = side.get_lines()[0]
+    np.testing.assert_allclose(path.get_xdata(), xyz[:, 0])
+    np.testing.assert_allclose(path.get_ydata(), xyz[:, 2])
+    np.testing.assert_allclose(top.get_lines()[0].get_ydata(), xyz[:, 1])
+    labels = [line.get_label() for line in side.get_lines()]
+    assert {"start", "end", "target", "floor"} <= set(labels)
+    impacts = len(short_collapse.events_of("impact"))
+    assert f"impact ({impacts})" in labels
+    miss = 1000 * np.linalg.norm(xyz[-1] - np.array(target))
+    assert f"{miss:.1f} mm from the target" in fig.get_suptitle()
+    no_target = plot_tool_path(short_collapse, frame="camera_optical")
+    assert "target" not in [line.get_label() for line in panel(no_target, "z [m]").get_lines()]
+    with pytest.raises(packbot.ConfigurationError, match="target"):
+        plot_tool_path(short_collapse, target=(1.0, 2.0))
+    with pytest.raises(packbot.UnknownNameError, match="gripper_tool"):
+        plot_tool_path(short_collapse, frame="tool")
 
 
 def test_sample_and_plot_occlusion(short_collapse, world, tmp_path):

@@ -230,3 +230,48 @@ def test_to_dataframe_without_pandas_says_how_to_install(rich_run, monkeypatch):
     monkeypatch.setitem(sys.modules, "pandas", None)  # import pandas -> ImportError
     with pytest.raises(PackbotError, match=r'pip install "packbot\[pandas\]"'):
         rich_run[0].to_dataframe()
+
+
+# ---------------------------------------------------------------------------- frame positions
+def test_frame_positions_follow_the_joints(rich_run, robot):
+    """The tool's world position at every sample: FK at the start, and its motion between two
+    samples is the frame Jacobian times the joint velocities (to first order)."""
+    import pinocchio as pin
+
+    res = rich_run[0]
+    xyz = res.frame_positions("gripper_tool")
+    assert xyz.shape == (len(res.t), 3)
+    data = robot.model.createData()
+    fid = robot.model.getFrameId("gripper_tool")
+    pin.framesForwardKinematics(robot.model, data, robot.pose("stand"))
+    np.testing.assert_allclose(xyz[0], data.oMf[fid].translation, atol=1e-12)
+    np.testing.assert_allclose(res.frame_positions("gripper_tool", robot), xyz, atol=0.0)
+    # a step without an event (distinct times): dp ~ J v dt, the second-order rest below 20 %
+    # of the displacement (the arm accelerates at a few rad/s^2 over 20 ms)
+    k = next(i for i in range(len(res.t) - 1) if res.t[i + 1] - res.t[i] > 0.019 and i > 3)
+    dt = res.t[k + 1] - res.t[k]
+    J = pin.computeFrameJacobian(robot.model, data, res.q[k], fid, pin.LOCAL_WORLD_ALIGNED)[:3]
+    v_mid = 0.5 * (res.v[k] + res.v[k + 1])
+    dp = xyz[k + 1] - xyz[k]
+    assert np.linalg.norm(dp) > 1e-4  # the arm is falling: it moves
+    assert np.linalg.norm(dp - J @ v_mid * dt) < 0.2 * np.linalg.norm(dp)
+    # another frame: the camera does not move with the arm's joints below the turret here
+    assert res.frame_positions("camera_optical").shape == (len(res.t), 3)
+
+
+def test_frame_positions_of_a_loaded_result(rich_run, tmp_path):
+    res = rich_run[0]
+    back = SimResult.load(res.save(tmp_path / "r.npz"))
+    np.testing.assert_array_equal(back.frame_positions(), res.frame_positions())
+
+
+def test_frame_positions_unknown_frame_or_robot(rich_run):
+    res = rich_run[0]
+    with pytest.raises(packbot.UnknownNameError, match="gripper_tool") as exc:
+        res.frame_positions("gripper_toll")
+    assert exc.value.suggestion == "gripper_tool"
+    with pytest.raises(ConfigurationError, match="robot"):
+        res.frame_positions("gripper_tool", robot="packbot")
+    renamed = dataclasses.replace(res, joint_names=tuple(f"j{k}" for k in range(8)))
+    with pytest.raises(ConfigurationError, match="the result's joints"):
+        renamed.frame_positions()

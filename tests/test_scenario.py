@@ -337,3 +337,53 @@ def test_run_scenario_duration_override_and_progress(robot):
     assert seen[-1] == pytest.approx(0.3) and math.isfinite(seen[0])
     with pytest.raises(packbot.ConfigurationError, match="duration"):
         run_scenario(sc, robot, duration=-1.0)
+
+
+DEGRADING = """
+description = "elbow1's motor degrading while the arm holds the stand pose"
+duration = 1.2
+
+[initial]
+pose = "stand"
+
+[config]
+locked_joints = ["camera_tilt", "camera_pan", "gripper_roll", "gripper_jaw"]
+sample_dt = 0.01
+
+[[failures]]
+joint = "elbow1"
+kind = "weak"
+scale = 0.7
+t = 0.4
+
+[[failures]]
+joint = "elbow1"
+kind = "weak"
+scale = {second}
+t = 0.8
+
+[controller]
+kind = "gravity"
+"""
+
+
+def test_a_scenario_with_two_failures_of_one_joint_loads_and_runs(robot, tmp_path):
+    path = tmp_path / "degrading.toml"
+    path.write_text(DEGRADING.format(second=0.3))
+    sc = load_scenario(path)
+    assert [(f.kind, f.scale, f.t) for f in sc.failures] == [("weak", 0.7, 0.4), ("weak", 0.3, 0.8)]
+    res = run_scenario(sc, robot)
+    j = res.joint("elbow1")
+    ratio = res.effort[:, j] / robot.params.effort[j]
+    for lo, hi, scale in ((0.0, 0.4, 1.0), (0.4, 0.8, 0.7), (0.8, 1.2, 0.3)):
+        inside = (res.t > lo) & (res.t < hi)
+        np.testing.assert_allclose(ratio[inside], scale, rtol=1e-12)
+    assert len(res.events_of("failure")) == 2
+
+
+def test_a_weak_joint_growing_stronger_in_a_file_names_the_field(tmp_path):
+    path = tmp_path / "recovering.toml"
+    path.write_text(DEGRADING.format(second=0.9))
+    with pytest.raises(packbot.ConfigurationError) as exc:
+        load_scenario(path)
+    assert "failures[1].scale" in str(exc.value) and "below 0.7" in str(exc.value)

@@ -205,6 +205,40 @@ def test_every_failure_kind_is_studied(robot: packbot.Robot, failure: Failure) -
     assert summary["failures"][0]["kind"] == failure.kind
 
 
+def test_a_degrading_motor_is_studied_against_the_limit_at_each_time(
+    robot: packbot.Robot,
+) -> None:
+    """elbow1 weak 0.7 at 0.4 s, then 0.3 at 0.8 s: the failed run's torque ratio is against
+    the limit in force (it reaches 1 where the 0.3 motor saturates; against the nominal limit
+    it could not pass 0.4, the healthy run's peak), and each step is assessed over its own span
+    (the final pose against the last limit alone)."""
+    fails = (
+        Failure(joint="elbow1", kind="weak", t=0.4, scale=0.7),
+        Failure(joint="elbow1", kind="weak", t=0.8, scale=0.3),
+    )
+    sc = dataclasses.replace(load_scenario("reconfig_elbow1"), failures=fails)
+    res = study(sc, robot=robot, duration=1.2)
+    assert all(r.status == "ok" for r in res.runs.values())
+    j = robot.params.index("elbow1")
+    E = robot.params.effort[j]
+    failed = res.runs["failed"]
+    assert failed.result is not None and failed.metrics is not None
+    t, eff = failed.result.t, failed.result.effort[:, j]
+    np.testing.assert_allclose(eff[(t > 0.4) & (t < 0.8)], 0.7 * E, rtol=1e-12)
+    np.testing.assert_allclose(eff[t > 0.8], 0.3 * E, rtol=1e-12)
+    healthy = res.runs["healthy"].metrics
+    assert healthy is not None and healthy.peak_torque_ratio < 0.5  # elbow1 needs < 0.5 E
+    assert failed.metrics.peak_torque_ratio_joint == "elbow1"
+    assert failed.metrics.peak_torque_ratio == pytest.approx(1.0, rel=1e-9)  # 0.3 E, saturated
+    first, second = res.recovery.checks
+    assert (first["limit_nm"], first["until_s"]) == (pytest.approx(0.7 * E), 0.8)
+    assert second["limit_nm"] == pytest.approx(0.3 * E) and "until_s" not in second
+    assert first["note"] == "within the weak motor's limit"  # the hold needs < 0.7 E
+    assert res.recovery.possible is False  # the final pose needs more than 0.3 E
+    assert any("0.3" in r or f"{0.3 * E:.3g}" in r for r in res.recovery.reasons)
+    assert len(json.loads(json.dumps(res.summary()))["failures"]) == 2
+
+
 def test_a_brake_is_studied_in_the_contact_normal_mode(robot: packbot.Robot) -> None:
     """Brakes run in the contact-normal mode (its time-stepping windows hold them with the
     contacts): all three runs simulate."""

@@ -5,6 +5,8 @@
 - :class:`ReconfigurableController`: places the gripper and re-plans after a joint failure,
   detected by a :class:`MomentumObserver` or reported by the simulator;
 - :func:`build_controller`: a controller from a scenario file's values;
+- :func:`solve_position_ik` (collision-free by default) and :func:`check_path` (the first
+  collision along a joint path);
 - :class:`TaskRecovery`, :class:`RecoveryStrategy` (:class:`BaselineRecovery`,
   :class:`NoRecovery`), :class:`FailureReport`: the reconfigured run of a failure study and the
   strategies it hands detections to (yours or the built-in ones).
@@ -18,6 +20,7 @@ from packbot.control.detector import Detection, MomentumObserver
 from packbot.control.gravity import GravityCompensation
 from packbot.control.ik import IKResult, solve_position_ik
 from packbot.control.model_based import ModelBasedController
+from packbot.control.path_check import PathCollision, check_path, reach_bounds
 from packbot.control.pd import JointPD
 from packbot.control.reconfig import ReconfigEvent, ReconfigurableController
 from packbot.control.recovery import TaskRecovery
@@ -43,6 +46,7 @@ __all__ = [
     "ModelBasedController",
     "MomentumObserver",
     "NoRecovery",
+    "PathCollision",
     "QuinticSegment",
     "ReconfigEvent",
     "ReconfigurableController",
@@ -54,7 +58,9 @@ __all__ = [
     "TaskRecovery",
     "WeakJointTracker",
     "build_controller",
+    "check_path",
     "holdable_posture",
     "min_jerk_duration",
+    "reach_bounds",
     "solve_position_ik",
 ]

@@ -62,6 +62,7 @@ from packbot.control.base import Sensor
 from packbot.control.detector import Detection, MomentumObserver, default_threshold
 from packbot.control.ik import solve_position_ik
 from packbot.control.model_based import ModelBasedController
+from packbot.control.path_check import path_warning
 from packbot.control.trajectory import MIN_JERK_PEAK_SPEED, QuinticSegment
 from packbot.environment import Environment
 from packbot.errors import ConfigurationError, UnknownNameError
@@ -75,6 +76,8 @@ if TYPE_CHECKING:
 __all__ = ["ReconfigEvent", "ReconfigurableController"]
 
 log = logging.getLogger(__name__)
+#: What :func:`~packbot.control.path_check.path_warning` names when a planned move collides.
+_MOVE = "the reconfigurable controller's planned move (straight in joint space) to its goal"
 
 FloatArray = NDArray[np.float64]
 
@@ -359,7 +362,9 @@ class ReconfigurableController(ModelBasedController):
         best: tuple[float, FloatArray, float] | None = None
         fallback: tuple[float, FloatArray] | None = None
         for k, seed in enumerate(self._candidates(q[keep], active, lower, upper)):
-            res = solve_position_ik(red, self.frame, self.target, seed, active=active, tol=1e-4)
+            res = solve_position_ik(  # the clearance and the path are checked below
+                red, self.frame, self.target, seed, active=active, tol=1e-4, collision_free=False
+            )
             if fallback is None or res.error < fallback[0]:
                 fallback = (res.error, res.q)
             if not res.success:
@@ -445,6 +450,8 @@ class ReconfigurableController(ModelBasedController):
         T = max(
             self.min_move_time, float(np.max(MIN_JERK_PEAK_SPEED * d / vmax[movers], initial=0))
         )
+        if not len(self._loose):  # (a loose joint swings: its straight path is no plan)
+            path_warning(self.robot, [q, goal], self.environment, _MOVE, self._world)
         self.q_goal = goal.copy()
         self._traj = QuinticSegment(q0=q[free], q1=goal[free], t0=t, duration=T, v0=v[free])
 

@@ -35,6 +35,7 @@ from packbot.control.base import Controller, Sensor
 from packbot.control.cartesian import CartesianPD
 from packbot.control.computed_torque import ComputedTorque
 from packbot.control.gravity import GravityCompensation
+from packbot.control.path_check import path_warning
 from packbot.control.pd import JointPD
 from packbot.control.reconfig import ReconfigurableController
 from packbot.control.trajectory import JointTrajectory, min_jerk_duration
@@ -188,7 +189,14 @@ def build_controller(
         elif kind == "pd":
             ctrl = JointPD(**p)
         elif kind == "computed_torque":
-            ctrl = ComputedTorque(trajectory=_trajectory(robot, p), **p)
+            trajectory = _trajectory(robot, p)
+            path_warning(  # rest-to-rest segments: straight in joint space
+                robot,
+                trajectory.waypoints,
+                environment,
+                "controller.waypoints: the computed-torque trajectory",
+            )
+            ctrl = ComputedTorque(trajectory=trajectory, **p)
         elif kind == "cartesian":
             if "target" not in p:
                 raise ConfigurationError("controller.target", None, "a position [m] or pose name")
