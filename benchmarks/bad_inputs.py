@@ -90,6 +90,12 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--category", choices=CATEGORIES, action="append", help="only these")
     parser.add_argument("--timeout", type=float, default=60.0, help="per case [s] (60)")
+    parser.add_argument(
+        "--guard-timeout",
+        type=float,
+        default=300.0,
+        help="per case that starts processes of its own (guard cases: signals, slow sizes) [s]",
+    )
     parser.add_argument("-v", "--verbose", action="store_true", help="print every outcome")
     args = parser.parse_args()
     cases = [c for c in CASES if not args.category or c.category in args.category]
@@ -100,7 +106,7 @@ def main() -> int:
     try:
         for case in cases:
             # The first case of a worker also imports packbot and loads the robot.
-            answer = worker.ask(case.key, args.timeout)
+            answer = worker.ask(case.key, args.guard_timeout if case.guard else args.timeout)
             status = answer["status"]
             if status == "hang" or worker.proc.poll() is not None:  # killed, or it died
                 worker.close()
@@ -127,8 +133,8 @@ def main() -> int:
         print(f"| {name} | " + " | ".join(str(x) for x in row) + " |")
     print(
         f"\n{len(cases)} cases in {wall:.1f} s (worker processes, timeout {args.timeout:g} s per "
-        f"case; {platform.machine()}, Python {platform.python_version()}, "
-        f"{os.cpu_count()} CPUs)"
+        f"case, {args.guard_timeout:g} s per guard case; {platform.machine()}, "
+        f"Python {platform.python_version()}, {os.cpu_count()} CPUs)"
     )
     if bad:
         print("\nNot clean:")
