@@ -15,8 +15,10 @@ for each run (a class, instantiated with no arguments, or a factory), so it may 
   as in the failed run; the detections are still reported);
 - :class:`BaselineRecovery` (``"builtin"``): per failure kind, what is still working:
 
-  - weak: a posture whose gravity torque the weakened motor holds with margin, reached by a move
-    within its reduced effort (:mod:`packbot.control.weak_joint`); where none is found, the
+  - weak: a posture on the task's final point (or the nearest) whose gravity torques every
+    motor holds with margin, reached by a move shaped so that the weakened motor drives it
+    (:mod:`packbot.control.weak_transition`), tracked with its command clipped
+    (:class:`~packbot.control.weak_joint.WeakJointTracker`); where no such move is found, the
     controller in charge stays;
   - frozen, a holding brake, stuck: the task tracked with the other joints
     (:class:`~packbot.control.reduced_arm.ReducedArmTracker`; a stuck joint, or a brake that
@@ -180,11 +182,10 @@ class BaselineRecovery(RecoveryStrategy):
     ) -> Controller | None:
         """A holdable posture on the task's final point and a move the weak motor drives.
 
-        :mod:`packbot.control.weak_transition`; failing that, a nearby holdable posture
-        (:func:`~packbot.control.weak_joint.holdable_posture`); failing that, the controller
-        in charge stays.
+        (:mod:`packbot.control.weak_transition`); where no posture holds or no move within
+        the limits gets there, the controller in charge stays.
         """
-        from packbot.control.weak_joint import WeakJointTracker, holdable_posture, stop_point
+        from packbot.control.weak_joint import WeakJointTracker
         from packbot.control.weak_transition import holdable_reach, plan_transition
 
         ctx = report.context
@@ -228,27 +229,15 @@ class BaselineRecovery(RecoveryStrategy):
                 omega=omega,
                 zeta=zeta,
             )
+        # no move the motors drive: the controller in charge stays (a nearby posture reached by
+        # a move that exceeds them did worse than doing nothing: docs/study.md)
         why = (
             "no posture the motors hold was found"
             if not goals
             else f"no move within the limits to the {len(goals)} holdable posture(s) found"
         )
-        q_stop, _ = stop_point(report.q, report.v)
-        goal, detail = holdable_posture(ctx, q_stop, by_index, fixed=fixed_idx, t=report.t)
-        if goal is None:  # nothing the weak motor holds: leave the arm as it is
-            self.note(report.t, "weak", who, f"{why}; {detail}: the controller stays")
-            return controller
-        self.mode = "weak"
-        self.note(report.t, "weak", who, f"{why}; nearby: {detail}")
-        return WeakJointTracker(
-            context=ctx,
-            goal=goal,
-            limits=limits,
-            held=fixed,
-            gravity=ctx.gravity,
-            omega=omega,
-            zeta=zeta,
-        )
+        self.note(report.t, "weak", who, f"{why}: the controller stays")
+        return controller
 
     def _loose(self, report: FailureReport, latest: dict[str, Failure]) -> Controller:
         from packbot.control.reconfig import ReconfigurableController
