@@ -15,8 +15,10 @@ for each run (a class, instantiated with no arguments, or a factory), so it may 
   as in the failed run; the detections are still reported);
 - :class:`BaselineRecovery` (``"builtin"``): per failure kind, what is still working:
 
-  - weak: a posture whose gravity torque the weakened motor holds with margin, reached by a move
-    within its reduced effort (:mod:`packbot.control.weak_joint`); where none is found, the
+  - weak: a posture on the task's final point (or the nearest) whose gravity torques every
+    motor holds with margin, reached by a move shaped so that the weakened motor drives it
+    (:mod:`packbot.control.weak_transition`), tracked with its command clipped
+    (:class:`~packbot.control.weak_joint.WeakJointTracker`); where no such move is found, the
     controller in charge stays;
   - frozen, a holding brake, stuck: the task tracked with the other joints
     (:class:`~packbot.control.reduced_arm.ReducedArmTracker`; a stuck joint, or a brake that
@@ -33,12 +35,17 @@ from abc import ABC, abstractmethod
 from collections.abc import Sequence
 from typing import Any, ClassVar
 
+import numpy as np
+
 from packbot.control.base import Controller
 from packbot.control.context import FailureReport, RecoveryEvent
 from packbot.failures import Failure
 from packbot.keywords import check_subclass
 
 __all__ = ["STRATEGY_NAMES", "BaselineRecovery", "NoRecovery", "RecoveryStrategy"]
+
+#: Holdable postures a weak joint's move may go to (the best first) [-].
+GOALS = 2
 
 #: The built-in strategies by name.
 STRATEGY_NAMES: tuple[str, ...] = ("builtin", "none")
@@ -173,7 +180,13 @@ class BaselineRecovery(RecoveryStrategy):
         fixed: Sequence[str],
         controller: Controller | None,
     ) -> Controller | None:
-        from packbot.control.weak_joint import WeakJointTracker, holdable_posture, stop_point
+        """A holdable posture on the task's final point and a move the weak motor drives.
+
+        (:mod:`packbot.control.weak_transition`); where no posture holds or no move within
+        the limits gets there, the controller in charge stays.
+        """
+        from packbot.control.weak_joint import WeakJointTracker
+        from packbot.control.weak_transition import holdable_reach, plan_transition
 
         ctx = report.context
         robot = ctx.robot
@@ -182,29 +195,49 @@ class BaselineRecovery(RecoveryStrategy):
             n: float(robot.params.effort[idx(n)]) * (g.scale if math.isfinite(g.scale) else 0.5)
             for n, g in weak.items()
         }
-        q_stop, _ = stop_point(report.q, report.v)
-        goal, detail = holdable_posture(
-            ctx,
-            q_stop,
-            {idx(n): lim for n, lim in limits.items()},
-            fixed=[idx(n) for n in fixed],
-            t=report.t,
+        by_index = {idx(n): lim for n, lim in limits.items()}
+        fixed_idx = [idx(n) for n in fixed]
+        omega, zeta = self.tracking["omega"], self.tracking["zeta"]
+        who = ", ".join(weak)
+        postures = holdable_reach(ctx, report.q, by_index, fixed=fixed_idx)
+        reaching = [h for h in postures if h.reaches]
+        goals = (reaching or postures)[:GOALS]
+        move = None
+        if goals:
+            move = plan_transition(
+                ctx, report.t, report.q, report.v, [h.q for h in goals], by_index, fixed=fixed_idx
+            )
+        if move is not None:
+            tr = move.transition
+            chosen = min(goals, key=lambda h: float(np.max(np.abs(h.q - tr.goal))))
+            self.mode = "weak"
+            self.note(
+                report.t,
+                "weak",
+                who,
+                f"{chosen.describe(robot.joint_names, list(by_index))}; a {tr.duration:.2f} s "
+                f"move there (planned torques at most {move.peak_torque_ratio:.0%} of their "
+                f"limits, clearance {move.min_distance_m * 1000:.0f} mm)",
+            )
+            return WeakJointTracker(
+                context=ctx,
+                goal=tr.goal,
+                limits=limits,
+                held=fixed,
+                gravity=ctx.gravity,
+                transition=tr,
+                omega=omega,
+                zeta=zeta,
+            )
+        # no move the motors drive: the controller in charge stays (a nearby posture reached by
+        # a move that exceeds them did worse than doing nothing: docs/study.md)
+        why = (
+            "no posture the motors hold was found"
+            if not goals
+            else f"no move within the limits to the {len(goals)} holdable posture(s) found"
         )
-        if goal is None:  # nothing the weak motor holds: leave the arm as it is
-            self.note(report.t, "weak", ", ".join(weak), f"{detail}: the controller stays")
-            return controller
-        keys = ("omega", "zeta")
-        ctrl = WeakJointTracker(
-            context=ctx,
-            goal=goal,
-            limits=limits,
-            held=fixed,
-            gravity=ctx.gravity,
-            **{k: self.tracking[k] for k in keys},
-        )
-        self.mode = "weak"
-        self.note(report.t, "weak", ", ".join(weak), detail)
-        return ctrl
+        self.note(report.t, "weak", who, f"{why}: the controller stays")
+        return controller
 
     def _loose(self, report: FailureReport, latest: dict[str, Failure]) -> Controller:
         from packbot.control.reconfig import ReconfigurableController

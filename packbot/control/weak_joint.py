@@ -31,6 +31,7 @@ from packbot.control.context import ModelSwitch
 from packbot.control.ik import solve_position_ik
 from packbot.control.model_based import ModelBasedController
 from packbot.control.trajectory import MIN_JERK_PEAK_SPEED, QuinticSegment
+from packbot.control.weak_transition import HOLD_MARGIN, Transition
 from packbot.errors import ConfigurationError
 from packbot.validation import finite_number
 
@@ -42,8 +43,6 @@ __all__ = ["HOLD_MARGIN", "WeakJointTracker", "holdable_posture"]
 
 FloatArray = NDArray[np.float64]
 
-#: Share of the weak motor's limit the held posture's gravity torque may use [-].
-HOLD_MARGIN = 0.8
 #: Where gravity alone exceeds the weak limit on the way, the move may add this share of the
 #: limit to it [-] (a slower move adds less; the sag is then gravity's, not the plan's).
 DYNAMIC_ALLOWANCE = 0.05
@@ -201,10 +200,15 @@ class WeakJointTracker(ModelBasedController):
         speed_fraction: The move's peak joint rates within this fraction of the speed limits.
         dt: Control period [s].
         gravity: Gravity the controller assumes [m/s^2].
+        transition: A planned move from the state at reset to ``goal``
+            (:func:`packbot.control.weak_transition.plan_transition`'s), tracked instead of
+            braking to rest and planning a quintic. None: those.
 
     Attributes:
-        stop: The braking segment from the measured state to rest (set at reset).
-        segment: The planned move from there (set at reset).
+        stop: The braking segment from the measured state to rest (set at reset; None with a
+            ``transition``).
+        segment: The planned move from there (set at reset; None with a ``transition``).
+        transition: The planned move given.
     """
 
     def __init__(
@@ -219,10 +223,14 @@ class WeakJointTracker(ModelBasedController):
         speed_fraction: float = 1.0,
         dt: float = 1e-3,
         gravity: Sequence[float] = DEFAULT_GRAVITY,
+        transition: Transition | None = None,
     ) -> None:
         super().__init__(dt=dt, gravity=gravity)
         self.context = context
         self.goal = np.array(goal, dtype=float)
+        if transition is not None and not isinstance(transition, Transition):
+            raise ConfigurationError("transition", transition, "None or a Transition")
+        self.transition = transition
         for name, lim in limits.items():
             finite_number(f"limits.{name}", lim, low=0.0, low_open=True, unit="N*m")
         self.limit_names = dict(limits)
@@ -251,8 +259,11 @@ class WeakJointTracker(ModelBasedController):
         self._held = np.array(sorted(idx(n) for n in self.held_names), dtype=int)
 
     def on_reset(self, robot: Robot, t0: float, q0: FloatArray, v0: FloatArray) -> None:
-        """Plan the move from the measured state."""
+        """Plan the move from the measured state (or take the transition given)."""
         self.prepare(robot)
+        if self.transition is not None:
+            self.stop = self.segment = None
+            return
         q0 = np.asarray(q0, dtype=float)
         v0 = np.array(v0, dtype=float)
         v0[self._held] = 0.0
@@ -293,9 +304,13 @@ class WeakJointTracker(ModelBasedController):
         torques are those of the acceleration it then has (row j of M a + h = tau): the other
         joints still follow their references, whatever the weak one does.
         """
-        assert self.segment is not None and self.stop is not None and self._models is not None
+        assert self._models is not None
         model, data = self._models.at(t)
-        qd, vd, ad = (self.stop if t < self.stop.t1 else self.segment)(t)
+        if self.transition is not None:
+            qd, vd, ad = self.transition(t)
+        else:
+            assert self.segment is not None and self.stop is not None
+            qd, vd, ad = (self.stop if t < self.stop.t1 else self.segment)(t)
         kp, kd = self.omega**2, 2 * self.zeta * self.omega
         a = ad + kp * (qd - q) + kd * (vd - v)
         vv = np.array(v, dtype=float)
