@@ -157,7 +157,9 @@ def holdable_posture(
         return np.asarray(out) / max(limits.values())
 
     seeds = [x_start]
-    ik = solve_position_ik(model, context.frame, x_star, q, active=active)
+    ik = solve_position_ik(  # a seed: the optimisation keeps its own clearance
+        model, context.frame, x_star, q, active=active, collision_free=False
+    )
     seeds.append(np.clip(ik.q[active], lo, hi))
     world = CollisionWorld(robot, context.environment)
     best: tuple[float, FloatArray] | None = None

@@ -431,7 +431,9 @@ def holdable_reach(
 
     seeds = [q[a].copy()]
     chain = list(a)
-    ik = solve_position_ik(model, context.frame, pb.target, q, active=chain)
+    ik = solve_position_ik(  # a seed: the optimisation keeps its own clearance
+        model, context.frame, pb.target, q, active=chain, collision_free=False
+    )
     seeds.append(ik.q[a])
     # the arm folded the other way at elbow2 (its link pointing up from a lower elbow): the
     # branch where a weak elbow holds the frame far out
@@ -439,7 +441,9 @@ def holdable_reach(
         s = ik.q.copy()
         j2 = chain[-1] if chain else 0
         s[j2] = np.clip(flip * abs(s[j2]) + flip * 1.5, pb.lower[j2], pb.upper[j2])
-        ik2 = solve_position_ik(model, context.frame, pb.target, s, active=chain)
+        ik2 = solve_position_ik(
+            model, context.frame, pb.target, s, active=chain, collision_free=False
+        )
         seeds.append(ik2.q[a])
     found: list[HoldableReach] = []
     for x0 in seeds:
