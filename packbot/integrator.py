@@ -17,8 +17,7 @@ ticks of a sampled-data :class:`~packbot.control.Controller` (not logged) cut a 
 they change the held command (:mod:`packbot.ticks`). A frozen joint or a payload change starts a
 new *phase*: the integrated model is rebuilt (``pin.buildReducedModel``, the payload's inertia
 added), the law rebuilt on it and the contacts found again; the result stays in full coordinates.
-Samples and events are kept by :mod:`packbot.recorder`; the torques come from :mod:`packbot.drive`.
-docs/simulator.md, "The loop and the contact laws", says who calls whom and in which order.
+Samples, events: :mod:`packbot.recorder`; torques: :mod:`packbot.drive`; order: docs/simulator.md.
 """
 
 from __future__ import annotations
@@ -430,9 +429,8 @@ def simulate(
         environment: Static obstacles; None means the floor alone.
         config: Settings; None means ``SimConfig()``.
         failures: Joint failures (:class:`~packbot.failures.Failure`), each injected at its
-            time ``t``; a joint may fail again later (a degrading motor:
-            :func:`~packbot.failures.check_sequence`), none on a joint in
-            ``config.locked_joints``.
+            time ``t``; a joint may fail again later (:func:`~packbot.failures.check_sequence`),
+            none on a joint in ``config.locked_joints``.
         payload: A payload held in the gripper from ``payload.t_pick`` to ``payload.t_drop``.
         inform_controller: Call ``controller.on_failure(failure, t)`` at each injection (the
             scenario tells the controller; otherwise it must detect the failure itself).
