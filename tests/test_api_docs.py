@@ -84,6 +84,7 @@ INTERNAL_MODULES = {
     "packbot.labels",
     "packbot.mujoco_model",
     "packbot.ode",
+    "packbot.outputs",
     "packbot.paths",
     "packbot.recorder",
     "packbot.result_file",
