@@ -91,6 +91,7 @@ INTERNAL_MODULES = {
     "packbot.scenario_schema",
     "packbot.schedule",
     "packbot.srdfgen",
+    "packbot.study_matrix_format",
     "packbot.system",
     "packbot.ticks",
     "packbot.tolerances",
