@@ -29,6 +29,12 @@ import typing
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Literal, get_args, get_origin
 
+from packbot.config import SimConfig
+from packbot.environment import Obstacle
+from packbot.failures import Failure
+from packbot.outputs import IMAGE_FORMATS, PLOT_KINDS, OcclusionCheck, Outputs
+from packbot.payload import Payload
+
 if TYPE_CHECKING:
     from packbot.model import Robot
 
@@ -183,12 +189,6 @@ def json_schema(robot: Robot | None = None) -> dict[str, Any]:
     Returns:
         The schema, as plain JSON values.
     """
-    from packbot.config import SimConfig
-    from packbot.environment import Obstacle
-    from packbot.failures import Failure
-    from packbot.payload import Payload
-    from packbot.scenario import _FORMATS, PLOT_KINDS, OcclusionCheck, Outputs
-
     if robot is None:
         from packbot.model import load_robot
 
@@ -248,7 +248,7 @@ def json_schema(robot: Robot | None = None) -> dict[str, Any]:
         override={
             "plots": {"items": _names(PLOT_KINDS), "uniqueItems": True},
             "joints": {"items": joints, "uniqueItems": True, "minItems": 1},
-            "formats": {"items": _names(_FORMATS), "uniqueItems": True, "minItems": 1},
+            "formats": {"items": _names(IMAGE_FORMATS), "uniqueItems": True, "minItems": 1},
             "occlusion": _dataclass_schema(
                 OcclusionCheck,
                 title="Occlusion check",

@@ -54,6 +54,7 @@ from packbot.batch import BatchReport, RunFiles, check_runs, run_batch
 from packbot.errors import ConfigurationError, PackbotError, SimulationError, UnknownNameError
 from packbot.keywords import checked_arguments
 from packbot.matrix import Matrix, Run, load_matrix
+from packbot.study_matrix_format import SUMMARY_FORMAT
 from packbot.validation import MAX_CONFIG_SAMPLES, MAX_STUDY_CELLS, at_most, integer, is_number
 
 __all__ = [
@@ -76,8 +77,6 @@ log = logging.getLogger(__name__)
 STUDY_KEYS: tuple[str, ...] = ("tolerance", "workspace_samples", "seed", "html")
 #: The fields of a failure an axis may vary (``failures.<i>.<field>``).
 FAILURE_FIELDS: tuple[str, ...] = ("joint", "kind", "t", "scale", "torque", "threshold")
-#: Format tag of ``study-matrix.json``.
-SUMMARY_FORMAT = "packbot-study-matrix/1"
 #: The run names whose metrics a cell's record and the summary keep.
 _RUNS = ("healthy", "failed", "reconfigured")
 

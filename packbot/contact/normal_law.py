@@ -419,7 +419,8 @@ class NormalLaw(PatchEvents):
             or self.drive.fdir.any()
         ):
             return None
-        st = self._stretch = quiet_stretch(self, stepper, clock, self._stretch)
+        crawl = (CRAWL_STEPS, CRAWL_STEP)
+        st = self._stretch = quiet_stretch(self, stepper, clock, self._stretch, crawl)
         if st is None:
             return None
         stops = [(k[1], k[2]) for k in self.active if k[0] == "limit"]
@@ -432,7 +433,8 @@ class NormalLaw(PatchEvents):
             lim_value=np.array([upper[j] if side > 0 else lower[j] for j, side in stops]),
             crawl=np.array(self._steps, dtype=np.float64),
             min_d=self.diag.min_distance,
-            modes=repatch_modes(self),
+            # (a subclass's hooks: its re-patches are the loop's)
+            modes=repatch_modes(self) if type(self) is NormalLaw else None,
         )
         self.world.dispatch.spare = None
         done, out = st.run(stepper, t_end, t_last, t_sched, clock, inputs)

@@ -40,7 +40,21 @@ from typing import TYPE_CHECKING, Any, Protocol
 import numpy as np
 from numpy.typing import NDArray
 
-from packbot.contact import native
+from packbot.contact import native, normal_modes, normal_set, normal_steps
+from packbot.contact.normal_contacts import NormalContacts
+from packbot.contact.normal_tolerances import (
+    BAUMGARTE,
+    FACE_ALIGN,
+    FORCE_BAND,
+    PATCH_TOL,
+    PENETRATION_TOL,
+    RESIDUAL_TOL,
+    SLIDE_TOL,
+    SPEED_BAND,
+    STICK_BAND,
+    STICK_SPEED,
+    TOUCH_GAP,
+)
 from packbot.ode import DenseSegment, HermiteSegment, RK45Stepper
 
 if TYPE_CHECKING:
@@ -157,6 +171,10 @@ class QuietStretch:
         law: The law (its reach bounds, tolerances and step bound's constants).
         stepper: The loop's stepper (its tolerances).
         clock: The run's samples.
+        crawl: The law's crawl rule, (steps, step [s]): the stepper crawls when that many
+            accepted steps average less than that step
+            (:data:`~packbot.contact.normal_law.CRAWL_STEPS`,
+            :data:`~packbot.contact.normal_law.CRAWL_STEP`).
     """
 
     def __init__(
@@ -166,22 +184,9 @@ class QuietStretch:
         law: NormalLaw,
         stepper: RK45Stepper,
         clock: SampleClock,
+        crawl: tuple[int, float],
     ) -> None:
-        from packbot.contact.normal_law import CRAWL_STEP, CRAWL_STEPS
-        from packbot.contact.normal_tolerances import (
-            BAUMGARTE,
-            FACE_ALIGN,
-            FORCE_BAND,
-            PATCH_TOL,
-            PENETRATION_TOL,
-            RESIDUAL_TOL,
-            SLIDE_TOL,
-            SPEED_BAND,
-            STICK_BAND,
-            STICK_SPEED,
-            TOUCH_GAP,
-        )
-
+        crawl_steps, crawl_step = crawl
         n = 2 * law.n
         atol = np.broadcast_to(np.asarray(stepper.atol, dtype=np.float64), (n,)).copy()
         #: what it was built for (compared by identity)
@@ -196,8 +201,8 @@ class QuietStretch:
             h_min=stepper.h_min,
             near=law.cfg.proximity_tolerance,
             pen_tol=PENETRATION_TOL,
-            crawl_steps=CRAWL_STEPS,
-            crawl_step=CRAWL_STEP,
+            crawl_steps=crawl_steps,
+            crawl_step=crawl_step,
             sample_dt=clock.dt,
             duration=clock.duration,
             stiff_switch=native.STIFF_ENABLED,
@@ -339,22 +344,21 @@ def repatch_modes(law: NormalLaw) -> RepatchModes | None:
     Where :meth:`NormalLaw.after_step <packbot.contact.normal_law.NormalLaw.after_step>` would
     re-patch with the native steps only (:meth:`NormalContacts.repatch
     <packbot.contact.normal_contacts.NormalContacts.repatch>`'s refresh on the extension's
-    materials, its projection's native round, its native mode selection): the law and its
-    contact set of their own classes (no subclass's hooks), the projection checking the other
-    pairs, and engaged rows.
+    materials, its projection's native round, its native mode selection): the contact set of
+    its own class (no subclass's hooks), the projection checking the other pairs, and engaged
+    rows. The law is the caller's to check: :meth:`NormalLaw.stretch
+    <packbot.contact.normal_law.NormalLaw.stretch>` asks only as a law of its own class.
     """
     nc = law.normal
-    mods = _modules()
     if (
         not REPATCH_ENABLED
-        or type(law) is not mods.law
-        or type(nc) is not mods.contacts
+        or type(nc) is not NormalContacts
         or not nc.engaged
         or not nc.check_others
         or nc.world is not law.world
-        or not mods.normal_set.MATERIALS_NATIVE
-        or not mods.normal_steps.NATIVE_RESTART
-        or not mods.normal_modes.NATIVE_MODES
+        or not normal_set.MATERIALS_NATIVE
+        or not normal_steps.NATIVE_RESTART
+        or not normal_modes.NATIVE_MODES
     ):
         return None
     pairs = nc._pair_list
@@ -404,37 +408,19 @@ def adopt_repatches(law: NormalLaw, out: dict[str, Any]) -> None:
         world.dispatch.adopt(proj[0][0], proj[1][0], proj[2][0], proj[3], proj[4])
 
 
-@dataclass(frozen=True, slots=True)
-class _Modules:
-    law: type
-    contacts: type
-    normal_set: Any
-    normal_steps: Any
-    normal_modes: Any
-
-
-_MODULES: list[_Modules] = []
-
-
-def _modules() -> _Modules:
-    """The law's modules (imported at the first call: they import this one), then kept."""
-    if not _MODULES:
-        from packbot.contact import normal_modes, normal_set, normal_steps
-        from packbot.contact.normal_contacts import NormalContacts
-        from packbot.contact.normal_law import NormalLaw
-
-        _MODULES.append(_Modules(NormalLaw, NormalContacts, normal_set, normal_steps, normal_modes))
-    return _MODULES[0]
-
-
 def quiet_stretch(
-    law: NormalLaw, stepper: RK45Stepper, clock: SampleClock, last: QuietStretch | None
+    law: NormalLaw,
+    stepper: RK45Stepper,
+    clock: SampleClock,
+    last: QuietStretch | None,
+    crawl: tuple[int, float],
 ) -> QuietStretch | None:
     """The law's compiled stretch (``last`` when it still fits), or None: none can be built.
 
     None when the stretch is switched off (:data:`ENABLED`), the law has no native right-hand
     side or its world no compiled sweep (or it is switched off,
-    :data:`packbot.native_sweep.ENABLED`).
+    :data:`packbot.native_sweep.ENABLED`). ``crawl`` is the law's crawl rule
+    (:class:`QuietStretch`'s), read when a stretch is built.
     """
     from packbot import native_sweep
 
@@ -447,4 +433,4 @@ def quiet_stretch(
         a is b for a, b in zip(last.key, (rhs, api, stepper, clock), strict=True)
     ):
         return last
-    return QuietStretch(rhs, api, law, stepper, clock)
+    return QuietStretch(rhs, api, law, stepper, clock, crawl)

@@ -75,6 +75,7 @@ import numpy as np
 import pinocchio as pin
 from numpy.typing import NDArray
 
+from packbot.contact import normal_tolerances
 from packbot.contact.lcp import lcp_residual, lemke, solve_lcp_psd, solve_mixed_admm
 from packbot.contact.pairs import reach_bounds
 from packbot.ode import DenseSegment
@@ -280,13 +281,12 @@ class MoreauJeanStepper:
         # the last step's end state (q, v bytes) and its energy [J], or None
         self._end_energy: tuple[bytes, float] | None = None
         self._eye = np.eye(self.n)  # its rows: the joint boxes' rows
-        # the compiled pieces (numba is imported by windows only; normal.py is loaded: it
-        # builds the steppers)
-        from packbot.contact import conic, kernels, normal
+        # the compiled pieces (lazy: numba is imported by windows only)
+        from packbot.contact import conic, kernels
 
         self._conic, self._kernels = conic, kernels
         # the event-driven mode's patch rule (NormalContacts.stale_pairs), see _stale
-        self._point_tol = normal.POINT_TOL
+        self._point_tol = normal_tolerances.POINT_TOL
         self._lay: _PairLayout | None = None  # see _layout
         #: Per velocity index, a bound on the distance [m] from the joint's axis to any point
         #: it moves: a point's speed is at most reach . |v| (see reach_bounds; ``reach``: the

@@ -30,6 +30,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from packbot.errors import ConfigurationError
+from packbot.study_matrix_format import SUMMARY_FORMAT
 from packbot.viz.study_report import _write_atomic
 
 if TYPE_CHECKING:
@@ -232,8 +233,6 @@ def write_matrix_report(
     Raises:
         ConfigurationError: ``summary`` is not a study matrix's summary, or ``out_dir`` a file.
     """
-    from packbot.study_matrix import SUMMARY_FORMAT
-
     if not isinstance(summary, Mapping) or summary.get("format") != SUMMARY_FORMAT:
         raise ConfigurationError(
             "summary", type(summary).__name__, f"a study matrix's summary ({SUMMARY_FORMAT})"
