@@ -22,11 +22,8 @@ Usage::
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import platform
-import selectors
-import subprocess
 import sys
 import time
 from collections import Counter
@@ -36,8 +33,8 @@ TESTS = Path(__file__).resolve().parent.parent / "tests"
 sys.path.insert(0, str(TESTS))
 
 from bad_input_cases import CASES, CATEGORIES  # noqa: E402
+from bad_input_worker import Worker  # noqa: E402
 
-WORKER = [sys.executable, str(TESTS / "bad_input_cases.py"), "--worker"]
 COLUMNS = (
     ("clean", "clean PackbotError / exit 2"),
     ("unclear", "unclear error"),
@@ -45,45 +42,6 @@ COLUMNS = (
     ("hang", "hangs"),
     ("accepted", "silently accepted"),
 )
-
-
-class Worker:
-    """A worker process running cases one at a time, with a timeout per case."""
-
-    def __init__(self) -> None:
-        env = dict(os.environ, MPLBACKEND="Agg")
-        self.proc = subprocess.Popen(
-            WORKER,
-            stdin=subprocess.PIPE,
-            stdout=subprocess.PIPE,
-            stderr=subprocess.DEVNULL,  # C++ libraries' own warnings
-            text=True,
-            bufsize=1,
-            env=env,
-        )
-        assert self.proc.stdin is not None and self.proc.stdout is not None
-        self.sel = selectors.DefaultSelector()
-        self.sel.register(self.proc.stdout, selectors.EVENT_READ)
-
-    def ask(self, key: str, timeout: float) -> dict[str, str]:
-        assert self.proc.stdin is not None and self.proc.stdout is not None
-        try:
-            self.proc.stdin.write(key + "\n")
-            self.proc.stdin.flush()
-        except BrokenPipeError:
-            return {"status": "traceback", "detail": "the worker died"}
-        if not self.sel.select(timeout):
-            return {"status": "hang", "detail": f"no answer within {timeout:g} s"}
-        line = self.proc.stdout.readline()
-        if not line:
-            return {"status": "traceback", "detail": f"the worker died ({self.proc.wait()})"}
-        return json.loads(line)
-
-    def close(self) -> None:
-        self.sel.close()
-        if self.proc.poll() is None:
-            self.proc.kill()
-        self.proc.wait()
 
 
 def main() -> int:
@@ -108,7 +66,7 @@ def main() -> int:
             # The first case of a worker also imports packbot and loads the robot.
             answer = worker.ask(case.key, args.guard_timeout if case.guard else args.timeout)
             status = answer["status"]
-            if status == "hang" or worker.proc.poll() is not None:  # killed, or it died
+            if status == "hang" or not worker.usable:  # killed, or it died
                 worker.close()
                 worker = Worker()
             counts[(case.category, status)] += 1

@@ -22,6 +22,7 @@ from bad_input_cases import (
     counts,
     run_case,
 )
+from bad_input_worker import Worker
 
 from packbot import SimConfig
 from packbot.cli import main
@@ -40,21 +41,45 @@ def test_bad_input_gets_a_clean_error(key, tmp_path):
     assert outcome.status == "clean", f"{outcome.status}: {outcome.detail}"
 
 
+@pytest.fixture(scope="module")
+def guard_worker():
+    """One worker process for the guard cases of this module: a hang kills it, not the run."""
+    workers: list[Worker] = []
+
+    def ask(key: str) -> dict[str, str]:
+        if not workers or not workers[-1].usable:
+            workers.append(Worker())  # the first case also imports packbot (~2 s)
+        answer = workers[-1].ask(key, GUARD_TIMEOUT)
+        if answer["status"] == "hang":
+            workers[-1].close()  # stuck in the case: the next one gets a new worker
+        return answer
+
+    yield ask
+    for w in workers:
+        w.close()
+
+
 @pytest.mark.parametrize("key", _params(guard=True))
-def test_bad_input_that_used_to_hang_gets_a_clean_error(key):
-    # In a subprocess, so that a regression shows as a timeout instead of a stuck test run.
-    try:
-        proc = subprocess.run(
-            [sys.executable, str(HERE / "bad_input_cases.py"), "--case", key],
-            capture_output=True,
-            text=True,
-            timeout=GUARD_TIMEOUT,
-            check=False,
-        )
-    except subprocess.TimeoutExpired:
-        pytest.fail(f"{key} did not finish within {GUARD_TIMEOUT} s (a hang)")
-    assert proc.returncode == 0, proc.stderr[-2000:]
-    answer = json.loads(proc.stdout.strip().splitlines()[-1])
+def test_bad_input_that_used_to_hang_gets_a_clean_error(key, guard_worker):
+    # In a worker process with a timeout, so that a regression shows as a failed case instead
+    # of a stuck test run. A signals case sends signals to commands it starts and waits for
+    # them: it gets a process of its own.
+    if BY_KEY[key].category != "signals":
+        answer = guard_worker(key)
+    else:
+        try:
+            proc = subprocess.run(
+                [sys.executable, str(HERE / "bad_input_cases.py"), "--case", key],
+                capture_output=True,
+                text=True,
+                timeout=GUARD_TIMEOUT,
+                check=False,
+            )
+        except subprocess.TimeoutExpired:
+            pytest.fail(f"{key} did not finish within {GUARD_TIMEOUT} s (a hang)")
+        assert proc.returncode == 0, proc.stderr[-2000:]
+        answer = json.loads(proc.stdout.strip().splitlines()[-1])
+    assert answer["status"] != "hang", f"{key} did not finish within {GUARD_TIMEOUT} s (a hang)"
     assert answer["key"] == key
     assert answer["status"] == "clean", f"{answer['status']}: {answer['detail']}"
 
