@@ -50,6 +50,7 @@ from packbot.errors import ConfigurationError, UnknownNameError
 from packbot.keywords import checked_arguments
 from packbot.labels import event_label, plain_text
 from packbot.model import Robot
+from packbot.outputs import IMAGE_FORMATS
 from packbot.result import SimResult
 
 __all__ = [
@@ -107,7 +108,7 @@ _TEXT_COLORS = {"handoff": "darkgoldenrod", "freeze": "darkcyan"}
 #: The torque axes span this multiple of the joint's largest effort limit [-].
 TORQUE_AXIS = 1.15
 _JOINT_COLORS = ("tab:blue", "tab:orange", "tab:green", "tab:red", "tab:purple", "tab:brown")
-_FORMATS = ("png", "svg")
+_FORMATS = IMAGE_FORMATS  # the image formats a plot is written in
 
 # Fixed layout [in]: figure width, margins, title block, one label row of the event lane, gap
 # between stacked panels, room under the last panel (tick labels + axis label), whole-run strip.
