@@ -19,6 +19,7 @@
 // This header declares the class and holds its members; its member functions are defined one
 // concept a file:
 //   contact_rhs_model.cpp     the model, the layout, the loaded constants, the work arrays
+//   contact_rhs_passes.cpp    Pinocchio's passes (aba, M^-1, crba, ...: their one instance)
 //   contact_rhs_rows.cpp      the contact rows (kernels.contact_rows)
 //   contact_rhs_dynamics.cpp  the constrained accelerations of the modes (constrained_accel)
 //   contact_rhs_locks.cpp     the joint locks (the report's law instead of the contact rows)
@@ -35,9 +36,6 @@
 
 #include "joints.hpp"
 #include "lcp.hpp"
-#include "modes.hpp"
-#include "rows.hpp"
-#include "stop_slow.hpp"
 
 #include <pinocchio/multibody/data.hpp>
 #include <pinocchio/multibody/model.hpp>
@@ -47,6 +45,7 @@
 #include <algorithm>
 #include <array>
 #include <cstdint>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -71,6 +70,16 @@ using U1 = nb::ndarray<const uint8_t, nb::ndim<1>, nb::c_contig, nb::device::cpu
 
 namespace packbot_native {
 
+// (the restart's types: rows.hpp, modes.hpp, stop_slow.hpp, complete in contact_rhs_rows.cpp
+// and contact_rhs_restart.cpp)
+struct Rows;
+namespace modes {
+class Selection;
+}
+namespace stop_slow {
+class StopSlow;
+}
+
 template <class A> std::vector<int64_t> ints(const A &a) {
   return std::vector<int64_t>(a.data(), a.data() + a.size());
 }
@@ -85,6 +94,7 @@ class ContactRhs {
   // ---- the model, the layout, the loaded constants, the work arrays: contact_rhs_model.cpp
   ContactRhs(const std::vector<std::string> &types, I1 parents, F3 placements, F2 axes,
              F1 masses, F2 levers, F3 inertias, F1 armature, F1 gravity);
+  ~ContactRhs();  // (contact_rhs_restart.cpp: sel_'s and stopper_'s types are complete there)
   void set_reach(F1 reach, double margin, double max_step);
   double step_bound(F1 y) const;
   double step_bound_raw(const double *v) const;
@@ -256,8 +266,8 @@ class ContactRhs {
                     const double *offset0, const double *slide_tol2);
   void keep_loaded();
   void restore_loaded();
-  // ------------------------------------------------------------------ the stretch's re-patch
-  // (packbot.contact.normal_contacts.NormalContacts.repatch's native steps: stretch.hpp)
+  // what the re-patch reads (packbot.contact.normal_contacts.NormalContacts.repatch's native
+  // steps: stretch.hpp)
   int n_pairs() const { return np_; }
   int n_points() const { return h_; }  // the layout's points: each pair's K and its centre
   int n_pair_rows() const { return mp_; }
@@ -267,6 +277,18 @@ class ContactRhs {
   const std::vector<int64_t> &engaged() const { return engaged_; }
 
  private:
+  // (Pinocchio's passes on model_ and data_: contact_rhs_passes.cpp) aba(WORLD) at (q, v)
+  // under tau (data_.ddq), computeMinverse at q or after aba (data_.Minv's upper triangle),
+  // computeJointJacobiansTimeVariation at (q_, v_), crba(LOCAL) at q (data_.M's upper
+  // triangle), nonLinearEffects at (q_, v_) (data_.nle), the potential energy of gravity at q.
+  void aba_world(const Eigen::VectorXd &q, const Eigen::VectorXd &v, const Eigen::VectorXd &tau);
+  void minverse(const Eigen::VectorXd &q);
+  void minverse_after_aba();
+  void jacobians_time_variation();
+  void crba_local(const Eigen::VectorXd &q);
+  void nonlinear_effects();
+  double potential(const Eigen::VectorXd &q);
+
   // (the model, the layout, the loaded constants, the work arrays: contact_rhs_model.cpp)
   static nb::ndarray<nb::numpy, double, nb::ndim<1>> vec(const double *p, size_t n);
   static nb::ndarray<nb::numpy, double, nb::ndim<2>> mat(const double *p, size_t r, size_t c);
@@ -317,8 +339,9 @@ class ContactRhs {
   std::vector<double> JM_, Gt_, MJt_, rt_, zt_, jx_, dv_;
   // (the mode selection: select_modes) each pair's first patch row and its number of rows
   std::vector<int> pfirst_, pK_;
-  packbot_native::modes::Selection sel_;
-  packbot_native::stop_slow::StopSlow stopper_;
+  // (made on first use, in contact_rhs_restart.cpp)
+  std::unique_ptr<packbot_native::modes::Selection> sel_;
+  std::unique_ptr<packbot_native::stop_slow::StopSlow> stopper_;
   packbot_native::lcp::Work lcp_;
   // layout
   std::vector<int64_t> joints_, body_, pair_, rows_, centre_, normal_body_, lim_joint_;

@@ -5,9 +5,6 @@
 #include "contact_rhs.hpp"
 #include "small_solve.hpp"
 
-#include <pinocchio/algorithm/aba.hpp>
-#include <pinocchio/algorithm/jacobian.hpp>
-
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -97,7 +94,7 @@ bool ContactRhs::accel(F1 q, F1 v, F1 x, bool from_tau, Out1 out) {
     x_[i] = x.data()[i];
   }
   if (from_tau) {
-    pin::aba(model_, data_, q_, v_, x_, pin::Convention::WORLD);
+    aba_world(q_, v_, x_);
     a_free_ = data_.ddq;
   } else {
     a_free_ = x_;
@@ -162,7 +159,7 @@ bool ContactRhs::stage(const double *y, double *f) {
     }
     return true;
   }
-  pin::aba(model_, data_, q_, v_, x_, pin::Convention::WORLD);
+  aba_world(q_, v_, x_);
   a_free_ = data_.ddq;
   if (!compute(true)) return false;
   for (int i = 0; i < nv; ++i) {
@@ -179,11 +176,11 @@ bool ContactRhs::stage(const double *y, double *f) {
 bool ContactRhs::compute(bool after_aba) {
   const int nv = nv_;
   if (after_aba) {
-    pin::computeMinverse(model_, data_);
+    minverse_after_aba();
     if (nb_ > 0) time_variation();
   } else {
-    pin::computeMinverse(model_, data_, q_);
-    if (nb_ > 0) pin::computeJointJacobiansTimeVariation(model_, data_, q_, v_);
+    minverse(q_);
+    if (nb_ > 0) jacobians_time_variation();
   }
   minv_ = data_.Minv;  // the upper triangle; the lower one mirrored
   for (int i = 1; i < nv; ++i)

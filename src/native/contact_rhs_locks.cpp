@@ -5,10 +5,6 @@
 #include "contact_rhs.hpp"
 #include "small_solve.hpp"
 
-#include <pinocchio/algorithm/aba.hpp>
-#include <pinocchio/algorithm/crba.hpp>
-#include <pinocchio/algorithm/rnea.hpp>
-
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -114,14 +110,14 @@ double ContactRhs::end_screen(F1 y1, double margin) {
 bool ContactRhs::lock_accel() {
   const int nv = nv_;
   if (lock_mode_ <= 1) {
-    pin::aba(model_, data_, q_, v_, x_, pin::Convention::WORLD);
+    aba_world(q_, v_, x_);
     a_free_ = data_.ddq;
     if (lock_mode_ == 0) {
       a_ = a_free_;
       return true;
     }
     // a_free - minv[:, j] * (a_free[j] / minv[j, j]), minv mirrored from the upper triangle
-    pin::computeMinverse(model_, data_, q_);
+    minverse(q_);
     const int j = static_cast<int>(locked_[0]);
     const double mjj = data_.Minv(j, j);
     const double r = a_free_[j] / mjj;
@@ -132,8 +128,8 @@ bool ContactRhs::lock_accel() {
     lock_lam_[0] = -a_free_[j] / mjj;
     return std::isfinite(r);
   }
-  pin::crba(model_, data_, q_, pin::Convention::LOCAL);
-  pin::nonLinearEffects(model_, data_, q_, v_);
+  crba_local(q_);
+  nonlinear_effects();
   const int k = static_cast<int>(unlocked_.size());
   double G[9], r[3], x[3];
   for (int i = 0; i < nv; ++i) force_[i] = x_[i] - data_.nle[i];

@@ -3,10 +3,8 @@
 // keys, limits and torques, the plan's work arrays, and the numpy copies of the results.
 
 #include "contact_rhs.hpp"
-
-#include <pinocchio/algorithm/aba.hpp>
-#include <pinocchio/algorithm/crba.hpp>
-#include <pinocchio/algorithm/energy.hpp>
+#include "modes.hpp"  // (sel_'s and stopper_'s types: the constructor may throw)
+#include "stop_slow.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -215,7 +213,7 @@ void ContactRhs::minverse_at(const double *q, double *out) {
   end_valid_ = false;
   jac_valid_ = false;
   for (int i = 0; i < nv; ++i) q_[i] = q[i];
-  pin::computeMinverse(model_, data_, q_);
+  minverse(q_);
   for (int i = 0; i < nv; ++i)
     for (int c = 0; c < nv; ++c) out[i * nv + c] = c >= i ? data_.Minv(i, c) : data_.Minv(c, i);
 }
@@ -231,7 +229,7 @@ void ContactRhs::free_accel_raw(const double *q, const double *v, double *out) {
     v_[i] = v[i];
     x_[i] = applied_[i] + (-viscous_[i] * v_[i] - coulomb_dir_[i]);
   }
-  pin::aba(model_, data_, q_, v_, x_, pin::Convention::WORLD);
+  aba_world(q_, v_, x_);
   for (int i = 0; i < nv; ++i) out[i] = data_.ddq[i];
 }
 
@@ -249,14 +247,14 @@ void ContactRhs::energies(F2 Q, F2 V, Out1 out) {
   for (size_t r = 0; r < k; ++r) {
     const double *qr = Q.data() + r * nv, *vr = V.data() + r * nv;
     for (int i = 0; i < nv; ++i) q[i] = qr[i];
-    pin::crba(model_, data_, q, pin::Convention::LOCAL);
+    crba_local(q);
     double kin = 0.0;
     for (int i = 0; i < nv; ++i) {
       double w = 0.0;
       for (int c = 0; c < nv; ++c) w += vr[c] * (c <= i ? data_.M(c, i) : data_.M(i, c));
       kin += w * vr[i];
     }
-    out.data()[r] = 0.5 * kin + pin::computePotentialEnergy(model_, data_, q);
+    out.data()[r] = 0.5 * kin + potential(q);
   }
 }
 
@@ -292,7 +290,7 @@ nb::ndarray<nb::numpy, double, nb::ndim<2>> ContactRhs::owned_mat(const std::vec
 
 // v^T M(q) v [kg m^2/s^2] (CRBA, armature included; the sums of energies).
 double ContactRhs::kinetic(const Eigen::VectorXd &q, const double *v) {
-  pin::crba(model_, data_, q, pin::Convention::LOCAL);
+  crba_local(q);
   const int nv = nv_;
   double kin = 0.0;
   for (int i = 0; i < nv; ++i) {

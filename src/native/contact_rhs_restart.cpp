@@ -5,13 +5,19 @@
 
 #include "contact_rhs.hpp"
 #include "conic.hpp"
+#include "modes.hpp"
+#include "rows.hpp"
+#include "stop_slow.hpp"
 
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <memory>
 #include <stdexcept>
 #include <string>
 #include <vector>
+
+ContactRhs::~ContactRhs() = default;
 
 // A restart's drift projection, one round (packbot.contact.normal_steps.RestartSteps.project,
 // up to its sweep of the other pairs): the rows at (q, v) with the loaded layout; no gap
@@ -214,7 +220,8 @@ int ContactRhs::select_modes_raw(const double *q, const double *v, const double 
                                     std::vector<double> &lam) {
     return evaluate_modes(eng, st, sd, af, Mi, mu, stick_speed, baumgarte, a, cond, lam);
   };
-  md::Selection &S = sel_;
+  if (!sel_) sel_ = std::make_unique<md::Selection>();
+  md::Selection &S = *sel_;
   S.stick.assign(stick_io, stick_io + np_);
   S.slip_dir.assign(slip_io, slip_io + 3 * np_);
   bool kept = false;
@@ -257,7 +264,8 @@ int ContactRhs::stop_slow(F1 q, F1 v, F2 minv, double touch_gap, double speed_ba
   const packbot_native::Rows R = rows_view();
   const size_t nv = static_cast<size_t>(nv_);
   if (!R.finite() || !all_finite(v.data(), nv) || !all_finite(minv.data(), nv * nv)) return 2;
-  return static_cast<int>(stopper_.run(R, c, v.data(), minv.data(), out_v.data()));
+  if (!stopper_) stopper_ = std::make_unique<ss::StopSlow>();
+  return static_cast<int>(stopper_->run(R, c, v.data(), minv.data(), out_v.data()));
 }
 
 bool ContactRhs::all_finite(const double *x, size_t n) {

@@ -3,8 +3,9 @@
 // vn), the limit rows, the centres' tangential rows (JT, bT, vT) and sliding velocities.
 
 #include "contact_rhs.hpp"
+#include "rows.hpp"
 
-#include <pinocchio/algorithm/jacobian.hpp>
+#include <pinocchio/spatial/act-on-set.hpp>
 
 // The rows computed (rows_at) as the restart's native steps read them.
 packbot_native::Rows ContactRhs::rows_view() const {
@@ -54,7 +55,7 @@ void ContactRhs::rows_at(const double *q, const double *v) {
     q_[i] = q[i];
     v_[i] = v[i];
   }
-  if (nb_ > 0) pin::computeJointJacobiansTimeVariation(model_, data_, q_, v_);
+  if (nb_ > 0) jacobians_time_variation();
   rows();
 }
 

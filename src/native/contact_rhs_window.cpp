@@ -6,10 +6,6 @@
 #include "conic.hpp"
 #include "sweep_api.hpp"
 
-#include <pinocchio/algorithm/aba.hpp>
-#include <pinocchio/algorithm/energy.hpp>
-#include <pinocchio/algorithm/jacobian.hpp>
-
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -115,14 +111,14 @@ ContactRhs::WindowOut ContactRhs::window_core(const double *y, double h, const i
     v_[i] = yv[i];
     tau[i] = applied_[i] + (-viscous_[i] * v_[i] - coulomb_dir_[i]);
   }
-  pin::aba(model_, data_, q_, v_, tau, pin::Convention::WORLD);
+  aba_world(q_, v_, tau);
   const double hh = 0.5 * h;
   for (int i = 0; i < nv; ++i) {
     qm[i] = q_[i] + hh * v_[i];
     vm[i] = v_[i] + hh * data_.ddq[i];
   }
   for (int i = 0; i < nv; ++i) tau[i] = applied_[i] + (-viscous_[i] * vm[i] - coulomb_dir_[i]);
-  pin::aba(model_, data_, qm, vm, tau, pin::Convention::WORLD);
+  aba_world(qm, vm, tau);
   for (int i = 0; i < nv; ++i) vf[i] = v_[i] + h * data_.ddq[i];
   for (int i = 0; i < nv; ++i) ovf[i] = vf[i];
   // the set kept: the pairs within reach are the layout's, the limits within reach its limits
@@ -164,11 +160,11 @@ ContactRhs::WindowOut ContactRhs::window_core(const double *y, double h, const i
     if (near != ml_) return none(1);
   }
   // M^-1 and the rows at (q, v)
-  pin::computeMinverse(model_, data_, q_);
+  minverse(q_);
   minv_ = data_.Minv;
   for (int i = 1; i < nv; ++i)
     for (int c = 0; c < i; ++c) minv_(i, c) = minv_(c, i);
-  if (nb_ > 0) pin::computeJointJacobiansTimeVariation(model_, data_, q_, v_);
+  if (nb_ > 0) jacobians_time_variation();
   rows();
   // the patch rule (conic.stale_pairs)
   gap_min_.assign(np_, std::numeric_limits<double>::infinity());
@@ -251,8 +247,8 @@ ContactRhs::WindowOut ContactRhs::window_core(const double *y, double h, const i
   // q1 = q (+) h v1 (1-dof joints: q + h v1) and the energies of the guard (energies' sums)
   Eigen::VectorXd q1(nv);
   for (int i = 0; i < nv; ++i) q1[i] = oq1[i] = q_[i] + h * ov1[i];
-  const double kin0 = kinetic(q_, yv), pot0 = pin::computePotentialEnergy(model_, data_, q_);
-  const double kin1 = kinetic(q1, ov1), pot1 = pin::computePotentialEnergy(model_, data_, q1);
+  const double kin0 = kinetic(q_, yv), pot0 = potential(q_);
+  const double kin1 = kinetic(q1, ov1), pot1 = potential(q1);
   out.energies[0] = 0.5 * kin0 + pot0;
   out.energies[1] = 0.5 * kin1 + pot1;
   out.energies[2] = 0.5 * kin1;
