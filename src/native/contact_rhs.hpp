@@ -28,7 +28,9 @@
 //   contact_rhs_window.cpp    the time-stepping window (Moreau-Jean)
 //   contact_rhs_restart.cpp   a restart's steps (drift projection, impact, modes, slow slides)
 //   contact_rhs_repatch.cpp   the native stretch's re-patch (stretch.hpp)
-// and the Python module in bindings.cpp (the native stretch's part in stretch_glue.cpp).
+// and the Python module in bindings.cpp (the native stretch's part in stretch_glue.cpp). The
+// self-contained numerics they use are free functions: small_solve.hpp (the small dense solves),
+// brentq.hpp (SciPy's brentq), np_sum.hpp (numpy's pairwise sum).
 #pragma once
 
 #include <nanobind/nanobind.h>
@@ -224,7 +226,6 @@ class ContactRhs {
                       int max_iterations, double ok, F1 applied, bool has_e, double e_last,
                       double step_angle, double sweep_slack, double project_depth,
                       double impulse_band, double min_d, int max_steps);
-  static double np_sum(const double *a, int n);
 
   // ---- a restart's steps: contact_rhs_restart.cpp
   // The law's constants of a mode selection (select_modes' arguments).

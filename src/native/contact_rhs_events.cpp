@@ -3,6 +3,7 @@
 // step end's screen (end_check).
 
 #include "contact_rhs.hpp"
+#include "brentq.hpp"
 #include "stretch.hpp"
 
 #include <algorithm>
@@ -107,63 +108,8 @@ double ContactRhs::row_root(F2 Z, double t0, double t1, double h, F1 y1, bool he
     }
     return v != 0.0 ? v : -1e-300;
   };
-  // brentq (packbot.ode.brentq, SciPy's Zeros/brentq.c)
-  const double rtol = 4.0 * 2.220446049250313e-16;
-  double xpre = t0, xcur = t1, xblk = 0.0, fblk = 0.0, spre = 0.0, scur = 0.0;
-  double fpre = g_rec(xpre), fcur = g_rec(xcur);
-  double root = nan;
-  if (fpre == 0.0) {
-    root = xpre;
-  } else if (fcur == 0.0) {
-    root = xcur;
-  } else {
-    for (int it = 0; it < 100 && !failed; ++it) {
-      if (fpre != 0.0 && fcur != 0.0 && std::copysign(1.0, fpre) != std::copysign(1.0, fcur)) {
-        xblk = xpre;
-        fblk = fpre;
-        spre = scur = xcur - xpre;
-      }
-      if (std::abs(fblk) < std::abs(fcur)) {
-        xpre = xcur;
-        xcur = xblk;
-        xblk = xpre;
-        fpre = fcur;
-        fcur = fblk;
-        fblk = fpre;
-      }
-      const double delta = (xtol + rtol * std::abs(xcur)) / 2.0;
-      const double sbis = (xblk - xcur) / 2.0;
-      if (fcur == 0.0 || std::abs(sbis) < delta) {
-        root = xcur;
-        break;
-      }
-      if (std::abs(spre) > delta && std::abs(fcur) < std::abs(fpre)) {
-        double stry;
-        if (xpre == xblk) {
-          stry = -fcur * (xcur - xpre) / (fcur - fpre);
-        } else {
-          const double dpre = (fpre - fcur) / (xpre - xcur);
-          const double dblk = (fblk - fcur) / (xblk - xcur);
-          stry = -fcur * (fblk * dblk - fpre * dpre) / (dblk * dpre * (fblk - fpre));
-        }
-        if (2.0 * std::abs(stry) < std::min(std::abs(spre), 3.0 * std::abs(sbis) - delta)) {
-          spre = scur;
-          scur = stry;
-        } else {
-          spre = scur = sbis;
-        }
-      } else {
-        spre = scur = sbis;
-      }
-      xpre = xcur;
-      fpre = fcur;
-      if (std::abs(scur) > delta)
-        xcur += scur;
-      else
-        xcur += sbis > 0.0 ? delta : -delta;
-      fcur = g_rec(xcur);
-    }
-  }
+  // brentq (packbot.ode.brentq, SciPy's Zeros/brentq.c: brentq.hpp)
+  const double root = packbot_native::brentq(g_rec, t0, t1, xtol, failed);
   end_valid_ = false;
   if (failed || std::isnan(root)) return nan;
   // the final bracket [ta, tb]: the neighbouring evaluated points with a falling sign change

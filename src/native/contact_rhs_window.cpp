@@ -4,6 +4,7 @@
 
 #include "contact_rhs.hpp"
 #include "conic.hpp"
+#include "np_sum.hpp"
 #include "sweep_api.hpp"
 
 #include <algorithm>
@@ -11,6 +12,8 @@
 #include <limits>
 #include <stdexcept>
 #include <vector>
+
+using packbot_native::np_sum;
 
 // One step of a time-stepping window (packbot.contact.timestep.MoreauJeanStepper.step) from
 // y = (q, v) over h [s], while its contact set stays as it is, under the loaded torques
@@ -469,27 +472,4 @@ nb::dict ContactRhs::window_run(nb::capsule api, Out1 y, double t, double t_end,
     out["p_best_d"] = nbest_d;
   }
   return out;
-}
-
-// numpy's sum of n contiguous doubles (its pairwise sum: in order below 8, 8 accumulators
-// from 8 to 128, halves above), to the bit.
-double ContactRhs::np_sum(const double *a, int n) {
-  if (n < 8) {
-    double s = 0.0;
-    for (int i = 0; i < n; ++i) s += a[i];
-    return s;
-  }
-  if (n <= 128) {
-    double r[8];
-    for (int j = 0; j < 8; ++j) r[j] = a[j];
-    int i = 8;
-    for (; i < n - (n % 8); i += 8)
-      for (int j = 0; j < 8; ++j) r[j] += a[i + j];
-    double res = ((r[0] + r[1]) + (r[2] + r[3])) + ((r[4] + r[5]) + (r[6] + r[7]));
-    for (; i < n; ++i) res += a[i];
-    return res;
-  }
-  int n2 = n / 2;
-  n2 -= n2 % 8;
-  return np_sum(a, n2) + np_sum(a + n2, n - n2);
 }
