@@ -1,4 +1,4 @@
-"""Type stub of the compiled extension (src/native/contact_rhs.cpp)."""
+"""Type stub of the compiled extension (src/native/bindings.cpp)."""
 
 from typing import Any
 

@@ -1,6 +1,6 @@
 """The contact-normal mode's right-hand side in one native call (``packbot._native``).
 
-:class:`NativeRhs` wraps the compiled ``ContactRhs`` (``src/native/contact_rhs.cpp``, nanobind
+:class:`NativeRhs` wraps the compiled ``ContactRhs`` (``src/native/contact_rhs.hpp``, nanobind
 against Pinocchio's headers): with the contact set's point layout and the current modes'
 plan loaded, one call takes (q, v, tau) and returns the constrained accelerations, doing
 what the Python path does in a right-hand-side call: Pinocchio's ``aba`` (armature included),

@@ -1,5 +1,5 @@
 // The joints packbot's native modules rebuild in their own Pinocchio model (shared by
-// src/native/contact_rhs.cpp and src/native/sweep.cpp).
+// src/native/contact_rhs.hpp and src/native/sweep.cpp).
 //
 // Pinocchio's algorithms visit a joint variant; its default collection has 25 types (composite
 // and mimic joints among them), each instantiating every algorithm step: this one (the 1-dof
