@@ -38,6 +38,7 @@ from packbot.drive import Drive, TorqueFunction
 from packbot.environment import Environment
 from packbot.errors import PackbotError, SimulationError
 from packbot.failures import Failure
+from packbot.impact_gain import warn_impact_gain
 from packbot.inputs import check_inputs, warn_settings
 from packbot.keywords import checked_arguments
 from packbot.model import Robot
@@ -183,8 +184,7 @@ class _Run:
         duration = self.duration
         t_last = duration - 1e-12  # (the run ends within 1e-12 s of its duration)
         while self.t < t_last:
-            t = self.t
-            y = self.y
+            t, y = self.t, self.y
             stepper.h_max = law.step_bound(y)
             t_sched = schedule.next_time()
             if t_sched <= t + 1e-12:  # an event landed on a scheduled time
@@ -496,4 +496,4 @@ def simulate(
             exc.result = run.result() if run.rec.samples_t else None
         raise
     run.diag.wall_time = time.perf_counter() - wall
-    return run.result()
+    return warn_impact_gain(run.result())  # (the report's law: energy gained at impacts)

@@ -79,6 +79,7 @@ INTERNAL_MODULES = {
     "packbot.dh",
     "packbot.drive",
     "packbot.geometry",
+    "packbot.impact_gain",
     "packbot.inputs",
     "packbot.keywords",
     "packbot.labels",
