@@ -203,7 +203,8 @@ class Case:
         error: The PackbotError subclass expected (API).
         cli: Whether ``action`` returns argv for ``packbot.cli.main``.
         code: The exit code expected (command line).
-        guard: The input used to hang: pytest runs it in a subprocess with a timeout.
+        guard: The input used to hang: pytest runs it in a worker process with a timeout
+            (tests/bad_input_worker.py; a signals case in a process of its own).
         check: For legal but hostile input: called with the action's return value, returns
             None when the outcome is right (``clean``) or the problem (``accepted``).
     """
@@ -2551,8 +2552,11 @@ def _answer(key: str) -> str:
 def worker_main(argv: Sequence[str]) -> int:
     """``--worker``: case keys on stdin, one JSON line each on stdout; ``--case KEY``: one."""
     logging.basicConfig(handlers=[logging.NullHandler()])  # main() adds none of its own
-    out = sys.stdout
-    sys.stdout = sys.stderr  # a case's own prints must not mix with the answers
+    # The answers go to the original stdout; file descriptor 1 then points to stderr, so that
+    # nothing a case prints (Python's print or a C++ library's own writes) mixes with them.
+    out = os.fdopen(os.dup(1), "w")
+    os.dup2(2, 1)
+    sys.stdout = sys.stderr
     if argv[:1] == ["--case"]:
         out.write(_answer(argv[1]) + "\n")
         out.flush()

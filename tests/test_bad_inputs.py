@@ -4,7 +4,8 @@ Every case of the catalogue is one test: a Python API call, a scenario file, a c
 matrix file or a broken URDF. An API case must raise the expected ``PackbotError`` subclass,
 whose message names the field (or element); a command line must exit with code 2 and print
 exactly one line on stderr, without a traceback. No case may be silently accepted. The cases
-that used to hang run in a subprocess with a timeout (a guard, not a timed assertion).
+that used to hang run in a worker process with a timeout per case (a guard, not a timed
+assertion; tests/bad_input_worker.py), a signals case in a process of its own.
 """
 
 import json

@@ -1,7 +1,8 @@
 """The report's law's energy gain at impacts: the warning at the end of a run.
 
-On real simulation output: a wrist-locked random start (``benchmarks/joint_clamp_energy.py``'s
-seeds 2839 and 2094, the angles written here) gains several joules at impacts under the
+On real simulation output: a wrist-locked random start (``benchmarks/joint_clamp_energy.py``
+with ``--seed`` 2094, one of its default seeds, and 2839, from a scan of seeds 2126-2999; the
+angles written here) gains several joules at impacts under the
 report's law (``contact_mode="joint_clamp"``, ``reset_rule="zero"``) and warns with the run's
 own figures; the shipped collapse (+0.265 J at its first impact) does not warn, nor does the
 contact-normal mode from the same start.
@@ -74,8 +75,8 @@ def test_a_run_whose_impacts_gain_more_than_1_j_warns_with_its_own_figures(
     assert float(m["t"]) == pytest.approx(top.t, abs=1e-4)
     assert m["pair"] == f"{top.piece1} - {top.piece2}"
     assert "contact_mode='joint_clamp'" in msg and "contact_mode='normal'" in msg
-    if start == "seed 2839":  # only the gains count: two impacts gain, two lose more
-        assert len(gains) == 2 and total > largest
+    if start == "seed 2839":  # only the gains count: some impacts gain, others lose more
+        assert total > largest + 0.1  # more than one impact gains (measured +3.26 and +0.21 J)
         assert sum(c for c, _ in changes) < 0.0
     gain = impact_gain(res.events)
     assert (gain.total, gain.count, gain.largest) == (total, len(gains), largest)
