@@ -30,6 +30,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from packbot import recorder
 from packbot.config import SimConfig
 from packbot.contact import make_law
 from packbot.contact.base import Crossing
@@ -102,6 +103,7 @@ class _Run:
         self.t = 0.0
         self.build_phase(np.asarray(q0, dtype=float), np.asarray(v0, dtype=float))
         self.law = make_law(config, self.sys, self.drive, self.events, self.diag)
+        self.rec.contacts = recorder.contact_sampler(self.drive, self.law)
 
     # ------------------------------------------------------------------ phases
     def build_phase(self, qf: FloatArray, vf: FloatArray, tau_mf: FloatArray | None = None) -> None:
@@ -169,9 +171,8 @@ class _Run:
     def restart(self) -> None:
         """A fresh step from the current state (after an event or a changed state).
 
-        With a law whose native step has a first stage (the contact-normal mode), the
-        derivative at the restart is left to the next step: its first stage there, or the
-        right-hand side then (nothing between a restart and the next step changes it).
+        With a law whose native step has a first stage (the contact-normal mode), the restart's
+        derivative is left to the next step (nothing between a restart and it changes it).
         """
         defer = self.law.first_stage is not None
         self.stepper.reset(self.t, self.y, h=max(self.stepper.h, 1e-6), defer=defer)
@@ -180,8 +181,7 @@ class _Run:
         """Integrate to the duration, event by event."""
         self.start()
         law, stepper, rec = self.law, self.stepper, self.rec
-        schedule, ticks = self.schedule, self.ticks
-        duration = self.duration
+        schedule, ticks, duration = self.schedule, self.ticks, self.duration
         t_last = duration - 1e-12  # (the run ends within 1e-12 s of its duration)
         while self.t < t_last:
             t, y = self.t, self.y
@@ -375,9 +375,8 @@ class _Run:
     def result(self) -> SimResult:
         """The run's result (also the partial result of a run that stopped)."""
         t, q, v, tau_cmd, tau, tau_fr, effort, energy = self.rec.arrays()
-        self.diag.steps = self.stepper.n_steps
-        self.diag.rejected_steps = self.stepper.n_rejected
-        self.diag.rhs_calls = self.stepper.n_rhs
+        st, d = self.stepper, self.diag
+        d.steps, d.rejected_steps, d.rhs_calls = st.n_steps, st.n_rejected, st.n_rhs
         return SimResult(
             t=t,
             q=q,
@@ -392,6 +391,7 @@ class _Run:
             tau_cmd=tau_cmd,
             tau_friction=tau_fr,
             effort=effort,
+            contacts=self.rec.contact_table(),
             failures=tuple(self.failures_in),
             control_ticks=self.schedule.ticks,
             environment=Environment() if self.environment is None else self.environment,

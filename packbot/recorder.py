@@ -23,16 +23,18 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import NDArray
 
+from packbot.contact_forces import ContactTable, SampleContact
 from packbot.drive import Drive
 from packbot.errors import SimulationError
 from packbot.ode import DenseSegment
 from packbot.result import Event
 
 if TYPE_CHECKING:
+    from packbot.contact.base import ContactLaw
     from packbot.contact.native import NativeRhs
     from packbot.system import System
 
-__all__ = ["EventLog", "Recorder", "Sample", "measure", "measure_many"]
+__all__ = ["EventLog", "Recorder", "Sample", "contact_sampler", "measure", "measure_many"]
 
 FloatArray = NDArray[np.float64]
 #: One sample: full q [rad], v [rad/s], commanded, applied and friction torques [N*m],
@@ -112,6 +114,31 @@ def measure(
     if drive.ctrl_obj is not None:
         cmd_f = drive.hold_full
     return (qf, vf, cmd_f, app_f, fr_f, drive.effort_full(), sys.energy(q, v))
+
+
+def contact_sampler(
+    drive: Drive, law: ContactLaw
+) -> Callable[[float, FloatArray], list[SampleContact]]:
+    """The contact forces of a state: the law's current mode's, under the drive's torques.
+
+    Args:
+        drive: The run's torques (applied and friction: what the right-hand side integrates).
+        law: The run's contact law (:meth:`~packbot.contact.base.ContactLaw.contact_forces`).
+
+    Returns:
+        (t [s], integrated state y) -> the contacts of that sample.
+    """
+
+    def sample(t: float, y: FloatArray) -> list[SampleContact]:
+        n = drive.sys.nv
+
+        def tau() -> FloatArray:
+            _, _, applied, friction = drive.torques(t, y)
+            return np.asarray(applied + friction, dtype=np.float64)
+
+        return law.contact_forces(y[:n], y[n : 2 * n], tau)
+
+    return sample
 
 
 #: System -> its compiled model for the samples' energies (None: no extension, or a joint
@@ -230,6 +257,8 @@ class Recorder:
         measure: The sample at (t, y).
         measure_many: The samples at several (t, y) at once (:func:`measure_many`'s columns;
             None: that function cannot, they are measured one by one), or None.
+        contacts: The contact forces of the sample at (t, y) (the law's
+            :meth:`~packbot.contact.base.ContactLaw.contact_forces`), or None: none kept.
     """
 
     #: Rows allocated beyond the regular samples and the final state (event samples).
@@ -241,6 +270,7 @@ class Recorder:
         duration: float,
         measure: Callable[[float, FloatArray], Sample],
         measure_many: Callable[[list[float], list[FloatArray]], Samples | None] | None = None,
+        contacts: Callable[[float, FloatArray], list[SampleContact]] | None = None,
     ) -> None:
         self.dt = sample_dt
         self.duration = duration
@@ -251,6 +281,8 @@ class Recorder:
         self._capacity = int(duration / sample_dt) + 2 + self.EXTRA_ROWS
         self._t: FloatArray = np.empty(0)
         self._cols: list[FloatArray] = []  # (q, v, tau_cmd, tau, tau_friction, effort, E)
+        self.contacts = contacts
+        self._contacts: list[list[SampleContact]] = []  # per sample kept, its contacts
 
     def __len__(self) -> int:
         """The number of samples kept."""
@@ -299,7 +331,9 @@ class Recorder:
         if self.measure_many is not None and self._cols:
             samples = self.measure_many(times, ys)
             if samples is not None:
+                found = [self._contacts_of(ts, y) for ts, y in zip(times, ys, strict=True)]
                 self._rows(times, samples)
+                self._contacts += found
                 self.next_sample += len(times)
                 return
         for ts, y in zip(times, ys, strict=True):
@@ -327,13 +361,23 @@ class Recorder:
     def point(self, t: float, y: FloatArray) -> None:
         """Keep the sample of state y at t (nothing kept if measuring it raises)."""
         sample = self.measure(t, y)
+        found = self._contacts_of(t, y)
         n = self._n
         if n == len(self._t):
             self._grow(sample)
         self._t[n] = t
         for col, value in zip(self._cols, sample, strict=True):
             col[n] = value
+        self._contacts.append(found)
         self._n = n + 1
+
+    def _contacts_of(self, t: float, y: FloatArray) -> list[SampleContact]:
+        """The contacts of the sample of state y at t (none without a ``contacts`` function)."""
+        return [] if self.contacts is None else self.contacts(t, y)
+
+    def contact_table(self) -> ContactTable:
+        """The contacts of the samples kept, as one table (:class:`ContactTable`)."""
+        return ContactTable.from_samples(self._contacts[: self._n])
 
     def _rows(self, times: list[float], samples: Samples) -> None:
         """Keep several samples (the first one was kept before: the arrays exist)."""

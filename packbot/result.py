@@ -16,6 +16,7 @@ from numpy.typing import NDArray
 
 from packbot import result_file
 from packbot.config import SimConfig
+from packbot.contact_forces import ContactForce, ContactTable
 from packbot.errors import (
     ConfigurationError,
     PackbotError,
@@ -26,6 +27,8 @@ from packbot.errors import (
 from packbot.failures import Failure
 from packbot.keywords import checked_arguments
 from packbot.result_file import (
+    CONTACT_INTS,
+    CONTACT_VECTORS,
     EVENT_FLOATS,
     EVENT_STRINGS,
     SAMPLE_ARRAYS,
@@ -206,6 +209,9 @@ class SimResult:
         tau_friction: Joint friction torques [N*m], shape (N, nv) (viscous + Coulomb; for a
             joint held by static friction or a brake, the holding torque).
         effort: Effective effort limits [N*m], shape (N, nv) (a weak joint's scaled).
+        contacts: The contact forces of every sample (:class:`~packbot.contact_forces.
+            ContactTable`; read them with :meth:`contacts_at`): the contact-normal mode's
+            engaged contacts, empty for the other modes and inside time-stepping windows.
         failures: The failures injected during the run.
         control_ticks: Number of ticks of a sampled-data controller.
         environment: The run's obstacles (None: a result built without one; ``simulate``
@@ -227,6 +233,7 @@ class SimResult:
     tau_cmd: NDArray[np.float64]
     tau_friction: NDArray[np.float64]
     effort: NDArray[np.float64]
+    contacts: ContactTable = field(default_factory=ContactTable)
     failures: tuple[Failure, ...] = ()
     control_ticks: int = 0
     environment: Environment | None = None
@@ -278,6 +285,21 @@ class SimResult:
         """
         import pinocchio as pin
 
+        robot = self._robot_of(robot)
+        model = robot.model
+        if not isinstance(frame, str) or not model.existFrame(frame):
+            raise UnknownNameError("frame", frame, sorted({str(f.name) for f in model.frames}))
+        fid = model.getFrameId(frame)
+        data = model.createData()
+        q = np.asarray(self.q, dtype=np.float64)
+        out = np.empty((len(q), 3))
+        for i, qi in enumerate(q):
+            pin.framesForwardKinematics(model, data, qi)
+            out[i] = data.oMf[fid].translation
+        return out
+
+    def _robot_of(self, robot: Robot | None) -> Robot:
+        """The run's robot: ``robot`` checked against the result's joints, or the shipped one."""
         from packbot.model import Robot, _shipped_robot
 
         if robot is None:
@@ -290,16 +312,99 @@ class SimResult:
                 list(robot.joint_names),
                 f"a robot with the result's joints {list(self.joint_names)}",
             )
+        return robot
+
+    @checked_arguments
+    def contacts_at(self, t: float, *, before: bool = False) -> list[ContactForce]:
+        """The contacts at sample time t, each with its force (world frame).
+
+        Conventions (:mod:`packbot.contact_forces`): ``force`` [N] acts on ``link2`` at
+        ``point`` [m], ``link1`` receives its opposite; ``normal`` points from ``link1`` to
+        ``link2``; a sticking pair's friction is an entry at its patch centre.
+
+        Args:
+            t: A sample time [s] (one of :attr:`t`, within 1e-9 s).
+            before: At an event's instant (two samples share its time), the sample before it
+                (default: the one after).
+
+        Raises:
+            ConfigurationError: ``t`` is not a sample time of the result.
+        """
+        k = self.sample_index(t, before=before)
+        return self.contacts.at_sample(k)
+
+    @checked_arguments
+    def sample_index(self, t: float, *, before: bool = False) -> int:
+        """The index in :attr:`t` of the sample at time t [s] (within 1e-9 s).
+
+        Args:
+            t: A sample time [s].
+            before: Of two samples at one instant (an event's), the first (default: the last).
+
+        Raises:
+            ConfigurationError: No sample within 1e-9 s of t.
+        """
+        times = np.asarray(self.t, dtype=np.float64)
+        tf = float(t)
+        lo = int(np.searchsorted(times, tf - 1e-9, side="left"))
+        hi = int(np.searchsorted(times, tf + 1e-9, side="right"))
+        if not np.isfinite(tf) or lo >= hi:
+            near = ""
+            if len(times) and np.isfinite(tf):
+                k = int(np.clip(np.searchsorted(times, tf), 0, len(times) - 1))
+                near = f"; the nearest is t = {float(times[k])!r}"
+            raise ConfigurationError("t", t, f"a sample time of the result (see result.t{near})")
+        return lo if before else hi - 1
+
+    @checked_arguments
+    def contact_torques(self, robot: Robot | None = None) -> NDArray[np.float64]:
+        """The joint torques the contact forces exert [N*m] at every sample, shape (N, nv).
+
+        The sum over the contacts of J_b(x)^T f on body 2 and -J_b(x)^T f on body 1, with
+        J_b(x) the world-frame Jacobian of body b's point x (zero for the chassis and the
+        obstacles): the normal force at ``point`` on both bodies, the friction at each body's
+        own material point (``point2``, ``point1``; :mod:`packbot.contact_forces`). The
+        contacts' share of the equations of motion, in full coordinates.
+
+        Args:
+            robot: The robot the run simulated; None: the shipped one.
+
+        Raises:
+            ConfigurationError: ``robot`` is not a Robot, or its joints are not the result's.
+        """
+        import pinocchio as pin
+
+        robot = self._robot_of(robot)
         model = robot.model
-        if not isinstance(frame, str) or not model.existFrame(frame):
-            raise UnknownNameError("frame", frame, sorted({str(f.name) for f in model.frames}))
-        fid = model.getFrameId(frame)
         data = model.createData()
         q = np.asarray(self.q, dtype=np.float64)
-        out = np.empty((len(q), 3))
-        for i, qi in enumerate(q):
-            pin.framesForwardKinematics(model, data, qi)
-            out[i] = data.oMf[fid].translation
+        out = np.zeros((len(q), model.nv))
+        table = self.contacts
+        joint_of: dict[str, int] = {}
+        for name in {n for pair in table.pairs for n in (pair[0], pair[2])}:
+            fid = model.getFrameId(name) if model.existFrame(name) else -1
+            joint_of[name] = int(model.frames[fid].parentJoint) if fid >= 0 else 0
+        last = -1
+        for r in range(len(table)):
+            k = int(table.sample[r])
+            if k != last:
+                pin.computeJointJacobians(model, data, q[k])
+                last = k
+            l1, _, l2, _ = table.pairs[int(table.pair[r])]
+            f, n = table.force[r], table.normal[r]
+            fn = (f @ n) * n
+            parts = (
+                (joint_of[l2], 1.0, table.point2[r]),
+                (joint_of[l1], -1.0, table.point1[r]),
+            )
+            for joint, sign, own in parts:
+                if joint == 0:
+                    continue
+                J = np.asarray(pin.getJointJacobian(model, data, joint, pin.LOCAL_WORLD_ALIGNED))
+                J = J.reshape(6, model.nv)
+                o = data.oMi[joint].translation
+                wrench = np.cross(table.point[r] - o, fn) + np.cross(own - o, f - fn)
+                out[k] += sign * (J[:3].T @ f + J[3:].T @ wrench)
         return out
 
     @checked_arguments
@@ -341,6 +446,11 @@ class SimResult:
             vs = [np.asarray(getattr(e, name), dtype=np.float64).ravel() for e in ev]
             arrays[f"event_{name}_len"] = np.array([len(x) for x in vs], dtype=np.int64)
             arrays[f"event_{name}"] = np.concatenate(vs) if vs else np.zeros(0)
+        table = self.contacts
+        for name in CONTACT_INTS:
+            arrays[f"contact_{name}"] = np.asarray(getattr(table, name), dtype=np.int64)
+        for name in CONTACT_VECTORS:
+            arrays[f"contact_{name}"] = np.asarray(getattr(table, name), dtype=np.float64)
         meta = {
             "format": RESULT_FORMAT,
             "packbot_version": __version__,
@@ -360,6 +470,7 @@ class SimResult:
                 }
                 for e in ev
             ],
+            "contact_pairs": [list(p) for p in table.pairs],
         }
         arrays["format"] = np.array(RESULT_FORMAT)
         arrays["meta_json"] = np.array(json.dumps(meta, allow_nan=True))
@@ -481,27 +592,55 @@ class SimResult:
             environment=environment,
             payload=None if pay is None else _rebuild(saved, "meta_json.payload", Payload, pay),
             scenario_text=meta["scenario_text"],
+            contacts=ContactTable(pairs=tuple(meta["contact_pairs"]), **saved.contacts),
         )
 
     @checked_arguments
-    def to_dataframe(self) -> pd.DataFrame:
-        """The samples as a pandas DataFrame (needs the optional extra ``packbot[pandas]``).
+    def to_dataframe(self, what: Literal["samples", "contacts"] = "samples") -> pd.DataFrame:
+        """The samples, or the contacts, as a pandas DataFrame (needs ``packbot[pandas]``).
 
-        One row per sample, indexed by ``t`` [s]; columns ``q:<joint>`` [rad], ``v:<joint>``
-        [rad/s], ``tau:<joint>``, ``tau_cmd:<joint>``, ``tau_friction:<joint>``,
+        ``"samples"``: one row per sample, indexed by ``t`` [s]; columns ``q:<joint>`` [rad],
+        ``v:<joint>`` [rad/s], ``tau:<joint>``, ``tau_cmd:<joint>``, ``tau_friction:<joint>``,
         ``effort:<joint>`` [N*m] and ``energy`` [J]. Two samples share a time at each event
         (before, then after).
 
+        ``"contacts"``: one row per contact and sample (:attr:`contacts`), indexed by ``t``
+        [s]; columns ``sample`` (the row of the samples), ``link1``, ``piece1``, ``link2``,
+        ``piece2``, ``point_x`` ... ``point_z``, ``point1_*``, ``point2_*`` [m], ``normal_*``,
+        ``force_*`` [N] (world frame, the force on link2), ``normal_force`` [N] and
+        ``friction_force`` [N] (the tangential part's magnitude).
+
+        Args:
+            what: ``"samples"`` or ``"contacts"``.
+
         Raises:
             PackbotError: pandas is not installed.
+            ConfigurationError: ``what`` is neither.
         """
+        if what not in ("samples", "contacts"):
+            raise ConfigurationError("what", what, "'samples' or 'contacts'")
         try:
             import pandas as pd
         except ImportError as exc:
             raise PackbotError(
                 'SimResult.to_dataframe needs pandas: pip install "packbot[pandas]"'
             ) from exc
-        columns: dict[str, NDArray[Any]] = {}
+        columns: dict[str, Any] = {}
+        if what == "contacts":
+            tab = self.contacts
+            names = [tab.pairs[int(k)] for k in tab.pair]
+            columns["sample"] = np.asarray(tab.sample)
+            for k, key in enumerate(("link1", "piece1", "link2", "piece2")):
+                columns[key] = [n[k] for n in names]
+            for key in ("point", "point1", "point2", "normal", "force"):
+                arr = np.asarray(getattr(tab, key))
+                for k, axis in enumerate("xyz"):
+                    columns[f"{key}_{axis}"] = arr[:, k]
+            fn = np.einsum("ij,ij->i", tab.force, tab.normal)
+            columns["normal_force"] = fn
+            columns["friction_force"] = np.linalg.norm(tab.force - fn[:, None] * tab.normal, axis=1)
+            t = np.asarray(self.t)[np.asarray(tab.sample, dtype=np.intp)]
+            return pd.DataFrame(columns, index=pd.Index(t, name="t"))
         for name in ("q", "v", "tau", "tau_cmd", "tau_friction", "effort"):
             arr = np.asarray(getattr(self, name))
             for k, joint in enumerate(self.joint_names):

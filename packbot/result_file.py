@@ -36,6 +36,9 @@ from packbot.validation import MAX_EVENTS_LIMIT, MAX_SAMPLES
 
 __all__ = [
     "COLUMN_ARRAYS",
+    "CONTACT_ARRAYS",
+    "CONTACT_INTS",
+    "CONTACT_VECTORS",
     "ENTRIES",
     "EVENT_FLOATS",
     "EVENT_STRINGS",
@@ -49,6 +52,7 @@ __all__ = [
     "PLAIN_COPIES",
     "READ_ENTRIES",
     "RESULT_FORMAT",
+    "RESULT_FORMAT_1",
     "SAMPLE_ARRAYS",
     "NpyHeader",
     "ResultArchive",
@@ -61,7 +65,9 @@ __all__ = [
 ]
 
 #: The format tag of a file written by :meth:`SimResult.save` (its version after the slash).
-RESULT_FORMAT = "packbot.SimResult/1"
+RESULT_FORMAT = "packbot.SimResult/2"
+#: The tag of the format before the contact forces (read: a result without them).
+RESULT_FORMAT_1 = "packbot.SimResult/1"
 #: The sample arrays, one row per sample time: ``t`` and ``energy`` of shape (N,), the others
 #: (N, number of joints).
 SAMPLE_ARRAYS = ("t", "q", "v", "tau", "energy", "tau_cmd", "tau_friction", "effort")
@@ -73,6 +79,12 @@ EVENT_FLOATS = ("t", "distance", "energy_before", "energy_after")
 EVENT_STRINGS = ("kind", "link1", "link2", "piece1", "piece2")
 #: The events' velocities (``event_<name>``: concatenated; ``event_<name>_len``: each length).
 EVENT_VELOCITIES = ("v_before", "v_after")
+#: The contact forces' integer columns (``contact_<name>``: one row per contact and sample).
+CONTACT_INTS = ("sample", "pair")
+#: The contact forces' vector columns, shape (K, 3) each (:class:`packbot.ContactTable`).
+CONTACT_VECTORS = ("point", "point1", "point2", "normal", "force")
+#: The contact forces' entries.
+CONTACT_ARRAYS = tuple(f"contact_{n}" for n in (*CONTACT_INTS, *CONTACT_VECTORS))
 #: The event floats that may be NaN (not measured): the distance and the energies.
 _EVENT_NAN_OK = ("distance", "energy_before", "energy_after")
 #: Plain copies for a reader with NumPy alone: checked by their headers, never read.
@@ -84,6 +96,7 @@ READ_ENTRIES: tuple[str, ...] = (
     *SAMPLE_ARRAYS,
     *(f"event_{n}" for n in EVENT_FLOATS),
     *(f"event_{n}{s}" for n in EVENT_VELOCITIES for s in ("_len", "")),
+    *CONTACT_ARRAYS,
 )
 #: Every entry a result file has (any other is an ``extra``: a 0-d text entry).
 ENTRIES: tuple[str, ...] = (*READ_ENTRIES, *PLAIN_COPIES)
@@ -101,6 +114,7 @@ META_FIELDS = (
     "payload",
     "scenario_text",
     "events",
+    "contact_pairs",
 )
 #: The fields of an event in the JSON metadata.
 _EVENT_META = (*EVENT_STRINGS, "relevant_joints")
@@ -380,6 +394,9 @@ class SavedResult:
         event_floats: Each of :data:`EVENT_FLOATS` -> one value per event, float64.
         event_velocities: ``"v_before"``, ``"v_after"`` -> each event's velocities, float64.
         meta: The JSON metadata, its structure checked (:func:`check_meta`).
+        contacts: Each of :data:`CONTACT_INTS` and :data:`CONTACT_VECTORS` -> its column
+            (int64, float64), checked against the samples and ``meta["contact_pairs"]``
+            (empty for a file of the format before them).
     """
 
     path: Path
@@ -387,6 +404,7 @@ class SavedResult:
     event_floats: dict[str, NDArray[np.float64]]
     event_velocities: dict[str, list[NDArray[np.float64]]]
     meta: dict[str, Any]
+    contacts: dict[str, NDArray[Any]]
 
     def fail(self, entry: str, reason: str) -> NoReturn:
         """Raise the :class:`~packbot.errors.ResultFileError` of ``entry`` of this file."""
@@ -406,6 +424,8 @@ _SHAPES = {
     **dict.fromkeys(COLUMN_ARRAYS, "2-d real"),
     **{f"event_{n}": "1-d real" for n in (*EVENT_FLOATS, *EVENT_VELOCITIES)},
     **{f"event_{n}_len": "1-d int" for n in EVENT_VELOCITIES},
+    **{f"contact_{n}": "1-d int" for n in CONTACT_INTS},
+    **{f"contact_{n}": "2-d real" for n in CONTACT_VECTORS},
 }
 _WHAT = {
     "text": "text (a NumPy str array)",
@@ -446,23 +466,26 @@ def read_saved(path: str | Path) -> SavedResult:
         if _check_header(archive, "format", "0-d text").nbytes > _FORMAT_BYTES:
             archive.fail("format", f"a tag of over {_FORMAT_BYTES} bytes")
         tag = archive.text("format")
-        if tag != RESULT_FORMAT:
+        if tag not in (RESULT_FORMAT, RESULT_FORMAT_1):
             archive.fail("format", f"format {_short(tag)}, expected {RESULT_FORMAT!r}")
-        heads = _check_entries(archive)
+        version_1 = tag == RESULT_FORMAT_1
+        heads = _check_entries(archive, version_1)
         meta_head = heads["meta_json"]
         if meta_head.nbytes > 4 * MAX_META_CHARS:
             archive.fail(
                 "meta_json",
                 f"{meta_head.nbytes // 4:,} characters (expected at most {MAX_META_CHARS:,})",
             )
-        total = sum(heads[e].nbytes for e in READ_ENTRIES)
+        total = sum(heads[e].nbytes for e in READ_ENTRIES if e in heads)
         if total > MAX_RESULT_BYTES:
             archive.fail(
                 "",
                 f"its entries hold {total:,} bytes uncompressed (expected at most "
                 f"{MAX_RESULT_BYTES:,}, the bound of docs/simulator.md)",
             )
-        meta = check_meta(parse_json(archive.text("meta_json"), archive.fail), archive.fail)
+        meta = check_meta(
+            parse_json(archive.text("meta_json"), archive.fail), archive.fail, tag=tag
+        )
         _check_shapes(archive, heads, len(meta["joint_names"]), len(meta["events"]))
         arrays = {name: _floats(archive, name) for name in SAMPLE_ARRAYS}
         t = arrays["t"]
@@ -487,22 +510,61 @@ def read_saved(path: str | Path) -> SavedResult:
         vels = {
             name: _velocities(archive, name, len(meta["joint_names"])) for name in EVENT_VELOCITIES
         }
-    return SavedResult(archive.path, arrays, floats, vels, meta)
+        contacts = {} if version_1 else _contacts(archive, len(t), len(meta["contact_pairs"]))
+    return SavedResult(archive.path, arrays, floats, vels, meta, contacts)
 
 
-def _check_entries(archive: ResultArchive) -> dict[str, NpyHeader]:
-    """Every entry's header: the format's entries present and of their kind, extras 0-d text."""
-    missing = [e for e in ENTRIES if e not in archive.members]
+def _contacts(archive: ResultArchive, n_samples: int, n_pairs: int) -> dict[str, NDArray[Any]]:
+    """The contact columns: K rows each, samples in order, pairs of ``contact_pairs``."""
+    k = archive.header("contact_sample").shape[0]
+    for name in CONTACT_INTS:
+        shape = archive.header(f"contact_{name}").shape
+        if shape != (k,):
+            archive.fail(f"contact_{name}", f"shape {shape} (expected ({k},), as contact_sample)")
+    for name in CONTACT_VECTORS:
+        shape = archive.header(f"contact_{name}").shape
+        if shape != (k, 3):
+            archive.fail(f"contact_{name}", f"shape {shape} (expected ({k}, 3): a row per contact)")
+    out: dict[str, NDArray[Any]] = {}
+    for name, bound in (("sample", n_samples), ("pair", n_pairs)):
+        col = np.asarray(archive.array(f"contact_{name}"), dtype=np.int64)
+        bad = (col < 0) | (col >= bound)
+        if name == "sample" and len(col) > 1:
+            bad[1:] |= col[1:] < col[:-1]
+        if bad.any():
+            i = int(np.flatnonzero(bad)[0])
+            archive.fail(
+                f"contact_{name}",
+                f"contact_{name}[{i}] = {int(col[i])} (expected "
+                + (
+                    f"non-decreasing sample indices in [0, {n_samples}))"
+                    if name == "sample"
+                    else f"an index of meta_json.contact_pairs, in [0, {n_pairs}))"
+                ),
+            )
+        out[name] = col
+    for name in CONTACT_VECTORS:
+        out[name] = _floats(archive, f"contact_{name}")
+    return out
+
+
+def _check_entries(archive: ResultArchive, version_1: bool = False) -> dict[str, NpyHeader]:
+    """Every entry's header: the format's entries present and of their kind, extras 0-d text.
+
+    A file of the format before the contact forces (``version_1``) has no contact entries.
+    """
+    entries = [e for e in ENTRIES if not (version_1 and e in CONTACT_ARRAYS)]
+    missing = [e for e in entries if e not in archive.members]
     if missing:
         archive.fail(
-            missing[0], f"corrupt: missing (a result file has the entries {', '.join(ENTRIES)})"
+            missing[0], f"corrupt: missing (a result file has the entries {', '.join(entries)})"
         )
-    heads = {e: _check_header(archive, e, _SHAPES[e]) for e in ENTRIES}
+    heads = {e: _check_header(archive, e, _SHAPES[e]) for e in entries}
     for entry in archive.members:
         if entry in heads:
             continue
-        if entry.startswith("event_"):
-            archive.fail(entry, "an unknown entry (the event_ names are the format's own)")
+        if entry.startswith(("event_", "contact_")):
+            archive.fail(entry, "an unknown entry (the event_ and contact_ names are the format's)")
         head = archive.header(entry)
         if head.kind != "text" or head.shape != ():
             archive.fail(
@@ -612,7 +674,7 @@ def _list_of(value: object, kind: type, fail: Fail, entry: str, what: str) -> li
     return value
 
 
-def check_meta(meta: object, fail: Fail) -> dict[str, Any]:
+def check_meta(meta: object, fail: Fail, tag: str = RESULT_FORMAT) -> dict[str, Any]:
     """The JSON metadata, its structure checked: every field present, known and of its type.
 
     The settings', diagnostics', failures', obstacles' and payload's own fields are checked by
@@ -621,20 +683,31 @@ def check_meta(meta: object, fail: Fail) -> dict[str, Any]:
     Args:
         meta: The parsed JSON.
         fail: Raises the error of an entry (``fail(entry, reason)``).
+        tag: The file's format tag (:data:`RESULT_FORMAT_1`: no ``contact_pairs``).
 
     Returns:
-        ``meta``, with ``rest_time`` a float or None.
+        ``meta``, with ``rest_time`` a float or None (and ``contact_pairs`` a list of tuples,
+        empty for the format before them).
     """
     if not isinstance(meta, dict):
         fail("meta_json", f"a JSON {type(meta).__name__} (expected an object)")
-    for key in META_FIELDS:
+    fields = [k for k in META_FIELDS if not (tag == RESULT_FORMAT_1 and k == "contact_pairs")]
+    for key in fields:
         if key not in meta:
             fail(f"meta_json.{key}", "missing (expected in the metadata)")
     for key in meta:
-        if key not in META_FIELDS:
-            fail(f"meta_json.{key}", f"an unknown field (expected {', '.join(META_FIELDS)})")
-    if meta["format"] != RESULT_FORMAT:
-        fail("meta_json.format", f"{_short(meta['format'])} (expected {RESULT_FORMAT!r})")
+        if key not in fields:
+            fail(f"meta_json.{key}", f"an unknown field (expected {', '.join(fields)})")
+    if meta["format"] != tag:
+        fail("meta_json.format", f"{_short(meta['format'])} (expected {tag!r})")
+    pairs = _list_of(meta.get("contact_pairs", []), list, fail, "meta_json.contact_pairs", "pairs")
+    for k, pair in enumerate(pairs):
+        if len(pair) != 4 or not all(isinstance(x, str) for x in pair):
+            fail(
+                f"meta_json.contact_pairs[{k}]",
+                f"{_short(pair)} (expected [link1, piece1, link2, piece2], four strings)",
+            )
+    meta["contact_pairs"] = [tuple(p) for p in pairs]
     for key in ("packbot_version", "scenario_text"):
         if not isinstance(meta[key], str):
             fail(f"meta_json.{key}", f"{_short(meta[key])} (expected a string)")

@@ -39,7 +39,13 @@ import numpy as np
 
 from packbot.errors import ResultFileError, ResultValueError
 from packbot.result import SimResult
-from packbot.result_file import ENTRIES, EVENT_FLOATS, MAX_MEMBERS, SAMPLE_ARRAYS
+from packbot.result_file import (
+    CONTACT_ARRAYS,
+    ENTRIES,
+    EVENT_FLOATS,
+    MAX_MEMBERS,
+    SAMPLE_ARRAYS,
+)
 
 #: The entries a load reads, in the order ``save`` writes them.
 READ_IN_FILE_ORDER = (
@@ -49,6 +55,7 @@ READ_IN_FILE_ORDER = (
     "event_v_before",
     "event_v_after_len",
     "event_v_after",
+    *CONTACT_ARRAYS,
     "format",
     "meta_json",
 )
@@ -278,7 +285,7 @@ def register(cat: ModuleType) -> None:
     # -- bytes inserted inside a member: the members up to it are no longer where the zip
     # directory says (the first one a load reads: t for an array, the format tag otherwise)
     for k, name in enumerate(FILE_ORDER):
-        first = "t" if k < len(SAMPLE_ARRAYS) + 8 else "format"
+        first = "t" if k < len(SAMPLE_ARRAYS) + 8 + len(CONTACT_ARRAYS) else "format"
 
         def make_insert(c: Any, raw: bytes, a: Any, name: str = name) -> bytes:
             m = layout(raw)[name]
@@ -408,10 +415,19 @@ def register(cat: ModuleType) -> None:
         replaced(f"event-{name}-strings", e, np.array(["x"] * 8), entry(e), "dtype")
         replaced(f"event-{name}-2d", e, np.zeros((8, 1)), entry(e), "shape")
 
+    # -- the contact forces' columns
+    replaced("contact-sample-floats", "contact_sample", np.zeros(0), entry("contact_sample"))
+    replaced("contact-sample-2d", "contact_sample", np.zeros((0, 1), dtype=np.int64), "shape")
+    replaced("contact-pair-extra-row", "contact_pair", np.zeros(1, dtype=np.int64), "shape")
+    replaced("contact-point-1d", "contact_point", np.zeros(0), entry("contact_point"), "shape")
+    replaced("contact-force-4-columns", "contact_force", np.zeros((0, 4)), entry("contact_force"))
+    replaced("contact-normal-strings", "contact_normal", np.array([["x"] * 3]), "dtype")
+    replaced("contact-sample-missing", "contact_sample", None, entry("contact_sample"), "missing")
+
     # -- the text entries and the plain copies
     replaced("text-format-missing", "format", None, "no format tag")
     replaced("text-meta_json-missing", "meta_json", None, "no format tag")
-    replaced("text-format-other-version", "format", np.array("packbot.SimResult/2"), "/2")
+    replaced("text-format-other-version", "format", np.array("packbot.SimResult/3"), "/3")
     replaced("text-format-empty", "format", np.array(""), entry("format"), "expected")
     replaced("text-format-number", "format", np.array(1.0), entry("format"), "dtype")
     replaced("text-format-1d", "format", np.array(["packbot.SimResult/1"]), entry("format"))
@@ -505,7 +521,20 @@ def register(cat: ModuleType) -> None:
     ):
         meta_case(f"no-{key}", dropper(key), entry(f"{m}.{key}"), "missing")
     meta_case("unknown-field", setter("colour", "red"), entry(f"{m}.colour"), "unknown")
-    meta_case("format-other", setter("format", "packbot.SimResult/2"), entry(f"{m}.format"))
+    meta_case("format-other", setter("format", "packbot.SimResult/3"), entry(f"{m}.format"))
+    meta_case("format-older", setter("format", "packbot.SimResult/1"), entry(f"{m}.format"))
+    meta_case("contact-pairs-number", setter("contact_pairs", 3), entry(f"{m}.contact_pairs"))
+    meta_case(
+        "contact-pairs-three-names",
+        setter("contact_pairs", [["link3", "link3/tube", "link1"]]),
+        entry(f"{m}.contact_pairs[0]"),
+        "four strings",
+    )
+    meta_case(
+        "contact-pairs-numbers",
+        setter("contact_pairs", [[1, 2, 3, 4]]),
+        entry(f"{m}.contact_pairs[0]"),
+    )
     meta_case("format-number", setter("format", 1), entry(f"{m}.format"))
     meta_case("version-number", setter("packbot_version", 1), entry(f"{m}.packbot_version"))
     meta_case("scenario_text-null", setter("scenario_text", None), entry(f"{m}.scenario_text"))

@@ -41,6 +41,7 @@ from packbot.system import System
 
 if TYPE_CHECKING:
     from packbot.contact.stretch import SampleClock, Stretched
+    from packbot.contact_forces import SampleContact
 
 __all__ = ["Active", "ContactLaw", "Crossing", "Key"]
 
@@ -228,4 +229,17 @@ class ContactLaw(Protocol):
         self, q: FloatArray, v: FloatArray, applied: FloatArray, friction: FloatArray
     ) -> FloatArray:
         """The joint friction torques [N*m] to report: each held joint's holding torque."""
+        ...
+
+    def contact_forces(
+        self, q: FloatArray, v: FloatArray, tau: Callable[[], FloatArray]
+    ) -> list[SampleContact]:
+        """The contacts of the current mode at (q, v) under the joint torques ``tau()`` [N*m].
+
+        ``tau`` is called only when the law has contacts to report (it may call the user's
+        torque function).
+
+        Each (names, point [m], normal, force on body 2 [N]), world frame
+        (:mod:`packbot.contact_forces`); empty for a law without contact forces.
+        """
         ...

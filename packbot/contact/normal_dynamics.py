@@ -26,9 +26,34 @@ from packbot.contact.normal_tolerances import (
     TOUCH_GAP,
 )
 
-__all__ = ["ConstrainedDynamics"]
+__all__ = ["ConstrainedDynamics", "RestSolution"]
 
 FloatArray = NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class RestSolution:
+    """The frictional contact problem of a resting arm (v = 0), as the rest capture solved it.
+
+    Attributes:
+        a: The joint accelerations under its forces [rad/s^2] (below the capture bound).
+        touch: The touching rows (patch points, then limits), shape (m,).
+        forces: Per touching row its force (t1, t2, n) [N] in the row's contact frame (a limit
+            row: n only), shape (m, 3): the solver's answer, one of the statically admissible
+            distributions.
+        rows: The rows' blocks (t1, t2, n per row), shape (3 m, nv): J^T of ``forces``
+            (flattened) is their joint torque.
+        mu: Each row's friction coefficient (0 for a limit row), shape (m,).
+        torque: The rows' joint torque that holds the arm exactly still [N*m], shape (nv,):
+            J^T of ``forces`` less M a (the solver leaves a within its tolerance of 0).
+    """
+
+    a: FloatArray
+    touch: NDArray[np.intp]
+    forces: FloatArray
+    rows: FloatArray
+    mu: FloatArray
+    torque: FloatArray
 
 
 @dataclass
@@ -257,10 +282,21 @@ class ConstrainedDynamics(ContactRows):
     def _rest_accel(self, q: FloatArray, a_free: FloatArray, minv: FloatArray) -> FloatArray | None:
         """Joint accelerations at v = 0 under the frictional contact of every touching row.
 
-        None when no row touches or the cone problem is not solved. A resting arm's state
-        does not move: the step ends' rest condition asks this again with the same q, a_free
-        and M^-1, whose answer (a cone problem solved from scratch: a function of its inputs)
-        is kept while the contact set and the joints' Coulomb friction are unchanged too.
+        None when no row touches or the cone problem is not solved (:meth:`rest_solution`).
+        """
+        sol = self.rest_solution(q, a_free, minv)
+        return None if sol is None else sol.a.copy()
+
+    def rest_solution(
+        self, q: FloatArray, a_free: FloatArray, minv: FloatArray
+    ) -> RestSolution | None:
+        """The frictional contact problem at v = 0 (:class:`RestSolution`), or None.
+
+        None when no row touches or the cone problem is not solved. A resting arm's state does
+        not move: the step ends' rest condition asks this again with the same q, a_free and
+        M^-1, whose answer (a cone problem solved from scratch: a function of its inputs) is
+        kept while the contact set and the joints' Coulomb friction are unchanged too. The
+        arrays returned are the kept ones (read only).
         """
         coul, fdir = self.joint_coulomb, self.joint_fdir
         key = (
@@ -275,22 +311,30 @@ class ConstrainedDynamics(ContactRows):
         own = type(self)._problem is _OWN_PROBLEM
         got = self._rest_cache
         if own and got is not None and got[0] == key:
-            return None if got[1] is None else got[1].copy()
-        a = self._rest_accel_solve(q, a_free, minv)
+            return got[1]
+        sol = self._rest_solve(q, a_free, minv)
         if own:
-            self._rest_cache = (key, None if a is None else a.copy())
-        return a
+            self._rest_cache = (key, sol)
+        return sol
 
     def _rest_accel_solve(
         self, q: FloatArray, a_free: FloatArray, minv: FloatArray
     ) -> FloatArray | None:
-        """:meth:`_rest_accel`, solved."""
+        """:meth:`_rest_accel`, solved from scratch (the kept answer not used)."""
+        sol = self._rest_solve(q, a_free, minv)
+        return None if sol is None else sol.a.copy()
+
+    def _rest_solve(
+        self, q: FloatArray, a_free: FloatArray, minv: FloatArray
+    ) -> RestSolution | None:
+        """:meth:`rest_solution`, solved."""
         z = np.zeros(self.nv)
         Jn, _, gap, _, extra = self._problem(q, z)
         touch = np.flatnonzero(gap <= TOUCH_GAP)
         if len(touch) == 0:
             return None
         J3, mus = self._frictional_rows(touch, Jn, extra)
+        m3 = len(J3)
         coul = self.joint_coulomb
         cj = np.flatnonzero(coul > 0.0) if coul is not None else np.zeros(0, dtype=np.intp)
         if len(cj):
@@ -308,7 +352,13 @@ class ConstrainedDynamics(ContactRows):
             x, res = solve_ncp_admm(self.model, self.data, G3, J3 @ a_free, mus)
         if res > 1e-6:
             return None
-        return np.asarray(a_free + minv @ J3.T @ x, dtype=np.float64)
+        a = np.asarray(a_free + minv @ J3.T @ x, dtype=np.float64)
+        forces = np.asarray(x[:m3], dtype=np.float64).reshape(-1, 3)
+        rows = np.asarray(J3[:m3], dtype=np.float64)
+        torque = rows.T @ forces.ravel() - np.linalg.solve(minv, a)
+        for arr in (a, touch, forces, rows, mus, torque):
+            arr.setflags(write=False)
+        return RestSolution(a, touch, forces, rows, mus, torque)
 
 
 #: The contact set's own rows: a subclass adding rows (the hand-off) takes the numpy path.

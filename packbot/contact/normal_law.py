@@ -22,6 +22,7 @@ from packbot.contact import native
 from packbot.contact.base import Active, Crossing, Key
 from packbot.contact.locks import JointLocks
 from packbot.contact.normal_contacts import NormalContacts
+from packbot.contact.normal_forces import mode_forces
 from packbot.contact.normal_tolerances import PENETRATION_TOL
 from packbot.contact.pairs import reach_bounds
 from packbot.contact.patch_events import PatchEvents
@@ -36,6 +37,7 @@ from packbot.contact.stretch import (
 )
 from packbot.contact.timestep import QUIET_STEPS, MoreauJeanStepper, StepSegment
 from packbot.contact.window_run import StepChain, run_native
+from packbot.contact_forces import SampleContact
 from packbot.ode import DenseSegment, RK45Stepper, StepKernel, StiffKernel
 from packbot.system import System
 
@@ -152,6 +154,8 @@ class NormalLaw(PatchEvents):
         self.normal = NormalContacts.from_config(system.model, system.data, system.world, self.cfg)
         self._native = native.native_rhs(system.model) if native.ENABLED else None
         self.normal.native = self._native  # (the restart's projection and impact)
+        self._force_data = system.model.createData()  # (the contact forces' placements)
+        self._rest_contacts: tuple[Any, list[SampleContact]] = (None, [])
         if self._native is not None and self.cfg.joint_limits:  # (the step end's screen)
             self._native.set_limits(system.upper, system.lower)
         if self._native is not None:  # (step_bound)
@@ -743,6 +747,30 @@ class NormalLaw(PatchEvents):
         if w is None:
             return super().friction(q, v, applied, friction)
         return np.asarray(friction + w.stepper.joint_torque, dtype=np.float64)
+
+    def contact_forces(
+        self, q: FloatArray, v: FloatArray, tau: Callable[[], FloatArray]
+    ) -> list[SampleContact]:
+        """The current mode's contact forces at (q, v) (``normal_forces.mode_forces``).
+
+        None inside a time-stepping window (its steps' impulses are not kept yet).
+        """
+        nc = self.normal
+        if self.window is not None or not nc.engaged:
+            return []
+        # a resting arm's samples are one state: its contacts are found once
+        key = (nc._version, q.tobytes()) if nc.resting and not v.any() else None
+        if key is not None and self._rest_contacts[0] == key:
+            return self._rest_contacts[1]
+        a_free = super().accel(q, v, self.sys.aba(q, v, tau()))
+        kept = nc._last_eval  # (the step end's evaluation, kept for its own state)
+        try:
+            found = mode_forces(nc, self._force_data, q, v, a_free, self.sys.minv(q))
+        finally:
+            nc._last_eval = kept
+        if key is not None:
+            self._rest_contacts = (key, found)
+        return found
 
     def _sync_pairs(self) -> None:
         """Pairs that the drift projection put in the contact set become active pairs.

@@ -51,6 +51,7 @@ from packbot.system import System
 
 if TYPE_CHECKING:
     from packbot.contact.stretch import SampleClock, Stretched
+    from packbot.contact_forces import SampleContact
 
 __all__ = [
     "HOLD_KICK",
@@ -331,6 +332,12 @@ class JointStops:
     def held(self) -> tuple[int, ...]:
         """Every joint with a_j = 0 in the current mode (engaged or held), sorted."""
         return self.locks.locked
+
+    def contact_forces(
+        self, q: FloatArray, v: FloatArray, tau: Callable[[], FloatArray]
+    ) -> list[SampleContact]:
+        """No contact forces: the joint stops and clamps act on joints, not on pairs."""
+        return []
 
     def friction(
         self, q: FloatArray, v: FloatArray, applied: FloatArray, friction: FloatArray

@@ -1,0 +1,177 @@
+"""The contact forces of the contact-normal mode at a state: what each patch point carries.
+
+The forces are those of the problem the mode solves, read off its multipliers (nothing is
+solved a second way):
+
+* with the modes fixed (:meth:`~packbot.contact.normal_dynamics.ConstrainedDynamics.evaluate`),
+  an engaged patch point's multiplier lambda is its normal force: the force on body 2 is
+  ``lambda n``, plus ``-mu lambda s`` when its pair slips (s the pair's sliding direction, as
+  the force columns ``J_n - mu J_s`` have it); a sticking pair's two tangential multipliers
+  are its friction force at the patch centre, ``lambda_1 t1 + lambda_2 t2``;
+* at rest (the rest capture), the frictional problem of every touching row
+  (:meth:`~packbot.contact.normal_dynamics.ConstrainedDynamics.rest_solution`): each touching
+  point's force (t1, t2, n) in its cone; where that problem is statically indeterminate, the
+  distribution deepest inside the cones (:mod:`packbot.contact.static_forces`).
+
+A joint limit row is not a contact (its torque is the joint's, not a pair's). Conventions of
+the records: :mod:`packbot.contact_forces`.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+import pinocchio as pin
+from numpy.typing import NDArray
+
+from packbot.contact.normal_tolerances import STICK_SPEED
+from packbot.contact.static_forces import analytic_centre
+from packbot.contact_forces import PairNames, SampleContact
+
+if TYPE_CHECKING:
+    from packbot.contact.normal_contacts import NormalContacts
+    from packbot.contact.normal_patch import _Pair
+
+__all__ = ["mode_forces"]
+
+FloatArray = NDArray[np.float64]
+
+
+def mode_forces(
+    nc: NormalContacts,
+    data: Any,
+    q: FloatArray,
+    v: FloatArray,
+    a_free: FloatArray,
+    minv: FloatArray,
+) -> list[SampleContact]:
+    """The contacts of the contact set's current mode at (q, v), world frame.
+
+    Args:
+        nc: The contact set.
+        data: A Pinocchio data of the set's model for the placements (not the set's own).
+        q: Configuration [rad].
+        v: Velocity [rad/s].
+        a_free: Unconstrained accelerations [rad/s^2] (with the locks' rows, as the law's).
+        minv: M^-1 at q.
+
+    Returns:
+        (names, point, point1, point2 [m], normal, force on body 2 [N]) per contact point.
+    """
+    if not nc.engaged or not nc.pairs:
+        return []
+    pin.forwardKinematics(nc.model, data, q)
+    pairs = nc._pair_list
+    frames = [_frame(data, p) for p in pairs]
+    if nc.resting:
+        return _rest_forces(nc, data, pairs, frames, q, a_free, minv)
+    ev = nc.evaluate(q, v, a_free, minv)
+    if ev.rest is not None:
+        return _rest_forces(nc, data, pairs, frames, q, a_free, minv)
+    plan = nc._plan()
+    start = _row_starts(pairs)
+    lam = np.asarray(ev.lam, dtype=np.float64)
+    pos = {int(r): i for i, r in enumerate(plan.engaged)}
+    n_e = len(plan.engaged)
+    stick_k = {int(i): n_e + 2 * k for k, i in enumerate(plan.sticks)}
+    out: list[SampleContact] = []
+    for i, p in enumerate(pairs):
+        K = len(p.local1)
+        at = [(j, pos[start[i] + j]) for j in range(K) if start[i] + j in pos]
+        if not at:
+            continue
+        T = frames[i]  # rows t1, t2, n (world)
+        n = T[2]
+        names = _names(p)
+        dirn = n
+        if nc.mu > 0.0 and not p.stick:  # the force columns J_n - mu J_s: lambda (n - mu s)
+            w = np.asarray(ev.vt[i], dtype=np.float64) + STICK_SPEED * p.slip_dir
+            nw = math.sqrt(float(w @ w))
+            s = w / nw if nw > 0.0 else p.slip_dir
+            dirn = n - nc.mu * s
+        touch, p1, p2 = _points(data, p)
+        for j, r in at:
+            out.append((names, touch[j], p1[j], p2[j], n.copy(), float(lam[r]) * dirn))
+        k = stick_k.get(i)
+        if k is not None:  # a sticking pair's friction, at its patch centre
+            f = np.asarray(lam[k] * T[0] + lam[k + 1] * T[1], dtype=np.float64)
+            c = _centre(data, p)
+            out.append((names, c, c, c, n.copy(), f))
+    return out
+
+
+def _rest_forces(
+    nc: NormalContacts,
+    data: Any,
+    pairs: list[_Pair],
+    frames: list[FloatArray],
+    q: FloatArray,
+    a_free: FloatArray,
+    minv: FloatArray,
+) -> list[SampleContact]:
+    """The resting arm's contacts: the frictional problem's force of every touching point."""
+    sol = nc.rest_solution(q, a_free, minv)
+    if sol is None:
+        return []
+    touch = sol.touch
+    x = analytic_centre(sol.rows, sol.forces, sol.mu, sol.torque)
+    start = _row_starts(pairs)
+    owner: dict[int, tuple[int, int]] = {}
+    for i, p in enumerate(pairs):
+        for j in range(len(p.local1)):
+            owner[start[i] + j] = (i, j)
+    points: dict[int, tuple[FloatArray, FloatArray, FloatArray]] = {}
+    out: list[SampleContact] = []
+    for r, f3 in zip(touch.tolist(), x, strict=True):
+        if r not in owner:  # a limit row
+            continue
+        i, j = owner[r]
+        if i not in points:
+            points[i] = _points(data, pairs[i])
+        T = frames[i]
+        touch_at, p1, p2 = points[i]
+        out.append((_names(pairs[i]), touch_at[j], p1[j], p2[j], T[2].copy(), f3 @ T))
+    return out
+
+
+def _row_starts(pairs: list[_Pair]) -> list[int]:
+    """Each pair's first normal row (the rows are the patch points, pair after pair)."""
+    out, k = [], 0
+    for p in pairs:
+        out.append(k)
+        k += len(p.local1)
+    return out
+
+
+def _names(p: _Pair) -> PairNames:
+    info = p.info
+    return (info.link1, info.piece1, info.link2, info.piece2)
+
+
+def _frame(data: Any, p: _Pair) -> FloatArray:
+    """The pair's contact frame in the world: rows t1, t2, n (n from body 1 to body 2)."""
+    R = data.oMi[p.info.joint1 if p.on1 else p.info.joint2].rotation
+    return np.asarray(p.frame2 @ R.T, dtype=np.float64)
+
+
+def _points(data: Any, p: _Pair) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """The patch points [m], (K, 3) world: where they touch, body 1's and body 2's.
+
+    They touch at the material point of the body not carrying the normal: the rows' exact
+    derivative of the gap n . (p2 - p1) with n turning with its body acts there on both.
+    """
+    M1, M2 = data.oMi[p.info.joint1], data.oMi[p.info.joint2]
+    a = np.asarray(p.local1 @ M1.rotation.T + M1.translation, dtype=np.float64)
+    b = np.asarray(p.local2 @ M2.rotation.T + M2.translation, dtype=np.float64)
+    return (b if p.on1 else a), a, b
+
+
+def _centre(data: Any, p: _Pair) -> FloatArray:
+    """Where the patch centres touch [m], world frame (as :func:`_points`)."""
+    if p.on1:
+        M2 = data.oMi[p.info.joint2]
+        return np.asarray(M2.rotation @ np.ravel(p.centre2) + M2.translation, dtype=np.float64)
+    M1 = data.oMi[p.info.joint1]
+    return np.asarray(M1.rotation @ np.ravel(p.centre1) + M1.translation, dtype=np.float64)

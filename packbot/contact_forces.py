@@ -1,0 +1,188 @@
+"""The contact forces of a run: one record per contact point and sample (world frame).
+
+The contact law reports, at every sample, the forces of its current contact problem
+(:meth:`packbot.contact.base.ContactLaw.contact_forces`): in the contact-normal mode the
+forces of the constrained dynamics' mode (each engaged patch point's normal force, with its
+Coulomb friction when the pair slips; a sticking pair's friction force at its patch centre),
+at rest the frictional problem the rest capture solved (per-point cones). What one contact is
+(:class:`ContactForce`) and how a run keeps them all (:class:`ContactTable`: flat columns, one
+row per contact and sample) live here; how the engine finds them lives with the law
+(:mod:`packbot.contact.normal_forces`). Conventions (docs/contact.md, "Contact forces"):
+
+* ``link1`` / ``piece1`` is the pair's body 1 (the distal body), ``link2`` / ``piece2`` its
+  body 2 (proximal, the chassis or an obstacle), as in the event log;
+* ``normal`` is the unit normal from body 1 to body 2 (world frame);
+* ``force`` [N] (world frame) acts on body 2 at ``point``; body 1 receives its opposite there;
+  its component along ``normal`` is the normal force (>= 0: a contact pushes), the rest is the
+  friction force;
+* ``point`` [m] (world frame) is where the bodies touch: the normal force (and a sticking
+  pair's friction) acts there on both bodies. The engine's patch point is a pair of material
+  points, ``point1`` on body 1 and ``point2`` on body 2, at most the contact tolerance apart;
+  ``point`` is the one on the body that does not carry the normal (the gap's exact derivative
+  puts the force there), and a sliding or resting point's friction acts at each body's own
+  material point (body 2 at ``point2``, body 1 at ``point1``). A sticking pair's friction is
+  one entry at its patch centre with no normal component (``point1 == point2 == point``).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import NDArray
+
+__all__ = ["ContactForce", "ContactTable", "PairNames", "SampleContact"]
+
+FloatArray = NDArray[np.float64]
+IntArray = NDArray[np.int64]
+#: A pair's names: (link1, piece1, link2, piece2).
+PairNames = tuple[str, str, str, str]
+#: One contact of one sample as the law reports it: names, point, point1, point2 [m], normal,
+#: force [N].
+SampleContact = tuple[PairNames, FloatArray, FloatArray, FloatArray, FloatArray, FloatArray]
+
+
+@dataclass(frozen=True, kw_only=True)
+class ContactForce:
+    """One contact's force at one sample (world frame; see the module for the conventions).
+
+    Attributes:
+        link1: Body 1 of the pair (distal).
+        piece1: Its convex piece.
+        link2: Body 2 of the pair (proximal, chassis or obstacle).
+        piece2: Its convex piece.
+        point: Where the bodies touch [m], world frame, shape (3,): the normal force acts there.
+        point1: Body 1's material point [m] (its friction acts there), world, shape (3,).
+        point2: Body 2's material point [m] (its friction acts there), world, shape (3,).
+        normal: Unit contact normal from body 1 to body 2, world frame, shape (3,).
+        force: Force on body 2 from body 1 [N], world frame, shape (3,) (body 1 receives
+            ``-force``).
+    """
+
+    link1: str
+    piece1: str
+    link2: str
+    piece2: str
+    point: FloatArray
+    point1: FloatArray
+    point2: FloatArray
+    normal: FloatArray
+    force: FloatArray
+
+    @property
+    def normal_force(self) -> float:
+        """The force's component along the normal [N] (>= 0: the contact pushes)."""
+        return float(self.force @ self.normal)
+
+    @property
+    def friction_force(self) -> FloatArray:
+        """The force's tangential part [N], world frame, shape (3,)."""
+        return np.asarray(self.force - self.normal_force * self.normal, dtype=np.float64)
+
+    @property
+    def pair(self) -> str:
+        """The pair as the diagnostics name it: ``"piece1 - piece2"`` (``link3/tube - ...``)."""
+        return f"{self.piece1} - {self.piece2}"
+
+
+@dataclass(frozen=True)
+class ContactTable:
+    """Every contact of every sample of a run, as flat columns (one row per contact).
+
+    Attributes:
+        pairs: The pairs that were in contact at some sample, each (link1, piece1, link2,
+            piece2), in the order they first appeared.
+        sample: Index of each row's sample in the result's ``t``, shape (K,), non-decreasing.
+        pair: Index of each row's pair in :attr:`pairs`, shape (K,).
+        point: Where the bodies touch [m], world frame, shape (K, 3).
+        point1: Body 1's material points [m], world frame, shape (K, 3).
+        point2: Body 2's material points [m], world frame, shape (K, 3).
+        normal: Unit normals from body 1 to body 2, world frame, shape (K, 3).
+        force: Forces on body 2 [N], world frame, shape (K, 3).
+    """
+
+    pairs: tuple[PairNames, ...] = ()
+    sample: IntArray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
+    pair: IntArray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
+    point: FloatArray = field(default_factory=lambda: np.zeros((0, 3)))
+    point1: FloatArray = field(default_factory=lambda: np.zeros((0, 3)))
+    point2: FloatArray = field(default_factory=lambda: np.zeros((0, 3)))
+    normal: FloatArray = field(default_factory=lambda: np.zeros((0, 3)))
+    force: FloatArray = field(default_factory=lambda: np.zeros((0, 3)))
+
+    def __len__(self) -> int:
+        """The number of rows (contacts over all samples)."""
+        return len(self.sample)
+
+    @classmethod
+    def from_samples(cls, samples: Sequence[Sequence[SampleContact]]) -> ContactTable:
+        """The table of the contacts reported per sample (sample k: ``samples[k]``)."""
+        index: dict[PairNames, int] = {}
+        rows_sample: list[int] = []
+        rows_pair: list[int] = []
+        pts: list[FloatArray] = []
+        pt1: list[FloatArray] = []
+        pt2: list[FloatArray] = []
+        nrm: list[FloatArray] = []
+        frc: list[FloatArray] = []
+        for k, contacts in enumerate(samples):
+            for names, point, point1, point2, normal, force in contacts:
+                rows_sample.append(k)
+                rows_pair.append(index.setdefault(names, len(index)))
+                pts.append(point)
+                pt1.append(point1)
+                pt2.append(point2)
+                nrm.append(normal)
+                frc.append(force)
+        if not rows_sample:
+            return cls()
+        return cls(
+            pairs=tuple(index),
+            sample=np.array(rows_sample, dtype=np.int64),
+            pair=np.array(rows_pair, dtype=np.int64),
+            point=np.array(pts, dtype=np.float64).reshape(-1, 3),
+            point1=np.array(pt1, dtype=np.float64).reshape(-1, 3),
+            point2=np.array(pt2, dtype=np.float64).reshape(-1, 3),
+            normal=np.array(nrm, dtype=np.float64).reshape(-1, 3),
+            force=np.array(frc, dtype=np.float64).reshape(-1, 3),
+        )
+
+    def rows_of(self, k: int) -> slice:
+        """The rows of sample k (a slice: the rows are ordered by sample)."""
+        lo = int(np.searchsorted(self.sample, k, side="left"))
+        hi = int(np.searchsorted(self.sample, k, side="right"))
+        return slice(lo, hi)
+
+    def at_sample(self, k: int) -> list[ContactForce]:
+        """The contacts of sample k."""
+        out = []
+        for r in range(*self.rows_of(k).indices(len(self))):
+            l1, p1, l2, p2 = self.pairs[int(self.pair[r])]
+            out.append(
+                ContactForce(
+                    link1=l1,
+                    piece1=p1,
+                    link2=l2,
+                    piece2=p2,
+                    point=self.point[r].copy(),
+                    point1=self.point1[r].copy(),
+                    point2=self.point2[r].copy(),
+                    normal=self.normal[r].copy(),
+                    force=self.force[r].copy(),
+                )
+            )
+        return out
+
+    def pair_force(self, n_samples: int) -> FloatArray:
+        """Per pair and sample, the magnitude of the pair's summed force [N], (pairs, N)."""
+        out = np.zeros((len(self.pairs), n_samples, 3))
+        np.add.at(out, (self.pair, self.sample), self.force)
+        return np.asarray(np.linalg.norm(out, axis=2), dtype=np.float64)
+
+    def pair_normal_force(self, n_samples: int) -> FloatArray:
+        """Per pair and sample, the sum of its normal forces [N], shape (pairs, N)."""
+        out = np.zeros((len(self.pairs), n_samples))
+        fn = np.einsum("ij,ij->i", self.force, self.normal)
+        np.add.at(out, (self.pair, self.sample), fn)
+        return out
