@@ -28,11 +28,12 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["ContactForce", "ContactTable", "PairNames", "SampleContact"]
+__all__ = ["ContactForce", "ContactTable", "PairNames", "SampleContact", "joint_torque"]
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
@@ -69,6 +70,15 @@ class ContactForce:
     point2: FloatArray
     normal: FloatArray
     force: FloatArray
+
+    @classmethod
+    def from_sample(cls, contact: SampleContact) -> ContactForce:
+        """The record of one contact as the law reports it."""
+        (l1, p1, l2, p2), point, point1, point2, normal, force = contact
+        return cls(
+            link1=l1, piece1=p1, link2=l2, piece2=p2, point=point, point1=point1,
+            point2=point2, normal=normal, force=force,
+        )  # fmt: skip
 
     @property
     def normal_force(self) -> float:
@@ -186,3 +196,45 @@ class ContactTable:
         fn = np.einsum("ij,ij->i", self.force, self.normal)
         np.add.at(out, (self.pair, self.sample), fn)
         return out
+
+
+def joint_torque(
+    model: Any, data: Any, q: FloatArray, contacts: Sequence[SampleContact]
+) -> FloatArray:
+    """The joint torque [N*m] the contacts exert on the arm at q, shape (model.nv,).
+
+    Each force acts on body 2 and its opposite on body 1 (a body not in ``model``, the chassis
+    or an obstacle, takes none): the normal part at ``point``, the friction at each body's own
+    material point (see the module). The contacts' share of the equations of motion:
+    M a + C v + g = tau + joint_torque(...).
+
+    Args:
+        model: The Pinocchio model the contacts' links are frames of (full coordinates).
+        data: A data of ``model`` (its Jacobians are computed here at q).
+        q: Configuration [rad], shape (model.nq,).
+        contacts: (names, point, point1, point2, normal, force) per contact.
+    """
+    import pinocchio as pin
+
+    out = np.zeros(model.nv)
+    if not contacts:
+        return out
+    pin.computeJointJacobians(model, data, q)
+    joints: dict[str, int] = {}
+    for names, point, point1, point2, normal, force in contacts:
+        f = np.asarray(force, dtype=np.float64)
+        n = np.asarray(normal, dtype=np.float64)
+        fn = float(f @ n) * n
+        for link, sign, own in ((names[2], 1.0, point2), (names[0], -1.0, point1)):
+            j = joints.get(link)
+            if j is None:
+                fid = model.getFrameId(link) if model.existFrame(link) else -1
+                j = joints[link] = int(model.frames[fid].parentJoint) if fid >= 0 else 0
+            if j == 0:
+                continue
+            J = np.asarray(pin.getJointJacobian(model, data, j, pin.LOCAL_WORLD_ALIGNED))
+            J = J.reshape(6, model.nv)
+            o = data.oMi[j].translation
+            moment = np.cross(np.asarray(point) - o, fn) + np.cross(np.asarray(own) - o, f - fn)
+            out += sign * (J[:3].T @ f + J[3:].T @ moment)
+    return out

@@ -93,8 +93,8 @@ class _Run:
         self.failures_in: list[Failure] = []
         self.frozen: list[str] = []
         self.schedule = Schedule(failures, payload, self.ctrl_obj)
-        self.ticks = Ticks(self.schedule, self.drive)
         self.events = EventLog(config.max_events)
+        self.ticks = Ticks(self.schedule, self.drive, self.events)
         self.diag = Diagnostics()
         self.rec = Recorder(config.sample_dt, duration, self.measure, self.measure_many)
         self.stepper = RK45Stepper(
@@ -103,7 +103,7 @@ class _Run:
         self.t = 0.0
         self.build_phase(np.asarray(q0, dtype=float), np.asarray(v0, dtype=float))
         self.law = make_law(config, self.sys, self.drive, self.events, self.diag)
-        self.rec.contacts = recorder.contact_sampler(self.drive, self.law)
+        self.rec.contacts = self.ticks.contacts = recorder.contact_sampler(self.drive, self.law)
 
     # ------------------------------------------------------------------ phases
     def build_phase(self, qf: FloatArray, vf: FloatArray, tau_mf: FloatArray | None = None) -> None:

@@ -118,7 +118,7 @@ def measure(
 
 def contact_sampler(
     drive: Drive, law: ContactLaw
-) -> Callable[[float, FloatArray], list[SampleContact]]:
+) -> Callable[[float, FloatArray], list[SampleContact] | None]:
     """The contact forces of a state: the law's current mode's, under the drive's torques.
 
     Args:
@@ -126,10 +126,10 @@ def contact_sampler(
         law: The run's contact law (:meth:`~packbot.contact.base.ContactLaw.contact_forces`).
 
     Returns:
-        (t [s], integrated state y) -> the contacts of that sample.
+        (t [s], integrated state y) -> the contacts of that sample (None: the law cannot say).
     """
 
-    def sample(t: float, y: FloatArray) -> list[SampleContact]:
+    def sample(t: float, y: FloatArray) -> list[SampleContact] | None:
         n = drive.sys.nv
 
         def tau() -> FloatArray:
@@ -270,7 +270,7 @@ class Recorder:
         duration: float,
         measure: Callable[[float, FloatArray], Sample],
         measure_many: Callable[[list[float], list[FloatArray]], Samples | None] | None = None,
-        contacts: Callable[[float, FloatArray], list[SampleContact]] | None = None,
+        contacts: Callable[[float, FloatArray], list[SampleContact] | None] | None = None,
     ) -> None:
         self.dt = sample_dt
         self.duration = duration
@@ -373,7 +373,8 @@ class Recorder:
 
     def _contacts_of(self, t: float, y: FloatArray) -> list[SampleContact]:
         """The contacts of the sample of state y at t (none without a ``contacts`` function)."""
-        return [] if self.contacts is None else self.contacts(t, y)
+        found = None if self.contacts is None else self.contacts(t, y)
+        return [] if found is None else found
 
     def contact_table(self) -> ContactTable:
         """The contacts of the samples kept, as one table (:class:`ContactTable`)."""

@@ -16,7 +16,7 @@ from numpy.typing import NDArray
 
 from packbot import result_file
 from packbot.config import SimConfig
-from packbot.contact_forces import ContactForce, ContactTable
+from packbot.contact_forces import ContactForce, ContactTable, joint_torque
 from packbot.errors import (
     ConfigurationError,
     PackbotError,
@@ -372,39 +372,20 @@ class SimResult:
         Raises:
             ConfigurationError: ``robot`` is not a Robot, or its joints are not the result's.
         """
-        import pinocchio as pin
-
         robot = self._robot_of(robot)
         model = robot.model
         data = model.createData()
         q = np.asarray(self.q, dtype=np.float64)
         out = np.zeros((len(q), model.nv))
-        table = self.contacts
-        joint_of: dict[str, int] = {}
-        for name in {n for pair in table.pairs for n in (pair[0], pair[2])}:
-            fid = model.getFrameId(name) if model.existFrame(name) else -1
-            joint_of[name] = int(model.frames[fid].parentJoint) if fid >= 0 else 0
-        last = -1
-        for r in range(len(table)):
-            k = int(table.sample[r])
-            if k != last:
-                pin.computeJointJacobians(model, data, q[k])
-                last = k
-            l1, _, l2, _ = table.pairs[int(table.pair[r])]
-            f, n = table.force[r], table.normal[r]
-            fn = (f @ n) * n
-            parts = (
-                (joint_of[l2], 1.0, table.point2[r]),
-                (joint_of[l1], -1.0, table.point1[r]),
-            )
-            for joint, sign, own in parts:
-                if joint == 0:
-                    continue
-                J = np.asarray(pin.getJointJacobian(model, data, joint, pin.LOCAL_WORLD_ALIGNED))
-                J = J.reshape(6, model.nv)
-                o = data.oMi[joint].translation
-                wrench = np.cross(table.point[r] - o, fn) + np.cross(own - o, f - fn)
-                out[k] += sign * (J[:3].T @ f + J[3:].T @ wrench)
+        tab = self.contacts
+        for k in np.unique(tab.sample).tolist():
+            rows = range(*tab.rows_of(k).indices(len(tab)))
+            found = [
+                (tab.pairs[int(tab.pair[r])], tab.point[r], tab.point1[r], tab.point2[r],
+                 tab.normal[r], tab.force[r])
+                for r in rows
+            ]  # fmt: skip
+            out[k] = joint_torque(model, data, q[k], found)
         return out
 
     @checked_arguments

@@ -36,15 +36,19 @@ identical command is held.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
+from typing import Any
 
 import numpy as np
+import pinocchio as pin
 from numpy.typing import NDArray
 
+from packbot.contact_forces import ContactForce, SampleContact, joint_torque
 from packbot.control.base import Controller
 from packbot.drive import Drive
 from packbot.errors import ControllerError
 from packbot.ode import DenseSegment
+from packbot.result import Event
 from packbot.schedule import Schedule
 
 __all__ = ["HOLD_FRACTION", "Ticks"]
@@ -54,6 +58,8 @@ FloatArray = NDArray[np.float64]
 #: A new command is the held one when holding it instead changes the state by less than this
 #: fraction of ``atol`` over a step (see the module docstring) [-].
 HOLD_FRACTION = 1e-3
+#: The events whose velocity jump is a contact's impulse (a contact-sensing controller is told).
+IMPULSIVE = ("impact", "secondary_intersection", "handoff")
 #: Times closer than this are the same instant [s] (as in the loop).
 _SAME_T = 1e-12
 
@@ -64,19 +70,26 @@ class Ticks:
     Args:
         schedule: The run's scheduled actions (the next tick's time, the tick count).
         drive: The run's torques (the held command).
+        events: The run's event log (its impacts: a contact-sensing controller's impulses).
 
     Attributes:
         cut: Whether the next tick ends the step (the last two ticks changed the command).
     """
 
-    def __init__(self, schedule: Schedule, drive: Drive) -> None:
+    def __init__(self, schedule: Schedule, drive: Drive, events: Sequence[Event] = ()) -> None:
         self.schedule = schedule
         self.drive = drive
+        self.events = events
+        self._seen = 0  # the events a contact-sensing controller was told of
         self.controller: Controller | None = drive.ctrl_obj
         self.cut = True
         self._changed = True  # the last tick changed the command
         self._sys: object = None  # the phase whose bound on a command change is _bound
         self._bound = 0.0
+        #: The contacts of a state (the loop's :func:`~packbot.recorder.contact_sampler`), for a
+        #: contact-sensing controller; None: none told.
+        self.contacts: Callable[[float, FloatArray], list[SampleContact] | None] | None = None
+        self._data: Any = None  # (the full model's, for the contacts' joint torque)
 
     def command(self, t: float, y: FloatArray) -> FloatArray:
         """Call the controller on state y at t; its command [N*m], full coordinates, checked.
@@ -86,6 +99,8 @@ class Ticks:
         """
         assert self.controller is not None
         qf, vf = self.drive.sys.qv_full(y)  # fresh: the controller may keep them
+        if self.controller.contact_sensing:
+            self._sense(t, y, qf)
         try:
             raw = self.controller.step(t, qf, vf)
         except ControllerError:
@@ -93,6 +108,29 @@ class Ticks:
         except Exception as exc:
             raise ControllerError(f"raised {type(exc).__name__}: {exc}", t) from exc
         return self.drive.check_torque(raw, t)
+
+    def _sense(self, t: float, y: FloatArray, qf: FloatArray) -> None:
+        """Tell a contact-sensing controller the contacts at (t, y) and their joint torque."""
+        assert self.controller is not None
+        found = None if self.contacts is None else self.contacts(t, y)
+        ctrl = self.controller
+        model = self.drive.robot.model
+        if self._data is None:
+            self._data = model.createData()
+        new = self.events[self._seen :]
+        self._seen = len(self.events)
+        dv = np.zeros(model.nv)
+        for ev in new:
+            if ev.kind in IMPULSIVE and len(ev.v_after) == model.nv:
+                dv += np.asarray(ev.v_after) - np.asarray(ev.v_before)
+        M = pin.crba(model, self._data, qf)
+        M = np.triu(M) + np.triu(M, 1).T
+        ctrl.contact_impulse = M @ dv  # (M at the tick: the impacts were within a period)
+        if found is None:
+            ctrl.contacts = ctrl.contact_torque = None
+            return
+        ctrl.contacts = [ContactForce.from_sample(c) for c in found]
+        ctrl.contact_torque = joint_torque(model, self._data, qf, found)
 
     def same(self, tau: FloatArray) -> bool:
         """Whether a new command is the held one (see :data:`HOLD_FRACTION`)."""

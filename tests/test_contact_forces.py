@@ -247,3 +247,49 @@ def test_contacts_dataframe(collapse) -> None:
     assert 95.0 < tube < 106.0
     with pytest.raises(ConfigurationError, match="what"):
         collapse.to_dataframe("forces")  # type: ignore[arg-type]
+
+
+class _Sensing(packbot.control.Controller):
+    """A user's zero-torque controller that senses the contacts and keeps what it is told."""
+
+    contact_sensing = True
+
+    def on_reset(self, robot, t0, q0, v0) -> None:
+        self.told: list[tuple[float, object, object, object]] = []
+
+    def compute(self, t, q, v):
+        torque = None if self.contact_torque is None else self.contact_torque.copy()
+        impulse = None if self.contact_impulse is None else self.contact_impulse.copy()
+        self.told.append((t, torque, impulse, self.contacts))
+        return np.zeros(len(q))
+
+
+def test_a_contact_sensing_controller_is_told_the_forces(robot) -> None:
+    ctrl = _Sensing(dt=0.01)
+    cfg = packbot.SimConfig(contact_mode="normal", mu=MU, locked_joints=WRIST)
+    res = packbot.simulate(
+        robot, robot.pose("drive"), np.zeros(8), 3.0, controller=ctrl, config=cfg
+    )
+    assert res.rest_time is not None
+    free = _free(res)
+    first = res.events_of("impact")[0].t
+    _, torque0, impulse0, contacts0 = ctrl.told[0]
+    assert contacts0 == [] and not np.any(torque0) and not np.any(impulse0)  # not None: known
+    # the tick after the first impact is told its impulse
+    after = next(x for x in ctrl.told if x[0] > first)
+    assert np.linalg.norm(after[2]) > 0.0
+    # at rest, the joint torque of the contacts holds gravity on every free joint
+    t, torque, _, contacts = ctrl.told[-1]
+    assert t > res.rest_time and contacts
+    q = res.q[res.sample_index(float(res.t[-1]))]
+    g = pin.computeGeneralizedGravity(robot.model, robot.model.createData(), q)
+    assert np.linalg.norm((torque - g)[free]) <= 1e-6 * np.linalg.norm(g[free])
+    # the same records as the result's
+    assert sorted(c.pair for c in contacts) == sorted(c.pair for c in res.contacts_at(3.0))
+
+
+def test_the_report_law_tells_no_forces(robot) -> None:
+    ctrl = _Sensing(dt=0.05)
+    cfg = packbot.SimConfig(contact_mode="joint_clamp", locked_joints=WRIST)
+    packbot.simulate(robot, robot.pose("drive"), np.zeros(8), 0.5, controller=ctrl, config=cfg)
+    assert all(torque is None and contacts is None for _, torque, _, contacts in ctrl.told)

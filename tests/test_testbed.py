@@ -118,15 +118,30 @@ def test_declared_payload_is_no_failure(studied: dict[str, StudyResult]) -> None
     assert not [e for e in log if e.kind == "detect" and e.t < 1.5]
 
 
-def test_contact_suspends_detection_and_says_so(studied: dict[str, StudyResult]) -> None:
-    """The box is touched (impacts in every run); no joint is judged while the arm touches it,
-    the intervals are reported, and no detection falls before the failure."""
+def test_contact_forces_keep_detection_on_at_the_box(studied: dict[str, StudyResult]) -> None:
+    """The box is touched (impacts in every run); the observer counts the contact forces and
+    impacts the simulator tells it: no joint is judged falsely at the touch, detection is never
+    suspended, and the weak elbow2 is found after its failure."""
     res = studied["box"]
     assert res.healthy.metrics is not None and res.healthy.metrics.contacts > 0
+    assert res.reconfigured.suspended == ()
+    assert not res.summary()["runs"]["reconfigured"].get("detection_suspended_s")
+    dets = [e for e in res.reconfigured.detections if e.detection is not None]
+    assert dets and all(e.t > 1.5 for e in dets)
+    assert (dets[0].joint, dets[0].detection.kind) == ("elbow2", "weak")
+
+
+def test_without_the_forces_the_contact_suspends_detection(robot: packbot.Robot) -> None:
+    """The report's law cannot tell the contact forces: the gate suspends detection at the box,
+    says so, and no detection falls before the failure."""
+    sc = cases()["box"]
+    sc = dataclasses.replace(sc, config=dataclasses.replace(sc.config, contact_mode="joint_clamp"))
+    res = study(sc, robot=robot, controller=testbed_user.Reach, workspace_samples=300)
     suspended = res.reconfigured.suspended
     assert suspended and suspended[0][0] < 1.5
     entry = res.summary()["runs"]["reconfigured"]
     assert entry["detection_suspended_s"][0][0] == pytest.approx(suspended[0][0])
+    assert not [e for e in res.reconfigured.detections if e.t < 1.5]
 
 
 def test_stuck_and_two_failures_are_classified(studied: dict[str, StudyResult]) -> None:

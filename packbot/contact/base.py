@@ -233,13 +233,12 @@ class ContactLaw(Protocol):
 
     def contact_forces(
         self, q: FloatArray, v: FloatArray, tau: Callable[[], FloatArray]
-    ) -> list[SampleContact]:
+    ) -> list[SampleContact] | None:
         """The contacts of the current mode at (q, v) under the joint torques ``tau()`` [N*m].
 
         ``tau`` is called only when the law has contacts to report (it may call the user's
-        torque function).
-
-        Each (names, point [m], normal, force on body 2 [N]), world frame
-        (:mod:`packbot.contact_forces`); empty for a law without contact forces.
+        torque function). Each (names, point, point1, point2 [m], normal, force on body 2 [N]),
+        world frame (:mod:`packbot.contact_forces`); empty: no contact; None: the law cannot
+        say (the report's clamps, a time-stepping window's steps).
         """
         ...

@@ -7,7 +7,18 @@ clamp, :mod:`packbot.contact.stops`), and joint friction and brakes hold them.
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from typing import TYPE_CHECKING
+
+import numpy as np
+from numpy.typing import NDArray
+
 from packbot.contact.stops import JointStops
+
+if TYPE_CHECKING:
+    from packbot.contact_forces import SampleContact
+
+FloatArray = NDArray[np.float64]
 
 __all__ = ["NoneLaw"]
 
@@ -18,3 +29,9 @@ class NoneLaw(JointStops):
     Same arguments as :class:`~packbot.contact.stops.JointStops`; its steps are the locks'
     native Dormand-Prince step where that serves (:meth:`JointStops.step_kernel`).
     """
+
+    def contact_forces(
+        self, q: FloatArray, v: FloatArray, tau: Callable[[], FloatArray]
+    ) -> list[SampleContact] | None:
+        """No collisions: no contact, ever."""
+        return []

@@ -750,13 +750,15 @@ class NormalLaw(PatchEvents):
 
     def contact_forces(
         self, q: FloatArray, v: FloatArray, tau: Callable[[], FloatArray]
-    ) -> list[SampleContact]:
+    ) -> list[SampleContact] | None:
         """The current mode's contact forces at (q, v) (``normal_forces.mode_forces``).
 
         None inside a time-stepping window (its steps' impulses are not kept yet).
         """
         nc = self.normal
-        if self.window is not None or not nc.engaged:
+        if self.window is not None:
+            return None
+        if not nc.engaged:
             return []
         # a resting arm's samples are one state: its contacts are found once
         key = (nc._version, q.tobytes()) if nc.resting and not v.any() else None

@@ -335,9 +335,9 @@ class JointStops:
 
     def contact_forces(
         self, q: FloatArray, v: FloatArray, tau: Callable[[], FloatArray]
-    ) -> list[SampleContact]:
-        """No contact forces: the joint stops and clamps act on joints, not on pairs."""
-        return []
+    ) -> list[SampleContact] | None:
+        """None: the report's clamps act on joints, not as forces on pairs (unknown)."""
+        return None
 
     def friction(
         self, q: FloatArray, v: FloatArray, applied: FloatArray, friction: FloatArray

@@ -8,6 +8,16 @@ controller sees it through its :class:`Sensor` (quantisation, seeded noise) and 
 commanded joint torque, held until the next tick (zero-order hold). The command then passes
 through the failure and actuator models (effort limits, friction) before it acts.
 
+**Contact sensing.** A controller whose class sets ``contact_sensing = True`` is told, before
+each tick, the contact forces at the tick's state (the simulator knows them: a force-torque
+sensor on every link): :attr:`Controller.contacts` (a list of
+:class:`~packbot.contact_forces.ContactForce`, world frame) and :attr:`Controller.
+contact_torque` (their joint torque [N*m], shape (nv,): M a + C v + g = tau + contact_torque).
+Both are None where the contact law cannot say (the report's law, a time-stepping window of
+the contact-normal mode) and before the first tick; an empty list and zeros with no contact.
+The impacts between two ticks are impulses, not forces at a tick: :attr:`Controller.
+contact_impulse` is their joint impulse [N*m*s] (M (v+ - v-) summed; M at the tick).
+
 A plain function ``tau(t, q, v)`` is also accepted by :func:`packbot.simulate`: it is treated as
 a continuous-time controller evaluated at every right-hand side (it must be a smooth, stateless
 function of its arguments).
@@ -18,7 +28,7 @@ from __future__ import annotations
 import math
 from abc import ABC, abstractmethod
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
 from numpy.typing import NDArray
@@ -28,6 +38,7 @@ from packbot.keywords import check_subclass, checked_arguments
 from packbot.validation import CONTROL_DT_MIN, finite_number, integer
 
 if TYPE_CHECKING:
+    from packbot.contact_forces import ContactForce
     from packbot.failures import Failure
     from packbot.model import Robot
 
@@ -114,6 +125,17 @@ class Controller(ABC):
         ConfigurationError: A bad ``dt`` or ``sensor`` (checked at construction).
         KeywordError: An unknown or missing keyword, or too many positional arguments.
     """
+
+    #: Whether the simulator tells the controller the contact forces before each tick
+    #: (:attr:`contacts`, :attr:`contact_torque`; see the module).
+    contact_sensing: ClassVar[bool] = False
+    #: The contacts at the tick's state (world frame), or None: not known (see the module).
+    contacts: list[ContactForce] | None = None
+    #: Their joint torque [N*m], shape (nv,), or None: not known.
+    contact_torque: FloatArray | None = None
+    #: The joint impulse [N*m*s] of the impacts since the previous tick, shape (nv,): M (v+ -
+    #: v-) summed over them (zeros: none), or None before the first tick.
+    contact_impulse: FloatArray | None = None
 
     def __init_subclass__(cls, **kwargs: Any) -> None:
         super().__init_subclass__(**kwargs)

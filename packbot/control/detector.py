@@ -21,11 +21,15 @@ not mistaken for a failure:
   C and g are the model's with the payload's inertia (:func:`packbot.system.with_payload`);
   picking it up keeps the generalized momentum (as the simulator's plastic impact does), dropping
   it keeps the velocities (the momentum's jump is taken into p(0));
-- contacts (``in_contact``): the observer has no contact forces, so while the arm touches
-  something (a callable of the measured q says so, asked only when a residual is over its
-  threshold) no joint is judged, and not before ``contact_hold`` seconds after the last touch
-  (five time constants: the contact's residual has decayed to 1 %). The suspended intervals are
-  kept in :attr:`MomentumObserver.contact_intervals`. A failure during a contact is found after it.
+- contacts: the simulator knows their forces. Where it tells them (``update(...,
+  tau_contact=, contact_impulse=)``: a contact-sensing controller's
+  :attr:`~packbot.control.Controller.contact_torque` and ``contact_impulse``), the contacts'
+  joint torque and the impacts' momentum enter the model, and the joints are judged during the
+  contact too. Where it cannot (the report's law, a time-stepping window), ``in_contact`` (a
+  callable of the measured q, asked only when a residual is over its threshold) says whether
+  the arm touches something: then no joint is judged, and not before ``contact_hold`` seconds
+  after the last touch (five time constants: the contact's residual has decayed to 1 %). The
+  suspended intervals are kept in :attr:`MomentumObserver.contact_intervals`.
 
 **Classification.** Over the persistence window [t_onset, t] the mean unexplained torque is
 estimated from the filter's own equation, tau_ext ~ mean(r) + (r(t) - r(t_onset)) / (K_O T)
@@ -259,6 +263,7 @@ class MomentumObserver:
         self._r_onset = np.zeros(n)
         self._locked_at: dict[int, float] = {}  # joints flagged frozen -> their angle
         self._contact_until = -math.inf
+        self._tc_prev: FloatArray | None = None  # the last update's contact torque (known)
 
     # ------------------------------------------------------------------ model
     def _payload_held(self, t: float) -> bool:
@@ -298,6 +303,7 @@ class MomentumObserver:
         self._pending = False
         self._max_speed[:] = 0.0
         self._locked_at = {}
+        self._tc_prev = None
         self._contact_until = -math.inf
         self.contact_intervals = []
 
@@ -312,7 +318,13 @@ class MomentumObserver:
 
     # ------------------------------------------------------------------ update
     def update(
-        self, t: float, q: FloatArray, v: FloatArray, tau_prev: FloatArray
+        self,
+        t: float,
+        q: FloatArray,
+        v: FloatArray,
+        tau_prev: FloatArray,
+        tau_contact: FloatArray | None = None,
+        contact_impulse: FloatArray | None = None,
     ) -> Detection | None:
         """Advance the residual to time t with the torque held since the last update.
 
@@ -322,6 +334,13 @@ class MomentumObserver:
             v: Measured velocities [rad/s].
             tau_prev: Torque commanded at the previous tick (held until now) [N*m]; entries of
                 joints known to give no torque (loose) must be zero.
+            tau_contact: The contacts' joint torque at t [N*m] (a contact-sensing
+                controller's :attr:`~packbot.control.Controller.contact_torque`), or None: not
+                known. Known, it enters the model (trapezoidal rule over the period) and the
+                joints are judged during contact; not known, no joint is judged while the arm
+                touches something (``in_contact``).
+            contact_impulse: The impacts' joint impulse since the last update [N*m*s], or
+                None (with ``tau_contact``: the momentum they changed enters the model).
 
         Returns:
             The first new detection, or None.
@@ -342,6 +361,16 @@ class MomentumObserver:
             tau_m = tau_m - self.viscous * vm - np.where(sliding, self.coulomb * np.sign(vm), 0.0)
             self._v_prev = np.array(v, dtype=float)
         f = self._drift(q, v)
+        known = tau_contact is not None
+        if known:
+            tc = np.asarray(tau_contact, dtype=np.float64)
+            prev = tc if self._tc_prev is None else self._tc_prev
+            tau_m = tau_m + 0.5 * (tc + prev)
+            self._tc_prev = tc
+            if contact_impulse is not None:
+                self._integral += np.asarray(contact_impulse, dtype=np.float64)
+        else:
+            self._tc_prev = None
         # The held torque is exact over the period; the drift by the trapezoidal rule.
         self._integral += h * (tau_m + 0.5 * (f + self._f_prev) + self.residual)
         self._f_prev = f
@@ -358,7 +387,7 @@ class MomentumObserver:
             quiet = not np.count_nonzero(over)
         else:
             quiet = True
-        if not quiet and self._touching(t, q):
+        if not quiet and not known and self._touching(t, q):
             quiet = True
         if quiet:  # nothing over its threshold: no onset pending, nothing due
             if self._pending:

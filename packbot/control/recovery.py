@@ -111,7 +111,9 @@ class TaskRecovery(Controller):
         payload: The scenario's declared payload: the observer's model holds it from its pick-up
             to its drop (None: none).
         in_contact: Callable of the measured q [rad]: whether the arm touches something; no
-            joint is judged then (None: the observer is not told of contacts).
+            joint is judged then where the simulator cannot tell the contact forces (None: the
+            observer is not told of contacts there). Where it can, the observer counts them
+            (the class senses contacts: :attr:`~packbot.control.Controller.contact_sensing`).
 
     Attributes:
         log: What happened (:class:`RecoveryEvent`).
@@ -120,6 +122,8 @@ class TaskRecovery(Controller):
         mode: ``"nominal"`` until the first detection, then ``"recovery"``.
         active: The controller in charge (None: zero torque).
     """
+
+    contact_sensing = True
 
     def __init__(
         self,
@@ -289,7 +293,9 @@ class TaskRecovery(Controller):
     def compute(self, t: float, q: FloatArray, v: FloatArray) -> FloatArray:
         """Detect, hand over if needed, and return the command [N*m], shape (nv,)."""
         assert self.robot is not None and self.observer is not None
-        det = self.observer.update(t, q, v, self._tau_prev)
+        det = self.observer.update(
+            t, q, v, self._tau_prev, self.contact_torque, self.contact_impulse
+        )
         if det is not None:
             self._on_detection(det, t, q, v)
         if self.active is None:
