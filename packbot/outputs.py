@@ -27,6 +27,7 @@ PLOT_KINDS: tuple[str, ...] = (
     "torques",
     "tool_path",
     "occlusion",
+    "contacts",
 )
 #: The image formats of the plots (``[outputs] formats``).
 IMAGE_FORMATS: tuple[str, ...] = ("png", "svg")

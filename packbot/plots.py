@@ -60,6 +60,7 @@ __all__ = [
     "PLANAR_JOINTS",
     "TORQUE_AXIS",
     "event_label",
+    "plot_contacts",
     "plot_distance",
     "plot_energy",
     "plot_joints",
@@ -725,6 +726,77 @@ def plot_energy(
     ax.set_ylabel("total energy [J]")
     ax.legend(loc="best", fontsize="small", framealpha=0.85)
     tf.context(result, [(result.energy, "tab:blue")], event_kinds)
+    _save(tf.fig, path, formats, dpi)
+    return tf.fig
+
+
+@checked_arguments
+def plot_contacts(
+    result: SimResult,
+    path: str | Path | None = None,
+    *,
+    event_kinds: Iterable[str] = MARKED_EVENTS,
+    formats: Sequence[str] = _FORMATS,
+    dpi: int = 120,
+    zoom: bool = True,
+) -> Figure:
+    """Each pair's contact force [N] against time [s]: normal (solid) and friction (dashed).
+
+    Per pair in contact, the sum of its points' normal forces and the magnitude of its summed
+    friction force (:attr:`SimResult.contacts`, docs/contact.md); a pair's line has a gap where
+    it carries no force (released, or a time-stepping window, whose forces are not recorded).
+    The time axis is zoomed to the events, the whole run in a strip below.
+
+    Args:
+        result: A simulation result.
+        path: Where to save, without suffix; None saves nothing.
+        event_kinds: Event kinds to mark with vertical lines.
+        formats: File formats written when ``path`` is given ("png", "svg").
+        dpi: Resolution of the PNG [dots per inch].
+        zoom: Zoom the time axis to the events (False: the whole run, no strip).
+
+    Returns:
+        The figure.
+    """
+    tl = _timeline(result, event_kinds, zoom)
+    tf = _TimeFigure(tl, (3.0,), f"Contact forces per pair\n({_title(result)})")
+    (ax,) = tf.panels
+    tab = result.contacts
+    n = len(result.t)
+    t = np.asarray(result.t)
+    normal = tab.pair_normal_force(n)
+    total = np.zeros((len(tab.pairs), n, 3))
+    np.add.at(total, (tab.pair, tab.sample), tab.force)
+    fn = np.zeros((len(tab.pairs), n, 3))
+    along = np.einsum("ij,ij->i", tab.force, tab.normal)[:, None] * tab.normal
+    np.add.at(fn, (tab.pair, tab.sample), along)
+    friction = np.linalg.norm(total - fn, axis=2)
+    touching = np.zeros((len(tab.pairs), n), dtype=bool)
+    touching[tab.pair, tab.sample] = True
+    traces: list[NDArray[np.float64]] = []
+    for k, (_, piece1, _, piece2) in enumerate(tab.pairs):
+        color = f"C{k % 10}"
+        yn = np.where(touching[k], normal[k], np.nan)
+        yf = np.where(touching[k], friction[k], np.nan)
+        ax.plot(t, yn, color=color, lw=1.5, label=plain_text(f"{piece1} - {piece2}"))
+        ax.plot(t, yf, color=color, lw=1.0, ls="--")
+        traces += [yn, yf]
+    if not tab.pairs:
+        text = (
+            "no contact forces: the arm touched nothing"
+            if result.config.contact_mode == "normal"
+            else f"no contact forces: contact_mode={result.config.contact_mode} records none"
+        )
+        ax.text(0.5, 0.5, text, transform=ax.transAxes, ha="center", va="center", color="0.4")
+    tf.mark_events(result, event_kinds)
+    _fit_y(ax, traces, _in_window(result, tl))
+    ax.set_ylabel("force [N]")
+    if tab.pairs:
+        ax.plot([], [], color="0.3", lw=1.5, label="normal force (solid)")
+        ax.plot([], [], color="0.3", lw=1.0, ls="--", label="friction force (dashed)")
+        ax.legend(loc="best", fontsize="small", framealpha=0.85)
+    strip = normal.sum(axis=0) if tab.pairs else np.zeros(n)
+    tf.context(result, [(strip, "tab:blue")], event_kinds)
     _save(tf.fig, path, formats, dpi)
     return tf.fig
 

@@ -330,6 +330,8 @@ class Scenario:
         if self.outputs.plots is not None:
             return self.outputs.plots
         kinds = ["joints", "distance", "energy"]
+        if self.config.contact_mode == "normal":
+            kinds.append("contacts")
         if self.controller != "zero":
             kinds += ["tracking", "torques", "tool_path"]
         if self.outputs.occlusion is not None:
@@ -979,6 +981,8 @@ def write_outputs(
         elif kind == "occlusion":
             assert occ is not None and blocked is not None
             P.plot_occlusion(result, blocked, occ.targets, path=base, formats=fmts)
+        elif kind == "contacts":
+            P.plot_contacts(result, path=base, formats=fmts)
         written[kind] = base.with_suffix(f".{fmts[0]}")
     return written
 

@@ -293,3 +293,41 @@ def test_the_report_law_tells_no_forces(robot) -> None:
     cfg = packbot.SimConfig(contact_mode="joint_clamp", locked_joints=WRIST)
     packbot.simulate(robot, robot.pose("drive"), np.zeros(8), 0.5, controller=ctrl, config=cfg)
     assert all(torque is None and contacts is None for _, torque, _, contacts in ctrl.told)
+
+
+def test_the_contact_plot_draws_each_pair(collapse, tmp_path) -> None:
+    from packbot.plots import plot_contacts
+
+    fig = plot_contacts(collapse, tmp_path / "c", formats=("png",))
+    assert (tmp_path / "c.png").stat().st_size > 10_000
+    ax = fig.axes[1] if len(fig.axes) > 1 and fig.axes[0].axison is False else fig.axes[0]
+    labels = [ln.get_label() for ln in ax.get_lines()]
+    for _, piece1, _, piece2 in collapse.contacts.pairs:
+        assert f"{piece1} - {piece2}" in labels
+    # the tube's normal force at the end is the recorded one
+    k = [p[1] for p in collapse.contacts.pairs].index("link3/tube")
+    line = next(ln for ln in ax.get_lines() if ln.get_label().startswith("link3/tube"))
+    assert line.get_ydata()[-1] == pytest.approx(
+        collapse.contacts.pair_normal_force(len(collapse.t))[k, -1]
+    )
+
+
+def test_the_page_draws_the_forces(robot, collapse, tmp_path) -> None:
+    import meshcat
+
+    from packbot.viz.recorder import SceneRecorder
+    from packbot.viz.scene import FORCE_SCALE, _Scene
+
+    viewer = meshcat.Visualizer(window=SceneRecorder())
+    scene = _Scene.load(robot, viewer, collapse.environment, False)
+    anim = scene.animation(collapse, 1.0)
+    bars = {
+        path.lower(): clip for path, clip in anim.clips.items() if "contact_forces" in path.lower()
+    }
+    assert len(bars) == len(collapse.contacts.pairs)
+    # the tube's bar at the end: 2 mm per N of its force
+    k = [p[1] for p in collapse.contacts.pairs].index("link3/tube")
+    clip = next(c for p, c in bars.items() if p.endswith(f"contact_forces/{k}"))
+    scale = clip.tracks["scale"]
+    total = collapse.contacts.pair_force(len(collapse.t))[k, -1]
+    assert scale.values[-1][1] == pytest.approx(FORCE_SCALE * total, rel=1e-9)

@@ -364,7 +364,12 @@ def write_html(
     caption = (
         f"packbot: {t1 - t0:.3g} s simulated; {len(result.events)} "
         f"event{'' if len(result.events) == 1 else 's'}, "
-        f"{n_contacts} contact span{'' if n_contacts == 1 else 's'} (touching pieces turn red)"
+        f"{n_contacts} contact span{'' if n_contacts == 1 else 's'} (touching pieces turn red"
+        + (
+            "; orange bars: the contact forces on the arm, 2 mm per N)"
+            if len(result.contacts)
+            else ")"
+        )
     )
     events = [
         {"t": e.t, "label": event_label(e), "color": EVENT_CSS.get(e.kind, "#000000")}

@@ -38,6 +38,9 @@ __all__ = [
     "COLLISION_RGBA",
     "CONTACT_COLOR",
     "FLOOR_COLOR",
+    "FORCE_COLOR",
+    "FORCE_RADIUS",
+    "FORCE_SCALE",
     "MARKER_RADIUS",
     "OBSTACLE_COLOR",
     "SLAB_GAP",
@@ -61,6 +64,10 @@ SLAB_THICKNESS = 0.02
 SLAB_GAP = 0.002
 #: Contact marker radius [m].
 MARKER_RADIUS = 0.025
+#: Contact force bars: length per newton [m/N], radius [m] and colour (RGB in [0, 1]).
+FORCE_SCALE = 2e-3
+FORCE_RADIUS = 0.006
+FORCE_COLOR = (1.0, 0.55, 0.0)
 #: Camera: the point it orbits, in the world [m] (the scene is shifted to put it at meshcat's
 #: origin), and the camera's offset from it [m] (the live viewer's; a page fits its camera to
 #: the motion, looking from the same direction: :meth:`_Scene.frame`).
@@ -72,6 +79,7 @@ CAMERA_FOV = 75.0
 _ROOT = "packbot"  # meshcat node of the robot: /meshcat/packbot/{visuals,collisions}
 _ENV = "environment"
 _CONTACTS = "contacts"
+_FORCES = "contact_forces"
 # Colours change this long [s] before and after an active span (a colour track interpolates).
 _EDGE = 1e-4
 
@@ -265,6 +273,7 @@ class _Scene:
                             xyzw = pin.Quaternion(M.rotation).coeffs().tolist()
                             node.set_property("quaternion", "quaternion", xyzw)
         self._animate_contacts(anim, result, t_keys, q_keys)
+        self._animate_forces(anim, result, t_keys)
         return anim
 
     def _animate_contacts(
@@ -327,3 +336,64 @@ class _Scene:
                     anim.at_frame(self.viewer, frame)[path].set_property(
                         "material.color", "color", list(colour)
                     )
+
+    def _animate_forces(
+        self, anim: Animation, result: SimResult, t_keys: NDArray[np.float64]
+    ) -> None:
+        """Each pair's contact force on the arm as a bar from its contact (``FORCE_SCALE``).
+
+        At each keyframe the last sample's forces (:attr:`SimResult.contacts`): the pair's
+        summed force on body 1 (the arm's distal body: the opposite of the recorded force on
+        body 2), drawn from the mean of its points, its length FORCE_SCALE per newton; hidden
+        while the pair carries no force.
+        """
+        tab = result.contacts
+        if not len(tab):
+            return
+        t = np.asarray(result.t)
+        t0 = float(t_keys[0])
+        at = np.clip(np.searchsorted(t, t_keys + 1e-12, side="right") - 1, 0, len(t) - 1)
+        n = len(t)
+        total = np.zeros((len(tab.pairs), n, 3))
+        np.add.at(total, (tab.pair, tab.sample), -tab.force)
+        where = np.zeros((len(tab.pairs), n, 3))
+        np.add.at(where, (tab.pair, tab.sample), tab.point)
+        count = np.zeros((len(tab.pairs), n))
+        np.add.at(count, (tab.pair, tab.sample), 1.0)
+        material = mg.MeshPhongMaterial(
+            color=_hex(FORCE_COLOR), opacity=0.95, transparent=True, depthTest=False
+        )
+        for k in range(len(tab.pairs)):
+            node = f"{_FORCES}/{k}"
+            self.viewer[node].set_object(mg.Cylinder(1.0, FORCE_RADIUS), material)
+            self.viewer[node].set_property("visible", False)
+            shown = None
+            for key, s in zip(t_keys, at.tolist(), strict=True):
+                frame = anim.at_frame(self.viewer, (float(key) - t0) * FPS)[node]
+                F = total[k, s]
+                length = float(np.linalg.norm(F)) * FORCE_SCALE
+                on = count[k, s] > 0 and length > 1e-6
+                if on != shown:
+                    frame.set_property("visible", "boolean", bool(on))
+                    shown = on
+                if on:
+                    centre = where[k, s] / count[k, s] + 0.5 * length * F / np.linalg.norm(F)
+                    position, xyzw = _bar(centre, F)
+                    frame.set_property("position", "vector3", position)
+                    frame.set_property("quaternion", "quaternion", xyzw)
+                    frame.set_property("scale", "vector3", [1.0, length, 1.0])
+
+
+def _bar(start: NDArray[np.float64], force: NDArray[np.float64]) -> tuple[list[float], list[float]]:
+    """A unit cylinder's position and quaternion (x, y, z, w) for a bar along ``force``.
+
+    meshcat's cylinder lies along y, centred at ``start`` here; its length is the y scale.
+    """
+    d = force / np.linalg.norm(force)
+    # a rotation taking y to d (the other axes any orthonormal completion)
+    a = np.array([1.0, 0.0, 0.0]) if abs(d[0]) < 0.9 else np.array([0.0, 0.0, 1.0])
+    x = np.cross(d, a)
+    x /= np.linalg.norm(x)
+    z = np.cross(x, d)
+    R = np.column_stack([x, d, z])
+    return start.tolist(), pin.Quaternion(R).coeffs().tolist()
