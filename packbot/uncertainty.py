@@ -62,7 +62,7 @@ __all__ = [
 log = logging.getLogger(__name__)
 
 #: Most arms one call builds: each is a model, its collision pieces and a folder of meshes
-#: (about 30 ms and 100 kB of files per arm); draw more values with :func:`sample_values` and
+#: (about 35 ms and 140 kB of files per arm); draw more values with :func:`sample_values` and
 #: build them in parts.
 MAX_SAMPLED_ROBOTS = 1_000
 #: The largest point count :func:`sample_values` draws (values only: 8 bytes per entry).
