@@ -177,7 +177,8 @@ def test_each_arm_simulates_the_collapse_and_its_world_builds(arms):
     config = packbot.SimConfig(contact_mode="joint_clamp", locked_joints=WRIST)
     for arm in arms:
         world = packbot.CollisionWorld(arm)
-        assert world.closest(arm.pose("drive")).distance > 0.0  # starts apart
+        for pose in arm.poses:  # every named pose starts apart (the nominal: 2 cm or more)
+            assert world.closest(arm.pose(pose)).distance > 0.0, pose
         result = packbot.simulate(arm, arm.pose("drive"), [0.0] * 8, 0.3, config=config)
         assert result.t[-1] == pytest.approx(0.3)
         assert np.all(np.isfinite(result.q))
