@@ -434,6 +434,26 @@ HEAD_X = _p("camera.head_length", 0.14, "m", "est", "camera head housing", _came
 HEAD_Y = _p("camera.head_width", 0.16, "m", "est", "", _camera)
 HEAD_Z = _p("camera.head_height", 0.09, "m", "est", "", _camera)
 R_LENS = _p("camera.lens_radius", 0.03, "m", "est", "", _camera)
+L_LENS = _p("camera.lens_length", 0.03, "m", "est", "ahead of the head, along its axis", _camera)
+_bracket = "tilt bracket with the pan motor"
+BRK_X = _p("camera.bracket_length", 0.05, "m", "est", _bracket, _camera)
+BRK_Y = _p("camera.bracket_width", 0.05, "m", "est", _bracket, _camera)
+BRK_Z = _p("camera.bracket_height", 0.08, "m", "est", _bracket + ", along the pan axis", _camera)
+R_TURRET = _p("casing.turret_radius", 0.09, "m", "est", "turret bearing and yaw gearbox", _casing)
+H_TURRET = _p(
+    "casing.turret_height", 0.06, "m", "est", "above the arm plate", _unlisted("casing height")
+)
+_yoke = _unlisted("shoulder yoke plate (the report lists no yoke)")
+YOKE_X = _p("yoke.length", 0.10, "m", "est", "each plate, along x", _yoke)
+YOKE_Y = _p("yoke.thickness", 0.015, "m", "est", "each plate, along the shoulder axis", _yoke)
+YOKE_Z = _p("yoke.height", 0.05, "m", "est", "each plate, along z", _yoke)
+_effector = _unlisted("end effector (only its wrist is listed)")
+PALM_X = _p("gripper.palm_length", 0.07, "m", "est", "x at zero roll", _effector)
+PALM_Y = _p("gripper.palm_width", 0.09, "m", "est", "", _effector)
+PALM_Z = _p("gripper.palm_height", 0.08, "m", "est", "along the approach axis", _effector)
+FING_X = _p("gripper.finger_thickness", 0.02, "m", "est", "each finger", _effector)
+FING_Y = _p("gripper.finger_width", 0.05, "m", "est", "each finger", _effector)
+FING_Z = _p("gripper.finger_length", 0.16, "m", "est", "each finger, from the palm", _effector)
 
 # --------------------------------------------------------------------------------------------
 # Lift capacity and actuators.
@@ -736,6 +756,11 @@ def _arm_links(v: Mapping[str, float]) -> tuple[LinkSpec, ...]:
     r_e1, r_e2 = v["casing.elbow1_radius"], v["casing.elbow2_radius"]
     w_e1, w_e2 = v["casing.elbow1_width"], v["casing.elbow2_width"]
     t_board = v["board.thickness"]
+    yoke = (v["yoke.length"], v["yoke.thickness"], v["yoke.height"])
+    bracket = (v["camera.bracket_length"], v["camera.bracket_width"], v["camera.bracket_height"])
+    palm = (v["gripper.palm_length"], v["gripper.palm_width"], v["gripper.palm_height"])
+    finger = (v["gripper.finger_thickness"], v["gripper.finger_width"], v["gripper.finger_length"])
+    lens_l, palm_h, finger_l = v["camera.lens_length"], palm[2], finger[2]
     turret = LinkSpec(
         "turret_link",
         (
@@ -743,22 +768,22 @@ def _arm_links(v: Mapping[str, float]) -> tuple[LinkSpec, ...]:
                 "turret_casing",
                 "cylinder",
                 "mass.turret_casing",
-                (0.0, 0.0, 0.03),
-                _cyl(0.09, 0.06),
+                (0.0, 0.0, v["casing.turret_height"] / 2),
+                _cyl(v["casing.turret_radius"], v["casing.turret_height"]),
             ),
             part(
                 "yoke_left",
                 "box",
                 "mass.shoulder_yoke_plate",
                 (a_turret, 0.0725, 0.085),
-                (0.10, 0.015, 0.05),
+                yoke,
             ),
             part(
                 "yoke_right",
                 "box",
                 "mass.shoulder_yoke_plate",
                 (a_turret, -0.0725, 0.085),
-                (0.10, 0.015, 0.05),
+                yoke,
             ),
         ),
         (0.55, 0.5, 0.2, 1.0),
@@ -901,7 +926,7 @@ def _arm_links(v: Mapping[str, float]) -> tuple[LinkSpec, ...]:
     camera = (
         LinkSpec(
             "camera_tilt_link",
-            (part("bracket", "box", "mass.camera_bracket", (0.0, 0.0, 0.0), (0.05, 0.05, 0.08)),),
+            (part("bracket", "box", "mass.camera_bracket", (0.0, 0.0, 0.0), bracket),),
             (0.2, 0.2, 0.2, 1.0),
         ),
         LinkSpec(
@@ -912,8 +937,8 @@ def _arm_links(v: Mapping[str, float]) -> tuple[LinkSpec, ...]:
                     "lens",
                     "cylinder",
                     "mass.camera_lens",
-                    (cam_fwd - 0.015, 0.0, cam_up),
-                    _cyl(v["camera.lens_radius"], 0.03),
+                    (cam_fwd - lens_l / 2, 0.0, cam_up),
+                    _cyl(v["camera.lens_radius"], lens_l),
                     "x",
                 ),
             ),
@@ -924,14 +949,20 @@ def _arm_links(v: Mapping[str, float]) -> tuple[LinkSpec, ...]:
         LinkSpec(
             "gripper_link",
             (
-                part("palm", "box", "mass.gripper_palm", (0.0, 0.0, 0.04), (0.07, 0.09, 0.08)),
-                part("fixed_finger", "box", "mass.finger", (-0.025, 0.0, 0.16), (0.02, 0.05, 0.16)),
+                part("palm", "box", "mass.gripper_palm", (0.0, 0.0, palm_h / 2), palm),
+                part(
+                    "fixed_finger",
+                    "box",
+                    "mass.finger",
+                    (-0.025, 0.0, palm_h + finger_l / 2),
+                    finger,
+                ),
             ),
             (0.35, 0.35, 0.38, 1.0),
         ),
         LinkSpec(
             "jaw_link",
-            (part("finger", "box", "mass.finger", (0.0, 0.0, 0.08), (0.02, 0.05, 0.16)),),
+            (part("finger", "box", "mass.finger", (0.0, 0.0, finger_l / 2), finger),),
             (0.35, 0.35, 0.38, 1.0),
         ),
     )
@@ -943,10 +974,11 @@ def design(values: Mapping[str, float]) -> Design:
 
     The one place that turns numbers into geometry: the nominal model is
     ``design(nominal_values())`` (:data:`NOMINAL`), and :func:`packbot.sample_robots` calls it
-    with sampled values. Part positions along the links (motor and board centres, where each
-    tube ends short of its casings, the yoke plates, the turret casing, the tilt bracket, the
-    palm and fingers, the lens length, the jaw pivot) are fixed numbers of this function, not
-    table entries.
+    with sampled values. Every part dimension is a table entry; a few part positions are fixed
+    numbers of this function, not table entries: where the motors and boards sit along their
+    links, where each tube ends short of its casings, the yoke plates' place, the camera wrist's
+    offsets from the tilt axis, the fixed finger's and the jaw pivot's offset across the palm,
+    and the body's 6 cm short of the chassis length.
 
     Args:
         values: Table entry name -> value (SI units), every entry of :data:`TABLE`
@@ -968,7 +1000,7 @@ def design(values: Mapping[str, float]) -> Design:
             0.0,
             v["chassis.height"] + v["chassis.arm_plate_height"],
         ),
-        jaw_pivot=(0.03, 0.0, 0.08),
+        jaw_pivot=(0.03, 0.0, v["gripper.palm_height"]),
         gravity=v["gravity"],
         lift_mass=v["lift.mass"],
         lift_lever=v["lift.lever"],

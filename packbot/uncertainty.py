@@ -315,7 +315,8 @@ def robot_from_values(values: Mapping[str, float], *, directory: str | Path | No
 
     Returns:
         The arm: a :class:`Robot` like ``load_robot()``'s, its ``params.table`` holding these
-        values.
+        values (each entry's ``tolerance`` is still the nominal box's half-width: the box is
+        around :data:`packbot.params.TABLE`'s value, not around the drawn one).
 
     Raises:
         ConfigurationError: ``values`` is not a table, a value is not a positive finite number

@@ -1,5 +1,6 @@
 """The parameter table's tolerances and the arms drawn within them (packbot.sample_robots)."""
 
+import re
 from dataclasses import replace
 
 import numpy as np
@@ -11,7 +12,7 @@ from packbot import params as P
 from packbot.errors import ConfigurationError, PackbotError, UnknownNameError
 from packbot.geometry import part_inertia, part_volume
 from packbot.model import INERTIA_RTOL
-from packbot.resources import SRDF_NAME
+from packbot.resources import SRDF_NAME, srdf_path
 from packbot.uncertainty import MAX_SAMPLED_ROBOTS, robot_from_values
 
 WRIST = ("camera_tilt", "camera_pan", "gripper_roll", "gripper_jaw")
@@ -183,6 +184,23 @@ def test_each_arm_simulates_the_collapse_and_its_world_builds(arms):
         assert result.t[-1] == pytest.approx(0.3)
         assert np.all(np.isfinite(result.q))
         assert result.diagnostics.min_distance > -1e-3  # [m]: no piece sunk into another
+
+
+def test_the_srdf_never_pairs_stay_apart_on_every_arm(arms, robot):
+    # The shipped SRDF's "Never" pairs (never within 5 cm on the nominal arm) are not tested in
+    # a sampled arm's world either: they must stay apart on it too.
+    text = srdf_path().read_text()
+    never = {frozenset(m) for m in re.findall(r'link1="(\w+)" link2="(\w+)" reason="Never"', text)}
+    assert never
+    rng = np.random.default_rng(7)
+    lo, hi = robot.params.lower, robot.params.upper
+    qs = lo + rng.random((300, robot.nq)) * (hi - lo)
+    for arm in arms:
+        world = packbot.CollisionWorld(arm, srdf=False)
+        idx = [i for i, p in enumerate(world.pairs) if frozenset((p.link1, p.link2)) in never]
+        assert len(idx) >= len(never)
+        closest = min(float(world.all_distances(q)[idx].min()) for q in qs)
+        assert closest > 0.02  # [m] (the nominal arm: 7.1 cm over 3,000 configurations)
 
 
 def test_an_arm_simulates_in_the_contact_normal_mode(arms):
