@@ -27,9 +27,12 @@ mass estimate), gravity, the part positions that are fixed numbers of
 
 from __future__ import annotations
 
+import atexit
 import functools
 import logging
 import math
+import os
+import shutil
 import tempfile
 import time
 from collections.abc import Iterable, Iterator, Mapping
@@ -73,8 +76,11 @@ METHODS = ("sobol", "lhs")
 #: Largest seed: a non-negative 63-bit integer.
 SEED_MAX = 2**63 - 1
 
-# Directories of arms built without a ``directory``: removed when the interpreter exits.
-_TEMP_DIRS: list[tempfile.TemporaryDirectory[str]] = []
+
+def _remove_at_exit(path: str, pid: int) -> None:
+    """Remove a folder of arms when the process that made it exits (not a forked child)."""
+    if os.getpid() == pid:
+        shutil.rmtree(path, ignore_errors=True)
 
 
 @dataclass(frozen=True)
@@ -289,9 +295,9 @@ def _build(values: dict[str, float], folder: Path) -> tuple[Robot, dict[str, flo
 
 def _folder(directory: Any) -> Path:
     if directory is None:
-        tmp = tempfile.TemporaryDirectory(prefix="packbot-arms-")
-        _TEMP_DIRS.append(tmp)
-        return Path(tmp.name)
+        tmp = tempfile.mkdtemp(prefix="packbot-arms-")
+        atexit.register(_remove_at_exit, tmp, os.getpid())
+        return Path(tmp)
     if not isinstance(directory, (str, Path)):
         raise ConfigurationError(
             "directory", directory, "a folder path, or None for a temporary one"
