@@ -13,11 +13,12 @@ convex meshes (the link inertias integrated by Coal over the very solids the col
 uses); :func:`packbot.load_robot` loads and checks it. So link lengths move the joints and the
 collision pieces together, and a tube's wall, radius or length changes its inertia. Masses follow
 the report: a part it weighed keeps its drawn mass whatever its drawn size (the scale read it);
-every other part (tubes, boards, motors' neighbours the report did not weigh: tracks, flippers,
-chassis, palm, fingers) is a solid of its material, its mass the drawn value times its volume
-over its nominal volume, so a thicker or longer tube is heavier as well as wider. Masses are
-positive and every link inertia physically valid by construction (sums of uniform convex solids;
-:func:`packbot.load_robot` checks positive definiteness and the triangle inequality).
+every other part (tubes, boards, tracks, flippers, the chassis body, palm and fingers: masses
+the report estimated or does not list) is a solid of its material, its mass the drawn value
+times its volume over its nominal volume, so a thicker or longer tube is heavier as well as
+wider. Masses are positive and every link inertia physically valid by construction (sums of
+uniform convex solids; :func:`packbot.load_robot` checks positive definiteness and the triangle
+inequality).
 
 What does not vary: the joints' limits, actuators and friction (no tolerance), the effort limits
 (the nominal model's, derived from the lift capacity: a motor's torque is not a property of our
@@ -68,8 +69,9 @@ log = logging.getLogger(__name__)
 #: (about 35 ms and 140 kB of files per arm); draw more values with :func:`sample_values` and
 #: build them in parts.
 MAX_SAMPLED_ROBOTS = 1_000
-#: The largest point count :func:`sample_values` draws (values only: 8 bytes per entry).
-MAX_SAMPLED_VALUES = 1_000_000
+#: The largest point count :func:`sample_values` draws (values only: 16 bytes per point and
+#: entry, its values and unit-cube points; about 150 MB for 90 entries).
+MAX_SAMPLED_VALUES = 100_000
 #: The quasi-random designs: a scrambled Sobol sequence (its first n points; n a power of 2
 #: keeps its balance), or a Latin hypercube (every entry's n strata each hit once).
 METHODS = ("sobol", "lhs")
@@ -109,6 +111,7 @@ class ParameterSample:
         """Each drawn entry's box ``[nominal - tol, nominal + tol]``, shape (len(names), 2)."""
         return np.array([_box(n) for n in self.names])
 
+    @checked_arguments
     def column(self, name: str) -> NDArray[np.float64]:
         """One entry's draws, shape (n,).
 
@@ -119,6 +122,7 @@ class ParameterSample:
             raise UnknownNameError("sampled parameter", name, self.names)
         return self.values[:, self.names.index(name)].copy()
 
+    @checked_arguments
     def arm(self, k: int) -> dict[str, float]:
         """Arm ``k``'s values of every table entry (the undrawn ones nominal, derived recomputed).
 
@@ -154,6 +158,7 @@ class SampledRobots:
     def __iter__(self) -> Iterator[Robot]:
         return iter(self.robots)
 
+    @checked_arguments
     def values(self, k: int) -> dict[str, float]:
         """Arm ``k``'s parameter values by name (every table entry, SI units)."""
         return self.sample.arm(k)
@@ -232,6 +237,8 @@ def sample_values(
     points = _unit_points(n, len(names), seed, chosen)
     box = np.array([_box(name) for name in names])
     values = box[:, 0] + points * (box[:, 1] - box[:, 0])
+    points.flags.writeable = False  # a sample is a record: the same seed, the same values
+    values.flags.writeable = False
     return ParameterSample(names, values, points, seed, chosen)
 
 
