@@ -217,7 +217,8 @@ def sample_values(
     Args:
         n: Number of draws (1 to :data:`MAX_SAMPLED_VALUES`).
         seed: Seed of the scrambling (a non-negative integer): the same seed, ``n``, ``vary``
-            and ``method`` give the same values on any machine.
+            and ``method`` give the same values on any machine, for the same parameter table
+            (an entry added to it changes the draws).
         vary: The entries to draw (names of :func:`packbot.params.toleranced`); the others stay
             nominal. None: all of them.
         method: ``"sobol"`` (scrambled Sobol; n a power of 2 keeps its balance) or ``"lhs"``
