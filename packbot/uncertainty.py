@@ -195,11 +195,15 @@ def _names(vary: Iterable[str] | None) -> tuple[str, ...]:
 def _unit_points(n: int, d: int, seed: int, method: str) -> NDArray[np.float64]:
     from scipy.stats import qmc  # lazy: scipy.stats costs ~0.3 s of import
 
+    engine = qmc.Sobol if method == "sobol" else qmc.LatinHypercube
     rng = np.random.default_rng(seed)
+    try:
+        sampler = engine(d, scramble=True, rng=rng)
+    except TypeError:  # scipy < 1.15 names the generator ``seed``
+        sampler = engine(d, scramble=True, seed=rng)
     if method == "sobol":
-        sobol = qmc.Sobol(d, scramble=True, rng=rng)
-        return np.asarray(sobol.random_base2(max(0, math.ceil(math.log2(n))))[:n], dtype=float)
-    return np.asarray(qmc.LatinHypercube(d, rng=rng).random(n), dtype=float)
+        return np.asarray(sampler.random_base2(max(0, math.ceil(math.log2(n))))[:n], dtype=float)
+    return np.asarray(sampler.random(n), dtype=float)
 
 
 @checked_arguments
@@ -218,7 +222,7 @@ def sample_values(
         n: Number of draws (1 to :data:`MAX_SAMPLED_VALUES`).
         seed: Seed of the scrambling (a non-negative integer): the same seed, ``n``, ``vary``
             and ``method`` give the same values on any machine, for the same parameter table
-            (an entry added to it changes the draws).
+            and SciPy release (an entry added to the table changes the draws).
         vary: The entries to draw (names of :func:`packbot.params.toleranced`); the others stay
             nominal. None: all of them.
         method: ``"sobol"`` (scrambled Sobol; n a power of 2 keeps its balance) or ``"lhs"``
