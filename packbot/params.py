@@ -331,7 +331,14 @@ _tube_m = _estimated(_L_M_TUBE, "hollow tube mass")
 _camera_m = _weighed(_L_M_CAMERA, "camera")
 _effector_m = _unlisted("end-effector part (only its wrist is weighed)")
 M_TURRET = _p("mass.turret_casing", 1.0, "kg", "est", "turret bearing and yaw gearbox", _casing_m)
-M_YOKE = _p("mass.shoulder_yoke_plate", 0.2, "kg", "est", "each of two plates", _casing_m)
+M_YOKE = _p(
+    "mass.shoulder_yoke_plate",
+    0.2,
+    "kg",
+    "est",
+    "each of two plates",
+    _unlisted("shoulder yoke plate (the report lists no yoke)"),
+)
 M_SH_CASE = _p(
     "mass.shoulder_casing", 1.1, "kg", "est", "shoulder gearbox casing, on link 1", _casing_m
 )
