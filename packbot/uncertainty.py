@@ -50,7 +50,6 @@ from packbot.geometry import part_volume
 from packbot.keywords import checked_arguments
 from packbot.model import Robot, load_robot
 from packbot.resources import DESCRIPTION_PACKAGE, srdf_path
-from packbot.urdfgen import build, derived_efforts, write_package
 from packbot.validation import at_most, choice, finite_number, integer
 
 __all__ = [
@@ -249,6 +248,8 @@ def sample_values(
 
 @functools.cache
 def _nominal_effort() -> dict[str, float]:
+    from packbot.urdfgen import derived_efforts  # lazy: the generator stays out of `import packbot`
+
     return derived_efforts(P.NOMINAL)
 
 
@@ -295,6 +296,8 @@ def _checked_values(values: Any) -> dict[str, float]:
 
 
 def _build(values: dict[str, float], folder: Path) -> tuple[Robot, dict[str, float]]:
+    from packbot.urdfgen import build, write_package  # lazy, as above
+
     design = _solid_masses(P.design(values))
     gen = build(design, effort=_nominal_effort(), docs=False)
     urdf = write_package(gen, folder / DESCRIPTION_PACKAGE, srdf_path())
