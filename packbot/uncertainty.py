@@ -65,7 +65,7 @@ __all__ = [
 log = logging.getLogger(__name__)
 
 #: Most arms one call builds: each is a model, its collision pieces and a folder of meshes
-#: (about 35 ms and 140 kB of files per arm); draw more values with :func:`sample_values` and
+#: (about 40 ms and 140 kB of files per arm); draw more values with :func:`sample_values` and
 #: build them in parts.
 MAX_SAMPLED_ROBOTS = 1_000
 #: The largest point count :func:`sample_values` draws (values only: 16 bytes per point and
