@@ -21,6 +21,7 @@ from packbot.payload import Payload
 from packbot.resources import package_dirs, urdf_path
 from packbot.result import Diagnostics, Event, SimResult
 from packbot.study import StudyResult, study
+from packbot.uncertainty import ParameterSample, SampledRobots, sample_robots, sample_values
 
 #: The package version (PEP 440), as in pyproject.toml.
 __version__ = "0.1.0"
@@ -44,9 +45,11 @@ __all__ = [
     "Obstacle",
     "PackbotError",
     "PairInfo",
+    "ParameterSample",
     "Payload",
     "ResourceNotFound",
     "Robot",
+    "SampledRobots",
     "SimConfig",
     "SimResult",
     "SimulationError",
@@ -55,6 +58,8 @@ __all__ = [
     "__version__",
     "load_robot",
     "package_dirs",
+    "sample_robots",
+    "sample_values",
     "simulate",
     "study",
     "urdf_path",

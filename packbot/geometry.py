@@ -24,6 +24,7 @@ __all__ = [
     "hull_triangles",
     "part_inertia",
     "part_vertices",
+    "part_volume",
     "solid_mass_properties",
     "stl_bytes",
 ]
@@ -129,6 +130,16 @@ def _solid_inertia(points: NDArray[np.float64], mass: float) -> pin.Inertia:
     vol, com, inertia = solid_mass_properties(points)
     rho = mass / vol
     return pin.Inertia(mass, com, rho * inertia)
+
+
+def part_volume(part: Part) -> float:
+    """Volume of a part's solid [m^3] (a tube's: the outer prism less the inner one), by Coal."""
+    vol = solid_mass_properties(part_vertices(part))[0]
+    if part.shape != "tube":
+        return vol
+    r_out, length, wall = part.size
+    inner = np.asarray(part.center) + _prism(r_out - wall, length, part.axis)
+    return vol - solid_mass_properties(inner)[0]
 
 
 def part_inertia(part: Part) -> pin.Inertia:

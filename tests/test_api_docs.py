@@ -43,6 +43,7 @@ PUBLIC_MODULES = {
     "packbot.model": "model.md",
     "packbot.resources": "resources.md",
     "packbot.params": "params.md",
+    "packbot.uncertainty": "uncertainty.md",
     "packbot.config": "config.md",
     "packbot.integrator": "integrator.md",
     "packbot.result": "result.md",
