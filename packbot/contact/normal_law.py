@@ -764,13 +764,8 @@ class NormalLaw(PatchEvents):
         key = (nc._version, q.tobytes()) if nc.resting and not v.any() else None
         if key is not None and self._rest_contacts[0] == key:
             return self._rest_contacts[1]
-        rhs = self._native
-        if rhs is not None and not nc.resting and not self.locks.any_locked:
-            # the compiled right-hand side's call (torque_accel's): its multipliers
-            rhs.load(nc, nc._plan())
-            if rhs.accel(q, v, tau(), True) is not None:
-                a_free, minv, lam, _, _, vt = rhs.last()[:6]
-                return mode_forces(nc, self._force_data, q, v, a_free, minv, (lam, vt))
+        # (not the compiled right-hand side's call: a call there would forget the step end it
+        # keeps for the step end's checks)
         a_free = super().accel(q, v, self.sys.aba(q, v, tau()))
         kept = nc._last_eval  # (the step end's evaluation, kept for its own state)
         try:
