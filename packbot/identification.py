@@ -8,7 +8,9 @@ armature (reflected rotor inertia), viscous and Coulomb friction, and returns an
 1. **Filter.** The samples must be uniformly spaced. Velocity and acceleration come from the
    joint angles by a Savitzky-Golay filter (:func:`scipy.signal.savgol_filter`: a
    least-squares polynomial of degree ``polyorder`` = 4 over a sliding window of ``window`` =
-   0.2 s, an odd number of samples, zero phase; deriv 1 and 2), or, when the log has
+   0.5 s, an odd number of samples, zero phase; deriv 1 and 2: it passes up to 3.4 Hz at
+   -3 dB, its acceleration is exact to 2.5e-5 at 0.25 Hz, 0.7 % at 1 Hz; a faster motion needs
+   a shorter window), or, when the log has
    velocities, the acceleration from the velocities (deriv 1); the angles (and logged
    velocities) are smoothed by the same filter (deriv 0). The torques are not filtered: a
    filter would smear Coulomb friction's jump at each velocity reversal over its window, which
@@ -615,7 +617,7 @@ def identify(
     *,
     currents: ArrayLike | None = None,
     torque_constant: ArrayLike | Mapping[str, float] | float | None = None,
-    window: float = 0.2,
+    window: float = 0.5,
     polyorder: int = 4,
     fit_dt: float | None = None,
     rank_rtol: float = 1e-6,
