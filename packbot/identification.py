@@ -10,12 +10,12 @@ armature (reflected rotor inertia), viscous and Coulomb friction, and returns an
    least-squares polynomial of degree ``polyorder`` = 4 over a sliding window of ``window`` =
    0.5 s, an odd number of samples, zero phase; deriv 1 and 2: it passes up to 3.4 Hz at
    -3 dB, its acceleration is exact to 2.5e-5 at 0.25 Hz, 0.7 % at 1 Hz; a faster motion needs
-   a shorter window), or, when the log has
-   velocities, the acceleration from the velocities (deriv 1); the angles (and logged
-   velocities) are smoothed by the same filter (deriv 0). The torques are not filtered: a
-   filter would smear Coulomb friction's jump at each velocity reversal over its window, which
-   no regressor row reproduces; their noise averages out in the least squares. The half window
-   at each end of the log is dropped; the fit uses every sample (or one every ``fit_dt``).
+   a shorter window), or, when the log has velocities, the acceleration from the velocities
+   (deriv 1); the angles (and logged velocities) are smoothed by the same filter (deriv 0).
+   The torques are not filtered: a filter would smear Coulomb friction's jump at each
+   velocity reversal over its window, which no regressor row reproduces; their noise averages
+   out in the least squares. The half window at each end of the log is dropped; the fit uses
+   every sample (or one every ``fit_dt``).
 2. **Regressor.** Pinocchio's joint-torque regressor (:func:`pinocchio.computeJointTorqueRegressor`:
    ``tau = Y(q, v, a) pi``, pi the ten parameters per body of
    ``Inertia.toDynamicParameters()``: m, m c_x, m c_y, m c_z, I_xx, I_xy, I_yy, I_xz, I_yz, I_zz
@@ -33,19 +33,21 @@ armature (reflected rotor inertia), viscous and Coulomb friction, and returns an
    leading parameter plus a linear combination of the parameters that are not identifiable on
    their own (``base_matrix``: beta = B pi). They are estimated by least squares, with their
    standard deviations from the residual and the regressor (sigma^2 (W_b^T W_b)^-1, assuming
-   independent residuals at the fit's spacing) and the condition number of the scaled base
-   regressor.
+   independent noise on the torques: encoder noise reaches the regressor and biases the fit
+   beyond them) and the condition number of the scaled base regressor.
 5. **Physical consistency.** The identified parameters are the physically consistent ones
    closest, in the base parameters' metric, to that estimate: every body's parameters are
    written in the log-Cholesky parametrisation (Rucker and Wensing, 2022;
    :class:`pinocchio.LogCholeskyParameters`: the pseudo-inertia J = U U^T, U upper triangular
    with an exponential diagonal), so each body has a positive mass, a positive-definite
    inertia that obeys the triangle inequality (J positive definite implies both) for any value
-   of its ten numbers; armature and friction are bounded below by 0. A bounded nonlinear least
-   squares (:func:`scipy.optimize.least_squares`, trust region, Pinocchio's Jacobian of the
-   parametrisation) minimises the weighted base-parameter misfit plus a weak prior
-   (``prior_weight``) that pulls the log-Cholesky numbers and the joint terms towards the
-   nominal model's. The parametrisation was chosen over a projection (which would move the
+   of its ten numbers; armature and friction are exponentials (positive). A nonlinear least
+   squares (:func:`scipy.optimize.least_squares`, Levenberg-Marquardt, Pinocchio's Jacobian of
+   the parametrisation), started from the linear fit with the same prior where that fit is
+   consistent, minimises the weighted base-parameter misfit plus a weak prior
+   (``prior_weight`` = 1: a standard deviation of a factor e on the mass and the Cholesky
+   factor's diagonal, 0.1 m on its other terms, a factor e on the joint terms) towards the
+   nominal model. The parametrisation was chosen over a projection (which would move the
    estimate after the fit, not within it) and over an LMI solve (which needs a semidefinite
    solver packbot does not depend on); the prior resolves the parameters the log cannot see,
    and, on a well-excited log, changes the base parameters by far less than their noise.
@@ -640,8 +642,9 @@ def identify(
         polyorder: Savitzky-Golay polynomial degree (2 to 6, below the window's samples).
         fit_dt: Spacing of the samples in the fit [s]; None: every sample.
         rank_rtol: Relative threshold of the base parameters' QR diagonal.
-        prior_weight: Weight of the prior towards the nominal model (log-Cholesky numbers,
-            relative joint terms) against the weighted base-parameter misfit.
+        prior_weight: Inverse standard deviation of the prior towards the nominal model
+            (log-Cholesky numbers: log mass and log diagonal, the other terms per 0.1 m; log
+            joint terms), against the weighted base-parameter misfit.
         weighted: Weight each joint's rows by its inverse residual standard deviation.
 
     Returns:
