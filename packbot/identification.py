@@ -70,8 +70,6 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 import scipy.linalg
-import scipy.optimize
-import scipy.signal
 from numpy.typing import ArrayLike, NDArray
 
 from packbot.errors import ConfigurationError, ResourceNotFound
@@ -593,6 +591,8 @@ def _consistent_fit(
         _, dpi = unpack(z)
         return np.vstack([Gd @ dpi, np.diag(prior)])
 
+    import scipy.optimize  # here: ``import packbot`` leaves it unloaded (tests/test_startup.py)
+
     with np.errstate(over="ignore", invalid="ignore"):
         sol = scipy.optimize.least_squares(
             fun,
@@ -708,6 +708,8 @@ def identify(
             f"fit_dt = {spacing:g} s (about {need * step + w} samples)",
         )
 
+    import scipy.signal  # here: it loads scipy.optimize
+
     def sg(x: FloatArray, deriv: int) -> FloatArray:
         return np.asarray(scipy.signal.savgol_filter(x, w, order, deriv=deriv, delta=dt, axis=0))
 
@@ -783,7 +785,12 @@ def identify_csv(
     path: str | Path,
     *,
     torque_constant: ArrayLike | Mapping[str, float] | float | None = None,
-    **options: object,
+    window: float = 0.5,
+    polyorder: int = 4,
+    fit_dt: float | None = None,
+    rank_rtol: float = 1e-6,
+    prior_weight: float = 1.0,
+    weighted: bool = True,
 ) -> Identification:
     """:func:`identify` on a CSV log (:func:`load_log` describes the columns).
 
@@ -791,7 +798,12 @@ def identify_csv(
         robot: The nominal robot.
         path: The CSV file.
         torque_constant: The motors' torque constants [N*m/A], for a log of currents.
-        **options: :func:`identify`'s keyword options (window, polyorder, ...).
+        window: Savitzky-Golay window [s].
+        polyorder: Savitzky-Golay polynomial degree.
+        fit_dt: Spacing of the samples in the fit [s]; None: every sample.
+        rank_rtol: Relative threshold of the base parameters' QR diagonal.
+        prior_weight: Inverse standard deviation of the prior towards the nominal model.
+        weighted: Weight each joint's rows by its inverse residual standard deviation.
 
     Raises:
         ResourceNotFound: No such file.
@@ -807,5 +819,10 @@ def identify_csv(
         data.tau,
         currents=data.currents,
         torque_constant=torque_constant,
-        **options,  # type: ignore[arg-type]
+        window=window,
+        polyorder=polyorder,
+        fit_dt=fit_dt,
+        rank_rtol=rank_rtol,
+        prior_weight=prior_weight,
+        weighted=weighted,
     )
