@@ -75,7 +75,7 @@ from numpy.typing import ArrayLike, NDArray
 from packbot.errors import ConfigurationError, ResourceNotFound
 from packbot.keywords import checked_arguments
 from packbot.model import Robot
-from packbot.validation import MAX_SAMPLES, finite_number, integer, real_array
+from packbot.validation import MAX_SAMPLES, boolean, finite_number, integer, real_array
 
 __all__ = [
     "BODY_PARAMETERS",
@@ -672,6 +672,10 @@ def identify(
         )
     if tau is not None:
         TAU = _series("tau", tau, n, nq, "N*m")
+        if torque_constant is not None:
+            raise ConfigurationError(
+                "torque_constant", torque_constant, "None with torques (it converts currents)"
+            )
     else:
         kt = _torque_constants(robot, torque_constant)
         TAU = _series("currents", currents, n, nq, "A") * kt * robot.params.gear_ratio
@@ -695,6 +699,7 @@ def identify(
     )
     rtol = finite_number("rank_rtol", rank_rtol, low=1e-14, high=0.1)
     prior_w = finite_number("prior_weight", prior_weight, low=0.0, low_open=True, high=1e6)
+    use_weights = boolean("weighted", weighted)
     names = parameter_names(robot)
     p = len(names)
     step = max(1, round(spacing / dt))
@@ -734,7 +739,7 @@ def identify(
     res0 = joint_residuals(np.asarray(np.linalg.lstsq(B, beta, rcond=None)[0], dtype=float))
     noise = res0 / math.sqrt(len(idx))
     floor = _SIGMA_FLOOR * np.maximum(tau_norm / math.sqrt(len(idx)), 1e-300)
-    weights = 1.0 / np.maximum(noise, floor) if weighted else np.ones(nq)
+    weights = 1.0 / np.maximum(noise, floor) if use_weights else np.ones(nq)
     G = np.vstack([R * wj for R, wj in zip(R_aug, weights, strict=True)])
     B, beta, R1, lead_norm, cov_s, res2, cond = _base_fit(G, rtol)
     r = len(beta)

@@ -299,6 +299,8 @@ def test_bad_options_name_the_option(robot: packbot.Robot, log: tuple[np.ndarray
         (dict(tau=tau, window=0.01), "window"),
         (dict(tau=tau, polyorder=9), "polyorder"),
         (dict(tau=tau, prior_weight=0.0), "prior_weight"),
+        (dict(tau=tau, weighted="yes"), "weighted"),
+        (dict(tau=tau, torque_constant=0.1), "torque_constant"),
     ]
     for kwargs, field in cases:
         with pytest.raises(ConfigurationError) as info:
