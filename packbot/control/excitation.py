@@ -19,7 +19,10 @@ joint-torque regressor, the identifiable columns of :func:`packbot.identificatio
 equilibrated) has the smallest condition number is improved by a seeded random local search
 (``refine`` steps), and the first of the best candidates whose path is collision-free
 (:func:`~packbot.control.check_path` over the sampled path, against the environment and the
-arm's own pieces) is returned. Every figure is checked on a grid of ``check_dt``.
+arm's own pieces) is returned. Every figure is checked on a grid of ``check_dt`` (0.05 s):
+the limits at its points (a finer grid sees the motion within the limits, and within the
+fraction but for a few per mil), the collisions along the straight joint-space segments between
+them, from which the trajectory departs by at most a dt^2 / 8 (0.3 mrad at 1 rad/s^2).
 """
 
 from __future__ import annotations
