@@ -15,6 +15,7 @@ from packbot.errors import (
     UnknownNameError,
 )
 from packbot.failures import FAILURE_KINDS, Failure
+from packbot.identification import Identification, identify, identify_csv
 from packbot.integrator import simulate
 from packbot.model import JointParams, Robot, load_robot
 from packbot.payload import Payload
@@ -39,6 +40,7 @@ __all__ = [
     "Environment",
     "Event",
     "Failure",
+    "Identification",
     "InitialCollisionError",
     "JointParams",
     "ModelError",
@@ -56,6 +58,8 @@ __all__ = [
     "StudyResult",
     "UnknownNameError",
     "__version__",
+    "identify",
+    "identify_csv",
     "load_robot",
     "package_dirs",
     "sample_robots",

@@ -1000,6 +1000,80 @@ _GUARD = {
 for _id, _kw, _word, _err in _sim_cases:
     api(f"simulate-{_id}", sim(**_kw), _word, error=_err, guard=_id in _GUARD)
 
+
+# ------------------------------------------------------------------------ API: identification
+def _log(n: int = 200, **change: Any) -> dict[str, Any]:
+    """A short log at rest at q = 0 (t, q, tau), with entries replaced by ``change``."""
+    t = np.arange(n) * 0.01
+    q = np.zeros((n, NQ))
+    out: dict[str, Any] = {"t": t, "q": q, "tau": np.zeros((n, NQ))}
+    out.update(change)
+    return out
+
+
+def _ident(**change: Any) -> Callable[[Ctx], Any]:
+    def action(c: Ctx) -> Any:
+        args = _log(**change)
+        return packbot.identify(c.robot, args.pop("t"), args.pop("q"), **args)
+
+    return action
+
+
+_CSV_HEAD = ",".join(
+    ["time"]
+    + [f"q_{j}" for j in packbot.params.ARM_JOINTS]
+    + [f"tau_{j}" for j in packbot.params.ARM_JOINTS]
+)
+api("identify-q-rows", _ident(q=np.zeros((199, NQ))), "q", "(199, 8)", error=ConfigurationError)
+api("identify-tau-columns", _ident(tau=np.zeros((200, 7))), "tau", error=ConfigurationError)
+api("identify-tau-nan", _ident(tau=np.full((200, NQ), np.nan)), "tau", error=ConfigurationError)
+api("identify-few-samples", _ident(n=20), "t", "at least", error=ConfigurationError)
+api(
+    "identify-t-uneven",
+    _ident(t=np.arange(200) ** 1.1 * 0.01),
+    "t",
+    "uniform",
+    error=ConfigurationError,
+)
+api("identify-no-torques", _ident(tau=None), "tau", "currents", error=ConfigurationError)
+api(
+    "identify-currents-no-kt",
+    _ident(tau=None, currents=np.zeros((200, NQ))),
+    "torque_constant",
+    error=ConfigurationError,
+)
+api("identify-window-short", _ident(window=0.02), "window", error=ConfigurationError)
+api(
+    "load_log-unknown-column",
+    lambda c: packbot.identification.load_log(
+        c.robot, c.write("log.csv", _CSV_HEAD.replace("tau_gripper_jaw", "tau_gripper_jw") + "\n")
+    ),
+    "tau_gripper_jw",
+    "tau_gripper_jaw",
+    error=ConfigurationError,
+)
+api(
+    "load_log-bad-cell",
+    lambda c: packbot.identification.load_log(
+        c.robot, c.write("log.csv", _CSV_HEAD + "\n" + ",".join(["x"] * (1 + 2 * NQ)) + "\n")
+    ),
+    "line 2",
+    "time",
+    error=ConfigurationError,
+)
+api(
+    "exciting_trajectory-harmonics",
+    lambda c: packbot.control.exciting_trajectory(c.robot, 10.0, harmonics=1),
+    "harmonics",
+    error=ConfigurationError,
+)
+api(
+    "exciting_trajectory-duration",
+    lambda c: packbot.control.exciting_trajectory(c.robot, -1.0),
+    "duration",
+    error=ConfigurationError,
+)
+
 # ------------------------------------------------------------------------ API: model, results
 api("load_robot-int", lambda c: packbot.load_robot(42), "urdf", error=ConfigurationError)
 api(

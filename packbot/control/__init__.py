@@ -5,6 +5,8 @@
 - :class:`ReconfigurableController`: places the gripper and re-plans after a joint failure,
   detected by a :class:`MomentumObserver` or reported by the simulator;
 - :func:`build_controller`: a controller from a scenario file's values;
+- :func:`exciting_trajectory`: a motion for identifying the inertial parameters
+  (:func:`packbot.identify`);
 - :func:`solve_position_ik` (collision-free by default) and :func:`check_path` (the first
   collision along a joint path);
 - :class:`TaskRecovery`, :class:`RecoveryStrategy` (:class:`BaselineRecovery`,
@@ -17,6 +19,7 @@ from packbot.control.cartesian import CartesianPD
 from packbot.control.computed_torque import ComputedTorque
 from packbot.control.context import FailureReport, RecoveryContext, RecoveryEvent
 from packbot.control.detector import Detection, MomentumObserver
+from packbot.control.excitation import ExcitingTrajectory, exciting_trajectory
 from packbot.control.gravity import GravityCompensation
 from packbot.control.ik import IKResult, solve_position_ik
 from packbot.control.model_based import ModelBasedController
@@ -38,6 +41,7 @@ __all__ = [
     "ComputedTorque",
     "Controller",
     "Detection",
+    "ExcitingTrajectory",
     "FailureReport",
     "GravityCompensation",
     "IKResult",
@@ -59,6 +63,7 @@ __all__ = [
     "WeakJointTracker",
     "build_controller",
     "check_path",
+    "exciting_trajectory",
     "holdable_posture",
     "min_jerk_duration",
     "reach_bounds",
