@@ -922,8 +922,6 @@ _SCENARIO_STUDY_OPTIONS = {
     "contact_mode": "--contact-mode",
     "no_html": "--no-html",
     "overwrite": "--overwrite",
-    "uncertain": "--uncertain",
-    "seed": "--seed",
 }
 #: ``packbot study`` options for a study matrix (its batch).
 _MATRIX_STUDY_OPTIONS = {
@@ -961,6 +959,12 @@ def _cmd_study_matrix(args: argparse.Namespace) -> int:
     from packbot.batch import ProgressBar
     from packbot.study_matrix import load_study_matrix, run_study_matrix
 
+    for flag in ("--uncertain", "--seed"):
+        if getattr(args, flag[2:]) is not None:
+            raise _UsageError(
+                f"{flag} applies to one scenario (an uncertain study), not to a study matrix "
+                f"({args.scenario!r})"
+            )
     for dest, flag in _SCENARIO_STUDY_OPTIONS.items():
         if getattr(args, dest) not in (None, False):
             raise _UsageError(

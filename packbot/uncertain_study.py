@@ -414,10 +414,19 @@ class UncertainStudy:
         lines.append(
             f"  reconfigured peak torque ratio (5 / 50 / 95 %): {q[5]:.3f} {q[50]:.3f} {q[95]:.3f}"
         )
-        lines.append("  reconfigured final task error follows (Spearman rho):")
-        for name, rho in self.sensitivity("reconfigured", "final_task_error_m")[:SUMMARY_TOP]:
-            shown = "undefined (too few arms, or the error the same on all)"
-            lines.append(f"    {name:<28} {shown if math.isnan(rho) else f'{rho:+.2f}'}")
+        ranked = [
+            (name, rho)
+            for name, rho in self.sensitivity("reconfigured", "final_task_error_m")
+            if not math.isnan(rho)
+        ]
+        if not ranked:
+            lines.append(
+                "  sensitivity undefined: fewer than 3 arms, or the same error on all of them"
+            )
+        else:
+            lines.append("  reconfigured final task error follows (Spearman rho):")
+            for name, rho in ranked[:SUMMARY_TOP]:
+                lines.append(f"    {name:<28} {rho:+.2f}")
         return "\n".join(lines)
 
 

@@ -215,3 +215,10 @@ def test_cli_bad_input_is_one_line_exit_2(tmp_path, capsys, argv: list, word: st
     assert rc == 2
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and word in err
+
+
+def test_cli_refuses_uncertain_for_a_study_matrix(tmp_path, capsys) -> None:
+    rc = main(["study", "study-frozen-elbows", "--uncertain", "4", "--out", str(tmp_path / "m")])
+    assert rc == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "--uncertain" in err and "matrix" in err
