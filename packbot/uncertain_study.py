@@ -30,13 +30,9 @@ from __future__ import annotations
 import dataclasses
 import logging
 import math
-import multiprocessing
 import os
-import pickle
-import tempfile
 import time
 from collections.abc import Callable, Iterable, Sequence
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Literal
@@ -521,6 +517,9 @@ def _run_jobs(
             say(f"arm {job.index + 1} of {len(jobs)}")
             out.append(_study_arm(job))
         return tuple(out)
+    import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor
+
     from packbot.batch import _single_thread_env  # one BLAS thread per worker, as the batch's
 
     ctx = multiprocessing.get_context("spawn")
@@ -536,6 +535,8 @@ def _run_jobs(
 
 
 def _picklable(name: str, value: Any) -> None:
+    import pickle
+
     try:
         pickle.dumps(value)
     except Exception as exc:
@@ -609,6 +610,8 @@ def uncertain_study(
             scenario without failures, a controller that does not pickle with workers > 1.
         UnknownNameError: An unknown scenario or parameter name.
     """
+    import tempfile
+
     from packbot.control.user_code import controller_factory, describe_spec, strategy_factory
     from packbot.study import _check_inputs
     from packbot.uncertainty import sample_values
