@@ -22,6 +22,7 @@ from packbot.payload import Payload
 from packbot.resources import package_dirs, urdf_path
 from packbot.result import Diagnostics, Event, SimResult
 from packbot.study import StudyResult, study
+from packbot.uncertain_study import UncertainStudy, uncertain_study
 from packbot.uncertainty import ParameterSample, SampledRobots, sample_robots, sample_values
 
 #: The package version (PEP 440), as in pyproject.toml.
@@ -56,6 +57,7 @@ __all__ = [
     "SimResult",
     "SimulationError",
     "StudyResult",
+    "UncertainStudy",
     "UnknownNameError",
     "__version__",
     "identify",
@@ -66,5 +68,6 @@ __all__ = [
     "sample_values",
     "simulate",
     "study",
+    "uncertain_study",
     "urdf_path",
 ]

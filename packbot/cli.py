@@ -959,6 +959,12 @@ def _cmd_study_matrix(args: argparse.Namespace) -> int:
     from packbot.batch import ProgressBar
     from packbot.study_matrix import load_study_matrix, run_study_matrix
 
+    for flag in ("--uncertain", "--seed"):
+        if getattr(args, flag[2:]) is not None:
+            raise _UsageError(
+                f"{flag} applies to one scenario (an uncertain study), not to a study matrix "
+                f"({args.scenario!r})"
+            )
     for dest, flag in _SCENARIO_STUDY_OPTIONS.items():
         if getattr(args, dest) not in (None, False):
             raise _UsageError(
@@ -1016,6 +1022,8 @@ def _cmd_study(args: argparse.Namespace) -> int:
     if _is_study_matrix(args.scenario):
         return _cmd_study_matrix(args)
     for dest, flag in _MATRIX_STUDY_OPTIONS.items():
+        if dest == "workers" and args.uncertain is not None:
+            continue  # an uncertain study's pool
         if getattr(args, dest) not in (None, False):
             raise _UsageError(
                 f"{flag} applies to a study matrix (sims/matrices/ or a matrix file with "
@@ -1036,9 +1044,13 @@ def _cmd_study(args: argparse.Namespace) -> int:
         )
     _check_name(scenario)
     controller, recovery = _user_code(args)
+    if args.uncertain is None and args.seed is not None:
+        raise _UsageError("--seed applies to an uncertain study (--uncertain N)")
     out, old = _prepare_out(args.out or f"out/{scenario.name}_study", args.overwrite)
     for path in old:
         path.unlink(missing_ok=True)
+    if args.uncertain is not None:
+        return _uncertain_study(args, scenario, out, controller, recovery)
     result = study(
         scenario,
         duration=args.duration,
@@ -1067,6 +1079,38 @@ def _cmd_study(args: argparse.Namespace) -> int:
             f"limit, {m.contacts} contacts{detect}"
         )
     print(f"wrote {out / 'study.json'}" + ("" if args.no_html else f" and {out / 'report.html'}"))
+    return EXIT_OK
+
+
+def _uncertain_study(
+    args: argparse.Namespace,
+    scenario: Scenario,
+    out: Path,
+    controller: str | None,
+    recovery: str,
+) -> int:
+    """``packbot study SCENARIO --uncertain N``: the study on N sampled arms, uncertain.json."""
+    from packbot.batch import atomic_write
+    from packbot.uncertain_study import uncertain_study
+
+    unc = uncertain_study(
+        scenario,
+        samples=args.uncertain,
+        seed=0 if args.seed is None else args.seed,
+        duration=args.duration,
+        tolerance=args.tolerance,
+        contact_mode=args.contact_mode,
+        controller=controller,
+        recovery=recovery,
+        workers=max(1, args.workers or 1),
+        progress=lambda text: log.info("%s", text),
+    )
+    path = out / "uncertain.json"
+    summary = unc.summary()
+    atomic_write(path, (json.dumps(summary, indent=2, allow_nan=False) + "\n").encode())
+    _write_manifest(out, scenario, "uncertain study", [path])
+    print(unc.text())
+    print(f"wrote {path}")
     return EXIT_OK
 
 
@@ -1291,7 +1335,19 @@ def build_parser() -> argparse.ArgumentParser:
         "on_failure hook (none), or your packbot.control.RecoveryStrategy",
     )
     p.add_argument(
-        "--workers", type=int, default=None, help="a matrix: processes (CPUs; 0: this one)"
+        "--uncertain",
+        metavar="N",
+        type=int,
+        default=None,
+        help="one scenario: study N arms drawn within the model's tolerances and write "
+        "uncertain.json (quantiles, recovery probability, sensitivity) instead of study.json",
+    )
+    p.add_argument("--seed", type=int, default=None, help="--uncertain: seed of the draw (0)")
+    p.add_argument(
+        "--workers",
+        type=int,
+        default=None,
+        help="a matrix: processes (CPUs; 0: this one); --uncertain: processes (1)",
     )
     p.add_argument(
         "--scheduler",

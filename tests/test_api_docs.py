@@ -56,6 +56,7 @@ PUBLIC_MODULES = {
     "packbot.analysis": "analysis.md",
     "packbot.study": "study.md",
     "packbot.study_matrix": "study_matrix.md",
+    "packbot.uncertain_study": "uncertain_study.md",
     "packbot.identification": "identification.md",
     "packbot.scenario": "scenario.md",
     "packbot.matrix": "matrix.md",
