@@ -2,6 +2,7 @@
 
 from packbot.collision import CollisionWorld, Contact, ContactPatch, PairInfo
 from packbot.config import SimConfig
+from packbot.contact_forces import ContactForce, ContactTable
 from packbot.environment import FLOOR, Environment, Obstacle
 from packbot.errors import (
     ConfigurationError,
@@ -34,7 +35,9 @@ __all__ = [
     "CollisionWorld",
     "ConfigurationError",
     "Contact",
+    "ContactForce",
     "ContactPatch",
+    "ContactTable",
     "ControllerError",
     "ConvexityError",
     "Diagnostics",

@@ -341,7 +341,8 @@ class Scenario:
 
 def _validate_environment(env: Environment) -> None:
     seen: set[str] = set()
-    for k, ob in enumerate(o for o in env.obstacles if o is not FLOOR):  # as in the file
+    # the implicit floor by value (a scenario sent to a worker process holds an equal copy)
+    for k, ob in enumerate(o for o in env.obstacles if o != FLOOR):  # as in the file
         path = f"environment.obstacles[{k}]"
         try:
             ob.validate()

@@ -449,21 +449,6 @@ class _Job:
     directory: str
 
 
-def _unpickled(scenario: Scenario) -> Scenario:
-    """A scenario sent to a worker, its floor the worker's :data:`packbot.environment.FLOOR`.
-
-    The scenario checks tell the implicit floor by identity (``is FLOOR``); a pickled copy of
-    it is an equal object, not the same one.
-    """
-    from packbot.environment import FLOOR
-
-    env = scenario.environment
-    obstacles = tuple(FLOOR if o == FLOOR else o for o in env.obstacles)
-    if all(a is b for a, b in zip(obstacles, env.obstacles, strict=True)):
-        return scenario
-    return dataclasses.replace(scenario, environment=dataclasses.replace(env, obstacles=obstacles))
-
-
 def _study_arm(job: _Job) -> ArmStudy:
     """Build arm ``job.index`` and study it; a PackbotError becomes the arm's error."""
     from packbot.study import study
@@ -473,7 +458,7 @@ def _study_arm(job: _Job) -> ArmStudy:
     try:
         folder = Path(job.directory) / f"arm_{job.index:04d}"
         robot = robot_from_values(job.values, directory=folder)
-        res = study(_unpickled(job.scenario), robot=robot, **job.options)
+        res = study(job.scenario, robot=robot, **job.options)
     except PackbotError as exc:
         log.warning("arm %d: study failed: %s", job.index, exc)
         text = f"{type(exc).__name__}: {exc}"

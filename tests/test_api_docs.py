@@ -47,6 +47,7 @@ PUBLIC_MODULES = {
     "packbot.config": "config.md",
     "packbot.integrator": "integrator.md",
     "packbot.result": "result.md",
+    "packbot.contact_forces": "contact_forces.md",
     "packbot.failures": "failures.md",
     "packbot.actuators": "actuators.md",
     "packbot.payload": "payload.md",

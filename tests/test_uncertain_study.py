@@ -222,3 +222,15 @@ def test_cli_refuses_uncertain_for_a_study_matrix(tmp_path, capsys) -> None:
     assert rc == 2
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and "--uncertain" in err and "matrix" in err
+
+
+def test_a_scenario_sent_to_another_process_passes_its_own_checks() -> None:
+    """The implicit floor is told by value: a pickled copy of a scenario is still valid."""
+    import pickle
+
+    from packbot.scenario import load_scenario
+
+    sc = load_scenario("collapse_physical")
+    copy = pickle.loads(pickle.dumps(sc))
+    assert copy.environment.obstacles[0] is not sc.environment.obstacles[0]
+    copy.validate()  # (it raised "'floor' used twice" when the floor was told by identity)
