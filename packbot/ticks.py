@@ -119,10 +119,15 @@ class Ticks:
             self._data = model.createData()
         new = self.events[self._seen :]
         self._seen = len(self.events)
-        dv = np.zeros(model.nv)
+        # the events of one instant share their velocities (one handling): one jump per instant
+        jumps: dict[float, tuple[FloatArray, FloatArray]] = {}
         for ev in new:
             if ev.kind in IMPULSIVE and len(ev.v_after) == model.nv:
-                dv += np.asarray(ev.v_after) - np.asarray(ev.v_before)
+                first = jumps.get(ev.t, (np.asarray(ev.v_before), None))[0]
+                jumps[ev.t] = (first, np.asarray(ev.v_after))
+        dv = np.zeros(model.nv)
+        for before, after in jumps.values():
+            dv += after - before
         M = pin.crba(model, self._data, qf)
         M = np.triu(M) + np.triu(M, 1).T
         ctrl.contact_impulse = M @ dv  # (M at the tick: the impacts were within a period)

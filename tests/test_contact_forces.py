@@ -370,3 +370,32 @@ def test_analytic_centre_is_the_barriers_optimum_on_a_random_redundant_rest() ->
     for d in N.T:
         for step in (-0.1, 0.1):
             assert barrier(x.ravel() + step * d) >= here - 1e-4
+
+
+class _PushAtRest(_Sensing):
+    """The sensing controller, pushing elbow1 with 3 N*m from 2.5 s on (the arm stays put)."""
+
+    def compute(self, t, q, v):
+        super().compute(t, q, v)
+        tau = np.zeros(len(q))
+        if t >= 2.5:
+            tau[self.robot.joint_names.index("elbow1")] = 3.0
+        self.last_command = tau
+        return tau
+
+
+def test_a_resting_arm_is_told_the_forces_under_a_new_torque(robot) -> None:
+    ctrl = _PushAtRest(dt=0.01)
+    cfg = packbot.SimConfig(contact_mode="normal", mu=MU, locked_joints=WRIST)
+    res = packbot.simulate(
+        robot, robot.pose("drive"), np.zeros(8), 3.0, controller=ctrl, config=cfg
+    )
+    free = _free(res)
+    _, torque, _, _ = ctrl.told[-1]
+    q = res.q[-1]
+    if np.max(np.abs(res.v[-1])) > 0.0:
+        pytest.skip("the push moved the arm: not a resting case here")
+    g = pin.computeGeneralizedGravity(robot.model, robot.model.createData(), q)
+    # at rest: g = tau + contact_torque (the 3 N*m push counted, not the first rest's answer)
+    resid = (g - ctrl.last_command - torque)[free]
+    assert np.linalg.norm(resid) <= 1e-6 * np.linalg.norm(g[free])

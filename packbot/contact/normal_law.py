@@ -760,13 +760,14 @@ class NormalLaw(PatchEvents):
             return None
         if not nc.engaged:
             return []
-        # a resting arm's samples are one state: its contacts are found once
-        key = (nc._version, q.tobytes()) if nc.resting and not v.any() else None
+        # a resting arm's samples under one torque are one state: its contacts are found once
+        torque = tau()
+        key = (nc._version, q.tobytes(), torque.tobytes()) if nc.resting and not v.any() else None
         if key is not None and self._rest_contacts[0] == key:
             return self._rest_contacts[1]
         # (not the compiled right-hand side's call: a call there would forget the step end it
         # keeps for the step end's checks)
-        a_free = super().accel(q, v, self.sys.aba(q, v, tau()))
+        a_free = super().accel(q, v, self.sys.aba(q, v, torque))
         kept = nc._last_eval  # (the step end's evaluation, kept for its own state)
         try:
             found = mode_forces(nc, self._force_data, q, v, a_free, self.sys.minv(q))
