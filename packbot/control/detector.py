@@ -387,7 +387,9 @@ class MomentumObserver:
             quiet = not np.count_nonzero(over)
         else:
             quiet = True
-        if not quiet and not known and self._touching(t, q):
+        # (known forces: the joints are judged, but not within contact_hold of a contact the
+        # forces of which were unknown: its residual is still decaying)
+        if not quiet and (t <= self._contact_until if known else self._touching(t, q)):
             quiet = True
         if quiet:  # nothing over its threshold: no onset pending, nothing due
             if self._pending:
