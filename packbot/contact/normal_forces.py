@@ -46,7 +46,6 @@ def mode_forces(
     v: FloatArray,
     a_free: FloatArray,
     minv: FloatArray,
-    solved: tuple[FloatArray, FloatArray] | None = None,
 ) -> list[SampleContact]:
     """The contacts of the contact set's current mode at (q, v), world frame.
 
@@ -57,9 +56,6 @@ def mode_forces(
         v: Velocity [rad/s].
         a_free: Unconstrained accelerations [rad/s^2] (with the locks' rows, as the law's).
         minv: M^-1 at q.
-        solved: The mode's multipliers and the pairs' sliding velocities (lam, v_t) at (q,
-            v), as the compiled right-hand side solved them; None: solved here
-            (:meth:`~packbot.contact.normal_dynamics.ConstrainedDynamics.evaluate`).
 
     Returns:
         (names, point, point1, point2 [m], normal, force on body 2 [N]) per contact point.
@@ -71,15 +67,13 @@ def mode_forces(
     frames = [_frame(data, p) for p in pairs]
     if nc.resting:
         return _rest_forces(nc, data, pairs, frames, q, a_free, minv)
-    if solved is None:
-        ev = nc.evaluate(q, v, a_free, minv)
-        if ev.rest is not None:
-            return _rest_forces(nc, data, pairs, frames, q, a_free, minv)
-        solved = (ev.lam, ev.vt)
+    ev = nc.evaluate(q, v, a_free, minv)
+    if ev.rest is not None:
+        return _rest_forces(nc, data, pairs, frames, q, a_free, minv)
     plan = nc._plan()
     start = _row_starts(pairs)
-    lam = np.asarray(solved[0], dtype=np.float64)
-    vts = np.asarray(solved[1], dtype=np.float64)
+    lam = np.asarray(ev.lam, dtype=np.float64)
+    vts = np.asarray(ev.vt, dtype=np.float64)
     pos = {int(r): i for i, r in enumerate(plan.engaged)}
     n_e = len(plan.engaged)
     stick_k = {int(i): n_e + 2 * k for k, i in enumerate(plan.sticks)}

@@ -156,23 +156,23 @@ def _newton(
     eps2 = (SMOOTH * scale) ** 2
     cone = mus > 0.0
 
-    def parts(zz: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
+    def parts(zz: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
         x = (x0 + basis @ zz).reshape(m, 3)
         r = np.sqrt(x[:, 0] ** 2 + x[:, 1] ** 2 + eps2)
         s = np.where(cone, mus * x[:, 2] - r, x[:, 2])
-        return x, r, s, np.zeros(0)
+        return x, r, s
 
     r2 = radius * radius
 
     def value(zz: FloatArray) -> float:
-        x, _, s, _ = parts(zz)
+        x, _, s = parts(zz)
         room = r2 - float(np.sum(x * x))
         if float(s.min()) <= 0.0 or room <= 0.0:
             return math.inf
         return -float(np.log(s / scale).sum()) - math.log(room / r2)
 
     for _ in range(100):
-        x, r, s, _ = parts(z)
+        x, r, s = parts(z)
         grad_x = np.zeros((m, 3))
         hess_x = np.zeros((3 * m, 3 * m))
         for i in range(m):
