@@ -28,12 +28,19 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["ContactForce", "ContactTable", "PairNames", "SampleContact", "joint_torque"]
+__all__ = [
+    "ContactForce",
+    "ContactTable",
+    "PairNames",
+    "SampleContact",
+    "SampleForces",
+    "joint_torque",
+]
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
@@ -42,6 +49,19 @@ PairNames = tuple[str, str, str, str]
 #: One contact of one sample as the law reports it: names, point, point1, point2 [m], normal,
 #: force [N].
 SampleContact = tuple[PairNames, FloatArray, FloatArray, FloatArray, FloatArray, FloatArray]
+
+
+class SampleForces(NamedTuple):
+    """What the contact law reports of one sample's state.
+
+    Attributes:
+        contacts: Its contacts (:data:`SampleContact` each).
+        limit_torque: The joint position stops' torques [N*m], shape (nv,): the torque each
+            stop exerts on its joint (positive along +q; 0 off the stops).
+    """
+
+    contacts: list[SampleContact]
+    limit_torque: FloatArray
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -110,6 +130,11 @@ class ContactTable:
         point2: Body 2's material points [m], world frame, shape (K, 3).
         normal: Unit normals from body 1 to body 2, world frame, shape (K, 3).
         force: Forces on body 2 [N], world frame, shape (K, 3).
+        known: Per sample, whether the law could say its forces, shape (N,): False inside a
+            time-stepping window and under the report's law (such a sample has no rows; its
+            contacts are unknown, not absent).
+        limit_torque: Per sample, the torque each joint position stop exerts on its joint
+            [N*m], shape (N, nv) (positive along +q; 0 off the stops; NaN where not known).
     """
 
     pairs: tuple[PairNames, ...] = ()
@@ -120,14 +145,26 @@ class ContactTable:
     point2: FloatArray = field(default_factory=lambda: np.zeros((0, 3)))
     normal: FloatArray = field(default_factory=lambda: np.zeros((0, 3)))
     force: FloatArray = field(default_factory=lambda: np.zeros((0, 3)))
+    known: NDArray[np.bool_] = field(default_factory=lambda: np.zeros(0, dtype=bool))
+    limit_torque: FloatArray = field(default_factory=lambda: np.zeros((0, 0)))
 
     def __len__(self) -> int:
         """The number of rows (contacts over all samples)."""
         return len(self.sample)
 
     @classmethod
-    def from_samples(cls, samples: Sequence[Sequence[SampleContact]]) -> ContactTable:
-        """The table of the contacts reported per sample (sample k: ``samples[k]``)."""
+    def from_samples(cls, samples: Sequence[SampleForces | None], nv: int) -> ContactTable:
+        """The table of what the law reported per sample (sample k: ``samples[k]``).
+
+        Args:
+            samples: Per sample, the law's report (None: it could not say).
+            nv: The number of joint velocities (the limit torques' columns).
+        """
+        known = np.array([s is not None for s in samples], dtype=bool)
+        limit = np.full((len(samples), nv), np.nan)
+        for k, s in enumerate(samples):
+            if s is not None:
+                limit[k] = s.limit_torque
         index: dict[PairNames, int] = {}
         rows_sample: list[int] = []
         rows_pair: list[int] = []
@@ -136,8 +173,8 @@ class ContactTable:
         pt2: list[FloatArray] = []
         nrm: list[FloatArray] = []
         frc: list[FloatArray] = []
-        for k, contacts in enumerate(samples):
-            for names, point, point1, point2, normal, force in contacts:
+        for k, found in enumerate(samples):
+            for names, point, point1, point2, normal, force in () if found is None else found[0]:
                 rows_sample.append(k)
                 rows_pair.append(index.setdefault(names, len(index)))
                 pts.append(point)
@@ -146,8 +183,10 @@ class ContactTable:
                 nrm.append(normal)
                 frc.append(force)
         if not rows_sample:
-            return cls()
+            return cls(known=known, limit_torque=limit)
         return cls(
+            known=known,
+            limit_torque=limit,
             pairs=tuple(index),
             sample=np.array(rows_sample, dtype=np.int64),
             pair=np.array(rows_pair, dtype=np.int64),

@@ -391,7 +391,7 @@ class _Run:
             tau_cmd=tau_cmd,
             tau_friction=tau_fr,
             effort=effort,
-            contacts=self.rec.contact_table(),
+            contacts=self.rec.contact_table(self.drive.robot.model.nv),
             failures=tuple(self.failures_in),
             control_ticks=self.schedule.ticks,
             environment=Environment() if self.environment is None else self.environment,

@@ -23,7 +23,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import NDArray
 
-from packbot.contact_forces import ContactTable, SampleContact
+from packbot.contact_forces import ContactTable, SampleForces
 from packbot.drive import Drive
 from packbot.errors import SimulationError
 from packbot.ode import DenseSegment
@@ -118,7 +118,7 @@ def measure(
 
 def contact_sampler(
     drive: Drive, law: ContactLaw
-) -> Callable[[float, FloatArray], list[SampleContact] | None]:
+) -> Callable[[float, FloatArray], SampleForces | None]:
     """The contact forces of a state: the law's current mode's, under the drive's torques.
 
     Args:
@@ -126,18 +126,25 @@ def contact_sampler(
         law: The run's contact law (:meth:`~packbot.contact.base.ContactLaw.contact_forces`).
 
     Returns:
-        (t [s], integrated state y) -> the contacts of that sample (None: the law cannot say).
+        (t [s], integrated state y) -> the contacts of that sample and its stops' torques in
+        full coordinates (None: the law cannot say).
     """
 
-    def sample(t: float, y: FloatArray) -> list[SampleContact] | None:
+    def sample(t: float, y: FloatArray) -> SampleForces | None:
         n = drive.sys.nv
 
         def tau() -> FloatArray:
             _, _, applied, friction = drive.torques(t, y)
             return np.asarray(applied + friction, dtype=np.float64)
 
-        return law.contact_forces(y[:n], y[n : 2 * n], tau)
+        found = law.contact_forces(y[:n], y[n : 2 * n], tau)
+        if found is None or n == n_full:
+            return found
+        full = np.zeros(n_full)  # (the stops' torques in full coordinates: locks' are 0)
+        full[drive.sys.free] = found.limit_torque  # (the phase's system: a failure locks)
+        return SampleForces(found.contacts, full)
 
+    n_full = drive.robot.model.nv
     return sample
 
 
@@ -270,7 +277,7 @@ class Recorder:
         duration: float,
         measure: Callable[[float, FloatArray], Sample],
         measure_many: Callable[[list[float], list[FloatArray]], Samples | None] | None = None,
-        contacts: Callable[[float, FloatArray], list[SampleContact] | None] | None = None,
+        contacts: Callable[[float, FloatArray], SampleForces | None] | None = None,
     ) -> None:
         self.dt = sample_dt
         self.duration = duration
@@ -282,7 +289,7 @@ class Recorder:
         self._t: FloatArray = np.empty(0)
         self._cols: list[FloatArray] = []  # (q, v, tau_cmd, tau, tau_friction, effort, E)
         self.contacts = contacts
-        self._contacts: list[list[SampleContact]] = []  # per sample kept, its contacts
+        self._contacts: list[SampleForces | None] = []  # per sample kept, the law's report
 
     def __len__(self) -> int:
         """The number of samples kept."""
@@ -371,14 +378,13 @@ class Recorder:
         self._contacts.append(found)
         self._n = n + 1
 
-    def _contacts_of(self, t: float, y: FloatArray) -> list[SampleContact]:
-        """The contacts of the sample of state y at t (none without a ``contacts`` function)."""
-        found = None if self.contacts is None else self.contacts(t, y)
-        return [] if found is None else found
+    def _contacts_of(self, t: float, y: FloatArray) -> SampleForces | None:
+        """The law's report of the sample of state y at t (None: unknown, or none asked)."""
+        return None if self.contacts is None else self.contacts(t, y)
 
-    def contact_table(self) -> ContactTable:
+    def contact_table(self, nv: int) -> ContactTable:
         """The contacts of the samples kept, as one table (:class:`ContactTable`)."""
-        return ContactTable.from_samples(self._contacts[: self._n])
+        return ContactTable.from_samples(self._contacts[: self._n], nv)
 
     def _rows(self, times: list[float], samples: Samples) -> None:
         """Keep several samples (the first one was kept before: the arrays exist)."""

@@ -315,6 +315,7 @@ class SimResult:
         return robot
 
     @checked_arguments
+    @checked_arguments
     def contacts_at(self, t: float, *, before: bool = False) -> list[ContactForce]:
         """The contacts at sample time t, each with its force (world frame).
 
@@ -327,11 +328,42 @@ class SimResult:
             before: At an event's instant (two samples share its time), the sample before it
                 (default: the one after).
 
+        Returns:
+            The sample's contacts: empty where it had none, and where its forces are not
+            known (:attr:`contacts_known` tells the two apart).
+
         Raises:
             ConfigurationError: ``t`` is not a sample time of the result.
         """
         k = self.sample_index(t, before=before)
         return self.contacts.at_sample(k)
+
+    @property
+    def contacts_known(self) -> NDArray[np.bool_]:
+        """Per sample, whether its contact forces are known, shape (N,) (a copy).
+
+        False inside a time-stepping window of the contact-normal mode and under the report's
+        law (``joint_clamp``, ``handoff``): the contacts of such a sample are unknown, not
+        absent (:meth:`contacts_at` gives none, :meth:`contact_torques` NaN).
+        """
+        known = self.contacts.known
+        if len(known) != len(self.t):  # (a table without the mask: a result built by hand)
+            return np.zeros(len(self.t), dtype=bool)
+        return np.array(known, dtype=bool)
+
+    @property
+    def limit_torque(self) -> NDArray[np.float64]:
+        """The joint position stops' torques [N*m] at every sample, shape (N, nv) (a copy).
+
+        The torque each hard stop exerts on its joint: positive along +q, 0 off the stops,
+        NaN where the forces are not known (:attr:`contacts_known`). With
+        :meth:`contact_torques` it closes the equations of motion of the free joints:
+        M(q) a + C(q, v) v + g(q) = tau + tau_friction + contact_torques + limit_torque.
+        """
+        lim = self.contacts.limit_torque
+        if lim.shape != self.q.shape:
+            return np.full(self.q.shape, np.nan)
+        return np.array(lim, dtype=np.float64)
 
     @checked_arguments
     def sample_index(self, t: float, *, before: bool = False) -> int:
@@ -344,6 +376,10 @@ class SimResult:
         Raises:
             ConfigurationError: No sample within 1e-9 s of t.
         """
+        if isinstance(t, bool | np.bool_) or not isinstance(
+            t, int | float | np.integer | np.floating
+        ):
+            raise ConfigurationError("t", t, "a sample time of the result [s] (a real number)")
         times = np.asarray(self.t, dtype=np.float64)
         tf = float(t)
         lo = int(np.searchsorted(times, tf - 1e-9, side="left"))
@@ -364,7 +400,9 @@ class SimResult:
         J_b(x) the world-frame Jacobian of body b's point x (zero for the chassis and the
         obstacles): the normal force at ``point`` on both bodies, the friction at each body's
         own material point (``point2``, ``point1``; :mod:`packbot.contact_forces`). The
-        contacts' share of the equations of motion, in full coordinates.
+        contacts' share of the equations of motion, in full coordinates (the joint stops'
+        share is :attr:`limit_torque`). NaN rows where the forces are not known
+        (:attr:`contacts_known`).
 
         Args:
             robot: The robot the run simulated; None: the shipped one.
@@ -386,6 +424,7 @@ class SimResult:
                 for r in rows
             ]  # fmt: skip
             out[k] = joint_torque(model, data, q[k], found)
+        out[~self.contacts_known] = np.nan
         return out
 
     @checked_arguments
@@ -432,6 +471,8 @@ class SimResult:
             arrays[f"contact_{name}"] = np.asarray(getattr(table, name), dtype=np.int64)
         for name in CONTACT_VECTORS:
             arrays[f"contact_{name}"] = np.asarray(getattr(table, name), dtype=np.float64)
+        arrays["contact_known"] = self.contacts_known.astype(np.int64)
+        arrays["contact_limit_torque"] = self.limit_torque
         meta = {
             "format": RESULT_FORMAT,
             "packbot_version": __version__,

@@ -38,6 +38,7 @@ __all__ = [
     "COLUMN_ARRAYS",
     "CONTACT_ARRAYS",
     "CONTACT_INTS",
+    "CONTACT_SAMPLES",
     "CONTACT_VECTORS",
     "ENTRIES",
     "EVENT_FLOATS",
@@ -53,6 +54,7 @@ __all__ = [
     "READ_ENTRIES",
     "RESULT_FORMAT",
     "RESULT_FORMAT_1",
+    "RESULT_FORMAT_2",
     "SAMPLE_ARRAYS",
     "NpyHeader",
     "ResultArchive",
@@ -65,9 +67,13 @@ __all__ = [
 ]
 
 #: The format tag of a file written by :meth:`SimResult.save` (its version after the slash).
-RESULT_FORMAT = "packbot.SimResult/2"
+RESULT_FORMAT = "packbot.SimResult/3"
 #: The tag of the format before the contact forces (read: a result without them).
 RESULT_FORMAT_1 = "packbot.SimResult/1"
+#: The tag of the format before the stops' torques and the known mask (read: every sample
+#: counted known, as that format stored an unknown sample as one without contacts; the
+#: stops' torques NaN).
+RESULT_FORMAT_2 = "packbot.SimResult/2"
 #: The sample arrays, one row per sample time: ``t`` and ``energy`` of shape (N,), the others
 #: (N, number of joints).
 SAMPLE_ARRAYS = ("t", "q", "v", "tau", "energy", "tau_cmd", "tau_friction", "effort")
@@ -83,8 +89,11 @@ EVENT_VELOCITIES = ("v_before", "v_after")
 CONTACT_INTS = ("sample", "pair")
 #: The contact forces' vector columns, shape (K, 3) each (:class:`packbot.ContactTable`).
 CONTACT_VECTORS = ("point", "point1", "point2", "normal", "force")
+#: The contact forces' per-sample entries: ``contact_known`` (N,) 0/1 and
+#: ``contact_limit_torque`` (N, number of joints) [N*m] (NaN where not known).
+CONTACT_SAMPLES = ("known", "limit_torque")
 #: The contact forces' entries.
-CONTACT_ARRAYS = tuple(f"contact_{n}" for n in (*CONTACT_INTS, *CONTACT_VECTORS))
+CONTACT_ARRAYS = tuple(f"contact_{n}" for n in (*CONTACT_INTS, *CONTACT_VECTORS, *CONTACT_SAMPLES))
 #: The event floats that may be NaN (not measured): the distance and the energies.
 _EVENT_NAN_OK = ("distance", "energy_before", "energy_after")
 #: Plain copies for a reader with NumPy alone: checked by their headers, never read.
@@ -426,6 +435,8 @@ _SHAPES = {
     **{f"event_{n}_len": "1-d int" for n in EVENT_VELOCITIES},
     **{f"contact_{n}": "1-d int" for n in CONTACT_INTS},
     **{f"contact_{n}": "2-d real" for n in CONTACT_VECTORS},
+    "contact_known": "1-d int",
+    "contact_limit_torque": "2-d real",
 }
 _WHAT = {
     "text": "text (a NumPy str array)",
@@ -466,10 +477,10 @@ def read_saved(path: str | Path) -> SavedResult:
         if _check_header(archive, "format", "0-d text").nbytes > _FORMAT_BYTES:
             archive.fail("format", f"a tag of over {_FORMAT_BYTES} bytes")
         tag = archive.text("format")
-        if tag not in (RESULT_FORMAT, RESULT_FORMAT_1):
+        if tag not in (RESULT_FORMAT, RESULT_FORMAT_2, RESULT_FORMAT_1):
             archive.fail("format", f"format {_short(tag)}, expected {RESULT_FORMAT!r}")
         version_1 = tag == RESULT_FORMAT_1
-        heads = _check_entries(archive, version_1)
+        heads = _check_entries(archive, tag)
         meta_head = heads["meta_json"]
         if meta_head.nbytes > 4 * MAX_META_CHARS:
             archive.fail(
@@ -510,7 +521,13 @@ def read_saved(path: str | Path) -> SavedResult:
         vels = {
             name: _velocities(archive, name, len(meta["joint_names"])) for name in EVENT_VELOCITIES
         }
+        n_joints = len(meta["joint_names"])
         contacts = {} if version_1 else _contacts(archive, len(t), len(meta["contact_pairs"]))
+        if tag == RESULT_FORMAT_2:
+            contacts["known"] = np.ones(len(t), dtype=bool)
+            contacts["limit_torque"] = np.full((len(t), n_joints), np.nan)
+        elif not version_1:
+            contacts.update(_contact_samples(archive, len(t), n_joints))
     return SavedResult(archive.path, arrays, floats, vels, meta, contacts)
 
 
@@ -548,12 +565,35 @@ def _contacts(archive: ResultArchive, n_samples: int, n_pairs: int) -> dict[str,
     return out
 
 
-def _check_entries(archive: ResultArchive, version_1: bool = False) -> dict[str, NpyHeader]:
+def _contact_samples(
+    archive: ResultArchive, n_samples: int, n_joints: int
+) -> dict[str, NDArray[Any]]:
+    """The per-sample contact entries: the known mask (0/1) and the stops' torques [N*m]."""
+    for name, want in (("known", (n_samples,)), ("limit_torque", (n_samples, n_joints))):
+        shape = archive.header(f"contact_{name}").shape
+        if shape != want:
+            archive.fail(f"contact_{name}", f"shape {shape} (expected {want}: a row per sample)")
+    known = np.asarray(archive.array("contact_known"), dtype=np.int64)
+    bad = (known != 0) & (known != 1)
+    if bad.any():
+        i = int(np.flatnonzero(bad)[0])
+        archive.fail("contact_known", f"contact_known[{i}] = {int(known[i])} (expected 0 or 1)")
+    limit = _floats(archive, "contact_limit_torque", nan_ok=True)
+    return {"known": known.astype(bool), "limit_torque": limit}
+
+
+def _check_entries(archive: ResultArchive, tag: str = RESULT_FORMAT) -> dict[str, NpyHeader]:
     """Every entry's header: the format's entries present and of their kind, extras 0-d text.
 
-    A file of the format before the contact forces (``version_1``) has no contact entries.
+    A file of the format before the contact forces (:data:`RESULT_FORMAT_1`) has no contact
+    entries; one before the stops' torques (:data:`RESULT_FORMAT_2`) no per-sample ones.
     """
-    entries = [e for e in ENTRIES if not (version_1 and e in CONTACT_ARRAYS)]
+    absent: tuple[str, ...] = ()
+    if tag == RESULT_FORMAT_1:
+        absent = CONTACT_ARRAYS
+    elif tag == RESULT_FORMAT_2:
+        absent = tuple(f"contact_{n}" for n in CONTACT_SAMPLES)
+    entries = [e for e in ENTRIES if e not in absent]
     missing = [e for e in entries if e not in archive.members]
     if missing:
         archive.fail(

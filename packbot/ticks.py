@@ -43,7 +43,7 @@ import numpy as np
 import pinocchio as pin
 from numpy.typing import NDArray
 
-from packbot.contact_forces import ContactForce, SampleContact, joint_torque
+from packbot.contact_forces import ContactForce, SampleForces, joint_torque
 from packbot.control.base import Controller
 from packbot.drive import Drive
 from packbot.errors import ControllerError
@@ -88,7 +88,7 @@ class Ticks:
         self._bound = 0.0
         #: The contacts of a state (the loop's :func:`~packbot.recorder.contact_sampler`), for a
         #: contact-sensing controller; None: none told.
-        self.contacts: Callable[[float, FloatArray], list[SampleContact] | None] | None = None
+        self.contacts: Callable[[float, FloatArray], SampleForces | None] | None = None
         self._data: Any = None  # (the full model's, for the contacts' joint torque)
 
     def command(self, t: float, y: FloatArray) -> FloatArray:
@@ -110,7 +110,10 @@ class Ticks:
         return self.drive.check_torque(raw, t)
 
     def _sense(self, t: float, y: FloatArray, qf: FloatArray) -> None:
-        """Tell a contact-sensing controller the contacts at (t, y) and their joint torque."""
+        """Tell a contact-sensing controller the contacts at (t, y) and their joint torque.
+
+        The joint torque is the contacts' (J^T f) and the joint position stops' together.
+        """
         assert self.controller is not None
         found = None if self.contacts is None else self.contacts(t, y)
         ctrl = self.controller
@@ -134,8 +137,10 @@ class Ticks:
         if found is None:
             ctrl.contacts = ctrl.contact_torque = None
             return
-        ctrl.contacts = [ContactForce.from_sample(c) for c in found]
-        ctrl.contact_torque = joint_torque(model, self._data, qf, found)
+        ctrl.contacts = [ContactForce.from_sample(c) for c in found.contacts]
+        # (the joint stops' torques with the contacts': all the arm's known external torque)
+        tau_c = joint_torque(model, self._data, qf, found.contacts)
+        ctrl.contact_torque = tau_c + found.limit_torque
 
     def same(self, tau: FloatArray) -> bool:
         """Whether a new command is the held one (see :data:`HOLD_FRACTION`)."""

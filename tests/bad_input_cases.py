@@ -1144,6 +1144,26 @@ api(
     "impakt",
     error=UnknownNameError,
 )
+for _key, _t in (
+    ("none", None),
+    ("text", "0.1"),
+    ("bool", True),
+    ("list", [0.0]),
+    ("nan", float("nan")),
+    ("not-a-sample", 0.0123),
+):
+    api(
+        f"SimResult.contacts_at-{_key}",
+        lambda c, t=_t: c.result.contacts_at(t),
+        "t",
+        error=ConfigurationError,
+    )
+    api(
+        f"SimResult.sample_index-{_key}",
+        lambda c, t=_t: c.result.sample_index(t),
+        "t",
+        error=ConfigurationError,
+    )
 
 # ------------------------------------------------------------------------ scenario files
 BASE_SCENARIO = 'duration = 0.05\n\n[initial]\npose = "drive"\n'

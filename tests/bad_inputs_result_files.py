@@ -424,10 +424,23 @@ def register(cat: ModuleType) -> None:
     replaced("contact-normal-strings", "contact_normal", np.array([["x"] * 3]), "dtype")
     replaced("contact-sample-missing", "contact_sample", None, entry("contact_sample"), "missing")
 
+    def per_sample(id: str, name: str, make: Callable[[int], Any], *words: str) -> None:
+        """A case whose per-sample contact entry ``name`` is ``make(number of samples)``."""
+        case(id, lambda c, raw, a: npz(a, **{name: make(len(a["t"]))}), *words)
+
+    per_sample("contact-known-2", "contact_known", lambda n: np.full(n, 2), "0 or 1")
+    per_sample("contact-known-short", "contact_known", lambda n: np.ones(1, dtype=int), "shape")
+    per_sample("contact-known-floats", "contact_known", np.ones, entry("contact_known"))
+    per_sample(
+        "contact-limit-inf", "contact_limit_torque", lambda n: np.full((n, 8), np.inf), "finite"
+    )
+    per_sample("contact-limit-3", "contact_limit_torque", lambda n: np.zeros((n, 3)), "shape")
+    replaced("contact-limit-missing", "contact_limit_torque", None, "missing")
+
     # -- the text entries and the plain copies
     replaced("text-format-missing", "format", None, "no format tag")
     replaced("text-meta_json-missing", "meta_json", None, "no format tag")
-    replaced("text-format-other-version", "format", np.array("packbot.SimResult/3"), "/3")
+    replaced("text-format-other-version", "format", np.array("packbot.SimResult/4"), "/4")
     replaced("text-format-empty", "format", np.array(""), entry("format"), "expected")
     replaced("text-format-number", "format", np.array(1.0), entry("format"), "dtype")
     replaced("text-format-1d", "format", np.array(["packbot.SimResult/1"]), entry("format"))
@@ -521,7 +534,7 @@ def register(cat: ModuleType) -> None:
     ):
         meta_case(f"no-{key}", dropper(key), entry(f"{m}.{key}"), "missing")
     meta_case("unknown-field", setter("colour", "red"), entry(f"{m}.colour"), "unknown")
-    meta_case("format-other", setter("format", "packbot.SimResult/3"), entry(f"{m}.format"))
+    meta_case("format-other", setter("format", "packbot.SimResult/4"), entry(f"{m}.format"))
     meta_case("format-older", setter("format", "packbot.SimResult/1"), entry(f"{m}.format"))
     meta_case("contact-pairs-number", setter("contact_pairs", 3), entry(f"{m}.contact_pairs"))
     meta_case(

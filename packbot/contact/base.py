@@ -41,7 +41,7 @@ from packbot.system import System
 
 if TYPE_CHECKING:
     from packbot.contact.stretch import SampleClock, Stretched
-    from packbot.contact_forces import SampleContact
+    from packbot.contact_forces import SampleForces
 
 __all__ = ["Active", "ContactLaw", "Crossing", "Key"]
 
@@ -233,12 +233,13 @@ class ContactLaw(Protocol):
 
     def contact_forces(
         self, q: FloatArray, v: FloatArray, tau: Callable[[], FloatArray]
-    ) -> list[SampleContact] | None:
+    ) -> SampleForces | None:
         """The contacts of the current mode at (q, v) under the joint torques ``tau()`` [N*m].
 
         ``tau`` is called only when the law has contacts to report (it may call the user's
-        torque function). Each (names, point, point1, point2 [m], normal, force on body 2 [N]),
-        world frame (:mod:`packbot.contact_forces`); empty: no contact; None: the law cannot
-        say (the report's clamps, a time-stepping window's steps).
+        torque function). The contacts, each (names, point, point1, point2 [m], normal, force
+        on body 2 [N]), world frame (:mod:`packbot.contact_forces`; empty: no contact), and
+        the joint position stops' torques [N*m]; None: the law cannot say (the report's
+        clamps, a time-stepping window's steps).
         """
         ...

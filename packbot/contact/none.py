@@ -8,15 +8,12 @@ clamp, :mod:`packbot.contact.stops`), and joint friction and brakes hold them.
 from __future__ import annotations
 
 from collections.abc import Callable
-from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import NDArray
 
-from packbot.contact.stops import JointStops
-
-if TYPE_CHECKING:
-    from packbot.contact_forces import SampleContact
+from packbot.contact.stops import JointStops, friction_share
+from packbot.contact_forces import SampleForces
 
 FloatArray = NDArray[np.float64]
 
@@ -32,6 +29,20 @@ class NoneLaw(JointStops):
 
     def contact_forces(
         self, q: FloatArray, v: FloatArray, tau: Callable[[], FloatArray]
-    ) -> list[SampleContact] | None:
-        """No collisions: no contact, ever."""
-        return []
+    ) -> SampleForces | None:
+        """No collisions, no contact; the joint stops' torques: their engaged clamps' lock torques.
+
+        A clamp engaged here is a joint on its position stop (no pair clamps a joint in this
+        mode); where friction or a brake also holds the joint, the stop carries what the
+        friction's bound does not (:func:`~packbot.contact.stops.friction_share`).
+        """
+        limit = np.zeros(len(q))
+        locks = self.locks
+        if not locks.engaged:
+            return SampleForces([], limit)
+        sys = self.sys
+        _, lam = locks.torques(sys.aba(q, v, tau()), sys.minv(q))
+        for j in locks.engaged:
+            bound = locks.held.get(j)
+            limit[j] = lam[j] - (0.0 if bound is None else friction_share(lam[j], bound))
+        return SampleForces([], limit)

@@ -13,8 +13,9 @@ solved a second way):
   point's force (t1, t2, n) in its cone; where that problem is statically indeterminate, the
   distribution deepest inside the cones (:mod:`packbot.contact.static_forces`).
 
-A joint limit row is not a contact (its torque is the joint's, not a pair's). Conventions of
-the records: :mod:`packbot.contact_forces`.
+A joint limit row is not a contact: its multiplier is the stop's torque on its joint
+(``-side lambda``: an upper stop pushes toward -q), reported per joint beside the contacts.
+Conventions of the records: :mod:`packbot.contact_forces`.
 """
 
 from __future__ import annotations
@@ -28,7 +29,7 @@ from numpy.typing import NDArray
 
 from packbot.contact.normal_tolerances import STICK_SPEED
 from packbot.contact.static_forces import analytic_centre
-from packbot.contact_forces import PairNames, SampleContact
+from packbot.contact_forces import PairNames, SampleContact, SampleForces
 
 if TYPE_CHECKING:
     from packbot.contact.normal_contacts import NormalContacts
@@ -46,8 +47,8 @@ def mode_forces(
     v: FloatArray,
     a_free: FloatArray,
     minv: FloatArray,
-) -> list[SampleContact]:
-    """The contacts of the contact set's current mode at (q, v), world frame.
+) -> SampleForces:
+    """The contacts and stop torques of the contact set's current mode at (q, v), world frame.
 
     Args:
         nc: The contact set.
@@ -58,10 +59,12 @@ def mode_forces(
         minv: M^-1 at q.
 
     Returns:
-        (names, point, point1, point2 [m], normal, force on body 2 [N]) per contact point.
+        (names, point, point1, point2 [m], normal, force on body 2 [N]) per contact point,
+        and the joint stops' torques [N*m] (nv,).
     """
-    if not nc.engaged or not nc.pairs:
-        return []
+    limit = np.zeros(nc.nv)
+    if not nc.engaged:
+        return SampleForces([], limit)
     pin.forwardKinematics(nc.model, data, q)
     pairs = nc._pair_list
     frames = [_frame(data, p) for p in pairs]
@@ -76,6 +79,7 @@ def mode_forces(
     vts = np.asarray(ev.vt, dtype=np.float64)
     pos = {int(r): i for i, r in enumerate(plan.engaged)}
     n_e = len(plan.engaged)
+    _stop_torques(nc, pairs, {r: float(lam[i]) for r, i in pos.items()}, limit)
     stick_k = {int(i): n_e + 2 * k for k, i in enumerate(plan.sticks)}
     out: list[SampleContact] = []
     for i, p in enumerate(pairs):
@@ -100,7 +104,25 @@ def mode_forces(
             f = np.asarray(lam[k] * T[0] + lam[k + 1] * T[1], dtype=np.float64)
             c = _centre(data, p)
             out.append((names, c, c, c, n.copy(), f))
-    return out
+    return SampleForces(out, limit)
+
+
+def _stop_torques(
+    nc: NormalContacts, pairs: list[_Pair], normal: dict[int, float], out: FloatArray
+) -> None:
+    """Add each engaged limit row's torque on its joint to ``out`` [N*m].
+
+    Args:
+        nc: The contact set.
+        pairs: Its pairs (their patch points are the rows before the limits').
+        normal: Row -> its normal multiplier [N*m] (limit rows and others).
+        out: The torques per velocity index, (nv,).
+    """
+    m_p = sum(len(p.local1) for p in pairs)
+    for i, ((j, side), _) in enumerate(nc.limits.items()):
+        lam = normal.get(m_p + i)
+        if lam is not None:  # the row's Jacobian is -side e_j
+            out[j] -= side * lam
 
 
 def _rest_forces(
@@ -111,11 +133,12 @@ def _rest_forces(
     q: FloatArray,
     a_free: FloatArray,
     minv: FloatArray,
-) -> list[SampleContact]:
+) -> SampleForces:
     """The resting arm's contacts: the frictional problem's force of every touching point."""
+    limit = np.zeros(nc.nv)
     sol = nc.rest_solution(q, a_free, minv)
     if sol is None:
-        return []
+        return SampleForces([], limit)
     touch = sol.touch
     x = analytic_centre(sol.rows, sol.forces, sol.mu, sol.torque)
     start = _row_starts(pairs)
@@ -125,6 +148,9 @@ def _rest_forces(
             owner[start[i] + j] = (i, j)
     points: dict[int, tuple[FloatArray, FloatArray, FloatArray]] = {}
     out: list[SampleContact] = []
+    _stop_torques(
+        nc, pairs, {r: float(f3[2]) for r, f3 in zip(touch.tolist(), x, strict=True)}, limit
+    )
     for r, f3 in zip(touch.tolist(), x, strict=True):
         if r not in owner:  # a limit row
             continue
@@ -134,7 +160,7 @@ def _rest_forces(
         T = frames[i]
         touch_at, p1, p2 = points[i]
         out.append((_names(pairs[i]), touch_at[j], p1[j], p2[j], T[2].copy(), f3 @ T))
-    return out
+    return SampleForces(out, limit)
 
 
 def _row_starts(pairs: list[_Pair]) -> list[int]:

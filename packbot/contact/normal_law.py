@@ -7,6 +7,7 @@ window (:mod:`packbot.contact.timestep`) where events pile up; its thresholds ar
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 import math
 from collections import deque
@@ -37,7 +38,7 @@ from packbot.contact.stretch import (
 )
 from packbot.contact.timestep import QUIET_STEPS, MoreauJeanStepper, StepSegment
 from packbot.contact.window_run import StepChain, run_native
-from packbot.contact_forces import SampleContact
+from packbot.contact_forces import SampleForces
 from packbot.ode import DenseSegment, RK45Stepper, StepKernel, StiffKernel
 from packbot.system import System
 
@@ -155,7 +156,7 @@ class NormalLaw(PatchEvents):
         self._native = native.native_rhs(system.model) if native.ENABLED else None
         self.normal.native = self._native  # (the restart's projection and impact)
         self._force_data = system.model.createData()  # (the contact forces' placements)
-        self._rest_contacts: tuple[Any, list[SampleContact]] = (None, [])
+        self._rest_contacts: tuple[Any, SampleForces | None] = (None, None)
         if self._native is not None and self.cfg.joint_limits:  # (the step end's screen)
             self._native.set_limits(system.upper, system.lower)
         if self._native is not None:  # (step_bound)
@@ -442,6 +443,12 @@ class NormalLaw(PatchEvents):
         )
         self.world.dispatch.spare = None
         done, out = st.run(stepper, t_end, t_last, t_sched, clock, inputs)
+        k = out["samples_before"]
+        if out["repatches"] and k > 0:
+            # the samples before its first re-patch, their forces read from the contact set as
+            # the stretch found it (those after, from the set its last re-patch leaves)
+            clock.record_states(done.samples[:k])
+            done = dataclasses.replace(done, samples=done.samples[k:])
         adopt_repatches(self, out)
         if done.steps:
             self._stretched(stepper.y if done.pending is None else done.pending.y0, out)
@@ -750,8 +757,8 @@ class NormalLaw(PatchEvents):
 
     def contact_forces(
         self, q: FloatArray, v: FloatArray, tau: Callable[[], FloatArray]
-    ) -> list[SampleContact] | None:
-        """The current mode's contact forces at (q, v) (``normal_forces.mode_forces``).
+    ) -> SampleForces | None:
+        """The current mode's contact forces and stop torques at (q, v) (``mode_forces``).
 
         None inside a time-stepping window (its steps' impulses are not kept yet).
         """
@@ -759,7 +766,7 @@ class NormalLaw(PatchEvents):
         if self.window is not None:
             return None
         if not nc.engaged:
-            return []
+            return SampleForces([], np.zeros(self.sys.nv))
         # a resting arm's samples under one torque are one state: its contacts are found once
         torque = tau()
         key = (nc._version, q.tobytes(), torque.tobytes()) if nc.resting and not v.any() else None

@@ -51,7 +51,7 @@ from packbot.system import System
 
 if TYPE_CHECKING:
     from packbot.contact.stretch import SampleClock, Stretched
-    from packbot.contact_forces import SampleContact
+    from packbot.contact_forces import SampleForces
 
 __all__ = [
     "HOLD_KICK",
@@ -335,7 +335,7 @@ class JointStops:
 
     def contact_forces(
         self, q: FloatArray, v: FloatArray, tau: Callable[[], FloatArray]
-    ) -> list[SampleContact] | None:
+    ) -> SampleForces | None:
         """None: the report's clamps act on joints, not as forces on pairs (unknown)."""
         return None
 

@@ -103,6 +103,9 @@ class SampleClock(Protocol):
     duration: float  #: the run's duration [s]
     next_sample: int  #: the index of the next regular sample (at ``next_sample * dt``)
 
+    def record_states(self, ys: FloatArray) -> None:
+        """Keep the next regular samples from their states ys, shape (m, n), in order."""
+
 
 @dataclass(frozen=True, slots=True)
 class Stretched:

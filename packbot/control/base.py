@@ -12,7 +12,8 @@ through the failure and actuator models (effort limits, friction) before it acts
 each tick, the contact forces at the tick's state (the simulator knows them: a force-torque
 sensor on every link): :attr:`Controller.contacts` (a list of
 :class:`~packbot.contact_forces.ContactForce`, world frame) and :attr:`Controller.
-contact_torque` (their joint torque [N*m], shape (nv,): M a + C v + g = tau + contact_torque).
+contact_torque` (their joint torque [N*m], shape (nv,), with the joint position stops' torques
+added: M a + C v + g = tau + contact_torque).
 Both are None where the contact law cannot say (the report's law, a time-stepping window of
 the contact-normal mode) and before the first tick; an empty list and zeros with no contact.
 The impacts between two ticks are impulses, not forces at a tick: :attr:`Controller.
@@ -131,7 +132,7 @@ class Controller(ABC):
     contact_sensing: ClassVar[bool] = False
     #: The contacts at the tick's state (world frame), or None: not known (see the module).
     contacts: list[ContactForce] | None = None
-    #: Their joint torque [N*m], shape (nv,), or None: not known.
+    #: Their joint torque and the joint position stops' [N*m], shape (nv,), or None: not known.
     contact_torque: FloatArray | None = None
     #: The joint impulse [N*m*s] of the impacts since the previous tick, shape (nv,): M (v+ -
     #: v-) summed over them (zeros: none), or None before the first tick.

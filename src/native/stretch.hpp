@@ -182,6 +182,9 @@ class Stretch {
     int64_t pending_rejected = 0, pending_rhs_calls = 0;
     bool pending_implicit = false;
     int64_t repatches = 0;  // re-patches taken here (Repatch)
+    // the samples recorded before the first re-patch (-1: no re-patch); none lies between
+    // two re-patches of one run
+    int64_t samples_before = -1;
   };
 
   // The stretch's re-patches (packbot.contact.normal_contacts.NormalContacts.repatch after a
@@ -368,7 +371,16 @@ class Stretch {
       if (!pending && t_new >= t_sched - 1e-12 && t_new < t_last) pending = true;
       bool repatched = false;
       if (!pending && stale) {
-        if (rp_.on && try_repatch() == 0)
+        // A re-patch changes the patches the samples' contact forces are read from: Python
+        // reads those of the samples before the first re-patch from its contact set as the
+        // stretch found it, the others from the set as the last re-patch leaves it. So a later
+        // re-patch is taken here only while no sample lies between it and the first (this
+        // step's included); else the step is handed back (the loop records its samples, then
+        // re-patches).
+        const bool between =
+            c.repatches > 0 && (static_cast<int64_t>(samples.size()) != c.samples_before * n ||
+                                sample_due(s, t_new));
+        if (rp_.on && !between && try_repatch() == 0)
           repatched = true;
         else
           pending = true;
@@ -424,6 +436,7 @@ class Stretch {
         s.stiff = false;
         s.stiff_run = 0;
         ++c.rhs_calls;  // (reset's count)
+        if (c.repatches == 0) c.samples_before = static_cast<int64_t>(samples.size()) / n;
         ++c.repatches;
         // the next step's first stage, as run() starts after a restart; the stepper restarts
         // in Python where the native step is not offered there (no engaged row: its own stages)
@@ -607,6 +620,11 @@ class Stretch {
     pairs.resize(static_cast<size_t>(ns));
     dist.resize(static_cast<size_t>(ns));
     q_at = q_new_;
+  }
+
+  // Whether a regular sample is due in a step ending at t1 (record's first test).
+  bool sample_due(const State &s, double t1) const {
+    return static_cast<double>(s.next_sample) * sample_dt_ <= std::min(t1, duration_) + 1e-12;
   }
 
   // The regular samples due in the step [t0, t1] (Recorder.record with t_end = t1).

@@ -146,6 +146,7 @@ nb::dict stretch_run(StretchT &st, bool f_pending, Out2 Z, Out1 ay, double t, do
   out["last_pairs"] = owned(st.last_pairs(), 1, st.last_n());
   out["last_dist"] = owned(st.last_dist(), 1, st.last_n());
   out["repatches"] = c.repatches;
+  out["samples_before"] = c.samples_before;
   out["spare"] = st.repatch().spare;  // (a re-patch handed back after its projection's sweep)
   if (c.status == packbot_native::STRETCH_PENDING) {
     out["t0"] = c.t0;
