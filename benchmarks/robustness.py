@@ -14,7 +14,18 @@ and CPU time (the worker process's, which other jobs on a shared machine disturb
 run [s]. Each worker loads the compiled kernels before its first timed run. ``--per-run``
 also lists every run.
 
+The independent checks (``benchmarks/robustness_checks.py``) read every sample of each run
+(``--sample-dt``, 1 ms by default, and the states before and after every event) with code that
+does not go through the engine: the largest rise of the total energy (recomputed from q and v
+with Pinocchio) above its running minimum [J] and the runs rising by more than 1e-2 J, the
+deepest penetration by a separate Coal query of every tested pair [m] and the runs below
+-1.1e-5 m, the largest overrun of a joint's position limit [rad] and the runs beyond 1e-5 rad
+(issue 38's bounds), with the largest difference between the recomputed energy and
+``result.energy`` [J] and the checks' median time per run [s]. A second table prints them;
+then every run beyond a bound, with its start index, the setting and the time, worst first.
+
     python benchmarks/robustness.py                      # the contact-normal mode, full grid
+    python benchmarks/robustness.py --starts 100 --mu 0 0.5 1.2 --wrist free  # issue 38's grid
     python benchmarks/robustness.py --law joint_clamp --mu 0 --e 0 0.3
     python benchmarks/robustness.py --starts 20 --mu 0.5 --wrist locked --workers 2
     python benchmarks/robustness.py --law joint_clamp --handoff --joint-friction \
@@ -38,6 +49,7 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+import robustness_checks as rc
 
 import packbot
 from packbot.collision import CollisionWorld
@@ -48,6 +60,9 @@ RESTITUTION = (0.0, 0.3)
 WRIST = ("locked", "free")
 #: Energy gained at one event beyond this is counted as a gain [J].
 GAIN_TOL = 1e-6
+#: Sampling interval of the runs [s]: the samples the independent checks read (fine enough to
+#: see the motion between events; the samples do not change the integration).
+SAMPLE_DT = 1e-3
 
 
 @dataclass
@@ -69,6 +84,9 @@ class Outcome:
     window_steps: int = 0
     steps: int = 0
     events: int = 0
+    start: int = -1
+    checks: rc.Checks | None = None
+    check_wall: float = 0.0
 
 
 class _Timeout(Exception):
@@ -88,9 +106,9 @@ def start_poses(robot: packbot.Robot, n: int, seed: int, clearance: float) -> li
     return out
 
 
-def one_run(args: tuple[np.ndarray, dict[str, Any], float, float]) -> Outcome:
-    """Simulate one start with one setting (in a worker process)."""
-    q0, cfg_kw, duration, timeout = args
+def one_run(args: tuple[int, np.ndarray, dict[str, Any], float, float]) -> Outcome:
+    """Simulate one start with one setting (in a worker process), then check its samples."""
+    start, q0, cfg_kw, duration, timeout = args
     logging.getLogger("packbot").setLevel(logging.ERROR)
     robot = _robot()
     cfg = packbot.SimConfig(**cfg_kw)
@@ -102,7 +120,7 @@ def one_run(args: tuple[np.ndarray, dict[str, Any], float, float]) -> Outcome:
         if time.perf_counter() - t0 > timeout:
             raise _Timeout(t)
 
-    out = Outcome()
+    out = Outcome(start=start)
     res = None
     try:
         res = packbot.simulate(robot, q, np.zeros(robot.nq), duration, config=cfg, progress=guard)
@@ -126,7 +144,24 @@ def one_run(args: tuple[np.ndarray, dict[str, Any], float, float]) -> Outcome:
         out.window_steps = res.diagnostics.window_steps
         out.steps = res.diagnostics.steps
         out.events = len(res.events)
+        t1 = time.perf_counter()
+        out.checks = rc.check_result(res, robot.model, _query(robot, res.environment))
+        out.check_wall = time.perf_counter() - t1
     return out
+
+
+_QUERIES: dict[object, rc.PenetrationQuery] = {}
+
+
+def _query(robot: packbot.Robot, environment: packbot.Environment | None) -> rc.PenetrationQuery:
+    """The independent penetration query of a world (the collision world's model, built once)."""
+    env = packbot.Environment() if environment is None else environment
+    query = _QUERIES.get(env)
+    if query is None:
+        query = _QUERIES[env] = rc.PenetrationQuery(
+            robot.model, CollisionWorld(robot, env).geom_model
+        )
+    return query
 
 
 _ROBOT: packbot.Robot | None = None
@@ -158,7 +193,7 @@ def _robot() -> packbot.Robot:
 
 
 def main(argv: list[str] | None = None) -> None:
-    """Print the table (see the module docstring)."""
+    """Print the tables (see the module docstring)."""
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--law", default="normal", help="contact_mode (default: normal)")
     ap.add_argument("--starts", type=int, default=200, help="random starts per setting")
@@ -168,6 +203,12 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--wrist", nargs="*", default=list(WRIST), choices=WRIST)
     ap.add_argument("--duration", type=float, default=3.0, help="simulated time per run [s]")
     ap.add_argument("--timeout", type=float, default=120.0, help="wall limit per run [s]")
+    ap.add_argument(
+        "--sample-dt",
+        type=float,
+        default=SAMPLE_DT,
+        help="SimConfig.sample_dt [s]: the samples the independent checks read",
+    )
     ap.add_argument("--workers", type=int, default=os.cpu_count() or 1)
     ap.add_argument("--handoff", action="store_true", help="SimConfig.handoff (joint_clamp)")
     ap.add_argument("--joint-friction", action="store_true", help="SimConfig.joint_friction")
@@ -176,7 +217,7 @@ def main(argv: list[str] | None = None) -> None:
         "--per-run",
         action="store_true",
         help="also print every run: start, wall [s], steps, window steps, windows, events, "
-        "energy removed by the windows [J]",
+        "energy removed by the windows [J], the independent checks",
     )
     args = ap.parse_args(argv)
     robot = _robot()
@@ -191,8 +232,47 @@ def main(argv: list[str] | None = None) -> None:
         extra["reset_rule"] = args.reset_rule
     print(
         f"{args.law} {extra or ''}: collapse from {args.starts} random starts (seed {args.seed}), "
-        f"{args.duration:g} s each, load {os.getloadavg()[0]:.2f}"
+        f"{args.duration:g} s each, sample_dt {args.sample_dt:g} s, {args.workers} workers, "
+        f"load {os.getloadavg()[0]:.2f}",
+        flush=True,
     )
+    engine_rows: list[str] = []
+    check_rows: list[str] = []
+    offenders: list[str] = []
+    t_grid = time.perf_counter()
+    ctx = mp.get_context("spawn")
+    with ctx.Pool(args.workers, initializer=_warm) as pool:
+        for mu, e, wrist in itertools.product(args.mu, args.e, args.wrist):
+            kw: dict[str, Any] = {
+                "contact_mode": args.law,
+                "restitution": e,
+                "sample_dt": args.sample_dt,
+                **extra,
+            }
+            if args.law == "normal" or args.handoff:  # the handed-off pairs' friction
+                kw["mu"] = mu
+            if wrist == "locked":
+                kw["locked_joints"] = WRIST_JOINTS
+            jobs = [(k, q, kw, args.duration, args.timeout) for k, q in enumerate(poses)]
+            t_setting = time.perf_counter()
+            outs = pool.map(one_run, jobs, chunksize=1)
+            setting_wall = time.perf_counter() - t_setting
+            setting = f"mu {mu:g}, e {e:g}, wrist {wrist}"
+            row = _engine_row(mu, e, wrist, outs)
+            checks = _check_row(mu, e, wrist, outs, setting_wall)
+            engine_rows.append(row)
+            check_rows.append(checks)
+            print(f"{row}\n{checks}", flush=True)
+            if args.handoff:
+                print(f"    runs with a hand-off: {sum(o.handoffs > 0 for o in outs)}")
+            for o in [o for o in outs if o.error][:3]:
+                print(f"    error (start {o.start}): {o.error[:150]}")
+            offenders += _offenders(setting, outs)
+            if args.per_run:
+                for o in outs:
+                    print(_per_run(o), flush=True)
+    grid_wall = time.perf_counter() - t_grid
+    print()
     print(
         "| mu | e | wrist | runs | errors | max_events | timeouts | max gain at an event [J] | "
         "max gain over a run [J] | deepest penetration [m] | at rest | runs with windows | "
@@ -200,41 +280,110 @@ def main(argv: list[str] | None = None) -> None:
         "worst CPU [s] |"
     )
     print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
-    ctx = mp.get_context("spawn")
-    with ctx.Pool(args.workers, initializer=_warm) as pool:
-        for mu, e, wrist in itertools.product(args.mu, args.e, args.wrist):
-            kw: dict[str, Any] = {"contact_mode": args.law, "restitution": e, **extra}
-            if args.law == "normal" or args.handoff:  # the handed-off pairs' friction
-                kw["mu"] = mu
-            if wrist == "locked":
-                kw["locked_joints"] = WRIST_JOINTS
-            jobs = [(q, kw, args.duration, args.timeout) for q in poses]
-            outs = pool.map(one_run, jobs, chunksize=1)
-            walls = [o.wall for o in outs]
-            cpus = [o.cpu for o in outs]
-            errors = [o for o in outs if o.error]
-            print(
-                f"| {mu:g} | {e:g} | {wrist} | {len(outs)} | {len(errors)} | "
-                f"{sum(o.max_events for o in outs)} | {sum(o.timeout for o in outs)} | "
-                f"{max(o.event_gain for o in outs):.2g} | {max(o.run_gain for o in outs):.3g} | "
-                f"{max(o.penetration for o in outs):.2g} | {sum(o.at_rest for o in outs)} | "
-                f"{sum(o.windows > 0 for o in outs)} | {max(o.removed for o in outs):.2g} | "
-                f"{statistics.median(walls):.2f} | {max(walls):.2f} | "
-                f"{statistics.median(cpus):.2f} | {max(cpus):.2f} |",
-                flush=True,
+    print("\n".join(engine_rows))
+    print()
+    print(
+        f"| mu | e | wrist | runs checked | max energy rise [J] | runs > {rc.RISE_BOUND:g} J | "
+        f"deepest by the query [m] | runs < {rc.DEPTH_BOUND:g} m | max limit overrun [rad] | "
+        f"runs > {rc.OVERRUN_BOUND:g} rad | max energy mismatch [J] | median check [s] | "
+        "setting wall [s] |"
+    )
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|")
+    print("\n".join(check_rows))
+    print()
+    print(f"grid: {grid_wall:.0f} s wall ({grid_wall / 60:.1f} min)")
+    if offenders:
+        print(f"runs beyond a bound (seed {args.seed}; start: index in start_poses):")
+        print("\n".join(offenders))
+
+
+def _engine_row(mu: float, e: float, wrist: str, outs: list[Outcome]) -> str:
+    walls = [o.wall for o in outs]
+    cpus = [o.cpu for o in outs]
+    return (
+        f"| {mu:g} | {e:g} | {wrist} | {len(outs)} | {sum(bool(o.error) for o in outs)} | "
+        f"{sum(o.max_events for o in outs)} | {sum(o.timeout for o in outs)} | "
+        f"{max(o.event_gain for o in outs):.2g} | {max(o.run_gain for o in outs):.3g} | "
+        f"{max(o.penetration for o in outs):.2g} | {sum(o.at_rest for o in outs)} | "
+        f"{sum(o.windows > 0 for o in outs)} | {max(o.removed for o in outs):.2g} | "
+        f"{statistics.median(walls):.2f} | {max(walls):.2f} | "
+        f"{statistics.median(cpus):.2f} | {max(cpus):.2f} |"
+    )
+
+
+def _check_row(mu: float, e: float, wrist: str, outs: list[Outcome], wall: float) -> str:
+    cs = [o.checks for o in outs if o.checks is not None]
+    if not cs:
+        return f"| {mu:g} | {e:g} | {wrist} | 0 | | | | | | | | | {wall:.0f} |"
+    rises = [c.energy.rise for c in cs]
+    depths = [c.depth.distance for c in cs]
+    overruns = [c.overrun.overrun for c in cs]
+    return (
+        f"| {mu:g} | {e:g} | {wrist} | {len(cs)} | {max(rises):.3g} | "
+        f"{sum(r > rc.RISE_BOUND for r in rises)} | {min(depths):.3g} | "
+        f"{sum(d < rc.DEPTH_BOUND for d in depths)} | {max(overruns):.3g} | "
+        f"{sum(x > rc.OVERRUN_BOUND for x in overruns)} | "
+        f"{max(c.energy_mismatch for c in cs):.1g} | "
+        f"{statistics.median(o.check_wall for o in outs if o.checks is not None):.2f} | "
+        f"{wall:.0f} |"
+    )
+
+
+def _offenders(setting: str, outs: list[Outcome]) -> list[str]:
+    """Every run beyond one of the bounds, worst first, one line each."""
+    rows: list[tuple[int, float, str]] = []
+    for o in outs:
+        c = o.checks
+        if c is None:
+            continue
+        if c.energy.rise > rc.RISE_BOUND:
+            r = c.energy
+            rows.append(
+                (
+                    0,
+                    -r.rise,
+                    f"  energy +{r.rise:.3g} J from t {r.t_from:.3f} to {r.t_to:.3f} s "
+                    f"(largest in one interval +{r.step:.3g} J at {r.t_step:.3f} s): "
+                    f"start {o.start}, {setting}",
+                )
             )
-            if args.handoff:
-                print(f"    runs with a hand-off: {sum(o.handoffs > 0 for o in outs)}")
-            for o in errors[:3]:
-                print(f"    error: {o.error[:150]}")
-            if args.per_run:
-                for i, o in enumerate(outs):
-                    print(
-                        f"    start {i}: wall {o.wall:.3f} s, CPU {o.cpu:.3f} s, {o.steps} steps "
-                        f"({o.window_steps} in {o.windows} windows), {o.events} events, "
-                        f"removed {o.removed:.2g} J{', ' + o.error[:60] if o.error else ''}",
-                        flush=True,
-                    )
+        if c.depth.distance < rc.DEPTH_BOUND:
+            d = c.depth
+            rows.append(
+                (
+                    1,
+                    d.distance,
+                    f"  depth {d.distance:.3g} m at t {d.t:.3f} s, {d.pair} "
+                    f"({d.samples_below} samples below): start {o.start}, {setting}",
+                )
+            )
+        if c.overrun.overrun > rc.OVERRUN_BOUND:
+            x = c.overrun
+            rows.append(
+                (
+                    2,
+                    -x.overrun,
+                    f"  overrun {x.overrun:.3g} rad at t {x.t:.3f} s, {x.joint} "
+                    f"({x.side}): start {o.start}, {setting}",
+                )
+            )
+    rows.sort()
+    return [r[2] for r in rows]
+
+
+def _per_run(o: Outcome) -> str:
+    text = (
+        f"    start {o.start}: wall {o.wall:.3f} s, CPU {o.cpu:.3f} s, {o.steps} steps "
+        f"({o.window_steps} in {o.windows} windows), {o.events} events, "
+        f"removed {o.removed:.2g} J"
+    )
+    c = o.checks
+    if c is not None:
+        text += (
+            f", rise {c.energy.rise:.2g} J, depth {c.depth.distance:.2g} m, "
+            f"overrun {c.overrun.overrun:.2g} rad"
+        )
+    return text + (f", {o.error[:60]}" if o.error else "")
 
 
 if __name__ == "__main__":
