@@ -49,6 +49,39 @@ def test_a_non_finite_energy_is_an_infinite_rise():
     assert r.rise == np.inf and r.t_to == 1.0
 
 
+def test_a_window_interpolation_dip_is_not_a_minimum(robot):
+    """A window step with a rebound: the shoulder at -1 rad/s before, +0.3 rad/s after; the
+    sample inside the step blends the velocities (-0.22 rad/s at 60 %) and its kinetic energy
+    dips below both ends'. Read as a raw sample the next one rises above it; marked as
+    interpolated, the dip does not count, and a true later rise still does."""
+    model = robot.model
+    q = robot.pose("drive")
+    shoulder = robot.joint_names.index("shoulder")
+    speeds = [-1.0, -1.0, -1.0 + 0.6 * 1.3, 0.3, 0.3]
+    vs = np.zeros((5, model.nv))
+    vs[:, shoulder] = speeds
+    e = rc.energies(model, np.repeat(q[None], 5, axis=0), vs)
+    t = np.arange(5) * 1e-3
+    assert e[2] < e[3]  # the dip
+    raw = rc.energy_rise(t, e)
+    assert raw.rise == pytest.approx(e[3] - e[2]) and raw.rise > 1e-3
+    mask = np.array([False, False, True, False, False])
+    assert rc.energy_rise(t, e, mask).rise == 0.0
+    later = np.append(e, e[-1] + 0.02)  # the energy then gains 0.02 J: still seen
+    got = rc.energy_rise(np.arange(6) * 1e-3, later, np.append(mask, False))
+    assert got.rise == pytest.approx(0.02)
+
+
+def test_window_samples_are_the_regular_samples_inside_a_window():
+    ev = SimpleNamespace
+    t = np.array([0.0, 0.1, 0.2, 0.2, 0.3, 0.4, 0.5, 0.5, 0.6, 0.7])
+    events = [ev(t=0.2, kind="impact"), ev(t=0.25, kind="timestep"), ev(t=0.5, kind="resume")]
+    got = rc.window_samples(t, events)
+    assert got.tolist() == [False, False, False, False, True, True, False, False, False, False]
+    events.append(ev(t=0.65, kind="timestep"))  # open to the end
+    assert rc.window_samples(t, events)[-1]
+
+
 def _kinetic_by_differences(model: pin.Model, q: np.ndarray, v: np.ndarray) -> float:
     """Sum of 1/2 m |c'|^2 + 1/2 w^T I_c w over the bodies, c' and w by central differences
     of the bodies' placements (forward kinematics only), plus 1/2 sum armature v^2."""
@@ -241,7 +274,7 @@ def test_check_result_on_a_constructed_result(robot):
     vs[2:, turret] = np.sqrt(2 * 0.05 / pin.crba(model, model.createData(), q)[turret, turret])
     t = np.arange(n) * 1e-3
     e = rc.energies(model, qs, vs)
-    res = SimpleNamespace(t=t, q=qs, v=vs, energy=e, joint_names=robot.joint_names)
+    res = SimpleNamespace(t=t, q=qs, v=vs, energy=e, joint_names=robot.joint_names, events=[])
     c = rc.check_result(res, model, query)
     assert c.energy.rise == pytest.approx(0.05, rel=1e-9)
     assert c.energy.rise > rc.RISE_BOUND
