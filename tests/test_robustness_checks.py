@@ -336,8 +336,8 @@ def test_the_checks_hold_on_clean_starts(robot, start, mu, e, wrist):
 
 
 # Faults the checks see today (issue 38, items 2 to 4): xfails, XPASS once the engine is fixed
-# (not strict: see the module). Each is the earliest instance of its kind in the benchmark's grid (a trajectory
-# through few events, so that it reproduces on other machines).
+# (not strict: see the module). Each is the earliest instance of its kind in the benchmark's
+# grid (a trajectory through few events, so that it reproduces on other machines).
 @pytest.mark.xfail(
     strict=False,
     reason="issue 38 item 2: start 63, mu 0.5, e 0, wrist free gains +0.333 J between "
