@@ -351,7 +351,7 @@ def constrained_accel(  # noqa: D417 (contact_rows documents H ... lim_value)  #
 
     The problem (see ``NormalContacts.evaluate``): engaged rows A = J_n[E] with force columns
     C = J_n - mu s^T (J_p2 - J_p1) on slipping pairs' rows (s the unit sliding direction at the
-    patch centre, blended with the onset direction below ``stick_speed``), then two
+    row's point, blended with the onset direction below ``stick_speed``), then two
     tangential rows per sticking pair (force columns = rows); target accelerations
     -2 B v_n - B^2 gap (normal rows) and -B v_T (tangential rows); forces from
     (A M^-1 C^T) lambda = target - (A a_free + drift), accelerations a_free + M^-1 C^T lambda.
@@ -384,7 +384,7 @@ def constrained_accel(  # noqa: D417 (contact_rows documents H ... lim_value)  #
         squared tangential slide [m^2] of a pair's points since its patch was built,
         |T (p2 - p1) - offset0|^2.
     """
-    Jn, drift, gap, vn, JT, bT, vT, vt, _, T, dJp, dP = contact_rows(
+    Jn, drift, gap, vn, JT, bT, vT, vt, nw, T, dJp, dP = contact_rows(
         H, J, dJ, masks, q, v, body, local, pair, rows, centre, normal_body, frame2,
         lim_joint, lim_side, lim_value,
     )  # fmt: skip
@@ -403,15 +403,24 @@ def constrained_accel(  # noqa: D417 (contact_rows documents H ... lim_value)  #
             C[e, c] = Jn[r, c]
         p = row_slip[e]
         if p >= 0:
-            w0 = vt[p, 0] + stick_speed * slip_dir[p, 0]
-            w1 = vt[p, 1] + stick_speed * slip_dir[p, 1]
-            w2 = vt[p, 2] + stick_speed * slip_dir[p, 2]
+            # the point's own sliding direction (ContactRows.slip_directions)
+            k = rows[r]
+            vr0 = 0.0
+            vr1 = 0.0
+            vr2 = 0.0
+            for c in range(nv):
+                vr0 += dJp[k, 0, c] * v[c]
+                vr1 += dJp[k, 1, c] * v[c]
+                vr2 += dJp[k, 2, c] * v[c]
+            vrn = vr0 * nw[p, 0] + vr1 * nw[p, 1] + vr2 * nw[p, 2]
+            w0 = vr0 - vrn * nw[p, 0] + stick_speed * slip_dir[p, 0]
+            w1 = vr1 - vrn * nw[p, 1] + stick_speed * slip_dir[p, 1]
+            w2 = vr2 - vrn * nw[p, 2] + stick_speed * slip_dir[p, 2]
             nrm = math.sqrt(w0 * w0 + w1 * w1 + w2 * w2)
             if nrm > 0.0:
                 s0, s1, s2 = w0 / nrm, w1 / nrm, w2 / nrm
             else:
                 s0, s1, s2 = slip_dir[p, 0], slip_dir[p, 1], slip_dir[p, 2]
-            k = rows[r]
             for c in range(nv):
                 C[e, c] -= mu * (s0 * dJp[k, 0, c] + s1 * dJp[k, 1, c] + s2 * dJp[k, 2, c])
         target[e] = -2.0 * baumgarte * vn[r] - baumgarte * baumgarte * gap[r]

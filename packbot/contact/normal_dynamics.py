@@ -113,8 +113,8 @@ class ConstrainedDynamics(ContactRows):
             Cm = A.copy()
             for i, pos, loc in plan.slips:
                 ex = extra[i]
-                s = self._slip_direction(self._pair_list[i], ex)
-                Cm[pos] -= self.mu * (s @ ex["dJ"][loc])
+                s = self.slip_directions(self._pair_list[i], ex)[loc]
+                Cm[pos] -= self.mu * np.einsum("...i,...ic->...c", s, ex["dJ"][loc])
         target = -2.0 * BAUMGARTE * vn[E] - BAUMGARTE**2 * gap[E]
         b = drift[E]
         if len(plan.sticks):

@@ -5,7 +5,7 @@ solved a second way):
 
 * with the modes fixed (:meth:`~packbot.contact.normal_dynamics.ConstrainedDynamics.evaluate`),
   an engaged patch point's multiplier lambda is its normal force: the force on body 2 is
-  ``lambda n``, plus ``-mu lambda s`` when its pair slips (s the pair's sliding direction, as
+  ``lambda n``, plus ``-mu lambda s`` when its pair slips (s the point's sliding direction, as
   the force columns ``J_n - mu J_s`` have it); a sticking pair's two tangential multipliers
   are its friction force at the patch centre, ``lambda_1 t1 + lambda_2 t2``;
 * at rest (the rest capture), the frictional problem of every touching row
@@ -20,14 +20,12 @@ Conventions of the records: :mod:`packbot.contact_forces`.
 
 from __future__ import annotations
 
-import math
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import pinocchio as pin
 from numpy.typing import NDArray
 
-from packbot.contact.normal_tolerances import STICK_SPEED
 from packbot.contact.static_forces import analytic_centre
 from packbot.contact_forces import PairNames, SampleContact, SampleForces
 
@@ -76,7 +74,7 @@ def mode_forces(
     plan = nc._plan()
     start = _row_starts(pairs)
     lam = np.asarray(ev.lam, dtype=np.float64)
-    vts = np.asarray(ev.vt, dtype=np.float64)
+    extra = nc._problem(q, v)[4] if nc.mu > 0.0 else []
     pos = {int(r): i for i, r in enumerate(plan.engaged)}
     n_e = len(plan.engaged)
     _stop_torques(nc, pairs, {r: float(lam[i]) for r, i in pos.items()}, limit)
@@ -90,15 +88,12 @@ def mode_forces(
         T = frames[i]  # rows t1, t2, n (world)
         n = T[2]
         names = _names(p)
-        dirn = n
+        dirn = np.broadcast_to(n, (K, 3))
         if nc.mu > 0.0 and not p.stick:  # the force columns J_n - mu J_s: lambda (n - mu s)
-            w = vts[i] + STICK_SPEED * p.slip_dir
-            nw = math.sqrt(float(w @ w))
-            s = w / nw if nw > 0.0 else p.slip_dir
-            dirn = n - nc.mu * s
+            dirn = n - nc.mu * nc.slip_directions(p, extra[i])
         touch, p1, p2 = _points(data, p)
         for j, r in at:
-            out.append((names, touch[j], p1[j], p2[j], n.copy(), float(lam[r]) * dirn))
+            out.append((names, touch[j], p1[j], p2[j], n.copy(), float(lam[r]) * dirn[j]))
         k = stick_k.get(i)
         if k is not None:  # a sticking pair's friction, at its patch centre
             f = np.asarray(lam[k] * T[0] + lam[k + 1] * T[1], dtype=np.float64)

@@ -3,6 +3,7 @@
 // right-hand side, M^-1, the Delassus system and its solve, the mode conditions.
 
 #include "contact_rhs.hpp"
+#include "rows.hpp"
 #include "small_solve.hpp"
 
 #include <algorithm>
@@ -202,25 +203,13 @@ bool ContactRhs::solve_plan() {
     }
     const int p = static_cast<int>(row_slip_[e]);
     if (p >= 0) {
-      const double *sd = &slip_dir_[3 * p];
-      const double w0 = vt_[3 * p] + stick_speed_ * sd[0];
-      const double w1 = vt_[3 * p + 1] + stick_speed_ * sd[1];
-      const double w2 = vt_[3 * p + 2] + stick_speed_ * sd[2];
-      const double nrm = std::sqrt(w0 * w0 + w1 * w1 + w2 * w2);
-      double s0, s1, s2;
-      if (nrm > 0.0) {
-        s0 = w0 / nrm;
-        s1 = w1 / nrm;
-        s2 = w2 / nrm;
-      } else {
-        s0 = sd[0];
-        s1 = sd[1];
-        s2 = sd[2];
-      }
       const int k = static_cast<int>(rows_[r]);
       const double *d = &dJp_[k * 3 * nv];
+      double s[3];
+      packbot_native::point_slip_direction(d, &F_[9 * p + 6], v_.data(), nv, &slip_dir_[3 * p],
+                                           stick_speed_, s);
       for (int c = 0; c < nv; ++c)
-        C_[e * nv + c] -= mu_ * (s0 * d[c] + s1 * d[nv + c] + s2 * d[2 * nv + c]);
+        C_[e * nv + c] -= mu_ * (s[0] * d[c] + s[1] * d[nv + c] + s[2] * d[2 * nv + c]);
     }
     target_[e] = -2.0 * B * vn_[r] - B * B * gap_[r];
     b_[e] = drift_[r];

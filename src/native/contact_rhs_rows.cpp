@@ -24,6 +24,7 @@ packbot_native::Rows ContactRhs::rows_view() const {
   R.vt = vt_.data();
   R.F = F_.data();
   R.dJp = dJp_.data();
+  R.v = v_.data();
   R.rows = rows_.data();
   R.first = pfirst_.data();
   R.K = pK_.data();

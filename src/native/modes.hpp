@@ -268,15 +268,6 @@ class Selection {
     return stick_rows_.back();
   }
 
-  // _slip_direction: (v_t + STICK_SPEED s0) / |...|, or s0 where that is zero.
-  void slip_direction(int p, double *s) const {
-    const double *vt = R_->vt + 3 * p, *sd = &slip_dir[3 * p];
-    double w[3];
-    for (int i = 0; i < 3; ++i) w[i] = vt[i] + c_.stick_speed * sd[i];
-    const double nw = norm3(w);
-    for (int i = 0; i < 3; ++i) s[i] = nw > 0.0 ? w[i] / nw : sd[i];
-  }
-
   // _solve_modes: the mixed LCP; false when Lemke fails on the non-symmetric problem (or its
   // residual is above 1e-6); st HAND_BACK where the Python path takes its least squares.
   bool solve_modes(Status &st) {
@@ -293,9 +284,9 @@ class Selection {
       if (c_.mu == 0.0 || r >= R.mp) continue;
       const int p = R.pair_of(r);
       if (stick[p]) continue;
-      double s[3];
-      slip_direction(p, s);
       const double *d = R.dJp + static_cast<size_t>(R.rows[r]) * 3 * nv;
+      double s[3];
+      point_slip_direction(d, R.F + 9 * p + 6, R.v, nv, &slip_dir[3 * p], c_.stick_speed, s);
       for (int k = 0; k < nv; ++k)
         CN_[a * nv + k] -= c_.mu * (s[0] * d[k] + s[1] * d[nv + k] + s[2] * d[2 * nv + k]);
     }
