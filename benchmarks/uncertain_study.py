@@ -31,6 +31,7 @@ SEED = 1
 
 def main(argv: list[str]) -> None:
     logging.basicConfig(level=logging.INFO, format="%(message)s")
+    logging.getLogger("packbot").setLevel(logging.WARNING)  # the table, not each arm's steps
     n = int(argv[0]) if argv else 8
     duration = float(argv[1]) if len(argv) > 1 else 2.5
     workers = [int(w) for w in argv[2:]] or [1, 2]
@@ -44,8 +45,9 @@ def main(argv: list[str]) -> None:
             rep = run_uncertain_study(
                 SCENARIO, tmp, samples=n, seed=SEED, duration=duration, workers=w
             )
-            walls[f"local pool, {w} workers"] = time.perf_counter() - start
-            results[f"local pool, {w} workers"] = rep.result
+            where = f"local pool, {w} worker{'s' if w != 1 else ''}"
+            walls[where] = time.perf_counter() - start
+            results[where] = rep.result
     log.info(
         "%s, %.1f s per run, %d arms (Sobol, seed %d): %s",
         SCENARIO,

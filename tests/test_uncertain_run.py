@@ -162,3 +162,19 @@ def test_a_figure_of_something_else_is_refused(tmp_path: Path) -> None:
 
     with pytest.raises(ConfigurationError, match="summary"):
         write_uncertain_run({"arms": []}, tmp_path)
+
+
+def test_the_reports_rest_does_not_survive_the_tolerances() -> None:
+    """docs/study.md's worked example, in kind: over 8 arms (the whole 5 s) some end as the
+    report's arm (link 3 propped upright on the shoulder casing, its end above 0.7 m, at rest)
+    and some do not; a narrow shoulder casing alone (the box's narrow end) folds link 3."""
+    unc = uncertain_run(SCENARIO, samples=8, seed=1)
+    z = unc.link3_end()[:, 2]
+    propped = z > 0.7  # [m]: the nominal arm's end is at 0.82 m
+    assert 1 <= propped.sum() <= 7, z
+    assert np.all(~np.isnan(unc.rest_times()[propped]))  # the propped ones are at rest
+    one = uncertain_run(SCENARIO, samples=32, seed=1, vary=["casing.shoulder_width"])
+    width = one.sample.column("casing.shoulder_width")  # [m]: 0.12 +- 0.024
+    up = one.link3_end()[:, 2] > 0.7
+    assert np.all(up[width > 0.105]), width[~up]  # wide enough: propped, as the nominal
+    assert not np.all(up[width < 0.101])  # the narrow end folds it
