@@ -215,7 +215,7 @@ def _where(workers: int | None, scheduler: Any) -> str:
         return f"dask {scheduler if isinstance(scheduler, str) else type(scheduler).__name__}"
     if workers == 0:
         return "this process"
-    n = os.cpu_count() or 1 if workers is None else workers
+    n = (os.cpu_count() or 1) if workers is None else workers
     return f"{n} local process{'es' if n != 1 else ''}"
 
 

@@ -95,7 +95,7 @@ def test_summary_text_and_arms_round_trip(unc: UncertainRun) -> None:
 def test_batch_resumes_and_gives_the_numbers_of_this_process(unc: UncertainRun, tmp_path) -> None:
     out = tmp_path / "r"
     rep = run_uncertain_runs(SCENARIO, out, samples=ARMS, seed=SEED, duration=DURATION, workers=0)
-    assert rep.batch.executed == [f"arm_{k:04d}" for k in range(ARMS)]
+    assert sorted(rep.batch.executed) == [f"arm_{k:04d}" for k in range(ARMS)]
     np.testing.assert_allclose(rep.result.link3_end(), unc.link3_end(), rtol=1e-9, atol=1e-12)
     (out / "arm_0002" / ARM_FILE).unlink()
     again = run_uncertain_runs(SCENARIO, out, samples=ARMS, seed=SEED, duration=DURATION, workers=0)
@@ -178,3 +178,17 @@ def test_the_reports_rest_does_not_survive_the_tolerances() -> None:
     up = one.link3_end()[:, 2] > 0.7
     assert np.all(up[width > 0.105]), width[~up]  # wide enough: propped, as the nominal
     assert not np.all(up[width < 0.101])  # the narrow end folds it
+
+
+def test_your_controller_runs_on_every_arm() -> None:
+    """Gravity compensation built on each arm's own model holds the drive pose on every arm
+    (where the scenario's zero torque collapses it): the user's controller ran, on that arm."""
+    from packbot.control import GravityCompensation
+    from packbot.model import load_robot
+
+    unc = uncertain_run(SCENARIO, samples=2, seed=1, duration=0.5, controller=GravityCompensation)
+    drive = load_robot().pose("drive")
+    for arm in unc.arms:
+        assert arm.ok and arm.events.get("impact", 0) == 0
+        for k, joint in enumerate(unc.joints):
+            assert arm.final_q[joint] == pytest.approx(drive[k], abs=1e-3), joint  # [rad]
