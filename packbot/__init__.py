@@ -23,6 +23,7 @@ from packbot.payload import Payload
 from packbot.resources import package_dirs, urdf_path
 from packbot.result import Diagnostics, Event, SimResult
 from packbot.study import StudyResult, study
+from packbot.uncertain_run import UncertainRun, uncertain_run
 from packbot.uncertain_study import UncertainStudy, uncertain_study
 from packbot.uncertainty import ParameterSample, SampledRobots, sample_robots, sample_values
 
@@ -60,6 +61,7 @@ __all__ = [
     "SimResult",
     "SimulationError",
     "StudyResult",
+    "UncertainRun",
     "UncertainStudy",
     "UnknownNameError",
     "__version__",
@@ -71,6 +73,7 @@ __all__ = [
     "sample_values",
     "simulate",
     "study",
+    "uncertain_run",
     "uncertain_study",
     "urdf_path",
 ]

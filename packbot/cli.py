@@ -769,6 +769,13 @@ def _run(
 
 
 def _cmd_run(args: argparse.Namespace) -> int:
+    if args.uncertain is not None:
+        return _uncertain_run(args)
+    for flag in ("seed", "workers", "scheduler", "timeout"):
+        if getattr(args, flag) is not None:
+            raise _UsageError(f"--{flag} applies to a run on sampled arms (--uncertain N)")
+    if args.no_progress:
+        raise _UsageError("--no-progress applies to a run on sampled arms (--uncertain N)")
     return _run(
         args.scenario,
         args.out,
@@ -1022,12 +1029,13 @@ def _cmd_study(args: argparse.Namespace) -> int:
     if _is_study_matrix(args.scenario):
         return _cmd_study_matrix(args)
     for dest, flag in _MATRIX_STUDY_OPTIONS.items():
-        if dest == "workers" and args.uncertain is not None:
-            continue  # an uncertain study's pool
+        if args.uncertain is not None:
+            break  # an uncertain study's arms are a batch too
         if getattr(args, dest) not in (None, False):
             raise _UsageError(
                 f"{flag} applies to a study matrix (sims/matrices/ or a matrix file with "
-                f"[study]), not to one scenario ({args.scenario!r})"
+                f"[study]) or to an uncertain study (--uncertain N), not to one scenario "
+                f"({args.scenario!r})"
             )
     _duration(args.duration)
     if args.tolerance is None:
@@ -1046,11 +1054,11 @@ def _cmd_study(args: argparse.Namespace) -> int:
     controller, recovery = _user_code(args)
     if args.uncertain is None and args.seed is not None:
         raise _UsageError("--seed applies to an uncertain study (--uncertain N)")
+    if args.uncertain is not None:
+        return _uncertain_study(args, scenario.name, controller, recovery)
     out, old = _prepare_out(args.out or f"out/{scenario.name}_study", args.overwrite)
     for path in old:
         path.unlink(missing_ok=True)
-    if args.uncertain is not None:
-        return _uncertain_study(args, scenario, out, controller, recovery)
     result = study(
         scenario,
         duration=args.duration,
@@ -1083,35 +1091,87 @@ def _cmd_study(args: argparse.Namespace) -> int:
 
 
 def _uncertain_study(
-    args: argparse.Namespace,
-    scenario: Scenario,
-    out: Path,
-    controller: str | None,
-    recovery: str,
+    args: argparse.Namespace, name: str, controller: str | None, recovery: str
 ) -> int:
-    """``packbot study SCENARIO --uncertain N``: the study on N sampled arms, uncertain.json."""
-    from packbot.batch import atomic_write
-    from packbot.uncertain_study import uncertain_study
+    """``packbot study SCENARIO --uncertain N``: the study on N sampled arms (a resumed batch)."""
+    from packbot.batch import ProgressBar
+    from packbot.uncertain_batch import run_uncertain_study
 
-    unc = uncertain_study(
-        scenario,
-        samples=args.uncertain,
-        seed=0 if args.seed is None else args.seed,
-        duration=args.duration,
-        tolerance=args.tolerance,
-        contact_mode=args.contact_mode,
-        controller=controller,
-        recovery=recovery,
-        workers=max(1, args.workers or 1),
-        progress=lambda text: log.info("%s", text),
-    )
-    path = out / "uncertain.json"
-    summary = unc.summary()
-    atomic_write(path, (json.dumps(summary, indent=2, allow_nan=False) + "\n").encode())
-    _write_manifest(out, scenario, "uncertain study", [path])
-    print(unc.text())
-    print(f"wrote {path}")
-    return EXIT_OK
+    if args.overwrite:
+        raise _UsageError(
+            "--overwrite does not apply to --uncertain: its --out folder is a batch folder, "
+            "resumed (another draw is refused: use another --out)"
+        )
+    out = args.out or f"out/{name}_uncertain"
+    bar = None if args.no_progress else ProgressBar()
+    try:
+        report = run_uncertain_study(
+            args.scenario,
+            out,
+            samples=args.uncertain,
+            seed=0 if args.seed is None else args.seed,
+            duration=args.duration,
+            tolerance=args.tolerance,
+            contact_mode=args.contact_mode,
+            controller=controller,
+            recovery=recovery,
+            workers=args.workers,
+            scheduler=args.scheduler,
+            timeout=args.timeout,
+            progress=bar,
+            html=not args.no_html,
+        )
+    except KeyboardInterrupt as exc:
+        _interrupted_line(
+            f"interrupted{_by(_signum(exc))}: the finished arms are kept; rerun the same "
+            "command to finish"
+        )
+        return _exit_code(_signum(exc))
+    print(report.result.text())
+    print(report.describe())
+    return EXIT_FAILED if report.batch.failed else EXIT_OK
+
+
+def _uncertain_run(args: argparse.Namespace) -> int:
+    """``packbot run SCENARIO --uncertain N``: the run on N sampled arms (a resumed batch)."""
+    from packbot.batch import ProgressBar
+    from packbot.uncertain_batch import run_uncertain_runs
+
+    for flag in ("plot", "html", "view", "overwrite"):
+        if getattr(args, flag):
+            raise _UsageError(
+                f"--{flag} does not apply to --uncertain (it writes uncertain-run.json and "
+                "uncertain_run.png/svg into a batch folder, resumed)"
+            )
+    if args.duration is not None:
+        _duration(args.duration)
+    from packbot.scenario import load_scenario
+
+    scenario = load_scenario(args.scenario)
+    _check_name(scenario)
+    out = args.out or f"out/{scenario.name}_uncertain"
+    bar = None if args.no_progress else ProgressBar()
+    try:
+        report = run_uncertain_runs(
+            args.scenario,
+            out,
+            samples=args.uncertain,
+            seed=0 if args.seed is None else args.seed,
+            duration=args.duration,
+            workers=args.workers,
+            scheduler=args.scheduler,
+            timeout=args.timeout,
+            progress=bar,
+        )
+    except KeyboardInterrupt as exc:
+        _interrupted_line(
+            f"interrupted{_by(_signum(exc))}: the finished arms are kept; rerun the same "
+            "command to finish"
+        )
+        return _exit_code(_signum(exc))
+    print(report.result.text())
+    print(report.describe())
+    return EXIT_FAILED if report.batch.failed else EXIT_OK
 
 
 def _interrupted_line(text: str) -> None:
@@ -1234,6 +1294,31 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--html", action="store_true", help="write the browser animation")
     p.add_argument("--view", action="store_true", help="play the result in a live viewer")
     p.add_argument("--duration", type=float, default=None, help="simulated time [s] instead")
+    p.add_argument(
+        "--uncertain",
+        metavar="N",
+        type=int,
+        default=None,
+        help="run N arms drawn within the model's tolerances: the final angles, where link 3 "
+        "ends and the events as distributions (uncertain-run.json, uncertain_run.png/svg; "
+        "the --out folder is a batch, resumed: ./out/<scenario name>_uncertain)",
+    )
+    p.add_argument("--seed", type=int, default=None, help="--uncertain: seed of the draw (0)")
+    p.add_argument(
+        "--workers", type=int, default=None, help="--uncertain: processes (CPUs; 0: this one)"
+    )
+    p.add_argument(
+        "--scheduler",
+        "--dask",
+        dest="scheduler",
+        type=_scheduler,
+        default=None,
+        help="--uncertain: Dask scheduler SCHEME://HOST:PORT, or 'local'",
+    )
+    p.add_argument(
+        "--timeout", type=float, default=None, help="--uncertain: wall-time limit per arm [s]"
+    )
+    p.add_argument("--no-progress", action="store_true", help="--uncertain: no progress bar")
     p.set_defaults(func=_cmd_run)
 
     p = sub.add_parser("list", help="list the shipped scenarios and the named poses")
@@ -1340,14 +1425,16 @@ def build_parser() -> argparse.ArgumentParser:
         type=int,
         default=None,
         help="one scenario: study N arms drawn within the model's tolerances and write "
-        "uncertain.json (quantiles, recovery probability, sensitivity) instead of study.json",
+        "uncertain.json (quantiles, recovery probability, sensitivity), its figures and "
+        "report.html instead of study.json (the --out folder is a batch, resumed: "
+        "./out/<scenario name>_uncertain)",
     )
     p.add_argument("--seed", type=int, default=None, help="--uncertain: seed of the draw (0)")
     p.add_argument(
         "--workers",
         type=int,
         default=None,
-        help="a matrix: processes (CPUs; 0: this one); --uncertain: processes (1)",
+        help="a matrix or --uncertain: processes (CPUs; 0: this one)",
     )
     p.add_argument(
         "--scheduler",
@@ -1355,12 +1442,17 @@ def build_parser() -> argparse.ArgumentParser:
         dest="scheduler",
         type=_scheduler,
         default=None,
-        help="a matrix: " + scheduler_help,
+        help="a matrix or --uncertain: " + scheduler_help,
     )
     p.add_argument(
-        "--timeout", type=float, default=None, help="a matrix: wall-time limit per cell [s]"
+        "--timeout",
+        type=float,
+        default=None,
+        help="a matrix or --uncertain: wall-time limit per cell or arm [s]",
     )
-    p.add_argument("--no-progress", action="store_true", help="a matrix: no progress bar")
+    p.add_argument(
+        "--no-progress", action="store_true", help="a matrix or --uncertain: no progress bar"
+    )
     p.set_defaults(func=_cmd_study)
 
     p = sub.add_parser(

@@ -728,6 +728,7 @@ def run_scenario(
     *,
     duration: float | None = None,
     progress: Callable[[float], None] | None = None,
+    controller: Controller | None = None,
 ) -> SimResult:
     """Simulate a scenario.
 
@@ -736,6 +737,8 @@ def run_scenario(
         robot: The robot (default: :func:`packbot.load_robot`).
         duration: Simulated time [s] instead of the scenario's (e.g. shortened in tests).
         progress: Called with the simulated time [s] after each accepted step.
+        controller: Your controller instead of the scenario's (built for ``robot``); None: the
+            scenario's.
 
     Returns:
         The result of :func:`packbot.simulate`, with ``scenario_text`` the file's text.
@@ -760,7 +763,7 @@ def run_scenario(
         raise ConfigurationError("duration", duration, "a finite positive time [s]")
     q0, v0 = scenario.initial_state(robot)
     kwargs: dict[str, Any] = {
-        "controller": scenario.build_controller(robot),
+        "controller": scenario.build_controller(robot) if controller is None else controller,
         "environment": scenario.environment,
         "config": scenario.config,
     }

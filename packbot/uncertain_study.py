@@ -15,14 +15,21 @@ recovery strategy included) and returns an :class:`UncertainStudy`:
 - :meth:`UncertainStudy.sensitivity`: the sampled parameters ranked by the absolute Spearman
   rank correlation between their drawn values and a metric.
 
-Each arm's study keeps its metrics, its runs' statuses and its verdict (not its trajectories:
-:class:`ArmStudy`). An arm whose study raises a :class:`~packbot.errors.PackbotError` or one of
-whose runs is not ``"ok"`` is counted and reported (:attr:`UncertainStudy.counts`), never
-dropped silently: its metrics are left out of the quantiles of that run only.
+Each arm's study keeps its metrics, its runs' statuses, its verdict and each run's task error on
+a common time grid of :data:`TRACE_POINTS` samples (not its trajectories: :class:`ArmStudy`);
+:meth:`UncertainStudy.task_error_band` gives its 5-95 % band over the arms. An arm whose study
+raises a :class:`~packbot.errors.PackbotError` or one of whose runs is not ``"ok"`` is counted
+and reported (:attr:`UncertainStudy.counts`), never dropped silently: its metrics are left out
+of the quantiles of that run only.
 
 The controller on each arm is built on that arm's model (it knows the arm exactly): the spread
 is that of the arm's physics, not of a controller tuned on the nominal model running a different
 arm.
+
+:func:`uncertain_study` studies the arms one after the other in this process. The same arms on
+a local pool or a Dask cluster, resumable from a folder with one file per arm, are
+:func:`packbot.uncertain_batch.run_uncertain_study` (the batch machinery; ``packbot study
+SCENARIO --uncertain N``): both run each arm with :meth:`UncertainPlan.study_arm`.
 """
 
 from __future__ import annotations
@@ -32,8 +39,9 @@ import logging
 import math
 import os
 import time
-from collections.abc import Callable, Iterable, Sequence
-from dataclasses import dataclass
+import warnings
+from collections.abc import Callable, Iterable, Mapping
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Literal
 
@@ -42,7 +50,7 @@ import numpy as np
 from packbot.errors import ConfigurationError, PackbotError, UnknownNameError
 from packbot.keywords import checked_arguments
 from packbot.study import DEFAULT_TOLERANCE, RUN_NAMES, RunMetrics
-from packbot.validation import MAX_WORKERS, finite_number, integer
+from packbot.validation import finite_number, integer
 
 if TYPE_CHECKING:
     from packbot.control.user_code import ControllerSpec, StrategySpec
@@ -53,8 +61,12 @@ if TYPE_CHECKING:
 __all__ = [
     "METRICS",
     "PERCENTILES",
+    "TRACE_POINTS",
     "ArmStudy",
+    "UncertainPlan",
     "UncertainStudy",
+    "percentiles",
+    "plan_uncertain_study",
     "uncertain_study",
     "wilson_interval",
 ]
@@ -86,6 +98,41 @@ SUMMARY_TOP = 5
 Z95 = 1.959963984540054
 #: Most arms one call studies (:data:`packbot.uncertainty.MAX_SAMPLED_ROBOTS`).
 MAX_SAMPLES = 1_000
+#: Samples of each arm's task error kept per run (a grid over the runs' duration, both ends in).
+TRACE_POINTS = 201
+#: How many parameters the sensitivity bars (``uncertain.json``, the report) show.
+BAR_TOP = 10
+
+
+def percentiles(values: Any) -> dict[int, Any]:
+    """The 5th, 50th and 95th percentiles of ``values`` over its first axis, non-finite left out.
+
+    Linear interpolation between order statistics (NumPy's default). ``values`` of shape (n,)
+    give floats; of shape (n, m) (arms x times) arrays of m values, each over the arms that have
+    a finite value there. No finite value: NaN.
+
+    Example::
+
+        percentiles([1.0, 2.0, float("nan"), 3.0])  # {5: 1.1, 50: 2.0, 95: 2.9}
+
+    Raises:
+        ConfigurationError: ``values`` is not numeric or has more than two axes.
+    """
+    try:
+        x = np.array(values, dtype=float)
+    except (TypeError, ValueError):
+        raise ConfigurationError("values", type(values).__name__, "numbers") from None
+    if x.ndim not in (1, 2):
+        raise ConfigurationError("values", f"shape {x.shape}", "shape (n,) or (n, m)")
+    x[~np.isfinite(x)] = np.nan
+    with warnings.catch_warnings():  # an all-NaN column is NaN, as documented
+        warnings.simplefilter("ignore", RuntimeWarning)
+        q = np.nanpercentile(x, PERCENTILES, axis=0) if x.shape[0] else None
+    if q is None:
+        return dict.fromkeys(PERCENTILES, math.nan if x.ndim == 1 else np.full(x.shape[1], np.nan))
+    return {
+        p: (float(v) if x.ndim == 1 else np.asarray(v)) for p, v in zip(PERCENTILES, q, strict=True)
+    }
 
 
 def wilson_interval(successes: int, trials: int, z: float = Z95) -> tuple[float, float]:
@@ -132,6 +179,9 @@ class ArmStudy:
         possible: The study's verdict on recovery (:attr:`packbot.study.Recovery.possible`).
         error: The error the study raised ("" if none).
         wall_time_s: Wall time of building the arm and studying it [s].
+        task_error: Per run name, its task error [m] at the :data:`TRACE_POINTS` times of
+            :attr:`UncertainStudy.trace_time` (linear between the run's samples; NaN after a
+            run that stopped early); empty for a run without samples.
     """
 
     index: int
@@ -141,6 +191,64 @@ class ArmStudy:
     possible: bool | None
     error: str = ""
     wall_time_s: float = 0.0
+    task_error: dict[str, tuple[float, ...]] = field(default_factory=dict)
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready, exactly: :meth:`from_dict` gives back the same arm, bit for bit.
+
+        Floats are written as JSON numbers (shortest repr), a non-finite metric as ``"inf"``,
+        ``"-inf"`` or ``"nan"``, a NaN of a task error as null.
+        """
+        return {
+            "index": self.index,
+            "status": dict(self.status),
+            "reasons": dict(self.reasons),
+            "metrics": {
+                run: None if m is None else {k: _enc(v) for k, v in dataclasses.asdict(m).items()}
+                for run, m in self.metrics.items()
+            },
+            "possible": self.possible,
+            "error": self.error,
+            "wall_time_s": self.wall_time_s,
+            "task_error": {
+                run: [x if math.isfinite(x) else None for x in e]
+                for run, e in self.task_error.items()
+            },
+        }
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any]) -> ArmStudy:
+        """Read what :meth:`to_dict` wrote.
+
+        Raises:
+            ConfigurationError: ``data`` is not such a dict (names the key that is wrong).
+        """
+        try:
+            metrics = {
+                run: None if m is None else RunMetrics(**{k: _dec(v) for k, v in m.items()})
+                for run, m in data["metrics"].items()
+            }
+            return cls(
+                index=int(data["index"]),
+                status={str(k): str(v) for k, v in data["status"].items()},
+                reasons={str(k): str(v) for k, v in data["reasons"].items()},
+                metrics=metrics,
+                possible=data["possible"],
+                error=str(data["error"]),
+                wall_time_s=float(data["wall_time_s"]),
+                task_error={
+                    str(run): tuple(math.nan if x is None else float(x) for x in e)
+                    for run, e in data["task_error"].items()
+                },
+            )
+        except KeyError as exc:
+            raise ConfigurationError(
+                "arm", f"no key {exc.args[0]!r}", "an arm written by ArmStudy.to_dict"
+            ) from None
+        except (TypeError, ValueError, AttributeError, PackbotError) as exc:
+            raise ConfigurationError(
+                "arm", str(exc), "an arm written by ArmStudy.to_dict"
+            ) from None
 
     @property
     def ok(self) -> bool:
@@ -165,7 +273,10 @@ class UncertainStudy:
         tolerance_m: The studies' recovery tolerance [m].
         controller: The controller's description ("" : the scenario's).
         wall_time_s: Wall time of the whole call [s].
-        workers: Processes used (1: this one).
+        workers: Where the arms ran: ``"this process"``, ``"2 local processes"``,
+            ``"dask tcp://..."``.
+        duration_s: Simulated time of each run [s] (the task error grid's span).
+        failure_time_s: The first failure's time [s].
     """
 
     scenario: str
@@ -174,10 +285,35 @@ class UncertainStudy:
     tolerance_m: float
     controller: str = ""
     wall_time_s: float = 0.0
-    workers: int = 1
+    workers: str = "this process"
+    duration_s: float = math.nan
+    failure_time_s: float = math.nan
 
     def __len__(self) -> int:
         return len(self.arms)
+
+    @property
+    def trace_time(self) -> np.ndarray:
+        """The times of :attr:`ArmStudy.task_error` [s]: :data:`TRACE_POINTS`, 0 to the end."""
+        return trace_grid(self.duration_s)
+
+    def task_error_band(self, run: str) -> dict[int, np.ndarray]:
+        """The 5th, 50th and 95th percentiles over the arms of a run's task error at each time.
+
+        Args:
+            run: ``"healthy"``, ``"failed"`` or ``"reconfigured"``.
+
+        Returns:
+            {5: ..., 50: ..., 95: ...}, each of shape (:data:`TRACE_POINTS`,) [m] at
+            :attr:`trace_time`; NaN where no arm's run has a sample.
+
+        Raises:
+            UnknownNameError: ``run`` is not a run name.
+        """
+        _check_run_metric(run, "final_task_error_m")
+        rows = [a.task_error[run] for a in self.arms if len(a.task_error.get(run, ())) > 0]
+        grid = np.array(rows) if rows else np.empty((0, TRACE_POINTS))
+        return percentiles(grid)
 
     # ------------------------------------------------------------------------- values
     def values(self, run: str, metric: str) -> np.ndarray:
@@ -212,12 +348,7 @@ class UncertainStudy:
         Raises:
             UnknownNameError: ``run`` or ``metric`` is not a valid name.
         """
-        x = self.values(run, metric)
-        x = x[np.isfinite(x)]
-        if len(x) == 0:
-            return {p: math.nan for p in PERCENTILES}
-        q = np.percentile(x, PERCENTILES)
-        return {p: float(v) for p, v in zip(PERCENTILES, q, strict=True)}
+        return percentiles(self.values(run, metric))
 
     def count(self, run: str, metric: str) -> int:
         """How many arms have a value of ``metric`` for ``run``."""
@@ -316,15 +447,17 @@ class UncertainStudy:
         return ranked
 
     # ------------------------------------------------------------------------ summary
-    def summary(self, top: int = SUMMARY_TOP) -> dict[str, Any]:
-        """The spread, JSON-ready (what ``uncertain.json`` holds).
+    def summary(self, top: int = BAR_TOP) -> dict[str, Any]:
+        """The spread, JSON-ready (what ``uncertain.json`` holds; the report is drawn from it).
 
         Keys: the scenario, the sample (size, seed, method, the sampled parameters), the counts,
         per run and metric of :data:`SUMMARY_METRICS` the quantiles (``"5"``, ``"50"``,
         ``"95"``) and the number of arms with a value, the recovery probability and its Wilson
         interval, the share the studies judged possible, the ``top`` parameters of the
-        sensitivity of each run's final task error and peak torque ratio, and per arm its
-        statuses, its verdict and its reasons for a run not ok.
+        sensitivity of each run's final task error and peak torque ratio, the distributions
+        (``task_error_band``: the times [s] and per run the 5, 50 and 95 % of the task error
+        [m] at each; ``final_task_error_m``: per run each arm's value, null without), and per
+        arm its statuses, its verdict and its reasons for a run not ok.
         """
         top = integer("top", top, low=1, what="a number of parameters")
         quant: dict[str, Any] = {}
@@ -365,6 +498,16 @@ class UncertainStudy:
                 "possible_share": _num(self.possible_share),
             },
             "sensitivity": {"method": "Spearman rank correlation", "top": sens},
+            "duration_s": _num(self.duration_s),
+            "failure_time_s": _num(self.failure_time_s),
+            "task_error_band": {"t_s": [float(x) for x in self.trace_time]}
+            | {
+                run: {str(p): [_num(x) for x in v] for p, v in self.task_error_band(run).items()}
+                for run in RUN_NAMES
+            },
+            "final_task_error_m": {
+                run: [_num(x) for x in self.values(run, "final_task_error_m")] for run in RUN_NAMES
+            },
             "arms": [
                 {
                     "index": a.index,
@@ -430,6 +573,25 @@ def _num(x: float) -> float | None:
     return float(x) if math.isfinite(x) else None
 
 
+_NON_FINITE = ("inf", "-inf", "nan")
+
+
+def _enc(v: Any) -> Any:
+    """A metric for JSON, exactly: a non-finite float as its name."""
+    if isinstance(v, float) and not math.isfinite(v):
+        return str(v)
+    return v
+
+
+def _dec(v: Any) -> Any:
+    return float(v) if isinstance(v, str) and v in _NON_FINITE else v
+
+
+def trace_grid(duration: float) -> np.ndarray:
+    """The :data:`TRACE_POINTS` times of the kept task errors: 0 to ``duration`` [s]."""
+    return np.linspace(0.0, float(duration), TRACE_POINTS)
+
+
 def _check_run_metric(run: str, metric: str) -> None:
     if not isinstance(run, str) or run not in RUN_NAMES:
         raise UnknownNameError("run", run, RUN_NAMES)
@@ -439,98 +601,184 @@ def _check_run_metric(run: str, metric: str) -> None:
 
 # --------------------------------------------------------------------------------- the runs
 @dataclass(frozen=True)
-class _Job:
-    """What one arm's study needs (picklable: sent to a worker process)."""
+class UncertainPlan:
+    """An uncertain study, checked and drawn, before any arm runs (picklable: sent to workers).
 
-    index: int
-    values: dict[str, float]
-    scenario: Any
+    Made by :func:`plan_uncertain_study`; :meth:`study_arm` studies one arm (the one piece of
+    code every way of running the arms calls), :meth:`result` gathers the arms' studies.
+
+    Attributes:
+        scenario: The scenario, checked against the nominal arm.
+        sample: The drawn values (arm ``k`` is row ``k``).
+        options: :func:`packbot.study`'s options for every arm (duration, tolerance, contact
+            mode, workspace samples, seed, controller, recovery).
+        controller: The controller's description ("": the scenario's).
+        recovery: The recovery strategy's description.
+        duration_s: Simulated time of each run [s].
+        tolerance_m: The recovery tolerance [m].
+    """
+
+    scenario: Scenario
+    sample: ParameterSample
     options: dict[str, Any]
-    directory: str
+    controller: str
+    recovery: str
+    duration_s: float
+    tolerance_m: float
 
+    def __len__(self) -> int:
+        return len(self.sample)
 
-def _study_arm(job: _Job) -> ArmStudy:
-    """Build arm ``job.index`` and study it; a PackbotError becomes the arm's error."""
-    from packbot.study import study
-    from packbot.uncertainty import robot_from_values
+    def arm_values(self, k: int) -> dict[str, float]:
+        """Arm ``k``'s drawn values (the sampled entries only: the others stay nominal)."""
+        return {n: float(x) for n, x in zip(self.sample.names, self.sample.values[k], strict=True)}
 
-    start = time.perf_counter()
-    try:
-        folder = Path(job.directory) / f"arm_{job.index:04d}"
-        robot = robot_from_values(job.values, directory=folder)
-        res = study(job.scenario, robot=robot, **job.options)
-    except PackbotError as exc:
-        log.warning("arm %d: study failed: %s", job.index, exc)
-        text = f"{type(exc).__name__}: {exc}"
+    def identity(self) -> dict[str, Any]:
+        """What defines the arms' studies, JSON-ready (a resumed folder must hold the same)."""
+        return {
+            "scenario": self.scenario.name,
+            "samples": len(self.sample),
+            "seed": self.sample.seed,
+            "method": self.sample.method,
+            "vary": list(self.sample.names),
+            "duration_s": self.duration_s,
+            "tolerance_m": self.tolerance_m,
+            "contact_mode": self.options["contact_mode"],
+            "workspace_samples": self.options["workspace_samples"],
+            "controller": self.controller,
+            "recovery": self.recovery,
+        }
+
+    def study_arm(
+        self,
+        k: int,
+        directory: str | Path,
+        step: Callable[[float], None] | None = None,
+    ) -> ArmStudy:
+        """Build arm ``k`` and study it; a :class:`PackbotError` becomes the arm's error.
+
+        Args:
+            k: The arm's index in the sample.
+            directory: Folder for its description package (``arm_<k>/`` in it).
+            step: Called with the simulated time now and then (:func:`packbot.study`'s
+                ``step``; a wall-time limit raises from it).
+        """
+        from packbot.study import study
+        from packbot.uncertainty import robot_from_values
+
+        start = time.perf_counter()
+        try:
+            folder = Path(directory) / f"arm_{k:04d}"
+            robot = robot_from_values(self.arm_values(k), directory=folder)
+            res = study(self.scenario, robot=robot, step=step, **self.options)
+        except PackbotError as exc:
+            log.warning("arm %d: study failed: %s", k, exc)
+            text = f"{type(exc).__name__}: {exc}"
+            return ArmStudy(
+                index=k,
+                status=dict.fromkeys(RUN_NAMES, "error"),
+                reasons=dict.fromkeys(RUN_NAMES, text),
+                metrics=dict.fromkeys(RUN_NAMES),
+                possible=None,
+                error=text,
+                wall_time_s=time.perf_counter() - start,
+            )
+        grid = trace_grid(self.duration_s)
+        traces: dict[str, tuple[float, ...]] = {}
+        for name, run in res.runs.items():
+            if run.result is not None and run.task_error is not None and len(run.task_error):
+                e = np.interp(grid, run.result.t, run.task_error, right=np.nan)
+                traces[name] = tuple(float(x) for x in e)
         return ArmStudy(
-            index=job.index,
-            status=dict.fromkeys(RUN_NAMES, "error"),
-            reasons=dict.fromkeys(RUN_NAMES, text),
-            metrics=dict.fromkeys(RUN_NAMES),
-            possible=None,
-            error=text,
+            index=k,
+            status={n: r.status for n, r in res.runs.items()},
+            reasons={n: r.reason if r.status != "ok" else "" for n, r in res.runs.items()},
+            metrics={n: r.metrics if r.status == "ok" else None for n, r in res.runs.items()},
+            possible=res.recovery.possible,
             wall_time_s=time.perf_counter() - start,
+            task_error=traces,
         )
-    runs = res.runs
-    return ArmStudy(
-        index=job.index,
-        status={n: r.status for n, r in runs.items()},
-        reasons={n: r.reason if r.status != "ok" else "" for n, r in runs.items()},
-        metrics={n: r.metrics if r.status == "ok" else None for n, r in runs.items()},
-        possible=res.recovery.possible,
-        wall_time_s=time.perf_counter() - start,
+
+    def result(self, arms: Iterable[ArmStudy], wall_time_s: float, workers: str) -> UncertainStudy:
+        """The :class:`UncertainStudy` of the arms' studies (put in sample order).
+
+        Raises:
+            ConfigurationError: The arms are not the sample's, each once.
+        """
+        ordered = tuple(sorted(arms, key=lambda a: a.index))
+        if [a.index for a in ordered] != list(range(len(self.sample))):
+            raise ConfigurationError(
+                "arms",
+                [a.index for a in ordered],
+                f"the {len(self.sample)} arms of the sample, each once",
+            )
+        return UncertainStudy(
+            scenario=self.scenario.name,
+            sample=self.sample,
+            arms=ordered,
+            tolerance_m=self.tolerance_m,
+            controller=self.controller,
+            wall_time_s=wall_time_s,
+            workers=workers,
+            duration_s=self.duration_s,
+            failure_time_s=min(float(f.t) for f in self.scenario.failures),
+        )
+
+
+@checked_arguments
+def plan_uncertain_study(
+    scenario: Scenario | str | Path,
+    *,
+    samples: int = 8,
+    seed: int = 0,
+    vary: Iterable[str] | None = None,
+    method: Literal["sobol", "lhs"] = "sobol",
+    robot: Robot | None = None,
+    duration: float | None = None,
+    tolerance: float = DEFAULT_TOLERANCE,
+    contact_mode: str | None = None,
+    workspace_samples: int = 2000,
+    controller: ControllerSpec | None = None,
+    recovery: StrategySpec = "builtin",
+) -> UncertainPlan:
+    """Check an uncertain study's arguments and draw its arms (:func:`uncertain_study`'s).
+
+    Raises:
+        ConfigurationError: A bad argument (names it, its value and what is valid), a
+            scenario without failures.
+        UnknownNameError: An unknown scenario or parameter name.
+    """
+    from packbot.control.user_code import controller_factory, describe_spec, strategy_factory
+    from packbot.study import _check_inputs
+    from packbot.uncertainty import sample_values
+
+    samples = integer("samples", samples, low=2, high=MAX_SAMPLES, what="a number of arms")
+    seed = integer("seed", seed, low=0, high=2**63 - 1, what="a non-negative integer seed")
+    scenario, robot = _check_inputs(
+        scenario, robot, duration, tolerance, contact_mode, workspace_samples
     )
-
-
-def _drawn(sample: ParameterSample, k: int) -> dict[str, float]:
-    """Arm ``k``'s drawn values (the sampled entries only: the others stay nominal)."""
-    return {n: float(x) for n, x in zip(sample.names, sample.values[k], strict=True)}
-
-
-def _init_worker() -> None:
-    from packbot.batch import _init_worker as batch_init  # the batch pool's worker set-up
-
-    batch_init(None)
-
-
-def _run_jobs(
-    jobs: Sequence[_Job], workers: int, say: Callable[[str], None]
-) -> tuple[ArmStudy, ...]:
-    if workers == 1:
-        out = []
-        for job in jobs:
-            say(f"arm {job.index + 1} of {len(jobs)}")
-            out.append(_study_arm(job))
-        return tuple(out)
-    import multiprocessing
-    from concurrent.futures import ProcessPoolExecutor
-
-    from packbot.batch import _single_thread_env  # one BLAS thread per worker, as the batch's
-
-    ctx = multiprocessing.get_context("spawn")
-    with (
-        _single_thread_env(),
-        ProcessPoolExecutor(max_workers=workers, mp_context=ctx, initializer=_init_worker) as pool,
-    ):
-        results = []
-        for k, arm in enumerate(pool.map(_study_arm, jobs)):
-            say(f"arm {k + 1} of {len(jobs)} done")
-            results.append(arm)
-    return tuple(results)
-
-
-def _picklable(name: str, value: Any) -> None:
-    import pickle
-
-    try:
-        pickle.dumps(value)
-    except Exception as exc:
-        raise ConfigurationError(
-            name,
-            value,
-            "with workers > 1, an import path 'module:Name' or a module-level class or "
-            f"function (worker processes receive it by pickling: {type(exc).__name__})",
-        ) from None
+    if controller is not None:
+        controller_factory(controller)(robot)  # a factory that fails does so before any arm
+    strategy_factory(recovery)
+    sample = sample_values(samples, seed, vary=vary, method=method)
+    options: dict[str, Any] = {
+        "duration": None if duration is None else float(duration),
+        "tolerance": float(tolerance),
+        "contact_mode": contact_mode,
+        "workspace_samples": int(workspace_samples),
+        "seed": seed,
+        "controller": controller,
+        "recovery": recovery,
+    }
+    return UncertainPlan(
+        scenario=scenario,
+        sample=sample,
+        options=options,
+        controller="" if controller is None else describe_spec(controller),
+        recovery=describe_spec(recovery),
+        duration_s=float(scenario.duration if duration is None else duration),
+        tolerance_m=float(tolerance),
+    )
 
 
 @checked_arguments
@@ -548,11 +796,14 @@ def uncertain_study(
     workspace_samples: int = 2000,
     controller: ControllerSpec | None = None,
     recovery: StrategySpec = "builtin",
-    workers: int = 1,
     directory: str | Path | None = None,
     progress: Callable[[str], None] | None = None,
 ) -> UncertainStudy:
     """Run the failure study of a scenario on arms drawn within the model's tolerances.
+
+    The arms are studied one after the other in this process; on a local pool or a Dask
+    cluster, resumable, with the same numbers: :func:`packbot.uncertain_batch.
+    run_uncertain_study` (``packbot study SCENARIO --uncertain N``).
 
     Example::
 
@@ -578,68 +829,47 @@ def uncertain_study(
         contact_mode: As :func:`packbot.study`.
         workspace_samples: As :func:`packbot.study`.
         controller: As :func:`packbot.study`: your controller on every arm (built on that
-            arm's model). With ``workers`` > 1 it must pickle (an import path or a
-            module-level class or function).
+            arm's model).
         recovery: As :func:`packbot.study`, likewise.
-        workers: Processes (1: this one; more: a local pool of that many, 'spawn', one BLAS
-            thread each, as :mod:`packbot.batch`'s).
         directory: Folder for the arms' description packages (``arm_0000/`` ...); None: a
             temporary folder, removed on return.
-        progress: Called with a line of text as each arm starts (or ends, on a pool).
+        progress: Called with a line of text as each arm starts.
 
     Returns:
         The arms' studies and their spread (:class:`UncertainStudy`).
 
     Raises:
         ConfigurationError: A bad argument (names it, its value and what is valid), a
-            scenario without failures, a controller that does not pickle with workers > 1.
+            scenario without failures.
         UnknownNameError: An unknown scenario or parameter name.
     """
     import tempfile
 
-    from packbot.control.user_code import controller_factory, describe_spec, strategy_factory
-    from packbot.study import _check_inputs
-    from packbot.uncertainty import sample_values
-
-    samples = integer("samples", samples, low=2, high=MAX_SAMPLES, what="a number of arms")
-    seed = integer("seed", seed, low=0, high=2**63 - 1, what="a non-negative integer seed")
-    workers = integer("workers", workers, low=1, high=MAX_WORKERS, what="a number of processes")
-    scenario, robot = _check_inputs(
-        scenario, robot, duration, tolerance, contact_mode, workspace_samples
+    plan = plan_uncertain_study(
+        scenario,
+        samples=samples,
+        seed=seed,
+        vary=vary,
+        method=method,
+        robot=robot,
+        duration=duration,
+        tolerance=tolerance,
+        contact_mode=contact_mode,
+        workspace_samples=workspace_samples,
+        controller=controller,
+        recovery=recovery,
     )
-    if controller is not None:
-        controller_factory(controller)(robot)  # a factory that fails does so before any arm
-    strategy_factory(recovery)
-    if workers > 1:
-        for name, value in (("controller", controller), ("recovery", recovery)):
-            _picklable(name, value)
     if directory is not None and not isinstance(directory, (str, Path)):
         raise ConfigurationError("directory", directory, "a folder path, or None")
-    sample = sample_values(samples, seed, vary=vary, method=method)
-    options: dict[str, Any] = {
-        "duration": duration,
-        "tolerance": float(tolerance),
-        "contact_mode": contact_mode,
-        "workspace_samples": workspace_samples,
-        "seed": seed,
-        "controller": controller,
-        "recovery": recovery,
-    }
     say = progress if progress is not None else (lambda text: log.info("%s", text))
     start = time.perf_counter()
+    arms = []
     with tempfile.TemporaryDirectory(prefix="packbot-unc-") as tmp:
         folder = str(directory) if directory is not None else tmp
         os.makedirs(folder, exist_ok=True)
-        jobs = [_Job(k, _drawn(sample, k), scenario, options, folder) for k in range(samples)]
-        arms = _run_jobs(jobs, workers, say)
+        for k in range(len(plan)):
+            say(f"arm {k + 1} of {len(plan)}")
+            arms.append(plan.study_arm(k, folder))
     wall = time.perf_counter() - start
-    log.info("uncertain study %s: %d arms in %.1f s", scenario.name, samples, wall)
-    return UncertainStudy(
-        scenario=scenario.name,
-        sample=sample,
-        arms=arms,
-        tolerance_m=float(tolerance),
-        controller="" if controller is None else describe_spec(controller),
-        wall_time_s=wall,
-        workers=workers,
-    )
+    log.info("uncertain study %s: %d arms in %.1f s", plan.scenario.name, len(plan), wall)
+    return plan.result(arms, wall, "this process")

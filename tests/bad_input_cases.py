@@ -1689,6 +1689,39 @@ cli(
     "loose_shoulder",
 )
 cli("run-overwrite-with-value", lambda c: ["run", "collapse", "--overwrite=yes"], "--overwrite")
+# a run or a study on sampled arms (--uncertain N)
+cli(
+    "run-uncertain-one",
+    lambda c: ["run", "collapse", "--uncertain", "1", "--out", c.out()],
+    "samples",
+)
+cli("run-uncertain-not-int", ["run", "collapse", "--uncertain", "x"], "--uncertain")
+cli("run-seed-alone", lambda c: ["run", "collapse", "--seed", "1", "--out", c.out()], "--seed")
+cli(
+    "run-uncertain-plot",
+    lambda c: ["run", "collapse", "--uncertain", "2", "--plot", "--out", c.out()],
+    "--plot",
+)
+cli(
+    "run-uncertain-workers-negative",
+    lambda c: ["run", "collapse", "--uncertain", "2", "--workers", "-1", "--out", c.out()],
+    "workers",
+)
+cli(
+    "run-uncertain-seed-negative",
+    lambda c: ["run", "collapse", "--uncertain", "2", "--seed", "-4", "--out", c.out()],
+    "seed",
+)
+cli(
+    "study-uncertain-overwrite",
+    lambda c: ["study", "reconfig_elbow1", "--uncertain", "2", "--overwrite", "--out", c.out()],
+    "--overwrite",
+)
+cli(
+    "study-uncertain-timeout-zero",
+    lambda c: ["study", "reconfig_elbow1", "--uncertain", "2", "--timeout", "0", "--out", c.out()],
+    "timeout",
+)
 # collapse
 cli("collapse-mode-unknown", lambda c: ["collapse", "--mode", "soft", "--out", c.out()], "soft")
 cli(

@@ -107,6 +107,7 @@ def entries() -> list[Entry]:
     RS = _mod("packbot.resources")
     ST = _mod("packbot.study")
     V = _mod("packbot.viz")
+    UB = _mod("packbot.uncertain_batch")
     traj = C.JointTrajectory([Z, Z + 0.1], [0.0, 1.0])
     return [
         # packbot
@@ -199,6 +200,38 @@ def entries() -> list[Entry]:
             ("workspace_sample", "workspace_samples"),
             ("robots", "robot"),
             ("contact_mod", "contact_mode"),
+        ),
+        ep(
+            "uncertain_study",
+            lambda c: packbot.uncertain_study,
+            lambda c: ("reconfig_elbow1",),
+            _nokw,
+            ("sample", "samples"),
+            ("sed", "seed"),
+            ("recoverey", "recovery"),
+        ),
+        ep(
+            "uncertain_run",
+            lambda c: packbot.uncertain_run,
+            lambda c: ("collapse",),
+            _nokw,
+            ("sampels", "samples"),
+            ("controler", "controller"),
+        ),
+        ep(
+            "run_uncertain_study",
+            lambda c: UB.run_uncertain_study,
+            lambda c: ("reconfig_elbow1", "out"),
+            _nokw,
+            ("worker", "workers"),
+            ("schedular", "scheduler"),
+        ),
+        ep(
+            "run_uncertain_runs",
+            lambda c: UB.run_uncertain_runs,
+            lambda c: ("collapse", "out"),
+            _nokw,
+            ("timout", "timeout"),
         ),
         ep("load_robot", lambda c: packbot.load_robot, _none, _nokw, ("urdf_file", "urdf")),
         ep(

@@ -58,6 +58,8 @@ PUBLIC_MODULES = {
     "packbot.study": "study.md",
     "packbot.study_matrix": "study_matrix.md",
     "packbot.uncertain_study": "uncertain_study.md",
+    "packbot.uncertain_run": "uncertain_run.md",
+    "packbot.uncertain_batch": "uncertain_batch.md",
     "packbot.identification": "identification.md",
     "packbot.scenario": "scenario.md",
     "packbot.matrix": "matrix.md",

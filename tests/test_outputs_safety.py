@@ -241,6 +241,38 @@ def test_matrix_report_shows_hostile_text_as_text(chromium: str, tmp_path: Path)
     assert hrefs and not any(h.lower().startswith("javascript:") for h in hrefs), hrefs
 
 
+def test_uncertain_report_shows_hostile_text_as_text(chromium: str, tmp_path: Path) -> None:
+    """An uncertain study's page: the scenario's name, the controller and each arm's reasons."""
+    from packbot.uncertain_study import ArmStudy, UncertainStudy
+    from packbot.uncertainty import sample_values
+    from packbot.viz.uncertain_report import write_uncertain_report
+
+    runs = ("healthy", "failed", "reconfigured")
+    arms = tuple(
+        ArmStudy(
+            index=k,
+            status=dict.fromkeys(runs, "error"),
+            reasons=dict.fromkeys(runs, HOSTILE[k]),
+            metrics=dict.fromkeys(runs),
+            possible=None,
+            error=HOSTILE[k],
+        )
+        for k in range(2)
+    )
+    unc = UncertainStudy(
+        scenario=HOSTILE[3],
+        sample=sample_values(2, 0),
+        arms=arms,
+        tolerance_m=0.01,
+        controller=HOSTILE[4],
+        duration_s=1.0,
+        failure_time_s=0.5,
+    )
+    page = write_uncertain_report(unc.summary(), tmp_path)["report.html"]
+    dom = _dom(chromium, page, tmp_path)
+    _assert_inert(dom, scripts=0, shown=(HOSTILE[0], HOSTILE[1], HOSTILE[3], HOSTILE[4]))
+
+
 # --------------------------------------------------------------------------- CSV cells
 FORMULAS = ('=HYPERLINK("http://x","y")', "+1+cmd|' /C calc'!A0", "-2+3", "@SUM(A1)", "\tx", "\rx")
 

@@ -16,7 +16,16 @@ import packbot
 from packbot.cli import main
 from packbot.errors import ConfigurationError, PackbotError, UnknownNameError
 from packbot.study import RUN_NAMES
-from packbot.uncertain_study import METRICS, UncertainStudy, uncertain_study, wilson_interval
+from packbot.uncertain_batch import run_uncertain_study
+from packbot.uncertain_study import (
+    METRICS,
+    TRACE_POINTS,
+    ArmStudy,
+    UncertainStudy,
+    percentiles,
+    uncertain_study,
+    wilson_interval,
+)
 from packbot.uncertainty import sample_values
 
 SCENARIO = "reconfig_elbow1"
@@ -86,13 +95,47 @@ def test_another_seed_gives_other_numbers(unc: UncertainStudy, other: UncertainS
     assert np.max(np.abs(a - b)) > 1e-6  # [m]
 
 
-def test_a_local_pool_gives_the_numbers_of_this_process(other: UncertainStudy) -> None:
-    pooled = uncertain_study(SCENARIO, samples=2, seed=4, workers=2, **FAST)
-    assert pooled.workers == 2 and pooled.counts == other.counts
+def test_a_local_pool_gives_the_numbers_of_this_process(other: UncertainStudy, tmp_path) -> None:
+    pooled = run_uncertain_study(SCENARIO, tmp_path / "p", samples=2, seed=4, workers=2, **FAST)
+    assert pooled.result.workers == "2 local processes"
+    assert {r.worker.split(":")[0] for r in pooled.batch.records.values()} == {"local"}
+    assert pooled.result.counts == other.counts
     for run in RUN_NAMES:
-        a = pooled.values(run, "final_task_error_m")
+        a = pooled.result.values(run, "final_task_error_m")
         b = other.values(run, "final_task_error_m")
+        # the same code on another process: only a BLAS thread count's rounding differs
         np.testing.assert_allclose(a, b, rtol=1e-9, atol=1e-12)
+
+
+def test_each_arm_keeps_its_task_error_and_the_band_holds_it(unc: UncertainStudy) -> None:
+    t = unc.trace_time
+    assert t[0] == 0.0 and t[-1] == pytest.approx(DURATION) and len(t) == TRACE_POINTS
+    for run in RUN_NAMES:
+        band = unc.task_error_band(run)
+        finite = np.isfinite(band[50])
+        assert finite.sum() > 0.9 * TRACE_POINTS
+        assert np.all(band[5][finite] <= band[50][finite] + 1e-15)
+        assert np.all(band[50][finite] <= band[95][finite] + 1e-15)
+    # the failed run's error grows after the failure (1 s); before it, the three runs agree
+    before = unc.trace_time < 0.9
+    failed, healthy = unc.task_error_band("failed"), unc.task_error_band("healthy")
+    assert np.nanmax(failed[95][before]) < 1e-6  # [m]: the same commanded motion
+    assert failed[50][-1] > 10 * max(healthy[50][-1], 1e-6)
+    # the band's last point is the arms' final error, up to the grid's interpolation
+    finals = unc.quantiles("failed", "final_task_error_m")
+    assert failed[50][-1] == pytest.approx(finals[50], rel=1e-6)
+    # an arm round-trips through its file exactly
+    for arm in unc.arms:
+        assert ArmStudy.from_dict(json.loads(json.dumps(arm.to_dict()))) == arm
+
+
+def test_percentiles() -> None:
+    p = percentiles([1.0, 2.0, float("nan"), 3.0, float("inf")])
+    assert p == {5: pytest.approx(1.1), 50: 2.0, 95: pytest.approx(2.9)}
+    grid = percentiles([[1.0, np.nan], [3.0, np.nan]])
+    assert grid[50][0] == 2.0 and np.isnan(grid[50][1])
+    with pytest.raises(ConfigurationError, match="values"):
+        percentiles(np.zeros((2, 2, 2)))
 
 
 def test_recovery_probability_and_its_interval(unc: UncertainStudy) -> None:
@@ -139,9 +182,31 @@ def test_summary_is_json(unc: UncertainStudy) -> None:
     assert q["5"] <= q["50"] <= q["95"]
     assert back["recovery"]["interval_method"] == "Wilson score"
     top = back["sensitivity"]["top"]["failed"]["final_task_error_m"]
-    assert 1 <= len(top) <= 5 and top[0]["parameter"] in unc.sample.names
+    assert 1 <= len(top) <= 10 and top[0]["parameter"] in unc.sample.names
     assert len(back["arms"]) == ARMS
+    assert len(back["task_error_band"]["t_s"]) == TRACE_POINTS
+    assert len(back["task_error_band"]["failed"]["95"]) == TRACE_POINTS
+    assert len(back["final_task_error_m"]["reconfigured"]) == ARMS
+    assert back["failure_time_s"] == 1.0
     assert "uncertain study" in unc.text()
+
+
+def test_report_figures_and_page(unc: UncertainStudy, tmp_path) -> None:
+    from packbot.viz.uncertain_report import STUDY_FIGURES, write_uncertain_report
+
+    summary = unc.summary()
+    summary["scenario"] = "<b>reconfig</b>"  # a page escapes what it shows
+    files = write_uncertain_report(summary, tmp_path)
+    for stem in STUDY_FIGURES:
+        assert files[f"{stem}.png"].read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+        assert files[f"{stem}.svg"].stat().st_size > 1000
+    page = files["report.html"].read_text()
+    assert "<b>reconfig</b>" not in page and "&lt;b&gt;reconfig&lt;/b&gt;" in page
+    assert page.count("data:image/png;base64,") == len(STUDY_FIGURES)
+    back = json.loads(files["uncertain.json"].read_text())
+    assert back["figures"] == sorted(n for n in files if n.endswith((".png", ".svg")))
+    with pytest.raises(ConfigurationError, match="summary"):
+        write_uncertain_report({"scenario": "x"}, tmp_path)
 
 
 @pytest.mark.parametrize(
@@ -151,7 +216,6 @@ def test_summary_is_json(unc: UncertainStudy) -> None:
         ({"samples": 2.5}, "samples"),
         ({"seed": -1}, "seed"),
         ({"seed": "x"}, "seed"),
-        ({"workers": 0}, "workers"),
         ({"method": "grid"}, "method"),
         ({"duration": -1.0}, "duration"),
     ],
@@ -159,11 +223,6 @@ def test_summary_is_json(unc: UncertainStudy) -> None:
 def test_bad_arguments_are_refused(kwargs: dict, field: str) -> None:
     with pytest.raises(PackbotError, match=field):
         uncertain_study(SCENARIO, **({"samples": 2} | kwargs))
-
-
-def test_a_lambda_controller_does_not_go_to_workers() -> None:
-    with pytest.raises(ConfigurationError, match="controller"):
-        uncertain_study(SCENARIO, samples=2, workers=2, controller=lambda robot: None)
 
 
 def test_unknown_run_or_metric_names(unc: UncertainStudy) -> None:
@@ -176,30 +235,20 @@ def test_unknown_run_or_metric_names(unc: UncertainStudy) -> None:
     assert "wall_time_s" not in METRICS and "final_task_error_m" in METRICS
 
 
-def test_cli_writes_uncertain_json(tmp_path, capsys) -> None:
+def test_cli_writes_uncertain_json_and_resumes(tmp_path, capsys) -> None:
     out = tmp_path / "u"
-    rc = main(
-        [
-            "study",
-            SCENARIO,
-            "--uncertain",
-            "2",
-            "--seed",
-            "5",
-            "--duration",
-            "1.1",
-            "--out",
-            str(out),
-        ]
-    )
-    assert rc == 0
+    argv = ["study", SCENARIO, "--uncertain", "2", "--seed", "5", "--duration", "1.1"]
+    argv += ["--out", str(out), "--workers", "0", "--no-progress"]
+    assert main(argv) == 0
     data = json.loads((out / "uncertain.json").read_text())
     assert data["sample"] == data["sample"] | {"arms": 2, "seed": 5}
     assert "recovery" in data and "quantiles" in data
     printed = capsys.readouterr().out
     assert "uncertain study" in printed and "uncertain.json" in printed
-    manifest = json.loads((out / "packbot-manifest.json").read_text())
-    assert "uncertain.json" in manifest["files"]
+    assert (out / "report.html").is_file() and (out / "arm_0001" / "arm.json").is_file()
+    assert main(argv) == 0  # again: both arms read back, none studied
+    assert "2 finished before" in capsys.readouterr().out
+    assert json.loads((out / "uncertain.json").read_text())["batch"]["skipped"] == 2
 
 
 @pytest.mark.parametrize(
@@ -208,10 +257,18 @@ def test_cli_writes_uncertain_json(tmp_path, capsys) -> None:
         (["--uncertain", "1"], "samples"),
         (["--uncertain", "4", "--seed", "-2"], "seed"),
         (["--seed", "3"], "--seed"),
+        (["--uncertain", "2", "--workers", "-1"], "workers"),
+        (["--uncertain", "2", "--timeout", "-1"], "timeout"),
+        (["--uncertain", "2", "--overwrite"], "--overwrite"),
+        (["--uncertain", "x"], "--uncertain"),
+        (["--scheduler", "tcp://127.0.0.1:1"], "--scheduler"),
     ],
 )
 def test_cli_bad_input_is_one_line_exit_2(tmp_path, capsys, argv: list, word: str) -> None:
-    rc = main(["study", SCENARIO, "--out", str(tmp_path / "b"), *argv])
+    try:
+        rc = main(["study", SCENARIO, "--out", str(tmp_path / "b"), *argv])
+    except SystemExit as exc:  # argparse's own usage errors (a value that is not a number)
+        rc = exc.code
     assert rc == 2
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and word in err
