@@ -16,16 +16,13 @@ Pairs that are never tested: pieces of one body, bodies joined by a joint (adjac
 bodies, and link pairs listed in ``urdf/packbot/packbot_eod.srdf`` (never within 5 cm of each other
 over a sampling of the joint space; regenerate with ``packbot generate-srdf``).
 
-Pruning: Pinocchio's broadphase manager over Coal's ``SSaPCollisionManager`` (sweep and prune)
-keeps, in C++, the pairs whose world boxes, each inflated by half the query margin, overlap;
-the narrowphase then runs on those pairs only, in one C++ call (``pin.computeDistances`` with
-only those pairs active). When the compiled ``packbot._native_coal`` is available
-(:mod:`packbot.native_sweep`), :meth:`CollisionWorld.sweep` does all of it in one native call
-instead, with the same boxes, candidates and distances.
+Pruning and distances: the compiled sweep (``packbot._native_coal``, :mod:`packbot.native_sweep`)
+keeps, in one native call, the pairs whose world boxes, each inflated by half the query margin,
+overlap, and runs Coal's GJK/EPA on those pairs only.
 
 The world's fixed parts (pieces, pairs, broadphase boxes) are built in
-``packbot.collision_build``, once per robot, environment and SRDF; the contact patches and the
-line of sight query Coal in ``packbot.collision_queries``.
+``packbot.collision_build``, once per robot, environment and SRDF; one pair's distance, the
+contact patches and the line of sight are in ``packbot.collision_queries``.
 """
 
 from __future__ import annotations
@@ -33,9 +30,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Any
 
-import coal
 import numpy as np
 import pinocchio as pin
 from numpy.typing import NDArray
@@ -125,93 +120,19 @@ class CollisionWorld:
             self.pairs,
             self._pair_flat,
         ) = _cb.fixed_parts(robot, self.environment, srdf_path)
-        gm = self.geom_model
         self._n_robot = robot.collision_model.ngeoms
-        self._native: _ns.NativeSweep | None = None  # (built below, once geom_data is set)
+        self._n_pairs = len(self.pairs)
+        self._all_pairs = np.arange(self._n_pairs, dtype=np.int64)
+        # the geometry model's data, for its placements only (made on first use)
+        self._gd: pin.GeometryData | None = None
+        self._placed_q = pin.neutral(model)  # (where _fk last placed the pieces)
+        self._last_sweep: tuple[tuple[bytes, float], SweepResult] | None = None  # see sweep
+        #: the compiled sweep (raises a PackbotError when the extension is missing or was
+        #: built against another Coal)
+        self._native: _ns.NativeSweep = _ns.native_sweep(self)
         #: the native sweeps' calls and where they owe the pieces (placed on demand; a
         #: :class:`~packbot.native_sweep.NativeDispatch`)
         self.dispatch = _ns.NativeDispatch(self)
-        # the geometry model's data and live proxies into its C++ vector of distance results
-        # (valid while it lives: indexing them costs 0.1 us against 0.45 us through
-        # distanceResults[k]), made on first use (a run whose sweeps are native never uses them)
-        self._gd: pin.GeometryData | None = None
-        self._results_list: list[Any] | None = None
-        self._point_data: pin.GeometryData | None = None  # pair_contact's (made on first use)
-        self._last_sweep: tuple[tuple[bytes, float], SweepResult] | None = None  # see sweep
-        self._n_pairs = len(self.pairs)
-        G = gm.ngeoms
-        # Activation map of pin.GeometryData.setActiveCollisionPairs (upper triangle).
-        self._active = np.zeros((G, G), dtype=bool)
-        self._all_pairs = np.arange(len(self.pairs), dtype=np.intp)
-        self._active_list: list[int] | None = None  # the pairs active in geom_data (None: other)
-        self._bp_started = False  # (the broadphase's data and manager: made on first use)
-        # The native sweep (None: the Python path), unless a subclass prunes with another
-        # manager type (the native sweep's candidates are the SSaP manager's).
-        self._native = (
-            _ns.native_sweep(self)
-            if self._broadphase_type is pin.BroadPhaseManager_SSaPCollisionManager
-            else None
-        )
-        # contact_patch's Coal requests and each pair's two shapes (read-only), made once
-        creq = coal.CollisionRequest()
-        creq.enable_contact = True
-        self._patch_requests = (creq, coal.ContactPatchRequest())
-        self._patch_shapes: dict[int, tuple[Any, Any]] = {}
-
-    # ------------------------------------------------------------------ broadphase
-    #: Pinocchio's wrapper of the Coal broadphase manager the sweep prunes with: sweep and
-    #: prune, chosen by measurement (benchmarks/collision.py: as fast as testing every pair of
-    #: boxes for the robot and the floor, the fastest type from 100 box obstacles on).
-    _broadphase_type: type = pin.BroadPhaseManager_SSaPCollisionManager
-
-    @property
-    def _bp(self) -> Any:
-        """The broadphase manager, started on first use (native sweeps never need it)."""
-        if not self._bp_started:
-            self._start_broadphase()
-        return self._bp_manager
-
-    def _start_broadphase(self) -> None:
-        """The broadphase's data, manager and pair collector on :attr:`_bp_model`."""
-        self._bp_started = True
-        bp_model = self._bp_model
-        bp_data = bp_model.createData()
-        for creq in bp_data.collisionRequests:
-            creq.break_distance = 0.0  # (Coal's default 1e-3 m would inflate every box)
-        self._bp_data = bp_data
-        self._bp_manager = self._broadphase_type(self.robot.model, bp_model, bp_data)
-        self._bp_callback = pin.CollisionCallBackCollect(bp_model, bp_data)
-        # a live proxy of the callback's C++ vector of pair indices (cleared by every collide)
-        self._bp_pairs = self._bp_callback.pair_indexes
-        G = self.geom_model.ngeoms
-        self._bp_margins = np.zeros((G, G))
-        self._bp_margin = math.nan  # the margin set in bp_data's requests (nan: none yet)
-
-    def _place_broadphase(self, margin: float) -> None:
-        """Place the broadphase pieces at the last forward kinematics.
-
-        Each piece's world box is inflated by ``margin / 2`` [m].
-        """
-        bp = self._bp
-        pin.updateGeometryPlacements(self.robot.model, self._data, self._bp_model, self._bp_data)
-        if margin != self._bp_margin:
-            self._bp_margins.fill(margin)
-            self._bp_data.setSecurityMargins(self._bp_model, self._bp_margins, True, False)
-            self._bp_margin = margin
-        bp.update(False)
-
-    def _collect(self, margin: float) -> NDArray[np.intp]:
-        """Indices (ascending) of the pairs whose boxes, inflated by ``margin`` [m], overlap.
-
-        At the last forward kinematics; all in C++ but the read-back of the indices.
-        """
-        self.dispatch.place()
-        self._place_broadphase(margin)
-        self._bp.collide(self._bp_callback)
-        pairs = self._bp_pairs
-        out = np.fromiter(pairs, np.intp, len(pairs))
-        out.sort()
-        return out
 
     def world_boxes(
         self, q: NDArray[np.float64]
@@ -221,13 +142,27 @@ class CollisionWorld:
         The boxes the pruning uses: conservative (each contains its piece), padded by
         ``BOX_PAD``, not inflated by the margin; halfspaces' infinite sides are clipped to
         +-``HALFSPACE_BOX``.
+
+        Raises:
+            ConfigurationError: A wrong-size q.
         """
-        self._fk(q)
-        self._place_broadphase(0.0)
-        boxes = [co.getAABB() for co in self._bp.getCollisionObjects()]
-        lo = np.array([np.asarray(b.min_, dtype=float) for b in boxes])
-        hi = np.array([np.asarray(b.max_, dtype=float) for b in boxes])
-        return lo, hi
+        self._candidates(q, 0.0)
+        return self._native.boxes()
+
+    def _candidates(self, q: NDArray[np.float64], margin: float) -> NDArray[np.intp]:
+        """The compiled sweep's broadphase at q with checked margin [m] (its candidates).
+
+        Raises:
+            ConfigurationError: A wrong-size q.
+        """
+        qa = np.ascontiguousarray(q, dtype=np.float64)
+        try:
+            out = self._native.candidates(qa, margin)
+        except (ValueError, TypeError) as exc:  # the extension's size/type check
+            nq = self.robot.model.nq
+            raise ConfigurationError("q", np.shape(q), f"a vector of shape ({nq},) [rad]") from exc
+        self.dispatch.pending = True  # (the pieces owed at its q)
+        return out.astype(np.intp, copy=False)
 
     # ------------------------------------------------------------------ queries
     def _query_margin(self, margin: float | None) -> float:
@@ -252,22 +187,14 @@ class CollisionWorld:
         """The geometry model's data as it is (made on first use; :attr:`geom_data` places it)."""
         gd = self._gd
         if gd is None:
-            gd = self._gd = _cb.geometry_data(self.geom_model)
+            gd = self._gd = self.geom_model.createData()
         return gd
 
     @property
-    def _results(self) -> list[Any]:
-        """Live proxies of :attr:`geom_data`'s distance results, one per pair (made once)."""
-        res = self._results_list
-        if res is None:
-            res = self._results_list = list(self._geom_data.distanceResults)
-        return res
-
-    @property
     def geom_data(self) -> pin.GeometryData:
-        """The geometry model's data (placements, distance results), at the last query's q.
+        """The geometry model's data, its pieces placed at the last query's q.
 
-        After a native sweep the pieces are placed here on first read
+        After a compiled query the pieces are placed here on first read
         (:meth:`NativeDispatch.place <packbot.native_sweep.NativeDispatch.place>`).
         """
         if self.dispatch.pending is not False:
@@ -284,6 +211,7 @@ class CollisionWorld:
         except (ValueError, TypeError) as exc:  # Pinocchio's own size/type check
             nq = self.robot.model.nq
             raise ConfigurationError("q", np.shape(q), f"a vector of shape ({nq},) [rad]") from exc
+        self._placed_q = np.array(q, dtype=np.float64)
 
     def update(self, q: NDArray[np.float64]) -> None:
         """Place every piece at configuration q [rad] (forward kinematics)."""
@@ -297,95 +225,49 @@ class CollisionWorld:
         Raises:
             ConfigurationError: A margin that is not a finite number >= 0.
         """
-        return self._collect(self._query_margin(margin))
+        m = self._query_margin(margin)
+        return self._candidates(self.dispatch.last_q(), m)
 
     def sweep(
         self, q: NDArray[np.float64], margin: float | None = None, *, reuse: bool = False
     ) -> SweepResult:
         """Signed distances of the pairs that the bounding boxes leave, the smallest and its pair.
 
-        Every pair within the margin is among them (with others whose boxes overlap). Costs
-        one forward kinematics, one broadphase in C++ (Pinocchio's manager: the pieces' world
-        boxes, inflated by half the margin, and their overlaps), and one C++ call
-        (``pin.computeDistances``) over the candidate pairs only, which also returns the
-        closest; then one read per candidate. With the compiled sweep
-        (:mod:`packbot.native_sweep`, when available and enabled) all of it is one native
-        call with the same candidates and distances; the pieces of ``geom_data`` are then
-        placed at q only when a query that reads them (:meth:`candidate_pairs`) comes next.
+        Every pair within the margin is among them (with others whose boxes overlap). One call
+        of the compiled sweep (:mod:`packbot.native_sweep`): forward kinematics, the pieces'
+        world boxes inflated by half the margin, their overlaps, and Coal's distance on each
+        candidate; the pieces of ``geom_data`` are then placed at q only when a reader comes.
 
         Args:
             q: Configuration [rad].
             margin: Query margin [m] (default: the world's).
             reuse: Return the last sweep's result (its arrays are read-only) when it was made
                 with ``reuse`` at the same q and margin, bit for bit (the event loop sweeps
-                the same state more than once). The pieces are placed at q either way (on
-                first read of ``geom_data`` after a native sweep), but
-                then ``geom_data``'s distance results are not recomputed: a caller that reads
-                them (``contacts``) must not reuse.
+                the same state more than once).
 
         Raises:
             ConfigurationError: A wrong-size q, or a margin that is not a finite number >= 0.
         """
-        m = self._query_margin(margin)
-        if self._native is not None and _ns.ENABLED:
-            return self.dispatch.sweep(q, m, reuse)
-        self._fk(q)
-        key = None
-        if reuse:
-            key = (np.asarray(q, dtype=np.float64).tobytes(), m)
-            last = self._last_sweep
-            if last is not None and last[0] == key:
-                return last[1]
-        cand = self._collect(m)
-        n_all, n = self._n_pairs, len(cand)
-        counts = SweepCounts(n_all, n_all - n, n)
-        if n == 0:
-            out = SweepResult(np.inf, -1, cand, np.zeros(0), counts)
-        else:
-            pairs = cand.tolist()
-            if pairs != self._active_list:  # the set changes rarely from one step to the next
-                self._activate(cand)
-                self._active_list = pairs
-            k = pin.computeDistances(self.geom_model, self.geom_data)
-            res = self._results
-            d = np.array([res[p].min_distance for p in pairs])
-            out = SweepResult(res[k].min_distance, k, cand, d, counts)
-        if key is not None:
-            out.pairs.setflags(write=False)
-            out.distances.setflags(write=False)
-            self._last_sweep = (key, out)
-        return out
+        return self.dispatch.sweep(q, self._query_margin(margin), reuse)
 
-    def _activate(self, pairs: NDArray[np.intp]) -> None:
-        """Make exactly ``pairs`` the active pairs of geom_data."""
-        active = self._active
-        active.fill(False)
-        active.put(self._pair_flat[pairs], True)
-        self.geom_data.setActiveCollisionPairs(self.geom_model, active)
+    def _distances(self, q: NDArray[np.float64]) -> tuple[NDArray[np.float64], ...]:
+        """Every tested pair's distance, witness points and normal at q (``Sweep.distances``).
 
-    def _distances_of(self, pairs: NDArray[np.intp]) -> int:
-        """Compute the distances of ``pairs`` (one C++ call); returns the closest pair's index."""
-        self._activate(pairs)
-        self._active_list = None
-        return int(pin.computeDistances(self.geom_model, self.geom_data))
+        Raises:
+            ConfigurationError: A wrong-size q.
+        """
+        qa = np.ascontiguousarray(q, dtype=np.float64)
+        try:
+            out = self._native.distances(qa, self._all_pairs)
+        except (ValueError, TypeError) as exc:  # the extension's size/type check
+            nq = self.robot.model.nq
+            raise ConfigurationError("q", np.shape(q), f"a vector of shape ({nq},) [rad]") from exc
+        self.dispatch.pending = qa.tobytes()  # (the pieces owed at q)
+        return tuple(out)
 
     def all_distances(self, q: NDArray[np.float64]) -> NDArray[np.float64]:
-        """Signed distances of every tested pair [m], unpruned, in one C++ call."""
-        self._place(q)
-        self._distances_of(self._all_pairs)
-        return np.array([r.min_distance for r in self._results])
-
-    def _contact(self, p: int) -> Contact:
-        return self._contact_of(self._results[p], p)
-
-    def _contact_of(self, r: coal.DistanceResult, p: int) -> Contact:
-        return Contact(
-            self.pairs[p],
-            float(r.min_distance),
-            np.array(r.getNearestPoint1()),
-            np.array(r.getNearestPoint2()),
-            np.array(r.normal),
-        )
+        """Signed distances of every tested pair [m], unpruned, in one native call."""
+        return self._distances(q)[0]
 
     def contacts(self, q: NDArray[np.float64], margin: float | None = None) -> list[Contact]:
         """Every pair within ``margin`` [m] at q, with witness points and normals, closest first.
@@ -395,12 +277,7 @@ class CollisionWorld:
         """
         m = self.margin if margin is None else margin
         sw = self.sweep(q, m)
-        if self.dispatch.pending is True:  # the witness points are the native sweep's
-            out = self.dispatch.contacts(sw, m)
-        else:
-            close = sw.pairs[sw.distances < m]
-            out = [self._contact(int(p)) for p in close]
-        return sorted(out, key=lambda c: c.distance)
+        return sorted(self.dispatch.contacts(sw, m), key=lambda c: c.distance)
 
     def _pair_id(self, pair: int) -> int:
         """Check a pair index.
@@ -419,26 +296,15 @@ class CollisionWorld:
         Raises:
             ConfigurationError: ``pair`` is not the index of a tested pair, or a wrong-size q.
         """
-        k = self._pair_id(pair)
-        native = self._native
-        if native is not None and _ns.ENABLED and _ns.POINT_ENABLED:  # (in one native call)
-            return _cq.point_contact(self, native, q, k)
-        self._place(q)
-        # Its own requests: Coal warm-starts GJK from a request's last answer, so the sweep's
-        # distances (native or not) never depend on the point queries made between sweeps.
-        data = self._point_data
-        if data is None:
-            data = self._point_data = _cb.geometry_data(self.geom_model)
-        pin.updateGeometryPlacements(self.robot.model, self._data, self.geom_model, data)
-        pin.computeDistance(self.geom_model, data, k)
-        return self._contact_of(data.distanceResults[k], k)
+        return _cq.point_contact(self, q, self._pair_id(pair))
 
     def closest(self, q: NDArray[np.float64]) -> Contact:
-        """The closest pair at q over all tested pairs."""
+        """The closest pair at q over all tested pairs (the first of equally close ones)."""
         if self._n_pairs == 0:
             raise ConfigurationError("pairs", 0, "a world with at least one tested pair")
-        self._place(q)
-        return self._contact(self._distances_of(self._all_pairs))
+        d, p1, p2, normal = self._distances(q)
+        k = int(np.argmin(d))
+        return Contact(self.pairs[k], float(d[k]), p1[k], p2[k], normal[k])
 
     def in_collision(self, q: NDArray[np.float64], tol: float = 0.0) -> bool:
         """Whether any tested pair is closer than ``tol`` [m] at q (penetrating if tol = 0)."""
@@ -502,24 +368,16 @@ class CollisionWorld:
     ) -> list[ContactPatch | None]:
         """The contact patches of several pairs within ``tol`` [m] at q (None: farther apart).
 
-        The same patches as :meth:`contact_patch` pair by pair, bit for bit; with the compiled
-        sweep (:mod:`packbot.native_sweep`, when available and enabled) all of them in one
-        native call after one forward kinematics, the pieces of ``geom_data`` then placed at q
-        on first read.
+        All of them in one call of the compiled sweep after one forward kinematics, the pieces
+        of ``geom_data`` then placed at q on first read.
 
         Raises:
             ConfigurationError: A pair that is not the index of a tested pair, or a wrong-size q.
         """
         ks = [self._pair_id(p) for p in pairs]
-        batch = _cq.patch_batch(self, q, ks, tol)
-        if batch is None:
-            out: list[ContactPatch | None] = []
-            for k in ks:
-                found = _cq.contact_patch(self, q, k, tol)
-                out.append(None if found is None else ContactPatch(self.pairs[k], *found))
-            return out
-        sizes, normals, depths, pts1, pts2 = batch[:5]
-        out, s = [], 0
+        sizes, normals, depths, pts1, pts2 = _cq.patch_batch(self, q, ks, tol)[:5]
+        out: list[ContactPatch | None] = []
+        s = 0
         for i, k in enumerate(ks):
             K = int(sizes[i])
             if K < 0:

@@ -2,8 +2,8 @@
 
 Built once per robot, environment and SRDF (:func:`fixed_parts`, with a cache of the last few
 built) and shared read-only by every :class:`~packbot.collision.CollisionWorld` of them (each
-world has its own data, distance requests and broadphase manager). The pair filters and the
-broadphase boxes are described in :mod:`packbot.collision`.
+world has its own compiled sweep and data). The pair filters and the broadphase boxes are
+described in :mod:`packbot.collision`.
 """
 
 from __future__ import annotations
@@ -30,7 +30,6 @@ __all__ = [
     "HALFSPACE_BOX",
     "Built",
     "fixed_parts",
-    "geometry_data",
     "structure_key",
 ]
 
@@ -126,7 +125,7 @@ def build(robot: Robot, environment: Environment, srdf_path: Path | None) -> Bui
     """The world's fixed parts: its geometry models, pieces and pairs (see structure_key).
 
     Read-only once built: the worlds of the same robot, environment and SRDF share them
-    (each has its own data, distance requests and broadphase manager).
+    (each has its own compiled sweep and data).
 
     Raises:
         ConfigurationError: An obstacle named like a link.
@@ -242,17 +241,15 @@ def pair_infos(
 def broadphase_model(
     gm: pin.GeometryModel, body_of_geom: NDArray[np.intp], environment: Environment
 ) -> pin.GeometryModel:
-    """The broadphase's own geometry model (its data and manager: the world's).
+    """The broadphase boxes as a geometry model (the compiled sweep's boxes are built from it).
 
     The broadphase model has one box per piece and the same pairs in the same order as
     ``gm``, so that its pair indices are the world's. A moving piece's box is the box of its
     vertices in its joint's frame, a static piece's (chassis, obstacles) in the world frame,
     padded by ``BOX_PAD``; a halfspace's is infinite on its open sides (clipped to
     :data:`HALFSPACE_BOX`) and on all sides unless it is axis-aligned. Coal takes the world
-    box of that box (``R c + t +- |R| h``). Its data keeps every pair active; Pinocchio
-    inflates each piece's world box by half the largest ``security_margin + break_distance``
-    of its pairs' collision requests: the world sets the security margins to the query
-    margin, and the break distances are 0.
+    box of that box (``R c + t +- |R| h``), which the sweep inflates by half the query
+    margin.
     """
     bp_model = pin.GeometryModel()
     bodies = body_of_geom
@@ -279,37 +276,3 @@ def broadphase_model(
         (c.first, c.second) for c in gm.collisionPairs
     ]  # Pinocchio appends pairs in order: a pair index means the same in both models
     return bp_model
-
-
-#: A pristine data of each geometry model built so far (never queried), by the model's id:
-#: :func:`geometry_data` hands out copies of it (0.12 ms against 0.33 ms for createData and
-#: the requests' settings). Kept beside the model it was made for (an id can be reused).
-_PRISTINE: dict[int, tuple[pin.GeometryModel, pin.GeometryData]] = {}
-
-
-def geometry_data(gm: pin.GeometryModel) -> pin.GeometryData:
-    """A data of the geometry model with the collision world's request settings.
-
-    A copy of the model's pristine data (made on the first call): the same requests and
-    empty results as a new one, and no GJK warm start of an earlier query (Pinocchio's copy
-    is a deep one: each data's requests, results and distance functors are its own).
-    """
-    kept = _PRISTINE.get(id(gm))
-    if kept is None or kept[0] is not gm:
-        if len(_PRISTINE) >= _BUILT_MAX:
-            del _PRISTINE[next(iter(_PRISTINE))]
-        kept = _PRISTINE[id(gm)] = (gm, _new_geometry_data(gm))
-    return kept[1].copy()
-
-
-def _new_geometry_data(gm: pin.GeometryModel) -> pin.GeometryData:
-    data = gm.createData()
-    for creq in data.collisionRequests:
-        creq.enable_contact = True  # Coal misses deep overlaps of near-coincident centres without
-    for dreq in data.distanceRequests:
-        # Coal's default relative 1e-6 GJK/EPA tolerance and warm starts let one pair's
-        # distance vary by ~1e-6 m between calls; absolute 1e-10 m costs nothing measurable.
-        dreq.gjk_convergence_criterion_type = coal.GJKConvergenceCriterionType.Absolute
-        dreq.gjk_tolerance = GJK_TOLERANCE
-        dreq.epa_tolerance = GJK_TOLERANCE
-    return data

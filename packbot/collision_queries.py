@@ -1,9 +1,9 @@
-"""The collision world's queries outside the pair sweep: contact patches and line of sight.
+"""The collision world's queries outside the pair sweep: one pair, patches, line of sight.
 
-Both call Coal directly on the pieces placed at q (:meth:`CollisionWorld.contact_patch
-<packbot.collision.CollisionWorld.contact_patch>` and :meth:`CollisionWorld.line_of_sight
-<packbot.collision.CollisionWorld.line_of_sight>` delegate here; their docstrings are the
-contract).
+One pair's distance and the contact patches are the compiled sweep's calls
+(:mod:`packbot.native_sweep`); the line of sight calls Coal directly on the pieces placed at q
+(:meth:`CollisionWorld.line_of_sight <packbot.collision.CollisionWorld.line_of_sight>`
+delegates here; its docstring is the contract).
 """
 
 from __future__ import annotations
@@ -16,17 +16,14 @@ import numpy as np
 import pinocchio as pin
 from numpy.typing import NDArray
 
-from packbot import native_sweep
 from packbot.errors import ConfigurationError, UnknownNameError
 
 if TYPE_CHECKING:
     from packbot.collision import CollisionWorld
     from packbot.collision_records import Contact
-    from packbot.native_sweep import NativeSweep
 
 __all__ = [
     "LOS_SHORTEN",
-    "contact_patch",
     "line_of_sight",
     "material_batch",
     "patch_batch",
@@ -37,59 +34,19 @@ __all__ = [
 LOS_SHORTEN = 1e-3
 
 
-def contact_patch(
-    world: CollisionWorld, q: NDArray[np.float64], k: int, tol: float
-) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], float] | None:
-    """The contact patch of the tested pair ``k`` within ``tol`` [m] at q, or None.
-
-    Returns:
-        The patch's normal (body 1 to body 2), its vertices on piece 1 and on piece 2, shape
-        (K, 3) [m] each, and the signed distance [m] (the fields of a
-        :class:`~packbot.collision.ContactPatch` after its pair); None: farther apart.
-    """
-    p = world.pairs[k]
-    world._place(q)
-    shapes = world._patch_shapes.get(k)
-    if shapes is None:
-        objs = world.geom_model.geometryObjects
-        shapes = world._patch_shapes[k] = (objs[p.geom1].geometry, objs[p.geom2].geometry)
-    g1, g2 = shapes
-    oMg = world.geom_data.oMg
-    T1 = _to_coal(oMg[p.geom1])
-    T2 = _to_coal(oMg[p.geom2])
-    creq, preq = world._patch_requests  # (the same queries: only the margin changes)
-    creq.security_margin = tol
-    cres = coal.CollisionResult()
-    if not coal.collide(g1, T1, g2, T2, creq, cres):
-        return None
-    pres = coal.ContactPatchResult(preq)
-    coal.computeContactPatch(g1, T1, g2, T2, cres, preq, pres)
-    if pres.numContactPatches() == 0:  # pragma: no cover - coal gives one per collision
-        return None
-    patch = pres.getContactPatch(0)
-    n = np.array(patch.getNormal())
-    npts = patch.size()
-    pts1 = np.array([patch.getPointShape1(i) for i in range(npts)]).reshape(-1, 3)
-    pts2 = np.array([patch.getPointShape2(i) for i in range(npts)]).reshape(-1, 3)
-    return n, pts1, pts2, float(patch.penetration_depth)
-
-
-def point_contact(
-    world: CollisionWorld, native: NativeSweep, q: NDArray[np.float64], k: int
-) -> Contact:
+def point_contact(world: CollisionWorld, q: NDArray[np.float64], k: int) -> Contact:
     """One pair's signed distance, witness points and normal at q, in one native call.
 
     :meth:`CollisionWorld.pair_contact <packbot.collision.CollisionWorld.pair_contact>` of the
-    tested pair ``k`` by the world's native sweep (``Sweep.point_distance``: the same
-    point-query requests and GJK warm starts as the Python path's second ``GeometryData``, so
-    the same numbers to the bit).
+    tested pair ``k`` by the world's compiled sweep (``Sweep.point_distance``, with GJK warm
+    starts of its own).
 
     Raises:
         ConfigurationError: A wrong-size q.
     """
     qa = np.ascontiguousarray(q, dtype=np.float64)
     try:
-        d, p1, p2, normal = native.point_distance(qa, k)
+        d, p1, p2, normal = world._native.point_distance(qa, k)
     except (ValueError, TypeError) as exc:  # the extension's size/type check
         nq = world.robot.model.nq
         raise ConfigurationError("q", np.shape(q), f"a vector of shape ({nq},) [rad]") from exc
@@ -100,8 +57,8 @@ def point_contact(
 
 def patch_batch(
     world: CollisionWorld, q: NDArray[np.float64], pairs: list[int], tol: float
-) -> tuple[NDArray[Any], ...] | None:
-    """The native patches of checked ``pairs`` at q (None: the native sweep cannot serve).
+) -> tuple[NDArray[Any], ...]:
+    """The contact patches of checked ``pairs`` at q (the compiled sweep's ``patches``).
 
     Returns:
         (sizes, normals, depths, points1, points2, rotations, translations): per pair its
@@ -114,8 +71,6 @@ def patch_batch(
         ConfigurationError: A wrong-size q.
     """
     out = _native_query(world, q, "patches", pairs, float(tol))
-    if out is None:
-        return None
     sizes, normals, depths, pts1, pts2, rot, trans = out
     return sizes, normals, depths, pts1, pts2, rot.swapaxes(2, 3), trans
 
@@ -128,12 +83,12 @@ def material_batch(
     patch_tol: float,
     face_align: float,
     planes: Callable[[], tuple[NDArray[Any], ...]],
-) -> tuple[NDArray[Any], ...] | None:
-    """The native patches of checked ``pairs`` at q as material points (None: no native sweep).
+) -> tuple[NDArray[Any], ...]:
+    """The contact patches of checked ``pairs`` at q as material points.
 
     The patches of :func:`patch_batch`, each made material points by the
     extension (``Sweep.materials``: :func:`packbot.contact.kernels.patch_material`'s
-    arithmetic, bit for bit) with the pieces' face planes (``planes() -> (N, o, start)``,
+    arithmetic) with the pieces' face planes (``planes() -> (N, o, start)``,
     loaded once per native sweep), the patch tolerance ``patch_tol`` [m], and whether nothing
     lags on the patch (its normal a face's within ``face_align``).
 
@@ -146,16 +101,14 @@ def material_batch(
         ConfigurationError: A wrong-size q.
     """
     out = _native_query(world, q, "materials", pairs, float(tol), patch_tol, face_align, planes)
-    if out is None:
-        return None
     rot = out[4]
     return (*out[:4], rot.swapaxes(2, 3), *out[5:])
 
 
 def _native_query(
     world: CollisionWorld, q: NDArray[np.float64], name: str, pairs: list[int], *args: Any
-) -> tuple[NDArray[Any], ...] | None:
-    """The world's native sweep's ``name(q, pairs, *args)`` (None: it has none, or it is off).
+) -> tuple[NDArray[Any], ...]:
+    """The world's compiled sweep's ``name(q, pairs, *args)``.
 
     The pieces of ``geom_data`` are then owed at q (placed on first read, as after a reused
     sweep).
@@ -163,12 +116,9 @@ def _native_query(
     Raises:
         ConfigurationError: A wrong-size q.
     """
-    native = world._native
-    if native is None or not native_sweep.ENABLED:
-        return None
     qa = np.ascontiguousarray(q, dtype=np.float64)
     try:
-        out = getattr(native, name)(qa, np.asarray(pairs, dtype=np.int64), *args)
+        out = getattr(world._native, name)(qa, np.asarray(pairs, dtype=np.int64), *args)
     except (ValueError, TypeError) as exc:  # the extension's size/type check
         nq = world.robot.model.nq
         raise ConfigurationError("q", np.shape(q), f"a vector of shape ({nq},) [rad]") from exc

@@ -2,7 +2,7 @@
 
 The 1-dof revolute and prismatic joints (``src/native/joints.hpp``, shared by the contact
 right-hand side, :mod:`packbot.contact.native`, and the collision sweep,
-:mod:`packbot.native_sweep`); a model with another joint type takes the Python paths.
+:mod:`packbot.native_sweep`, which refuses a model with another joint type).
 """
 
 from __future__ import annotations

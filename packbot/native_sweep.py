@@ -1,32 +1,31 @@
-"""The collision world's sweep in one native call (``packbot._native_coal``).
+"""The collision world's sweep: the compiled ``Sweep`` of ``packbot._native_coal``.
 
 :class:`NativeSweep` wraps the compiled ``Sweep`` (``src/native/sweep.cpp``, nanobind against
-Pinocchio's headers and Coal's library): one call takes (q, margin) and returns the pairs the
-broadphase boxes leave, their signed distances and the closest pair, doing in C++ what
-:meth:`packbot.collision.CollisionWorld.sweep`'s Python path does in about ten Pinocchio and
-Coal calls: forward kinematics, the pieces' placements, the broadphase boxes inflated by half
-the margin, their overlaps, and Coal's distance on each candidate.
+Pinocchio's headers and Coal's library), packbot's only collision sweep: one call takes
+(q, margin) and returns the pairs the broadphase boxes leave, their signed distances and the
+closest pair (forward kinematics, the pieces' placements, the broadphase boxes inflated by
+half the margin, their overlaps, and Coal's distance on each candidate). Its other queries
+are small named calls: the broadphase candidates alone (``candidates``), the unpruned
+distances of some pairs (``distances``), one pair's distance (``point_distance``) and the
+contact patches of several pairs (``patches``, ``materials``).
 
 The extension keeps its own Pinocchio model (rebuilt from the model's joint types, parents and
 placements) and its own Coal shapes, built from the world's pieces' numbers: a hull's vertices
-and triangles, a box's half sides, a halfspace's normal and offset. Coal then computes the
-same distances from the same inputs: they agree with the Python path bit for bit (tested in
-``tests/test_native_sweep.py``). The candidates are exactly the Python path's: the same boxes,
-the same box arithmetic and the same overlap test.
+and triangles, a box's half sides, a halfspace's normal and offset.
 
 The module links libcoal, the library the coal wheel installs. Coal's classes are used inline,
-so the module serves only the coal version it was built with (:func:`available` checks it);
-otherwise, or when the module cannot be loaded, or the world has a piece or joint type the
-module does not build, the sweep takes its Python path.
+so the module serves only the coal version it was built with: :func:`require` (called when a
+collision world is built) raises a :class:`~packbot.errors.PackbotError` that says how to fix
+it when the module is missing or was built against another Coal (docs/collision.md, "Coal's
+version").
 
 :class:`NativeDispatch` is the world's side of it: the sweep's call (its reuse of the last
-result included), where the world's pieces are owed after native sweeps (placed on demand) and
-the witness points of the contacts the last native sweep found.
+result included), where the world's pieces are owed after native queries (placed on demand) and
+the witness points of the contacts the last sweep found.
 """
 
 from __future__ import annotations
 
-import logging
 import threading
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
@@ -35,64 +34,84 @@ import coal
 import numpy as np
 from numpy.typing import NDArray
 
+from packbot.collision_build import GJK_TOLERANCE
 from packbot.collision_records import Contact, SweepCounts, SweepResult
-from packbot.errors import ConfigurationError
+from packbot.errors import ConfigurationError, PackbotError
 from packbot.native_joints import SUPPORTED_JOINTS
 
 if TYPE_CHECKING:
     from packbot.collision import CollisionWorld
 
 __all__ = [
-    "ENABLED",
     "SUPPORTED_JOINTS",
     "NativeDispatch",
     "NativeSweep",
     "available",
     "native_sweep",
+    "require",
     "unavailable_reason",
 ]
 
-log = logging.getLogger(__name__)
-
-#: Whether collision worlds use the native sweep when they can (read at every sweep; tests and
-#: benchmarks switch it off to run the Python path).
-ENABLED = True
-
-#: Whether a world with the native sweep also answers its one-pair queries
-#: (``CollisionWorld.pair_contact``) natively (read at every query; with :data:`ENABLED`).
-POINT_ENABLED = True
-
 #: The extension's piece kinds.
 _CONVEX, _BOX, _HALFSPACE = 0, 1, 2
+#: The piece types the extension builds.
+_PIECE_TYPES = ("coal.Convex", "coal.Box", "coal.Halfspace")
+
+
+def _why_not(module: Any, error: ImportError | None, installed: str) -> str | None:
+    """Why the compiled sweep cannot run and how to fix it (None: it can).
+
+    Args:
+        module: The imported ``packbot._native_coal`` (None: it could not be imported).
+        error: Its import error (None: imported).
+        installed: The installed coal module's version.
+    """
+    if module is None:
+        return (
+            f"packbot's compiled collision sweep, packbot._native_coal, cannot be imported "
+            f"({error}): reinstall packbot from its source with `pip install .` (it needs a "
+            "C++ compiler), which builds it"
+        )
+    built = str(module.COAL_VERSION)
+    if built != installed:
+        return (
+            f"packbot._native_coal was built against Coal {built}, but the installed coal is "
+            f"{installed}; Coal has no stable binary interface, so install the one it was "
+            f"built with, `pip install coal=={built}`, or rebuild packbot against the installed "
+            "one with `pip install .`"
+        )
+    return None
+
 
 _native_coal: Any
-_WHY_NOT: str | None = None
 try:  # the compiled extension (built by `pip install .`; see CMakeLists.txt)
     from packbot import _native_coal
-except ImportError as exc:  # pragma: no cover - a build without the extension, or no libcoal
+except ImportError as exc:  # pragma: no cover - an install without the extension, or no libcoal
     _native_coal = None
-    _WHY_NOT = f"packbot._native_coal cannot be imported ({exc})"
-    log.info("%s: the collision sweep runs its Python path", _WHY_NOT)
+    _WHY_NOT = _why_not(None, exc, coal.__version__)
 else:
-    if coal.__version__ != _native_coal.COAL_VERSION:  # pragma: no cover - another coal wheel
-        _WHY_NOT = (
-            f"packbot._native_coal was built against Coal {_native_coal.COAL_VERSION}, "
-            f"the coal module is {coal.__version__}"
-        )
-        # a warning: the results are the same, the sweeps slower (rebuild packbot against the
-        # installed coal, `pip install --no-build-isolation .`, or install the coal it was
-        # built with)
-        log.warning("%s: the collision sweep runs its Python path", _WHY_NOT)
+    _WHY_NOT = _why_not(_native_coal, None, coal.__version__)
 
 
 def available() -> bool:
-    """Whether the native sweep can run: the extension loads and matches the coal module."""
+    """Whether the compiled sweep can run: the extension loads and matches the coal module."""
     return _WHY_NOT is None
 
 
 def unavailable_reason() -> str | None:
-    """Why the native sweep cannot run (None: it can)."""
+    """Why the compiled sweep cannot run, and how to fix it (None: it can)."""
     return _WHY_NOT
+
+
+def require() -> None:
+    """Check that the compiled sweep can run.
+
+    Raises:
+        PackbotError: ``packbot._native_coal`` is missing or was built against another Coal
+            version than the installed ``coal`` (the message says how to fix it).
+    """
+    if _WHY_NOT is not None:
+        raise PackbotError(_WHY_NOT)
 
 
 def _ints(x: Any) -> NDArray[np.int64]:
@@ -103,15 +122,19 @@ def _reals(x: Any) -> NDArray[np.float64]:
     return np.ascontiguousarray(x, dtype=np.float64)
 
 
-def _kinematics(model: Any) -> dict[str, Any] | None:
-    """The extension's model arguments (joint types, parents, placements, axes), or None.
+def _kinematics(model: Any) -> dict[str, Any]:
+    """The extension's model arguments (joint types, parents, placements, axes).
 
     Built from the world's own robot model at every build: worlds that share a geometry model
     (the same pieces and joint names, :mod:`packbot.collision`) may differ in kinematics.
+
+    Raises:
+        ConfigurationError: A joint type the extension does not build.
     """
     types = [j.shortname() for j in model.joints]
-    if any(t not in SUPPORTED_JOINTS for t in types[1:]):
-        return None
+    for t in types[1:]:
+        if t not in SUPPORTED_JOINTS:
+            raise ConfigurationError("joint type", t, sorted(SUPPORTED_JOINTS))
     axes = np.zeros((len(types), 3))
     for i, j in enumerate(model.joints):
         if i and types[i].endswith("Unaligned"):
@@ -124,8 +147,13 @@ def _kinematics(model: Any) -> dict[str, Any] | None:
     }
 
 
-def _arguments(world: CollisionWorld) -> dict[str, Any] | None:
-    """The extension's geometry arguments for a world, or None if it cannot build it."""
+def _arguments(world: CollisionWorld) -> dict[str, Any]:
+    """The extension's geometry arguments for a world.
+
+    Raises:
+        ConfigurationError: A piece of a type the extension does not build, or a hull face
+            that is not a triangle.
+    """
     gm = world.geom_model
     kinds, joints, placements, params = [], [], [], []
     points: list[NDArray[np.float64]] = []
@@ -140,7 +168,7 @@ def _arguments(world: CollisionWorld) -> dict[str, Any] | None:
             for i in range(g.num_polygons):
                 t = g.polygons(i)
                 if t.size() != 3:  # pragma: no cover - packbot's hulls are triangulated
-                    return None
+                    raise ConfigurationError(f"piece {go.name!r} face", i, "a triangle")
                 triangles.append([int(t[0]), int(t[1]), int(t[2])])
             kinds.append(_CONVEX)
         elif isinstance(g, coal.Box):
@@ -151,7 +179,7 @@ def _arguments(world: CollisionWorld) -> dict[str, Any] | None:
             p[3] = float(g.d)
             kinds.append(_HALFSPACE)
         else:  # pragma: no cover - packbot builds hulls, boxes and halfspaces only
-            return None
+            raise ConfigurationError(f"piece {go.name!r}", type(g).__name__, _PIECE_TYPES)
         point_start.append(point_start[-1] + (len(points[-1]) if kinds[-1] == _CONVEX else 0))
         triangle_start.append(len(triangles))
         joints.append(int(go.parentJoint))
@@ -160,13 +188,10 @@ def _arguments(world: CollisionWorld) -> dict[str, Any] | None:
     bp = world._bp_model.geometryObjects
     box_half = [np.asarray(b.geometry.halfSide, dtype=float) for b in bp]
     box_centre = [np.asarray(b.placement.translation, dtype=float) for b in bp]
-    for b in bp:  # the broadphase boxes are axis-aligned in their frames (collision.py)
+    for b in bp:  # the broadphase boxes are axis-aligned in their frames (collision_build.py)
         assert np.array_equal(b.placement.rotation, np.eye(3))
     pairs = gm.collisionPairs
-    if len(world.geom_data.distanceRequests):
-        req = world.geom_data.distanceRequests[0]
-    else:  # no pairs: any request
-        req = coal.DistanceRequest()
+    defaults = coal.DistanceRequest()  # (Coal's iteration limits)
     return {
         "kinds": _ints(kinds),
         "joints": _ints(joints),
@@ -180,37 +205,21 @@ def _arguments(world: CollisionWorld) -> dict[str, Any] | None:
         "box_centre": _reals(box_centre).reshape(-1, 3),
         "first": _ints([int(c.first) for c in pairs]),
         "second": _ints([int(c.second) for c in pairs]),
-        "gjk_tolerance": float(req.gjk_tolerance),
-        "epa_tolerance": float(req.epa_tolerance),
-        "gjk_max_iterations": int(req.gjk_max_iterations),
-        "epa_max_iterations": int(req.epa_max_iterations),
-        "absolute_criterion": (
-            req.gjk_convergence_criterion_type == coal.GJKConvergenceCriterionType.Absolute
-        ),
-        "cached_guess": _cached_guess(req),
+        # Coal's default relative 1e-6 GJK/EPA tolerance lets one pair's distance vary by
+        # ~1e-6 m between calls; absolute 1e-10 m costs nothing measurable. Each pair's GJK
+        # starts from its last answer (its request's cached guess).
+        "gjk_tolerance": GJK_TOLERANCE,
+        "epa_tolerance": GJK_TOLERANCE,
+        "gjk_max_iterations": int(defaults.gjk_max_iterations),
+        "epa_max_iterations": int(defaults.epa_max_iterations),
+        "absolute_criterion": True,
+        "cached_guess": True,
     }
-
-
-def _cached_guess(req: coal.DistanceRequest) -> bool:
-    """The request's (deprecated) ``enable_cached_gjk_guess``, which Pinocchio sets."""
-    import warnings
-
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", DeprecationWarning)
-        return bool(req.enable_cached_gjk_guess)
-
-
-def _check_request(req: coal.DistanceRequest) -> bool:
-    """Whether the request's other settings are the ones the extension uses (Coal's defaults)."""
-    ref = coal.DistanceRequest()
-    names = ("gjk_variant", "gjk_convergence_criterion", "gjk_initial_guess", "abs_err")
-    same = all(getattr(req, n) == getattr(ref, n) for n in names)
-    return same and req.rel_err == ref.rel_err and req.enable_signed_distance
 
 
 #: The geometry arguments per geometry model (the worlds of one structure share it; the
 #: kinematics are not cached: :func:`_kinematics`).
-_ARGS: dict[int, tuple[Any, dict[str, Any] | None]] = {}
+_ARGS: dict[int, tuple[Any, dict[str, Any]]] = {}
 _ARGS_MAX = 16
 _ARGS_LOCK = threading.Lock()  # (Dask workers may build worlds in several threads)
 #: A Sweep per geometry model and kinematics (never swept: Sweep.fresh's prototype), the
@@ -222,19 +231,26 @@ class NativeSweep:
     """The compiled sweep of one collision world (its own state: one per world).
 
     Args:
-        world: The world (its geometry model, broadphase boxes, pairs and distance requests).
+        world: The world (its geometry model, broadphase boxes and pairs).
         sweep: The extension's ``Sweep`` of that world, new (:func:`native_sweep` makes it).
+        prototype: The ``Sweep`` it is a fresh copy of (its face planes are set there too).
     """
 
     def __init__(self, world: CollisionWorld, sweep: Any, prototype: Any = None) -> None:
         self._sweep = sweep
-        self._prototype = prototype  # (the Sweep it is a fresh copy of: planes set there too)
+        self._prototype = prototype
         #: the sweep's C entry point (a capsule; ``src/native/sweep_api.hpp``): the contact-normal
         #: mode's compiled stretch of steps calls it (:mod:`packbot.contact.stretch`)
         self.api: Any = self._sweep.api()
         #: ``sweep(q, margin) -> (pairs, distances, closest pair or -1, its distance)``.
         self.sweep = self._sweep.sweep
-        #: ``last_q() -> q`` of the last sweep [rad].
+        #: ``candidates(q, margin) -> pairs``: the broadphase alone, the pairs (ascending)
+        #: whose world boxes at q, inflated by half the margin, overlap (those ``sweep`` tests).
+        self.candidates = self._sweep.candidates
+        #: ``distances(q, pairs) -> (distances, points1, points2, normals)``: the unpruned
+        #: signed distances [m] of several pairs at q, with witness points and normals.
+        self.distances = self._sweep.distances
+        #: ``last_q() -> q`` of the last sweep or candidates [rad].
         self.last_q = self._sweep.last_q
         #: ``patches(q, pairs, tol) -> (sizes, normals, depths, points1, points2, rotations,
         #: translations)``: the contact patches of several pairs at one q (see
@@ -284,38 +300,37 @@ class NativeSweep:
         return self._p1, self._p2, self._normal
 
     def boxes(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-        """The last sweep's world boxes, inflated by half its margin [m], shape (G, 3) each."""
+        """The world boxes of the last sweep or candidates, inflated by half its margin [m].
+
+        Shape (G, 3) each.
+        """
         G = self._n_geoms
         lo, hi = np.zeros((G, 3)), np.zeros((G, 3))
         self._sweep.boxes(lo, hi)
         return lo, hi
 
 
-def native_sweep(world: CollisionWorld) -> NativeSweep | None:
-    """The native sweep of a world, or None when it cannot serve it (the Python path then).
+def native_sweep(world: CollisionWorld) -> NativeSweep:
+    """The compiled sweep of a world.
 
-    None when the extension is not available (:func:`available`), or the world has a joint
-    type, piece type or distance request setting the extension does not build.
+    Raises:
+        PackbotError: The extension is missing or was built against another Coal version
+            (:func:`require`).
+        ConfigurationError: The world has a joint type or piece type the extension does not
+            build.
     """
-    if not available():
-        return None
+    require()
     gm = world.geom_model
     with _ARGS_LOCK:
         cached = _ARGS.get(id(gm))
-        if cached is None or cached[0] is not gm:
-            args = _arguments(world)
-            reqs = world.geom_data.distanceRequests
-            if args is not None and len(reqs) and not _check_request(reqs[0]):
-                args = None
+    if cached is None or cached[0] is not gm:
+        cached = (gm, _arguments(world))
+        with _ARGS_LOCK:
             if len(_ARGS) >= _ARGS_MAX:
                 del _ARGS[next(iter(_ARGS))]
-            cached = (gm, args)
             _ARGS[id(gm)] = cached
     geometry = cached[1]
     kinematics = _kinematics(world.robot.model)
-    if geometry is None or kinematics is None:
-        log.debug("the native sweep cannot build this world: Python path")
-        return None
     # a new Sweep: a fresh copy of the first one built for these pieces and kinematics (it
     # shares their hulls: 0.05 ms against 0.3 ms for building them again)
     key = (
@@ -331,8 +346,7 @@ def native_sweep(world: CollisionWorld) -> NativeSweep | None:
         try:
             made = _native_coal.Sweep(**kinematics, **geometry)
         except ValueError as exc:  # the extension's own checks (e.g. a degenerate hull)
-            log.warning("the native sweep cannot build this world (%s): Python path", exc)
-            return None
+            raise ConfigurationError("collision world", str(exc), "pieces Coal can build") from exc
         proto = (gm, made)
         with _ARGS_LOCK:
             if len(_PROTOTYPES) >= _ARGS_MAX:
@@ -354,17 +368,15 @@ class NativeDispatch:
     (every reader of ``geom_data`` calls it first, through the world's property).
 
     Args:
-        world: The world (its native sweep, ``_native``, is read at every call: None or a
-            stand-in may replace it).
+        world: The world (its native sweep, ``_native``, is read at every call).
 
     Attributes:
-        pending: Where the pieces are owed: False nowhere (they are placed), True at the last
-            native sweep's q (and the witness points are the native sweep's), bytes at that q
-            (a reused sweep).
+        pending: Where the pieces are owed: False nowhere (they are placed at the world's last
+            ``_fk``), True at the compiled sweep's last q (after a sweep the witness points
+            are its), bytes at that q (a reused sweep, or a query outside the sweep).
     """
 
     def __init__(self, world: CollisionWorld) -> None:
-
         self.world = world
         self.pending: bool | bytes = False
         #: a sweep kept for one reuse at its q (:meth:`keep_spare`), or None
@@ -387,7 +399,6 @@ class NativeDispatch:
         """
         world = self.world
         native = world._native
-        assert native is not None
         key = None
         if reuse:
             key = (np.asarray(q, dtype=np.float64).tobytes(), m)
@@ -494,23 +505,27 @@ class NativeDispatch:
         self.pending = True
 
     def place(self) -> None:
-        """Place the world's pieces at the last native sweep's q if they are not."""
+        """Place the world's pieces at the last native query's q if they are not."""
+        pending = self.pending
+        if pending is not False:
+            self.world._fk(self.last_q())
+
+    def last_q(self) -> NDArray[np.float64]:
+        """The configuration of the world's last query [rad] (a copy)."""
         pending = self.pending
         if pending is True:
-            native = self.world._native
-            assert native is not None
-            self.world._fk(native.last_q())
-        elif pending:
-            self.world._fk(np.frombuffer(pending, dtype=np.float64))
+            return np.asarray(self.world._native.last_q(), dtype=np.float64)
+        if pending:
+            return np.frombuffer(pending, dtype=np.float64).copy()
+        return self.world._placed_q.copy()
 
     def contacts(self, sw: SweepResult, m: float) -> list[Contact]:
         """The pairs of the last native sweep ``sw`` closer than ``m`` [m], unsorted.
 
         With the native sweep's witness points and normals (:attr:`pending` is True).
         """
-        native = self.world._native
-        assert native is not None and self.pending is True
-        p1, p2, normal = native.witness()
+        assert self.pending is True
+        p1, p2, normal = self.world._native.witness()
         rows = np.flatnonzero(sw.distances < m)
         pairs = self.world.pairs
         contact = self._contact

@@ -634,35 +634,6 @@ def test_pairs_just_inside_the_margin_are_kept_and_just_outside_pruned(robot, rn
                     assert got == pytest.approx(d, abs=1e-9)
 
 
-@pytest.mark.parametrize(
-    "manager",
-    [
-        "NaiveCollisionManager",
-        "DynamicAABBTreeCollisionManager",
-        "IntervalTreeCollisionManager",
-    ],
-)
-def test_every_broadphase_manager_type_prunes_alike(robot, rng, manager):
-    """Pinocchio's other manager types find the same pairs (a halfspace is a box to them all).
-
-    Not DynamicAABBTreeArrayCollisionManager: with these boxes it misses pairs and adds others
-    at random configurations (Coal 3.0.3); the world never uses it.
-    """
-    kind = getattr(pin, f"BroadPhaseManager_{manager}")
-    cls = type(f"World{manager}", (CollisionWorld,), {"_broadphase_type": kind})
-    env = obstacle_env()
-    w, ref = cls(robot, env), CollisionWorld(robot, env)
-    for margin in (0.003, 0.05):
-        for _ in range(30):
-            q = random_q(robot, rng)
-            np.testing.assert_array_equal(w.sweep(q, margin).pairs, ref.sweep(q, margin).pairs)
-    # the floor just inside the margin: Coal's tree managers do not inflate a halfspace
-    q = robot.pose("stand")
-    for d, kept in ((0.05 - 1e-7, True), (0.05 + 1e-7, False)):
-        w0, k = _tight_world(robot, q, "gripper_link/palm", "floor", d)
-        assert (k in cls(robot, w0.environment).sweep(q, 0.05).pairs) == kept
-
-
 def test_a_cluttered_world_finds_every_pair(robot, rng):
     """110 boxes in the arm's reach (136 pieces): still every pair within the margin."""
     boxes = [
@@ -1049,7 +1020,7 @@ def test_worlds_of_one_structure_share_their_fixed_parts_not_their_data(robot):
     a = CollisionWorld(robot, Environment())
     b = CollisionWorld(robot, Environment())
     assert a.geom_model is b.geom_model and a._bp_model is b._bp_model
-    assert a.geom_data is not b.geom_data and a._bp is not b._bp
+    assert a.geom_data is not b.geom_data and a._native is not b._native
     q1, q2 = robot.pose("drive"), robot.pose("stand")
     ref = a.sweep(q1)
     b.sweep(q2)

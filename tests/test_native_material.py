@@ -17,8 +17,8 @@ import math
 
 import numpy as np
 import pytest
+from test_collision_sweep import LOCKED, _configurations, obstacle_env
 from test_native_patches import _same_sets, _set
-from test_native_sweep import LOCKED, _configurations, obstacle_env
 
 import packbot
 from packbot import native_sweep

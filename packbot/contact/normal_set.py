@@ -187,24 +187,6 @@ class ContactSet:
                     self._invalidate()  # (once: the caches are not read in between)
                 return made
         batch = patch_batch(world, q, ks, t)
-        if batch is None:  # the Python path: pair by pair
-            out = []
-            for k in ks:
-                patch = world.contact_patch(q, k, t)
-                pin.forwardKinematics(self.model, self.data, q)
-                if patch is None:
-                    out.append(False)
-                    continue
-                gd = world.geom_data
-                G1, G2 = gd.oMg[patch.pair.geom1], gd.oMg[patch.pair.geom2]
-                self._put(
-                    q, k, patch.normal, patch.points1, patch.points2, patch.distance,
-                    G1.rotation, G1.translation, G2.rotation, G2.translation, {}, material,
-                )  # fmt: skip
-                out.append(True)
-            if any(out):
-                self._invalidate()
-            return out
         sizes, normals, depths, pts1, pts2, rot, trans = batch
         pin.forwardKinematics(self.model, self.data, q)
         frames: dict[int, tuple[Any, ...]] = {}  # the joints' placements at q, read once
@@ -231,14 +213,11 @@ class ContactSet:
         :func:`~packbot.collision_queries.patch_batch` and
         :func:`~packbot.contact.kernels.patch_material`'s arithmetic on them, bit for bit
         (``tests/test_native_material.py``); a patch off its pair's distance
-        is made here from the witness points, as :meth:`_put` does. None without the
-        extension's sweep.
+        is made here from the witness points, as :meth:`_put` does.
         """
         world = self.world
         assert world is not None
         batch = material_batch(world, q, ks, t, PATCH_TOL, FACE_ALIGN, self._plane_arrays)
-        if batch is None:
-            return None
         sizes, flags, normals, depths, rot, trans, l1, l2, off, n2, fr2, cen = batch
         pin.forwardKinematics(self.model, self.data, q)  # (the readers of data.oMi expect q)
         pairs, infos, built = self.pairs, world.pairs, self._built

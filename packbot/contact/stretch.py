@@ -420,16 +420,13 @@ def quiet_stretch(
 ) -> QuietStretch | None:
     """The law's compiled stretch (``last`` when it still fits), or None: none can be built.
 
-    None when the stretch is switched off (:data:`ENABLED`), the law has no native right-hand
-    side or its world no compiled sweep (or it is switched off,
-    :data:`packbot.native_sweep.ENABLED`). ``crawl`` is the law's crawl rule
-    (:class:`QuietStretch`'s), read when a stretch is built.
+    None when the stretch is switched off (:data:`ENABLED`) or the law has no native
+    right-hand side. ``crawl`` is the law's crawl rule (:class:`QuietStretch`'s), read when a
+    stretch is built.
     """
-    from packbot import native_sweep
-
     rhs = law._native
     sweep = law.world._native
-    if not ENABLED or rhs is None or sweep is None or not native_sweep.ENABLED:
+    if not ENABLED or rhs is None:
         return None
     api = sweep.api
     if last is not None and all(

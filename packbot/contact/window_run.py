@@ -32,7 +32,6 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import NDArray
 
-from packbot import native_sweep
 from packbot.contact import timestep
 from packbot.contact.timestep import StepSegment
 from packbot.ode import DenseSegment
@@ -164,8 +163,6 @@ def run_native(
         not ENABLED
         or rhs is None
         or world is None
-        or world._native is None
-        or not native_sweep.ENABLED
         or len(y) != 2 * n
         or not stepper.midpoint
         or not contacts.pairs

@@ -1,43 +1,38 @@
-// The collision world's event sweep in one native call (Pinocchio's headers, Coal's library).
+// The collision world's sweep and its queries in native calls (Pinocchio's headers, Coal's
+// library): packbot's only collision sweep.
 //
 // Python module ``packbot._native_coal`` (nanobind), apart from ``packbot._native`` because it
 // links libcoal (the library the coal wheel ships, found at run time beside the pin and coal
-// Python modules): if that library cannot be loaded, only this module fails to import and the
-// sweep falls back to its Python path; the contact right-hand side is unaffected.
+// Python modules). It uses Coal's classes inline, so it serves only the Coal version it was
+// built against (COAL_VERSION; packbot.native_sweep refuses another).
 //
 // One object, ``Sweep``, holds:
 //   - its own Pinocchio model, rebuilt from the Python model's numbers (joint types, parents,
 //     placements; forward kinematics is all it needs),
 //   - the world's pieces as Coal shapes built from the Python pieces' numbers (a hull's vertices
-//     and triangles, a box's half sides, a halfspace's normal and offset), so that Coal's
-//     distance sees the same inputs as through Pinocchio's GeometryModel,
-//   - the broadphase boxes of packbot.collision (one coal::Box per piece in its joint frame,
-//     or in the world for static pieces), as Coal CollisionObjects,
-//   - the world's pairs (same order) with one coal::ComputeDistance each (as Pinocchio's
-//     GeometryData keeps one per pair).
+//     and triangles, a box's half sides, a halfspace's normal and offset),
+//   - the broadphase boxes of packbot.collision_build (one coal::Box per piece in its joint
+//     frame, or in the world for static pieces), as Coal CollisionObjects,
+//   - the world's pairs (same order) with one coal::ComputeDistance and DistanceRequest each.
 //
-// ``sweep(q, margin)`` does, in C++, what CollisionWorld's Python sweep does in ~10 calls:
-//   1. forward kinematics; each piece's placement oMg = oMi[joint] * placement (Pinocchio's
-//      updateGeometryPlacements);
+// ``sweep(q, margin)``:
+//   1. forward kinematics; each piece's placement oMg = oMi[joint] * placement;
 //   2. each broadphase box's world box: CollisionObject::setTransform, computeAABB, then
-//      expand by margin / 2 (Pinocchio's BroadPhaseManager::update with security_margin =
-//      margin and break_distance = 0, the same arithmetic);
-//   3. the candidates: the pairs whose two boxes overlap (AABB::overlap), in the pairs' order.
-//      Coal's SSaP manager, which the Python path uses, reports exactly the overlapping pairs;
-//      a loop over the world's pairs (204 for the robot and the floor) is cheaper here than
-//      keeping a manager's sorted lists;
+//      expand by margin / 2;
+//   3. the candidates: the pairs whose two boxes overlap (AABB::overlap), in the pairs' order
+//      (a loop over the world's pairs, 204 for the robot and the floor);
 //   4. Coal's distance on each candidate (its ComputeDistance and its own copy of the world's
-//      DistanceRequest, whose cached GJK guess Coal updates, as in Pinocchio's GeometryData),
-//      keeping the first smallest (pinocchio::computeDistances' rule).
+//      DistanceRequest, whose cached GJK guess Coal updates), keeping the first smallest.
 // It returns (pairs, distances, closest pair) and keeps each candidate's witness points and
-// normal for ``witness``.
+// normal for ``witness``. ``candidates(q, margin)`` is steps 1 to 3 alone.
 //
-// ``patches(q, pairs, tol)`` gives the contact patches of several pairs at one q after one
-// forward kinematics: per pair the Coal calls of packbot.collision_queries.contact_patch
-// (coal::collide with a default CollisionRequest whose security_margin is tol, then
-// coal::computeContactPatch with a default ContactPatchRequest, both free functions that
-// keep no state between calls), on the same shapes and placements as the sweep. It leaves the
-// sweep's state (its q, boxes, witness points) as it was.
+// The queries outside the sweep, each with GJK warm starts of its own (so that none changes
+// the sweep's numbers): ``point_distance(q, k)`` one pair's distance, ``distances(q, pairs)``
+// the unpruned distances of several pairs; ``patches(q, pairs, tol)`` and ``materials`` the
+// contact patches of several pairs at one q (per pair coal::collide with a CollisionRequest
+// whose security_margin is tol, then coal::computeContactPatch, both free functions that keep
+// no state between calls). They leave the sweep's state (its q, boxes, witness points) as it
+// was.
 
 #include <nanobind/nanobind.h>
 #include <nanobind/ndarray.h>
@@ -261,6 +256,51 @@ class Sweep {
   // the candidates' count; best and best_d the first smallest distance's pair (-1) and value.
   size_t sweep_into(const double *q, double margin, int64_t *pairs_out, double *dist_out,
                     int64_t *best_out, double *best_d_out) {
+    place_boxes(q, margin);
+    collect(cand_);
+    const size_t T = cand_.size();
+    int64_t best = -1;
+    double best_d = std::numeric_limits<double>::infinity();
+    for (size_t i = 0; i < T; ++i) {
+      const size_t k = cand_[i];
+      result_.clear();
+      (*functors_[k])(coal_of(oMg_[first_[k]]), coal_of(oMg_[second_[k]]), requests_[k],
+                      result_);
+      const double d = result_.min_distance;
+      pairs_out[i] = static_cast<int64_t>(k);
+      dist_out[i] = d;
+      p1_[i] = result_.nearest_points[0];
+      p2_[i] = result_.nearest_points[1];
+      normal_[i] = result_.normal;
+      if (d < best_d) {
+        best_d = d;
+        best = static_cast<int64_t>(k);
+      }
+    }
+    *best_out = best;
+    *best_d_out = best_d;
+    return T;
+  }
+
+  // The broadphase alone: the pairs (ascending) whose world boxes at q, each inflated by
+  // margin / 2 [m], overlap (the candidates ``sweep`` would test). The sweep's q and boxes
+  // become these (``last_q``, ``boxes``); its witness points stay the last sweep's.
+  NpI candidates(F1 q, double margin) {
+    check_q(q);
+    place_boxes(q.data(), margin);
+    std::vector<size_t> found;
+    found.reserve(first_.size());
+    collect(found);
+    int64_t *out = nullptr;
+    auto arr = new_array<int64_t>({found.size()}, &out);
+    for (size_t i = 0; i < found.size(); ++i) out[i] = static_cast<int64_t>(found[i]);
+    return arr;
+  }
+
+ private:
+  // Forward kinematics at q, the pieces' placements and the broadphase boxes inflated by
+  // margin / 2 [m] (the sweep's steps 1 and 2).
+  void place_boxes(const double *q, double margin) {
     for (int i = 0; i < model_.nq; ++i) q_[i] = q[i];
     pin::forwardKinematics(model_, data_, q_);
     const size_t G = shapes_.size();
@@ -287,34 +327,18 @@ class Sweep {
       obj.computeAABB();
       obj.getAABB().expand(inflation);
     }
-    cand_.clear();
+  }
+
+  // The pairs whose placed boxes overlap (AABB::overlap), in the pairs' order (step 3).
+  void collect(std::vector<size_t> &out) const {
+    out.clear();
     const size_t K = first_.size();
     for (size_t k = 0; k < K; ++k)
       if (objects_[first_[k]]->getAABB().overlap(objects_[second_[k]]->getAABB()))
-        cand_.push_back(k);
-    const size_t T = cand_.size();
-    int64_t best = -1;
-    double best_d = std::numeric_limits<double>::infinity();
-    for (size_t i = 0; i < T; ++i) {
-      const size_t k = cand_[i];
-      result_.clear();
-      (*functors_[k])(coal_of(oMg_[first_[k]]), coal_of(oMg_[second_[k]]), requests_[k],
-                      result_);
-      const double d = result_.min_distance;
-      pairs_out[i] = static_cast<int64_t>(k);
-      dist_out[i] = d;
-      p1_[i] = result_.nearest_points[0];
-      p2_[i] = result_.nearest_points[1];
-      normal_[i] = result_.normal;
-      if (d < best_d) {
-        best_d = d;
-        best = static_cast<int64_t>(k);
-      }
-    }
-    *best_out = best;
-    *best_d_out = best_d;
-    return T;
+        out.push_back(k);
   }
+
+ public:
 
   // The C entry point (sweep_api.hpp) in a capsule that keeps this Sweep alive.
   nb::capsule api(nb::handle self) {
@@ -428,6 +452,46 @@ class Sweep {
       n[c] = res.normal[c];
     }
     return nb::make_tuple(res.min_distance, a_arr, b_arr, n_arr);
+  }
+
+  // The signed distances [m], nearest points on pieces 1 and 2 (world [m]) and normals of
+  // ``pairs`` at q, unpruned: (distances (n,), points1 (n, 3), points2 (n, 3), normals (n,
+  // 3)). CollisionWorld.all_distances' and closest's query, with requests and functors of
+  // its own (made on first use), so that neither the sweep's GJK warm starts nor
+  // point_distance's depend on it. Leaves the sweep's state (its q, boxes, witness points)
+  // as it was.
+  nb::tuple distances(F1 q, I1 pairs) {
+    const size_t n = check_query(q, pairs);
+    const size_t K = first_.size();
+    for (int i = 0; i < model_.nq; ++i) pq_[i] = q.data()[i];
+    pin::forwardKinematics(model_, data_, pq_);
+    if (all_requests_.empty()) {
+      all_requests_.assign(K, request_);
+      all_functors_.resize(K);
+    }
+    double *d = nullptr, *a = nullptr, *b = nullptr, *nrm = nullptr;
+    auto d_arr = new_array<double>({n}, &d);
+    auto a_arr = new_array<double>({n, 3}, &a);
+    auto b_arr = new_array<double>({n, 3}, &b);
+    auto n_arr = new_array<double>({n, 3}, &nrm);
+    coal::DistanceResult &res = point_result_;
+    for (size_t i = 0; i < n; ++i) {
+      const size_t p = static_cast<size_t>(pairs.data()[i]);
+      if (!all_functors_[p])
+        all_functors_[p] = std::make_unique<coal::ComputeDistance>(shapes_[first_[p]].get(),
+                                                                   shapes_[second_[p]].get());
+      pin::SE3 M[2];
+      place_pair(p, M);
+      res.clear();
+      (*all_functors_[p])(coal_of(M[0]), coal_of(M[1]), all_requests_[p], res);
+      d[i] = res.min_distance;
+      for (int c = 0; c < 3; ++c) {
+        a[3 * i + c] = res.nearest_points[0][c];
+        b[3 * i + c] = res.nearest_points[1][c];
+        nrm[3 * i + c] = res.normal[c];
+      }
+    }
+    return nb::make_tuple(d_arr, a_arr, b_arr, n_arr);
   }
 
   // The face planes of every piece (kernels.patch_material's N and o), for ``materials``:
@@ -765,6 +829,9 @@ class Sweep {
   std::vector<coal::DistanceRequest> point_requests_;
   std::vector<std::unique_ptr<coal::ComputeDistance>> point_functors_;
   coal::DistanceResult point_result_;
+  // (distances': its own requests and functors, made on first use)
+  std::vector<coal::DistanceRequest> all_requests_;
+  std::vector<std::unique_ptr<coal::ComputeDistance>> all_functors_;
 };
 
 NB_MODULE(_native_coal, m) {
@@ -785,6 +852,8 @@ NB_MODULE(_native_coal, m) {
       .def("sweep", &Sweep::sweep, nb::arg("q"), nb::arg("margin"))
       .def("patches", &Sweep::patches, nb::arg("q"), nb::arg("pairs"), nb::arg("tol"))
       .def("point_distance", &Sweep::point_distance, nb::arg("q"), nb::arg("k"))
+      .def("candidates", &Sweep::candidates, nb::arg("q"), nb::arg("margin"))
+      .def("distances", &Sweep::distances, nb::arg("q"), nb::arg("pairs"))
       .def("set_planes", &Sweep::set_planes, nb::arg("N"), nb::arg("o"), nb::arg("start"))
       .def_prop_ro("has_planes", &Sweep::has_planes)
       .def("materials", &Sweep::materials, nb::arg("q"), nb::arg("pairs"), nb::arg("tol"),
