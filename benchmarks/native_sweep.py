@@ -57,7 +57,7 @@ def sweep_share(robot: packbot.Robot, cfg: packbot.SimConfig, duration: float) -
 def compare(robot: packbot.Robot, mode: str, repeats: int, duration: float) -> None:
     cfg = MODES[mode]
     ways = {"Python sweep": False, "native sweep": True}
-    for on in ways.values():  # warm: numba's cache, imports
+    for on in ways.values():  # warm: imports
         native_sweep.ENABLED = on
         run(robot, cfg, 0.3)
     cpu: dict[str, list[float]] = {k: [] for k in ways}
