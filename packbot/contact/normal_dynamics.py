@@ -232,7 +232,7 @@ class ConstrainedDynamics(ContactRows):
         """
         if ev.rest is not None or type(self).conditions is not _OWN_CONDITIONS:
             return any(g < 0.0 for _, g in self.conditions(ev).values())
-        if ev.cond is not None:  # the kernel's smallest condition
+        if ev.cond is not None:  # the extension's smallest condition
             return ev.cond < 0.0
         plan = self._plan()
         E = plan.engaged
