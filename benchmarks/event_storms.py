@@ -5,7 +5,7 @@ wrist free (8 starts, seed 2026, 3 s each, zero torque, restitution 0; mu 0 and 
 the collapse (mu 0.5, wrist locked, 5 s from "drive"). Each round runs the "before" Python
 (another environment with packbot installed, e.g. the main checkout's: ``--before
 /path/to/venv/bin/python``) and this one, alternately, each in a fresh process that first
-runs a 0.3 s start (numba's cache loaded). Printed per case: the events and steps (the last
+runs a 0.3 s start (a warm-up). Printed per case: the events and steps (the last
 round's: a run is deterministic), the median over rounds of the CPU time (the process's,
 which other jobs on a shared machine disturb less) of all 8 starts, of the median start, and
 of the collapse, before and after, and their ratio.

@@ -4,9 +4,9 @@ Two tables (docs/performance.md, "Where the time goes", quotes the first):
 
 1. Per right-hand-side call [us], at states of a collapse (every 50th call with engaged rows,
    mu 0.5, timed inside the run): the Python path (``pin.aba`` then ``NormalLaw.accel``:
-   Pinocchio's Python calls and the numba kernel) against the native call with its Python
-   wrapper (``NativeRhs.load`` + ``accel``) and the bare extension call; medians over the
-   states of the best of 3 timings each.
+   Pinocchio's Python calls and the extension's rows and accelerations) against the native
+   call with its Python wrapper (``NativeRhs.load`` + ``accel``) and the bare extension call;
+   medians over the states of the best of 3 timings each.
 2. The collapse (contact-normal, mu 0.5, wrist locked, 5 s): CPU time of the run in a warm
    process on the Python path, with the native right-hand side (the stepper's stages in
    Python around it: ``native.STEP_ENABLED = False``) and with the native Dormand-Prince step
@@ -90,7 +90,7 @@ def collapse(robot: packbot.Robot, repeats: int, duration: float) -> None:
     cfg = packbot.SimConfig(contact_mode="normal", mu=0.5, locked_joints=WRIST)
     q0, tau = robot.pose("drive"), np.zeros(8)
     ways = {"Python path": (False, False), "native rhs": (True, False), "native step": (True, True)}
-    for on, step in ways.values():  # warm: numba's cache, imports
+    for on, step in ways.values():  # warm: imports
         native.ENABLED, native.STEP_ENABLED = on, step
         packbot.simulate(robot, q0, tau, 0.3, config=cfg)
     cpu: dict[str, list[float]] = {k: [] for k in ways}

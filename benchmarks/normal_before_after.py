@@ -1,19 +1,17 @@
 """The contact-normal collapse at two revisions side by side, with MuJoCo Euler 1 ms bare.
 
 The collapse of ``benchmarks/peers.py`` (contact-normal mode, mu 0.5, wrist locked, 5 s from
-"drive", zero torque; with ``--mode joint_clamp`` the report's law's collapse of the same
-table) run by the installed packbot ("after") and by the packbot of another
-source tree ("before": a checkout of an older revision, e.g. ``git archive REV | tar -x -C
-DIR``), and MuJoCo Euler 1 ms stepped bare (``peers.py``'s case: one ``mj_step(..., nstep=n)``
-call). Each round runs the three, in that order, each in a fresh process; a packbot process
-first runs a 1 s collapse (numba's cache loaded, the kernels compiled if that tree's cache is
-empty) and then times the 5 s one (``--repeats``: that many times, the median kept; MuJoCo's run as
-often). Printed: steps, right-hand-side calls, events and restarts
-(the last round's: a run is deterministic), the medians of the CPU and wall times, both over
-MuJoCo's (ratios of the medians; for the wall time also the median of the rounds' own ratios,
-steadier under a changing load; on a machine shared with other jobs the CPU times compare
-best), the deepest penetration, the largest energy gain at an event and the
-rest pose.
+"drive", zero torque; with ``--mode joint_clamp`` the report's law's collapse of the same table)
+run by the installed packbot ("after") and by the packbot of another source tree ("before": a
+checkout of an older revision, e.g. ``git archive REV | tar -x -C DIR``), and MuJoCo Euler 1 ms
+stepped bare (``peers.py``'s case: one ``mj_step(..., nstep=n)`` call). Each round runs the three,
+in that order, each in a fresh process; a packbot process first runs a 1 s collapse (a warm-up) and
+then times the 5 s one (``--repeats``: that many times, the median kept; MuJoCo's run as often).
+Printed: steps, right-hand-side calls, events and restarts (the last round's: a run is
+deterministic), the medians of the CPU and wall times, both over MuJoCo's (ratios of the medians;
+for the wall time also the median of the rounds' own ratios, steadier under a changing load; on a
+machine shared with other jobs the CPU times compare best), the deepest penetration, the largest
+energy gain at an event and the rest pose.
 
 The before tree is imported in place of the installed packbot: with packbot installed in
 editable mode, its import hook is removed from the child's ``sys.meta_path`` and the tree put

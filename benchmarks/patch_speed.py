@@ -102,7 +102,7 @@ def one(tree: str | None = None) -> dict[str, float]:
     robot = packbot.load_robot()
     cfg = packbot.SimConfig(contact_mode="normal", mu=0.5, locked_joints=WRIST)
     q0 = robot.pose("drive")
-    packbot.simulate(robot, q0, np.zeros(8), 1.0, config=cfg)  # numba's cache, warm-up
+    packbot.simulate(robot, q0, np.zeros(8), 1.0, config=cfg)  # warm-up
     out = _per_call(robot, cfg)
     t = time.process_time()
     packbot.simulate(robot, q0, np.zeros(8), 5.0, config=cfg)

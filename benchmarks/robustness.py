@@ -181,11 +181,7 @@ _ROBOT: packbot.Robot | None = None
 
 
 def _warm() -> None:
-    """Load the compiled kernels in a worker before its timed runs (numba's cache).
-
-    The first contact-normal run of a process loads the kernels' machine code (about half a
-    second; ``benchmarks/compile_time.py`` measures it): a one-time cost, not the run's.
-    """
+    """A worker's first contact-normal run before its timed runs (its one-time imports)."""
     logging.getLogger("packbot").setLevel(logging.ERROR)
     robot = _robot()
     try:

@@ -6,6 +6,43 @@ import numpy as np
 from numpy.typing import NDArray
 
 PINOCCHIO_VERSION: str
+CONIC_STALL_OK: float
+
+_F = NDArray[np.float64]
+
+def lemke(M: _F, q: _F, max_iter: int, tol: float) -> tuple[_F, bool]: ...
+def lcp_residual(M: _F, q: _F, z: _F) -> float: ...
+def solve_conic(
+    A: _F,
+    g: _F,
+    mus: _F,
+    bound: _F,
+    guess: _F,
+    tol: float,
+    max_iterations: int,
+    rho0: float,
+) -> tuple[_F, float, int, float]: ...
+def conic_residual(A: _F, g: _F, x: _F, mus: _F, bound: _F) -> float: ...
+def patch_material(
+    p1: _F,
+    p2: _F,
+    n: _F,
+    distance: float,
+    N1: _F,
+    o1: _F,
+    Rg1: _F,
+    tg1: _F,
+    N2: _F,
+    o2: _F,
+    Rg2: _F,
+    tg2: _F,
+    RM1: _F,
+    tM1: _F,
+    RM2: _F,
+    tM2: _F,
+    patch_tol: float,
+    check: bool,
+) -> tuple[Any, ...]: ...
 
 class ContactRhs:
     def __init__(
@@ -22,6 +59,8 @@ class ContactRhs:
     ) -> None: ...
     @property
     def nv(self) -> int: ...
+    def rows(self, q: _F, v: _F) -> tuple[_F, ...]: ...
+    def evaluate(self, q: _F, v: _F, a_free: _F, minv: _F) -> tuple[Any, ...] | None: ...
     def set_layout(
         self,
         joints: NDArray[np.int64],

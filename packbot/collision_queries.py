@@ -87,8 +87,8 @@ def material_batch(
     """The contact patches of checked ``pairs`` at q as material points.
 
     The patches of :func:`patch_batch`, each made material points by the
-    extension (``Sweep.materials``: :func:`packbot.contact.kernels.patch_material`'s
-    arithmetic) with the pieces' face planes (``planes() -> (N, o, start)``,
+    extension (``Sweep.materials``: the patch materials of ``src/native/material.hpp``)
+    with the pieces' face planes (``planes() -> (N, o, start)``,
     loaded once per native sweep), the patch tolerance ``patch_tol`` [m], and whether nothing
     lags on the patch (its normal a face's within ``face_align``).
 

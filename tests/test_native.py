@@ -1,10 +1,10 @@
 """The native right-hand side of the contact-normal mode against the Python path.
 
 :class:`packbot.contact.native.NativeRhs` (``packbot._native``: ABA, M^-1, the Jacobians, the
-contact rows and the constrained accelerations in one compiled call) is compared with the
-Python path (Pinocchio's Python calls and the numba kernels) at every right-hand-side call of
-a collapse, frictionless and with friction; its rebuilt Pinocchio model with Pinocchio's own
-results; and whole runs with and without it.
+contact rows and the constrained accelerations in one compiled call) is compared with the Python
+path (Pinocchio's Python calls and the extension's rows and accelerations) at every right-hand-side
+call of a collapse, frictionless and with friction; its rebuilt Pinocchio model with Pinocchio's
+own results; and whole runs with and without it.
 """
 
 from __future__ import annotations

@@ -1,14 +1,14 @@
-"""The contact set's material points made in the extension (``Sweep.materials``) against the kernel.
+"""The contact set's material points made in the sweep's batch or pair by pair, alike.
 
-:meth:`ContactSet.add_pairs <packbot.contact.normal_set.ContactSet.add_pairs>` takes its patches
-as material points from the compiled sweep in one call (Coal's patches, then
-``src/native/material.hpp``: :func:`packbot.contact.kernels.patch_material`'s arithmetic line for
-line) when ``normal_set.MATERIALS_NATIVE`` is on; off, the compiled kernel runs on the native
-patches. Both must give the same pairs, bit for bit: points in the joints' frames, normals,
-contact frames, centres, tangential offsets, the normal's owner and the slide a patch goes stale
-at. Checked on the patches of named, random and collapse configurations (with the floor alone
-and with obstacles of every kind), on patches off their distance (the witness points), and on
-whole runs, which must be the same to the bit.
+:meth:`ContactSet.add_pairs <packbot.contact.normal_set.ContactSet.add_pairs>` takes its patches as
+material points from the compiled sweep in one call (Coal's patches, then
+``src/native/material.hpp``) when ``normal_set.MATERIALS_NATIVE`` is on; off,
+``packbot._native.patch_material`` (the same code) runs on the patches one by one. Both must give
+the same pairs, bit for bit: points in the joints' frames, normals, contact frames, centres,
+tangential offsets, the normal's owner and the slide a patch goes stale at. Checked on the patches
+of named, random and collapse configurations (with the floor alone and with obstacles of every
+kind), on patches off their distance (the witness points), and on whole runs, which must be the
+same to the bit.
 """
 
 from __future__ import annotations
@@ -60,7 +60,7 @@ def _add(cs: ContactSet, q, pairs, native: bool, monkeypatch) -> list[bool]:
 
 
 @pytest.mark.parametrize("obstacles", [False, True], ids=["floor", "obstacles"])
-def test_native_materials_are_the_kernels_bit_for_bit(
+def test_batch_materials_are_the_pair_by_pair_ones_bit_for_bit(
     robot, collapse_states, rng, obstacles, monkeypatch
 ):
     env = obstacle_env() if obstacles else None

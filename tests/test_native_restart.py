@@ -1,7 +1,7 @@
 """The restart's projection rounds, impact and stop of the slow slides in one native call each.
 
 ``ContactRhs.project_round``, ``ContactRhs.impact`` and ``ContactRhs.stop_slow`` take the rows,
-the Delassus matrix, Lemke's pivots (``src/native/lcp.hpp``, a port of ``kernels.lemke_small``)
+the Delassus matrix, Lemke's pivots (``src/native/lcp.hpp``)
 and the frictional impact's conic solver with the arithmetic of :meth:`RestartSteps.project`'s
 round, :meth:`RestartSteps.impulse` and :meth:`RestartSteps.stop_slow`, and hand back to them
 where they would clip a gap, fall back from Lemke or take a frictional answer the compiled

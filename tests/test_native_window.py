@@ -1,11 +1,10 @@
 """A window step whose contact set stays as it is, in one native call (``_native_step``).
 
-The native step (``ContactRhs.window_step``) takes the step's free velocity, M^-1, rows,
-problem and impulses with the arithmetic of the Python step (``_python_step``: ABA at the
-explicit midpoint, the rows of kernels.contact_rows, conic.step_problem and
-conic.solve_conic ported loop for loop) and hands the step back to Python where the contact
-set changes, a row bounces or the impulses do not converge. Compared here step by step, from
-the same state and warm start, on window steps of wrist-free random starts.
+The native step (``ContactRhs.window_step``) takes the step's free velocity, M^-1, rows, problem
+and impulses as the Python step does (``_python_step``: ABA at the explicit midpoint, the contact
+set's rows, conic.step_problem and the extension's conic solver) and hands the step back to Python
+where the contact set changes, a row bounces or the impulses do not converge. Compared here step by
+step, from the same state and warm start, on window steps of wrist-free random starts.
 """
 
 import numpy as np
@@ -83,17 +82,16 @@ def test_a_native_window_step_is_the_python_step(robot, k, mu, kw):
     seen, res = _compared(robot, k, mu, 2.0, **kw)
     assert len(seen) > 100, len(seen)
     worst = {key: max(s[key] for s in seen) for key in seen[0]}
-    # the same free velocity, rows, problem and iterates: equal to rounding (measured: v_f
-    # and x bit for bit, v1 within 2e-15 of it, the energies within 1e-14 J; a cold start's
-    # rho comes from G's largest eigenvalue, which numpy sums in its own order: measured once
-    # 6e-12 on x, 2e-11 on v1, from a build that re-solved after a set update). Where the
-    # rows are redundant the impulses are not unique: the iterates may part along G's null
-    # space while the velocity they give stays the same (measured: 1 step of 1221 with
-    # restitution, x 8.5e-4 apart, v1 within 3e-14)
+    # the same free velocity, rows and problem; the Python step assembles the problem in numpy
+    # (its factor and products summed in BLAS's order, the native step's in index order), so
+    # the low-rank ADMM's iterates part at rounding and each solve stops on its own true
+    # residual (CONIC_TOL 1e-9): the impulses may differ along G's null space (the rows are
+    # redundant: not unique), the velocities they give by the solver's tolerance on these
+    # ill-conditioned problems (measured: at most 3.3e-6 of max |v1| over 1,500 to 1,700
+    # steps of each start, the median 1e-14)
     assert worst["v_f"] <= 1e-12, worst
-    parted = [s for s in seen if s["x"] > 1e-9]
-    assert len(parted) <= 0.005 * len(seen), parted
-    assert worst["v1"] <= 1e-9, worst
+    assert worst["v1"] <= 1e-5, worst
+    assert float(np.median([s["v1"] for s in seen])) <= 1e-9
     assert worst["q1"] == 0.0, worst  # (pin.integrate: q + h v1 for 1-dof joints)
     assert worst["e0"] <= 1e-9 and worst["e1"] <= 1e-9 and worst["kin"] <= 1e-9, worst
     assert worst["residual"] <= timestep.RESIDUAL_OK

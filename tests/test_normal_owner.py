@@ -1,4 +1,4 @@
-"""A patch's normal turns with the body whose face it is (kernels.normal_owner).
+"""A patch's normal turns with the body whose face it is (material.hpp's ``normal_owner``).
 
 The state is from the collapse of a wrist-free random start without friction (benchmarks/
 robustness.py, seed 2026, start 1, mu = 0, t = 1.1019 s, just after an impact restart): the

@@ -2,9 +2,10 @@
 
 The rows of :class:`packbot.contact.normal.NormalContacts` (one batch of numpy operations over
 every patch point) are checked against Pinocchio point Jacobians computed point by point and
-against finite differences of the gaps along q(t) = q + v t (q'' = 0); the small-problem path
-of :func:`packbot.contact.lcp.lemke` against its array path; and the collapse past the state
-where a stick/slip restart once repeated forever.
+against finite differences of the gaps along q(t) = q + v t (q'' = 0); the patch materials
+against the patch they are made of; :func:`packbot.contact.lcp.lemke` against analytic and
+complementarity conditions; and the collapse past the state where a stick/slip restart once
+repeated forever.
 """
 
 import numpy as np
@@ -13,7 +14,7 @@ import pytest
 
 import packbot
 from packbot.contact import native
-from packbot.contact.lcp import SMALL_LCP, lemke
+from packbot.contact.lcp import lemke
 from packbot.contact.normal import NormalContacts
 from packbot.system import System
 
@@ -160,22 +161,29 @@ def test_tangential_rows_are_the_exact_derivatives_of_the_centres_slides(contact
     assert moved > 1e-4  # the slides were not all zero (the terms in c2 - c1 were tested)
 
 
-def test_small_lemke_reproduces_the_array_pivots_to_the_last_bit(rng, monkeypatch):
-    import packbot.contact.lcp as lcp
-
-    problems = []
+def test_lemke_solves_small_lcps_with_a_solution(rng):
+    """Lemke's pivots on the contact problems' sizes (1 to 8 rows): a diagonal problem gets its
+    analytic answer z_i = max(0, -q_i / M_ii); a positive definite one (symmetric, or with a
+    skew part: a P-matrix, one solution) is solved, z >= 0, w = M z + q >= 0 and z . w = 0 to
+    1e-9 of the problem's scale (the rounding of its pivots)."""
     for trial in range(400):
-        n = int(rng.integers(1, SMALL_LCP + 1))
+        n = int(rng.integers(1, 9))
+        d = rng.uniform(0.5, 2.0, n)
+        q = rng.standard_normal(n)
+        z = lemke(np.diag(d), q)
+        assert z is not None
+        np.testing.assert_allclose(z, np.maximum(0.0, -q / d), rtol=1e-12, atol=1e-15)
         A = rng.standard_normal((n, n + 1))
-        M = A @ A.T + (0.3 * rng.standard_normal((n, n)) if trial % 2 else 0.0)
-        problems.append((M, rng.standard_normal(n)))
-    small = [lemke(M, q) for M, q in problems]
-    monkeypatch.setattr(lcp, "SMALL_LCP", 0)  # every problem on the array path
-    for (M, q), z in zip(problems, small, strict=True):
-        ref = lcp.lemke(M, q)
-        assert (z is None) == (ref is None)
-        if z is not None:
-            np.testing.assert_array_equal(z, ref)
+        M = A @ A.T + 0.1 * np.eye(n)
+        if trial % 2:
+            S = rng.standard_normal((n, n))
+            M = M + 0.5 * (S - S.T)
+        z = lemke(M, q)
+        assert z is not None
+        w = M @ z + q
+        scale = 1.0 + float(np.abs(q).max()) + float(np.abs(M @ z).max())
+        assert float(z.min()) >= 0.0 and float(w.min()) >= -1e-9 * scale
+        assert abs(float(z @ w)) <= 1e-9 * scale * scale
 
 
 def test_collapse_passes_the_stick_slip_restart_that_repeated(robot):
@@ -344,19 +352,20 @@ def test_the_pairs_skipped_at_a_step_end_have_no_event(robot, monkeypatch, mu):
     assert seen["skipped"] > 5 * seen["checked"] > 0
 
 
-def test_compiled_patches_equal_the_numpy_construction(contacts, rng):
-    """kernels.patch_material (the patch's points lifted onto each body's face, then as
-    material points in the joints' frames, the contact frame, the centres and the offsets)
-    gives normal.py's numpy construction (_lift, _consistent, _tangents) at the collapse's
-    pairs and at states around them, and add_pair stores it."""
-    from packbot.contact import kernels
-    from packbot.contact.normal_patch import _consistent, _lift, _tangents
+def test_patch_materials_are_the_patch_points_on_the_bodies(contacts, rng):
+    """A patch made material points (``packbot._native.patch_material``) at the collapse's
+    pairs and at states around them: each body's points are Coal's moved along the normal only
+    (onto its face), expressed in the body's joint frame; the smallest gap along the normal is
+    the pair's distance (to the patch tolerance); the normal is fixed in the body whose face is
+    the better aligned with it; the contact frame is orthonormal and right-handed around it;
+    the centres are the points' means and the offsets the points' tangential separations; and
+    add_pair stores that patch."""
+    from packbot import _native
     from packbot.contact.normal_tolerances import PATCH_TOL
 
     sysm, nc, q0 = contacts
     world, data = sysm.world, sysm.data
     checked = lifted = 0
-    owners = {False: 0, True: 0}
     for trial in range(12):
         q = q0 + (0.0 if trial == 0 else 2e-4) * rng.standard_normal(len(q0))
         for k in list(nc.pairs):
@@ -369,36 +378,34 @@ def test_compiled_patches_equal_the_numpy_construction(contacts, rng):
             M2 = data.oMi[info.joint2] if info.joint2 else pin.SE3.Identity()
             G1, G2 = world.geom_data.oMg[info.geom1], world.geom_data.oMg[info.geom2]
             planes1, planes2 = nc._planes_of(info.geom1), nc._planes_of(info.geom2)
-            ok, l1, l2, n2, F, c1, c2, off, on1 = kernels.patch_material(
-                patch.points1, patch.points2, patch.normal, float(patch.distance),
+            n, d = patch.normal, float(patch.distance)
+            ok, l1, l2, n2, F, c1, c2, off, on1 = _native.patch_material(
+                patch.points1, patch.points2, n, d,
                 *planes1, G1.rotation, G1.translation, *planes2, G2.rotation, G2.translation,
                 M1.rotation, M1.translation, M2.rotation, M2.translation, PATCH_TOL, True,
             )  # fmt: skip
-            mid = 0.5 * (patch.points1 + patch.points2)
-            p1 = _lift(planes1 if len(planes1[0]) else None, G1, mid, patch.normal, 1.0)
-            p2 = _lift(planes2 if len(planes2[0]) else None, G2, mid, patch.normal, -1.0)
-            if p1 is None or p2 is None or not _consistent(p1, p2, patch):
-                p1, p2 = patch.points1, patch.points2
-            else:
-                lifted += 1
-            assert ok == _consistent(p1, p2, patch)
             if not ok:
                 continue
-            np.testing.assert_allclose(l1, (p1 - M1.translation) @ M1.rotation, atol=1e-13)
-            np.testing.assert_allclose(l2, (p2 - M2.translation) @ M2.rotation, atol=1e-13)
-            # the normal is fixed in the body whose face is the better aligned with it
+            p1 = l1 @ M1.rotation.T + M1.translation  # the points, world
+            p2 = l2 @ M2.rotation.T + M2.translation
+            for p, c in ((p1, patch.points1), (p2, patch.points2)):
+                along = (p - c) @ n
+                np.testing.assert_allclose(p - c, along[:, None] * n[None, :], atol=1e-12)
+            lifted += bool(np.abs((p1 - patch.points1) @ n).max() > 1e-12)
+            gaps = (p2 - p1) @ n
+            assert abs(float(gaps.min()) - d) <= PATCH_TOL + 1e-12
             (N1, _), (N2, _) = planes1, planes2
-            best1 = float((N1 @ (G1.rotation.T @ patch.normal)).max(initial=-np.inf))
-            best2 = float((N2 @ (G2.rotation.T @ -patch.normal)).max(initial=-np.inf))
+            best1 = float((N1 @ (G1.rotation.T @ n)).max(initial=-np.inf))
+            best2 = float((N2 @ (G2.rotation.T @ -n)).max(initial=-np.inf))
             assert on1 == (best1 > best2)
-            owners[on1] += 1
-            Mn = M1 if on1 else M2
-            n_ref = Mn.rotation.T @ patch.normal
-            np.testing.assert_allclose(n2, n_ref, atol=1e-14)
-            np.testing.assert_allclose(F, np.vstack([*_tangents(n_ref), n_ref]), atol=1e-14)
+            Rn = (M1 if on1 else M2).rotation
+            np.testing.assert_allclose(Rn @ n2, n, atol=1e-14)
+            np.testing.assert_allclose(F @ F.T, np.eye(3), atol=1e-14)
+            np.testing.assert_allclose(np.cross(F[0], F[1]), F[2], atol=1e-14)
+            np.testing.assert_allclose(F[2], n2, atol=0.0)
             np.testing.assert_allclose(c1, l1.mean(axis=0)[None, :], atol=1e-14)
             np.testing.assert_allclose(c2, l2.mean(axis=0)[None, :], atol=1e-14)
-            np.testing.assert_allclose(off, F[:2] @ (Mn.rotation.T @ (p2 - p1).T), atol=1e-13)
+            np.testing.assert_allclose(off, F[:2] @ (Rn.T @ (p2 - p1).T), atol=1e-12)
             assert nc.add_pair(q, k)
             stored = nc.pairs[k]
             assert stored.on1 == on1
@@ -408,30 +415,6 @@ def test_compiled_patches_equal_the_numpy_construction(contacts, rng):
     for k in list(nc.pairs):  # the module's contact set back at its state
         nc.add_pair(q0, k)
     assert checked >= 12 and lifted >= 6
-
-
-def test_compiled_small_lemke_reproduces_the_python_pivots_to_the_last_bit(rng):
-    """kernels.lemke_small (the contact-normal mode's small LCPs) returns what lcp.lemke's
-    Python-float pivots return, bit for bit: solutions, ray terminations (None) alike."""
-    from packbot.contact.lcp import SMALL_LCP, lemke
-    from packbot.contact.normal_modes import _lemke
-
-    solved = failed = 0
-    for trial in range(600):
-        n = int(rng.integers(1, SMALL_LCP + 1))
-        A = rng.standard_normal((n, n + 1))
-        M = A @ A.T + (0.5 * rng.standard_normal((n, n)) if trial % 2 else 0.0)
-        if trial % 5 == 0:
-            M = -M  # often no solution: ray termination
-        q = rng.standard_normal(n)
-        ref, z = lemke(M, q), _lemke(M, q)
-        assert (z is None) == (ref is None)
-        if z is not None:
-            np.testing.assert_array_equal(z, ref)
-            solved += 1
-        else:
-            failed += 1
-    assert solved > 300 and failed > 10
 
 
 def test_a_repatch_of_the_same_shape_reuses_the_layout_and_equals_a_full_build(contacts, rng):

@@ -124,6 +124,11 @@ def test_a_patch_on_the_floor_is_kept_while_it_slides(robot, monkeypatch):
     slides: list[float] = []
     stale = timestep.MoreauJeanStepper._stale
 
+    def placements(model, q):  # the joints' placements at q (a Data of its own)
+        data = model.createData()
+        pin.forwardKinematics(model, data, q)
+        return data.oMi
+
     def watched(self, q, v, near):
         out, raw = stale(self, q, v, near)
         if raw is None:
@@ -137,7 +142,7 @@ def test_a_patch_on_the_floor_is_kept_while_it_slides(robot, monkeypatch):
                 continue
             assert self.contacts.world.pairs[key].piece2 == "floor"
             rows = np.flatnonzero(lay.row_pair == i)
-            M = c.data.oMi[p.info.joint1]  # (at q: the rows' kinematics just computed)
+            M = placements(c.model, q)[p.info.joint1]
             heights = (p.local1 @ M.rotation.T + M.translation)[:, 2]
             np.testing.assert_allclose(gap[rows], heights, rtol=0.0, atol=1e-12)
             k = lay.rows[rows]

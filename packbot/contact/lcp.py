@@ -9,7 +9,8 @@ The linear complementarity problem LCP(G, q): find z >= 0 with w = G z + q >= 0 
   support's rows independent, so the solution is a *basic* one (its engaged rows have a
   non-singular Delassus block).
 - :func:`lemke`: any matrix with a solution (P0, copositive-plus), e.g. the non-symmetric
-  matrix of a problem with sliding friction; complementary pivoting.
+  matrix of a problem with sliding friction; complementary pivoting (in the extension,
+  ``src/native/lcp.hpp``).
 - :func:`lcp_residual`: the true residual max(-min z, -min w, |z . w|), scaled; never trust a
   solver's own convergence flag.
 
@@ -21,14 +22,15 @@ residual checked here.
 
 from __future__ import annotations
 
-import math
+from typing import Any
 
 import numpy as np
 import pinocchio as pin
 from numpy.typing import NDArray
 
+from packbot import _native
+
 __all__ = [
-    "SMALL_LCP",
     "box_residual",
     "lcp_residual",
     "lemke",
@@ -40,23 +42,22 @@ __all__ = [
 ]
 
 FloatArray = NDArray[np.float64]
-#: Problems with at most this many rows are pivoted on Python floats (:func:`lemke`).
-SMALL_LCP = 8
 
 
 def lcp_residual(G: FloatArray, q: FloatArray, z: FloatArray) -> float:
     """Residual of an LCP solution, relative to the problem's scale [-].
 
     Returns:
-        max(-min z, -min w, |z . w|) / (1 + |q|_inf + |G z|_inf), w = G z + q.
+        max(-min z, -min w, |z . w| / s, 0) / s, w = G z + q, s = 1 + |q|_inf + |G z|_inf
+        (``src/native/lcp.hpp``, its sums in index order).
     """
     if len(q) == 0:
         return 0.0
-    Gz = G @ z
-    w = Gz + q
-    scale = 1.0 + float(np.abs(q).max()) + float(np.abs(Gz).max())
-    res = max(-float(z.min()), -float(w.min()), abs(float(z @ w)) / scale, 0.0)
-    return res / scale
+    return float(_native.lcp_residual(_reals(G), _reals(q), _reals(z)))
+
+
+def _reals(x: Any) -> FloatArray:
+    return np.ascontiguousarray(x, dtype=np.float64)
 
 
 def solve_lcp_psd(G: FloatArray, q: FloatArray) -> FloatArray:
@@ -89,7 +90,7 @@ def solve_lcp_psd(G: FloatArray, q: FloatArray) -> FloatArray:
 def lemke(
     M: FloatArray, q: FloatArray, max_iter: int = 200, tol: float = 1e-12
 ) -> FloatArray | None:
-    """Lemke's complementary pivoting for LCP(M, q).
+    """Lemke's complementary pivoting for LCP(M, q) (``src/native/lcp.hpp``).
 
     Args:
         M: Matrix, shape (m, m) (need not be symmetric).
@@ -104,76 +105,8 @@ def lemke(
     n = len(q)
     if n == 0 or np.all(q >= 0.0):
         return np.zeros(n)
-    if n <= SMALL_LCP:
-        return _lemke_small(M, q, max_iter, tol)
-    T = np.hstack([np.eye(n), -M, -np.ones((n, 1)), q.reshape(-1, 1)]).astype(float)
-    basis = list(range(n))
-    r = int(np.argmin(q))
-    entering = 2 * n
-    for _ in range(max_iter):
-        T[r] /= T[r, entering]
-        col = T[:, entering].copy()
-        col[r] = 0.0
-        T -= np.outer(col, T[r])
-        leaving = basis[r]
-        basis[r] = entering
-        if leaving == 2 * n:
-            z = np.zeros(2 * n + 1)
-            for i, b in enumerate(basis):
-                z[b] = T[i, -1]
-            return np.maximum(z[n : 2 * n], 0.0)
-        entering = leaving + n if leaving < n else leaving - n
-        col = T[:, entering]
-        mask = col > tol
-        if not np.any(mask):
-            return None
-        ratios = np.full(n, np.inf)
-        ratios[mask] = T[mask, -1] / col[mask]
-        rmin = ratios.min()
-        cands = np.flatnonzero(ratios <= rmin + 1e-12 * (1.0 + abs(rmin)))
-        r = next((int(c) for c in cands if basis[c] == 2 * n), int(cands[0]))
-    return None
-
-
-def _lemke_small(M: FloatArray, q: FloatArray, max_iter: int, tol: float) -> FloatArray | None:
-    """:func:`lemke` on Python floats, for a small problem (the contact problems' usual size).
-
-    The same pivots and the same floating-point operations as the array version, so the same
-    result to the last bit; numpy's per-call overhead dominates a tableau of a few rows.
-    """
-    n = len(q)
-    w = 2 * n + 2
-    rows, qs = np.asarray(M, dtype=float).tolist(), q.tolist()
-    T = [
-        [1.0 if j == i else 0.0 for j in range(n)] + [-x for x in rows[i]] + [-1.0, qs[i]]
-        for i in range(n)
-    ]
-    basis = list(range(n))
-    r = int(np.argmin(q))
-    entering = 2 * n
-    for _ in range(max_iter):
-        piv = T[r][entering]
-        Tr = [x / piv for x in T[r]]
-        T[r] = Tr
-        for i in range(n):
-            c = 0.0 if i == r else T[i][entering]
-            Ti = T[i]
-            T[i] = [Ti[j] - c * Tr[j] for j in range(w)]
-        leaving = basis[r]
-        basis[r] = entering
-        if leaving == 2 * n:
-            z = [0.0] * (2 * n + 1)
-            for i, b in enumerate(basis):
-                z[b] = T[i][-1]
-            return np.maximum(np.array(z[n : 2 * n]), 0.0)
-        entering = leaving + n if leaving < n else leaving - n
-        ratios = [T[i][-1] / T[i][entering] if T[i][entering] > tol else math.inf for i in range(n)]
-        if all(T[i][entering] <= tol for i in range(n)):
-            return None
-        rmin = min(ratios)
-        cands = [i for i in range(n) if ratios[i] <= rmin + 1e-12 * (1.0 + abs(rmin))]
-        r = next((c for c in cands if basis[c] == 2 * n), cands[0])
-    return None
+    z, ok = _native.lemke(_reals(M), _reals(q), max_iter, tol)
+    return z if ok else None
 
 
 def ncp_residual(G3: FloatArray, g3: FloatArray, x: FloatArray, mus: FloatArray) -> float:

@@ -5,8 +5,8 @@ against Pinocchio's headers): with the contact set's point layout and the curren
 plan loaded, one call takes (q, v, tau) and returns the constrained accelerations, doing
 what the Python path does in a right-hand-side call: Pinocchio's ``aba`` (armature included),
 ``computeMinverse`` and ``computeJointJacobiansTimeVariation``, then the contact rows and the
-constrained accelerations of :mod:`packbot.contact.kernels` (ported loop for loop: the two
-agree to rounding, tested in ``tests/test_native.py``).
+constrained accelerations (their one implementation: the contact set's own calls read them
+through :meth:`NativeRhs.rows` and :meth:`NativeRhs.evaluate`).
 
 The extension keeps its own Pinocchio model, rebuilt from the Python model's numbers (joint
 types, parents, placements, inertias, armature, gravity): no object crosses between it and
@@ -28,6 +28,7 @@ import numpy as np
 import pinocchio as pin
 from numpy.typing import NDArray
 
+from packbot.contact.normal_eval import _Eval
 from packbot.contact.normal_tolerances import (
     BAUMGARTE,
     FORCE_BAND,
@@ -44,7 +45,6 @@ from packbot.ode import DenseSegment, HermiteSegment, StiffKernel
 
 if TYPE_CHECKING:
     from packbot.contact.normal_contacts import NormalContacts
-    from packbot.contact.normal_dynamics import _Eval
     from packbot.contact.normal_rows import ContactRows
 
 __all__ = [
@@ -247,6 +247,56 @@ class NativeRhs:
             )
             self._rhs.set_keys(_ints(list(contacts.pairs)))  # (in the layout's order)
         self._layout_id = lay
+
+    def rows(self, contacts: ContactRows, q: FloatArray, v: FloatArray) -> tuple[Any, ...]:
+        """Every contact row of the contact set at (q, v), and the pairs' tangential data.
+
+        ``ContactRhs.rows`` (``src/native/contact_rhs_rows.cpp``) on the contact set's layout
+        (loaded first): Pinocchio's joint placements, Jacobians and their time variation at
+        (q, v), then the rows.
+
+        Returns:
+            Jn (m, nv) rows (pairs' points, then limits), drift (m,) = J_n' v [m/s^2], gap (m,)
+            [m or rad], vn (m,) [m/s or rad/s]; per pair JT (pairs, 2, nv) tangential rows at
+            the patch centre (the exact derivatives of the centres' slides t . (c2 - c1), the
+            tangents turning with the frame's body), bT (pairs, 2) their drift, vT (pairs, 2)
+            tangential velocities, vt (pairs, 3) the world tangential velocity where the
+            bodies touch (v_rel - w x (c2 - c1)), nw (pairs, 3) the normal, T (pairs, 2, 3) the
+            tangents; per point and centre dJp (h, 3, nv) = J_p2 - J_p1 and dP (h, 3) =
+            p2 - p1 [m].
+        """
+        self.load_layout(contacts)
+        Jn, drift, gap, vn, JT, bT, vT, vt, F, dJp, dP = self._rhs.rows(q, v)
+        return Jn, drift, gap, vn, JT, bT, vT, vt, F[:, 2], F[:, :2], dJp, dP
+
+    def evaluate(
+        self,
+        contacts: NormalContacts,
+        plan: Any,
+        q: FloatArray,
+        v: FloatArray,
+        a_free: FloatArray,
+        minv: FloatArray,
+    ) -> _Eval | None:
+        """The constrained accelerations of the plan's modes at (q, v), a_free and M^-1 given.
+
+        ``ContactRhs.evaluate`` (``src/native/contact_rhs_dynamics.cpp``) after :meth:`load`:
+        the engaged rows, the slipping pairs' force columns J_n - mu s^T (J_p2 - J_p1) (s the
+        sliding direction at the patch centre, blended with the onset direction below
+        ``STICK_SPEED``), the sticking pairs' tangential rows, Baumgarte's targets, the
+        Delassus system and its solve; with the smallest mode condition (``cond``) and the
+        patches' largest squared slides (``slide2``).
+
+        Returns:
+            The evaluation, or None: the Delassus matrix is singular (the caller solves by
+            least squares).
+        """
+        self.load(contacts, plan)
+        got = self._rhs.evaluate(q, v, _reals(a_free), _reals(minv))
+        if got is None:
+            return None
+        cond, a, lam, gap, vn, vt, slide2 = got
+        return _Eval(a, lam, gap, vn, vt, cond=cond, slide2=slide2)
 
     def forget_loaded(self) -> None:
         """Forget what is loaded: the next :meth:`load` loads the layout and plan in full.
@@ -592,8 +642,6 @@ class NativeRhs:
         """The extension's evaluation tuple at y as an ``_Eval``, kept by the contact set."""
         if got is None:
             return None
-        from packbot.contact.normal_dynamics import _Eval
-
         cond, a, lam, gap, vn, vt, slide2 = got
         ev = _Eval(a, lam, gap, vn, vt, cond=cond, slide2=slide2)
         nv = self.nv

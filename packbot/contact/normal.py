@@ -4,7 +4,7 @@
 4 points face on face, 2 edge on face, 1 vertex on face), one *normal row* per patch point. A
 point is stored as two material points, p1 on body 1 and p2 on body 2 (in their joint frames),
 and the normal n fixed in the body whose face it is (body 2's frame, or body 1's: see
-:func:`~packbot.contact.kernels.normal_owner`); its gap is g = n . (p2 - p1) [m] and its normal
+``normal_owner`` in ``src/native/material.hpp``); its gap is g = n . (p2 - p1) [m] and its normal
 Jacobian J_n = n^T (J_p2 - J_p1) + (n x (p2 - p1))^T J_w (J_w the angular Jacobian of n's body:
 the row acts on that body where the other body's point is), so g' = J_n v exactly (n points
 from body 1 to body 2: g' > 0 separates). A

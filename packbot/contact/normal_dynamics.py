@@ -1,7 +1,8 @@
 """The constrained dynamics with the modes fixed, and the mode conditions.
 
-:meth:`ConstrainedDynamics.evaluate` solves the engaged rows' accelerations (compiled:
-``kernels.constrained_accel``; numpy for a subclass's own rows); :meth:`~ConstrainedDynamics.
+:meth:`ConstrainedDynamics.evaluate` solves the engaged rows' accelerations (in the
+extension: :meth:`NativeRhs.evaluate <packbot.contact.native.NativeRhs.evaluate>`; numpy for a
+subclass's own rows); :meth:`~ConstrainedDynamics.
 conditions` and :meth:`~ConstrainedDynamics.violated` give the mode conditions whose sign
 changes are the events (release, impact, slip, stick, the resting arm's slip).
 """
@@ -15,7 +16,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from packbot.contact.lcp import solve_mixed_admm, solve_ncp_admm, solve_small
-from packbot.contact.normal_rows import ContactRows, _centre_velocities, _kernels, _Plan, _same
+from packbot.contact.normal_eval import _Eval
+from packbot.contact.normal_rows import ContactRows, _centre_velocities, _Plan, _same
 from packbot.contact.normal_tolerances import (
     BAUMGARTE,
     CAPTURE_ACCEL,
@@ -54,22 +56,6 @@ class RestSolution:
     rows: FloatArray
     mu: FloatArray
     torque: FloatArray
-
-
-@dataclass
-class _Eval:
-    """The constrained dynamics at one state with the modes fixed."""
-
-    a: FloatArray
-    lam: FloatArray  # forces of the engaged normal rows then the stick rows
-    gap: FloatArray  # every row
-    vn: FloatArray  # every row
-    vt: FloatArray  # (pairs, 3): relative tangential velocity at each patch centre (world)
-    rest: tuple[FloatArray, FloatArray, FloatArray] | None = None  # (q, a_free, M^-1) at rest
-    # the rows' generalized force C^T lambda [N*m] (numpy path only; None: not computed)
-    qc: FloatArray | None = None
-    cond: float | None = None  # the smallest mode condition (compiled path; see violated)
-    slide2: FloatArray | None = None  # (pairs,) largest squared slide (compiled; see stale)
 
 
 class ConstrainedDynamics(ContactRows):
@@ -133,22 +119,17 @@ class ConstrainedDynamics(ContactRows):
     def _evaluate_compiled(
         self, q: FloatArray, v: FloatArray, a_free: FloatArray, minv: FloatArray, plan: _Plan
     ) -> _Eval:
-        """:meth:`evaluate` in one compiled call (``kernels.constrained_accel``)."""
-        kernels = _kernels()
+        """:meth:`evaluate` in one call of the extension.
+
+        :meth:`NativeRhs.evaluate <packbot.contact.native.NativeRhs.evaluate>`.
+        """
         if plan.slips:
             slip_dir = np.array([p.slip_dir for p in self._pair_list])
         else:
             slip_dir = self._no_slip_dirs
-        lay = self._layout()
-        args: tuple[Any, ...] = (
-            *self._bodies(lay, q, v), lay.masks, q, v, *lay.fixed,
-            plan.engaged, plan.row_slip, plan.sticks, slip_dir, a_free, minv,
-            self.mu, STICK_SPEED, BAUMGARTE, lay.offset0, FORCE_BAND, POINT_TOL, STICK_BAND,
-        )  # fmt: skip
-        a, lam, gap, vn, vt, ok, cond, slide2 = kernels.constrained_accel(*args)
-        if not ok:  # a singular Delassus matrix: numpy's path (least squares)
+        ev = self._rows_rhs().evaluate(self, plan, q, v, a_free, minv)  # type: ignore[arg-type]
+        if ev is None:  # a singular Delassus matrix: numpy's path (least squares)
             return self._evaluate_rows(q, v, a_free, minv, plan)
-        ev = _Eval(a, lam, gap, vn, vt, cond=cond, slide2=slide2)
         # Kept for the same state asked again (the step's end: the stepper's last stage, then
         # the mode conditions and the sliding check): references, compared by value.
         self._last_eval = (q, v, a_free, minv, slip_dir, self._plan_key, ev)
@@ -251,7 +232,7 @@ class ConstrainedDynamics(ContactRows):
         """
         if ev.rest is not None or type(self).conditions is not _OWN_CONDITIONS:
             return any(g < 0.0 for _, g in self.conditions(ev).values())
-        if ev.cond is not None:  # the kernel's smallest condition
+        if ev.cond is not None:  # the extension's smallest condition
             return ev.cond < 0.0
         plan = self._plan()
         E = plan.engaged

@@ -434,7 +434,7 @@ class ModeSelection(ConstrainedDynamics):
             z = _psd_lcp(Ml, ql)
             res = lcp_residual(Ml, ql, z)
         else:
-            z2 = _lemke(Ml, ql)
+            z2 = lemke(Ml, ql)
             if z2 is None:
                 return {}, False
             z, res = z2, lcp_residual(Ml, ql, z2)
@@ -517,34 +517,6 @@ def _norm(x: FloatArray) -> float:
     return math.sqrt(float(x.dot(x)))
 
 
-#: The compiled Lemke's pivot limit and pivot tolerance (the same in ``src/native/lcp.hpp``).
-LEMKE_PIVOTS = 200
-LEMKE_TOL = 1e-12
-
-
-def _lemke(M: FloatArray, q: FloatArray) -> FloatArray | None:
-    """:func:`packbot.contact.lcp.lemke` on the compiled kernel, at any size (bit for bit).
-
-    ``kernels.lemke_small``: the same pivots and operations as the Python-float version
-    (problems up to :data:`packbot.contact.lcp.SMALL_LCP` rows) and as the array version
-    (larger ones: its row update ``T - outer(col, T[r])`` is the kernel's element by element),
-    without their interpreter overhead (a 10-row problem: 116 us in the array version, 1.4 us
-    compiled).
-    """
-    n = len(q)
-    if n == 0 or bool(np.all(q >= 0.0)):
-        return lemke(M, q)
-    from packbot.contact import kernels  # lazy: numba is imported by contact runs only
-
-    z, ok = kernels.lemke_small(
-        np.ascontiguousarray(M, dtype=np.float64),
-        np.asarray(q, dtype=np.float64),
-        LEMKE_PIVOTS,
-        LEMKE_TOL,
-    )
-    return z if ok else None
-
-
 def _psd_lcp(G: FloatArray, g: FloatArray) -> FloatArray:
     """LCP(G, g) of a Delassus matrix G = J M^-1 J^T: compiled Lemke, else least squares.
 
@@ -555,27 +527,20 @@ def _psd_lcp(G: FloatArray, g: FloatArray) -> FloatArray:
     strictly convex in it), so the step is the same whichever solution a solver returns: the
     solver only changes it by rounding. Which rows carry the force can differ where the rows
     are dependent; Lemke's solution is basic, as the least-squares one (the Delassus block of
-    its support is non-singular: its final basis holds those columns). The compiled pivots
-    and their residual in one call (``kernels.lemke_checked``: the pivots of
-    :func:`~packbot.contact.normal_modes._lemke`) replace
-    :func:`~packbot.contact.lcp.solve_lcp_psd` (``eigh``, ``lstsq`` and scipy's NNLS) whenever
-    the residual passes; otherwise the least-squares solution, or Lemke's if its residual is
-    the smaller (the caller checks and reports it).
+    its support is non-singular: its final basis holds those columns). Lemke's pivots
+    (:func:`~packbot.contact.lcp.lemke`) replace :func:`~packbot.contact.lcp.solve_lcp_psd`
+    (``eigh``, ``lstsq`` and scipy's NNLS) whenever their residual passes; otherwise the
+    least-squares solution, or Lemke's if its residual is the smaller (the caller checks and
+    reports it).
     """
     n = len(g)
     if n == 0 or bool(np.all(g >= 0.0)):
         return np.zeros(n)
-    from packbot.contact import kernels  # lazy: numba is imported by contact runs only
-
-    z, res, ok = kernels.lemke_checked(
-        np.ascontiguousarray(G, dtype=np.float64),
-        np.asarray(g, dtype=np.float64),
-        LEMKE_PIVOTS,
-        LEMKE_TOL,
-    )
-    if ok and res <= RESIDUAL_TOL:
+    z = lemke(G, g)
+    res = lcp_residual(G, g, z) if z is not None else math.inf
+    if z is not None and res <= RESIDUAL_TOL:
         return z
     z2 = solve_lcp_psd(G, g)
-    if ok and res < lcp_residual(G, g, z2):
+    if z is not None and res < lcp_residual(G, g, z2):
         return z
     return z2

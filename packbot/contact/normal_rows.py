@@ -1,9 +1,10 @@
 """The rows of the contact set: kinematics, point layout, the modes' plan, patch staleness.
 
 Every patch point's normal row (gap, J_n, drift, v_n) and every pair's tangential rows at its
-patch centre come from one compiled call (:func:`packbot.contact.kernels.contact_rows`) over
-the point layout (:class:`_Layout`); :class:`_Plan` lists the rows of the constrained problem
-for the current modes. A sliding patch is rebuilt once stale (:meth:`ContactRows.stale`).
+patch centre come from one call of the extension (:meth:`NativeRhs.rows
+<packbot.contact.native.NativeRhs.rows>`) over the point layout (:class:`_Layout`);
+:class:`_Plan` lists the rows of the constrained problem for the current modes. A sliding
+patch is rebuilt once stale (:meth:`ContactRows.stale`).
 """
 
 from __future__ import annotations
@@ -14,9 +15,9 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-import pinocchio as pin
 from numpy.typing import NDArray
 
+from packbot.contact.native import NativeRhs
 from packbot.contact.normal_patch import _Pair
 from packbot.contact.normal_set import ContactSet
 from packbot.contact.normal_tolerances import POINT_TOL, STICK_SPEED
@@ -28,7 +29,7 @@ FloatArray = NDArray[np.float64]
 
 @dataclass
 class _Layout:
-    """Where the patch points of the contact set are, for the batched kinematics.
+    """Where the patch points of the contact set are, for the rows (the extension's layout).
 
     Every pair contributes its K points and its centre (their mean), on body 1 then on
     body 2: point i of the h = sum(K + 1) points is row i on body 1 and row h + i on body 2.
@@ -49,12 +50,6 @@ class _Layout:
     lim_value: FloatArray  # (limits,) the limit [rad]
     offset0: FloatArray  # (m_p, 2) per pair row, its tangential offset when built [m]
     slide_tol2: FloatArray  # (pairs,) the square of the slide each patch goes stale at [m^2]
-    no_bodies: FloatArray  # (0, 4, 4), the placements when no pair is in contact
-    # (position in joints, Pinocchio's live reference to data.oMi[joint]) of the moving joints
-    placements: list[tuple[int, Any]]
-    H: FloatArray  # (bodies, 4, 4) buffer of the placements (the world's: identity)
-    no_jacobian: FloatArray  # (6, nv) zeros, the Jacobians when no pair is in contact
-    fixed: tuple[Any, ...] = ()  # body ... lim_value: the kernels' arguments after q, v
 
 
 @dataclass
@@ -80,8 +75,8 @@ class ContactRows(ContactSet):
         """Rows of every contact: J_n (m, nv), drift (m,), gap (m,), v_n (m,).
 
         And per pair the tangential rows and the velocities at the patch centre
-        (:func:`packbot.contact.kernels.contact_rows`, compiled: every patch point of every
-        pair at once). The result depends only on (q, v) and the contact set, so it is cached
+        (:meth:`NativeRhs.rows <packbot.contact.native.NativeRhs.rows>`: every patch point of
+        every pair at once). The result depends only on (q, v) and the contact set, so it is cached
         (a few states: the mode conditions and the restart's problems ask for the same state
         several times); the cache is emptied whenever the contact set changes. The arrays
         returned are read-only.
@@ -90,7 +85,7 @@ class ContactRows(ContactSet):
         hit = self._kin_cache.get(key)
         if hit is not None:
             return hit
-        raw = _kernels().contact_rows(*self._kernel_args(q, v))
+        raw = self.rows_raw(q, v)
         rows, drift, gap, vn, JT, bT, vT, vt, nw, T, dJp, dP = raw
         extra = [
             {
@@ -114,29 +109,19 @@ class ContactRows(ContactSet):
         self._kin_cache[key] = out
         return out
 
-    def _kernel_args(self, q: FloatArray, v: FloatArray) -> tuple[Any, ...]:
-        """The arguments of :func:`packbot.contact.kernels.contact_rows` at (q, v).
+    def rows_raw(self, q: FloatArray, v: FloatArray) -> tuple[Any, ...]:
+        """The contact set's rows at (q, v), uncached.
 
-        With pairs in contact, one Pinocchio call: the joint Jacobians in the world frame and
-        their time variation (``data.J``, ``data.dJ``: per body, the spatial velocity J v and
-        the drift acceleration J' v at the world origin).
+        :meth:`NativeRhs.rows <packbot.contact.native.NativeRhs.rows>`'s tuple.
         """
-        lay = self._layout()
-        return (*self._bodies(lay, q, v), lay.masks, q, v, *lay.fixed)
+        return self._rows_rhs().rows(self, q, v)
 
-    def _bodies(
-        self, lay: _Layout, q: FloatArray, v: FloatArray
-    ) -> tuple[FloatArray, FloatArray, FloatArray]:
-        """The bodies' placements H, the joint Jacobians J and their time variation dJ."""
-        if not lay.joints:
-            return lay.no_bodies, lay.no_jacobian, lay.no_jacobian
-        model, data = self.model, self.data
-        pin.computeJointJacobiansTimeVariation(model, data, q, v)
-        H = lay.H  # (filled here, read by the kernel only)
-        for i, M in lay.placements:
-            H[i] = M.homogeneous
-        nv = self.nv
-        return H, data.J.reshape(6, nv), data.dJ.reshape(6, nv)  # (nv = 1: data.J is (6,))
+    def _rows_rhs(self) -> NativeRhs:
+        """The extension's object computing this set's rows (built at the first call)."""
+        rhs = self._rows_native
+        if rhs is None:
+            rhs = self._rows_native = NativeRhs(self.model)
+        return rhs
 
     def _layout(self) -> _Layout:
         """The point layout of the current contact set (cached until it changes)."""
@@ -191,13 +176,8 @@ class ContactRows(ContactSet):
             lim_value=np.array([value for _, value in limits], dtype=np.float64),
             offset0=_offset0(pairs),
             slide_tol2=np.array([p.slide_tol**2 for p in pairs], dtype=np.float64),
-            no_bodies=np.zeros((0, 4, 4)),
-            no_jacobian=np.asfortranarray(np.zeros((6, self.nv))),
-            placements=[(i, self.data.oMi[j]) for i, j in enumerate(joints) if j],
-            H=np.array([_I4 for _ in joints]) if joints else np.zeros((0, 4, 4)),
         )
         lay = self._lay
-        lay.fixed = _fixed(lay)
         self._lay_prev = (shape, lay)
         return lay
 
@@ -330,7 +310,7 @@ class ContactRows(ContactSet):
         """Whether a pair with engaged rows slides (its material points drift off the patch)."""
         if not self.engaged or not self.pairs or self.resting:
             return False
-        last = self._last_eval  # the step end's mode conditions computed them (same kernel)
+        last = self._last_eval  # the step end's mode conditions computed them (the same rows)
         if last is not None and _same(last[0], q) and _same(last[1], v):
             vts: Any = last[6].vt
         else:
@@ -387,7 +367,7 @@ class ContactRows(ContactSet):
         """
         if not self.pairs:
             return []
-        last = self._last_eval  # the step's end: the kernel computed the slides
+        last = self._last_eval  # the step's end: its evaluation computed the slides
         slide2: Any = None
         if last is not None and _same(last[0], q) and _same(last[1], v):
             gap, slide2 = last[6].gap, last[6].slide2
@@ -471,52 +451,19 @@ def _offset0(pairs: list[_Pair]) -> FloatArray:
     return np.ascontiguousarray(np.concatenate([p.offset0.T for p in pairs]))
 
 
-def _fixed(lay: _Layout) -> tuple[Any, ...]:
-    """The kernels' arguments after q, v (see :attr:`_Layout.fixed`)."""
-    return (
-        lay.body,
-        lay.local,
-        lay.pair,
-        lay.rows,
-        lay.centre,
-        lay.normal_body,
-        lay.frame2,
-        lay.lim_joint,
-        lay.lim_side,
-        lay.lim_value,
-    )
-
-
 def _replace_patches(lay: _Layout, pairs: list[_Pair]) -> _Layout:
     """A new layout of the same shape as ``lay`` with the patches of ``pairs``.
 
-    The pairs, their patch sizes and the limits are those of ``lay``; its index arrays,
-    masks and buffers are shared (none is written after it is built, but H, filled before
-    every kernel call); the points, frames, offsets and slides allowed are the new patches'.
+    The pairs, their patch sizes and the limits are those of ``lay``; its index arrays and
+    masks are shared (none is written after it is built); the points, frames, offsets and
+    slides allowed are the new patches'.
     """
     h = len(lay.pair)
     new = copy.copy(lay)  # (dataclasses.replace, without its field-by-field __init__)
     new.local, new.frame2, new.offset0 = _local(pairs, h), _frame2(pairs), _offset0(pairs)
     # (a new patch of the same size may slide further or less: a vertex on a face, the floor)
     new.slide_tol2 = np.array([p.slide_tol**2 for p in pairs], dtype=np.float64)
-    new.fixed = _fixed(new)
     return new
-
-
-_KERNELS: list[Any] = []  # packbot.contact.kernels once imported (see _kernels)
-
-
-def _kernels() -> Any:
-    """:mod:`packbot.contact.kernels`, imported at the first call, then kept.
-
-    Numba is imported by contact runs only, not by ``import packbot``; an import statement in
-    the right-hand side costs a microsecond a call.
-    """
-    if not _KERNELS:
-        from packbot.contact import kernels
-
-        _KERNELS.append(kernels)
-    return _KERNELS[0]
 
 
 def _same(a: FloatArray, b: FloatArray) -> bool:
@@ -529,6 +476,3 @@ def _centre_velocities(extra: list[dict[str, Any]]) -> FloatArray:
     if not extra:
         return np.zeros((0, 3))
     return np.array([ex["vt"] for ex in extra])
-
-
-_I4 = np.eye(4)

@@ -16,6 +16,7 @@ import numpy as np
 import pinocchio as pin
 from numpy.typing import NDArray
 
+from packbot import _native
 from packbot.collision import CollisionWorld, PairInfo
 from packbot.collision_queries import material_batch, patch_batch
 from packbot.contact.normal_patch import _Pair, _planes
@@ -36,7 +37,8 @@ log = logging.getLogger(__name__)
 FloatArray = NDArray[np.float64]
 
 #: Build the patches' material points in the extension's sweep (``Sweep.materials``) when the
-#: world has one; False: the compiled kernel on the native patches (the same to the bit).
+#: world has one; False: ``packbot._native.patch_material`` on the patches one by one (the
+#: same code, ``src/native/material.hpp``).
 MATERIALS_NATIVE = True
 
 
@@ -113,6 +115,9 @@ class ContactSet:
         #: The law's compiled right-hand side (set by the law; None: the Python path), for the
         #: restart's projection and impact (:mod:`packbot.contact.normal_steps`).
         self.native: NativeRhs | None = None
+        #: The extension's contact rows and constrained accelerations for this set's own calls
+        #: (its layout and plan loaded there; built at the first call: see ContactRows._rows_rhs).
+        self._rows_native: NativeRhs | None = None
         self._kin_cache: dict[tuple[bytes, bytes], Any] = {}  # see _kinematics
         self._planes_cache: dict[int, tuple[FloatArray, FloatArray]] = {}
         self._unbounded_cache: dict[int, bool] = {}
@@ -174,9 +179,7 @@ class ContactSet:
         assert world is not None
         if not pairs:
             return []
-        from packbot.contact import kernels  # lazy: numba is imported by contact runs only
-
-        material = kernels.patch_material
+        material = _native.patch_material
         t = self.tol if tol is None else tol
         ks = [world._pair_id(k) for k in pairs]
         self._built = (q.tobytes(), t)  # (_put marks the patches with it)
@@ -211,8 +214,8 @@ class ContactSet:
 
         ``Sweep.materials`` (``src/native/material.hpp``): the same Coal patches as
         :func:`~packbot.collision_queries.patch_batch` and
-        :func:`~packbot.contact.kernels.patch_material`'s arithmetic on them, bit for bit
-        (``tests/test_native_material.py``); a patch off its pair's distance
+        the patch materials of :meth:`_put` (``src/native/material.hpp``, one implementation
+        for both); a patch off its pair's distance
         is made here from the witness points, as :meth:`_put` does.
         """
         world = self.world
@@ -228,11 +231,9 @@ class ContactSet:
                 out.append(False)
                 continue
             if K < 0:  # off its distance: the witness points (see _put)
-                from packbot.contact import kernels
-
                 self._put(
                     q, k, normals[i], None, None, float(depths[i]), rot[i, 0], trans[i, 0],
-                    rot[i, 1], trans[i, 1], {}, kernels.patch_material,
+                    rot[i, 1], trans[i, 1], {}, _native.patch_material,
                 )  # fmt: skip
                 out.append(True)
                 continue
@@ -296,7 +297,7 @@ class ContactSet:
             Rg2: Piece 2's world rotation.
             tg2: Piece 2's world translation [m].
             frames: The joints' placements already read at q, by joint (filled here).
-            material: ``kernels.patch_material``.
+            material: ``packbot._native.patch_material`` (``src/native/material.hpp``).
         """
         assert self.world is not None
         old = self.pairs.get(pair)

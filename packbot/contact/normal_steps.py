@@ -464,7 +464,7 @@ def _impact_cones(
         The impulses (blocks (t1, t2, n) [N*s]) and their true residual.
     """
     if IMPACT_CONIC:
-        from packbot.contact import conic  # (numba's cache: loaded at the first impact)
+        from packbot.contact import conic  # (the windows' solver)
 
         try:
             C = np.linalg.cholesky(minv)

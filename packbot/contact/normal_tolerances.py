@@ -36,7 +36,7 @@ CAPTURE_ACCEL = 1e-2
 #: A sliding pair's patch is rebuilt once its material points have slid this far apart
 #: tangentially since it was built [m] (see :meth:`NormalContacts.stale`). The rows are the
 #: exact derivatives of the patch's gaps and of its centres' slides, the frame turning with
-#: the body whose face it is (``kernels.contact_rows``): a kept patch's forces act where the
+#: the body whose face it is (the extension's rows): a kept patch's forces act where the
 #: bodies touch, and its gaps stay the distances while a vertex slides on a face (the gap
 #: condition of ``stale``, POINT_TOL, catches a curved body's next facet or a point sliding
 #: off its face). What a slide leaves behind is the shape of a face-on-face patch: its corners

@@ -45,16 +45,17 @@ theta = 1, i.e. symplectic Euler with impulses):
    way is counted (:attr:`StepInfo.removed`, ``Diagnostics.window_energy_removed``): a
    modelling choice of the window, measured in docs/contact.md.
 
-The step's small dense algebra (the rows, the Cholesky factor of M^-1, the Delassus factor,
-the patch rule, the signature) is compiled (:mod:`packbot.contact.conic`, numba); the sweep at a
-step's end serves the next step's contact set, and the energy at its end the next step's
-guard. A step whose contact set stays as it is, under fixed torques, is one native call with
-the same arithmetic (:meth:`MoreauJeanStepper._native_step`: the free velocity, M^-1, the rows,
-the patch rule, the problem and the solver, v1, q1 and the guard's energies); it hands the step
-back to Python where the set changes, a row bounces or the impulses do not converge. Where the
-set changes, Python updates it and the same call, its set checks off, takes the impulses
-(:meth:`MoreauJeanStepper._python_step`). What a
-step costs, and where: docs/performance.md, "Window steps".
+The step's rows come from the extension; its problem (the Cholesky factor of M^-1, the Delassus
+factor, the patch rule, the signature) is built in numpy and solved by the extension's low-rank
+ADMM (:mod:`packbot.contact.conic`); the sweep at a step's end serves the next step's contact
+set, and the energy at its end the next step's guard. A step whose contact set stays as it is,
+under fixed torques, is one native call with the same arithmetic
+(:meth:`MoreauJeanStepper._native_step`: the free velocity, M^-1, the rows, the patch rule, the
+problem and the solver, v1, q1 and the guard's energies); it hands the step back to Python
+where the set changes, a row bounces or the impulses do not converge. Where the set changes,
+Python updates it and the same call, its set checks off, takes the impulses
+(:meth:`MoreauJeanStepper._python_step`). What a step costs, and where: docs/performance.md,
+"Window steps".
 
 A step's *signature* is what the solution decided: the pairs and limits pushing, the pairs
 sliding, the joints slipping. The law (:class:`~packbot.contact.normal.NormalLaw`) leaves the
@@ -281,10 +282,9 @@ class MoreauJeanStepper:
         # the last step's end state (q, v bytes) and its energy [J], or None
         self._end_energy: tuple[bytes, float] | None = None
         self._eye = np.eye(self.n)  # its rows: the joint boxes' rows
-        # the compiled pieces (lazy: numba is imported by windows only)
-        from packbot.contact import conic, kernels
+        from packbot.contact import conic  # (the windows' problem and its solver)
 
-        self._conic, self._kernels = conic, kernels
+        self._conic = conic
         # the event-driven mode's patch rule (NormalContacts.stale_pairs), see _stale
         self._point_tol = normal_tolerances.POINT_TOL
         self._lay: _PairLayout | None = None  # see _layout
@@ -494,7 +494,7 @@ class MoreauJeanStepper:
         minv = sys.minv(q)
         lay = self._layout()
         if raw is None:  # (the set changed since the kinematics of its patch rule)
-            raw = self._kernels.contact_rows(*contacts._kernel_args(q, v))
+            raw = contacts.rows_raw(q, v)
         Jn, gap, vn = raw[0], raw[2], raw[3]
         m = len(gap)
         coul = self.drive.path.coulomb
@@ -735,8 +735,8 @@ class MoreauJeanStepper:
 
         Returns:
             The smallest signed distance of the sweep [m] and its pair (-1: none); the set's
-            kinematics at (q, v) (:func:`packbot.contact.kernels.contact_rows`) if the patch
-            rule computed them and the set has not changed since, else None.
+            rows at (q, v) (:meth:`NativeRhs.rows <packbot.contact.native.NativeRhs.rows>`) if
+            the patch rule computed them and the set has not changed since, else None.
         """
         contacts, cfg = self.contacts, self.cfg
         r = self.reach  # (a point's speed is at most r . |v|)
@@ -816,7 +816,7 @@ class MoreauJeanStepper:
         if c._last_eval is not None:
             return c.stale_pairs(q, v, near), None
         lay = self._layout()
-        raw = self._kernels.contact_rows(*c._kernel_args(q, v))
+        raw = c.rows_raw(q, v)
         dist = np.array([near.get(k, math.nan) for k in lay.keys])
         stale = self._conic.stale_pairs(
             raw[2], raw[9], raw[11], lay.rows, lay.pair, lay.offset0, dist,

@@ -1,12 +1,18 @@
-// The Python module packbot._native (nanobind): ContactRhs (contact_rhs.hpp) and the native
-// stretch on it, Stretch (stretch_glue.hpp).
+// The Python module packbot._native (nanobind): ContactRhs (contact_rhs.hpp), the native
+// stretch on it, Stretch (stretch_glue.hpp), and the small solvers and the patch materials the
+// Python side calls alone: lemke and lcp_residual (lcp.hpp), solve_conic and conic_residual
+// (conic.hpp), patch_material (material.hpp).
 
+#include "conic.hpp"
 #include "contact_rhs.hpp"
+#include "lcp.hpp"
+#include "material.hpp"
 #include "stretch_glue.hpp"
 
 #include <nanobind/stl/string.h>
 #include <nanobind/stl/vector.h>
 
+#include <initializer_list>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -18,15 +24,128 @@ using packbot_native::stretch_run;
 using packbot_native::stretch_set_modes;
 using packbot_native::stretch_set_repatch;
 
+namespace {
+
+using Arr = nb::ndarray<nb::numpy, double>;
+
+// A new numpy array of this shape holding the first prod(shape) doubles of p.
+Arr owned(const double *p, std::initializer_list<size_t> shape) {
+  size_t n = 1;
+  for (const size_t s : shape) n *= s;
+  auto *buf = new double[n ? n : 1];
+  std::copy(p, p + n, buf);
+  nb::capsule owner(buf, [](void *d) noexcept { delete[] static_cast<double *>(d); });
+  return Arr(buf, shape, owner);
+}
+
+void square(const F2 &M, const F1 &q) {
+  if (M.shape(0) != q.shape(0) || M.shape(1) != q.shape(0))
+    throw std::invalid_argument("M (n, n) and q (n) expected");
+}
+
+// LCP(M, q) by Lemke's pivots: (z, ok), ok false on ray termination or the pivot limit.
+nb::tuple lemke(F2 M, F1 q, int max_iter, double tol) {
+  square(M, q);
+  const int n = static_cast<int>(q.shape(0));
+  std::vector<double> z(n);
+  packbot_native::lcp::Work wk;
+  const bool ok = packbot_native::lcp::lemke(M.data(), q.data(), n, max_iter, tol, z.data(), wk);
+  return nb::make_tuple(owned(z.data(), {z.size()}), ok);
+}
+
+// The scaled residual of z for LCP(M, q).
+double lcp_residual(F2 M, F1 q, F1 z) {
+  square(M, q);
+  if (z.shape(0) != q.shape(0)) throw std::invalid_argument("z (n) expected");
+  return packbot_native::lcp::residual(M.data(), q.data(), static_cast<int>(q.shape(0)),
+                                       z.data());
+}
+
+std::vector<double> values(const F1 &x) {
+  return std::vector<double>(x.data(), x.data() + x.shape(0));
+}
+
+void conic_shapes(const F2 &A, const F1 &g, const F1 &x, const F1 &mus, const F1 &bound) {
+  const size_t m = A.shape(0);
+  if (g.shape(0) != m || x.shape(0) != m || 3 * mus.shape(0) + bound.shape(0) != m)
+    throw std::invalid_argument("A (m, r), g and x (m), mus (K) and bound (B), m = 3 K + B");
+}
+
+// The window step's problem by the low-rank ADMM from `guess`: (x, residual, iterations, rho).
+nb::tuple solve_conic(F2 A, F1 g, F1 mus, F1 bound, F1 guess, double tol, int max_iterations,
+                      double rho0) {
+  conic_shapes(A, g, guess, mus, bound);
+  const int m = static_cast<int>(A.shape(0)), r = static_cast<int>(A.shape(1));
+  std::vector<double> x = values(guess);
+  const auto sol = packbot_native::conic::solve(A.data(), m, r, g.data(), values(mus),
+                                                values(bound), x.data(), tol, max_iterations,
+                                                rho0);
+  return nb::make_tuple(owned(x.data(), {x.size()}), sol.residual, sol.iterations, sol.rho);
+}
+
+// The true scaled residual of x for the window step's problem (G = A A^T).
+double conic_residual(F2 A, F1 g, F1 x, F1 mus, F1 bound) {
+  conic_shapes(A, g, x, mus, bound);
+  return packbot_native::conic::residual(A.data(), static_cast<int>(A.shape(0)),
+                                         static_cast<int>(A.shape(1)), g.data(), x.data(),
+                                         values(mus), values(bound));
+}
+
+packbot_native::material::Planes planes(const F2 &N, const F1 &o) {
+  if (N.shape(0) != o.shape(0) || (N.shape(0) && N.shape(1) != 3))
+    throw std::invalid_argument("face planes: N (F, 3) and o (F) expected");
+  return {N.data(), o.data(), N.shape(0)};
+}
+
+// A contact patch as material points (material::patch_material): (ok, local1, local2,
+// normal2, frame2, centre1, centre2, offset0, on1).
+nb::tuple patch_material(F2 p1, F2 p2, F1 n, double distance, F2 N1, F1 o1, F2 Rg1, F1 tg1,
+                         F2 N2, F1 o2, F2 Rg2, F1 tg2, F2 RM1, F1 tM1, F2 RM2, F1 tM2,
+                         double patch_tol, bool check) {
+  const size_t K = p1.shape(0);
+  if (K == 0 || p1.shape(1) != 3 || p2.shape(0) != K || p2.shape(1) != 3 || n.shape(0) != 3)
+    throw std::invalid_argument("p1, p2 (K, 3), K > 0, and n (3) expected");
+  for (const F2 *R : {&Rg1, &Rg2, &RM1, &RM2})
+    if (R->shape(0) != 3 || R->shape(1) != 3) throw std::invalid_argument("rotations (3, 3)");
+  for (const F1 *t : {&tg1, &tg2, &tM1, &tM2})
+    if (t->shape(0) != 3) throw std::invalid_argument("translations (3)");
+  std::vector<double> l1(3 * K), l2(3 * K), off(2 * K), scratch;
+  const auto made = packbot_native::material::patch_material(
+      p1.data(), p2.data(), K, n.data(), distance, planes(N1, o1), Rg1.data(), tg1.data(),
+      planes(N2, o2), Rg2.data(), tg2.data(), RM1.data(), tM1.data(), RM2.data(), tM2.data(),
+      patch_tol, l1.data(), l2.data(), off.data(), scratch, check);
+  return nb::make_tuple(made.ok, owned(l1.data(), {K, 3}), owned(l2.data(), {K, 3}),
+                        owned(made.normal2, {3}), owned(made.frame2, {3, 3}),
+                        owned(made.centre1, {1, 3}), owned(made.centre2, {1, 3}),
+                        owned(off.data(), {2, K}), made.on1);
+}
+
+}  // namespace
+
 NB_MODULE(_native, m) {
   m.doc() = "packbot's compiled right-hand side of the contact-normal mode (Pinocchio, nanobind).";
   m.attr("PINOCCHIO_VERSION") = PINOCCHIO_VERSION;
+  m.def("lemke", &lemke, nb::arg("M"), nb::arg("q"), nb::arg("max_iter"), nb::arg("tol"));
+  m.def("lcp_residual", &lcp_residual, nb::arg("M"), nb::arg("q"), nb::arg("z"));
+  // (the solver's stall rule: a residual within this many times the tolerance may stop it)
+  m.attr("CONIC_STALL_OK") = packbot_native::conic::STALL_OK;
+  m.def("solve_conic", &solve_conic, nb::arg("A"), nb::arg("g"), nb::arg("mus"), nb::arg("bound"),
+        nb::arg("guess"), nb::arg("tol"), nb::arg("max_iterations"), nb::arg("rho0"));
+  m.def("conic_residual", &conic_residual, nb::arg("A"), nb::arg("g"), nb::arg("x"),
+        nb::arg("mus"), nb::arg("bound"));
+  m.def("patch_material", &patch_material, nb::arg("p1"), nb::arg("p2"), nb::arg("n"),
+        nb::arg("distance"), nb::arg("N1"), nb::arg("o1"), nb::arg("Rg1"), nb::arg("tg1"),
+        nb::arg("N2"), nb::arg("o2"), nb::arg("Rg2"), nb::arg("tg2"), nb::arg("RM1"),
+        nb::arg("tM1"), nb::arg("RM2"), nb::arg("tM2"), nb::arg("patch_tol"), nb::arg("check"));
   nb::class_<ContactRhs>(m, "ContactRhs")
       .def(nb::init<const std::vector<std::string> &, I1, F3, F2, F1, F2, F3, F1, F1>(),
            nb::arg("types"), nb::arg("parents"), nb::arg("placements"), nb::arg("axes"),
            nb::arg("masses"), nb::arg("levers"), nb::arg("inertias"), nb::arg("armature"),
            nb::arg("gravity"))
       .def_prop_ro("nv", &ContactRhs::nv)
+      .def("rows", &ContactRhs::rows_out, nb::arg("q"), nb::arg("v"))
+      .def("evaluate", &ContactRhs::evaluate_at, nb::arg("q"), nb::arg("v"), nb::arg("a_free"),
+           nb::arg("minv"))
       .def("set_layout", &ContactRhs::set_layout)
       .def("set_patches", &ContactRhs::set_patches, nb::arg("local"), nb::arg("frame2"),
            nb::arg("offset0"), nb::arg("slide_tol2"))

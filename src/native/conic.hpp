@@ -1,6 +1,6 @@
-// A time-stepping window step's complementarity problem and its low-rank ADMM, ported loop for
-// loop from packbot/contact/conic.py (step_problem, solve_conic and its helpers; the same
-// constants, the same order of operations), for ContactRhs::window_step.
+// A time-stepping window step's complementarity problem and its low-rank ADMM (the method:
+// packbot/contact/conic.py's docstring), for ContactRhs::window_step and for the window's
+// Python steps (packbot._native.solve_conic and conic_residual).
 //
 // Rows come in blocks (t1, t2, n) per contact row, then one unit row per joint box; G = A A^T
 // with A = J C, C the lower Cholesky factor of M^-1. Row-major arrays throughout.
@@ -15,7 +15,6 @@
 namespace packbot_native {
 namespace conic {
 
-// (packbot.contact.conic's constants)
 constexpr int CHECK_EVERY = 10;
 constexpr double PROX = 1e-6;
 constexpr double RHO_POWER = 0.2;

@@ -6,12 +6,12 @@
 // between this module's Pinocchio and the pin wheel's, so the two need not share an ABI), its
 // Data, the contact set's point layout and the current modes' plan, and every work array (sized
 // when the layout or the plan change: no allocation per call). ``accel`` then does what
-// packbot's Python path does per call:
+// the contact-normal mode needs per call:
 //
 //   aba (unconstrained accelerations, armature included; or a_free given), computeMinverse,
 //   computeJointJacobiansTimeVariation, then the contact rows and the constrained
-//   accelerations of packbot/contact/kernels.py (contact_rows, constrained_accel), ported loop
-//   for loop (same order of operations), so the two agree to rounding.
+//   accelerations (their one implementation: the contact set's Python side reads them through
+//   rows_out and evaluate_at).
 //
 // Conventions as packbot.contact.normal.NormalContacts: world frame, SI units; a row's gap and
 // normal velocity are body 2 minus body 1 along the normal carried by body 2.
@@ -20,8 +20,8 @@
 // concept a file:
 //   contact_rhs_model.cpp     the model, the layout, the loaded constants, the work arrays
 //   contact_rhs_passes.cpp    Pinocchio's passes (aba, M^-1, crba, ...: their one instance)
-//   contact_rhs_rows.cpp      the contact rows (kernels.contact_rows)
-//   contact_rhs_dynamics.cpp  the constrained accelerations of the modes (constrained_accel)
+//   contact_rhs_rows.cpp      the contact rows
+//   contact_rhs_dynamics.cpp  the constrained accelerations of the modes
 //   contact_rhs_locks.cpp     the joint locks (the report's law instead of the contact rows)
 //   contact_rhs_events.cpp    the step end: its evaluation, a row's event, its screen
 //   contact_rhs_step.cpp      the integrator steps (Dormand-Prince 5(4), RODAS4)
@@ -130,6 +130,7 @@ class ContactRhs {
 
   // ---- the contact rows: contact_rhs_rows.cpp
   packbot_native::Rows rows_view() const;
+  nb::tuple rows_out(F1 q, F1 v);
 
   // ---- the constrained accelerations of the modes: contact_rhs_dynamics.cpp
   void set_plan(I1 engaged, I1 row_slip, I1 sticks, double mu, double stick_speed,
@@ -143,6 +144,7 @@ class ContactRhs {
                       const std::vector<double> &slip_dir, const double *a_free, const double *Mi,
                       double mu, double stick_speed, double baumgarte, double *a, double *cond,
                       std::vector<double> &lam);
+  nb::object evaluate_at(F1 q, F1 v, F1 a_free, F2 minv);
   nb::tuple last() const;
 
   // ---- the joint locks: contact_rhs_locks.cpp

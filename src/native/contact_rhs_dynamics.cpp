@@ -1,6 +1,6 @@
-// ContactRhs: the constrained accelerations of the current modes (packbot/contact/kernels.py
-// constrained_accel): the plan (engaged rows, slipping and sticking pairs), a stage of the
-// right-hand side, M^-1, the Delassus system and its solve, the mode conditions.
+// ContactRhs: the constrained accelerations of the current modes: the plan (engaged rows,
+// slipping and sticking pairs), a stage of the right-hand side, M^-1, the Delassus system and
+// its solve, the mode conditions.
 
 #include "contact_rhs.hpp"
 #include "rows.hpp"
@@ -108,8 +108,8 @@ bool ContactRhs::accel(F1 q, F1 v, F1 x, bool from_tau, Out1 out) {
 
 // The constrained accelerations at the rows computed (rows_at) with the modes (the engaged
 // rows, the pairs' stick flags and slip directions: the plan of ContactRows._plan), a_free
-// and Mi given: a (nv), the smallest mode condition and the forces (kernels.constrained_accel,
-// as ConstrainedDynamics.evaluate); false when the Delassus matrix is singular. The plan is
+// and Mi given: a (nv), the smallest mode condition and the forces (as
+// ConstrainedDynamics.evaluate); false when the Delassus matrix is singular. The plan is
 // loaded (set_plan's).
 bool ContactRhs::evaluate_modes(const std::vector<int> &eng, const std::vector<char> &stick,
                                 const std::vector<double> &slip_dir, const double *a_free,
@@ -131,6 +131,31 @@ bool ContactRhs::evaluate_modes(const std::vector<int> &eng, const std::vector<c
   *cond = end_conditions();
   lam.assign(lam_.begin(), lam_.begin() + n_);
   return true;
+}
+
+// The constrained accelerations of the loaded plan at (q, v) with a_free and M^-1 given (the
+// contact set's Python side: packbot.contact.normal_dynamics.ConstrainedDynamics.evaluate):
+// end_eval's tuple (cond, a, lam, gap, vn, vt, slide2) there; None when the Delassus matrix
+// is singular (the caller solves by least squares).
+nb::object ContactRhs::evaluate_at(F1 q, F1 v, F1 a_free, F2 minv) {
+  const size_t n = static_cast<size_t>(nv_);
+  if (q.shape(0) != n || v.shape(0) != n || a_free.shape(0) != n || minv.shape(0) != n ||
+      minv.shape(1) != n)
+    throw std::invalid_argument("q, v, a_free (nv) and minv (nv, nv) expected");
+  if (lock_mode_ >= 0)
+    throw std::invalid_argument("evaluate_at: the contact rows' call (set_locks)");
+  if (!conditions_set_) throw std::invalid_argument("evaluate_at: set_conditions first");
+  rows_at(q.data(), v.data());
+  const double *af = a_free.data(), *Mi = minv.data();
+  for (int i = 0; i < nv_; ++i) {
+    a_free_[i] = af[i];
+    for (int c = 0; c < nv_; ++c) minv_(i, c) = Mi[i * nv_ + c];
+  }
+  if (!solve_plan()) return nb::none();
+  const double cond = end_conditions();
+  return nb::make_tuple(cond, vec(a_.data(), nv_), vec(lam_.data(), n_), vec(gap_.data(), m_),
+                        vec(vn_.data(), m_), mat(vt_.data(), np_, 3),
+                        vec(slide2_.data(), np_));
 }
 
 // The last call's unconstrained accelerations, M^-1, forces, gaps, normal velocities,
@@ -190,7 +215,7 @@ bool ContactRhs::compute(bool after_aba) {
   return solve_plan();
 }
 
-// kernels.constrained_accel on the rows computed, with minv_, a_free_ and the plan loaded:
+// The constrained accelerations on the rows computed, with minv_, a_free_ and the plan loaded:
 // a_ and the forces lam_; false when the Delassus matrix is singular.
 bool ContactRhs::solve_plan() {
   const int nv = nv_;
@@ -259,7 +284,7 @@ bool ContactRhs::solve_plan() {
 
 // The smallest mode condition at the last dopri's end (returned; pos_ and, with friction,
 // slipping_ set) and each pair's largest squared slide (slide2_), as
-// kernels.constrained_accel computes them.
+// ConstrainedDynamics.evaluate reads them.
 double ContactRhs::end_conditions() {
   double cond = std::numeric_limits<double>::infinity();
   pos_.assign(m_, -1);

@@ -14,7 +14,7 @@
 
 // The step end's evaluation: when the last call was a dopri whose FSAL stage was at exactly
 // y1 (no call or load since), (cond, a, lam, gap, vn, vt, slide2) there, as
-// kernels.constrained_accel returns them (cond: the smallest mode condition, slide2: each
+// ConstrainedDynamics.evaluate reads them (cond: the smallest mode condition, slide2: each
 // pair's largest squared slide); else None.
 nb::object ContactRhs::end_eval(F1 y1) {
   if (!at_end(y1)) return nb::none();

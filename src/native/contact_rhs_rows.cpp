@@ -1,11 +1,50 @@
-// ContactRhs: the contact rows (packbot/contact/kernels.py contact_rows) from the joint
-// placements, Jacobians and their time variation: the points, the normal rows (Jn, drift, gap,
+// ContactRhs: the contact rows of the contact-normal mode from the joint placements, Jacobians
+// and their time variation: the points, the normal rows (Jn, drift, gap,
 // vn), the limit rows, the centres' tangential rows (JT, bT, vT) and sliding velocities.
 
 #include "contact_rhs.hpp"
 #include "rows.hpp"
 
 #include <pinocchio/spatial/act-on-set.hpp>
+
+#include <algorithm>
+#include <cstddef>
+#include <initializer_list>
+#include <stdexcept>
+#include <vector>
+
+namespace {
+
+// A numpy copy of the first prod(shape) doubles of v.
+nb::ndarray<nb::numpy, double> copy_of(const std::vector<double> &v,
+                                       std::initializer_list<size_t> shape) {
+  size_t n = 1;
+  for (const size_t s : shape) n *= s;
+  auto *buf = new double[n ? n : 1];
+  std::copy(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(n), buf);
+  nb::capsule owner(buf, [](void *d) noexcept { delete[] static_cast<double *>(d); });
+  return nb::ndarray<nb::numpy, double>(buf, shape, owner);
+}
+
+}  // namespace
+
+// The rows at (q, v) with the loaded layout (rows_at), copied out for the contact set's
+// Python side (packbot.contact.normal_rows.ContactRows._kinematics): Jn (m, nv), drift, gap,
+// vn (m), JT (np, 2, nv), bT, vT (np, 2), vt (np, 3), F (np, 3, 3: rows t1, t2, n of each
+// pair's contact frame, world), dJp (h, 3, nv) and dP (h, 3) at every point and centre.
+nb::tuple ContactRhs::rows_out(F1 q, F1 v) {
+  const size_t nv = static_cast<size_t>(nv_);
+  if (q.shape(0) != nv || v.shape(0) != nv)
+    throw std::invalid_argument("q and v: nv entries expected");
+  if (lock_mode_ >= 0) throw std::invalid_argument("rows_out: the contact rows' call (set_locks)");
+  rows_at(q.data(), v.data());
+  const size_t m = static_cast<size_t>(m_), np = static_cast<size_t>(np_);
+  const size_t h = static_cast<size_t>(h_);
+  return nb::make_tuple(copy_of(Jn_, {m, nv}), copy_of(drift_, {m}), copy_of(gap_, {m}),
+                        copy_of(vn_, {m}), copy_of(JT_, {np, 2, nv}), copy_of(bT_, {np, 2}),
+                        copy_of(vT_, {np, 2}), copy_of(vt_, {np, 3}), copy_of(F_, {np, 3, 3}),
+                        copy_of(dJp_, {h, 3, nv}), copy_of(dP_, {h, 3}));
+}
 
 // The rows computed (rows_at) as the restart's native steps read them.
 packbot_native::Rows ContactRhs::rows_view() const {
@@ -60,7 +99,8 @@ void ContactRhs::rows_at(const double *q, const double *v) {
   rows();
 }
 
-// kernels.contact_rows, with H, J, dJ from data_.
+// Every contact row of the loaded layout, with H, J, dJ from data_ (H: the bodies' world
+// placements; J, dJ: Pinocchio's joint Jacobians at the world origin and their time variation).
 void ContactRhs::rows() {
   const int nv = nv_;
   for (int b = 0; b < nb_; ++b) {
@@ -147,7 +187,7 @@ void ContactRhs::rows() {
     const int p = static_cast<int>(pair_[k]);
     const double *n = &F_[9 * p + 6];
     // n turns with the body b carrying it: the exact derivatives of the gap n . (p2 - p1)
-    // (kernels.contact_rows: the terms in dP = p2 - p1, zero when b is the world)
+    // (the terms in dP = p2 - p1, zero when b is the world)
     const int b = static_cast<int>(normal_body_[p]);
     const double *w = &Vb_[6 * b + 3];
     const double *al = &Ab_[6 * b + 3];
@@ -191,7 +231,7 @@ void ContactRhs::rows() {
   }
   for (int p = 0; p < np_; ++p) {
     // the centres' tangential slides t . (c2 - c1), the tangents turning with the frame's
-    // body b: their exact derivatives (kernels.contact_rows, as the normal rows above); the
+    // body b: their exact derivatives (as the normal rows above); the
     // sliding velocity where the bodies touch, v_rel - w x dP
     const int c0 = static_cast<int>(centre_[p]);
     const double *F = &F_[9 * p];

@@ -1,6 +1,6 @@
-// Lemke's complementary pivoting for the restart's small LCPs, ported loop for loop from
-// packbot/contact/kernels.py (lemke_small: the same tableau, pivots and order of operations; and
-// lemke_checked's residual), for ContactRhs::project_round and ContactRhs::impact.
+// Lemke's complementary pivoting for the contact-normal mode's small LCPs, and the residual of
+// a solution: for ContactRhs::project_round and ContactRhs::impact, and for the Python side
+// (packbot._native.lemke and lcp_residual).
 //
 // LCP(M, q): find z >= 0 with w = M z + q >= 0 and z . w = 0. Row-major arrays throughout.
 
@@ -101,8 +101,8 @@ inline bool lemke(const double *M, const double *q, int n, int max_iter, double 
   return false;
 }
 
-// The residual of an LCP solution relative to the problem's scale (kernels.lemke_checked,
-// lcp.lcp_residual): max(-min z, -min w, |z . w| / s, 0) / s, s = 1 + |q|_inf + |M z|_inf.
+// The residual of an LCP solution relative to the problem's scale (lcp.lcp_residual's
+// definition): max(-min z, -min w, |z . w| / s, 0) / s, s = 1 + |q|_inf + |M z|_inf.
 inline double residual(const double *M, const double *q, int n, const double *z) {
   if (n == 0) return 0.0;
   double qmax = 0.0, gzmax = 0.0, zw = 0.0;

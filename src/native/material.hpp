@@ -1,10 +1,6 @@
-// A contact patch as material points: packbot.contact.kernels.patch_material in C++.
-//
-// Line for line the compiled kernel's arithmetic (the same loops, the same order of operations;
-// no fused multiply-adds on the baseline x86-64 target the extension is built for, which has
-// none, as in the rest of the extension), so the same points, frames and offsets to the last
-// bit (tests/test_native_material.py compares them on named, random and collapse
-// configurations with every kind of obstacle).
+// A contact patch as material points (patch_material), for the collision sweep's batch
+// (packbot._native_coal's Sweep.materials) and the contact set's pair by pair patches
+// (packbot._native.patch_material).
 //
 // Conventions: a rotation R (3x3) is row-major, R[3 * r + c] = R(r, c), as Pinocchio's
 // SE3::rotation(); a face plane j of a piece is N[3 * j + i] (unit outward normal, piece frame)
@@ -26,8 +22,8 @@ struct Planes {
   size_t F = 0;
 };
 
-// kernels._lift_points: the points mid (K, 3) moved along n onto the face most aligned with
-// sign * n (placement R, t); false when that face is too oblique (|N_f . n| < 0.5).
+// The points mid (K, 3) moved along n onto the face most aligned with sign * n (placement
+// R, t); false when that face is too oblique (|N_f . n| < 0.5).
 inline bool lift_points(const Planes &P, const double *R, const double *t, const double *mid,
                         size_t K, const double *n, double sign, double *out) {
   double nl[3];
@@ -59,7 +55,7 @@ inline bool lift_points(const Planes &P, const double *R, const double *t, const
   return true;
 }
 
-// kernels._consistent_points: the smallest gap along n within patch_tol of the distance, none
+// Whether the points' gaps are consistent with the pair's distance: the smallest gap along n within patch_tol of the distance, none
 // beyond distance + 1 mm.
 inline bool consistent_points(const double *p1, const double *p2, size_t K, const double *n,
                               double distance, double patch_tol) {
@@ -69,13 +65,13 @@ inline bool consistent_points(const double *p1, const double *p2, size_t K, cons
     const double *a = p1 + 3 * k, *b = p2 + 3 * k;
     double g = (b[0] - a[0]) * n[0] + (b[1] - a[1]) * n[1];
     g += (b[2] - a[2]) * n[2];
-    lo = std::min(lo, g);  // (numba's min and max: the same for non-NaN values)
+    lo = std::min(lo, g);
     hi = std::max(hi, g);
   }
   return std::abs(lo - distance) <= patch_tol && hi <= distance + 1e-3;
 }
 
-// kernels.normal_owner: whether n (world, body 1 to body 2) is a face normal of body 1 rather
+// Whether n (world, body 1 to body 2) is a face normal of body 1 rather
 // than of body 2 (placements Rg1, Rg2 of the pieces).
 inline bool normal_owner(const Planes &P1, const double *Rg1, const Planes &P2, const double *Rg2,
                          const double *n) {
@@ -96,7 +92,7 @@ inline bool normal_owner(const Planes &P1, const double *Rg1, const Planes &P2, 
   return best1 > best2;
 }
 
-// What patch_material makes of one patch (the kernel's returned tuple).
+// What patch_material makes of one patch.
 struct Made {
   bool ok = true;
   bool on1 = false;
@@ -106,32 +102,38 @@ struct Made {
   double centre2[3];
 };
 
-// kernels.patch_material with check=True: local1, local2 (K, 3) and offset0 (2, K, row-major)
-// written to the caller's buffers; scratch holds 4 K x 3 doubles.
+// A contact patch as material points: its points on each body, in the joints' frames. Coal
+// puts every patch point at the patch's one depth; with `check`, each body's points are moved
+// along the normal onto that body's face most aligned with the normal (none: Coal's points),
+// unless a face is too oblique or the lifted points' gaps are off the pair's distance (then
+// Coal's points are kept, and ok is false when even they are off it). Without `check` the
+// points are taken as they are (the witness pair). local1, local2 (K, 3) and offset0 (2, K,
+// row-major) written to the caller's buffers; scratch holds 9 K doubles.
 inline Made patch_material(const double *p1, const double *p2, size_t K, const double *n,
                            double distance, const Planes &P1, const double *Rg1,
                            const double *tg1, const Planes &P2, const double *Rg2,
                            const double *tg2, const double *RM1, const double *tM1,
                            const double *RM2, const double *tM2, double patch_tol,
                            double *local1, double *local2, double *offset0,
-                           std::vector<double> &scratch) {
+                           std::vector<double> &scratch, bool check = true) {
   Made out;
   scratch.resize(9 * K);
   double *mid = scratch.data(), *l1 = mid + 3 * K, *l2 = l1 + 3 * K;
   const double *pts1 = p1, *pts2 = p2;
-  for (size_t e = 0; e < 3 * K; ++e) mid[e] = 0.5 * (p1[e] + p2[e]);
-  bool lifted = P1.F > 0 && P2.F > 0;
-  if (lifted) {
-    const bool ok1 = lift_points(P1, Rg1, tg1, mid, K, n, 1.0, l1);
-    const bool ok2 = ok1 && lift_points(P2, Rg2, tg2, mid, K, n, -1.0, l2);
-    // (the kernel lifts both before it tests; a failed lift's points are never read)
-    lifted = ok1 && ok2 && consistent_points(l1, l2, K, n, distance, patch_tol);
+  if (check) {
+    for (size_t e = 0; e < 3 * K; ++e) mid[e] = 0.5 * (p1[e] + p2[e]);
+    bool lifted = P1.F > 0 && P2.F > 0;
     if (lifted) {
-      pts1 = l1;
-      pts2 = l2;
+      const bool ok1 = lift_points(P1, Rg1, tg1, mid, K, n, 1.0, l1);
+      const bool ok2 = ok1 && lift_points(P2, Rg2, tg2, mid, K, n, -1.0, l2);
+      lifted = ok1 && ok2 && consistent_points(l1, l2, K, n, distance, patch_tol);
+      if (lifted) {
+        pts1 = l1;
+        pts2 = l2;
+      }
     }
+    if (!lifted) out.ok = consistent_points(p1, p2, K, n, distance, patch_tol);
   }
-  if (!lifted) out.ok = consistent_points(p1, p2, K, n, distance, patch_tol);
   out.on1 = normal_owner(P1, Rg1, P2, Rg2, n);
   const double *RMn = out.on1 ? RM1 : RM2;
   for (int i = 0; i < 3; ++i) out.centre1[i] = out.centre2[i] = 0.0;

@@ -7,8 +7,8 @@
 
 namespace packbot_native {
 
-// Gaussian elimination with partial pivoting (closed form for 1 x 1 and 2 x 2), as
-// kernels._solve_small: G (m x m, row-major) is overwritten; false when singular.
+// Gaussian elimination with partial pivoting (closed form for 1 x 1 and 2 x 2): G (m x m,
+// row-major) is overwritten; false when singular.
 inline bool solve_small(int m, double *G, double *y, double *x) {
   for (int i = 0; i < m; ++i) x[i] = 0.0;
   if (m == 1 && G[0] != 0.0) {

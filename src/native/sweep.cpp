@@ -494,7 +494,7 @@ class Sweep {
     return nb::make_tuple(d_arr, a_arr, b_arr, n_arr);
   }
 
-  // The face planes of every piece (kernels.patch_material's N and o), for ``materials``:
+  // The face planes of every piece (the N and o of material.hpp's patch_material), for ``materials``:
   // N (sum F, 3) unit outward normals in the pieces' frames, o (sum F) offsets, start (G + 1)
   // piece g's planes start[g] to start[g + 1] (none: a piece without faces).
   void set_planes(F2 N, F1 o, I1 start) {
@@ -516,7 +516,7 @@ class Sweep {
   bool has_planes() const { return planes_ != nullptr; }
 
   // The contact set's patches of ``pairs`` at q as material points (ContactSet.add_pairs):
-  // ``patches``' Coal calls, then kernels.patch_material (check on) in material.hpp, the
+  // ``patches``' Coal calls, then patch_material (check on) in material.hpp, the
   // joints' placements Pinocchio's at q. Returns (sizes, slide_free, normals, depths,
   // rotations, translations, local1, local2, offset0, normal2, frame2, centres): sizes (n,) K,
   // -1 for a pair farther apart than tol, -2 for a patch off the pair's distance (the caller
