@@ -35,6 +35,7 @@ from packbot.errors import PackbotError, SimulationError, close_match
 if TYPE_CHECKING:
     from packbot.result import SimResult
     from packbot.scenario import Scenario
+    from packbot.uncertain_batch import UncertainReport
 
 __all__ = [
     "EXIT_FAILED",
@@ -1094,7 +1095,6 @@ def _uncertain_study(
     args: argparse.Namespace, name: str, controller: str | None, recovery: str
 ) -> int:
     """``packbot study SCENARIO --uncertain N``: the study on N sampled arms (a resumed batch)."""
-    from packbot.batch import ProgressBar
     from packbot.uncertain_batch import run_uncertain_study
 
     if args.overwrite:
@@ -1102,39 +1102,20 @@ def _uncertain_study(
             "--overwrite does not apply to --uncertain: its --out folder is a batch folder, "
             "resumed (another draw is refused: use another --out)"
         )
-    out = args.out or f"out/{name}_uncertain"
-    bar = None if args.no_progress else ProgressBar()
-    try:
-        report = run_uncertain_study(
-            args.scenario,
-            out,
-            samples=args.uncertain,
-            seed=0 if args.seed is None else args.seed,
-            duration=args.duration,
-            tolerance=args.tolerance,
-            contact_mode=args.contact_mode,
-            controller=controller,
-            recovery=recovery,
-            workers=args.workers,
-            scheduler=args.scheduler,
-            timeout=args.timeout,
-            progress=bar,
-            html=not args.no_html,
-        )
-    except KeyboardInterrupt as exc:
-        _interrupted_line(
-            f"interrupted{_by(_signum(exc))}: the finished arms are kept; rerun the same "
-            "command to finish"
-        )
-        return _exit_code(_signum(exc))
-    print(report.result.text())
-    print(report.describe())
-    return EXIT_FAILED if report.batch.failed else EXIT_OK
+    return _uncertain_batch(
+        args,
+        name,
+        run_uncertain_study,
+        tolerance=args.tolerance,
+        contact_mode=args.contact_mode,
+        controller=controller,
+        recovery=recovery,
+        html=not args.no_html,
+    )
 
 
 def _uncertain_run(args: argparse.Namespace) -> int:
     """``packbot run SCENARIO --uncertain N``: the run on N sampled arms (a resumed batch)."""
-    from packbot.batch import ProgressBar
     from packbot.uncertain_batch import run_uncertain_runs
 
     for flag in ("plot", "html", "view", "overwrite"):
@@ -1149,10 +1130,32 @@ def _uncertain_run(args: argparse.Namespace) -> int:
 
     scenario = load_scenario(args.scenario)
     _check_name(scenario)
-    out = args.out or f"out/{scenario.name}_uncertain"
+    return _uncertain_batch(args, scenario.name, run_uncertain_runs)
+
+
+def _uncertain_batch(
+    args: argparse.Namespace,
+    name: str,
+    run: Callable[..., UncertainReport],
+    **options: Any,
+) -> int:
+    """Run ``run`` (an uncertain batch) on the arguments' arms; print its report.
+
+    Args:
+        args: The command's arguments (the scenario, ``--uncertain``, ``--seed``,
+            ``--duration``, ``--workers``, ``--scheduler``, ``--timeout``, ``--out``,
+            ``--no-progress``).
+        name: The scenario's name (the default ``--out`` is ``out/<name>_uncertain``).
+        run: :func:`~packbot.uncertain_batch.run_uncertain_study` or
+            :func:`~packbot.uncertain_batch.run_uncertain_runs`.
+        **options: Its other keyword arguments.
+    """
+    from packbot.batch import ProgressBar
+
+    out = args.out or f"out/{name}_uncertain"
     bar = None if args.no_progress else ProgressBar()
     try:
-        report = run_uncertain_runs(
+        report = run(
             args.scenario,
             out,
             samples=args.uncertain,
@@ -1162,6 +1165,7 @@ def _uncertain_run(args: argparse.Namespace) -> int:
             scheduler=args.scheduler,
             timeout=args.timeout,
             progress=bar,
+            **options,
         )
     except KeyboardInterrupt as exc:
         _interrupted_line(

@@ -39,7 +39,7 @@ from packbot.errors import ConfigurationError, SimulationError
 from packbot.keywords import checked_arguments
 from packbot.matrix import Matrix, Run, digest
 from packbot.study import DEFAULT_TOLERANCE, RUN_NAMES
-from packbot.uncertain_run import ArmRun, UncertainRun, UncertainRunPlan, plan_uncertain_run
+from packbot.uncertain_run import ArmRun, UncertainRunPlan, plan_uncertain_run
 from packbot.uncertain_study import ArmStudy, UncertainPlan, plan_uncertain_study
 
 if TYPE_CHECKING:
@@ -323,24 +323,20 @@ def run_uncertain_study(
         recovery=recovery,
     )
     _check_specs(controller, recovery)
-    identity = plan.identity()
-    values = [plan.arm_values(k) for k in range(len(plan))]
-    start = time.perf_counter()
-    batch = run_batch(
-        _matrix("uncertain", path, identity, len(plan)),
-        out_dir if isinstance(out_dir, str) else Path(out_dir),
-        runs=_runs(path, identity, values),
+    unc, batch, summary = _run_arms(
+        "uncertain",
+        path,
+        out_dir,
+        plan,
+        functools.partial(uncertain_arm_study, plan=plan),
+        (ArmStudy.from_dict, ArmStudy.failed),
         workers=workers,
         scheduler=scheduler,
-        runner=functools.partial(uncertain_arm_study, plan=plan),
         timeout=timeout,
         progress=progress,
     )
-    arms = _read_arms(batch, ArmStudy.from_dict, _failed_study)
-    unc = plan.result(arms, time.perf_counter() - start, _where(workers, scheduler))
     from packbot.viz.uncertain_report import write_uncertain_report
 
-    summary = unc.summary() | {"batch": _batch_counts(batch)}
     files = write_uncertain_report(summary, batch.out_dir, html=html)
     return UncertainReport(result=unc, batch=batch, files=files)
 
@@ -402,37 +398,71 @@ def run_uncertain_runs(
         controller=controller,
     )
     _check_specs(controller, "builtin")
-    identity = plan.identity()
-    values = [plan.arm_values(k) for k in range(len(plan))]
-    start = time.perf_counter()
-    batch = run_batch(
-        _matrix("uncertain-run", path, identity, len(plan)),
-        out_dir if isinstance(out_dir, str) else Path(out_dir),
-        runs=_runs(path, identity, values),
+    unc, batch, summary = _run_arms(
+        "uncertain-run",
+        path,
+        out_dir,
+        plan,
+        functools.partial(uncertain_arm_run, plan=plan),
+        (ArmRun.from_dict, lambda k, why: ArmRun(index=k, error=why)),
         workers=workers,
         scheduler=scheduler,
-        runner=functools.partial(uncertain_arm_run, plan=plan),
         timeout=timeout,
         progress=progress,
     )
-    arms = _read_arms(batch, ArmRun.from_dict, lambda k, why: ArmRun(index=k, error=why))
-    unc: UncertainRun = plan.result(arms, time.perf_counter() - start, _where(workers, scheduler))
     from packbot.viz.uncertain_report import write_uncertain_run
 
-    summary = unc.summary() | {"batch": _batch_counts(batch)}
     files = write_uncertain_run(summary, batch.out_dir)
     return UncertainReport(result=unc, batch=batch, files=files)
 
 
-def _failed_study(k: int, why: str) -> ArmStudy:
-    return ArmStudy(
-        index=k,
-        status=dict.fromkeys(RUN_NAMES, "error"),
-        reasons=dict.fromkeys(RUN_NAMES, why),
-        metrics=dict.fromkeys(RUN_NAMES),
-        possible=None,
-        error=why,
+def _run_arms(
+    kind: str,
+    path: str | Path,
+    out_dir: str | os.PathLike[str],
+    plan: UncertainPlan | UncertainRunPlan,
+    runner: Callable[[Run, Callable[[float], None]], tuple[dict[str, Any], RunFiles]],
+    arm: tuple[Callable[[dict[str, Any]], Any], Callable[[int, str], Any]],
+    *,
+    workers: int | None,
+    scheduler: Any,
+    timeout: float | None,
+    progress: Callable[[int, int, int], None] | None,
+) -> tuple[Any, BatchReport, dict[str, Any]]:
+    """Run the plan's arms as a batch in ``out_dir`` and gather them.
+
+    Args:
+        kind: The batch's kind (its matrix's name and ``study`` table).
+        path: The scenario's name or TOML path.
+        out_dir: Output folder.
+        plan: The checked, drawn arms.
+        runner: The batch's run function of one arm, bound to ``plan``.
+        arm: How an arm is read from its file, and made from the error of an arm the batch
+            recorded failed (``failed(k, why)``).
+        workers: As :func:`packbot.batch.run_batch`.
+        scheduler: As :func:`packbot.batch.run_batch`.
+        timeout: As :func:`packbot.batch.run_batch`.
+        progress: As :func:`packbot.batch.run_batch`.
+
+    Returns:
+        The plan's result, the batch's report and the result's summary with the batch's counts.
+    """
+    identity = plan.identity()
+    values = [plan.arm_values(k) for k in range(len(plan))]
+    start = time.perf_counter()
+    batch = run_batch(
+        _matrix(kind, path, identity, len(plan)),
+        out_dir if isinstance(out_dir, str) else Path(out_dir),
+        runs=_runs(path, identity, values),
+        workers=workers,
+        scheduler=scheduler,
+        runner=runner,
+        timeout=timeout,
+        progress=progress,
     )
+    arms = _read_arms(batch, *arm)
+    unc = plan.result(arms, time.perf_counter() - start, _where(workers, scheduler))
+    return unc, batch, unc.summary() | {"batch": _batch_counts(batch)}
 
 
 def _batch_counts(batch: BatchReport) -> dict[str, Any]:

@@ -20,7 +20,6 @@ from __future__ import annotations
 
 import logging
 import math
-import os
 import time
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
@@ -31,8 +30,14 @@ import numpy as np
 
 from packbot.errors import ConfigurationError, PackbotError, UnknownNameError
 from packbot.keywords import checked_arguments
-from packbot.uncertain_study import MAX_SAMPLES, PERCENTILES, percentiles
-from packbot.validation import finite_number, integer
+from packbot.uncertain_study import (
+    PERCENTILES,
+    _arms_here,
+    _check_draw,
+    _in_sample_order,
+    percentiles,
+)
+from packbot.validation import finite_number
 
 if TYPE_CHECKING:
     from packbot.control.user_code import ControllerSpec
@@ -403,17 +408,10 @@ class UncertainRunPlan:
         Raises:
             ConfigurationError: The arms are not the sample's, each once.
         """
-        ordered = tuple(sorted(arms, key=lambda a: a.index))
-        if [a.index for a in ordered] != list(range(len(self.sample))):
-            raise ConfigurationError(
-                "arms",
-                [a.index for a in ordered],
-                f"the {len(self.sample)} arms of the sample, each once",
-            )
         return UncertainRun(
             scenario=self.scenario.name,
             sample=self.sample,
-            arms=ordered,
+            arms=_in_sample_order(arms, len(self.sample)),
             duration_s=self.duration_s,
             joints=self.joints,
             wall_time_s=wall_time_s,
@@ -443,8 +441,7 @@ def plan_uncertain_run(
     from packbot.scenario import Scenario, load_scenario
     from packbot.uncertainty import sample_values
 
-    samples = integer("samples", samples, low=2, high=MAX_SAMPLES, what="a number of arms")
-    seed = integer("seed", seed, low=0, high=2**63 - 1, what="a non-negative integer seed")
+    samples, seed = _check_draw(samples, seed)
     if isinstance(scenario, (str, Path)):
         scenario = load_scenario(scenario)
     elif not isinstance(scenario, Scenario):
@@ -512,8 +509,6 @@ def uncertain_run(
         ConfigurationError: A bad argument (names it, its value and what is valid).
         UnknownNameError: An unknown scenario or parameter name.
     """
-    import tempfile
-
     plan = plan_uncertain_run(
         scenario,
         samples=samples,
@@ -523,16 +518,5 @@ def uncertain_run(
         duration=duration,
         controller=controller,
     )
-    if directory is not None and not isinstance(directory, (str, Path)):
-        raise ConfigurationError("directory", directory, "a folder path, or None")
-    say = progress if progress is not None else (lambda text: log.info("%s", text))
-    start = time.perf_counter()
-    arms = []
-    with tempfile.TemporaryDirectory(prefix="packbot-unc-run-") as tmp:
-        folder = str(directory) if directory is not None else tmp
-        os.makedirs(folder, exist_ok=True)
-        for k in range(len(plan)):
-            say(f"arm {k + 1} of {len(plan)}")
-            arms.append(plan.run_arm(k, folder))
-    wall = time.perf_counter() - start
+    arms, wall = _arms_here(len(plan), plan.run_arm, directory, progress, "packbot-unc-run-")
     return plan.result(arms, wall, "this process")

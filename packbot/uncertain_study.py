@@ -43,7 +43,7 @@ import warnings
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Literal
+from typing import TYPE_CHECKING, Any, Literal, Protocol, TypeVar
 
 import numpy as np
 
@@ -192,6 +192,25 @@ class ArmStudy:
     error: str = ""
     wall_time_s: float = 0.0
     task_error: dict[str, tuple[float, ...]] = field(default_factory=dict)
+
+    @classmethod
+    def failed(cls, index: int, error: str, wall_time_s: float = 0.0) -> ArmStudy:
+        """An arm whose study did not finish: every run ``"error"``, for ``error``.
+
+        Args:
+            index: The arm's index in the sample.
+            error: Why (the error the study raised, or the batch's record of it).
+            wall_time_s: Wall time spent on the arm [s].
+        """
+        return cls(
+            index=index,
+            status=dict.fromkeys(RUN_NAMES, "error"),
+            reasons=dict.fromkeys(RUN_NAMES, error),
+            metrics=dict.fromkeys(RUN_NAMES),
+            possible=None,
+            error=error,
+            wall_time_s=wall_time_s,
+        )
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready, exactly: :meth:`from_dict` gives back the same arm, bit for bit.
@@ -600,6 +619,76 @@ def _check_run_metric(run: str, metric: str) -> None:
 
 
 # --------------------------------------------------------------------------------- the runs
+class _Arm(Protocol):
+    @property
+    def index(self) -> int: ...
+
+
+_A = TypeVar("_A", bound=_Arm)
+_T = TypeVar("_T")
+
+
+def _check_draw(samples: int, seed: int) -> tuple[int, int]:
+    """The number of arms and the seed of a draw, checked.
+
+    Raises:
+        ConfigurationError: Either is not an integer in its range.
+    """
+    samples = integer("samples", samples, low=2, high=MAX_SAMPLES, what="a number of arms")
+    seed = integer("seed", seed, low=0, high=2**63 - 1, what="a non-negative integer seed")
+    return samples, seed
+
+
+def _in_sample_order(arms: Iterable[_A], n: int) -> tuple[_A, ...]:
+    """The arms in sample order, checked to be the ``n`` arms of the sample, each once.
+
+    Raises:
+        ConfigurationError: The arms are not the sample's, each once.
+    """
+    ordered = tuple(sorted(arms, key=lambda a: a.index))
+    if [a.index for a in ordered] != list(range(n)):
+        raise ConfigurationError(
+            "arms", [a.index for a in ordered], f"the {n} arms of the sample, each once"
+        )
+    return ordered
+
+
+def _arms_here(
+    n: int,
+    arm: Callable[[int, str], _T],
+    directory: str | Path | None,
+    progress: Callable[[str], None] | None,
+    prefix: str,
+) -> tuple[list[_T], float]:
+    """Arms ``0 .. n - 1`` one after the other in this process, and the wall time [s].
+
+    Args:
+        n: Number of arms.
+        arm: Called as ``arm(k, folder)`` for arm ``k``'s result.
+        directory: Folder for the arms' description packages; None: a temporary one (its
+            name starting with ``prefix``), removed on return.
+        progress: Called with a line of text as each arm starts; None: logged.
+        prefix: See ``directory``.
+
+    Raises:
+        ConfigurationError: ``directory`` is neither a folder path nor None.
+    """
+    import tempfile
+
+    if directory is not None and not isinstance(directory, (str, Path)):
+        raise ConfigurationError("directory", directory, "a folder path, or None")
+    say = progress if progress is not None else (lambda text: log.info("%s", text))
+    start = time.perf_counter()
+    arms = []
+    with tempfile.TemporaryDirectory(prefix=prefix) as tmp:
+        folder = str(directory) if directory is not None else tmp
+        os.makedirs(folder, exist_ok=True)
+        for k in range(n):
+            say(f"arm {k + 1} of {n}")
+            arms.append(arm(k, folder))
+    return arms, time.perf_counter() - start
+
+
 @dataclass(frozen=True)
 class UncertainPlan:
     """An uncertain study, checked and drawn, before any arm runs (picklable: sent to workers).
@@ -673,15 +762,8 @@ class UncertainPlan:
             res = study(self.scenario, robot=robot, step=step, **self.options)
         except PackbotError as exc:
             log.warning("arm %d: study failed: %s", k, exc)
-            text = f"{type(exc).__name__}: {exc}"
-            return ArmStudy(
-                index=k,
-                status=dict.fromkeys(RUN_NAMES, "error"),
-                reasons=dict.fromkeys(RUN_NAMES, text),
-                metrics=dict.fromkeys(RUN_NAMES),
-                possible=None,
-                error=text,
-                wall_time_s=time.perf_counter() - start,
+            return ArmStudy.failed(
+                k, f"{type(exc).__name__}: {exc}", wall_time_s=time.perf_counter() - start
             )
         grid = trace_grid(self.duration_s)
         traces: dict[str, tuple[float, ...]] = {}
@@ -705,17 +787,10 @@ class UncertainPlan:
         Raises:
             ConfigurationError: The arms are not the sample's, each once.
         """
-        ordered = tuple(sorted(arms, key=lambda a: a.index))
-        if [a.index for a in ordered] != list(range(len(self.sample))):
-            raise ConfigurationError(
-                "arms",
-                [a.index for a in ordered],
-                f"the {len(self.sample)} arms of the sample, each once",
-            )
         return UncertainStudy(
             scenario=self.scenario.name,
             sample=self.sample,
-            arms=ordered,
+            arms=_in_sample_order(arms, len(self.sample)),
             tolerance_m=self.tolerance_m,
             controller=self.controller,
             wall_time_s=wall_time_s,
@@ -752,8 +827,7 @@ def plan_uncertain_study(
     from packbot.study import _check_inputs
     from packbot.uncertainty import sample_values
 
-    samples = integer("samples", samples, low=2, high=MAX_SAMPLES, what="a number of arms")
-    seed = integer("seed", seed, low=0, high=2**63 - 1, what="a non-negative integer seed")
+    samples, seed = _check_draw(samples, seed)
     scenario, robot = _check_inputs(
         scenario, robot, duration, tolerance, contact_mode, workspace_samples
     )
@@ -843,8 +917,6 @@ def uncertain_study(
             scenario without failures.
         UnknownNameError: An unknown scenario or parameter name.
     """
-    import tempfile
-
     plan = plan_uncertain_study(
         scenario,
         samples=samples,
@@ -859,17 +931,6 @@ def uncertain_study(
         controller=controller,
         recovery=recovery,
     )
-    if directory is not None and not isinstance(directory, (str, Path)):
-        raise ConfigurationError("directory", directory, "a folder path, or None")
-    say = progress if progress is not None else (lambda text: log.info("%s", text))
-    start = time.perf_counter()
-    arms = []
-    with tempfile.TemporaryDirectory(prefix="packbot-unc-") as tmp:
-        folder = str(directory) if directory is not None else tmp
-        os.makedirs(folder, exist_ok=True)
-        for k in range(len(plan)):
-            say(f"arm {k + 1} of {len(plan)}")
-            arms.append(plan.study_arm(k, folder))
-    wall = time.perf_counter() - start
+    arms, wall = _arms_here(len(plan), plan.study_arm, directory, progress, "packbot-unc-")
     log.info("uncertain study %s: %d arms in %.1f s", plan.scenario.name, len(plan), wall)
     return plan.result(arms, wall, "this process")

@@ -199,6 +199,13 @@ def _folder(out_dir: Any) -> Path:
     return out
 
 
+def _write_summary(summary: Mapping[str, Any], path: Path, written: dict[str, Path]) -> None:
+    """Write ``summary`` as JSON at ``path``, listing the figures ``written``; add it to them."""
+    data = dict(summary) | {"figures": sorted(written)}
+    _write_atomic(path, (json.dumps(data, indent=1, allow_nan=False) + "\n").encode())
+    written[path.name] = path
+
+
 def write_uncertain_report(
     summary: Mapping[str, Any], out_dir: str | os.PathLike[str], *, html: bool = True
 ) -> dict[str, Path]:
@@ -214,10 +221,7 @@ def write_uncertain_report(
     figures = uncertain_figures(summary)
     out = _folder(out_dir)
     written, pngs = _save_figures(figures, out)
-    data = dict(summary) | {"figures": sorted(written)}
-    path = out / "uncertain.json"
-    _write_atomic(path, (json.dumps(data, indent=1, allow_nan=False) + "\n").encode())
-    written[path.name] = path
+    _write_summary(summary, out / "uncertain.json", written)
     if html:
         path = out / "report.html"
         _write_atomic(path, uncertain_page(summary, pngs).encode("utf-8"))
@@ -411,8 +415,5 @@ def write_uncertain_run(
     fig = uncertain_run_figure(summary)
     out = _folder(out_dir)
     written, _ = _save_figures({RUN_FIGURE: fig}, out)
-    data = dict(summary) | {"figures": sorted(written)}
-    path = out / "uncertain-run.json"
-    _write_atomic(path, (json.dumps(data, indent=1, allow_nan=False) + "\n").encode())
-    written[path.name] = path
+    _write_summary(summary, out / "uncertain-run.json", written)
     return written
