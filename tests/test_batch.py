@@ -714,6 +714,7 @@ def _hold_lock(folder: Path, mode: str) -> subprocess.Popen[str]:
         stdin=subprocess.PIPE,
         stdout=subprocess.PIPE,
         text=True,
+        cwd=folder,  # outside the checkout, whose packbot/ has no compiled extension
     )
     assert proc.stdout is not None and proc.stdout.readline() == "locked\n"
     return proc

@@ -11,6 +11,7 @@ import math
 import random
 import subprocess
 import sys
+import tempfile
 from collections.abc import Callable
 from pathlib import Path
 
@@ -26,8 +27,14 @@ HEAVY = ("matplotlib", "meshcat", "scipy.spatial", "scipy.optimize", "packbot.ur
 def _loaded_after(code: str) -> dict[str, bool]:
     report = f"print(json.dumps({{m: m in sys.modules for m in {HEAVY!r}}}))"
     probe = f"{code}\nimport json, sys\n{report}"
+    # run outside the checkout: `python -c` puts the working directory first on sys.path, and
+    # the checkout's packbot/ is the source tree, without the compiled extension
     out = subprocess.run(
-        [sys.executable, "-c", probe], capture_output=True, text=True, check=True
+        [sys.executable, "-c", probe],
+        capture_output=True,
+        text=True,
+        check=True,
+        cwd=tempfile.gettempdir(),
     ).stdout
     loaded: dict[str, bool] = json.loads(out.strip().splitlines()[-1])
     return loaded
