@@ -118,7 +118,6 @@ class CollisionWorld:
             self._body_of_geom,
             self.links,
             self.pairs,
-            self._pair_flat,
         ) = _cb.fixed_parts(robot, self.environment, srdf_path)
         self._n_robot = robot.collision_model.ngeoms
         self._n_pairs = len(self.pairs)

@@ -54,7 +54,6 @@ Built = tuple[
     NDArray[np.intp],
     tuple[str, ...],
     tuple["PairInfo", ...],
-    NDArray[np.intp],
 ]
 #: The fixed parts of the worlds built so far, by :func:`structure_key` (the last few: a
 #: simulation builds its world at every phase, a batch of runs the same worlds again).
@@ -156,10 +155,6 @@ def build(robot: Robot, environment: Environment, srdf_path: Path | None) -> Bui
             n_before,
         )
     pairs = pair_infos(gm, link_of_geom, body_of_geom)
-    G = gm.ngeoms
-    first = np.array([p.geom1 for p in pairs], dtype=np.intp)
-    second = np.array([p.geom2 for p in pairs], dtype=np.intp)
-    pair_flat = np.minimum(first, second) * G + np.maximum(first, second)
     return (
         gm,
         broadphase_model(gm, body_of_geom, environment),
@@ -167,7 +162,6 @@ def build(robot: Robot, environment: Environment, srdf_path: Path | None) -> Bui
         body_of_geom,
         links,
         pairs,
-        pair_flat,
     )
 
 

@@ -322,7 +322,7 @@ class UncertainRunPlan:
 
     def arm_values(self, k: int) -> dict[str, float]:
         """Arm ``k``'s drawn values (the sampled entries only)."""
-        return {n: float(x) for n, x in zip(self.sample.names, self.sample.values[k], strict=True)}
+        return self.sample.drawn(k)
 
     def identity(self) -> dict[str, Any]:
         """What defines the arms' runs, JSON-ready (a resumed folder must hold the same)."""
@@ -330,10 +330,7 @@ class UncertainRunPlan:
 
         return {
             "scenario": self.scenario.name,
-            "samples": len(self.sample),
-            "seed": self.sample.seed,
-            "method": self.sample.method,
-            "vary": list(self.sample.names),
+            **self.sample.identity(),
             "duration_s": self.duration_s,
             "controller": None if self.controller is None else describe_spec(self.controller),
         }

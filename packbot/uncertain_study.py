@@ -720,16 +720,13 @@ class UncertainPlan:
 
     def arm_values(self, k: int) -> dict[str, float]:
         """Arm ``k``'s drawn values (the sampled entries only: the others stay nominal)."""
-        return {n: float(x) for n, x in zip(self.sample.names, self.sample.values[k], strict=True)}
+        return self.sample.drawn(k)
 
     def identity(self) -> dict[str, Any]:
         """What defines the arms' studies, JSON-ready (a resumed folder must hold the same)."""
         return {
             "scenario": self.scenario.name,
-            "samples": len(self.sample),
-            "seed": self.sample.seed,
-            "method": self.sample.method,
-            "vary": list(self.sample.names),
+            **self.sample.identity(),
             "duration_s": self.duration_s,
             "tolerance_m": self.tolerance_m,
             "contact_mode": self.options["contact_mode"],

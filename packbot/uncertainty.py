@@ -133,6 +133,19 @@ class ParameterSample:
         values.update(zip(self.names, (float(x) for x in self.values[k]), strict=True))
         return _with_derived(values)
 
+    def drawn(self, k: int) -> dict[str, float]:
+        """Arm ``k``'s drawn values: the sampled entries only (the others stay nominal)."""
+        return {n: float(x) for n, x in zip(self.names, self.values[k], strict=True)}
+
+    def identity(self) -> dict[str, Any]:
+        """What defines the draw, JSON-ready: size, seed, method and the drawn entries."""
+        return {
+            "samples": len(self),
+            "seed": self.seed,
+            "method": self.method,
+            "vary": list(self.names),
+        }
+
 
 @dataclass(frozen=True)
 class SampledRobots:

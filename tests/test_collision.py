@@ -1044,7 +1044,7 @@ def test_a_fresh_build_equals_the_shared_parts_and_the_class_stays_under_500_lin
     robot, obstacle_world
 ):
     """The fixed parts built again, outside the cache (packbot.collision_build), have the same
-    pairs, flat indices and broadphase boxes as the world's; the constants that moved with
+    pairs and broadphase boxes as the world's; the constants that moved with
     their code are still importable from packbot.collision; CollisionWorld is under the
     project's ~500-line class limit."""
     import ast
@@ -1052,13 +1052,12 @@ def test_a_fresh_build_equals_the_shared_parts_and_the_class_stays_under_500_lin
     from packbot import collision, collision_build, collision_queries
 
     w = obstacle_world
-    gm, bp, links_of, bodies, links, pairs, flat = collision_build.build(
+    gm, bp, links_of, bodies, links, pairs = collision_build.build(
         robot, w.environment, w.srdf_path
     )
     assert gm is not w.geom_model and pairs == w.pairs and links == w.links
     assert links_of == w._link_of_geom
     np.testing.assert_array_equal(bodies, w._body_of_geom)
-    np.testing.assert_array_equal(flat, w._pair_flat)
     for a, b in zip(bp.geometryObjects, w._bp_model.geometryObjects, strict=True):
         assert a.name == b.name and a.geometry.halfSide.tolist() == b.geometry.halfSide.tolist()
         np.testing.assert_array_equal(a.placement.homogeneous, b.placement.homogeneous)
