@@ -17,7 +17,7 @@ theta = 1, i.e. symplectic Euler with impulses):
    ``h |v_j| +`` :data:`LIMIT_GAP` of a limit. ``d_act`` = :data:`ACTIVE_GAP` plus twice the
    distance any point can travel in the step, h sum_j r_j |v_j| with r_j the joint's reach
    bound (:func:`reach_bounds`). A pair's patch is kept while it describes the contact (the
-   event-driven mode's rule, on every pair at once: :func:`packbot.contact.conic.stale_pairs`).
+   event-driven mode's rule: :meth:`NormalContacts.stale_pairs`).
 2. **Free velocity**: v_f = v + h a_free(t + h/2, q_m, v_m) (applied torques, gravity,
    Coriolis, viscous joint friction), at the explicit midpoint q_m = q (+) (h/2) v,
    v_m = v + (h/2) a_free(t, q, v): an Euler step v + h a_free(t, q, v) gains energy where a
@@ -45,17 +45,20 @@ theta = 1, i.e. symplectic Euler with impulses):
    way is counted (:attr:`StepInfo.removed`, ``Diagnostics.window_energy_removed``): a
    modelling choice of the window, measured in docs/contact.md.
 
-The step's rows come from the extension; its problem (the Cholesky factor of M^-1, the Delassus
-factor, the patch rule, the signature) is built in numpy and solved by the extension's low-rank
-ADMM (:mod:`packbot.contact.conic`); the sweep at a step's end serves the next step's contact
-set, and the energy at its end the next step's guard. A step whose contact set stays as it is,
-under fixed torques, is one native call with the same arithmetic
-(:meth:`MoreauJeanStepper._native_step`: the free velocity, M^-1, the rows, the patch rule, the
-problem and the solver, v1, q1 and the guard's energies); it hands the step back to Python
-where the set changes, a row bounces or the impulses do not converge. Where the set changes,
-Python updates it and the same call, its set checks off, takes the impulses
-(:meth:`MoreauJeanStepper._python_step`). What a step costs, and where: docs/performance.md,
-"Window steps".
+A step is the extension's (:meth:`NativeRhs.window_step
+<packbot.contact.native.NativeRhs.window_step>`, ``src/native/contact_rhs_window.cpp``): the
+free velocity, M^-1, the rows, the patch rule, the problem and its impulses by the low-rank
+ADMM (:mod:`packbot.contact.conic`), v1, q1 and the guard's energies, in one call, where the
+torques are fixed over the step and the contact set stays as it is
+(:meth:`MoreauJeanStepper._native_step`). Where the set changes, Python updates it (the sweep,
+the patches, the limits) and the same call, its set checks off, takes the impulses. The
+extension does not cover a touching row that bounces (restitution), impulses that do not
+converge (the fallbacks of :meth:`MoreauJeanStepper._solve`), torques that vary over the step
+(a torque function, a motor lag) or a set of limits alone: those steps' problems are assembled
+in numpy (:func:`packbot.contact.conic.step_problem`) and solved in Python
+(:meth:`MoreauJeanStepper._python_solve`). The sweep at a step's end serves the next step's
+contact set, and the energy at its end the next step's guard. What a step costs, and where:
+docs/performance.md, "Window steps".
 
 A step's *signature* is what the solution decided: the pairs and limits pushing, the pairs
 sliding, the joints slipping. The law (:class:`~packbot.contact.normal.NormalLaw`) leaves the
@@ -76,9 +79,9 @@ import numpy as np
 import pinocchio as pin
 from numpy.typing import NDArray
 
-from packbot.contact import normal_tolerances
 from packbot.contact.lcp import lcp_residual, lemke, solve_lcp_psd, solve_mixed_admm
 from packbot.contact.pairs import reach_bounds
+from packbot.errors import PackbotError
 from packbot.ode import DenseSegment
 
 if TYPE_CHECKING:
@@ -120,9 +123,6 @@ class _PythonStep(NamedTuple):
     m: int
 
 
-#: Whether a window step whose contact set stays as it is is taken in one native call
-#: (:meth:`MoreauJeanStepper._native_step`; tests and benchmarks switch it off to compare).
-NATIVE_STEPS = True
 #: Time step of a window [s].
 WINDOW_STEP = 5e-4
 #: No body turns more than this in a step [rad] (a step is shortened below WINDOW_STEP when the
@@ -221,10 +221,6 @@ class StepInfo:
 class MoreauJeanStepper:
     """Fixed time steps with one complementarity problem each (see the module docstring).
 
-    ``MoreauJeanStepper.midpoint`` (class attribute, True) evaluates the free accelerations at
-    the step's explicit midpoint; False gives the Euler step the windows used before (kept to
-    measure the difference: docs/contact.md, tests/test_timestep.py).
-
     Args:
         system: The phase's integrated system (model, mass matrix, energy, collision world).
         drive: The run's torques (its ``fdir`` must be zero: Coulomb friction is a row here).
@@ -233,10 +229,12 @@ class MoreauJeanStepper:
         h: Time step [s].
         reach: Per velocity index, the bound [m] :func:`reach_bounds` gives for this model and
             world, if the caller holds it (None: computed here).
-    """
+        native: The law's compiled right-hand side of this model (required: the steps are its
+            ``window_step``).
 
-    #: Free accelerations at the step's midpoint (False: at its start, the Euler step).
-    midpoint: bool = True
+    Raises:
+        PackbotError: ``native`` is None (no compiled right-hand side for this model).
+    """
 
     def __init__(
         self,
@@ -249,9 +247,13 @@ class MoreauJeanStepper:
         native: NativeRhs | None = None,
     ) -> None:
         self.sys, self.drive, self.contacts, self.cfg = system, drive, contacts, config
-        #: The law's compiled right-hand side: a step whose contact set stays as it is, under
-        #: fixed torques, is taken in one native call (:meth:`_native_step`); None: in Python.
-        self.native = native if NATIVE_STEPS else None
+        if native is None:
+            raise PackbotError(
+                "the time-stepping window needs the compiled right-hand side of this model "
+                "(packbot._native, with the model's joints supported)"
+            )
+        #: The law's compiled right-hand side: its ``window_step`` takes the steps.
+        self.native: NativeRhs = native
         #: Steps taken in one native call, and those it handed back to Python by why (1 the
         #: contact set changes, 2 a bounce, 3 no converged impulses, 4 no factor of M^-1).
         self.native_steps = 0
@@ -285,8 +287,6 @@ class MoreauJeanStepper:
         from packbot.contact import conic  # (the windows' problem and its solver)
 
         self._conic = conic
-        # the event-driven mode's patch rule (NormalContacts.stale_pairs), see _stale
-        self._point_tol = normal_tolerances.POINT_TOL
         self._lay: _PairLayout | None = None  # see _layout
         #: Per velocity index, a bound on the distance [m] from the joint's axis to any point
         #: it moves: a point's speed is at most reach . |v| (see reach_bounds; ``reach``: the
@@ -321,10 +321,7 @@ class MoreauJeanStepper:
         # no body turns more than STEP_ANGLE in a step (the scheme is first order in it)
         h = min(self.h, STEP_ANGLE / max(float(np.abs(v).sum()), 1e-300), t_end - t)
         _, target, applied, _ = self.drive.torques(t, y)
-        if pending is not None:
-            fast: Any = pending[0]
-        else:
-            fast = self._native_step(t, y, h) if self.native is not None else None
+        fast: Any = pending[0] if pending is not None else self._native_step(t, y, h)
         if isinstance(fast, np.ndarray):  # handed back, with its free velocity
             fast = self._python_step(t, y, h, fast)
         if isinstance(fast, _PythonStep):
@@ -373,13 +370,7 @@ class MoreauJeanStepper:
         """
         contacts, n = self.contacts, self.n
         cached = self._next_sweep
-        if (
-            len(y) != 2 * n
-            or not self.midpoint
-            or not contacts.pairs
-            or cached is None
-            or cached[0] != y[:n].tobytes()
-        ):
+        if len(y) != 2 * n or not contacts.pairs or cached is None or cached[0] != y[:n].tobytes():
             return None
         torques = self.drive.step_torques(t, y)
         if torques is None or torques[2].any():
@@ -409,7 +400,6 @@ class MoreauJeanStepper:
         """
         contacts, n = self.contacts, self.n
         rhs = self.native
-        assert rhs is not None
         rhs.hold_torque(*torques)
         coul = self.drive.path.coulomb
         cj = np.flatnonzero(coul > 0.0)
@@ -461,21 +451,19 @@ class MoreauJeanStepper:
         # v + h a_free(q, v) gains energy where a light joint spins (its gyroscopic terms)
         if v_free is not None:
             v_f = v_free
-        elif self.midpoint:
+        else:
             a0 = self.drive.free_accel(t, y)
             y_mid = y.copy()
             y_mid[:n] = pin.integrate(sys.model, q, 0.5 * h * v)
             y_mid[n : 2 * n] = v + 0.5 * h * a0
             v_f = v + h * self.drive.free_accel(t + 0.5 * h, y_mid)
-        else:  # the Euler step (measurements only)
-            v_f = v + h * self.drive.free_accel(t, y)
 
-        closest, raw = self._update_set(q, v, v_f, h)
+        closest = self._update_set(q, v, v_f, h)
         if torques is not None and contacts.pairs:
             fast = self._native_call(y, h, torques, closest, None)
             if not isinstance(fast, np.ndarray):
                 return fast
-        return self._python_solve(q, v, v_f, h, closest, raw)
+        return self._python_solve(q, v, v_f, h, closest)
 
     def _python_solve(
         self,
@@ -484,17 +472,12 @@ class MoreauJeanStepper:
         v_f: FloatArray,
         h: float,
         closest: tuple[float, int],
-        raw: tuple[Any, ...] | None,
     ) -> _PythonStep:
-        """The impulses of a step with its contact set updated (:meth:`_python_step`).
-
-        ``raw``: the set's rows at (q, v) if the update computed them (None: computed here).
-        """
+        """The impulses of a step with its contact set updated (:meth:`_python_step`)."""
         sys, cfg, contacts = self.sys, self.cfg, self.contacts
         minv = sys.minv(q)
         lay = self._layout()
-        if raw is None:  # (the set changed since the kinematics of its patch rule)
-            raw = contacts.rows_raw(q, v)
+        raw = contacts.rows_raw(q, v)
         Jn, gap, vn = raw[0], raw[2], raw[3]
         m = len(gap)
         coul = self.drive.path.coulomb
@@ -726,17 +709,16 @@ class MoreauJeanStepper:
 
     def _update_set(
         self, q: FloatArray, v: FloatArray, v_f: FloatArray, h: float
-    ) -> tuple[tuple[float, int], Any]:
+    ) -> tuple[float, int]:
         """The pairs and limits within reach of the step form the contact set.
 
         A pair already in the set keeps its patch while the patch describes the contact (its
-        points have not slid apart and its smallest gap is the pair's distance:
-        :meth:`_stale`, the event-driven mode's rule); a new or stale one is patched at q.
+        points have not slid apart and its smallest gap is the pair's distance: the
+        event-driven mode's rule, :meth:`NormalContacts.stale_pairs`); a new or stale one is
+        patched at q.
 
         Returns:
-            The smallest signed distance of the sweep [m] and its pair (-1: none); the set's
-            rows at (q, v) (:meth:`NativeRhs.rows <packbot.contact.native.NativeRhs.rows>`) if
-            the patch rule computed them and the set has not changed since, else None.
+            The smallest signed distance of the sweep [m] and its pair (-1: none).
         """
         contacts, cfg = self.contacts, self.cfg
         r = self.reach  # (a point's speed is at most r . |v|)
@@ -755,14 +737,12 @@ class MoreauJeanStepper:
             near = dict(zip(sw.pairs[within].tolist(), sw.distances[within].tolist(), strict=True))
         for k in [k for k in contacts.pairs if k not in near]:
             contacts.remove_pair(k)
-        stale, raw = self._stale(q, v, near)
+        stale = contacts.stale_pairs(q, v, near)
         redo = set(stale) | (near.keys() - contacts.pairs.keys())
         contacts.add_pairs(q, list(redo), tol=d_act)
         if cfg.joint_limits:
             self._update_limits(q, LIMIT_GAP + h * np.maximum(np.abs(v), np.abs(v_f)))
-        if raw is not None and self._layout() is not raw[1]:
-            raw = None
-        return closest, None if raw is None else raw[0]
+        return closest
 
     def _update_limits(self, q: FloatArray, reach: FloatArray) -> None:
         """The joint limits within ``reach`` [rad] of q join the set, the others leave it.
@@ -788,41 +768,6 @@ class MoreauJeanStepper:
                         self.contacts.add_limit(j, side, float(lim))
                 elif (j, side) in limits:
                     self.contacts.remove_limit(j, side)
-
-    def _stale(
-        self, q: FloatArray, v: FloatArray, near: dict[int, float]
-    ) -> tuple[list[int], tuple[Any, _PairLayout] | None]:
-        """The pairs of the set whose patch no longer describes the contact, in the set's order.
-
-        :meth:`NormalContacts.stale_pairs` (its rule: a pair missing from ``near``, a
-        smallest patch gap off the pair's distance by more than ``POINT_TOL``, or a point
-        slid by more than its ``slide_tol`` since the patch was built), on every pair at once
-        (:func:`packbot.contact.conic.stale_pairs`) from the set's kinematics at (q, v).
-        Where the contact set holds a compiled evaluation (which computed the slides
-        itself), its own method.
-
-        Args:
-            q: Configuration [rad].
-            v: Velocity [rad/s].
-            near: Signed distance [m] of the pairs within reach at q, by pair index.
-
-        Returns:
-            The stale pairs; the kinematics computed at (q, v) and the layout they are of
-            (None: none computed).
-        """
-        c = self.contacts
-        if not c.pairs:
-            return [], None
-        if c._last_eval is not None:
-            return c.stale_pairs(q, v, near), None
-        lay = self._layout()
-        raw = c.rows_raw(q, v)
-        dist = np.array([near.get(k, math.nan) for k in lay.keys])
-        stale = self._conic.stale_pairs(
-            raw[2], raw[9], raw[11], lay.rows, lay.pair, lay.offset0, dist,
-            self._point_tol, lay.of.slide_tol2,
-        )  # fmt: skip
-        return list(compress(lay.keys, stale.tolist())), (raw, lay)
 
     def _signature(
         self, x: FloatArray, lay: _PairLayout, nj: int, cj: NDArray[np.intp]
@@ -868,9 +813,7 @@ class _PairLayout:
         of: The contact set's own point layout (``NormalContacts._layout``) this one extends.
         keys: The pairs' indices in the collision world.
         rows: (m_p,) the patch point of each pair row (the limits' rows follow them).
-        pair: (points,) the pair (position in the set) of each patch point and centre.
-        row_pair: (m_p,) the pair of each pair row.
-        offset0: (m_p, 2) each pair row's tangential offset when its patch was built [m].
+        row_pair: (m_p,) the pair (position in the set) of each pair row.
         key: What makes two steps' rows the same rows (the pairs and their point counts, the
             limits; a warm start's condition): the points themselves move from step to step.
     """
@@ -878,9 +821,7 @@ class _PairLayout:
     of: Any
     keys: list[int]
     rows: NDArray[np.intp]
-    pair: NDArray[np.intp]
     row_pair: NDArray[np.intp]
-    offset0: FloatArray
     key: tuple[Any, ...]
 
     @classmethod
@@ -891,5 +832,4 @@ class _PairLayout:
         key = (tuple(zip(keys, counts, strict=True)), tuple(contacts.limits))
         rows = np.asarray(lay.rows, dtype=np.intp)
         pair = np.asarray(lay.pair, dtype=np.intp)
-        offset0 = np.ascontiguousarray(lay.offset0, dtype=np.float64)
-        return cls(lay, keys, rows, pair, pair[rows], offset0, key)
+        return cls(lay, keys, rows, pair[rows], key)

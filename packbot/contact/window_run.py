@@ -18,9 +18,8 @@ does not keep: one leaving a pair deeper than the projection depth, or one that 
 *pending*, and the stepper finishes it (``MoreauJeanStepper.step(pending=...)``: its
 projection, or the law's exit from the window). The steps kept and the step after them come
 back to the loop as one :class:`StepChain`, whose samples are those the loop would have taken
-step by step.
-
-:data:`ENABLED` switches it off (the step-by-step loop; tests compare the two).
+step by step. Where the run is not offered (joint boxes, torques that vary over a step, a motor
+lag, no collision world), the stepper takes the steps one by one.
 """
 
 from __future__ import annotations
@@ -39,13 +38,9 @@ from packbot.ode import DenseSegment
 if TYPE_CHECKING:
     from packbot.contact.timestep import MoreauJeanStepper
 
-__all__ = ["ENABLED", "MAX_STEPS", "NativeRun", "StepChain", "run_native"]
+__all__ = ["MAX_STEPS", "NativeRun", "StepChain", "run_native"]
 
 FloatArray = NDArray[np.float64]
-
-#: Whether a window's steps that keep their contact set are taken in one native call (read at
-#: every step; tests and benchmarks switch it off to run the step-by-step loop).
-ENABLED = True
 
 #: The most steps one native call takes (the event loop reports its progress between calls).
 MAX_STEPS = 2000
@@ -160,11 +155,8 @@ def run_native(
     rhs = stepper.native
     cached = stepper._next_sweep
     if (
-        not ENABLED
-        or rhs is None
-        or world is None
+        world is None
         or len(y) != 2 * n
-        or not stepper.midpoint
         or not contacts.pairs
         or cached is None
         or cached[0] != y[:n].tobytes()
