@@ -13,7 +13,7 @@ import pytest
 from test_normal_cascade import GAIN_TOL, start_pose
 
 import packbot
-from packbot.contact import native, timestep
+from packbot.contact import native, timestep, window_impulses
 from packbot.contact.normal_tolerances import PENETRATION_TOL
 
 pytestmark = pytest.mark.skipif(not native.available(), reason="packbot._native not built")
@@ -47,7 +47,7 @@ def _stepper_counts(robot, k: int, mu: float, duration: float, **cfg_kw) -> tupl
         "native": sum(x.native_steps for x in s),
         "misses": misses,
         "solves": sum(x.native_solves for x in s),
-        "fallbacks": sum(x.conic_fallbacks for x in s),
+        "fallbacks": sum(x.impulses.conic_fallbacks for x in s),
     }
     return counts, res
 
@@ -103,7 +103,7 @@ def test_native_window_steps_hand_back_where_the_set_changes(robot):
 def test_unconverged_native_impulses_hand_the_step_back(robot, monkeypatch):
     """With one ADMM iteration allowed, the native step's impulses do not converge: it hands
     the step back (status 3), and Python's fallbacks (Pinocchio's ADMM) take it."""
-    monkeypatch.setattr(timestep, "CONIC_ITERATIONS", 1)
+    monkeypatch.setattr(window_impulses, "CONIC_ITERATIONS", 1)
     counts, res = _stepper_counts(robot, 16, 1.2, 1.0)
     assert counts["misses"].get(3, 0) > 0 and counts["fallbacks"] > 0, counts
     assert -res.diagnostics.min_distance <= PENETRATION_TOL

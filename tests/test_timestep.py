@@ -19,6 +19,7 @@ from packbot.contact import normal_law
 from packbot.contact.lcp import box_residual, solve_mixed_admm
 from packbot.contact.normal import PENETRATION_TOL
 from packbot.contact.timestep import WINDOW_STEP, MoreauJeanStepper, StepSegment
+from packbot.contact.window_impulses import WindowImpulses
 
 LOCKED = ["camera_tilt", "camera_pan", "gripper_roll", "gripper_jaw"]
 
@@ -209,10 +210,10 @@ def test_an_unconverged_step_falls_back_to_the_frictionless_rows(robot, monkeypa
     does not use them (measured once, mu = 0: a residual of 5e-3 turned 11 rad/s into
     30 rad/s): the frictionless LCP of its normal rows is used instead, and the run keeps its
     physical properties. (One ADMM iteration allowed: the native steps hand every step back.)"""
-    from packbot.contact import conic, timestep
+    from packbot.contact import conic, window_impulses
 
-    monkeypatch.setattr(timestep, "CONIC_ITERATIONS", 1)
-    real = timestep.solve_mixed_admm
+    monkeypatch.setattr(window_impulses, "CONIC_ITERATIONS", 1)
+    real = window_impulses.solve_mixed_admm
     real_conic = conic.solve_conic
 
     def bad(*args, **kwargs):
@@ -223,7 +224,7 @@ def test_an_unconverged_step_falls_back_to_the_frictionless_rows(robot, monkeypa
         x, _, it, rho = real_conic(*args)
         return x * 3.0, 1.0, it, rho
 
-    monkeypatch.setattr(timestep, "solve_mixed_admm", bad)
+    monkeypatch.setattr(window_impulses, "solve_mixed_admm", bad)
     monkeypatch.setattr(conic, "solve_conic", bad_conic)
     monkeypatch.setattr(normal_law, "CASCADE_EVENTS", 1)
     cfg = packbot.SimConfig(contact_mode="normal", mu=0.5, restitution=0.0, locked_joints=LOCKED)
@@ -242,7 +243,7 @@ def test_the_primal_projection_is_the_nearest_admissible_velocity():
     Jn = rng.normal(size=(3, 4))
     b = np.array([0.0, 0.1, 0.0])
     v_f = rng.normal(size=4) * 2.0
-    v = MoreauJeanStepper._project(v_f, Jn, b, M)
+    v = WindowImpulses._project(v_f, Jn, b, M)
     assert (Jn @ v + b).min() >= -1e-9
     # KKT: M (v - v_f) = Jn^T lam with lam >= 0, complementary with the rows
     lam, *_ = np.linalg.lstsq(Jn.T, M @ (v - v_f), rcond=None)
@@ -295,7 +296,7 @@ def test_an_unconverged_compiled_answer_falls_back_to_pinocchios_admm(robot, mon
     """The compiled solver's answer above RESIDUAL_OK is not used: Pinocchio's ADMM solves
     the step instead (counted in ``conic_fallbacks``), and the run is the usual one."""
     from packbot.contact import conic
-    from packbot.contact.timestep import RESIDUAL_OK
+    from packbot.contact.window_impulses import RESIDUAL_OK
 
     real_conic = conic.solve_conic
     calls = {"pinocchio": 0}
@@ -304,17 +305,17 @@ def test_an_unconverged_compiled_answer_falls_back_to_pinocchios_admm(robot, mon
         x, _, it, rho = real_conic(*args)
         return x, 10.0 * RESIDUAL_OK, it, rho
 
-    from packbot.contact import timestep
+    from packbot.contact import window_impulses
 
-    real = timestep.solve_mixed_admm
+    real = window_impulses.solve_mixed_admm
 
     def counted(*args, **kwargs):
         calls["pinocchio"] += 1
         return real(*args, **kwargs)
 
     monkeypatch.setattr(conic, "solve_conic", unconverged)
-    monkeypatch.setattr(timestep, "solve_mixed_admm", counted)
-    monkeypatch.setattr(timestep, "CONIC_ITERATIONS", 1)  # (the native steps hand back)
+    monkeypatch.setattr(window_impulses, "solve_mixed_admm", counted)
+    monkeypatch.setattr(window_impulses, "CONIC_ITERATIONS", 1)  # (the native steps hand back)
     monkeypatch.setattr(normal_law, "CASCADE_EVENTS", 1)
     cfg = packbot.SimConfig(contact_mode="normal", mu=0.5, restitution=0.0, locked_joints=LOCKED)
     res = packbot.simulate(robot, robot.pose("drive"), np.zeros(robot.nq), 0.3, config=cfg)
@@ -382,13 +383,13 @@ def test_frictionless_steps_are_solved_by_the_compiled_solver(robot, monkeypatch
     normal rows, eight times slower, is only its fallback) and the window still stops the
     arm at its contacts."""
     calls = {"lcp": 0}
-    real = MoreauJeanStepper._frictionless
+    real = WindowImpulses._frictionless
 
     def counted(G, g, m):
         calls["lcp"] += 1
         return real(G, g, m)
 
-    monkeypatch.setattr(MoreauJeanStepper, "_frictionless", staticmethod(counted))
+    monkeypatch.setattr(WindowImpulses, "_frictionless", staticmethod(counted))
     monkeypatch.setattr(normal_law, "CASCADE_EVENTS", 1)
     monkeypatch.setattr(normal_law, "WINDOW_MIN", 10.0)
     cfg = packbot.SimConfig(contact_mode="normal", mu=0.0, restitution=0.0, locked_joints=LOCKED)

@@ -53,10 +53,11 @@ torques are fixed over the step and the contact set stays as it is
 (:meth:`MoreauJeanStepper._native_step`). Where the set changes, Python updates it (the sweep,
 the patches, the limits) and the same call, its set checks off, takes the impulses. The
 extension does not cover a touching row that bounces (restitution), impulses that do not
-converge (the fallbacks of :meth:`MoreauJeanStepper._solve`), torques that vary over the step
+converge (the fallbacks of :meth:`WindowImpulses._solve
+<packbot.contact.window_impulses.WindowImpulses._solve>`), torques that vary over the step
 (a torque function, a motor lag) or a set of limits alone: those steps' problems are assembled
 in numpy (:func:`packbot.contact.conic.step_problem`) and solved in Python
-(:meth:`MoreauJeanStepper._python_solve`). The sweep at a step's end serves the next step's
+(:mod:`packbot.contact.window_impulses`). The sweep at a step's end serves the next step's
 contact set, and the energy at its end the next step's guard. What a step costs, and where:
 docs/performance.md, "Window steps".
 
@@ -79,8 +80,10 @@ import numpy as np
 import pinocchio as pin
 from numpy.typing import NDArray
 
-from packbot.contact.lcp import lcp_residual, lemke, solve_lcp_psd, solve_mixed_admm
+from packbot.contact import conic
+from packbot.contact import window_impulses as wi
 from packbot.contact.pairs import reach_bounds
+from packbot.contact.window_impulses import WindowImpulses
 from packbot.errors import PackbotError
 from packbot.ode import DenseSegment
 
@@ -146,26 +149,6 @@ PROJECT_PASSES = 3
 QUIET_STEPS = 20
 #: A contact point pushes when its normal impulse exceeds this [N*s] (signatures).
 IMPULSE_BAND = 1e-9
-#: The steps' solver tolerance and iteration limit (Pinocchio's ADMM): a step's impulses need
-#: no more (measured on the collapse with joint friction: median 0.4 ms a step; with 1e-10 and
-#: 5,000 iterations, a few degenerate problems took 250 ms each for no visible difference).
-ADMM_TOL = 1e-9
-ADMM_ITERATIONS = 1000
-#: The compiled solver's tolerance (the true scaled residual) and iteration limit: measured
-#: in two wrist-free runs (mu 0.8, starts 4 and 5: 4,565 problems of 24 to 72 rows of rank 7
-#: or 8, warm-started from the previous step's impulses and rho on the same rows): median 30
-#: and 50 iterations, none left above RESIDUAL_OK; on start 5's problems 0.14 ms a solve
-#: against Pinocchio's 0.87 ms. Frictionless (2,098
-#: problems of start 4, mu 0): median 30 iterations, 0.04 ms a solve against 0.34 ms for the
-#: LCP of the normal rows (eigh, NNLS, Lemke), the same velocities to 4e-7 at the median.
-CONIC_TOL = 1e-9
-CONIC_ITERATIONS = 1000
-#: A solution with a larger scaled residual is not used (see :meth:`MoreauJeanStepper._solve`);
-#: the retry's iteration limit.
-RESIDUAL_OK = 1e-6
-ADMM_RETRY_ITERATIONS = 4000
-#: Touching rows (gap below this [m]) approaching faster than the Zeno speed get restitution.
-TOUCH_GAP = 1e-5
 
 
 class StepSegment(DenseSegment):
@@ -270,23 +253,13 @@ class MoreauJeanStepper:
         self.n = system.nv
         #: The last step's Coulomb and brake torques [N*m] (its box impulses / h).
         self.joint_torque = np.zeros(self.n)
-        #: Steps whose combined problem fell back to the frictionless normal rows.
-        self.fallbacks = 0
-        #: Problems the compiled solver left above RESIDUAL_OK (Pinocchio's ADMM then).
-        self.conic_fallbacks = 0
-        self.joint_of = contacts._joint_of  # model joint of each velocity index
-        # the last accepted ADMM answer and its rows (a warm start for the next step)
-        self._last_rows: tuple[Any, ...] | None = None
-        self._last_x: FloatArray | None = None
-        self._last_rho = 0.0  # the compiled ADMM's last rho (0: its spectral rule)
+        #: The Python problem and solvers of the steps the extension does not take, and
+        #: every step's warm start.
+        self.impulses = WindowImpulses(system, drive, contacts, config)
         # the last step's sweep at its end: (q bytes, margin [m], result), or None
         self._next_sweep: tuple[bytes, float, Any] | None = None
         # the last step's end state (q, v bytes) and its energy [J], or None
         self._end_energy: tuple[bytes, float] | None = None
-        self._eye = np.eye(self.n)  # its rows: the joint boxes' rows
-        from packbot.contact import conic  # (the windows' problem and its solver)
-
-        self._conic = conic
         self._lay: _PairLayout | None = None  # see _layout
         #: Per velocity index, a bound on the distance [m] from the joint's axis to any point
         #: it moves: a point's speed is at most reach . |v| (see reach_bounds; ``reach``: the
@@ -359,7 +332,7 @@ class MoreauJeanStepper:
         exactly the set's pairs within it, the set's limits are the joints' near limits, and
         no patch is stale. It hands the step back where the set changes (this method's caller
         then updates it), with a bounce or with no converged impulses (the fallbacks of
-        :meth:`_solve`).
+        :meth:`WindowImpulses._solve <packbot.contact.window_impulses.WindowImpulses._solve>`).
 
         Returns:
             None when not attempted; the free velocity v_f [rad/s] when handed back (the
@@ -405,7 +378,7 @@ class MoreauJeanStepper:
         cj = np.flatnonzero(coul > 0.0)
         lay = self._layout()
         rows = (lay.key, len(cj))
-        guess = self._last_x if rows == self._last_rows else None
+        guess, rho0 = self.impulses.guess(rows)
         cfg = self.cfg
         limits = (self.sys.upper, self.sys.lower) if cfg.joint_limits else (_NONE, _NONE)
         pairs, dist, margin = (_NO_PAIRS, _NONE, 0.0) if sweep is None else sweep
@@ -414,21 +387,21 @@ class MoreauJeanStepper:
             contacts, y, h, swept=pairs, dist=dist, sweep_margin=margin,
             reach=self.reach, active_gap=ACTIVE_GAP, upper=limits[0], lower=limits[1],
             limit_gap=LIMIT_GAP, mu=contacts.mu, restitution=cfg.restitution,
-            zeno=cfg.zeno_speed, touch_gap=TOUCH_GAP, boxes=cj, bound=h * coul[cj],
-            guess=_NONE if guess is None else guess,
-            rho0=self._last_rho if guess is not None else 0.0, tol=CONIC_TOL,
-            max_iterations=CONIC_ITERATIONS, ok=RESIDUAL_OK, out_vf=v_f, out_v1=v1, out_q1=q1,
-            checked=sweep is not None,
+            zeno=cfg.zeno_speed, touch_gap=wi.TOUCH_GAP, boxes=cj, bound=h * coul[cj],
+            guess=_NONE if guess is None else guess, rho0=rho0, tol=wi.CONIC_TOL,
+            max_iterations=wi.CONIC_ITERATIONS, ok=wi.RESIDUAL_OK, out_vf=v_f, out_v1=v1,
+            out_q1=q1, checked=sweep is not None,
         )  # fmt: skip
         if status != 0:
             self._miss = (status, torques)
             self.native_misses[status] = self.native_misses.get(status, 0) + 1
             return v_f  # (its free velocity: the midpoint rule's, as Python's)
+        assert x is not None  # (status 0: the impulses)
         if sweep is not None:
             self.native_steps += 1
         else:
             self.native_solves += 1
-        self._last_rows, self._last_x, self._last_rho = rows, x, rho
+        self.impulses.keep(rows, x, rho)
         return v_f, v1, q1, x, residual, closest, cj, lay, energies
 
     def _python_step(
@@ -463,51 +436,8 @@ class MoreauJeanStepper:
             fast = self._native_call(y, h, torques, closest, None)
             if not isinstance(fast, np.ndarray):
                 return fast
-        return self._python_solve(q, v, v_f, h, closest)
-
-    def _python_solve(
-        self,
-        q: FloatArray,
-        v: FloatArray,
-        v_f: FloatArray,
-        h: float,
-        closest: tuple[float, int],
-    ) -> _PythonStep:
-        """The impulses of a step with its contact set updated (:meth:`_python_step`)."""
-        sys, cfg, contacts = self.sys, self.cfg, self.contacts
-        minv = sys.minv(q)
         lay = self._layout()
-        raw = contacts.rows_raw(q, v)
-        Jn, gap, vn = raw[0], raw[2], raw[3]
-        m = len(gap)
-        coul = self.drive.path.coulomb
-        cj = np.flatnonzero(coul > 0.0)
-        # the rows (blocks t1, t2, n; the boxes), G = A A^T with A = J C, C C^T = M^-1 (the
-        # compiled solver works on the factor; G itself is formed only where a fallback or
-        # the restitution check needs it), u_f = J v_f and the gaps' terms, in one call
-        J, A, gf, g, mus = self._conic.step_problem(
-            Jn, raw[9], raw[10], lay.rows, lay.row_pair, cj, minv, v_f, gap, h, contacts.mu
-        )
-        x = np.zeros(len(J))
-        residual = 0.0
-        if len(J):
-            bounce = (gap <= TOUCH_GAP) & (vn < -cfg.zeno_speed) if cfg.restitution > 0.0 else None
-            if bounce is not None and bool(bounce.any()):
-                # Newton's law row by row over a patch can add energy (as at an event): the
-                # impulse's kinetic energy change x . J v_f + x . G x / 2 is checked, and an
-                # impulse that gains is replaced by the inelastic one (which cannot, up to its
-                # residual: with e = 0 every row's x . u = 0 and b >= 0).
-                G = A @ A.T
-                gb = g.copy()
-                gb[2 : 3 * m : 3] += np.where(bounce, cfg.restitution * np.minimum(vn, 0.0), 0.0)
-                x, residual = self._solve(A, G, gb, mus, cj, h * coul[cj], m, lay.key)
-                if float(x @ gf) + 0.5 * float(x @ (G @ x)) > 0.0:
-                    x, residual = self._solve(A, G, g, mus, cj, h * coul[cj], m, lay.key)
-            else:
-                x, residual = self._solve(A, None, g, mus, cj, h * coul[cj], m, lay.key)
-        v1 = v_f + minv @ (J.T @ x) if len(J) else v_f
-        if residual > RESIDUAL_OK:  # no dual solution to trust: the primal problem instead
-            v1 = self._project(v_f, Jn, np.maximum(gap, 0.0) / h, sys.mass_matrix(q))
+        v1, x, residual, cj, m = self.impulses.solve(q, v, v_f, h, lay)
         return _PythonStep(v_f, v1, x, residual, closest, cj, lay, m)
 
     def _finish(
@@ -597,116 +527,6 @@ class MoreauJeanStepper:
         info = StepInfo(sig, m, residual, removed, projected, closest)
         return StepSegment(t, t + h, y, y1), info
 
-    def _solve(
-        self,
-        A: FloatArray,
-        G: FloatArray | None,
-        g: FloatArray,
-        mus: FloatArray,
-        cj: NDArray[np.intp],
-        bound: FloatArray,
-        m: int,
-        rows: tuple[Any, ...],
-    ) -> tuple[FloatArray, float]:
-        """The step's impulses: the combined problem, with a fallback that cannot misbehave.
-
-        First the compiled low-rank ADMM (:func:`packbot.contact.conic.solve_conic`, on the
-        factor A of G = A A^T, to a true residual of :data:`CONIC_TOL`, from the previous
-        step's impulses and rho on the same rows). If its residual is above
-        :data:`RESIDUAL_OK`: frictionless without joint boxes (mu = 0), the LCP of the normal
-        rows (NNLS, then Lemke; Pinocchio's ADMM on cones of friction 0 converged slowly:
-        28 ms a step against 0.5); otherwise Pinocchio's ADMM at :data:`ADMM_TOL`, then again
-        with
-        :data:`ADMM_RETRY_ITERATIONS` at a tighter tolerance; if still above, the
-        frictionless problem of the normal rows alone (an LCP on their Delassus block, solved
-        exactly by :func:`~packbot.contact.lcp.solve_lcp_psd`; friction and the joints' boxes
-        left out of that step, which can only drop dissipation). An unconverged ADMM answer
-        is not used: measured once on a frictionless start with the wrist free (27 rows of
-        three nearly parallel patches), a residual of 5e-3 turned 11 rad/s into 30 rad/s.
-
-        G (m x m, A A^T) is formed here only if a fallback needs it (None: not yet formed);
-        ``rows`` is the step's rows' key (:meth:`_PairLayout.key`, the warm start's condition).
-
-        Returns:
-            The impulses and the residual of the solution used.
-        """
-        sys = self.sys
-        joints = self.joint_of[cj]
-        rows = (rows, len(cj))
-        guess = self._last_x if rows == self._last_rows else None
-        x, res, _, rho = self._conic.solve_conic(
-            A, g, np.asarray(mus, dtype=np.float64), np.asarray(bound, dtype=np.float64),
-            np.zeros(len(g)) if guess is None else guess, CONIC_TOL, CONIC_ITERATIONS,
-            self._last_rho if guess is not None else 0.0,
-        )  # fmt: skip
-        if res <= RESIDUAL_OK:
-            self._last_rows, self._last_x, self._last_rho = rows, x, rho
-            return x, res
-        self.conic_fallbacks += 1
-        G = A @ A.T if G is None else G
-        if not len(cj) and not np.any(mus):  # frictionless, no joint boxes: an LCP
-            return self._frictionless(G, g, m)
-        x, res = solve_mixed_admm(
-            sys.model, sys.data, G, g, mus, joints, bound,
-            tol=ADMM_TOL, max_iterations=ADMM_ITERATIONS, guess=guess,
-        )  # fmt: skip
-        if res <= RESIDUAL_OK:
-            self._last_rows, self._last_x, self._last_rho = rows, x, 0.0
-            return x, res
-        x2, res2 = solve_mixed_admm(
-            sys.model, sys.data, G, g, mus, joints, bound,
-            tol=0.1 * ADMM_TOL, max_iterations=ADMM_RETRY_ITERATIONS,
-        )  # fmt: skip
-        if res2 <= RESIDUAL_OK:
-            self._last_rows, self._last_x, self._last_rho = rows, x2, 0.0
-            return x2, res2
-        self.fallbacks += 1
-        log.debug("window step: ADMM residual %.3g; frictionless normal rows used", res2)
-        return self._frictionless(G, g, m)
-
-    @staticmethod
-    def _frictionless(G: FloatArray, g: FloatArray, m: int) -> tuple[FloatArray, float]:
-        """Impulses on the normal rows alone: LCP(G_nn, g_n) (NNLS, then Lemke), residual."""
-        rows = np.arange(2, 3 * m, 3)
-        Gn, gn = G[np.ix_(rows, rows)], g[rows]
-        x = np.zeros(len(g))
-        z = solve_lcp_psd(Gn, gn)
-        r = lcp_residual(Gn, gn, z)
-        if r > RESIDUAL_OK:
-            z2 = lemke(Gn, gn)
-            if z2 is not None and lcp_residual(Gn, gn, z2) < r:
-                z, r = z2, lcp_residual(Gn, gn, z2)
-        x[rows] = z
-        return x, r
-
-    @staticmethod
-    def _project(v_f: FloatArray, Jn: FloatArray, b: FloatArray, M: FloatArray) -> FloatArray:
-        """The velocity nearest v_f (M-norm) that closes no gap beyond the step: J_n v + b >= 0.
-
-        The frictionless inelastic step as a small quadratic programme in the joint
-        velocities (always feasible: v = 0 satisfies it, b >= 0), for the rare step whose
-        complementarity problem no solver answers (its dual, the LCP, is then degenerate).
-        """
-        from scipy.optimize import minimize  # lazy: scipy.optimize costs ~65 ms of import
-
-        def cost(v: FloatArray) -> tuple[float, FloatArray]:
-            d = v - v_f
-            Md = M @ d
-            return 0.5 * float(d @ Md), Md
-
-        res = minimize(
-            cost,
-            np.zeros_like(v_f) if np.any(Jn @ v_f + b < 0.0) else v_f,
-            jac=True,
-            method="SLSQP",
-            constraints=[{"type": "ineq", "fun": lambda v: Jn @ v + b, "jac": lambda v: Jn}],
-            options={"ftol": 1e-14, "maxiter": 200},
-        )
-        v = np.asarray(res.x, dtype=np.float64)
-        if float((Jn @ v + b).min(initial=0.0)) < -1e-9:
-            log.debug("window step: the projection left a row at %.3g", (Jn @ v + b).min())
-        return v
-
     def _update_set(
         self, q: FloatArray, v: FloatArray, v_f: FloatArray, h: float
     ) -> tuple[float, int]:
@@ -780,7 +600,7 @@ class MoreauJeanStepper:
         box impulse is at its bound (within 1e-6).
         """
         c = self.contacts
-        push, slide, lim = self._conic.step_signature(
+        push, slide, lim = conic.step_signature(
             x, lay.row_pair, len(lay.keys), len(c.limits), c.mu, IMPULSE_BAND
         )
         keys = lay.keys

@@ -32,6 +32,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from packbot.contact import timestep
+from packbot.contact import window_impulses as wi
 from packbot.contact.timestep import StepSegment
 from packbot.ode import DenseSegment
 
@@ -173,7 +174,7 @@ def run_native(
     rhs.load_layout(contacts)
     lay = stepper._layout()
     rows = (lay.key, len(cj))
-    guess = stepper._last_x if rows == stepper._last_rows else None
+    guess, rho0 = stepper.impulses.guess(rows)
     cfg, sw = stepper.cfg, cached[2]
     limits = (stepper.sys.upper, stepper.sys.lower) if cfg.joint_limits else (_NONE, _NONE)
     valid, flags = _flags(last, lay.keys, list(contacts.limits), cj)
@@ -185,9 +186,9 @@ def run_native(
         timestep.QUIET_STEPS, valid, flags, sw.pairs, sw.distances, cached[1],
         int(sw.min_pair), float(sw.min_distance), stepper.reach, timestep.ACTIVE_GAP,
         limits[0], limits[1], timestep.LIMIT_GAP, contacts.mu, cfg.restitution,
-        cfg.zeno_speed, timestep.TOUCH_GAP, cj, np.ascontiguousarray(coul[cj]),
-        _NONE if guess is None else guess, stepper._last_rho if guess is not None else 0.0,
-        timestep.CONIC_TOL, timestep.CONIC_ITERATIONS, timestep.RESIDUAL_OK, torques[0],
+        cfg.zeno_speed, wi.TOUCH_GAP, cj, np.ascontiguousarray(coul[cj]),
+        _NONE if guess is None else guess, rho0, wi.CONIC_TOL, wi.CONIC_ITERATIONS,
+        wi.RESIDUAL_OK, torques[0],
         has_e, end[1] if has_e and end is not None else 0.0, timestep.STEP_ANGLE,
         timestep.SWEEP_SLACK, timestep.PROJECT_DEPTH, timestep.IMPULSE_BAND, min_d, MAX_STEPS,
     )  # fmt: skip
@@ -204,7 +205,7 @@ def run_native(
     if steps:
         x = out["x"]
         stepper.native_steps += steps
-        stepper._last_rows, stepper._last_x, stepper._last_rho = rows, x, float(out["rho"])
+        stepper.impulses.keep(rows, x, float(out["rho"]))
         m3 = len(x) - len(cj)
         stepper.joint_torque = np.zeros(n)
         stepper.joint_torque[cj] = x[m3:] / float(out["h_kept"])
@@ -217,7 +218,7 @@ def run_native(
     if pending:
         x = out["p_x"]
         stepper.native_steps += 1
-        stepper._last_rows, stepper._last_x, stepper._last_rho = rows, x, float(out["p_rho"])
+        stepper.impulses.keep(rows, x, float(out["p_rho"]))
         closest = (float(out["best_d"]), int(out["best"]))
         p_sw = world.dispatch.result(out["p_swept"], out["p_dist"], out["p_best"], out["p_best_d"])
         fast = (
