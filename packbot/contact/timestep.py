@@ -309,7 +309,8 @@ class MoreauJeanStepper:
             q1 = np.asarray(pin.integrate(sys.model, q, h * v1), dtype=np.float64)
             energies = None
         # what the step decided, on the rows it solved (the projection below may change the set)
-        sig = self._signature(x, lay, len(cj), cj)
+        c = self.contacts
+        sig = lay.signature(x, list(c.limits), c.mu, self.h * self.drive.path.coulomb[cj], cj)
         self.joint_torque = np.zeros(n)
         self.joint_torque[cj] = x[3 * m :] / h
         end = (v_f, v1, q1, energies)
@@ -589,33 +590,6 @@ class MoreauJeanStepper:
                 elif (j, side) in limits:
                     self.contacts.remove_limit(j, side)
 
-    def _signature(
-        self, x: FloatArray, lay: _PairLayout, nj: int, cj: NDArray[np.intp]
-    ) -> tuple[frozenset[int], frozenset[int], frozenset[tuple[int, int]], frozenset[int]]:
-        """Pairs pushing, pairs sliding, limits pushing, joints slipping.
-
-        A pair pushes when its points' normal impulses sum to more than
-        :data:`IMPULSE_BAND`; it slides when their tangential impulses' sum reaches the cone
-        (within 1e-6: :func:`packbot.contact.conic.step_signature`); a joint slips when its
-        box impulse is at its bound (within 1e-6).
-        """
-        c = self.contacts
-        push, slide, lim = conic.step_signature(
-            x, lay.row_pair, len(lay.keys), len(c.limits), c.mu, IMPULSE_BAND
-        )
-        keys = lay.keys
-        slipping: frozenset[int] = frozenset()
-        if nj:
-            m3 = len(x) - nj
-            slip = np.abs(x[m3:]) >= self.h * self.drive.path.coulomb[cj] * (1 - 1e-6)
-            slipping = frozenset(cj[slip].tolist())
-        return (
-            frozenset(compress(keys, push.tolist())),
-            frozenset(compress(keys, slide.tolist())),
-            frozenset(compress(c.limits, lim.tolist())),
-            slipping,
-        )
-
     def _layout(self) -> _PairLayout:
         """The layout of the contact set's rows (kept while the set's own layout is)."""
         lay = self.contacts._layout()
@@ -653,3 +627,35 @@ class _PairLayout:
         rows = np.asarray(lay.rows, dtype=np.intp)
         pair = np.asarray(lay.pair, dtype=np.intp)
         return cls(lay, keys, rows, pair[rows], key)
+
+    def signature(
+        self,
+        x: FloatArray,
+        limits: list[tuple[int, int]],
+        mu: float,
+        bound: FloatArray,
+        cj: NDArray[np.intp],
+    ) -> tuple[frozenset[int], frozenset[int], frozenset[tuple[int, int]], frozenset[int]]:
+        """What a step's impulses x on these rows decided (:attr:`StepInfo.signature`).
+
+        Pairs pushing, pairs sliding, limits pushing, joints slipping.
+
+        A pair pushes when its points' normal impulses sum to more than
+        :data:`IMPULSE_BAND`; it slides when their tangential impulses' sum reaches the cone of
+        friction ``mu`` (within 1e-6: :func:`packbot.contact.conic.step_signature`); a joint
+        (velocity indices ``cj``) slips when its box impulse is at its ``bound`` [N*m*s]
+        (within 1e-6). ``limits``: the contact set's limits, in its order.
+        """
+        push, slide, lim = conic.step_signature(
+            x, self.row_pair, len(self.keys), len(limits), mu, IMPULSE_BAND
+        )
+        slipping: frozenset[int] = frozenset()
+        if len(cj):
+            slip = np.abs(x[len(x) - len(cj) :]) >= bound * (1 - 1e-6)
+            slipping = frozenset(cj[slip].tolist())
+        return (
+            frozenset(compress(self.keys, push.tolist())),
+            frozenset(compress(self.keys, slide.tolist())),
+            frozenset(compress(limits, lim.tolist())),
+            slipping,
+        )

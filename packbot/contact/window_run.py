@@ -58,7 +58,7 @@ class NativeRun:
         states: The start state and the end state of every step kept, (steps + 1, 2 nv).
         removed: The energy the guard removed at the steps kept [J], in order (none: 0).
         quiet: The window's quiet count after them.
-        signature: The last step's signature (the stepper's ``_signature``), or None (none
+        signature: The last step's signature (``_PairLayout.signature``), or None (none
             kept).
         min_d: The smallest distance of the steps' start sweeps below the run's so far [m],
             and its pair; pair -1: none lower.
@@ -209,7 +209,8 @@ def run_native(
         m3 = len(x) - len(cj)
         stepper.joint_torque = np.zeros(n)
         stepper.joint_torque[cj] = x[m3:] / float(out["h_kept"])
-        signature = stepper._signature(x, lay, len(cj), cj)
+        bound = stepper.h * coul[cj]
+        signature = lay.signature(x, list(contacts.limits), contacts.mu, bound, cj)
         q_bytes = state[:n].tobytes()
         result = world.dispatch.result(out["swept"], out["dist"], out["best"], out["best_d"])
         stepper._next_sweep = (q_bytes, float(out["margin"]), result)
