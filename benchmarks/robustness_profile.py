@@ -51,7 +51,7 @@ PHASES = (
     ("  re-patch and projection (patch_events._repatch)", "patch_events.py", "_repatch"),
     ("windows (Moreau-Jean steps)", "timestep.py", "step"),
     ("  contact set update (_update_set)", "timestep.py", "_update_set"),
-    ("  step problem solve (_solve)", "timestep.py", "_solve"),
+    ("  step problem solve (_solve)", "window_impulses.py", "_solve"),
     ("RK45 steps (ode step)", "ode.py", "step"),
     ("step-end watch (normal_law.watch)", "normal_law.py", "watch"),
     ("shared: drift projection (normal_steps.project)", "normal_steps.py", "project"),

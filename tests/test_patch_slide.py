@@ -117,41 +117,41 @@ def test_only_vertices_on_faces_skip_the_slide_rule(robot, monkeypatch):
 
 def test_a_patch_on_the_floor_is_kept_while_it_slides(robot, monkeypatch):
     """A frictionless wrist-free start (the fingers and elbow casings slide on the floor): at
-    every window step, a several-point floor patch kept beyond SLIDE_TOL of slide still has
-    its rows' gaps at its points' heights above the floor, to rounding."""
+    the start of every window step the stepper takes, a several-point floor patch kept beyond
+    SLIDE_TOL of slide still has its rows' gaps at its points' heights above the floor, to
+    rounding."""
     from test_normal_cascade import start_pose
 
     slides: list[float] = []
-    stale = timestep.MoreauJeanStepper._stale
+    step = timestep.MoreauJeanStepper.step
 
     def placements(model, q):  # the joints' placements at q (a Data of its own)
         data = model.createData()
         pin.forwardKinematics(model, data, q)
         return data.oMi
 
-    def watched(self, q, v, near):
-        out, raw = stale(self, q, v, near)
-        if raw is None:
-            return out, raw
-        gap, lay = raw[0][2], raw[1]
-        T, dP = raw[0][9], raw[0][11]
-        c = self.contacts
-        for i, key in enumerate(lay.keys):
-            p = c.pairs[key]
-            if len(p.local1) < 2 or np.isfinite(p.slide_tol) or key in out:
-                continue
-            assert self.contacts.world.pairs[key].piece2 == "floor"
-            rows = np.flatnonzero(lay.row_pair == i)
-            M = placements(c.model, q)[p.info.joint1]
-            heights = (p.local1 @ M.rotation.T + M.translation)[:, 2]
-            np.testing.assert_allclose(gap[rows], heights, rtol=0.0, atol=1e-12)
-            k = lay.rows[rows]
-            s = dP[k] @ T[i].T - lay.offset0[rows]
-            slides.append(float(np.sqrt((s**2).sum(axis=1)).max()))
-        return out, raw
+    def watched(self, t, y, *args, **kwargs):
+        c, n = self.contacts, self.n
+        q, v = y[:n], y[n : 2 * n]
+        if c.pairs:  # (the set the last step kept, at this step's start)
+            raw = c.rows_raw(q, v)
+            lay = self._layout()
+            gap, T, dP = raw[2], raw[9], raw[11]
+            for i, key in enumerate(lay.keys):
+                p = c.pairs[key]
+                if len(p.local1) < 2 or np.isfinite(p.slide_tol):
+                    continue
+                assert c.world.pairs[key].piece2 == "floor"
+                rows = np.flatnonzero(lay.row_pair == i)
+                M = placements(c.model, q)[p.info.joint1]
+                heights = (p.local1 @ M.rotation.T + M.translation)[:, 2]
+                np.testing.assert_allclose(gap[rows], heights, rtol=0.0, atol=1e-12)
+                k = lay.rows[rows]
+                s = dP[k] @ T[i].T - lay.of.offset0[rows]
+                slides.append(float(np.sqrt((s**2).sum(axis=1)).max()))
+        return step(self, t, y, *args, **kwargs)
 
-    monkeypatch.setattr(timestep.MoreauJeanStepper, "_stale", watched)
-    monkeypatch.setattr(timestep, "NATIVE_STEPS", False)  # (every step's rule in Python)
+    monkeypatch.setattr(timestep.MoreauJeanStepper, "step", watched)
     cfg = packbot.SimConfig(contact_mode="normal", mu=0.0, restitution=0.0)
     res = packbot.simulate(robot, start_pose(robot, 16), np.zeros(robot.model.nv), 2.0, config=cfg)
     assert slides, "no floor patch kept in a window: the test covers nothing"

@@ -2,24 +2,25 @@
 
 ``ContactRhs.window_run`` takes the window steps of ``MoreauJeanStepper._native_step`` one
 after another, with the signature, the sweep at each step's end (through the compiled sweep's
-C entry point), the energy guard and the quiet count of the Python loop, their sums in numpy's
-order. The runs are compared here with the step-by-step loop (``window_run.ENABLED`` off): the
-same samples, events and diagnostics, to the bit.
+C entry point), the energy guard and the quiet count; the step it does not take or keep comes
+back to the stepper. Checked here: the runs take most of a window's steps (none with joint
+boxes), the runs keep their physics, and a chain of steps samples as its steps.
 """
 
 import numpy as np
 import pytest
+from test_native_window import _window_rise
+from test_normal_cascade import GAIN_TOL, start_pose
 
 import packbot
-from packbot.contact import native, timestep, window_run
+from packbot.contact import native, normal_law, timestep, window_run
+from packbot.contact.normal_tolerances import PENETRATION_TOL
 from packbot.contact.timestep import StepSegment
 
 pytestmark = pytest.mark.skipif(not native.available(), reason="packbot._native not built")
 
 
-def _run(robot, k: int, mu: float, on: bool, duration: float = 3.0, **cfg_kw):
-    from test_normal_cascade import start_pose
-
+def _run(robot, k: int, mu: float, duration: float = 3.0, **cfg_kw):
     taken = {"calls": 0, "steps": 0, "pending": 0}
     real = window_run.run_native
 
@@ -31,18 +32,15 @@ def _run(robot, k: int, mu: float, on: bool, duration: float = 3.0, **cfg_kw):
             taken["pending"] += out.pending is not None
         return out
 
-    mp = pytest.MonkeyPatch()
-    mp.setattr(window_run, "ENABLED", on)
-    from packbot.contact import normal_law
-
-    mp.setattr(normal_law, "run_native", counted)
-    cfg = packbot.SimConfig(contact_mode="normal", mu=mu, **{"restitution": 0.0, **cfg_kw})
-    try:
+    cfg = packbot.SimConfig(
+        contact_mode="normal", mu=mu, sample_dt=timestep.WINDOW_STEP,
+        **{"restitution": 0.0, **cfg_kw},
+    )  # fmt: skip
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(normal_law, "run_native", counted)
         res = packbot.simulate(
             robot, start_pose(robot, k), np.zeros(robot.model.nv), duration, config=cfg
         )
-    finally:
-        mp.undo()
     return res, taken
 
 
@@ -52,33 +50,28 @@ def _run(robot, k: int, mu: float, on: bool, duration: float = 3.0, **cfg_kw):
         (21, 0.0, {}),
         (16, 0.5, {}),
         (16, 1.2, {}),
-        (16, 0.5, {"joint_friction": True}),  # (the joints' boxes: slipping flags)
-        (16, 0.5, {"restitution": 0.5}),  # (bouncing rows handed back)
+        (16, 0.5, {"joint_friction": True}),  # (the joints' boxes: no run)
     ],
-    ids=["start21-mu0", "start16-mu0.5", "start16-mu1.2", "joint-friction", "restitution"],
+    ids=["start21-mu0", "start16-mu0.5", "start16-mu1.2", "joint-friction"],
 )
-def test_the_native_run_is_the_step_by_step_loop(robot, k, mu, kw):
-    on, taken = _run(robot, k, mu, True, **kw)
-    off, _ = _run(robot, k, mu, False, **kw)
-    d_on, d_off = on.diagnostics, off.diagnostics
-    assert d_on.window_steps == d_off.window_steps > 0
+def test_the_native_runs_take_the_windows_steps_and_keep_the_physics(robot, k, mu, kw):
+    """Most of a window's steps are taken in native runs (with joint boxes none: each step's box
+    torques are its samples' friction torques), some finished by the stepper (pending); no
+    penetration beyond PENETRATION_TOL, no energy gained at an event, and with zero torque no
+    energy gained from one window sample to the next beyond 1e-5 J (see
+    test_native_window.test_native_window_steps_keep_the_physics)."""
+    res, taken = _run(robot, k, mu, **kw)
+    d = res.diagnostics
+    assert d.window_steps > 0
     if kw.get("joint_friction"):
-        # joint boxes: no run (each step's box torques are its samples' friction torques)
         assert taken["steps"] == 0, taken
     else:
-        assert taken["steps"] >= 0.3 * d_on.window_steps, taken  # most steps in the runs
+        assert taken["steps"] >= 0.3 * d.window_steps, taken  # most steps in the runs
         assert taken["pending"] > 0, taken  # (steps taken and finished by the stepper)
-    arrays = [name for name, x in vars(on).items() if isinstance(x, np.ndarray)]
-    assert {"t", "q", "v", "tau", "tau_friction", "energy"} <= set(arrays), arrays
-    for name in arrays:  # every sampled column
-        np.testing.assert_array_equal(getattr(on, name), getattr(off, name), err_msg=name)
-    assert [(e.t, e.kind, e.energy_after) for e in on.events] == [
-        (e.t, e.kind, e.energy_after) for e in off.events
-    ]
-    assert d_on.window_energy_removed == d_off.window_energy_removed
-    assert d_on.min_distance == d_off.min_distance
-    assert d_on.min_distance_pair == d_off.min_distance_pair
-    assert d_on.sweeps == d_off.sweeps
+    assert -d.min_distance <= PENETRATION_TOL
+    assert max((e.energy_after - e.energy_before for e in res.events), default=0.0) <= GAIN_TOL
+    assert _window_rise(res) <= 1e-5
+    assert res.energy[-1] < res.energy[0]
 
 
 def test_a_step_chain_samples_as_its_steps(rng):

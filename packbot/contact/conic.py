@@ -39,9 +39,9 @@ The answer z is always inside the cones and boxes (it is a projection). The solv
 residual are the extension's (``src/native/conic.hpp``: :func:`solve_conic`,
 :func:`conic_residual`), which the native window steps call too.
 
-The window's Python steps (those the native steps hand back) build their problem here in
-numpy: the rows and the factor (:func:`step_problem`), the patch rule over every pair at once
-(:func:`stale_pairs`) and what the impulses decided (:func:`step_signature`).
+The window steps the native step does not take (a bounce, no converged impulses, torques that
+vary over the step) build their problem here in numpy (the rows and the factor:
+:func:`step_problem`); what a step's impulses decided is read by :func:`step_signature`.
 """
 
 from __future__ import annotations
@@ -57,7 +57,6 @@ __all__ = [
     "STALL_OK",
     "conic_residual",
     "solve_conic",
-    "stale_pairs",
     "step_problem",
     "step_signature",
 ]
@@ -122,49 +121,6 @@ def solve_conic(
         int(max_iterations), float(rho0),
     )  # fmt: skip
     return x, float(res), int(it), float(rho)
-
-
-def stale_pairs(
-    gap: FloatArray,
-    T: FloatArray,
-    dP: FloatArray,
-    rows: NDArray[np.intp],
-    pair: NDArray[np.intp],
-    offset0: FloatArray,
-    distance: FloatArray,
-    point_tol: float,
-    slide_tol2: FloatArray,
-) -> NDArray[np.bool_]:
-    """Which pairs' patches no longer describe their contact (the window step's contact set).
-
-    The rule of :meth:`packbot.contact.normal.NormalContacts.stale_pairs` on every pair at
-    once, from the contact set's rows (:meth:`NativeRhs.rows
-    <packbot.contact.native.NativeRhs.rows>`): a pair is stale when its smallest patch gap is
-    off its distance by more than ``point_tol`` (or it has no distance: NaN), or a point slid
-    by more than its ``slide_tol2`` tangentially since the patch was built.
-
-    Args:
-        gap: (m,) the rows' gaps [m] (the pairs' rows first).
-        T: (pairs, 2, 3) each pair's tangents (world).
-        dP: (points, 3) p2 - p1 at every patch point and centre [m].
-        rows: (m_p,) the patch point of each pair row.
-        pair: (points,) the pair of each point.
-        offset0: (m_p, 2) each pair row's tangential offset when its patch was built [m].
-        distance: (pairs,) each pair's signed distance [m] (NaN: none).
-        point_tol: Gap tolerance [m].
-        slide_tol2: (pairs,) the square of the slide each pair goes stale at [m^2].
-
-    Returns:
-        (pairs,) True where the pair is stale.
-    """
-    n = len(T)
-    p = pair[rows]
-    gmin = np.full(n, np.inf)
-    np.minimum.at(gmin, p, gap[: len(rows)])
-    slide = np.einsum("rai,ri->ra", T[p], dP[rows]) - offset0  # (m_p, 2)
-    slide2 = np.zeros(n)
-    np.maximum.at(slide2, p, slide[:, 0] * slide[:, 0] + slide[:, 1] * slide[:, 1])
-    return np.asarray(~(np.abs(gmin - distance) <= point_tol) | (slide2 > slide_tol2))
 
 
 def step_signature(

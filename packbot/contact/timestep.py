@@ -17,7 +17,7 @@ theta = 1, i.e. symplectic Euler with impulses):
    ``h |v_j| +`` :data:`LIMIT_GAP` of a limit. ``d_act`` = :data:`ACTIVE_GAP` plus twice the
    distance any point can travel in the step, h sum_j r_j |v_j| with r_j the joint's reach
    bound (:func:`reach_bounds`). A pair's patch is kept while it describes the contact (the
-   event-driven mode's rule, on every pair at once: :func:`packbot.contact.conic.stale_pairs`).
+   event-driven mode's rule: :meth:`NormalContacts.stale_pairs`).
 2. **Free velocity**: v_f = v + h a_free(t + h/2, q_m, v_m) (applied torques, gravity,
    Coriolis, viscous joint friction), at the explicit midpoint q_m = q (+) (h/2) v,
    v_m = v + (h/2) a_free(t, q, v): an Euler step v + h a_free(t, q, v) gains energy where a
@@ -45,17 +45,21 @@ theta = 1, i.e. symplectic Euler with impulses):
    way is counted (:attr:`StepInfo.removed`, ``Diagnostics.window_energy_removed``): a
    modelling choice of the window, measured in docs/contact.md.
 
-The step's rows come from the extension; its problem (the Cholesky factor of M^-1, the Delassus
-factor, the patch rule, the signature) is built in numpy and solved by the extension's low-rank
-ADMM (:mod:`packbot.contact.conic`); the sweep at a step's end serves the next step's contact
-set, and the energy at its end the next step's guard. A step whose contact set stays as it is,
-under fixed torques, is one native call with the same arithmetic
-(:meth:`MoreauJeanStepper._native_step`: the free velocity, M^-1, the rows, the patch rule, the
-problem and the solver, v1, q1 and the guard's energies); it hands the step back to Python
-where the set changes, a row bounces or the impulses do not converge. Where the set changes,
-Python updates it and the same call, its set checks off, takes the impulses
-(:meth:`MoreauJeanStepper._python_step`). What a step costs, and where: docs/performance.md,
-"Window steps".
+A step is the extension's (:meth:`NativeRhs.window_step
+<packbot.contact.native.NativeRhs.window_step>`, ``src/native/contact_rhs_window.cpp``): the
+free velocity, M^-1, the rows, the patch rule, the problem and its impulses by the low-rank
+ADMM (:mod:`packbot.contact.conic`), v1, q1 and the guard's energies, in one call, where the
+torques are fixed over the step and the contact set stays as it is
+(:meth:`MoreauJeanStepper._native_step`). Where the set changes, Python updates it (the sweep,
+the patches, the limits) and the same call, its set checks off, takes the impulses. The
+extension does not cover a touching row that bounces (restitution), impulses that do not
+converge (the fallbacks of :meth:`WindowImpulses._solve
+<packbot.contact.window_impulses.WindowImpulses._solve>`), torques that vary over the step
+(a torque function, a motor lag) or a set of limits alone: those steps' problems are assembled
+in numpy (:func:`packbot.contact.conic.step_problem`) and solved in Python
+(:mod:`packbot.contact.window_impulses`). The sweep at a step's end serves the next step's
+contact set, and the energy at its end the next step's guard. What a step costs, and where:
+docs/performance.md, "Window steps".
 
 A step's *signature* is what the solution decided: the pairs and limits pushing, the pairs
 sliding, the joints slipping. The law (:class:`~packbot.contact.normal.NormalLaw`) leaves the
@@ -76,9 +80,11 @@ import numpy as np
 import pinocchio as pin
 from numpy.typing import NDArray
 
-from packbot.contact import normal_tolerances
-from packbot.contact.lcp import lcp_residual, lemke, solve_lcp_psd, solve_mixed_admm
+from packbot.contact import conic
+from packbot.contact import window_impulses as wi
 from packbot.contact.pairs import reach_bounds
+from packbot.contact.window_impulses import WindowImpulses
+from packbot.errors import PackbotError
 from packbot.ode import DenseSegment
 
 if TYPE_CHECKING:
@@ -120,9 +126,6 @@ class _PythonStep(NamedTuple):
     m: int
 
 
-#: Whether a window step whose contact set stays as it is is taken in one native call
-#: (:meth:`MoreauJeanStepper._native_step`; tests and benchmarks switch it off to compare).
-NATIVE_STEPS = True
 #: Time step of a window [s].
 WINDOW_STEP = 5e-4
 #: No body turns more than this in a step [rad] (a step is shortened below WINDOW_STEP when the
@@ -146,26 +149,6 @@ PROJECT_PASSES = 3
 QUIET_STEPS = 20
 #: A contact point pushes when its normal impulse exceeds this [N*s] (signatures).
 IMPULSE_BAND = 1e-9
-#: The steps' solver tolerance and iteration limit (Pinocchio's ADMM): a step's impulses need
-#: no more (measured on the collapse with joint friction: median 0.4 ms a step; with 1e-10 and
-#: 5,000 iterations, a few degenerate problems took 250 ms each for no visible difference).
-ADMM_TOL = 1e-9
-ADMM_ITERATIONS = 1000
-#: The compiled solver's tolerance (the true scaled residual) and iteration limit: measured
-#: in two wrist-free runs (mu 0.8, starts 4 and 5: 4,565 problems of 24 to 72 rows of rank 7
-#: or 8, warm-started from the previous step's impulses and rho on the same rows): median 30
-#: and 50 iterations, none left above RESIDUAL_OK; on start 5's problems 0.14 ms a solve
-#: against Pinocchio's 0.87 ms. Frictionless (2,098
-#: problems of start 4, mu 0): median 30 iterations, 0.04 ms a solve against 0.34 ms for the
-#: LCP of the normal rows (eigh, NNLS, Lemke), the same velocities to 4e-7 at the median.
-CONIC_TOL = 1e-9
-CONIC_ITERATIONS = 1000
-#: A solution with a larger scaled residual is not used (see :meth:`MoreauJeanStepper._solve`);
-#: the retry's iteration limit.
-RESIDUAL_OK = 1e-6
-ADMM_RETRY_ITERATIONS = 4000
-#: Touching rows (gap below this [m]) approaching faster than the Zeno speed get restitution.
-TOUCH_GAP = 1e-5
 
 
 class StepSegment(DenseSegment):
@@ -221,10 +204,6 @@ class StepInfo:
 class MoreauJeanStepper:
     """Fixed time steps with one complementarity problem each (see the module docstring).
 
-    ``MoreauJeanStepper.midpoint`` (class attribute, True) evaluates the free accelerations at
-    the step's explicit midpoint; False gives the Euler step the windows used before (kept to
-    measure the difference: docs/contact.md, tests/test_timestep.py).
-
     Args:
         system: The phase's integrated system (model, mass matrix, energy, collision world).
         drive: The run's torques (its ``fdir`` must be zero: Coulomb friction is a row here).
@@ -233,10 +212,12 @@ class MoreauJeanStepper:
         h: Time step [s].
         reach: Per velocity index, the bound [m] :func:`reach_bounds` gives for this model and
             world, if the caller holds it (None: computed here).
-    """
+        native: The law's compiled right-hand side of this model (required: the steps are its
+            ``window_step``).
 
-    #: Free accelerations at the step's midpoint (False: at its start, the Euler step).
-    midpoint: bool = True
+    Raises:
+        PackbotError: ``native`` is None (no compiled right-hand side for this model).
+    """
 
     def __init__(
         self,
@@ -249,9 +230,13 @@ class MoreauJeanStepper:
         native: NativeRhs | None = None,
     ) -> None:
         self.sys, self.drive, self.contacts, self.cfg = system, drive, contacts, config
-        #: The law's compiled right-hand side: a step whose contact set stays as it is, under
-        #: fixed torques, is taken in one native call (:meth:`_native_step`); None: in Python.
-        self.native = native if NATIVE_STEPS else None
+        if native is None:
+            raise PackbotError(
+                "the time-stepping window needs the compiled right-hand side of this model "
+                "(packbot._native, with the model's joints supported)"
+            )
+        #: The law's compiled right-hand side: its ``window_step`` takes the steps.
+        self.native: NativeRhs = native
         #: Steps taken in one native call, and those it handed back to Python by why (1 the
         #: contact set changes, 2 a bounce, 3 no converged impulses, 4 no factor of M^-1).
         self.native_steps = 0
@@ -268,25 +253,13 @@ class MoreauJeanStepper:
         self.n = system.nv
         #: The last step's Coulomb and brake torques [N*m] (its box impulses / h).
         self.joint_torque = np.zeros(self.n)
-        #: Steps whose combined problem fell back to the frictionless normal rows.
-        self.fallbacks = 0
-        #: Problems the compiled solver left above RESIDUAL_OK (Pinocchio's ADMM then).
-        self.conic_fallbacks = 0
-        self.joint_of = contacts._joint_of  # model joint of each velocity index
-        # the last accepted ADMM answer and its rows (a warm start for the next step)
-        self._last_rows: tuple[Any, ...] | None = None
-        self._last_x: FloatArray | None = None
-        self._last_rho = 0.0  # the compiled ADMM's last rho (0: its spectral rule)
+        #: The Python problem and solvers of the steps the extension does not take, and
+        #: every step's warm start.
+        self.impulses = WindowImpulses(system, drive, contacts, config)
         # the last step's sweep at its end: (q bytes, margin [m], result), or None
         self._next_sweep: tuple[bytes, float, Any] | None = None
         # the last step's end state (q, v bytes) and its energy [J], or None
         self._end_energy: tuple[bytes, float] | None = None
-        self._eye = np.eye(self.n)  # its rows: the joint boxes' rows
-        from packbot.contact import conic  # (the windows' problem and its solver)
-
-        self._conic = conic
-        # the event-driven mode's patch rule (NormalContacts.stale_pairs), see _stale
-        self._point_tol = normal_tolerances.POINT_TOL
         self._lay: _PairLayout | None = None  # see _layout
         #: Per velocity index, a bound on the distance [m] from the joint's axis to any point
         #: it moves: a point's speed is at most reach . |v| (see reach_bounds; ``reach``: the
@@ -321,10 +294,7 @@ class MoreauJeanStepper:
         # no body turns more than STEP_ANGLE in a step (the scheme is first order in it)
         h = min(self.h, STEP_ANGLE / max(float(np.abs(v).sum()), 1e-300), t_end - t)
         _, target, applied, _ = self.drive.torques(t, y)
-        if pending is not None:
-            fast: Any = pending[0]
-        else:
-            fast = self._native_step(t, y, h) if self.native is not None else None
+        fast: Any = pending[0] if pending is not None else self._native_step(t, y, h)
         if isinstance(fast, np.ndarray):  # handed back, with its free velocity
             fast = self._python_step(t, y, h, fast)
         if isinstance(fast, _PythonStep):
@@ -339,7 +309,8 @@ class MoreauJeanStepper:
             q1 = np.asarray(pin.integrate(sys.model, q, h * v1), dtype=np.float64)
             energies = None
         # what the step decided, on the rows it solved (the projection below may change the set)
-        sig = self._signature(x, lay, len(cj), cj)
+        c = self.contacts
+        sig = lay.signature(x, list(c.limits), c.mu, self.h * self.drive.path.coulomb[cj], cj)
         self.joint_torque = np.zeros(n)
         self.joint_torque[cj] = x[3 * m :] / h
         end = (v_f, v1, q1, energies)
@@ -362,7 +333,7 @@ class MoreauJeanStepper:
         exactly the set's pairs within it, the set's limits are the joints' near limits, and
         no patch is stale. It hands the step back where the set changes (this method's caller
         then updates it), with a bounce or with no converged impulses (the fallbacks of
-        :meth:`_solve`).
+        :meth:`WindowImpulses._solve <packbot.contact.window_impulses.WindowImpulses._solve>`).
 
         Returns:
             None when not attempted; the free velocity v_f [rad/s] when handed back (the
@@ -373,13 +344,7 @@ class MoreauJeanStepper:
         """
         contacts, n = self.contacts, self.n
         cached = self._next_sweep
-        if (
-            len(y) != 2 * n
-            or not self.midpoint
-            or not contacts.pairs
-            or cached is None
-            or cached[0] != y[:n].tobytes()
-        ):
+        if len(y) != 2 * n or not contacts.pairs or cached is None or cached[0] != y[:n].tobytes():
             return None
         torques = self.drive.step_torques(t, y)
         if torques is None or torques[2].any():
@@ -409,13 +374,12 @@ class MoreauJeanStepper:
         """
         contacts, n = self.contacts, self.n
         rhs = self.native
-        assert rhs is not None
         rhs.hold_torque(*torques)
         coul = self.drive.path.coulomb
         cj = np.flatnonzero(coul > 0.0)
         lay = self._layout()
         rows = (lay.key, len(cj))
-        guess = self._last_x if rows == self._last_rows else None
+        guess, rho0 = self.impulses.guess(rows)
         cfg = self.cfg
         limits = (self.sys.upper, self.sys.lower) if cfg.joint_limits else (_NONE, _NONE)
         pairs, dist, margin = (_NO_PAIRS, _NONE, 0.0) if sweep is None else sweep
@@ -424,21 +388,21 @@ class MoreauJeanStepper:
             contacts, y, h, swept=pairs, dist=dist, sweep_margin=margin,
             reach=self.reach, active_gap=ACTIVE_GAP, upper=limits[0], lower=limits[1],
             limit_gap=LIMIT_GAP, mu=contacts.mu, restitution=cfg.restitution,
-            zeno=cfg.zeno_speed, touch_gap=TOUCH_GAP, boxes=cj, bound=h * coul[cj],
-            guess=_NONE if guess is None else guess,
-            rho0=self._last_rho if guess is not None else 0.0, tol=CONIC_TOL,
-            max_iterations=CONIC_ITERATIONS, ok=RESIDUAL_OK, out_vf=v_f, out_v1=v1, out_q1=q1,
-            checked=sweep is not None,
+            zeno=cfg.zeno_speed, touch_gap=wi.TOUCH_GAP, boxes=cj, bound=h * coul[cj],
+            guess=_NONE if guess is None else guess, rho0=rho0, tol=wi.CONIC_TOL,
+            max_iterations=wi.CONIC_ITERATIONS, ok=wi.RESIDUAL_OK, out_vf=v_f, out_v1=v1,
+            out_q1=q1, checked=sweep is not None,
         )  # fmt: skip
         if status != 0:
             self._miss = (status, torques)
             self.native_misses[status] = self.native_misses.get(status, 0) + 1
             return v_f  # (its free velocity: the midpoint rule's, as Python's)
+        assert x is not None  # (status 0: the impulses)
         if sweep is not None:
             self.native_steps += 1
         else:
             self.native_solves += 1
-        self._last_rows, self._last_x, self._last_rho = rows, x, rho
+        self.impulses.keep(rows, x, rho)
         return v_f, v1, q1, x, residual, closest, cj, lay, energies
 
     def _python_step(
@@ -461,70 +425,20 @@ class MoreauJeanStepper:
         # v + h a_free(q, v) gains energy where a light joint spins (its gyroscopic terms)
         if v_free is not None:
             v_f = v_free
-        elif self.midpoint:
+        else:
             a0 = self.drive.free_accel(t, y)
             y_mid = y.copy()
             y_mid[:n] = pin.integrate(sys.model, q, 0.5 * h * v)
             y_mid[n : 2 * n] = v + 0.5 * h * a0
             v_f = v + h * self.drive.free_accel(t + 0.5 * h, y_mid)
-        else:  # the Euler step (measurements only)
-            v_f = v + h * self.drive.free_accel(t, y)
 
-        closest, raw = self._update_set(q, v, v_f, h)
+        closest = self._update_set(q, v, v_f, h)
         if torques is not None and contacts.pairs:
             fast = self._native_call(y, h, torques, closest, None)
             if not isinstance(fast, np.ndarray):
                 return fast
-        return self._python_solve(q, v, v_f, h, closest, raw)
-
-    def _python_solve(
-        self,
-        q: FloatArray,
-        v: FloatArray,
-        v_f: FloatArray,
-        h: float,
-        closest: tuple[float, int],
-        raw: tuple[Any, ...] | None,
-    ) -> _PythonStep:
-        """The impulses of a step with its contact set updated (:meth:`_python_step`).
-
-        ``raw``: the set's rows at (q, v) if the update computed them (None: computed here).
-        """
-        sys, cfg, contacts = self.sys, self.cfg, self.contacts
-        minv = sys.minv(q)
         lay = self._layout()
-        if raw is None:  # (the set changed since the kinematics of its patch rule)
-            raw = contacts.rows_raw(q, v)
-        Jn, gap, vn = raw[0], raw[2], raw[3]
-        m = len(gap)
-        coul = self.drive.path.coulomb
-        cj = np.flatnonzero(coul > 0.0)
-        # the rows (blocks t1, t2, n; the boxes), G = A A^T with A = J C, C C^T = M^-1 (the
-        # compiled solver works on the factor; G itself is formed only where a fallback or
-        # the restitution check needs it), u_f = J v_f and the gaps' terms, in one call
-        J, A, gf, g, mus = self._conic.step_problem(
-            Jn, raw[9], raw[10], lay.rows, lay.row_pair, cj, minv, v_f, gap, h, contacts.mu
-        )
-        x = np.zeros(len(J))
-        residual = 0.0
-        if len(J):
-            bounce = (gap <= TOUCH_GAP) & (vn < -cfg.zeno_speed) if cfg.restitution > 0.0 else None
-            if bounce is not None and bool(bounce.any()):
-                # Newton's law row by row over a patch can add energy (as at an event): the
-                # impulse's kinetic energy change x . J v_f + x . G x / 2 is checked, and an
-                # impulse that gains is replaced by the inelastic one (which cannot, up to its
-                # residual: with e = 0 every row's x . u = 0 and b >= 0).
-                G = A @ A.T
-                gb = g.copy()
-                gb[2 : 3 * m : 3] += np.where(bounce, cfg.restitution * np.minimum(vn, 0.0), 0.0)
-                x, residual = self._solve(A, G, gb, mus, cj, h * coul[cj], m, lay.key)
-                if float(x @ gf) + 0.5 * float(x @ (G @ x)) > 0.0:
-                    x, residual = self._solve(A, G, g, mus, cj, h * coul[cj], m, lay.key)
-            else:
-                x, residual = self._solve(A, None, g, mus, cj, h * coul[cj], m, lay.key)
-        v1 = v_f + minv @ (J.T @ x) if len(J) else v_f
-        if residual > RESIDUAL_OK:  # no dual solution to trust: the primal problem instead
-            v1 = self._project(v_f, Jn, np.maximum(gap, 0.0) / h, sys.mass_matrix(q))
+        v1, x, residual, cj, m = self.impulses.solve(q, v, v_f, h, lay)
         return _PythonStep(v_f, v1, x, residual, closest, cj, lay, m)
 
     def _finish(
@@ -614,129 +528,18 @@ class MoreauJeanStepper:
         info = StepInfo(sig, m, residual, removed, projected, closest)
         return StepSegment(t, t + h, y, y1), info
 
-    def _solve(
-        self,
-        A: FloatArray,
-        G: FloatArray | None,
-        g: FloatArray,
-        mus: FloatArray,
-        cj: NDArray[np.intp],
-        bound: FloatArray,
-        m: int,
-        rows: tuple[Any, ...],
-    ) -> tuple[FloatArray, float]:
-        """The step's impulses: the combined problem, with a fallback that cannot misbehave.
-
-        First the compiled low-rank ADMM (:func:`packbot.contact.conic.solve_conic`, on the
-        factor A of G = A A^T, to a true residual of :data:`CONIC_TOL`, from the previous
-        step's impulses and rho on the same rows). If its residual is above
-        :data:`RESIDUAL_OK`: frictionless without joint boxes (mu = 0), the LCP of the normal
-        rows (NNLS, then Lemke; Pinocchio's ADMM on cones of friction 0 converged slowly:
-        28 ms a step against 0.5); otherwise Pinocchio's ADMM at :data:`ADMM_TOL`, then again
-        with
-        :data:`ADMM_RETRY_ITERATIONS` at a tighter tolerance; if still above, the
-        frictionless problem of the normal rows alone (an LCP on their Delassus block, solved
-        exactly by :func:`~packbot.contact.lcp.solve_lcp_psd`; friction and the joints' boxes
-        left out of that step, which can only drop dissipation). An unconverged ADMM answer
-        is not used: measured once on a frictionless start with the wrist free (27 rows of
-        three nearly parallel patches), a residual of 5e-3 turned 11 rad/s into 30 rad/s.
-
-        G (m x m, A A^T) is formed here only if a fallback needs it (None: not yet formed);
-        ``rows`` is the step's rows' key (:meth:`_PairLayout.key`, the warm start's condition).
-
-        Returns:
-            The impulses and the residual of the solution used.
-        """
-        sys = self.sys
-        joints = self.joint_of[cj]
-        rows = (rows, len(cj))
-        guess = self._last_x if rows == self._last_rows else None
-        x, res, _, rho = self._conic.solve_conic(
-            A, g, np.asarray(mus, dtype=np.float64), np.asarray(bound, dtype=np.float64),
-            np.zeros(len(g)) if guess is None else guess, CONIC_TOL, CONIC_ITERATIONS,
-            self._last_rho if guess is not None else 0.0,
-        )  # fmt: skip
-        if res <= RESIDUAL_OK:
-            self._last_rows, self._last_x, self._last_rho = rows, x, rho
-            return x, res
-        self.conic_fallbacks += 1
-        G = A @ A.T if G is None else G
-        if not len(cj) and not np.any(mus):  # frictionless, no joint boxes: an LCP
-            return self._frictionless(G, g, m)
-        x, res = solve_mixed_admm(
-            sys.model, sys.data, G, g, mus, joints, bound,
-            tol=ADMM_TOL, max_iterations=ADMM_ITERATIONS, guess=guess,
-        )  # fmt: skip
-        if res <= RESIDUAL_OK:
-            self._last_rows, self._last_x, self._last_rho = rows, x, 0.0
-            return x, res
-        x2, res2 = solve_mixed_admm(
-            sys.model, sys.data, G, g, mus, joints, bound,
-            tol=0.1 * ADMM_TOL, max_iterations=ADMM_RETRY_ITERATIONS,
-        )  # fmt: skip
-        if res2 <= RESIDUAL_OK:
-            self._last_rows, self._last_x, self._last_rho = rows, x2, 0.0
-            return x2, res2
-        self.fallbacks += 1
-        log.debug("window step: ADMM residual %.3g; frictionless normal rows used", res2)
-        return self._frictionless(G, g, m)
-
-    @staticmethod
-    def _frictionless(G: FloatArray, g: FloatArray, m: int) -> tuple[FloatArray, float]:
-        """Impulses on the normal rows alone: LCP(G_nn, g_n) (NNLS, then Lemke), residual."""
-        rows = np.arange(2, 3 * m, 3)
-        Gn, gn = G[np.ix_(rows, rows)], g[rows]
-        x = np.zeros(len(g))
-        z = solve_lcp_psd(Gn, gn)
-        r = lcp_residual(Gn, gn, z)
-        if r > RESIDUAL_OK:
-            z2 = lemke(Gn, gn)
-            if z2 is not None and lcp_residual(Gn, gn, z2) < r:
-                z, r = z2, lcp_residual(Gn, gn, z2)
-        x[rows] = z
-        return x, r
-
-    @staticmethod
-    def _project(v_f: FloatArray, Jn: FloatArray, b: FloatArray, M: FloatArray) -> FloatArray:
-        """The velocity nearest v_f (M-norm) that closes no gap beyond the step: J_n v + b >= 0.
-
-        The frictionless inelastic step as a small quadratic programme in the joint
-        velocities (always feasible: v = 0 satisfies it, b >= 0), for the rare step whose
-        complementarity problem no solver answers (its dual, the LCP, is then degenerate).
-        """
-        from scipy.optimize import minimize  # lazy: scipy.optimize costs ~65 ms of import
-
-        def cost(v: FloatArray) -> tuple[float, FloatArray]:
-            d = v - v_f
-            Md = M @ d
-            return 0.5 * float(d @ Md), Md
-
-        res = minimize(
-            cost,
-            np.zeros_like(v_f) if np.any(Jn @ v_f + b < 0.0) else v_f,
-            jac=True,
-            method="SLSQP",
-            constraints=[{"type": "ineq", "fun": lambda v: Jn @ v + b, "jac": lambda v: Jn}],
-            options={"ftol": 1e-14, "maxiter": 200},
-        )
-        v = np.asarray(res.x, dtype=np.float64)
-        if float((Jn @ v + b).min(initial=0.0)) < -1e-9:
-            log.debug("window step: the projection left a row at %.3g", (Jn @ v + b).min())
-        return v
-
     def _update_set(
         self, q: FloatArray, v: FloatArray, v_f: FloatArray, h: float
-    ) -> tuple[tuple[float, int], Any]:
+    ) -> tuple[float, int]:
         """The pairs and limits within reach of the step form the contact set.
 
         A pair already in the set keeps its patch while the patch describes the contact (its
-        points have not slid apart and its smallest gap is the pair's distance:
-        :meth:`_stale`, the event-driven mode's rule); a new or stale one is patched at q.
+        points have not slid apart and its smallest gap is the pair's distance: the
+        event-driven mode's rule, :meth:`NormalContacts.stale_pairs`); a new or stale one is
+        patched at q.
 
         Returns:
-            The smallest signed distance of the sweep [m] and its pair (-1: none); the set's
-            rows at (q, v) (:meth:`NativeRhs.rows <packbot.contact.native.NativeRhs.rows>`) if
-            the patch rule computed them and the set has not changed since, else None.
+            The smallest signed distance of the sweep [m] and its pair (-1: none).
         """
         contacts, cfg = self.contacts, self.cfg
         r = self.reach  # (a point's speed is at most r . |v|)
@@ -755,14 +558,12 @@ class MoreauJeanStepper:
             near = dict(zip(sw.pairs[within].tolist(), sw.distances[within].tolist(), strict=True))
         for k in [k for k in contacts.pairs if k not in near]:
             contacts.remove_pair(k)
-        stale, raw = self._stale(q, v, near)
+        stale = contacts.stale_pairs(q, v, near)
         redo = set(stale) | (near.keys() - contacts.pairs.keys())
         contacts.add_pairs(q, list(redo), tol=d_act)
         if cfg.joint_limits:
             self._update_limits(q, LIMIT_GAP + h * np.maximum(np.abs(v), np.abs(v_f)))
-        if raw is not None and self._layout() is not raw[1]:
-            raw = None
-        return closest, None if raw is None else raw[0]
+        return closest
 
     def _update_limits(self, q: FloatArray, reach: FloatArray) -> None:
         """The joint limits within ``reach`` [rad] of q join the set, the others leave it.
@@ -789,68 +590,6 @@ class MoreauJeanStepper:
                 elif (j, side) in limits:
                     self.contacts.remove_limit(j, side)
 
-    def _stale(
-        self, q: FloatArray, v: FloatArray, near: dict[int, float]
-    ) -> tuple[list[int], tuple[Any, _PairLayout] | None]:
-        """The pairs of the set whose patch no longer describes the contact, in the set's order.
-
-        :meth:`NormalContacts.stale_pairs` (its rule: a pair missing from ``near``, a
-        smallest patch gap off the pair's distance by more than ``POINT_TOL``, or a point
-        slid by more than its ``slide_tol`` since the patch was built), on every pair at once
-        (:func:`packbot.contact.conic.stale_pairs`) from the set's kinematics at (q, v).
-        Where the contact set holds a compiled evaluation (which computed the slides
-        itself), its own method.
-
-        Args:
-            q: Configuration [rad].
-            v: Velocity [rad/s].
-            near: Signed distance [m] of the pairs within reach at q, by pair index.
-
-        Returns:
-            The stale pairs; the kinematics computed at (q, v) and the layout they are of
-            (None: none computed).
-        """
-        c = self.contacts
-        if not c.pairs:
-            return [], None
-        if c._last_eval is not None:
-            return c.stale_pairs(q, v, near), None
-        lay = self._layout()
-        raw = c.rows_raw(q, v)
-        dist = np.array([near.get(k, math.nan) for k in lay.keys])
-        stale = self._conic.stale_pairs(
-            raw[2], raw[9], raw[11], lay.rows, lay.pair, lay.offset0, dist,
-            self._point_tol, lay.of.slide_tol2,
-        )  # fmt: skip
-        return list(compress(lay.keys, stale.tolist())), (raw, lay)
-
-    def _signature(
-        self, x: FloatArray, lay: _PairLayout, nj: int, cj: NDArray[np.intp]
-    ) -> tuple[frozenset[int], frozenset[int], frozenset[tuple[int, int]], frozenset[int]]:
-        """Pairs pushing, pairs sliding, limits pushing, joints slipping.
-
-        A pair pushes when its points' normal impulses sum to more than
-        :data:`IMPULSE_BAND`; it slides when their tangential impulses' sum reaches the cone
-        (within 1e-6: :func:`packbot.contact.conic.step_signature`); a joint slips when its
-        box impulse is at its bound (within 1e-6).
-        """
-        c = self.contacts
-        push, slide, lim = self._conic.step_signature(
-            x, lay.row_pair, len(lay.keys), len(c.limits), c.mu, IMPULSE_BAND
-        )
-        keys = lay.keys
-        slipping: frozenset[int] = frozenset()
-        if nj:
-            m3 = len(x) - nj
-            slip = np.abs(x[m3:]) >= self.h * self.drive.path.coulomb[cj] * (1 - 1e-6)
-            slipping = frozenset(cj[slip].tolist())
-        return (
-            frozenset(compress(keys, push.tolist())),
-            frozenset(compress(keys, slide.tolist())),
-            frozenset(compress(c.limits, lim.tolist())),
-            slipping,
-        )
-
     def _layout(self) -> _PairLayout:
         """The layout of the contact set's rows (kept while the set's own layout is)."""
         lay = self.contacts._layout()
@@ -868,9 +607,7 @@ class _PairLayout:
         of: The contact set's own point layout (``NormalContacts._layout``) this one extends.
         keys: The pairs' indices in the collision world.
         rows: (m_p,) the patch point of each pair row (the limits' rows follow them).
-        pair: (points,) the pair (position in the set) of each patch point and centre.
-        row_pair: (m_p,) the pair of each pair row.
-        offset0: (m_p, 2) each pair row's tangential offset when its patch was built [m].
+        row_pair: (m_p,) the pair (position in the set) of each pair row.
         key: What makes two steps' rows the same rows (the pairs and their point counts, the
             limits; a warm start's condition): the points themselves move from step to step.
     """
@@ -878,9 +615,7 @@ class _PairLayout:
     of: Any
     keys: list[int]
     rows: NDArray[np.intp]
-    pair: NDArray[np.intp]
     row_pair: NDArray[np.intp]
-    offset0: FloatArray
     key: tuple[Any, ...]
 
     @classmethod
@@ -891,5 +626,36 @@ class _PairLayout:
         key = (tuple(zip(keys, counts, strict=True)), tuple(contacts.limits))
         rows = np.asarray(lay.rows, dtype=np.intp)
         pair = np.asarray(lay.pair, dtype=np.intp)
-        offset0 = np.ascontiguousarray(lay.offset0, dtype=np.float64)
-        return cls(lay, keys, rows, pair, pair[rows], offset0, key)
+        return cls(lay, keys, rows, pair[rows], key)
+
+    def signature(
+        self,
+        x: FloatArray,
+        limits: list[tuple[int, int]],
+        mu: float,
+        bound: FloatArray,
+        cj: NDArray[np.intp],
+    ) -> tuple[frozenset[int], frozenset[int], frozenset[tuple[int, int]], frozenset[int]]:
+        """What a step's impulses x on these rows decided (:attr:`StepInfo.signature`).
+
+        Pairs pushing, pairs sliding, limits pushing, joints slipping.
+
+        A pair pushes when its points' normal impulses sum to more than
+        :data:`IMPULSE_BAND`; it slides when their tangential impulses' sum reaches the cone of
+        friction ``mu`` (within 1e-6: :func:`packbot.contact.conic.step_signature`); a joint
+        (velocity indices ``cj``) slips when its box impulse is at its ``bound`` [N*m*s]
+        (within 1e-6). ``limits``: the contact set's limits, in its order.
+        """
+        push, slide, lim = conic.step_signature(
+            x, self.row_pair, len(self.keys), len(limits), mu, IMPULSE_BAND
+        )
+        slipping: frozenset[int] = frozenset()
+        if len(cj):
+            slip = np.abs(x[len(x) - len(cj) :]) >= bound * (1 - 1e-6)
+            slipping = frozenset(cj[slip].tolist())
+        return (
+            frozenset(compress(self.keys, push.tolist())),
+            frozenset(compress(self.keys, slide.tolist())),
+            frozenset(compress(limits, lim.tolist())),
+            slipping,
+        )

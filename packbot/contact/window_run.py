@@ -18,9 +18,8 @@ does not keep: one leaving a pair deeper than the projection depth, or one that 
 *pending*, and the stepper finishes it (``MoreauJeanStepper.step(pending=...)``: its
 projection, or the law's exit from the window). The steps kept and the step after them come
 back to the loop as one :class:`StepChain`, whose samples are those the loop would have taken
-step by step.
-
-:data:`ENABLED` switches it off (the step-by-step loop; tests compare the two).
+step by step. Where the run is not offered (joint boxes, torques that vary over a step, a motor
+lag, no collision world), the stepper takes the steps one by one.
 """
 
 from __future__ import annotations
@@ -33,19 +32,16 @@ import numpy as np
 from numpy.typing import NDArray
 
 from packbot.contact import timestep
+from packbot.contact import window_impulses as wi
 from packbot.contact.timestep import StepSegment
 from packbot.ode import DenseSegment
 
 if TYPE_CHECKING:
     from packbot.contact.timestep import MoreauJeanStepper
 
-__all__ = ["ENABLED", "MAX_STEPS", "NativeRun", "StepChain", "run_native"]
+__all__ = ["MAX_STEPS", "NativeRun", "StepChain", "run_native"]
 
 FloatArray = NDArray[np.float64]
-
-#: Whether a window's steps that keep their contact set are taken in one native call (read at
-#: every step; tests and benchmarks switch it off to run the step-by-step loop).
-ENABLED = True
 
 #: The most steps one native call takes (the event loop reports its progress between calls).
 MAX_STEPS = 2000
@@ -62,7 +58,7 @@ class NativeRun:
         states: The start state and the end state of every step kept, (steps + 1, 2 nv).
         removed: The energy the guard removed at the steps kept [J], in order (none: 0).
         quiet: The window's quiet count after them.
-        signature: The last step's signature (the stepper's ``_signature``), or None (none
+        signature: The last step's signature (``_PairLayout.signature``), or None (none
             kept).
         min_d: The smallest distance of the steps' start sweeps below the run's so far [m],
             and its pair; pair -1: none lower.
@@ -160,11 +156,8 @@ def run_native(
     rhs = stepper.native
     cached = stepper._next_sweep
     if (
-        not ENABLED
-        or rhs is None
-        or world is None
+        world is None
         or len(y) != 2 * n
-        or not stepper.midpoint
         or not contacts.pairs
         or cached is None
         or cached[0] != y[:n].tobytes()
@@ -181,7 +174,7 @@ def run_native(
     rhs.load_layout(contacts)
     lay = stepper._layout()
     rows = (lay.key, len(cj))
-    guess = stepper._last_x if rows == stepper._last_rows else None
+    guess, rho0 = stepper.impulses.guess(rows)
     cfg, sw = stepper.cfg, cached[2]
     limits = (stepper.sys.upper, stepper.sys.lower) if cfg.joint_limits else (_NONE, _NONE)
     valid, flags = _flags(last, lay.keys, list(contacts.limits), cj)
@@ -193,9 +186,9 @@ def run_native(
         timestep.QUIET_STEPS, valid, flags, sw.pairs, sw.distances, cached[1],
         int(sw.min_pair), float(sw.min_distance), stepper.reach, timestep.ACTIVE_GAP,
         limits[0], limits[1], timestep.LIMIT_GAP, contacts.mu, cfg.restitution,
-        cfg.zeno_speed, timestep.TOUCH_GAP, cj, np.ascontiguousarray(coul[cj]),
-        _NONE if guess is None else guess, stepper._last_rho if guess is not None else 0.0,
-        timestep.CONIC_TOL, timestep.CONIC_ITERATIONS, timestep.RESIDUAL_OK, torques[0],
+        cfg.zeno_speed, wi.TOUCH_GAP, cj, np.ascontiguousarray(coul[cj]),
+        _NONE if guess is None else guess, rho0, wi.CONIC_TOL, wi.CONIC_ITERATIONS,
+        wi.RESIDUAL_OK, torques[0],
         has_e, end[1] if has_e and end is not None else 0.0, timestep.STEP_ANGLE,
         timestep.SWEEP_SLACK, timestep.PROJECT_DEPTH, timestep.IMPULSE_BAND, min_d, MAX_STEPS,
     )  # fmt: skip
@@ -212,11 +205,12 @@ def run_native(
     if steps:
         x = out["x"]
         stepper.native_steps += steps
-        stepper._last_rows, stepper._last_x, stepper._last_rho = rows, x, float(out["rho"])
+        stepper.impulses.keep(rows, x, float(out["rho"]))
         m3 = len(x) - len(cj)
         stepper.joint_torque = np.zeros(n)
         stepper.joint_torque[cj] = x[m3:] / float(out["h_kept"])
-        signature = stepper._signature(x, lay, len(cj), cj)
+        bound = stepper.h * coul[cj]
+        signature = lay.signature(x, list(contacts.limits), contacts.mu, bound, cj)
         q_bytes = state[:n].tobytes()
         result = world.dispatch.result(out["swept"], out["dist"], out["best"], out["best_d"])
         stepper._next_sweep = (q_bytes, float(out["margin"]), result)
@@ -225,7 +219,7 @@ def run_native(
     if pending:
         x = out["p_x"]
         stepper.native_steps += 1
-        stepper._last_rows, stepper._last_x, stepper._last_rho = rows, x, float(out["p_rho"])
+        stepper.impulses.keep(rows, x, float(out["p_rho"]))
         closest = (float(out["best_d"]), int(out["best"]))
         p_sw = world.dispatch.result(out["p_swept"], out["p_dist"], out["p_best"], out["p_best_d"])
         fast = (
