@@ -83,34 +83,38 @@ def test_only_vertices_on_faces_skip_the_slide_rule(robot, monkeypatch):
     from test_normal_cascade import start_pose
 
     kinds = {"vertex": 0, "other": 0}
-    put = normal_set.ContactSet._put
+    made = normal_set.ContactSet._add_made
 
-    def recorded(self, q, pair, n, points1, points2, d, Rg1, tg1, Rg2, tg2, frames, material):
-        put(self, q, pair, n, points1, points2, d, Rg1, tg1, Rg2, tg2, frames, material)
-        p = self.pairs[pair]
-        info = self.world.pairs[pair]
-        N1, _ = self._planes_of(info.geom1)
-        N2, _ = self._planes_of(info.geom2)
-        best = max(
-            float((N1 @ (Rg1.T @ n)).max()) if len(N1) else -1.0,
-            float((-(N2 @ (Rg2.T @ n))).max()) if len(N2) else -1.0,
-        )
-        owner = info.geom1 if p.on1 else info.geom2
-        halfspace = isinstance(
-            self.world.geom_model.geometryObjects[owner].geometry, coal.Halfspace
-        )
-        if (len(p.local1) == 1 or halfspace) and best >= 1.0 - FACE_ALIGN:
-            kinds["vertex"] += 1
-            assert p.slide_tol == np.inf
-        else:
-            kinds["other"] += 1
-            assert p.slide_tol == SLIDE_TOL
+    def recorded(self, q, ks, t):
+        out = made(self, q, ks, t)
+        gm = self.world.geom_model
+        for k, ok in zip(ks, out, strict=True):
+            if not ok:
+                continue
+            p = self.pairs[k]
+            info = self.world.pairs[k]
+            M1, M2 = self.data.oMi[info.joint1], self.data.oMi[info.joint2]  # (at q)
+            n = (M1 if p.on1 else M2).rotation @ p.normal2  # world, body 1 to body 2
+            Rg1 = (M1 * gm.geometryObjects[info.geom1].placement).rotation
+            Rg2 = (M2 * gm.geometryObjects[info.geom2].placement).rotation
+            N1, _ = self._planes_of(info.geom1)
+            N2, _ = self._planes_of(info.geom2)
+            best = max(
+                float((N1 @ (Rg1.T @ n)).max()) if len(N1) else -1.0,
+                float((-(N2 @ (Rg2.T @ n))).max()) if len(N2) else -1.0,
+            )
+            owner = info.geom1 if p.on1 else info.geom2
+            halfspace = isinstance(gm.geometryObjects[owner].geometry, coal.Halfspace)
+            if (len(p.local1) == 1 or halfspace) and best >= 1.0 - FACE_ALIGN:
+                kinds["vertex"] += 1
+                assert p.slide_tol == np.inf
+            else:
+                kinds["other"] += 1
+                assert p.slide_tol == SLIDE_TOL
+        return out
 
     cfg = packbot.SimConfig(contact_mode="normal", mu=0.5, restitution=0.0)
-    monkeypatch.setattr(normal_set.ContactSet, "_put", recorded)
-    # every patch through _put (the extension's materials make the same pairs, slide_tol
-    # included, bit for bit: tests/test_native_material.py)
-    monkeypatch.setattr(normal_set, "MATERIALS_NATIVE", False)
+    monkeypatch.setattr(normal_set.ContactSet, "_add_made", recorded)
     packbot.simulate(robot, start_pose(robot, 1), np.zeros(robot.model.nv), 0.6, config=cfg)
     assert kinds["vertex"] > 0 and kinds["other"] > 0, kinds
 

@@ -18,7 +18,7 @@ from numpy.typing import NDArray
 
 from packbot import _native
 from packbot.collision import CollisionWorld, PairInfo
-from packbot.collision_queries import material_batch, patch_batch
+from packbot.collision_queries import material_batch
 from packbot.contact.normal_patch import _Pair, _planes
 from packbot.contact.normal_tolerances import FACE_ALIGN, PATCH_TOL
 from packbot.system import strict_lower
@@ -35,11 +35,6 @@ __all__ = ["ContactSet"]
 log = logging.getLogger(__name__)
 
 FloatArray = NDArray[np.float64]
-
-#: Build the patches' material points in the extension's sweep (``Sweep.materials``) when the
-#: world has one; False: ``packbot._native.patch_material`` on the patches one by one (the
-#: same code, ``src/native/material.hpp``).
-MATERIALS_NATIVE = True
 
 
 class ContactSet:
@@ -165,10 +160,8 @@ class ContactSet:
     ) -> list[bool]:
         """:meth:`add_pair` for several pairs at one q, in their order; whether each is in.
 
-        With the compiled sweep the patches of all of them come from one native call
-        (:meth:`CollisionWorld.contact_patches
-        <packbot.collision.CollisionWorld.contact_patches>`), after one forward kinematics of
-        the model; the same patches and points as pair by pair, bit for bit.
+        The patches of all of them, made material points, come from one call of the compiled
+        sweep (:meth:`_add_made`), after one forward kinematics of the model.
 
         Args:
             q: Configuration [rad].
@@ -179,44 +172,21 @@ class ContactSet:
         assert world is not None
         if not pairs:
             return []
-        material = _native.patch_material
         t = self.tol if tol is None else tol
         ks = [world._pair_id(k) for k in pairs]
-        self._built = (q.tobytes(), t)  # (_put marks the patches with it)
-        if MATERIALS_NATIVE:
-            made = self._add_made(q, ks, t)
-            if made is not None:
-                if any(made):
-                    self._invalidate()  # (once: the caches are not read in between)
-                return made
-        batch = patch_batch(world, q, ks, t)
-        sizes, normals, depths, pts1, pts2, rot, trans = batch
-        pin.forwardKinematics(self.model, self.data, q)
-        frames: dict[int, tuple[Any, ...]] = {}  # the joints' placements at q, read once
-        out, s = [], 0
-        for i, k in enumerate(ks):
-            K = int(sizes[i])
-            if K < 0:
-                out.append(False)
-                continue
-            self._put(
-                q, k, normals[i], pts1[s : s + K], pts2[s : s + K], float(depths[i]),
-                rot[i, 0], trans[i, 0], rot[i, 1], trans[i, 1], frames, material,
-            )  # fmt: skip
-            s += K
-            out.append(True)
-        if any(out):
+        self._built = (q.tobytes(), t)  # (the patches are marked with it)
+        made = self._add_made(q, ks, t)
+        if any(made):
             self._invalidate()  # (once: the caches are not read in between)
-        return out
+        return made
 
-    def _add_made(self, q: FloatArray, ks: list[int], t: float) -> list[bool] | None:
-        """:meth:`add_pairs`'s patches made material points by the extension, or None.
+    def _add_made(self, q: FloatArray, ks: list[int], t: float) -> list[bool]:
+        """:meth:`add_pairs`'s patches made material points by the extension.
 
-        ``Sweep.materials`` (``src/native/material.hpp``): the same Coal patches as
-        :func:`~packbot.collision_queries.patch_batch` and
-        the patch materials of :meth:`_put` (``src/native/material.hpp``, one implementation
-        for both); a patch off its pair's distance
-        is made here from the witness points, as :meth:`_put` does.
+        ``Sweep.materials`` (``src/native/material.hpp``): Coal's patches
+        (:func:`~packbot.collision_queries.patch_batch`'s) made material points: each body's
+        points moved along the normal onto its face, in its joint's frame; a patch off its
+        pair's distance is made from the witness points (:meth:`_put_witness`).
         """
         world = self.world
         assert world is not None
@@ -230,10 +200,10 @@ class ContactSet:
             if K == -1:
                 out.append(False)
                 continue
-            if K < 0:  # off its distance: the witness points (see _put)
-                self._put(
-                    q, k, normals[i], None, None, float(depths[i]), rot[i, 0], trans[i, 0],
-                    rot[i, 1], trans[i, 1], {}, _native.patch_material,
+            if K < 0:  # off its distance: the witness points
+                self._put_witness(
+                    q, k, normals[i], float(depths[i]), rot[i, 0], trans[i, 0], rot[i, 1],
+                    trans[i, 1],
                 )  # fmt: skip
                 out.append(True)
                 continue
@@ -244,7 +214,7 @@ class ContactSet:
             )  # fmt: skip
             p.frame2, p.centre1, p.centre2 = fr2[i], cen[i, 0], cen[i, 1]
             if flag & 2:
-                p.slide_tol = math.inf  # (nothing lags: see _put)
+                p.slide_tol = math.inf  # (nothing lags: see _put_witness)
             old = pairs.get(k)
             if old is not None:
                 p.stick, p.slip_dir = old.stick, old.slip_dir
@@ -265,68 +235,54 @@ class ContactSet:
         o = np.concatenate([o for _, o in planes]) if G else np.zeros(0)
         return N.reshape(-1, 3), o, start
 
-    def _put(
+    def _put_witness(
         self,
         q: FloatArray,
         pair: int,
         n: FloatArray,
-        points1: FloatArray | None,
-        points2: FloatArray | None,
         d: float,
         Rg1: FloatArray,
         tg1: FloatArray,
         Rg2: FloatArray,
         tg2: FloatArray,
-        frames: dict[int, tuple[Any, ...]],
-        material: Any,
     ) -> None:
-        """Put a pair's patch in the contact set (the model's kinematics at q).
+        """Put a pair whose patch is off its distance in the contact set: its witness points.
 
-        The caller then empties the caches (:meth:`_invalidate`).
+        Coal's patch of a deep or grazing penetration can place its points far off the pair's
+        distance (measured: gaps of -33 mm and +12 mm for a pair 24 um deep, the camera head
+        spinning into link 1's tube): one point, the witness pair, instead, made a material
+        point by ``packbot._native.patch_material`` (``src/native/material.hpp``). The
+        model's kinematics at q; the caller then empties the caches (:meth:`_invalidate`).
 
         Args:
             q: Configuration [rad].
             pair: The pair's index.
             n: The patch normal (world, body 1 to body 2).
-            points1: Its points on piece 1, (K, 3) world [m] (None: the patch is known to be
-                off the pair's distance, the witness points are taken).
-            points2: Its points on piece 2, (K, 3) world [m] (None with points1).
             d: The pair's signed distance [m].
             Rg1: Piece 1's world rotation.
             tg1: Piece 1's world translation [m].
             Rg2: Piece 2's world rotation.
             tg2: Piece 2's world translation [m].
-            frames: The joints' placements already read at q, by joint (filled here).
-            material: ``packbot._native.patch_material`` (``src/native/material.hpp``).
         """
         assert self.world is not None
         old = self.pairs.get(pair)
         info = self.world.pairs[pair]
-        _, R1, t1 = frames.get(info.joint1) or self._frame(frames, info.joint1)
-        _, R2, t2 = frames.get(info.joint2) or self._frame(frames, info.joint2)
+        frames: dict[int, tuple[Any, ...]] = {}
+        _, R1, t1 = self._frame(frames, info.joint1)
+        _, R2, t2 = self._frame(frames, info.joint2)
         N1, o1 = self._planes_of(info.geom1)
         N2, o2 = self._planes_of(info.geom2)
-        ok = False
-        if points1 is not None:  # (None: the caller found the patch off its distance)
-            ok, *made = material(
-                points1, points2, n, d, N1, o1, Rg1, tg1,
-                N2, o2, Rg2, tg2, R1, t1, R2, t2, PATCH_TOL, True,
-            )  # fmt: skip
-        if not ok:
-            # Coal's patch of a deep or grazing penetration can place its points far off the
-            # pair's distance (measured: gaps of -33 mm and +12 mm for a pair 24 um deep, the
-            # camera head spinning into link 1's tube): one point, the witness pair, instead.
-            c = self.world.pair_contact(q, pair)
-            ok, *made = material(
-                c.p1[None, :], c.p2[None, :], n, d, N1, o1, Rg1, tg1,
-                N2, o2, Rg2, tg2, R1, t1, R2, t2, PATCH_TOL, False,
-            )  # fmt: skip
-            log.debug(
-                "pair %s / %s: patch off its distance %.3g m: witness point used",
-                info.piece1,
-                info.piece2,
-                d,
-            )
+        c = self.world.pair_contact(q, pair)
+        _, *made = _native.patch_material(
+            c.p1[None, :], c.p2[None, :], n, d, N1, o1, Rg1, tg1,
+            N2, o2, Rg2, tg2, R1, t1, R2, t2, PATCH_TOL, False,
+        )  # fmt: skip
+        log.debug(
+            "pair %s / %s: patch off its distance %.3g m: witness point used",
+            info.piece1,
+            info.piece2,
+            d,
+        )
         local1, local2, normal2, frame2, centre1, centre2, offset0, on1 = made
         p = _Pair(info, local1, local2, normal2, bool(on1), offset0=offset0)
         p.frame2, p.centre1, p.centre2 = frame2, centre1, centre2
