@@ -25,7 +25,7 @@ from numpy.typing import NDArray
 
 from packbot.contact_forces import ContactTable, SampleForces
 from packbot.drive import Drive
-from packbot.errors import SimulationError
+from packbot.errors import ModelError, SimulationError
 from packbot.ode import DenseSegment
 from packbot.result import Event
 
@@ -148,20 +148,29 @@ def contact_sampler(
     return sample
 
 
-#: System -> its compiled model for the samples' energies (None: no extension, or a joint
-#: type it does not rebuild), built at a phase's first batch of samples.
+#: System -> its compiled model for the samples' energies (None: a joint type the extension does
+#: not rebuild, e.g. a continuous joint in the ``none`` mode, which has no collision world),
+#: built at a phase's first batch of samples.
 _COMPILED: weakref.WeakKeyDictionary[System, NativeRhs | None] = weakref.WeakKeyDictionary()
 
 
 def _compiled(sys: System) -> NativeRhs | None:
-    """The compiled model of ``sys`` for the samples' energies, or None."""
+    """The compiled model of ``sys`` for the samples' energies, or None (its joint types).
+
+    Raises:
+        PackbotError: The extension ``packbot._native`` is not built.
+    """
     try:
         return _COMPILED[sys]
     except KeyError:
         pass
     from packbot.contact import native  # (the contact laws import this module)
 
-    rhs = native.native_rhs(sys.model) if native.ENABLED and native.available() else None
+    rhs: NativeRhs | None
+    try:
+        rhs = native.native_rhs(sys.model)
+    except ModelError:  # (then the system's energies, row by row, as a single sample's)
+        rhs = None
     _COMPILED[sys] = rhs
     return rhs
 

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 import packbot
-from packbot.contact import stretch
+from packbot.contact.normal_law import NormalLaw
 
 
 @pytest.fixture(scope="session")
@@ -19,14 +19,18 @@ def rng() -> np.random.Generator:
 
 @pytest.fixture(scope="module")
 def step_by_step() -> Iterator[None]:
-    """The contact-normal mode's steps one by one (its compiled stretch switched off).
+    """The contact-normal mode's steps one by one: no compiled stretch is offered.
 
-    For the tests of the per-step machinery (the native attempts, the step end's screen, the
-    stiff switch, the kept distances), which watch the steps the loop takes in Python; the
-    stretch takes them with the same arithmetic (tests/test_stretch.py). A module that uses
+    Each step then comes to the loop as a step the stretch hands back does (the native step,
+    the step end's screen, the stiff switch, the kept distances in Python), for the tests of
+    that per-step machinery; an arm captured at rest is still held there. A module that uses
     it does so with an autouse fixture of its own, instantiated before its other
     module-scoped fixtures (which may run collapses).
     """
+
+    def no_stretch(self, stepper, t_end, *args):
+        return self._hold_at_rest(stepper, t_end) if self.normal.resting else None
+
     with pytest.MonkeyPatch.context() as mp:
-        mp.setattr(stretch, "ENABLED", False)
+        mp.setattr(NormalLaw, "stretch", no_stretch)
         yield

@@ -1,12 +1,12 @@
-"""The native Dormand-Prince step of the report's law's lock modes against the Python stages.
+"""The native Dormand-Prince step of the report's law's lock modes.
 
 :meth:`packbot.contact.stops.JointStops.step_kernel` hands the stepper one compiled call per
 attempt when the mode's accelerations are the joint locks' alone (``ContactRhs.set_locks``:
 ABA with no lock, ABA and M^-1's rank-one correction with one, the unlocked joints' block of
 M from CRBA and the bias forces with all but at most 3 locked). At every attempt of real
-runs it is compared with the stepper's own stages around the integrator's right-hand side
-(:meth:`JointStops.torque_accel`); whole runs with and without it; the step end's screen of the
-lock conditions against :meth:`JointStops.lock_conditions`; and where it must not be offered.
+runs its solution is checked against the ODE's (finer steps on the integrator's right-hand
+side, :meth:`JointStops.torque_accel`) within the stepper's tolerance; the step end's screen of
+the lock conditions against :meth:`JointStops.lock_conditions`; and where it must not be offered.
 """
 
 from __future__ import annotations
@@ -16,7 +16,7 @@ import math
 
 import numpy as np
 import pytest
-from test_native_step import _python_attempt
+from test_native_step import ACCURACY_MEDIAN, ACCURACY_WORST, _checked_attempt
 
 import packbot
 from packbot import ode
@@ -29,6 +29,9 @@ from packbot.system import System
 pytestmark = pytest.mark.skipif(not native.available(), reason="packbot._native is not built")
 
 WRIST = ("camera_tilt", "camera_pan", "gripper_roll", "gripper_jaw")
+#: A joint angle beyond its limit by more than this [rad] breaks the stop (the event location's
+#: tolerance is far below it).
+LIMIT_TOL = 1e-6
 
 
 def _find_stepper(monkeypatch) -> dict:
@@ -62,10 +65,13 @@ class _Held(Controller):
 
 
 @pytest.mark.parametrize("case", list(CASES))
-def test_every_native_lock_attempt_matches_the_python_stages(robot, monkeypatch, case):
+def test_every_native_lock_attempt_solves_the_ode_within_its_tolerance(robot, monkeypatch, case):
+    """Each accepted native attempt of the lock modes (no lock, one, a block) is the solution
+    of the ODE it integrates within the stepper's tolerance, its last stage the right-hand side
+    at its end (test_native_step's check); the joint limits hold."""
     extra, duration, ctrl = CASES[case]
     seen: dict[str, int] = {"attempts": 0, "none": 0, "one": 0, "block": 0}
-    worst = {"Z": 0.0, "y1": 0.0, "err": 0.0}
+    worst: dict = {"errors": [], "fsal": 0.0}
     box = _find_stepper(monkeypatch)
     original = JointStops.step_kernel
 
@@ -76,25 +82,14 @@ def test_every_native_lock_attempt_matches_the_python_stages(robot, monkeypatch,
         stepper = box["stepper"]
         k = self.locks.n_locked
 
-        def both(h, Z, ay0, atol, rtol, y1, ay1):
-            assert ay0 is stepper._ay and rtol == stepper.rtol
-            Zp, y1p, errp = _python_attempt(stepper, h, Z)
-            err = kernel(h, Z, ay0, atol, rtol, y1, ay1)
-            assert err >= 0.0  # every stage in closed form here
-            scale = np.maximum(1.0, np.abs(Zp).max(axis=1))
-            worst["Z"] = max(worst["Z"], float((np.abs(Z - Zp).max(axis=1) / scale).max()))
-            worst["y1"] = max(worst["y1"], float(np.abs(y1 - y1p).max() / np.abs(y1p).max()))
-            worst["err"] = max(worst["err"], abs(err - errp) / max(errp, 1.0))
-            np.testing.assert_array_equal(ay1, np.abs(y1))
-            # the FSAL slope is the Python right-hand side at the native y1, to the last bit
-            np.testing.assert_array_equal(Z[7], stepper._rhs(stepper.t + h, y1.copy()))
-            if abs(errp - 1.0) > 1e-6:  # the same decision (accepted or rejected)
-                assert (err < 1.0) == (errp < 1.0)
+        def attempt(*args):
             seen["attempts"] += 1
             seen["none" if k == 0 else ("one" if k == 1 else "block")] += 1
+            err = _checked_attempt(stepper, kernel, worst, *args)
+            assert err >= 0.0  # every stage in closed form here
             return err
 
-        return both
+        return attempt
 
     monkeypatch.setattr(JointStops, "step_kernel", checked)
     cfg = packbot.SimConfig(contact_mode="joint_clamp", **extra)
@@ -107,41 +102,14 @@ def test_every_native_lock_attempt_matches_the_python_stages(robot, monkeypatch,
     assert seen["block"] > 0, seen
     if case == "collapse":
         assert seen["none"] > 0 and seen["one"] > 0, seen
-    # the stage arguments are summed in another order than numpy's: rounding
-    assert worst["y1"] <= 1e-14, worst
-    assert worst["Z"] <= 1e-9, worst
-    assert worst["err"] <= 1e-6, worst
-
-
-def test_a_collapse_with_the_native_lock_step_is_the_python_steps_within_rounding(
-    robot, monkeypatch
-):
-    cfg = packbot.SimConfig(contact_mode="joint_clamp", locked_joints=WRIST)
-    calls = {"native": 0}
-    original = JointStops.step_kernel
-
-    def counted(self, t, y):
-        kernel = original(self, t, y)
-        calls["native"] += kernel is not None
-        return kernel
-
-    monkeypatch.setattr(JointStops, "step_kernel", counted)
-    runs = []
-    for enabled in (False, True):
-        monkeypatch.setattr(native, "STEP_ENABLED", enabled)
-        calls["native"] = 0
-        runs.append(packbot.simulate(robot, robot.pose("drive"), np.zeros(8), 5.0, config=cfg))
-    off, on = runs
-    assert calls["native"] == on.diagnostics.steps  # every step of the collapse
-    assert on.diagnostics.steps == off.diagnostics.steps
-    assert on.diagnostics.rhs_calls == off.diagnostics.rhs_calls
-    assert len(on.t) == len(off.t)
-    assert [(e.kind, e.piece1, e.piece2) for e in on.events] == [
-        (e.kind, e.piece1, e.piece2) for e in off.events
-    ]
-    dt = max(abs(a.t - b.t) for a, b in zip(on.events, off.events, strict=True))
-    assert dt <= 1e-12
-    np.testing.assert_allclose(on.q, off.q, rtol=0.0, atol=1e-12)
+    errors = np.array(worst["errors"])
+    assert np.median(errors) <= ACCURACY_MEDIAN and errors.max() <= ACCURACY_WORST, (
+        np.median(errors),
+        errors.max(),
+    )
+    assert worst["fsal"] <= 1e-12, worst  # the same function of the same input: rounding
+    lower, upper = robot.model.lowerPositionLimit, robot.model.upperPositionLimit
+    assert (res.q >= lower - LIMIT_TOL).all() and (res.q <= upper + LIMIT_TOL).all()
 
 
 @pytest.mark.parametrize("case", ["collapse", "friction"])
@@ -210,14 +178,10 @@ def test_the_lock_step_is_offered_only_where_it_serves_every_stage(robot, monkey
         packbot.simulate(
             robot, q0, v0, 0.3, config=packbot.SimConfig(**{**base, **extra}), controller=ctrl
         )
-    monkeypatch.setattr(native, "STEP_ENABLED", False)
-    label[0] = "switched off"
-    packbot.simulate(robot, q0, v0, 0.3, config=packbot.SimConfig(**base))
     assert offered["plain"] > 20
     assert offered["no contact law"] > 5  # contact_mode="none" steps natively too (13)
     assert offered["torque function"] == 0
     assert offered["motor lag"] == 0
-    assert offered["switched off"] == 0
 
 
 def test_bad_lock_sets_are_refused(robot):

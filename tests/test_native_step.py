@@ -1,11 +1,11 @@
-"""The native Dormand-Prince step of the contact-normal mode against the stepper's Python stages.
+"""The native Dormand-Prince step of the contact-normal mode.
 
 :meth:`packbot.contact.normal.NormalLaw.step_kernel` hands the stepper one compiled call per
 attempt (``ContactRhs.dopri``: the six stages with the native right-hand side, the 5th-order
-solution, the FSAL slope and the error norm). At every attempt of real collapses it is compared
-with the stepper's own stages (:class:`packbot.ode.RK45Stepper`'s arithmetic around the
-integrator's right-hand side) at the same step size; whole runs with and without it; and the
-cases where it must not be offered.
+solution, the FSAL slope and the error norm). At every attempt of real collapses its solution is
+checked against the ODE's (finer steps on the same right-hand side) within the stepper's
+tolerance; the native evaluations of the step's end and of its root finding against the
+contact set's; and the cases where it must not be offered.
 """
 
 from __future__ import annotations
@@ -19,7 +19,7 @@ from test_normal_cascade import start_pose
 import packbot
 from packbot import ode
 from packbot.contact import native
-from packbot.contact.normal import NormalLaw
+from packbot.contact.normal import PENETRATION_TOL, NormalLaw
 from packbot.control.base import Controller
 from packbot.drive import Drive
 from packbot.system import System
@@ -33,28 +33,49 @@ def _steps_one_by_one(step_by_step: None) -> None:
 pytestmark = pytest.mark.skipif(not native.available(), reason="packbot._native is not built")
 
 WRIST = ("camera_tilt", "camera_pan", "gripper_roll", "gripper_jaw")
-#: Relative difference of the native and Python stages that rounding can leave (see the test).
-SLOPE_TOL = 1e-6
-#: Relative difference of their error norms: the slopes' divided by atol + rtol |y|, which
-#: is up to ~1e2 smaller than the slopes it scales.
-ERR_TOL = 1e-4
+#: The accepted native attempts' 5th-order solution against the ODE's, in the scaled RMS norm of
+#: the stepper's error control (1: the tolerance): its median, and its worst. The step size
+#: follows the embedded 4th-order estimate, which the true error follows, but not everywhere: on
+#: a step where a slip turns it was 8 for an estimate of 0.02 (the drive-pose collapse, mu 0.5;
+#: median 0.09, 99th percentile 0.97). A wrong stage coefficient or a stale plan gives 1e3 or
+#: more.
+ACCURACY_MEDIAN = 0.5
+ACCURACY_WORST = 50.0
 
 
-def _python_attempt(stepper: ode.RK45Stepper, h: float, Z: np.ndarray) -> tuple:
-    """The stepper's Python stages, y1 and error norm of one attempt of size h (as ode.py)."""
-    t, rhs = stepper.t, stepper._rhs
-    Ah = ode._A8 * h
+def _reference(rhs, t: float, y0: np.ndarray, h: float, k: int = 16) -> np.ndarray:
+    """The ODE's solution at t + h from y0: k Dormand-Prince steps of h / k on ``rhs`` (the
+    stepper's right-hand side, its modes fixed), whose error is ~k^5 times the attempt's."""
+    y, hs = y0.copy(), h / k
+    Ah = ode._A8 * hs
     Ah[:, 0] = 1.0
-    Z = Z.copy()
-    for s in range(1, 6):
-        Z[1 + s] = rhs(t + ode._C[s] * h, np.dot(Ah[s, : s + 1], Z[: s + 1]))
-    y1 = np.dot(Ah[6, :7], Z[:7])
-    Z[7] = rhs(t + h, y1)
-    ev = np.dot(ode._E, Z[1:])
-    sc = np.maximum(stepper._ay, np.abs(y1)) * stepper.rtol + stepper.atol
-    ev /= sc
-    err = h * math.sqrt(float(np.dot(ev, ev)) / len(y1))
-    return Z, y1, err
+    Z = np.empty((7, len(y0)))
+    for i in range(k):
+        ti = t + i * hs
+        Z[0] = y
+        Z[1] = rhs(ti, y)
+        for s in range(1, 6):
+            Z[1 + s] = rhs(ti + ode._C[s] * hs, np.dot(Ah[s, : s + 1], Z[: s + 1]))
+        y = np.dot(Ah[6, :7], Z[:7])
+    return y
+
+
+def _checked_attempt(stepper, kernel, worst: dict, h, Z, ay0, atol, rtol, y1, ay1) -> float:
+    """The native attempt, its 5th-order solution against the ODE's (accepted attempts) and its
+    FSAL slope against the right-hand side at its y1: ``worst["errors"]`` (appended), and
+    ``worst["fsal"]``."""
+    t, y0 = stepper.t, Z[0].copy()
+    err = kernel(h, Z, ay0, atol, rtol, y1, ay1)
+    if err < 0.0 or err >= 1.0:  # (refused: the stepper's own stages; or rejected)
+        return err
+    ref = _reference(stepper._rhs, t, y0, h)
+    sc = np.maximum(np.abs(y0), np.abs(y1)) * rtol + atol
+    worst["errors"].append(math.sqrt(float(np.mean(((y1 - ref) / sc) ** 2))))
+    f1 = stepper._rhs(t + h, y1.copy())
+    scale = max(1.0, float(np.abs(f1).max()))
+    worst["fsal"] = max(worst["fsal"], float(np.abs(Z[7] - f1).max()) / scale)
+    np.testing.assert_array_equal(ay1, np.abs(y1))
+    return err
 
 
 @pytest.mark.parametrize(
@@ -62,9 +83,15 @@ def _python_attempt(stepper: ode.RK45Stepper, h: float, Z: np.ndarray) -> tuple:
     [(0.5, WRIST, 1.2), (0.0, WRIST, 0.8), (0.5, (), 0.5)],
     ids=["mu0.5", "mu0", "mu0.5-wrist-free"],
 )
-def test_every_native_attempt_matches_the_python_stages(robot, monkeypatch, mu, locked, duration):
-    seen = {"attempts": 0, "rejected": 0, "slip": 0, "stick": 0, "fallback": 0}
-    worst = {"Z": 0.0, "y1": 0.0, "err": 0.0, "norm": 0.0, "fsal": 0.0}
+def test_every_native_attempt_solves_the_ode_within_its_tolerance(
+    robot, monkeypatch, mu, locked, duration
+):
+    """The accepted native Dormand-Prince attempts of real collapses (stick, slip, limits) are
+    the solutions of the ODE they integrate (their modes fixed) within the stepper's tolerance
+    (ACCURACY_MEDIAN, ACCURACY_WORST), and each one's last stage is the right-hand side at its
+    end (to rounding)."""
+    seen = {"attempts": 0, "slip": 0, "stick": 0}
+    worst: dict = {"errors": [], "fsal": 0.0}
     original = NormalLaw.step_kernel
 
     def checked(self, t, y):
@@ -74,40 +101,17 @@ def test_every_native_attempt_matches_the_python_stages(robot, monkeypatch, mu, 
         stepper = self._test_stepper
         plan = self.normal._plan()
 
-        def both(h, Z, ay0, atol, rtol, y1, ay1):
-            assert ay0 is stepper._ay and rtol == stepper.rtol
-            Zp, y1p, errp = _python_attempt(stepper, h, Z)
-            err = kernel(h, Z, ay0, atol, rtol, y1, ay1)
-            if err < 0.0:  # a singular Delassus matrix: the stepper takes the Python stages
-                seen["fallback"] += 1
-                return err
-            scale = np.maximum(1.0, np.abs(Zp).max(axis=1))
-            worst["Z"] = max(worst["Z"], float((np.abs(Z - Zp).max(axis=1) / scale).max()))
-            worst["y1"] = max(worst["y1"], float(np.abs(y1 - y1p).max() / np.abs(y1p).max()))
-            worst["err"] = max(worst["err"], abs(err - errp) / max(errp, 1.0))
-            # the norm's own arithmetic: the Python norm of the native slopes
-            errz = h * math.sqrt(
-                float(np.sum((np.dot(ode._E, Z[1:]) / (np.maximum(ay0, ay1) * rtol + atol)) ** 2))
-                / len(y1)
-            )
-            worst["norm"] = max(worst["norm"], abs(err - errz) / max(errz, 1.0))
-            np.testing.assert_array_equal(ay1, np.abs(y1))
-            # the FSAL slope is the right-hand side at the native y1
-            f1 = stepper._rhs(stepper.t + h, y1.copy())
-            worst["fsal"] = max(worst["fsal"], float(np.abs(Z[7] - f1).max() / scale.max()))
-            if abs(errp - 1.0) > ERR_TOL:  # the same decision (accepted or rejected)
-                assert (err < 1.0) == (errp < 1.0)
+        def attempt(*args):
             seen["attempts"] += 1
-            seen["rejected"] += errp >= 1.0
             seen["slip"] += bool(plan.slips)
             seen["stick"] += bool(len(plan.sticks))
-            return err
+            return _checked_attempt(stepper, kernel, worst, *args)
 
-        return both
+        return attempt
 
     original_init = ode.RK45Stepper.__init__
 
-    def init(self, rhs, **kw):  # let the law find the run's stepper (for the Python stages)
+    def init(self, rhs, **kw):  # let the law find the run's stepper (its right-hand side)
         original_init(self, rhs, **kw)
         init.stepper = self
 
@@ -123,98 +127,17 @@ def test_every_native_attempt_matches_the_python_stages(robot, monkeypatch, mu, 
     cfg = packbot.SimConfig(contact_mode="normal", mu=mu, locked_joints=locked)
     packbot.simulate(robot, robot.pose("drive"), np.zeros(8), duration, config=cfg)
     assert seen["attempts"] > 100, seen
-    if mu > 0.0:  # (the frictionless collapse rejects no native attempt in 0.8 s)
-        assert seen["rejected"] > 0, seen
+    if mu > 0.0:
         assert seen["slip"] > 0, seen
         if locked:
             assert seen["stick"] > 0, seen
-    # The two compute the same stages with their sums in other orders (numpy's BLAS kernel,
-    # chosen per CPU, against Eigen's loops), so they differ by rounding amplified by the
-    # stiff right-hand side: a slope's argument differs by ~1e-16 relative, and the sliding
-    # contacts' right-hand side has Lipschitz constants of 1e4 to 1e5 1/s and Delassus
-    # matrices with condition numbers up to ~1e6. Measured worst relative slope difference:
-    # 2.6e-9 under OpenBLAS's Haswell kernel (FMA), 0 under its Sandybridge and Prescott
-    # kernels (the same order as Eigen's), 1.17e-8 on another machine (AVX-512). The bounds
-    # below are 100x the largest seen anywhere: rounding
-    # passes on any machine; a wrong stage coefficient or a stale plan shows as O(1e-3) or
-    # more. y1 and the norm are sums of those slopes (the norm's terms cancel: sum_j e_j k_j).
-    assert worst["Z"] <= SLOPE_TOL, worst
-    assert worst["y1"] <= SLOPE_TOL, worst
-    assert worst["norm"] <= SLOPE_TOL, worst
-    assert worst["err"] <= ERR_TOL, worst
-    # the FSAL slope is the right-hand side at the kernel's own y1: the same function of the
-    # same input, to rounding
-    assert worst["fsal"] <= 1e-12, worst
-
-
-def test_a_collapse_with_the_native_step_is_the_python_steps_within_rounding(robot, monkeypatch):
-    """The same events and samples; the differences are rounding (the stages' sums are
-    ordered differently from numpy's BLAS), which the stepper's accept/reject decisions in the
-    stiff slides amplify to about 3e-4 rad within 1 s (a 1e-14 rad change of the initial pose
-    moves the Python run by 1e-2 rad in 5 s). The explicit steps alone (the switch to the
-    native Rosenbrock attempt in stiff stretches, which the Python path does not take, off).
-    """
-    monkeypatch.setattr(native, "STIFF_ENABLED", False)
-    cfg = packbot.SimConfig(contact_mode="normal", mu=0.5, locked_joints=WRIST)
-    runs = []
-    calls = {"native": 0}
-    original = NormalLaw.step_kernel
-
-    def counted(self, t, y):
-        kernel = original(self, t, y)
-        calls["native"] += kernel is not None
-        return kernel
-
-    monkeypatch.setattr(NormalLaw, "step_kernel", counted)
-    for enabled in (False, True):
-        monkeypatch.setattr(native, "STEP_ENABLED", enabled)
-        if enabled:
-            calls["native"] = 0
-        runs.append(packbot.simulate(robot, robot.pose("drive"), np.zeros(8), 0.70, config=cfg))
-    off, on = runs
-    assert calls["native"] > 300  # the steps with engaged rows took the native step
-    # Rounding can tip a borderline event either way: a slide coming back to within
-    # STICK_BAND of zero (a stick and its slip at one instant in one run only), a pair
-    # reaching PENETRATION_TOL (re-patched in one run, its free row's impact in the other, at
-    # the same instant). (Up to 0.70 s: the tube's next facet is found at 0.7026 s by an
-    # impact in the native run and at 0.7323 s by a re-patch in the Python one; with the step
-    # bound's dot product summed in numpy's order instead of joint order they agreed to 0.73 s.)
-    ev_on, ev_off = _outcomes(on.events), _outcomes(off.events)
-    assert [k for k, _, _ in ev_on] == [k for k, _, _ in ev_off]
-    dt = max(abs(a - b) for (_, a, _), (_, b, _) in zip(ev_on, ev_off, strict=True))
-    assert dt <= 5e-3  # 1.9e-3 s here
-    grid = np.arange(71) * 0.01  # the samples every 0.01 s (the events' own samples apart)
-    rows_on = [int(np.argmin(np.abs(on.t - g))) for g in grid]
-    rows_off = [int(np.argmin(np.abs(off.t - g))) for g in grid]
-    np.testing.assert_allclose(on.t[rows_on], grid, rtol=0.0, atol=1e-12)
-    np.testing.assert_allclose(off.t[rows_off], grid, rtol=0.0, atol=1e-12)
-    dq = np.abs(on.q[rows_on] - off.q[rows_off]).max()
-    assert dq <= 1e-3  # 1.4e-4 rad here
-    assert on.diagnostics.min_distance >= -1e-5
-
-
-def _outcomes(events):
-    """(kind, piece1), t of the events, a stick followed by a slip of the same pair at the same
-    instant dropped (no mode change) and a re-patch counted as the impact it can be."""
-    out = []
-    for i, e in enumerate(events):
-        nxt = events[i + 1] if i + 1 < len(events) else None
-        prv = events[i - 1] if i > 0 else None
-        if (
-            e.kind == "stick"
-            and nxt is not None
-            and (nxt.kind, nxt.t, nxt.piece1, nxt.piece2) == ("slip", e.t, e.piece1, e.piece2)
-        ):
-            continue
-        if (
-            e.kind == "slip"
-            and prv is not None
-            and (prv.kind, prv.t, prv.piece1, prv.piece2) == ("stick", e.t, e.piece1, e.piece2)
-        ):
-            continue
-        kind = "impact" if e.kind == "repatch" else e.kind
-        out.append(((kind, e.piece1), e.t, e.piece2))
-    return out
+    errors = np.array(worst["errors"])
+    assert np.median(errors) <= ACCURACY_MEDIAN and errors.max() <= ACCURACY_WORST, (
+        np.median(errors),
+        errors.max(),
+    )
+    # the same function of the same input: rounding (the stiff rows amplify it to ~1e-13)
+    assert worst["fsal"] <= 1e-10, worst
 
 
 def test_the_step_kernel_is_offered_only_where_the_native_rhs_serves_every_stage(
@@ -241,13 +164,9 @@ def test_the_step_kernel_is_offered_only_where_the_native_rhs_serves_every_stage
         label[0] = name
         cfg = packbot.SimConfig(**base, **extra)
         packbot.simulate(robot, q0, v0, 0.3, config=cfg, controller=ctrl)
-    monkeypatch.setattr(native, "STEP_ENABLED", False)
-    label[0] = "switched off"
-    packbot.simulate(robot, q0, v0, 0.3, config=packbot.SimConfig(**base))
     assert offered["plain"] > 20
     assert offered["torque function"] == 0
     assert offered["motor lag"] == 0
-    assert offered["switched off"] == 0
 
 
 def test_step_torques_are_the_drives_torques(robot, rng):
@@ -506,8 +425,20 @@ def test_a_tick_inside_a_window_restarts_on_the_free_accelerations(robot, monkey
             return tau
 
     cfg = packbot.SimConfig(contact_mode="normal", mu=0.5, locked_joints=WRIST, joint_friction=True)
+    in_window = {"calls": 0}
+    original = NormalLaw.torque_accel
+
+    def counted(self, q, v, tau):
+        a = original(self, q, v, tau)
+        if self.window is not None:
+            in_window["calls"] += 1
+            np.testing.assert_array_equal(a, self.sys.aba(q, v, tau))
+        return a
+
+    monkeypatch.setattr(NormalLaw, "torque_accel", counted)
     res = packbot.simulate(
         robot, robot.pose("drive"), np.zeros(8), 2.0, config=cfg, controller=Push(dt=0.01)
     )
     assert res.t[-1] == pytest.approx(2.0)
     assert res.diagnostics.windows > 0
+    assert -res.diagnostics.min_distance <= PENETRATION_TOL

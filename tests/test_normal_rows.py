@@ -315,10 +315,11 @@ def test_step_end_reuses_the_last_stage_and_violated_agrees(robot, monkeypatch):
         return ev
 
     monkeypatch.setattr(normal.NormalContacts, "evaluate_again", checked)
-    # (the stages in Python: a native step's end reads its own evaluation, not this one)
-    monkeypatch.setattr(native, "STEP_ENABLED", False)
     cfg = packbot.SimConfig(contact_mode="normal", mu=0.5, locked_joints=WRIST)
-    packbot.simulate(robot, robot.pose("drive"), np.zeros(8), 1.2, config=cfg)
+    # a torque function: the stepper's stages call the right-hand side (no native step, whose
+    # end reads its own evaluation, not this one)
+    zero = lambda t, q, v: np.zeros(8)  # noqa: E731
+    packbot.simulate(robot, robot.pose("drive"), np.zeros(8), 1.2, config=cfg, controller=zero)
     assert seen["states"] > 100
     assert seen["hits"] > 0.8 * seen["states"]
     assert seen["flagged"] > 100 and seen["kernel"] > 100 and seen["slid"] > 10

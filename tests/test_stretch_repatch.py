@@ -1,24 +1,25 @@
-"""The compiled stretch's own re-patches are the loop's re-patches.
+"""The compiled stretch's own re-patches.
 
 A step whose only finding is a sliding pair's stale patch is re-patched inside the stretch
 (``src/native/stretch.hpp``, ``Stretch::try_repatch``): the patches rebuilt from the sweep's
 materials, the drift projection's native round and its sweep's check, the modes kept or
 selected again natively, the plan loaded and the stepper restarted there; Python then takes
-the contact set over (:func:`packbot.contact.stretch.adopt_repatches`). With
-:data:`packbot.contact.stretch.REPATCH_ENABLED` off the step is handed back and
-:meth:`NormalContacts.repatch <packbot.contact.normal_contacts.NormalContacts.repatch>` does
-the same in Python. Both must run the same: the same counters, events at the same instants, the
-same final state to the bit, the samples to the rounding of the dense output that records the
-re-patched steps (summed in another order than numpy's, as every stretch step's). Where the
-native re-patch hands back (forced here through its constants), nothing it did may show.
+the contact set over (:func:`packbot.contact.stretch.adopt_repatches`). The runs that re-patch
+in their stretches keep the physics gates (test_stretch's), and every re-patch is taken in one
+place: in the stretch or, where it hands back, by :meth:`NormalContacts.repatch
+<packbot.contact.normal_contacts.NormalContacts.repatch>`. Where the native re-patch hands back
+(forced here through its constants), nothing it did may show: the run is the one that hands
+back before doing anything.
 """
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 from test_normal_cascade import start_pose
-from test_stretch import _same as _same_counters_events_samples
+from test_stretch import physical
 
 import packbot
 from packbot import native_sweep
@@ -72,20 +73,36 @@ class _Counts:
         monkeypatch.setattr(NativeDispatch, "sweep", swept)
 
 
-def _run(robot, q0, duration, cfg, enabled, monkeypatch):
-    monkeypatch.setattr(stretch, "REPATCH_ENABLED", enabled)
+def _run(robot, q0, duration, cfg):
     return packbot.simulate(robot, q0, np.zeros(robot.nq), duration, config=cfg)
 
 
-def _same(off, on, exact_samples: bool):
-    """test_stretch's comparison (the samples to the dense output's rounding), the final state
-    to the bit, and with ``exact_samples`` every sample to the bit."""
-    _same_counters_events_samples(off, on)
-    np.testing.assert_array_equal(on.q[-1], off.q[-1])
-    np.testing.assert_array_equal(on.v[-1], off.v[-1])
-    if exact_samples:
-        np.testing.assert_array_equal(on.q, off.q)
-        np.testing.assert_array_equal(on.v, off.v)
+#: The counters two runs that do the same re-patches agree on (Diagnostics' fields).
+COUNTERS = (
+    "steps",
+    "rejected_steps",
+    "rhs_calls",
+    "sweeps",
+    "distance_queries",
+    "restarts",
+    "windows",
+    "window_steps",
+    "min_distance",
+    "min_distance_pair",
+)
+
+
+def _same(a, b):
+    """The same run: counters, events at the same instants, samples and final state."""
+    d_a, d_b = dataclasses.asdict(a.diagnostics), dataclasses.asdict(b.diagnostics)
+    for name in COUNTERS:
+        assert d_b[name] == d_a[name], name
+    assert [(e.t, e.kind, e.piece1, e.piece2) for e in b.events] == [
+        (e.t, e.kind, e.piece1, e.piece2) for e in a.events
+    ]
+    np.testing.assert_array_equal(b.t, a.t)
+    np.testing.assert_array_equal(b.q, a.q)
+    np.testing.assert_array_equal(b.v, a.v)
 
 
 CASES = {  # (config, start pose, duration [s], least re-patches in the stretch, of a new shape)
@@ -97,27 +114,24 @@ CASES = {  # (config, start pose, duration [s], least re-patches in the stretch,
 
 
 @pytest.mark.parametrize("case", list(CASES))
-def test_the_stretch_re_patches_as_the_loop(robot, monkeypatch, case):
+def test_the_stretch_re_patches_and_keeps_the_physics(robot, monkeypatch, case):
     kw, pose, duration, least, relaid = CASES[case]
     cfg = packbot.SimConfig(contact_mode="normal", **kw)
     counts = _Counts(monkeypatch)
-    off = _run(robot, robot.pose(pose), duration, cfg, False, monkeypatch)
-    python_off = counts.python
-    on = _run(robot, robot.pose(pose), duration, cfg, True, monkeypatch)
-    _same(off, on, exact_samples=False)
+    res = _run(robot, robot.pose(pose), duration, cfg)
+    physical(robot, res, dissipates=kw["mu"] > 0.0)
     assert counts.native >= least, counts.native
     assert counts.relaid >= relaid, counts.relaid
-    # every re-patch taken in one of the two places (the stretch's hand-backs in Python)
-    assert counts.native + (counts.python - python_off) == python_off
+    # every re-patch logged, taken in the stretch or (a hand-back) in Python
+    assert counts.native + counts.python == len(res.events_of("repatch"))
 
 
 def test_a_wrist_free_start_with_limits_and_rosenbrock_steps(robot, monkeypatch):
     # a start whose stretches re-patch natively (the choice moves with the trajectory)
     cfg = packbot.SimConfig(contact_mode="normal", mu=0.5, restitution=0.0)
     counts = _Counts(monkeypatch)
-    off = _run(robot, start_pose(robot, 4), 1.5, cfg, False, monkeypatch)
-    on = _run(robot, start_pose(robot, 4), 1.5, cfg, True, monkeypatch)
-    _same(off, on, exact_samples=False)
+    res = _run(robot, start_pose(robot, 4), 1.5, cfg)
+    physical(robot, res)
     assert counts.native > 0
 
 
@@ -144,28 +158,30 @@ def _hand_back_at(monkeypatch, stage: int) -> None:
 @pytest.mark.parametrize(
     ("stage", "why"),
     [
-        (1, "the patches built, nothing loaded yet"),
         (2, "after the projection's round: the patches and plan put back"),
         (3, "at the modes: put back, the projection's sweep left for the loop's re-patch"),
     ],
 )
 def test_a_re_patch_handed_back_leaves_no_trace(robot, monkeypatch, stage, why):
-    """Forced hand-backs: the run is the loop's to the bit, samples included."""
+    """Forced hand-backs after the re-patch's later stages: the run is the one handed back
+    before anything was done (stage 1), samples included; every re-patch then Python's."""
     cfg = packbot.SimConfig(contact_mode="normal", mu=0.5, locked_joints=WRIST_JOINTS)
     counts = _Counts(monkeypatch)
-    off = _run(robot, robot.pose("drive"), 5.0, cfg, False, monkeypatch)
-    python_off = counts.python
+    _hand_back_at(monkeypatch, 1)
+    first = _run(robot, robot.pose("drive"), 5.0, cfg)
+    python_first, kept_first = counts.python, counts.kept
     _hand_back_at(monkeypatch, stage)
-    on = _run(robot, robot.pose("drive"), 5.0, cfg, True, monkeypatch)
-    _same(off, on, exact_samples=True)
+    later = _run(robot, robot.pose("drive"), 5.0, cfg)
+    _same(first, later)
     assert counts.native == 0, why
-    assert counts.python - python_off == python_off
+    assert python_first > 0 and counts.python - python_first == python_first
+    kept = counts.kept - kept_first
     if stage == 3:
         # after a projection that moved q, its sweep is left for the loop's re-patch, which
         # finds it (its warm-started GJK is not run a second time at that q)
-        assert counts.kept > 5 and counts.used == counts.kept, (counts.kept, counts.used)
+        assert kept > 5 and counts.used == kept, (kept, counts.used)
     else:
-        assert counts.kept == 0
+        assert kept == 0
 
 
 def test_native_inverse_mass_and_free_accelerations_are_the_systems(robot, rng):

@@ -17,6 +17,7 @@ from numpy.typing import NDArray
 from packbot.contact import native
 from packbot.contact.locks import ACCEL_BAND, TORQUE_BAND, JointLocks
 from packbot.drive import Drive
+from packbot.errors import ModelError
 from packbot.ode import StepKernel
 from packbot.system import System
 
@@ -40,8 +41,10 @@ class NativeLockStep:
         drive: The run's torques (:meth:`~packbot.drive.Drive.step_torques`).
 
     Attributes:
-        rhs: The native right-hand side, built at the first native step (None before, or if
-            the extension cannot serve the model).
+        rhs: The native right-hand side, built at the first native step (None before, or for
+            a model with a joint type the extension does not rebuild, e.g. a continuous joint
+            in the ``none`` mode, which has no collision world: the stepper's stages then call
+            the law's right-hand side).
     """
 
     def __init__(self, system: System, drive: Drive) -> None:
@@ -72,8 +75,9 @@ class NativeLockStep:
             if self._tried:
                 return None
             self._tried = True
-            rhs = self.rhs = native.native_rhs(self.sys.model) if native.ENABLED else None
-            if rhs is None:
+            try:
+                rhs = self.rhs = native.native_rhs(self.sys.model)
+            except ModelError:  # a joint type the extension does not rebuild: the stages
                 return None
         torques = self.drive.step_torques(t, y)
         if torques is None:

@@ -12,7 +12,7 @@ The extension keeps its own Pinocchio model, rebuilt from the Python model's num
 types, parents, placements, inertias, armature, gravity): no object crosses between it and
 the pin wheel, so the extension does not depend on the pin wheel's binary interface. Joints
 other than 1-dof revolute and prismatic ones are not supported: :func:`native_rhs` then
-returns None and the law keeps the Python path.
+raises :class:`~packbot.errors.ModelError`.
 
 Conventions as :class:`packbot.contact.normal.NormalContacts` (world frame, SI units).
 """
@@ -48,9 +48,6 @@ if TYPE_CHECKING:
     from packbot.contact.normal_rows import ContactRows
 
 __all__ = [
-    "ENABLED",
-    "STEP_ENABLED",
-    "STIFF_ENABLED",
     "SUPPORTED_JOINTS",
     "NativeModes",
     "NativeRhs",
@@ -62,19 +59,6 @@ __all__ = [
 log = logging.getLogger(__name__)
 
 FloatArray = NDArray[np.float64]
-
-#: Whether the contact-normal mode uses the native right-hand side when it can, the report's
-#: law its native step and the samples their compiled energies (read when a law's or a run's
-#: phase is built; benchmarks switch it off to time the Python path).
-ENABLED = True
-#: Whether the stepper takes its Dormand-Prince stages natively (:meth:`NativeRhs.step`) when
-#: the native right-hand side would serve every stage (read at every step; benchmarks and
-#: tests switch it off to compare with the stages in Python around the native call).
-STEP_ENABLED = True
-#: Whether the contact-normal mode's native steps switch to the native Rosenbrock attempt in
-#: stiff stretches (:attr:`NativeRhs.stiff`; read at every step; benchmarks and tests switch
-#: it off to compare with the explicit steps alone).
-STIFF_ENABLED = True
 
 _native: Any
 _IMPORT_ERROR: ImportError | None = None
@@ -712,13 +696,11 @@ def stretch(rhs: NativeRhs, api: Any, **constants: Any) -> Any:
     return _native.Stretch(rhs._rhs, api, **constants)
 
 
-def native_rhs(model: pin.Model) -> NativeRhs | None:
-    """The native right-hand side of ``model``, or None (no extension, unsupported joints)."""
-    if _native is None:
-        log.info("packbot._native is not built: the contact-normal mode runs its Python path")
-        return None
-    try:
-        return NativeRhs(model)
-    except ModelError as exc:
-        log.debug("native right-hand side not used: %s", exc)
-        return None
+def native_rhs(model: pin.Model) -> NativeRhs:
+    """The native right-hand side of ``model``.
+
+    Raises:
+        PackbotError: The extension ``packbot._native`` is not built.
+        ModelError: A joint type the extension does not rebuild.
+    """
+    return NativeRhs(model)

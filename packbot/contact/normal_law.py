@@ -153,14 +153,13 @@ class NormalLaw(PatchEvents):
         # REACH_BOUND for every joint: its golden results are made with it.)
         self.reach = reach_bounds(system.model, system.world)
         self.normal = NormalContacts.from_config(system.model, system.data, system.world, self.cfg)
-        self._native = native.native_rhs(system.model) if native.ENABLED else None
+        self._native = native.native_rhs(system.model)
         self.normal.native = self._native  # (the restart's projection and impact)
         self._force_data = system.model.createData()  # (the contact forces' placements)
         self._rest_contacts: tuple[Any, SampleForces | None] = (None, None)
-        if self._native is not None and self.cfg.joint_limits:  # (the step end's screen)
+        if self.cfg.joint_limits:  # (the step end's screen)
             self._native.set_limits(system.upper, system.lower)
-        if self._native is not None:  # (step_bound)
-            self._native.set_reach(self.reach, self.cfg.margin, self.cfg.max_step)
+        self._native.set_reach(self.reach, self.cfg.margin, self.cfg.max_step)  # (step_bound)
         self.window: _Window | None = None
         self._recent: deque[float] = deque(maxlen=CHATTER_EVENTS)
         self._steps: deque[float] = deque(maxlen=CRAWL_STEPS)  # the last steps' sizes [s]
@@ -321,7 +320,7 @@ class NormalLaw(PatchEvents):
             return self.sys.aba(q, v, tau)
         nc = self.normal
         rhs = self._native
-        if rhs is not None and nc.engaged and not nc.resting and not self.locks.any_locked:
+        if nc.engaged and not nc.resting and not self.locks.any_locked:
             rhs.load(nc, nc._plan())
             a = rhs.accel(q, v, tau, True)
             if a is not None:
@@ -330,25 +329,23 @@ class NormalLaw(PatchEvents):
 
     @property
     def first_stage(self) -> Callable[[FloatArray], bool] | None:
-        """The native step's first stage after a restart, or None (no native right-hand side).
+        """The native step's first stage after a restart.
 
         Where :meth:`step_kernel` offers the native step, :meth:`torque_accel` at its start
         would take the native call on the same modes and torques: the same numbers (the
         stepper's deferred derivative, :meth:`RK45Stepper.reset
         <packbot.ode.RK45Stepper.reset>`'s ``defer``).
         """
-        rhs = self._native
-        return None if rhs is None else rhs.first
+        return self._native.first
 
     @property
     def stiff_kernel(self) -> StiffKernel | None:
-        """The native RODAS4 attempt on the modes :meth:`step_kernel` loaded, or None.
+        """The native RODAS4 attempt on the modes :meth:`step_kernel` loaded.
 
         For the stepper's stiff stretches (a slow slide whose friction direction decays
         sideways fast: :attr:`NativeRhs.stiff <packbot.contact.native.NativeRhs.stiff>`).
         """
-        rhs = self._native
-        return None if rhs is None or not native.STIFF_ENABLED else rhs.stiff
+        return self._native.stiff
 
     def step_kernel(self, t: float, y: FloatArray) -> StepKernel | None:
         """The native Dormand-Prince step of the current modes, or None (the stages call rhs).
@@ -357,20 +354,13 @@ class NormalLaw(PatchEvents):
         rows, no lock, no rest capture, no window) and the torques are fixed over the step (a
         held command, no motor lag: :meth:`~packbot.drive.Drive.step_torques`). The stages,
         the 5th-order solution and the error norm in one call
-        (:meth:`~packbot.contact.native.NativeRhs.step`); the same numbers as the stages in
-        Python around :meth:`torque_accel`, to rounding.
+        (:meth:`~packbot.contact.native.NativeRhs.step`). Elsewhere the stepper's stages call
+        :meth:`torque_accel`.
         """
         rhs = self._native
         nc = self.normal
         self._offered = False
-        if (
-            rhs is None
-            or not native.STEP_ENABLED
-            or not nc.engaged
-            or nc.resting
-            or self.locks.any_locked
-            or self.window is not None
-        ):
+        if not nc.engaged or nc.resting or self.locks.any_locked or self.window is not None:
             return None
         torques = self.drive.step_torques(t, y)
         if torques is None:
@@ -386,19 +376,10 @@ class NormalLaw(PatchEvents):
         """Largest step keeping every point's motion within half the query margin [s].
 
         :meth:`PairLaw.step_bound <packbot.contact.pairs.PairLaw.step_bound>`'s bound, its dot
-        product summed in joint order: computed by the native right-hand side when there is
-        one, with the arithmetic of the compiled stretch's steps (:meth:`stretch`), and the
-        same arithmetic in Python without it, so that a run takes the same steps with or
-        without the stretch and the extension.
+        product summed in joint order, computed by the native right-hand side with the
+        arithmetic of the compiled stretch's steps (:meth:`stretch`).
         """
-        rhs = self._native
-        if rhs is not None:
-            return rhs.step_bound(y)
-        n = self.n
-        speed = 0.0  # (summed in joint order, as the native call: the same steps either way)
-        for r, v in zip(self.reach.tolist(), y[n : 2 * n].tolist(), strict=True):
-            speed += r * abs(v)
-        return self._bound(speed)
+        return self._native.step_bound(y)
 
     def stretch(
         self,
@@ -426,8 +407,6 @@ class NormalLaw(PatchEvents):
             return None
         crawl = (CRAWL_STEPS, CRAWL_STEP)
         st = self._stretch = quiet_stretch(self, stepper, clock, self._stretch, crawl)
-        if st is None:
-            return None
         stops = [(k[1], k[2]) for k in self.active if k[0] == "limit"]
         upper, lower = self.sys.upper, self.sys.lower
         inputs = LawInputs(
@@ -538,7 +517,7 @@ class NormalLaw(PatchEvents):
         patch: 4). -1: not a native step's end (every check runs).
         """
         rhs = self._native
-        if rhs is None or self.normal.empty:
+        if self.normal.empty:
             return -1
         active = np.array([k[1] for k in self.active if k[0] == "pair"], dtype=np.int64)
         return rhs.end_check(
@@ -566,7 +545,6 @@ class NormalLaw(PatchEvents):
         if code & 2:
             out.extend(self._mode_crossings(seg, y1))
         elif code & 4:  # the evaluation the refresh reads (end_eval's, as without the screen)
-            assert self._native is not None
             self._native.end_eval(self.normal, y1)
         else:
             self._clear = y1
@@ -591,13 +569,11 @@ class NormalLaw(PatchEvents):
         if nc.empty:
             return []
         rhs = self._native
-        if rhs is not None:  # a native step's end: its last stage evaluated the conditions
-            ev = rhs.end_eval(nc, y1)
-            if ev is not None and ev.cond is not None and ev.cond >= 0.0:
-                return []
-            if ev is None:  # (not a native step: its modes are not the loaded ones)
-                rhs = None
-        return self._problem_crossings(nc, seg, y1, rhs)
+        ev = rhs.end_eval(nc, y1)  # a native step's end: its last stage evaluated the conditions
+        if ev is not None and ev.cond is not None and ev.cond >= 0.0:
+            return []
+        # (ev None: not a native step, its modes are not the loaded ones)
+        return self._problem_crossings(nc, seg, y1, None if ev is None else rhs)
 
     def _limit_held(self, j: int, side: int) -> bool:
         return self.normal.limit_engaged(j, side)
@@ -611,7 +587,7 @@ class NormalLaw(PatchEvents):
         A step end the screen found clear (:meth:`_screened_crossings`) did not hand its
         evaluation to the contact set; before events or a window, which may read it, it does.
         """
-        if self._clear is not None and self._native is not None:
+        if self._clear is not None:
             self._native.end_eval(self.normal, self._clear)
 
     def _refresh(self, t: float, y: FloatArray) -> FloatArray | None:

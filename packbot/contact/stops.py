@@ -38,7 +38,6 @@ from numpy.typing import NDArray
 
 from packbot.collision import PairInfo
 from packbot.config import SimConfig
-from packbot.contact import native
 from packbot.contact.base import Active, Crossing, Key
 from packbot.contact.lock_step import SCREEN_MARGIN as SCREEN_MARGIN
 from packbot.contact.lock_step import NativeLockStep
@@ -272,10 +271,10 @@ class JointStops:
         :meth:`~packbot.contact.native.NativeRhs.set_locks`), and the torques are fixed over
         the step (a held command or none, no motor lag:
         :meth:`~packbot.drive.Drive.step_torques`). The stages, the 5th-order solution and the
-        error norm in one call; the same numbers as the stages in Python around
-        :meth:`torque_accel`, to rounding (:class:`~packbot.contact.lock_step.NativeLockStep`).
+        error norm in one call (:class:`~packbot.contact.lock_step.NativeLockStep`); elsewhere
+        the stepper's stages call :meth:`torque_accel`.
         """
-        if not native.STEP_ENABLED or not self._locks_now():
+        if not self._locks_now():
             return None
         return self._lock_step.kernel(t, y, self.locks)
 

@@ -23,12 +23,11 @@ itself, as :meth:`NormalContacts.repatch
 <packbot.contact.normal_contacts.NormalContacts.repatch>` does it (the patches' material points,
 the drift projection and its sweep's check, the modes kept or selected again, the stepper
 restarted there), and the stretch goes on; :func:`adopt_repatches` then gives the contact set
-the state the last one left (:data:`REPATCH_ENABLED`; where the loop's re-patch would take a
-branch the native one does not, the step is handed back as before).
+the state the last one left (where the loop's re-patch would take a branch the native one does
+not, the step is handed back).
 
-The results are those of the step-by-step loop, to rounding: the step bound's dot product and
-the samples' dense output are summed in another order than numpy's (``tests/test_stretch.py``
-compares the two loops). :data:`ENABLED` switches the stretch off (the step-by-step loop).
+Its steps are the loop's (the same native attempts, step-size control and step bound); the
+samples' dense output is summed in another order than numpy's, to rounding.
 """
 
 from __future__ import annotations
@@ -61,10 +60,8 @@ if TYPE_CHECKING:
     from packbot.contact.normal_law import NormalLaw
 
 __all__ = [
-    "ENABLED",
     "PENDING",
     "REPATCHED",
-    "REPATCH_ENABLED",
     "LawInputs",
     "QuietStretch",
     "RepatchModes",
@@ -78,16 +75,6 @@ __all__ = [
 log = logging.getLogger(__name__)
 
 FloatArray = NDArray[np.float64]
-
-#: Whether the contact-normal mode takes its quiet steps in one native call (read at every
-#: stretch; tests and benchmarks switch it off to run the step-by-step loop).
-ENABLED = True
-
-#: Whether a stretch re-patches a sliding contact's stale patch itself (the law allowing it:
-#: :meth:`NormalLaw.stretch <packbot.contact.normal_law.NormalLaw.stretch>`) instead of handing
-#: its step back for :meth:`NormalContacts.repatch
-#: <packbot.contact.normal_contacts.NormalContacts.repatch>` (read at every stretch).
-REPATCH_ENABLED = True
 
 #: The native run's status for a step handed back to the loop (``src/native/stretch.hpp``).
 PENDING = 1
@@ -208,7 +195,7 @@ class QuietStretch:
             crawl_step=crawl_step,
             sample_dt=clock.dt,
             duration=clock.duration,
-            stiff_switch=native.STIFF_ENABLED,
+            stiff_switch=True,
         )
         # the re-patch's constants: NormalContacts.repatch's (its refresh, projection and modes)
         self._run.set_repatch(
@@ -354,8 +341,7 @@ def repatch_modes(law: NormalLaw) -> RepatchModes | None:
     """
     nc = law.normal
     if (
-        not REPATCH_ENABLED
-        or type(nc) is not NormalContacts
+        type(nc) is not NormalContacts
         or not nc.engaged
         or not nc.check_others
         or nc.world is not law.world
@@ -403,7 +389,7 @@ def adopt_repatches(law: NormalLaw, out: dict[str, Any]) -> None:
     for _ in range(rp["gave_up"]):
         log.warning("contact problem unsolved even with sticking contacts")
     law.diag.restarts += n
-    if rp["relaid"] and law._native is not None:  # (the extension's layout of another shape)
+    if rp["relaid"]:  # (the extension's layout of another shape)
         law._native.forget_loaded()
     proj = rp["proj"]
     if proj is not None:  # (CollisionWorld.sweep(q, reuse=True) keeps it as the last sweep)
@@ -416,17 +402,13 @@ def quiet_stretch(
     clock: SampleClock,
     last: QuietStretch | None,
     crawl: tuple[int, float],
-) -> QuietStretch | None:
-    """The law's compiled stretch (``last`` when it still fits), or None: none can be built.
+) -> QuietStretch:
+    """The law's compiled stretch (``last`` when it still fits).
 
-    None when the stretch is switched off (:data:`ENABLED`) or the law has no native
-    right-hand side. ``crawl`` is the law's crawl rule (:class:`QuietStretch`'s), read when a
-    stretch is built.
+    ``crawl`` is the law's crawl rule (:class:`QuietStretch`'s), read when a stretch is built.
     """
     rhs = law._native
     sweep = law.world._native
-    if not ENABLED or rhs is None:
-        return None
     api = sweep.api
     if last is not None and all(
         a is b for a, b in zip(last.key, (rhs, api, stepper, clock), strict=True)
