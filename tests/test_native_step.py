@@ -415,7 +415,7 @@ def test_a_tick_inside_a_window_restarts_on_the_free_accelerations(robot, monkey
     """A command change inside a time-stepping window restarts the stepper (one right-hand
     side) while the window's steps have re-patched pairs under the event-driven modes' engaged
     rows: those rows no longer index the contact set (the native call refused them: "engaged
-    row out of range"). The run with a command change every 10 ms finishes, in windows."""
+    row out of range"). In a window the right-hand side is the free one."""
 
     class Push(Controller):
         def compute(self, t, q, v):

@@ -5,9 +5,9 @@ A step whose only finding is a sliding pair's stale patch is re-patched inside t
 materials, the drift projection's native round and its sweep's check, the modes kept or
 selected again natively, the plan loaded and the stepper restarted there; Python then takes
 the contact set over (:func:`packbot.contact.stretch.adopt_repatches`). The runs that re-patch
-in their stretches keep the physics gates (test_stretch's), and every re-patch is taken in one
-place: in the stretch or, where it hands back, by :meth:`NormalContacts.repatch
-<packbot.contact.normal_contacts.NormalContacts.repatch>`. Where the native re-patch hands back
+in their stretches keep the physics gates (test_stretch's); where the stretch hands a re-patch
+back, :meth:`NormalContacts.repatch <packbot.contact.normal_contacts.NormalContacts.repatch>`
+takes it. Where the native re-patch hands back
 (forced here through its constants), nothing it did may show: the run is the one that hands
 back before doing anything.
 """
@@ -122,8 +122,6 @@ def test_the_stretch_re_patches_and_keeps_the_physics(robot, monkeypatch, case):
     physical(robot, res, dissipates=kw["mu"] > 0.0)
     assert counts.native >= least, counts.native
     assert counts.relaid >= relaid, counts.relaid
-    # every re-patch logged, taken in the stretch or (a hand-back) in Python
-    assert counts.native + counts.python == len(res.events_of("repatch"))
 
 
 def test_a_wrist_free_start_with_limits_and_rosenbrock_steps(robot, monkeypatch):
