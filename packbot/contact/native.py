@@ -19,7 +19,6 @@ Conventions as :class:`packbot.contact.normal.NormalContacts` (world frame, SI u
 
 from __future__ import annotations
 
-import logging
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
@@ -55,8 +54,6 @@ __all__ = [
     "native_rhs",
     "stretch",
 ]
-
-log = logging.getLogger(__name__)
 
 FloatArray = NDArray[np.float64]
 
