@@ -238,7 +238,8 @@ class MoreauJeanStepper:
         #: The law's compiled right-hand side: its ``window_step`` takes the steps.
         self.native: NativeRhs = native
         #: Steps taken in one native call, and those it handed back to Python by why (1 the
-        #: contact set changes, 2 a bounce, 3 no converged impulses, 4 no factor of M^-1).
+        #: contact set changes, 2 a bounce, 3 no converged impulses, 4 no factor of M^-1, 5
+        #: its impulses drive a joint past a stop that is not in the set).
         self.native_steps = 0
         self.native_misses: dict[int, int] = {}
         #: Of those handed back because the set changes: the steps whose impulses the native
@@ -246,6 +247,9 @@ class MoreauJeanStepper:
         self.native_solves = 0
         #: why the last native step handed back and its torques (None: it did not)
         self._miss: tuple[int, tuple[FloatArray, ...]] | None = None
+        #: the velocity [rad/s] of a native step handed back because its impulses drive a
+        #: joint past a stop not in the set (status 5), else None
+        self._miss_v1: FloatArray | None = None
         #: the step a native run of steps (window_run.run_native) handed back: (the state's
         #: bytes, the step's size [s], why, its free velocity [rad/s]); None: none
         self._handed: tuple[bytes, float, int, FloatArray] | None = None
@@ -395,6 +399,7 @@ class MoreauJeanStepper:
         )  # fmt: skip
         if status != 0:
             self._miss = (status, torques)
+            self._miss_v1 = v1 if status == 5 else None
             self.native_misses[status] = self.native_misses.get(status, 0) + 1
             return v_f  # (its free velocity: the midpoint rule's, as Python's)
         assert x is not None  # (status 0: the impulses)
@@ -420,7 +425,8 @@ class MoreauJeanStepper:
         q, v = y[:n], y[n : 2 * n]
         # (a native step handed back because the set changes: its torques, else None)
         miss, self._miss = self._miss, None
-        torques = miss[1] if v_free is not None and miss is not None and miss[0] == 1 else None
+        crossed_v1, self._miss_v1 = self._miss_v1, None
+        torques = miss[1] if v_free is not None and miss is not None and miss[0] in (1, 5) else None
         # the free accelerations at the step's midpoint (explicit midpoint rule): an Euler step
         # v + h a_free(q, v) gains energy where a light joint spins (its gyroscopic terms)
         if v_free is not None:
@@ -433,13 +439,41 @@ class MoreauJeanStepper:
             v_f = v + h * self.drive.free_accel(t + 0.5 * h, y_mid)
 
         closest = self._update_set(q, v, v_f, h)
-        if torques is not None and contacts.pairs:
-            fast = self._native_call(y, h, torques, closest, None)
-            if not isinstance(fast, np.ndarray):
-                return fast
-        lay = self._layout()
-        v1, x, residual, cj, m = self.impulses.solve(q, v, v_f, h, lay)
-        return _PythonStep(v_f, v1, x, residual, closest, cj, lay, m)
+        # the impulses, and again with the stops they drive a joint past (each round adds one
+        # stop at least: its limit rows then hold it)
+        reach = LIMIT_GAP + h * np.maximum(np.abs(v), np.abs(v_f))
+        while True:
+            if crossed_v1 is None and torques is not None and contacts.pairs:
+                fast = self._native_call(y, h, torques, closest, None)
+                if not isinstance(fast, np.ndarray):
+                    return fast
+                crossed_v1, self._miss_v1, self._miss = self._miss_v1, None, None
+            if crossed_v1 is None:
+                lay = self._layout()
+                v1, x, residual, cj, m = self.impulses.solve(q, v, v_f, h, lay)
+                if not self._crosses(q, v1, h):
+                    return _PythonStep(v_f, v1, x, residual, closest, cj, lay, m)
+                crossed_v1 = v1
+            before = len(contacts.limits)
+            np.maximum(reach, LIMIT_GAP + h * np.abs(crossed_v1), out=reach)
+            self._update_limits(q, reach)
+            if len(contacts.limits) <= before:
+                # (not reached: a crossed stop is within h |v1| of q, so it joins the set)
+                raise RuntimeError("the stops the impulses cross did not join the set")
+            crossed_v1 = None
+
+    def _crosses(self, q: FloatArray, v1: FloatArray, h: float) -> bool:
+        """Whether q (+) h v1 is past a joint limit that is not one of the set's rows."""
+        if not self.cfg.joint_limits:
+            return False
+        sys, limits = self.sys, self.contacts.limits
+        q1 = np.asarray(pin.integrate(sys.model, q, h * v1), dtype=np.float64)
+        for j in np.flatnonzero((q1 > sys.upper) | (q1 < sys.lower)).tolist():
+            if (q1[j] > sys.upper[j] and (j, 1) not in limits) or (
+                q1[j] < sys.lower[j] and (j, -1) not in limits
+            ):
+                return True
+        return False
 
     def _finish(
         self,

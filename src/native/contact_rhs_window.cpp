@@ -36,7 +36,8 @@ using packbot_native::np_sum;
 // and at (q1, v1), and the kinetic one at (q1, v1) (packbot.system.System.energy).
 // status 0: the step's impulses x (3 m + B) with residual <= ok; 1: the contact set changes
 // (the caller updates it); 2: a bounce row; 3: no answer within ok (the caller's fallbacks);
-// 4: M^-1 has no Cholesky factor.
+// 4: M^-1 has no Cholesky factor; 5: the impulses drive a joint past a stop that is not in the
+// set (v1 and q1 written: the caller adds the stops within h |v1| and solves again).
 nb::tuple ContactRhs::window_step(F1 y, double h, I1 swept, F1 dist, double sweep_margin, F1 reach,
                                   double active_gap, F1 upper, F1 lower, double limit_gap,
                                   double mu, double restitution, double zeno, double touch_gap,
@@ -250,6 +251,17 @@ ContactRhs::WindowOut ContactRhs::window_core(const double *y, double h, const i
   // q1 = q (+) h v1 (1-dof joints: q + h v1) and the energies of the guard (energies' sums)
   Eigen::VectorXd q1(nv);
   for (int i = 0; i < nv; ++i) q1[i] = oq1[i] = q_[i] + h * ov1[i];
+  // a joint past a stop that is not one of the set's rows (driven there inside the step, by
+  // the contact impulses: its reach at the start, h max(|v|, |v_f|), did not take it there)
+  if (a.upper != nullptr && a.lower != nullptr)
+    for (int j = 0; j < nv; ++j)
+      for (int side = 1; side >= -1; side -= 2) {
+        if (!(side > 0 ? q1[j] > a.upper[j] : q1[j] < a.lower[j])) continue;
+        bool held = false;
+        for (int l = 0; l < ml_; ++l)
+          if (lim_joint_[l] == j && lim_side_[l] == static_cast<double>(side)) held = true;
+        if (!held) return none(5);
+      }
   const double kin0 = kinetic(q_, yv), pot0 = potential(q_);
   const double kin1 = kinetic(q1, ov1), pot1 = potential(q1);
   out.energies[0] = 0.5 * kin0 + pot0;
