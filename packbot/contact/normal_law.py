@@ -157,8 +157,9 @@ class NormalLaw(PatchEvents):
         self.normal.native = self._native  # (the restart's projection and impact)
         self._force_data = system.model.createData()  # (the contact forces' placements)
         self._rest_contacts: tuple[Any, SampleForces | None] = (None, None)
-        if self.cfg.joint_limits:  # (the step end's screen)
+        if self.cfg.joint_limits:  # (the step end's screen, the drift projection)
             self._native.set_limits(system.upper, system.lower)
+            self.normal.stops = (system.upper, system.lower)
         self._native.set_reach(self.reach, self.cfg.margin, self.cfg.max_step)  # (step_bound)
         self.window: _Window | None = None
         self._recent: deque[float] = deque(maxlen=CHATTER_EVENTS)
@@ -761,10 +762,13 @@ class NormalLaw(PatchEvents):
         return found
 
     def _sync_pairs(self) -> None:
-        """Pairs that the drift projection put in the contact set become active pairs.
+        """Pairs and stops that the drift projection put in the contact set become active.
 
-        :meth:`NormalContacts.project` adds a pair it made penetrate (as an impact would):
-        its events are then those of a pair in contact (re-patch, release).
+        :meth:`NormalContacts.project` adds a pair it made penetrate (as an impact would) and
+        a stop it would move a joint past: their events are then those of a pair in contact
+        (re-patch, release) and of a stop reached (release).
         """
         for k, p in self.normal.pairs.items():
             self.active.setdefault(("pair", k), Active(p.info, []))
+        for j, side in self.normal.limits:
+            self.active.setdefault(("limit", j, side), Active(None, []))

@@ -110,6 +110,11 @@ class ContactSet:
         #: The law's compiled right-hand side (set by the law; None: the Python path), for the
         #: restart's projection and impact (:mod:`packbot.contact.normal_steps`).
         self.native: NativeRhs | None = None
+        #: The joints' position limits (upper, lower) [rad] that the drift projection keeps
+        #: (set by the law where ``joint_limits``; None: it does not look at them): a stop it
+        #: would move a joint past joins the set (:meth:`RestartSteps._project_round
+        #: <packbot.contact.normal_steps.RestartSteps._project_round>`).
+        self.stops: tuple[FloatArray, FloatArray] | None = None
         #: The extension's contact rows and constrained accelerations for this set's own calls
         #: (its layout and plan loaded there; built at the first call: see ContactRows._rows_rhs).
         self._rows_native: NativeRhs | None = None

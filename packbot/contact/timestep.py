@@ -337,7 +337,9 @@ class MoreauJeanStepper:
         exactly the set's pairs within it, the set's limits are the joints' near limits, and
         no patch is stale. It hands the step back where the set changes (this method's caller
         then updates it), with a bounce or with no converged impulses (the fallbacks of
-        :meth:`WindowImpulses._solve <packbot.contact.window_impulses.WindowImpulses._solve>`).
+        :meth:`WindowImpulses._solve <packbot.contact.window_impulses.WindowImpulses._solve>`),
+        and where its impulses drive a joint past a stop not in the set (:meth:`_python_step`
+        adds the stops within h |v1| and solves again).
 
         Returns:
             None when not attempted; the free velocity v_f [rad/s] when handed back (the

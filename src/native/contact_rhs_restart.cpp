@@ -24,8 +24,10 @@ ContactRhs::~ContactRhs() = default;
 // negative: status 0. A gap below -pen_tol: status 1 (the caller clips the gaps at the pairs'
 // distances: its own round). Else the LCP G mu + g >= 0 _|_ mu >= 0 on the touching rows (gap
 // <= touch_gap), G = J M^-1 J^T with `minv` (nv x nv, symmetric); Lemke's solution with a
-// residual above res_tol: status 2 (the caller's fallbacks); else out_q = q + M^-1 J^T mu
-// [rad], status 3.
+// residual above res_tol: status 2 (the caller's fallbacks); a row the move would take below
+// zero joins the touching rows and the LCP is solved again; out_q = q + M^-1 J^T mu
+// [rad], status 3, or status 4 where out_q is past a joint limit (set_limits) that is not one
+// of the layout's limit rows (the caller adds the stop and projects again).
 int ContactRhs::project_round(F1 q, F1 v, F2 minv, double touch_gap, double pen_tol, double res_tol,
                               Out1 out_q) {
   check_restart("project_round", q, v, minv, out_q);
@@ -46,19 +48,47 @@ int ContactRhs::project_round_raw(const double *q, const double *v, const double
   if (!(low < 0.0)) return 0;
   if (low < -pen_tol) return 1;
   touching(touch_gap);
-  const int nt = static_cast<int>(touch_.size());
-  delassus(minv, nt);
-  for (int a = 0; a < nt; ++a) rt_[a] = gap_[touch_[a]];
-  zt_.resize(nt);
-  if (!packbot_native::lcp::lemke(Gt_.data(), rt_.data(), nt, packbot_native::lcp::MAX_PIVOTS,
-                                  packbot_native::lcp::PIVOT_TOL, zt_.data(), lcp_) ||
-      !(packbot_native::lcp::residual(Gt_.data(), rt_.data(), nt, zt_.data()) <= res_tol))
-    return 2;
-  for (int i = 0; i < nv; ++i) {
-    double s = 0.0;
-    for (int a = 0; a < nt; ++a) s += MJt_[i * nt + a] * zt_[a];
-    oq[i] = q[i] + s;
+  // the LCP on the touching rows, and again with every other row the move takes below zero
+  // (a stop 1.5e-5 rad off, above touch_gap, that the jaw would be projected 1.4e-4 past)
+  std::vector<char> in(m_, 0);
+  for (const int64_t r : touch_) in[r] = 1;
+  for (int round = 0; round <= m_; ++round) {
+    const int nt = static_cast<int>(touch_.size());
+    delassus(minv, nt);
+    for (int a = 0; a < nt; ++a) rt_[a] = gap_[touch_[a]];
+    zt_.resize(nt);
+    if (!packbot_native::lcp::lemke(Gt_.data(), rt_.data(), nt, packbot_native::lcp::MAX_PIVOTS,
+                                    packbot_native::lcp::PIVOT_TOL, zt_.data(), lcp_) ||
+        !(packbot_native::lcp::residual(Gt_.data(), rt_.data(), nt, zt_.data()) <= res_tol))
+      return 2;
+    for (int i = 0; i < nv; ++i) {
+      double s = 0.0;
+      for (int a = 0; a < nt; ++a) s += MJt_[i * nt + a] * zt_[a];
+      oq[i] = q[i] + s;
+    }
+    bool more = false;
+    for (int r = 0; r < m_; ++r) {
+      if (in[r]) continue;
+      double g = gap_[r];
+      for (int c = 0; c < nv; ++c) g += Jn_[r * nv + c] * (oq[c] - q[c]);
+      if (g < 0.0) in[r] = more = true;
+    }
+    if (!more) break;
+    touch_.clear();
+    for (int r = 0; r < m_; ++r)
+      if (in[r]) touch_.push_back(r);
   }
+  // a joint moved past a stop (set_limits) that is not one of the rows: the caller's round
+  // puts the stop in the set and projects again
+  for (size_t j = 0; j < upper_.size(); ++j)
+    for (int side = 1; side >= -1; side -= 2) {
+      if (!(side > 0 ? oq[j] > upper_[j] : oq[j] < lower_[j])) continue;
+      bool held = false;
+      for (int l = 0; l < ml_; ++l)
+        if (lim_joint_[l] == static_cast<int64_t>(j) && lim_side_[l] == static_cast<double>(side))
+          held = true;
+      if (!held) return 4;
+    }
   return 3;
 }
 

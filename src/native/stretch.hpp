@@ -556,7 +556,7 @@ class Stretch {
     rhs_.minverse_at(q, minv_.data());
     const int st = rhs_.project_round_raw(q, v, minv_.data(), rp_.touch_gap, pen_tol_,
                                           rp_.res_tol, q_new_.data());
-    if (st == 1 || st == 2 || rp_.hand_back_at == 2) return hand_back(false);
+    if (st == 1 || st == 2 || st == 4 || rp_.hand_back_at == 2) return hand_back(false);
     bool swept = false;
     if (st == 0) {
       std::copy(q, q + nv, q_new_.begin());
