@@ -180,23 +180,22 @@ def measure_many(
     ys: list[FloatArray],
     drive: Drive,
     held: Callable[[FloatArray, FloatArray, FloatArray, FloatArray], FloatArray],
-    compiled: bool = True,
 ) -> Samples | None:
     """The samples of the states ys at the times ts, column by column (:func:`measure`'s).
 
     The same numbers as :func:`measure` row by row (the torques of each state computed the
     same way), with the full coordinates and the columns filled for all rows at once. The
-    energies come from the compiled extension in one call when it is there (the same to
-    rounding: :meth:`NativeRhs.energies <packbot.contact.native.NativeRhs.energies>`), else
-    from the system row by row. None with a torque function (a controller called at each
-    sample, which may raise: the samples before it are kept one by one).
+    energies come from the compiled extension in one call (the same to rounding:
+    :meth:`NativeRhs.energies <packbot.contact.native.NativeRhs.energies>`), or from the
+    system row by row for a model whose joints the extension does not rebuild. None with a
+    torque function (a controller called at each sample, which may raise: the samples before
+    it are kept one by one).
 
     Args:
         ts: Times [s].
         ys: Integrated states (q, v[, tau_m]), one per time.
         drive: The run's torques (its system is the current phase's).
         held: The contact law's :meth:`~packbot.contact.base.ContactLaw.friction`.
-        compiled: Use the extension's energies (False: the system's, row by row).
     """
     if drive.ctrl_fn is not None:
         return None
@@ -251,7 +250,7 @@ def measure_many(
             cmd_f[:, free] = rows_cmd
     if drive.ctrl_obj is not None:
         cmd_f = drive.hold_full
-    rhs = _compiled(sys) if compiled else None
+    rhs = _compiled(sys)
     if rhs is not None:
         energy: Any = rhs.energies(Y[:, :n], Y[:, n : 2 * n])
     else:

@@ -70,12 +70,11 @@ def test_no_sample_gives_empty_arrays_and_a_failed_measure_keeps_nothing():
 
 def test_a_steps_samples_measured_at_once_are_the_samples_one_by_one(robot):
     """measure_many (the columns of a step's samples at once, the energies in one compiled
-    call) gives measure's numbers bit for bit (the compiled energies to rounding): a
+    call) gives measure's numbers (the compiled energies to rounding): a
     torque-free collapse, friction with a held command; with a torque function it declines
     (each sample is measured alone)."""
     import packbot
     from packbot import integrator
-    from packbot.contact import native
     from packbot.control.base import Controller
     from packbot.recorder import measure, measure_many
 
@@ -93,24 +92,20 @@ def test_a_steps_samples_measured_at_once_are_the_samples_one_by_one(robot):
     for cfg, ctrl in cases:
         run = integrator._Run(robot, robot.pose("drive"), np.zeros(8), 1.0, ctrl, None, cfg)
         run.start()
-        compiled = 0
         while run.stepper.t < 0.3:
             seg = run.stepper.step(1.0)
             ts = list(np.linspace(seg.t0, seg.t1, 4))
             ys = [seg(t) for t in ts]
-            for native_energies in (native.available(), False):
-                cols = measure_many(ts, ys, run.drive, run.law.friction, native_energies)
-                assert cols is not None
-                compiled += native_energies
-                for i, (t, y) in enumerate(zip(ts, ys, strict=True)):
-                    one = measure(t, y, run.drive, run.law.friction)
-                    for block, value in zip(cols, one, strict=True):
-                        row = np.broadcast_to(block, (len(ts), *np.shape(value)))[i]
-                        if block is cols[-1] and native_energies:  # (v^T M) v, summed
-                            np.testing.assert_allclose(row, value, rtol=1e-14)  # in its order
-                        else:
-                            np.testing.assert_array_equal(row, value)
-        assert compiled > 0 or not native.available()
+            cols = measure_many(ts, ys, run.drive, run.law.friction)
+            assert cols is not None
+            for i, (t, y) in enumerate(zip(ts, ys, strict=True)):
+                one = measure(t, y, run.drive, run.law.friction)
+                for block, value in zip(cols, one, strict=True):
+                    row = np.broadcast_to(block, (len(ts), *np.shape(value)))[i]
+                    if block is cols[-1]:  # the energy: (v^T M) v summed in the extension's
+                        np.testing.assert_allclose(row, value, rtol=1e-14)  # order (rounding)
+                    else:  # (the same numbers, copied into the columns)
+                        np.testing.assert_array_equal(row, value)
     run = integrator._Run(
         robot,
         robot.pose("drive"),
