@@ -12,6 +12,10 @@ The restart's drift projection solves its position LCP on the touching rows (gap
 TOUCH_GAP); a row just off (a stop 1.5e-5 rad away) that the move would take below zero joins
 them and the LCP is solved again, and a stop not in the set that the move would pass joins the
 set. Checked on every projection of a wrist-free run.
+
+An event-driven step (35 ms with the wrists locked) can carry a joint past its stop and back,
+within it at both ends: the cubic Hermite of the joint's (q, v) at the step's ends flags the
+extreme, the dense output confirms it and the event is located before it.
 """
 
 import numpy as np
@@ -221,3 +225,44 @@ def test_a_stop_the_projection_would_pass_joins_the_set(robot, path):
     assert held["in_set"]
     assert side * (held["q1"] - held["stop"]) <= 1e-12, held
     assert held["statuses"][0] == (4 if path == "native" else 1), held
+
+
+def test_limit_excursions_find_the_hermite_extreme_past_a_stop(robot):
+    """The cubic Hermite of (q0, v0) = (0, +1) and (q1, v1) = (0, -1) over h = 0.01 s peaks at
+    the step's middle at h / 4 = 2.5e-3 rad: a stop at 2e-3 rad is passed there, one at 3e-3
+    rad is not; a joint at its stop at both ends is not a candidate (the step-end checks')."""
+    from packbot.contact.native import native_rhs
+
+    rhs = native_rhs(robot.model)
+    n = robot.model.nv
+    upper, lower = np.full(n, 1.0), np.full(n, -1.0)
+    y0, y1 = np.zeros(2 * n), np.zeros(2 * n)
+    y0[n + 2], y1[n + 2] = 1.0, -1.0  # (joint 2 out and back)
+    upper[2] = 2e-3
+    rhs.set_limits(upper, lower)
+    (j, side, s), *more = rhs.limit_excursions(y0, y1, 0.01, 1e-9)
+    assert (j, side, more) == (2, 1, []) and abs(s - 0.5) < 1e-12
+    upper[2] = 3e-3
+    rhs.set_limits(upper, lower)
+    assert rhs.limit_excursions(y0, y1, 0.01, 1e-9) == []
+    y0[n + 2], y1[n + 2] = -1.0, 1.0  # (and back the other way, past a lower stop)
+    lower[2] = -2e-3
+    rhs.set_limits(upper, lower)
+    assert [(j, side) for j, side, _ in rhs.limit_excursions(y0, y1, 0.01, 1e-9)] == [(2, -1)]
+
+
+def test_a_long_step_does_not_carry_a_joint_past_its_stop_and_back(robot):
+    """Start 10 of the wrist-locked grid (mu 0.5, e 0.3): elbow1 went 5.5e-4 rad past its upper
+    stop for 23 ms (t 0.704-0.728 s) inside 35 ms steps, back within it at both step ends,
+    with no event. Now the excursion is an event: elbow1 stays within 1e-5 rad of its stop
+    (the checks' bound; measured 1.0e-6 rad, the limit events' own tolerance)."""
+    from packbot.mujoco_model import WRIST_JOINTS
+
+    cfg = packbot.SimConfig(
+        contact_mode="normal", mu=0.5, restitution=0.3, sample_dt=1e-3, locked_joints=WRIST_JOINTS
+    )
+    res = packbot.simulate(robot, start_pose(robot, 10), np.zeros(robot.nq), 0.75, config=cfg)
+    j = robot.joint_names.index("elbow1")
+    assert float(np.max(res.q[:, j] - robot.params.upper[j])) <= 1e-5
+    # (the excursion's event: elbow1 reaches its stop, t 0.7042 s here)
+    assert any(e.kind == "limit" and e.relevant_joints == ("elbow1",) for e in res.events)

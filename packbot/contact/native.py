@@ -643,6 +643,17 @@ class NativeRhs:
         """The joint limits [rad] :meth:`end_check` screens (empty arrays: none)."""
         self._rhs.set_limits(_reals(upper), _reals(lower))
 
+    def limit_excursions(
+        self, y0: FloatArray, y1: FloatArray, h: float, tol: float
+    ) -> list[tuple[int, int, float]]:
+        """Joints past a limit of :meth:`set_limits` inside a step, within it at both ends.
+
+        The cubic Hermite of each joint's (q, v) at the step's start ``y0`` and end ``y1``
+        over ``h`` [s] reaching beyond the limit by more than ``tol`` [rad] at an interior
+        extreme: (joint, side (+1 upper, -1 lower), the extreme's fraction of the step).
+        """
+        return list(self._rhs.limit_excursions(_reals(y0), _reals(y1), float(h), float(tol)))
+
     def end_check(
         self,
         y1: FloatArray,

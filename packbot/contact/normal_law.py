@@ -24,7 +24,7 @@ from packbot.contact.base import Active, Crossing, Key
 from packbot.contact.locks import JointLocks
 from packbot.contact.normal_contacts import NormalContacts
 from packbot.contact.normal_forces import mode_forces
-from packbot.contact.normal_tolerances import PENETRATION_TOL
+from packbot.contact.normal_tolerances import PENETRATION_TOL, POINT_TOL
 from packbot.contact.pairs import reach_bounds
 from packbot.contact.patch_events import PatchEvents
 from packbot.contact.stretch import (
@@ -101,6 +101,10 @@ RELAPSE_SPAN = 0.05
 #: mu 0.8: each of its six resumes was followed by 24 stick/slip restarts within 0.5 ms, a few
 #: milliseconds of CPU time each, before the 20th opened the next window).
 RELAPSE_EVENTS = 5
+#: How far past a stop [rad] the cubic Hermite of a step's ends must reach for the step's dense
+#: output to be asked (:meth:`NormalLaw._excursion_crossings`; a joint resting on its stop reads
+#: its stop to rounding; the compiled stretch's screen uses the same 1e-9).
+EXCURSION_TOL = 1e-9
 
 
 @dataclass
@@ -228,8 +232,52 @@ class NormalLaw(PatchEvents):
         code = self._end_code(y1, sw)
         # (the order of JointStops.watch: limits, pairs, modes, holds)
         out = self._limit_crossings(seg, y1) if code < 0 or code & 8 else []
+        out.extend(self._excursion_crossings(seg))
         out.extend(self._screened_crossings(seg, y1, sw, code))
         out.extend(self._hold_crossings(seg, y1))
+        return out
+
+    def _excursion_crossings(self, seg: DenseSegment) -> list[Crossing]:
+        """Joints that pass a stop inside the step and are within it at both of its ends.
+
+        A long step (35 ms with the wrists locked) can carry a joint past its stop and back
+        with no event at the step's end: the candidates are the extremes of the cubic Hermite
+        of the joint's (q, v) at the step's ends beyond a stop
+        (``ContactRhs.limit_excursions``); an extreme the step's dense output confirms is an
+        event, located before it: a stop's ``limit`` event, or for a stop in the contact set
+        (a free row) its row's ``impact``. A held stop's row (engaged) is left to the modes.
+        """
+        if not self.cfg.joint_limits or self.normal.resting:
+            return []
+        found = self._native.limit_excursions(seg.y0, seg.y1, seg.h, EXCURSION_TOL)
+        out: list[Crossing] = []
+        normal = self.normal
+        for j, side, s in found:
+            lim = float(self.sys.upper[j] if side > 0 else self.sys.lower[j])
+            key: Key
+            if (j, side) in normal.limits:
+                if normal.limit_engaged(j, side):
+                    continue
+                row = sum(len(p.local1) for p in normal.pairs.values())
+                row += list(normal.limits).index((j, side))
+                kind, key, offset = "impact", ("mode", "nrow", row), POINT_TOL
+            else:
+                kind, key, offset = "limit", ("limit", j, side), 0.0
+
+            def g(
+                t: float, j: int = j, side: int = side, lim: float = lim, c: float = offset
+            ) -> float:
+                return float(side * (lim - seg(t)[j])) + c  # [rad]
+
+            t_m = seg.t0 + s * seg.h
+            g_m, g0 = g(t_m), g(seg.t0)
+            if not (g_m < 0.0 < g0):
+                continue  # (the dense output stays within the stop there)
+
+            def early(t: float, g: Callable[[float], float] = g, t_m: float = t_m) -> float:
+                return g(min(t, t_m))
+
+            out.append(Crossing(kind, key, early, g0, g_m))
         return out
 
     def after_step(self, t: float, y: FloatArray) -> FloatArray | None:

@@ -176,6 +176,8 @@ NB_MODULE(_native, m) {
       .def("set_reach", &ContactRhs::set_reach, nb::arg("reach"), nb::arg("margin"),
            nb::arg("max_step"))
       .def("step_bound", &ContactRhs::step_bound, nb::arg("y"))
+      .def("limit_excursions", &ContactRhs::limit_excursions, nb::arg("y0"), nb::arg("y1"),
+           nb::arg("h"), nb::arg("tol"))
       .def("end_check", &ContactRhs::end_check, nb::arg("y1"), nb::arg("swept"), nb::arg("dist"),
            nb::arg("active"), nb::arg("near"), nb::arg("pen_tol"))
       .def("set_locks", &ContactRhs::set_locks, nb::arg("locked"))

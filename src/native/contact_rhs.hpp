@@ -162,6 +162,13 @@ class ContactRhs {
   int end_check(F1 y1, I1 swept, F1 dist, I1 active, double near, double pen_tol);
   int end_check_raw(const double *y1, const int64_t *sp, const double *dp, size_t ns,
                     const int64_t *ac, size_t na, double near, double pen_tol);
+  struct Excursion {
+    int joint, side;
+    double s;  // (the extreme's fraction of the step)
+  };
+  void limit_excursions_raw(const double *y0, const double *y1, double h, double tol,
+                            std::vector<Excursion> &out) const;
+  nb::list limit_excursions(F1 y0, F1 y1, double h, double tol) const;
   // Whether the last end_check_raw's bit 4 was a stale patch of a sliding pair for certain
   // (not a slide speed at the stick speed, which the caller decides).
   bool stale_sure() const { return stale_sure_; }

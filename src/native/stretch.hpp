@@ -350,6 +350,19 @@ class Stretch {
       const bool stale = code == 4 && rhs_.stale_sure();
       bool pending = code < 0 || (code & 3) != 0 || ((code & 4) != 0 && !stale);
       if (!pending && (code & 8)) pending = new_limit(y1_.data(), limits, nl);
+      // a joint past a stop and back inside the step (not a held stop): Python's watch
+      // locates it on the step's dense output (NormalLaw._excursion_crossings)
+      if (!pending && !rhs_.upper().empty()) {
+        excursions_.clear();
+        rhs_.limit_excursions_raw(z, y1_.data(), step, excursion_tol_, excursions_);
+        for (const auto &e : excursions_) {
+          bool held = false;
+          for (size_t i = 0; i < nl; ++i)
+            if (limits[3 * i] == e.joint && limits[3 * i + 1] == e.side && limits[3 * i + 2])
+              held = true;
+          if (!held) pending = true;
+        }
+      }
       // after_step: the crawl rule, the limit stops' release (JointStops.release_limits)
       if (!pending && static_cast<int>(crawl.size()) + 1 >= crawl_steps_) {
         double sum = 0.0;  // (the deque's sum, oldest first, with this step)
@@ -651,6 +664,9 @@ class Stretch {
   double margin_;
   std::vector<double> atol_;
   double rtol_, h_min_, near_, pen_tol_;
+  // (the step end's screen of limit excursions: ContactRhs::limit_excursions_raw, its tol [rad])
+  std::vector<typename Rhs::Excursion> excursions_;
+  static constexpr double excursion_tol_ = 1e-9;
   int crawl_steps_;
   double crawl_step_, sample_dt_, duration_;
   bool stiff_switch_;
