@@ -373,7 +373,8 @@ class NativeRhs:
             (status, x, residual, iterations, rho, energies): status 0 the step's impulses x
             and the energies (at the start, at the end, the end's kinetic one) [J]; else why
             the caller takes the step in Python (1 the contact set changes, 2 a bounce, 3 no
-            converged impulses, 4 no Cholesky factor of M^-1).
+            converged impulses, 4 no Cholesky factor of M^-1, 5 the impulses drive a joint
+            past a stop that is not in the set: v1 and q1 written).
         """
         self.load_layout(contacts)
         status, x, res, it, rho, energies = self._rhs.window_step(y, h, **kw)
@@ -397,7 +398,9 @@ class NativeRhs:
         Returns:
             (status, q1): 0 no gap is negative; 1 a gap is below -``pen_tol`` (the caller's
             round clips it); 2 Lemke's answer has a residual above ``res_tol`` (the caller's
-            round); 3 the projected configuration q1 [rad].
+            round); 3 the projected configuration q1 [rad]; 4 q1, past a stop of
+            :meth:`set_limits` that is not one of the set's rows (the caller adds it and
+            projects again).
         """
         self.load_layout(contacts)
         out = np.empty(len(q))

@@ -258,9 +258,8 @@ class NormalLaw(PatchEvents):
             if (j, side) in normal.limits:
                 if normal.limit_engaged(j, side):
                     continue
-                row = sum(len(p.local1) for p in normal.pairs.values())
-                row += list(normal.limits).index((j, side))
-                kind, key, offset = "impact", ("mode", "nrow", row), POINT_TOL
+                kind, key = "impact", ("mode", "nrow", normal.limit_row(j, side))
+                offset = POINT_TOL
             else:
                 kind, key, offset = "limit", ("limit", j, side), 0.0
 

@@ -336,22 +336,34 @@ class ContactSet:
 
     def remove_limit(self, joint: int, side: int) -> None:
         """Take a limit out of the contact set (its row must not be engaged)."""
-        keys = list(self.limits)
         if (joint, side) not in self.limits:
             return
-        row = sum(len(p.local1) for p in self.pairs.values()) + keys.index((joint, side))
+        row = self.limit_row(joint, side)
         self.limits.pop((joint, side))
         self._invalidate()
         self.engaged = [r if r < row else r - 1 for r in self.engaged if r != row]
 
-    def limit_engaged(self, joint: int, side: int) -> bool:
-        """Whether a limit's row is engaged."""
-        if (joint, side) not in self.limits:
-            return False
-        row = sum(len(p.local1) for p in self.pairs.values()) + list(self.limits).index(
+    def limit_row(self, joint: int, side: int) -> int:
+        """The row index of a limit in the set (after every pair's rows, in the limits' order)."""
+        return sum(len(p.local1) for p in self.pairs.values()) + list(self.limits).index(
             (joint, side)
         )
-        return row in self.engaged
+
+    def limit_engaged(self, joint: int, side: int) -> bool:
+        """Whether a limit's row is engaged."""
+        return (joint, side) in self.limits and self.limit_row(joint, side) in self.engaged
+
+    def crossed_stops(self, q: FloatArray) -> list[tuple[int, int, float]]:
+        """The stops of :attr:`stops` (joint, side, limit [rad]) q is past, not in the set."""
+        if self.stops is None:
+            return []
+        upper, lower = self.stops
+        out = []
+        for j in np.flatnonzero((q > upper) | (q < lower)).tolist():
+            side, lim = (1, upper[j]) if q[j] > upper[j] else (-1, lower[j])
+            if (j, side) not in self.limits:
+                out.append((j, side, float(lim)))
+        return out
 
     def _frame(self, frames: dict[int, tuple[Any, ...]], joint: int) -> tuple[Any, ...]:
         """A joint's (placement, rotation, translation) at the last kinematics, kept in frames."""

@@ -249,9 +249,10 @@ class RestartSteps(ConstrainedDynamics):
         """Move q by the least (M-weighted) amount that closes every negative touching gap.
 
         The position-level LCP: dq = M^-1 J^T mu, mu >= 0, J dq + g >= 0, complementary, on
-        the touching rows (g <= :data:`TOUCH_GAP`, gaps before). Removes the integration drift
-        of resting gaps and the event tolerance's last micrometre at every restart. Two guards
-        make it safe:
+        the touching rows (g <= :data:`TOUCH_GAP`, gaps before) and every other row the move
+        would take below zero; a stop the move would pass joins the set first
+        (:meth:`_project_round`). Removes the integration drift of resting gaps and the event
+        tolerance's last micrometre at every restart. Two guards make it safe:
 
         1. *Targets clipped at the true distance*: a row's gap is measured against its patch's
            geometry (a point against a face's plane), which can read far deeper than the pair
@@ -320,24 +321,12 @@ class RestartSteps(ConstrainedDynamics):
         """
         for _ in range(2 * self.nv + 1):  # (each new round has one stop more)
             moved = self._project_once(q, v, minv)
-            crossed = [] if moved is None else self._crossed_stops(moved)
+            crossed = [] if moved is None else self.crossed_stops(moved)
             if not crossed:
                 return moved
             for j, side, lim in crossed:
                 self.add_limit(j, side, lim)
         return moved
-
-    def _crossed_stops(self, q: FloatArray) -> list[tuple[int, int, float]]:
-        """The stops (joint, side, limit [rad]) that q is past and that are not in the set."""
-        if self.stops is None:
-            return []
-        upper, lower = self.stops
-        out = []
-        for j in np.flatnonzero((q > upper) | (q < lower)).tolist():
-            side, lim = (1, upper[j]) if q[j] > upper[j] else (-1, lower[j])
-            if (j, side) not in self.limits:
-                out.append((j, side, float(lim)))
-        return out
 
     def _project_once(self, q: FloatArray, v: FloatArray, minv: FloatArray) -> FloatArray | None:
         """:meth:`_project_round` without its stops: the moved q [rad], or None (no move).

@@ -466,16 +466,10 @@ class MoreauJeanStepper:
 
     def _crosses(self, q: FloatArray, v1: FloatArray, h: float) -> bool:
         """Whether q (+) h v1 is past a joint limit that is not one of the set's rows."""
-        if not self.cfg.joint_limits:
+        if self.contacts.stops is None:  # (no joint limits)
             return False
-        sys, limits = self.sys, self.contacts.limits
-        q1 = np.asarray(pin.integrate(sys.model, q, h * v1), dtype=np.float64)
-        for j in np.flatnonzero((q1 > sys.upper) | (q1 < sys.lower)).tolist():
-            if (q1[j] > sys.upper[j] and (j, 1) not in limits) or (
-                q1[j] < sys.lower[j] and (j, -1) not in limits
-            ):
-                return True
-        return False
+        q1 = np.asarray(pin.integrate(self.sys.model, q, h * v1), dtype=np.float64)
+        return bool(self.contacts.crossed_stops(q1))
 
     def _finish(
         self,

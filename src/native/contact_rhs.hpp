@@ -162,6 +162,21 @@ class ContactRhs {
   int end_check(F1 y1, I1 swept, F1 dist, I1 active, double near, double pen_tol);
   int end_check_raw(const double *y1, const int64_t *sp, const double *dp, size_t ns,
                     const int64_t *ac, size_t na, double near, double pen_tol);
+  // Whether the loaded layout has joint j's stop on `side` (+1 upper, -1 lower) as a limit row.
+  bool has_limit_row(int64_t j, int side) const {
+    for (int l = 0; l < ml_; ++l)
+      if (lim_joint_[l] == j && lim_side_[l] == static_cast<double>(side)) return true;
+    return false;
+  }
+  // Whether q (n joints) is past one of the stops (upper, lower [rad]) that is not a limit row.
+  bool past_a_stop_not_in_rows(const double *q, const double *upper, const double *lower,
+                               size_t n) const {
+    for (size_t j = 0; j < n; ++j) {
+      if (q[j] > upper[j] && !has_limit_row(static_cast<int64_t>(j), 1)) return true;
+      if (q[j] < lower[j] && !has_limit_row(static_cast<int64_t>(j), -1)) return true;
+    }
+    return false;
+  }
   struct Excursion {
     int joint, side;
     double s;  // (the extreme's fraction of the step)

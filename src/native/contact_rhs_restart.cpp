@@ -80,15 +80,7 @@ int ContactRhs::project_round_raw(const double *q, const double *v, const double
   }
   // a joint moved past a stop (set_limits) that is not one of the rows: the caller's round
   // puts the stop in the set and projects again
-  for (size_t j = 0; j < upper_.size(); ++j)
-    for (int side = 1; side >= -1; side -= 2) {
-      if (!(side > 0 ? oq[j] > upper_[j] : oq[j] < lower_[j])) continue;
-      bool held = false;
-      for (int l = 0; l < ml_; ++l)
-        if (lim_joint_[l] == static_cast<int64_t>(j) && lim_side_[l] == static_cast<double>(side))
-          held = true;
-      if (!held) return 4;
-    }
+  if (past_a_stop_not_in_rows(oq, upper_.data(), lower_.data(), upper_.size())) return 4;
   return 3;
 }
 

@@ -154,10 +154,7 @@ ContactRhs::WindowOut ContactRhs::window_core(const double *y, double h, const i
       for (int side = 1; side >= -1; side -= 2) {
         const bool close = side > 0 ? a.upper[j] - q_[j] <= lim : q_[j] - a.lower[j] <= lim;
         if (!close) continue;
-        bool held = false;
-        for (int l = 0; l < ml_; ++l)
-          if (lim_joint_[l] == j && lim_side_[l] == static_cast<double>(side)) held = true;
-        if (!held) return none(1);
+        if (!has_limit_row(j, side)) return none(1);
         ++near;
       }
     }
@@ -253,15 +250,9 @@ ContactRhs::WindowOut ContactRhs::window_core(const double *y, double h, const i
   for (int i = 0; i < nv; ++i) q1[i] = oq1[i] = q_[i] + h * ov1[i];
   // a joint past a stop that is not one of the set's rows (driven there inside the step, by
   // the contact impulses: its reach at the start, h max(|v|, |v_f|), did not take it there)
-  if (a.upper != nullptr && a.lower != nullptr)
-    for (int j = 0; j < nv; ++j)
-      for (int side = 1; side >= -1; side -= 2) {
-        if (!(side > 0 ? q1[j] > a.upper[j] : q1[j] < a.lower[j])) continue;
-        bool held = false;
-        for (int l = 0; l < ml_; ++l)
-          if (lim_joint_[l] == j && lim_side_[l] == static_cast<double>(side)) held = true;
-        if (!held) return none(5);
-      }
+  if (a.upper != nullptr && a.lower != nullptr &&
+      past_a_stop_not_in_rows(oq1, a.upper, a.lower, static_cast<size_t>(nv)))
+    return none(5);
   const double kin0 = kinetic(q_, yv), pot0 = potential(q_);
   const double kin1 = kinetic(q1, ov1), pot1 = potential(q1);
   out.energies[0] = 0.5 * kin0 + pot0;
