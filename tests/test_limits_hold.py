@@ -11,7 +11,8 @@ start sees and where its impulses take the joint.
 The restart's drift projection solves its position LCP on the touching rows (gap <=
 TOUCH_GAP); a row just off (a stop 1.5e-5 rad away) that the move would take below zero joins
 them and the LCP is solved again, and a stop not in the set that the move would pass joins the
-set. Checked on every projection of a wrist-free run.
+set. Checked on every projection round of a wrist-free run made through Python (the compiled
+stretch's own rounds are not observed).
 
 An event-driven step (35 ms with the wrists locked) can carry a joint past its stop and back,
 within it at both ends: the cubic Hermite of the joint's (q, v) at the step's ends flags the
@@ -123,9 +124,10 @@ stop again and again before a window (t 1.034-1.043 s): the touching rows alone 
 
 
 def test_the_drift_projection_moves_no_joint_past_a_stop(robot):
-    """Every projection of the run leaves each joint within its stops (to 1e-12 rad, where it
-    started within them); the run holds projections where the touching rows alone would have
-    moved a joint past a stop (their LCP solved in this test), so the check is not empty."""
+    """Every projection round made through Python leaves each joint within its stops (to
+    1e-12 rad, where it started within them); the run holds projections where the touching
+    rows alone would have moved a joint past a stop (their LCP solved in this test), so the
+    check is not empty."""
     calls = []
     real = normal_steps.RestartSteps._project_round
 
