@@ -94,8 +94,9 @@ EVENT_KINDS: tuple[str, ...] = (
     "stick",  # a sliding joint with Coulomb friction stopped and its holding torque suffices;
     # normal mode: a sliding contact stopped sliding (friction holds it)
     "repatch",  # normal mode: a pair in contact penetrated: its patch was recomputed
-    "painleve",  # normal mode: no consistent contact forces (friction): handled impulsively
-    "timestep",  # normal mode: events piled up: a window of time steps starts (contact/timestep)
+    "painleve",  # normal mode: no consistent contact forces (friction): a window follows
+    "timestep",  # normal mode: events piled up, or no consistent mode: a window of time steps
+    # starts (contact/timestep)
     "resume",  # normal mode: the window's contacts settled: event-driven integration resumes
     "failure",  # a joint failure was injected (link1: joint, link2: kind)
     "freeze",  # the impulse that stops a freezing joint (link1: joint; distance: its angle)
@@ -154,10 +155,18 @@ class Diagnostics:
         rejected_steps: Rejected integration steps.
         rhs_calls: Right-hand-side evaluations.
         sweeps: Collision sweeps (one per accepted step, plus root finding).
-        distance_queries: Single-pair distance evaluations during event location.
+        distance_queries: Single-pair distance evaluations during event location (and, in
+            the contact-normal mode, the screen of contacts between step ends for the steps
+            the loop takes; the compiled stretch's own are not counted).
         restarts: Integrator restarts (after events).
         wall_time: Wall-clock time of the run [s].
-        min_distance: Smallest signed distance seen at any accepted step or sample [m].
+        min_distance: Smallest signed distance seen at any accepted step or sample [m]. In the
+            contact-normal mode it is also the minimum over the motion between step ends to
+            within half ``PENETRATION_TOL`` for every pair outside the contact set (and every
+            pair of it apart by more than ``PENETRATION_TOL`` at both ends of a step): each
+            step is screened by conservative advancement on the pairs' distances, and a pair
+            it finds touching inside a step is an ``impact`` event (docs/contact.md, "Contacts
+            between step ends").
         min_distance_pair: Links of that pair, ``"link1/piece1 - link2/piece2"``.
         reset_energy_gain: Total energy the report's velocity resets added [J]: the sum, over
             the ``impact``, ``secondary_intersection`` and ``limit`` events, of each one's

@@ -31,6 +31,7 @@ from packbot.contact.normal_eval import _Eval
 from packbot.contact.normal_tolerances import (
     BAUMGARTE,
     FORCE_BAND,
+    PENETRATION_TOL,
     POINT_TOL,
     RESIDUAL_TOL,
     SPEED_BAND,
@@ -656,6 +657,64 @@ class NativeRhs:
         extreme: (joint, side (+1 upper, -1 lower), the extreme's fraction of the step).
         """
         return list(self._rhs.limit_excursions(_reals(y0), _reals(y1), float(h), float(tol)))
+
+    def set_pair_joints(self, start: NDArray[np.int64], idx: NDArray[np.int64]) -> None:
+        """Each world pair's joints for :meth:`pair_dips` (``pairs.pair_joints``'s CSR)."""
+        self._rhs.set_pair_joints(
+            np.ascontiguousarray(start, np.int64), np.ascontiguousarray(idx, np.int64)
+        )
+
+    def pair_dips(
+        self,
+        seg: DenseSegment,
+        start: tuple[NDArray[np.intp], FloatArray],
+        end: tuple[NDArray[np.intp], FloatArray],
+        active: NDArray[np.int64],
+        margin: float,
+        distance: Callable[[int, FloatArray], float],
+    ) -> tuple[list[tuple[int, float, float, float]], int]:
+        """Pairs in contact and out again inside a step (the extension's ``pair_dips.hpp``).
+
+        Conservative advancement on each swept pair's distance over the step ``seg``: with
+        ``|d'| <= sum reach_j max |v_j|`` over the joints between its pieces (each joint's
+        speed bounded by its cubic Hermite over the step), an interval whose ends' distances
+        do not prove it clear is halved at a query on the dense output, earliest half first,
+        until every part is clear (to within ``PENETRATION_TOL / 20``), or a query finds the
+        pair at the level looked for: ``d <= 0`` for a pair outside the contact set apart at
+        both ends, or of the set apart by more than :data:`PENETRATION_TOL` at both ends;
+        ``d <= -PENETRATION_TOL`` for a pair of the set within it at the start and apart by
+        more at the end (other features through its rows); a pair of the set within it at the
+        end is not screened. ``start`` and ``end`` are the sweeps (pairs, distances [m]) at
+        the step's ends (a pair absent from ``start`` is queried there when needed);
+        ``active`` the contact set's pairs; ``distance(pair, y)`` a pair's signed distance [m]
+        at state y. Returns ([(pair, s, d, level), ...]: the first query at the level, s its
+        fraction of the step, d its distance [m], level 0 or -PENETRATION_TOL [m]; the number
+        of queries).
+        """
+
+        def at(k: int, s: float) -> float:
+            return distance(int(k), seg(seg.t0 + s * seg.h))
+
+        found, evals = self._rhs.pair_dips(
+            _reals(seg.y0),
+            _reals(seg.y1),
+            float(seg.h),
+            np.ascontiguousarray(start[0], np.int64),
+            _reals(start[1]),
+            np.ascontiguousarray(end[0], np.int64),
+            _reals(end[1]),
+            False,
+            np.ascontiguousarray(active, np.int64),
+            float(margin),
+            PENETRATION_TOL,
+            at,
+        )
+        return [(int(k), float(s), float(d), float(lv)) for k, s, d, lv in found], int(evals)
+
+    @property
+    def unresolved_dips(self) -> int:
+        """Pairs whose :meth:`pair_dips` screen stopped at its query cap (since the build)."""
+        return int(self._rhs.unresolved_dips)
 
     def end_check(
         self,

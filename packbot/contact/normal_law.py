@@ -25,7 +25,7 @@ from packbot.contact.locks import JointLocks
 from packbot.contact.normal_contacts import NormalContacts
 from packbot.contact.normal_forces import mode_forces
 from packbot.contact.normal_tolerances import PENETRATION_TOL, POINT_TOL
-from packbot.contact.pairs import reach_bounds
+from packbot.contact.pairs import pair_joints, reach_bounds
 from packbot.contact.patch_events import PatchEvents
 from packbot.contact.stretch import (
     LawInputs,
@@ -165,6 +165,7 @@ class NormalLaw(PatchEvents):
             self._native.set_limits(system.upper, system.lower)
             self.normal.stops = (system.upper, system.lower)
         self._native.set_reach(self.reach, self.cfg.margin, self.cfg.max_step)  # (step_bound)
+        self._native.set_pair_joints(*pair_joints(system.model, self.world.pairs))
         self.window: _Window | None = None
         self._recent: deque[float] = deque(maxlen=CHATTER_EVENTS)
         self._steps: deque[float] = deque(maxlen=CRAWL_STEPS)  # the last steps' sizes [s]
@@ -234,6 +235,7 @@ class NormalLaw(PatchEvents):
         out = self._limit_crossings(seg, y1) if code < 0 or code & 8 else []
         out.extend(self._excursion_crossings(seg))
         out.extend(self._screened_crossings(seg, y1, sw, code))
+        out.extend(self._dip_crossings(seg, sw))
         out.extend(self._hold_crossings(seg, y1))
         return out
 
@@ -277,6 +279,46 @@ class NormalLaw(PatchEvents):
                 return g(min(t, t_m))
 
             out.append(Crossing(kind, key, early, g0, g_m))
+        return out
+
+    def _dip_crossings(self, seg: DenseSegment, sw: SweepResult) -> list[Crossing]:
+        """Pairs that touch inside the step and are apart at both of its ends.
+
+        A fast, grazing pass (the camera head through a flipper's corner within one step)
+        starts and ends the step apart: each swept pair is screened over the step by
+        conservative advancement on its distance
+        (:meth:`~packbot.contact.native.NativeRhs.pair_dips`); a query on the dense output
+        that finds it touching is an ``impact`` (a pair of the contact set: its patch rebuilt
+        there), one that finds a pair of the set leaving from contact below
+        -:data:`PENETRATION_TOL` a ``repatch``, each located before that query.
+        """
+        active = np.array([k[1] for k in self.active if k[0] == "pair"], dtype=np.int64)
+        last = self.last_d
+        start = (
+            np.fromiter(last.keys(), np.int64, len(last)),
+            np.fromiter(last.values(), float, len(last)),
+        )
+        found, _ = self._native.pair_dips(
+            seg, start, (sw.pairs, sw.distances), active, self.cfg.margin, self.distance
+        )
+        out: list[Crossing] = []
+        for p_idx, s, d, level in found:
+            t_m = seg.t0 + s * seg.h
+
+            def g(t: float, p_idx: int = p_idx, level: float = level) -> float:
+                return self.distance(p_idx, seg(t)) - level  # [m]
+
+            g0 = last.get(p_idx, math.nan) - level
+            if not g0 > 0.0:
+                g0 = g(seg.t0)
+            if not g0 > 0.0:
+                continue
+
+            def early(t: float, g: Callable[[float], float] = g, t_m: float = t_m) -> float:
+                return g(min(t, t_m))
+
+            kind = "impact" if level == 0.0 else "repatch"
+            out.append(Crossing(kind, ("pair", p_idx), early, g0, d - level))
         return out
 
     def after_step(self, t: float, y: FloatArray) -> FloatArray | None:
@@ -646,8 +688,11 @@ class NormalLaw(PatchEvents):
         n = self.n
         q, v = y[:n], y[n : 2 * n]
         if self.normal.sliding(q, v) and self.normal.stale(q, v, self.last_d):
+            painleve = self.normal.n_painleve
             y_new = self._repatch(self.normal, t, y)
             self._sync_pairs()
+            if self.normal.n_painleve > painleve:
+                self._enter(t, y_new, "no contact mode is consistent (Painleve)")
             return y_new
         return None
 
@@ -726,6 +771,8 @@ class NormalLaw(PatchEvents):
             self._enter(t, y_new, "events piled up", CHATTER_SPAN if chatter else RELAPSE_SPAN)
         elif self._held_with_contacts(v_new):
             self._enter(t, y_new, "joints held by friction while contacts push")
+        elif any(me.kind == "painleve" for me in mode_events):
+            self._enter(t, y_new, "no contact mode is consistent (Painleve)")
         return y_new
 
     def _hold_event(

@@ -13,13 +13,13 @@ contact within one step unseen. A law says what the distances mean: its ``_pair_
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Sequence
 from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import NDArray
 
-from packbot.collision import SweepResult
+from packbot.collision import PairInfo, SweepResult
 from packbot.contact.base import Crossing, Key
 from packbot.contact.stops import JointStops
 from packbot.errors import InitialCollisionError
@@ -219,6 +219,31 @@ class PairLaw(JointStops):
         if g0 <= 0.0:  # not a clean crossing (e.g. just restarted on it): take the step start
             g0 = g(seg.t0)
         return Crossing(kind, key, g, g0, fn(d1))
+
+
+def pair_joints(
+    model: pin.Model, pairs: Sequence[PairInfo]
+) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+    """Per pair, the velocity indices of the joints that move one piece relative to the other.
+
+    The joints in the chain of one body and not of the other (the ones both hang from move
+    the two rigidly together, so the pair's distance does not change with them). As a CSR:
+    pair k's indices are ``idx[start[k]:start[k + 1]]``, ``pairs[k].index == k`` in turn.
+
+    Returns:
+        (start (len(pairs) + 1,), idx).
+    """
+    start = [0]
+    idx: list[int] = []
+    for k, p in enumerate(pairs):
+        if p.index != k:
+            raise ValueError(f"pairs[{k}].index is {p.index}: the world's pairs in order expected")
+        between = set(model.supports[p.joint1]) ^ set(model.supports[p.joint2])
+        for j in sorted(between - {0}):
+            joint = model.joints[j]
+            idx.extend(range(joint.idx_v, joint.idx_v + joint.nv))
+        start.append(len(idx))
+    return np.array(start, dtype=np.int64), np.array(idx, dtype=np.int64)
 
 
 def reach_bounds(model: pin.Model, world: CollisionWorld | None) -> FloatArray:

@@ -178,6 +178,12 @@ NB_MODULE(_native, m) {
       .def("step_bound", &ContactRhs::step_bound, nb::arg("y"))
       .def("limit_excursions", &ContactRhs::limit_excursions, nb::arg("y0"), nb::arg("y1"),
            nb::arg("h"), nb::arg("tol"))
+      .def("set_pair_joints", &ContactRhs::set_pair_joints, nb::arg("start"), nb::arg("idx"))
+      .def("pair_dips", &ContactRhs::pair_dips, nb::arg("y0"), nb::arg("y1"), nb::arg("h"),
+           nb::arg("pairs0"), nb::arg("dist0"), nb::arg("pairs1"), nb::arg("dist1"),
+           nb::arg("start_known"), nb::arg("active"), nb::arg("margin"), nb::arg("pen_tol"),
+           nb::arg("distance"))
+      .def_prop_ro("unresolved_dips", [](ContactRhs &r) { return r.dips().unresolved; })
       .def("end_check", &ContactRhs::end_check, nb::arg("y1"), nb::arg("swept"), nb::arg("dist"),
            nb::arg("active"), nb::arg("near"), nb::arg("pen_tol"))
       .def("set_locks", &ContactRhs::set_locks, nb::arg("locked"))

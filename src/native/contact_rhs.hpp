@@ -38,6 +38,7 @@
 
 #include "joints.hpp"
 #include "lcp.hpp"
+#include "pair_dips.hpp"
 
 #include <pinocchio/multibody/data.hpp>
 #include <pinocchio/multibody/model.hpp>
@@ -184,6 +185,14 @@ class ContactRhs {
   void limit_excursions_raw(const double *y0, const double *y1, double h, double tol,
                             std::vector<Excursion> &out) const;
   nb::list limit_excursions(F1 y0, F1 y1, double h, double tol) const;
+  // The contacts between step ends (pair_dips.hpp): each world pair's joints (set_pair_joints:
+  // a CSR of velocity indices), the screen (its raw form the stretch's, pair_dips Python's).
+  void set_pair_joints(I1 start, I1 idx);
+  packbot_native::PairDips &dips() { return dips_; }
+  const std::vector<double> &reach() const { return reach_; }
+  nb::tuple pair_dips(F1 y0, F1 y1, double h, I1 pairs0, F1 dist0, I1 pairs1, F1 dist1,
+                      bool start_known, I1 active, double margin, double pen_tol,
+                      nb::callable distance);
   // Whether the last end_check_raw's bit 4 was a stale patch of a sliding pair for certain
   // (not a slide speed at the stick speed, which the caller decides).
   bool stale_sure() const { return stale_sure_; }
@@ -397,6 +406,8 @@ class ContactRhs {
   std::array<double, 3> kept_plan_{};
   std::vector<double> upper_, lower_;  // (set_limits)
   std::vector<double> reach_;  // (set_reach)
+  packbot_native::PairDips dips_;  // (set_pair_joints)
+  std::vector<double> vmax_;  // (pair_dips: each joint's speed bound over the step)
   double margin_ = 0.0, max_step_ = 0.0;
   double force_band_ = 0.0, point_tol_ = 0.0, stick_band_ = 0.0;
   bool conditions_set_ = false, end_valid_ = false;

@@ -204,6 +204,41 @@ nb::list ContactRhs::limit_excursions(F1 y0, F1 y1, double h, double tol) const 
   return out;
 }
 
+// Each world pair's joints, for the screen of contacts between step ends (pair_dips.hpp):
+// pair k's velocity indices idx[start[k]] ... idx[start[k + 1] - 1] (start: pairs + 1 entries).
+void ContactRhs::set_pair_joints(I1 start, I1 idx) {
+  if (start.shape(0) < 1) throw std::invalid_argument("pair_joints: start (pairs + 1) expected");
+  dips_.set(start.data(), start.shape(0) - 1, idx.data(), idx.shape(0), nv_);
+}
+
+// The screen of contacts between step ends over the step of h [s] from y0 to y1 (2 nv at
+// least), for Python's watch: the start's sweep (pairs0, dist0 [m]; start_known: a pair
+// absent from it is at least margin [m] away, else it is queried), the end's (pairs1, dist1),
+// the contact set's active pairs, pen_tol [m] the penetration tolerance (PairDips::screen);
+// distance(k, s) pair k's signed distance [m] at the fraction s of the step. Returns
+// ([(pair, s, d, level), ...] the dips found, queries made).
+nb::tuple ContactRhs::pair_dips(F1 y0, F1 y1, double h, I1 pairs0, F1 dist0, I1 pairs1,
+                                F1 dist1, bool start_known, I1 active, double margin,
+                                double pen_tol, nb::callable distance) {
+  if (y0.shape(0) < static_cast<size_t>(2 * nv_) || y1.shape(0) < static_cast<size_t>(2 * nv_))
+    throw std::invalid_argument("pair_dips: y0, y1 (2 nv at least) expected");
+  if (pairs0.shape(0) != dist0.shape(0) || pairs1.shape(0) != dist1.shape(0))
+    throw std::invalid_argument("pair_dips: one distance per pair expected");
+  if (!dips_.ready() || reach_.size() != static_cast<size_t>(nv_))
+    throw std::invalid_argument("pair_dips: set_pair_joints and set_reach first");
+  packbot_native::PairDips::speed_bounds(y0.data(), y1.data(), nv_, h, vmax_);
+  std::vector<packbot_native::Dip> found;
+  auto dist = [&](int64_t k, double s) { return nb::cast<double>(distance(k, s)); };
+  const int64_t evals = dips_.screen(vmax_.data(), reach_.data(), h, pairs1.data(),
+                                     dist1.data(), pairs1.shape(0), pairs0.data(), dist0.data(),
+                                     pairs0.shape(0), start_known, active.data(),
+                                     active.shape(0), margin, pen_tol,
+                                     packbot_native::DIP_QUERIES, dist, found, false);
+  nb::list out;
+  for (const auto &d : found) out.append(nb::make_tuple(d.pair, d.s, d.d, d.level));
+  return nb::make_tuple(out, evals);
+}
+
 // end_check at the end of the last dopri (the caller knows it ended at y1), on raw arrays:
 // ns swept pairs, na active ones.
 int ContactRhs::end_check_raw(const double *y1, const int64_t *sp, const double *dp, size_t ns,

@@ -32,6 +32,7 @@
 #include <stdexcept>
 #include <vector>
 
+#include "pair_dips.hpp"
 #include "sweep_api.hpp"
 
 namespace packbot_native {
@@ -155,6 +156,7 @@ class Stretch {
     last_dist_.resize(K);
     y1_.resize(n_);
     ay1_.resize(n_);
+    yq_.resize(n_);
   }
 
   // The stepper's and the law's state a run starts from and ends with (run's in/out).
@@ -251,6 +253,8 @@ class Stretch {
       c.status = STRETCH_REFUSED;
       return c;
     }
+    // whether the last committed step's sweep (last_pairs_) is this step's start's
+    bool start_known = false;
     while (true) {
       const double t = s.t;
       if (!(t < t_last) || !(t < t_end)) return c;  // (status END)
@@ -363,6 +367,21 @@ class Stretch {
           if (!held) pending = true;
         }
       }
+      // a pair in contact and out again inside the step (pair_dips.hpp): Python's watch
+      // locates it on the step's dense output (NormalLaw._dip_crossings)
+      if (!pending && rhs_.dips().ready()) {
+        PairDips::speed_bounds(z, y1_.data(), nv_, step, vmax_);
+        auto dist = [&](int64_t k, double f) {
+          DenseOutput::at(t + f * step, t, t_new, step, z, y1_.data(), n_, implicit, yq_.data());
+          return api_.distance(api_.self, yq_.data(), k);
+        };
+        dips_.clear();
+        rhs_.dips().screen(vmax_.data(), rhs_.reach().data(), step, pairs_.data(), dist_.data(),
+                           static_cast<size_t>(ns), last_pairs_.data(), last_dist_.data(),
+                           start_known ? last_n_ : 0, start_known, active, na, margin_,
+                           pen_tol_, DIP_QUERIES, dist, dips_, true);
+        if (!dips_.empty()) pending = true;
+      }
       // after_step: the crawl rule, the limit stops' release (JointStops.release_limits)
       if (!pending && static_cast<int>(crawl.size()) + 1 >= crawl_steps_) {
         double sum = 0.0;  // (the deque's sum, oldest first, with this step)
@@ -426,6 +445,7 @@ class Stretch {
       std::swap(pairs_, last_pairs_);
       std::swap(dist_, last_dist_);
       last_n_ = static_cast<size_t>(ns);
+      start_known = !repatched;  // (a re-patch's projection moves the start)
       crawl.push_back(step);
       hs.push_back(step);
       ++c.steps;
@@ -594,6 +614,8 @@ class Stretch {
                               rp_.engaged.data(), same_shape ? rp_.engaged.size() : 0,
                               stick_w_.data(), slip_w_.data(), rp_.modes, o) != 0)
       return hand_back(swept);
+    // no consistent mode (a Painleve fallback): the loop's re-patch, which starts a window
+    if (o.painleve > 0) return hand_back(swept);
     rp_.stick.swap(stick_w_);
     rp_.slip.swap(slip_w_);
     rp_.engaged.assign(o.engaged.begin(), o.engaged.end());
@@ -667,6 +689,9 @@ class Stretch {
   // (the step end's screen of limit excursions: ContactRhs::limit_excursions_raw, its tol [rad])
   std::vector<typename Rhs::Excursion> excursions_;
   static constexpr double excursion_tol_ = 1e-9;
+  // (the step end's screen of contacts between its ends: pair_dips.hpp)
+  std::vector<Dip> dips_;
+  std::vector<double> vmax_, yq_;
   int crawl_steps_;
   double crawl_step_, sample_dt_, duration_;
   bool stiff_switch_;

@@ -343,7 +343,7 @@ class Sweep {
   // The C entry point (sweep_api.hpp) in a capsule that keeps this Sweep alive.
   nb::capsule api(nb::handle self) {
     self.inc_ref();
-    auto *api = new SweepApi{this, &Sweep::c_sweep, &Sweep::c_materials,
+    auto *api = new SweepApi{this, &Sweep::c_sweep, &Sweep::c_materials, &Sweep::c_distance,
                              static_cast<int64_t>(first_.size()), static_cast<int64_t>(model_.nq),
                              self.ptr()};
     return nb::capsule(api, PACKBOT_SWEEP_API, [](void *p) noexcept {
@@ -359,6 +359,32 @@ class Sweep {
                          double *dist, int64_t *best, double *best_d) {
     return static_cast<int64_t>(
         static_cast<Sweep *>(self)->sweep_into(q, margin, pairs, dist, best, best_d));
+  }
+
+  // Pair k's signed distance [m] at q, for the screen of contacts between step ends
+  // (pair_dips.hpp): with requests and functors of its own (made on first use), so that no
+  // other query's GJK warm starts depend on it. Leaves the sweep's state as it was.
+  static double c_distance(void *self, const double *q, int64_t k) {
+    return static_cast<Sweep *>(self)->dip_distance(q, static_cast<size_t>(k));
+  }
+
+  double dip_distance(const double *q, size_t p) {
+    const size_t K = first_.size();
+    for (int i = 0; i < model_.nq; ++i) pq_[i] = q[i];
+    pin::forwardKinematics(model_, data_, pq_);
+    if (dip_requests_.empty()) {
+      dip_requests_.assign(K, request_);
+      dip_functors_.resize(K);
+    }
+    if (!dip_functors_[p])
+      dip_functors_[p] = std::make_unique<coal::ComputeDistance>(shapes_[first_[p]].get(),
+                                                                 shapes_[second_[p]].get());
+    pin::SE3 M[2];
+    place_pair(p, M);
+    coal::DistanceResult &res = point_result_;
+    res.clear();
+    (*dip_functors_[p])(coal_of(M[0]), coal_of(M[1]), dip_requests_[p], res);
+    return res.min_distance;
   }
 
   // The contact patches of ``pairs`` within ``tol`` [m] at q: (sizes, normals, depths, points1,
@@ -831,6 +857,8 @@ class Sweep {
   coal::DistanceResult point_result_;
   // (distances': its own requests and functors, made on first use)
   std::vector<coal::DistanceRequest> all_requests_;
+  std::vector<coal::DistanceRequest> dip_requests_;  // (dip_distance's)
+  std::vector<std::unique_ptr<coal::ComputeDistance>> dip_functors_;
   std::vector<std::unique_ptr<coal::ComputeDistance>> all_functors_;
 };
 

@@ -28,6 +28,9 @@ struct SweepApi {
                        double patch_tol, double face_align, int64_t *sizes, int64_t *flags,
                        double *frame2, double *centres, double *local1, double *local2,
                        double *offset0, int64_t cap);
+  // Sweep's distance of pair k at q [m] (requests of its own: no other query's warm start
+  // moves), for the screen of contacts between step ends (pair_dips.hpp).
+  double (*distance)(void *self, const double *q, int64_t k);
   int64_t n_pairs;  // the world's pairs: the room ``pairs`` and ``dist`` need at most
   int64_t nq;       // the configuration's size
   void *owner;      // the Python Sweep (a reference the capsule holds)
