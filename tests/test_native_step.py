@@ -267,46 +267,6 @@ def test_the_root_findings_native_evaluations_are_the_python_ones(robot, monkeyp
 
 
 @pytest.mark.parametrize(
-    ("mu", "locked", "duration"), [(0.5, WRIST, 2.0), (0.0, (), 1.0)], ids=["mu0.5", "mu0-free"]
-)
-def test_a_rows_native_condition_is_the_one_of_the_evaluation(
-    robot, monkeypatch, mu, locked, duration
-):
-    """The root finding of a contact row's event inside a native step asks for that row's
-    condition alone (NativeRhs.row_condition_at): at every state it asks, the same float as
-    NormalContacts.condition on NativeRhs.eval_at's evaluation there, for free rows (impacts:
-    the gap) and engaged ones (releases: the force)."""
-    laws: list[NormalLaw] = []
-    original_rebuild = NormalLaw.rebuild
-
-    def rebuild(self, system):
-        original_rebuild(self, system)
-        laws.append(self)
-
-    row, eval_at = native.NativeRhs.row_condition_at, native.NativeRhs.eval_at
-    seen = {"free": 0, "engaged": 0}
-
-    def checked(self, y, r):
-        g = row(self, y, r)
-        contacts = laws[-1].normal
-        ev = eval_at(self, contacts, y)
-        assert (g is None) == (ev is None)
-        if g is not None:
-            assert g == contacts.condition(ev, ("nrow", r))
-            seen["engaged" if r in contacts.engaged else "free"] += 1
-        return g
-
-    monkeypatch.setattr(NormalLaw, "rebuild", rebuild)
-    monkeypatch.setattr(native.NativeRhs, "row_condition_at", checked)
-    monkeypatch.setattr(native, "ROW_ROOTS", False)  # (the root finding's evaluations in Python)
-    cfg = packbot.SimConfig(contact_mode="normal", mu=mu, locked_joints=locked)
-    q0 = robot.pose("drive") if locked else start_pose(robot, 0)
-    packbot.simulate(robot, q0, np.zeros(8), duration, config=cfg)
-    assert seen["free"] > 20, seen
-    assert seen["engaged"] > 0 or locked, seen  # (the wrist-free start's releases: 21)
-
-
-@pytest.mark.parametrize(
     ("mu", "locked", "duration"), [(0.5, WRIST, 5.0), (0.0, (), 2.0)], ids=["mu0.5", "mu0-free"]
 )
 def test_a_rows_native_root_is_the_python_root(robot, monkeypatch, mu, locked, duration):

@@ -71,11 +71,6 @@ except ImportError as exc:  # pragma: no cover - a build without the extension
 _NONE = np.empty(0)
 
 
-#: Whether a contact row's crossing inside a native step is located in one native call
-#: (:meth:`NativeRhs.row_root`; tests switch it off to watch the conditions' evaluations).
-ROW_ROOTS = True
-
-
 def available() -> bool:
     """Whether the compiled extension ``packbot._native`` is importable."""
     return _native is not None
@@ -613,7 +608,7 @@ class NativeRhs:
             row: The contact row.
         """
         Z = seg._Z
-        if not ROW_ROOTS or Z.shape[1] != 2 * self.nv:
+        if Z.shape[1] != 2 * self.nv:
             return None
         hermite = isinstance(seg, HermiteSegment)
         rhs, h, y1 = self._rhs, seg._hz, seg.y1

@@ -36,18 +36,12 @@ from packbot.contact.normal_tolerances import (
     TOUCH_GAP,
 )
 
-__all__ = ["NATIVE_MODES", "ModeEvent", "ModeSelection"]
+__all__ = ["ModeEvent", "ModeSelection"]
 
 log = logging.getLogger(__name__)
 
 FloatArray = NDArray[np.float64]
 
-NATIVE_MODES = True
-"""Whether the mode selection (:meth:`ModeSelection.select_modes`, with
-:meth:`ModeSelection.keep_modes` first at a re-patch) runs in one native call when the law has
-its compiled right-hand side and the contact set its own rows (``ContactRhs.select_modes``,
-``src/native/modes.hpp``: the same steps, handing back where the Python takes its least squares
-or its numpy evaluation); False: the Python selection (kept for comparisons)."""
 
 _KINDS = ("stick", "slip", "painleve")  # (the native selection's event kinds, by code)
 
@@ -166,7 +160,7 @@ class ModeSelection(ConstrainedDynamics):
     ) -> None:
         """The modes after a re-patch: :meth:`keep_modes`, else ``select_modes(keep=True)``.
 
-        In one native call where :meth:`select_modes` would be native (:data:`NATIVE_MODES`).
+        In one native call where :meth:`select_modes` would be native (:meth:`_native_modes`).
         Arguments: see :meth:`keep_modes`.
         """
         if engaged and self._keeps_own_rows(signature):
@@ -196,14 +190,13 @@ class ModeSelection(ConstrainedDynamics):
     ) -> list[ModeEvent] | None:
         """:meth:`select_modes` (after :meth:`keep_modes` of ``held``) in one native call.
 
-        None where it does not run (no compiled right-hand side, :data:`NATIVE_MODES` off, a
-        subclass's own rows, a resting contact set) or hands back; else the modes are set
+        None where it does not run (no compiled right-hand side, a subclass's own rows, a
+        resting contact set) or hands back; else the modes are set
         and the mode changes returned.
         """
         native = self.native
         if (
             native is None
-            or not NATIVE_MODES
             or self.resting
             or type(self)._problem is not _OWN_PROBLEM
             or type(self).evaluate is not _OWN_EVALUATE

@@ -52,20 +52,8 @@ tolerance 1e-6 J).
 IMPACT_ADMM_ACCEPT = 1e-6
 """The true residual [-] under which the frictional impact's answer is used."""
 
-IMPACT_CONIC = True
-"""Whether a frictional impact tries the compiled conic solver first (:func:`_impact_cones`);
-False: Pinocchio's ADMM alone (the former path, kept for comparisons and as the fallback)."""
-
 IMPACT_CONIC_TOL = 1e-10
 """The compiled solver's target residual for a frictional impact [-] (Pinocchio's ADMM's)."""
-
-NATIVE_RESTART = True
-"""Whether the restart's projection rounds, impact and stop of the slow slides run in one
-native call each when the law has its compiled right-hand side (``ContactRhs.project_round``,
-``ContactRhs.impact``, ``ContactRhs.stop_slow``: the same arithmetic as
-:meth:`RestartSteps.project`, :meth:`RestartSteps.impulse` and :meth:`RestartSteps.stop_slow`,
-handing back to them where they would clip gaps, fall back from Lemke or take a frictional
-answer the compiled solver does not give); False: the Python steps (kept for comparisons)."""
 
 DEPENDENT_ROW = 1e-12
 """A touching row of :meth:`RestartSteps.stop_slow` whose Schur complement (its diagonal in
@@ -149,7 +137,7 @@ class RestartSteps(ConstrainedDynamics):
         """
         if self.mu == 0.0 or not self.pairs:
             return v
-        native = self.native if NATIVE_RESTART else None
+        native = self.native
         if native is not None and type(self)._problem is _OWN_PROBLEM:
             status, v1 = native.stop_slow(
                 self, q, v, minv, touch_gap=TOUCH_GAP, speed_band=SPEED_BAND,
@@ -331,10 +319,10 @@ class RestartSteps(ConstrainedDynamics):
     def _project_once(self, q: FloatArray, v: FloatArray, minv: FloatArray) -> FloatArray | None:
         """:meth:`_project_round` without its stops: the moved q [rad], or None (no move).
 
-        Natively when the law has its compiled right-hand side (:data:`NATIVE_RESTART`), except
-        where a gap is clipped or Lemke's answer is not taken.
+        Natively when the law has its compiled right-hand side (``ContactRhs.project_round``),
+        except where a gap is clipped or Lemke's answer is not taken.
         """
-        native = self.native if NATIVE_RESTART else None
+        native = self.native
         if native is not None:
             status, q1 = native.project_round(
                 self, q, v, minv, TOUCH_GAP, PENETRATION_TOL, RESIDUAL_TOL
@@ -398,13 +386,13 @@ class RestartSteps(ConstrainedDynamics):
         An impulse never adds kinetic energy: each candidate's change is checked exactly
         (dT = P . J v + P . J dv / 2 for the generalized impulse J^T P, no mass matrix
         needed) and the first that does not gain is applied, in this order: the frictional
-        impact (ADMM), the frictionless one with restitution, the frictionless inelastic one
-        (the M-projection of v onto J_n v >= 0, which cannot gain). A solver's inexact
-        answer (an ADMM residual just under its bound, an NNLS solution off the LCP) could
-        otherwise add energy: measured 2.5e-5 J at an impact of the camera head on link 1's
-        tube (the collapse from a random start, mu = 0.5, wrist locked).
+        impact (:func:`_impact_cones`), the frictionless one with restitution, the
+        frictionless inelastic one (the M-projection of v onto J_n v >= 0, which cannot gain).
+        A solver's inexact answer (an ADMM residual just under its bound, an NNLS solution off
+        the LCP) could otherwise add energy: measured 2.5e-5 J at an impact of the camera head
+        on link 1's tube (the collapse from a random start, mu = 0.5, wrist locked).
         """
-        native = self.native if NATIVE_RESTART and (IMPACT_CONIC or self.mu == 0.0) else None
+        native = self.native
         if native is not None:  # (its frictional impact is the compiled conic solver's)
             status, v1, bounced = native.impact(
                 self, q, v, minv, mu=self.mu, restitution=self.e, zeno=self.zeno_speed,
@@ -486,33 +474,30 @@ def _impact_cones(
     Returns:
         The impulses (blocks (t1, t2, n) [N*s]) and their true residual.
     """
-    if IMPACT_CONIC:
-        from packbot.contact import conic  # (the windows' solver)
+    from packbot.contact import conic  # (the windows' solver)
 
-        try:
-            C = np.linalg.cholesky(minv)
-        except np.linalg.LinAlgError:  # a singular M^-1 (the hand-off's held joints)
-            return _impact_admm(model, data, G3, g3, mus)
-        A = np.ascontiguousarray(J3 @ C)
-        x, res, _, _ = conic.solve_conic(
-            A, g3, np.asarray(mus, dtype=np.float64), np.zeros(0), np.zeros(len(g3)),
-            IMPACT_CONIC_TOL, IMPACT_ADMM_ITERATIONS,
-        )  # fmt: skip
-        if res <= IMPACT_ADMM_ACCEPT:
-            return np.asarray(x, dtype=np.float64), float(res)
+    try:
+        C = np.linalg.cholesky(minv)
+    except np.linalg.LinAlgError:  # a singular M^-1 (the hand-off's held joints)
+        return _impact_admm(model, data, G3, g3, mus)
+    A = np.ascontiguousarray(J3 @ C)
+    x, res, _, _ = conic.solve_conic(
+        A, g3, np.asarray(mus, dtype=np.float64), np.zeros(0), np.zeros(len(g3)),
+        IMPACT_CONIC_TOL, IMPACT_ADMM_ITERATIONS,
+    )  # fmt: skip
+    if res <= IMPACT_ADMM_ACCEPT:
+        return np.asarray(x, dtype=np.float64), float(res)
     return _impact_admm(model, data, G3, g3, mus)
 
 
 def _impact_admm(
     model: Any, data: Any, G3: FloatArray, g3: FloatArray, mus: FloatArray
 ) -> tuple[FloatArray, float]:
-    """The frictional impact's impulses on the ADMM with the iteration limit cut.
+    """The frictional impact's impulses on Pinocchio's ADMM (:func:`_impact_cones`' fallback).
 
-    :func:`solve_ncp_admm` stopped at :data:`IMPACT_ADMM_ITERATIONS`, or at the former 5,000
-    when that answer's residual is above the 1e-6 the impulse accepts (then the former answer
-    to the bit). The ADMM's residual is not monotone: a cut answer can be accepted where the
-    former was not (measured once: 7.7e-7 at 1,000 iterations, 3.8e-6 at 5,000); the impact
-    is then frictional where it was frictionless.
+    :func:`solve_ncp_admm` stopped at :data:`IMPACT_ADMM_ITERATIONS`, and solved again to
+    5,000 iterations when that answer's residual is above :data:`IMPACT_ADMM_ACCEPT`. (The
+    ADMM's residual is not monotone in its iterations: the longer run is not always better.)
 
     Returns:
         The impulses (blocks (t1, t2, n) [N*s]) and their true residual.

@@ -39,7 +39,7 @@ from typing import TYPE_CHECKING, Any, Protocol
 import numpy as np
 from numpy.typing import NDArray
 
-from packbot.contact import native, normal_modes, normal_steps
+from packbot.contact import native
 from packbot.contact.normal_contacts import NormalContacts
 from packbot.contact.normal_tolerances import (
     BAUMGARTE,
@@ -345,8 +345,6 @@ def repatch_modes(law: NormalLaw) -> RepatchModes | None:
         or not nc.engaged
         or not nc.check_others
         or nc.world is not law.world
-        or not normal_steps.NATIVE_RESTART
-        or not normal_modes.NATIVE_MODES
     ):
         return None
     pairs = nc._pair_list
