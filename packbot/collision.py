@@ -297,6 +297,24 @@ class CollisionWorld:
         """
         return _cq.point_contact(self, q, self._pair_id(pair))
 
+    def screen_distance(self, q: NDArray[np.float64], pair: int) -> float:
+        """Signed distance [m] of one pair at q by GJK requests of its own (no pruning).
+
+        The query of the contact-normal mode's screen of contacts between step ends (the
+        compiled stretch's too): its warm starts are not :meth:`pair_contact`'s, so event
+        location does not depend on the screen.
+
+        Raises:
+            ConfigurationError: ``pair`` is not the index of a tested pair, or a wrong-size q.
+        """
+        k = self._pair_id(pair)
+        qa = np.ascontiguousarray(q, dtype=np.float64)
+        try:
+            return float(self._native.dip_distance(qa, k))
+        except (ValueError, TypeError) as exc:  # the extension's size/type check
+            nq = self.robot.model.nq
+            raise ConfigurationError("q", np.shape(q), f"a vector of shape ({nq},) [rad]") from exc
+
     def closest(self, q: NDArray[np.float64]) -> Contact:
         """The closest pair at q over all tested pairs (the first of equally close ones)."""
         if self._n_pairs == 0:

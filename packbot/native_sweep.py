@@ -259,6 +259,9 @@ class NativeSweep:
         #: ``point_distance(q, k) -> (distance, point1, point2, normal)``: one pair's query at
         #: q with its own warm starts (``CollisionWorld.pair_contact``'s).
         self.point_distance = self._sweep.point_distance
+        #: ``dip_distance(q, k) -> distance``: one pair's signed distance at q with warm starts
+        #: of its own (``CollisionWorld.screen_distance``'s).
+        self.dip_distance = self._sweep.dip_distance
         n = len(world.pairs)
         self._n_geoms = int(world.geom_model.ngeoms)
         self._p1 = np.zeros((n, 3))

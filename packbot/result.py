@@ -162,11 +162,12 @@ class Diagnostics:
         wall_time: Wall-clock time of the run [s].
         min_distance: Smallest signed distance seen at any accepted step or sample [m]. In the
             contact-normal mode it is also the minimum over the motion between step ends to
-            within half ``PENETRATION_TOL`` for every pair outside the contact set (and every
-            pair of it apart by more than ``PENETRATION_TOL`` at both ends of a step): each
-            step is screened by conservative advancement on the pairs' distances, and a pair
-            it finds touching inside a step is an ``impact`` event (docs/contact.md, "Contacts
-            between step ends").
+            within ``PENETRATION_TOL / 20`` for every pair the screen of contacts between step
+            ends proves clear (pairs outside the contact set, and pairs of it apart by more
+            than ``PENETRATION_TOL`` at a step's end): each step is screened by conservative
+            advancement on the pairs' distances, a pair it finds touching inside a step is an
+            event; a screen that reaches its query cap proves nothing (docs/contact.md,
+            "Contacts between step ends").
         min_distance_pair: Links of that pair, ``"link1/piece1 - link2/piece2"``.
         reset_energy_gain: Total energy the report's velocity resets added [J]: the sum, over
             the ``impact``, ``secondary_intersection`` and ``limit`` events, of each one's

@@ -40,7 +40,7 @@ def screen(robot):
     rhs.set_pair_joints(start, idx)
     k = next(p.index for p in world.pairs if p.joint2 == 0 and p.joint1 > 2)
     nv = robot.model.nv
-    v = np.full(nv, 1.0)  # [rad/s], constant over the step: the Hermite's bound is 1 rad/s
+    v = np.full(nv, 1.0)  # [rad/s], constant over the step: the speed bound is 1 rad/s
     y0 = np.concatenate([np.zeros(nv), v])
     y1 = np.concatenate([H * v, v])
     joints = idx[start[k] : start[k + 1]]
@@ -52,8 +52,14 @@ def _run_screen(sc, d, active=(), start_known=True):
     """The screen of pair sc.k whose distance at the step's fraction s is d(s) [m]."""
     calls: list[float] = []
 
-    class Seg:
-        t0, h, y0, y1 = 0.0, H, sc.y0, sc.y1
+    class Seg:  # (a step at constant joint speeds: q(theta) = q0 + H v theta)
+        t0, h, _hz, y0, y1 = 0.0, H, H, sc.y0, sc.y1
+
+        def _coefficients(self):
+            Q = np.zeros((5, len(sc.y0)))
+            Q[0] = sc.y0
+            Q[1] = np.concatenate([sc.y0[len(sc.y0) // 2 :], np.zeros(len(sc.y0) // 2)])
+            return Q
 
         def __call__(self, t):
             return np.array([t / H])  # (the fraction of the step, for the distance below)
@@ -108,9 +114,11 @@ def test_a_pair_that_stays_apart_is_proven_clear(screen):
     def d(s):
         return 1e-6 + screen.slope * min(abs(s - 0.37), 0.2)
 
+    unresolved = screen.rhs.unresolved_dips
     found, calls = _run_screen(screen, d)
     assert found == []
     assert 0 < len(calls) <= 64
+    assert screen.rhs.unresolved_dips == unresolved  # (proven clear, not given up)
     assert min(d(c) for c in calls) > 0.0
 
 

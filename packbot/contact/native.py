@@ -671,9 +671,10 @@ class NativeRhs:
         """Pairs in contact and out again inside a step (the extension's ``pair_dips.hpp``).
 
         Conservative advancement on each swept pair's distance over the step ``seg``: with
-        ``|d'| <= sum reach_j max |v_j|`` over the joints between its pieces (each joint's
-        speed bounded by its cubic Hermite over the step), an interval whose ends' distances
-        do not prove it clear is halved at a query on the dense output, earliest half first,
+        ``|d'| <= sum reach_j max |dq_j/dt|`` over the joints between its pieces (each
+        joint's largest speed on the step's dense output, the path the queries follow), an
+        interval whose ends' distances do not prove it clear is halved at a query on the dense
+        output, level by level,
         until every part is clear (to within ``PENETRATION_TOL / 20``), or a query finds the
         pair at the level looked for: ``d <= 0`` for a pair outside the contact set apart at
         both ends, or of the set apart by more than :data:`PENETRATION_TOL` at both ends;
@@ -690,9 +691,10 @@ class NativeRhs:
         def at(k: int, s: float) -> float:
             return distance(int(k), seg(seg.t0 + s * seg.h))
 
+        Q = np.ascontiguousarray(seg._coefficients(), dtype=np.float64)
         found, evals = self._rhs.pair_dips(
-            _reals(seg.y0),
-            _reals(seg.y1),
+            Q,
+            float(seg.h / seg._hz),
             float(seg.h),
             np.ascontiguousarray(start[0], np.int64),
             _reals(start[1]),

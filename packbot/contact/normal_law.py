@@ -170,6 +170,7 @@ class NormalLaw(PatchEvents):
         self._recent: deque[float] = deque(maxlen=CHATTER_EVENTS)
         self._steps: deque[float] = deque(maxlen=CRAWL_STEPS)  # the last steps' sizes [s]
         self._clear: FloatArray | None = None  # a step end the screen found clear (watch)
+        self._start_swept = True  # whether last_d was swept at the next step's start
         self._ready: FloatArray | None = None  # a state the native modes are loaded for
         self._offered = False  # whether step_kernel offered the native step at the loop's state
         self._stretch: QuietStretch | None = None  # (the compiled stretch of quiet steps)
@@ -293,16 +294,25 @@ class NormalLaw(PatchEvents):
         -:data:`PENETRATION_TOL` a ``repatch``, each located before that query.
         """
         active = np.array([k[1] for k in self.active if k[0] == "pair"], dtype=np.int64)
-        last = self.last_d
+        # the kept distances are the step start's, unless a re-patch's projection moved it
+        # since they were swept (then each pair is queried at the start when needed)
+        last = self.last_d if self._start_swept else {}
+        self._start_swept = True
         start = (
             np.fromiter(last.keys(), np.int64, len(last)),
             np.fromiter(last.values(), float, len(last)),
         )
+        n = self.n
+
+        def distance(pair: int, y: FloatArray) -> float:
+            self.diag.distance_queries += 1
+            return self.world.screen_distance(y[:n], pair)
+
         found, _ = self._native.pair_dips(
-            seg, start, (sw.pairs, sw.distances), active, self.cfg.margin, self.distance
+            seg, start, (sw.pairs, sw.distances), active, self.cfg.margin, distance
         )
         out: list[Crossing] = []
-        for p_idx, s, d, level in found:
+        for p_idx, s, _, level in found:
             t_m = seg.t0 + s * seg.h
 
             def g(t: float, p_idx: int = p_idx, level: float = level) -> float:
@@ -311,14 +321,15 @@ class NormalLaw(PatchEvents):
             g0 = last.get(p_idx, math.nan) - level
             if not g0 > 0.0:
                 g0 = g(seg.t0)
-            if not g0 > 0.0:
+            g_m = g(t_m)  # (the located function's own value there: a bracket it agrees with)
+            if not g_m <= 0.0 < g0:
                 continue
 
             def early(t: float, g: Callable[[float], float] = g, t_m: float = t_m) -> float:
                 return g(min(t, t_m))
 
             kind = "impact" if level == 0.0 else "repatch"
-            out.append(Crossing(kind, ("pair", p_idx), early, g0, d - level))
+            out.append(Crossing(kind, ("pair", p_idx), early, g0, g_m))
         return out
 
     def after_step(self, t: float, y: FloatArray) -> FloatArray | None:
@@ -335,7 +346,8 @@ class NormalLaw(PatchEvents):
             if len(steps) == CRAWL_STEPS and sum(steps) < CRAWL_STEPS * CRAWL_STEP:
                 y_new = super().after_step(t, y)
                 y = y if y_new is None else y_new
-                self._enter(t, y, "the stepper crawled (a stiff stretch)")
+                if self.window is None:  # (the re-patch's Painleve fallback may have opened one)
+                    self._enter(t, y, "the stepper crawled (a stiff stretch)")
                 return y
             n_active = len(self.active)
             y_new = super().after_step(t, y)
@@ -585,6 +597,7 @@ class NormalLaw(PatchEvents):
         distances.setflags(write=False)
         self._pending_arr = self._last_arr = (pairs, distances)
         self._pending_d = self._last_d = None
+        self._start_swept = out["repatches"] == 0  # (a re-patch's projection moves q)
         self._clear = self._ready = y
         self.world.dispatch.owe()  # (its pieces are owed at the last compiled sweep's q)
 
@@ -691,7 +704,10 @@ class NormalLaw(PatchEvents):
             painleve = self.normal.n_painleve
             y_new = self._repatch(self.normal, t, y)
             self._sync_pairs()
+            self._start_swept = False  # (the projection moved q after the step end's sweep)
             if self.normal.n_painleve > painleve:
+                v_new = y_new[n : 2 * n]
+                self.log_event(t, "painleve", y_new[:n], v_new, v_new, None)
                 self._enter(t, y_new, "no contact mode is consistent (Painleve)")
             return y_new
         return None

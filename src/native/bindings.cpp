@@ -179,7 +179,7 @@ NB_MODULE(_native, m) {
       .def("limit_excursions", &ContactRhs::limit_excursions, nb::arg("y0"), nb::arg("y1"),
            nb::arg("h"), nb::arg("tol"))
       .def("set_pair_joints", &ContactRhs::set_pair_joints, nb::arg("start"), nb::arg("idx"))
-      .def("pair_dips", &ContactRhs::pair_dips, nb::arg("y0"), nb::arg("y1"), nb::arg("h"),
+      .def("pair_dips", &ContactRhs::pair_dips, nb::arg("Q"), nb::arg("theta_max"), nb::arg("h"),
            nb::arg("pairs0"), nb::arg("dist0"), nb::arg("pairs1"), nb::arg("dist1"),
            nb::arg("start_known"), nb::arg("active"), nb::arg("margin"), nb::arg("pen_tol"),
            nb::arg("distance"))

@@ -190,8 +190,8 @@ class ContactRhs {
   void set_pair_joints(I1 start, I1 idx);
   packbot_native::PairDips &dips() { return dips_; }
   const std::vector<double> &reach() const { return reach_; }
-  nb::tuple pair_dips(F1 y0, F1 y1, double h, I1 pairs0, F1 dist0, I1 pairs1, F1 dist1,
-                      bool start_known, I1 active, double margin, double pen_tol,
+  nb::tuple pair_dips(F2 Q, double theta_max, double h, I1 pairs0, F1 dist0, I1 pairs1,
+                      F1 dist1, bool start_known, I1 active, double margin, double pen_tol,
                       nb::callable distance);
   // Whether the last end_check_raw's bit 4 was a stale patch of a sliding pair for certain
   // (not a slide speed at the stick speed, which the caller decides).

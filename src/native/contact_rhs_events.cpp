@@ -211,22 +211,25 @@ void ContactRhs::set_pair_joints(I1 start, I1 idx) {
   dips_.set(start.data(), start.shape(0) - 1, idx.data(), idx.shape(0), nv_);
 }
 
-// The screen of contacts between step ends over the step of h [s] from y0 to y1 (2 nv at
-// least), for Python's watch: the start's sweep (pairs0, dist0 [m]; start_known: a pair
-// absent from it is at least margin [m] away, else it is queried), the end's (pairs1, dist1),
-// the contact set's active pairs, pen_tol [m] the penetration tolerance (PairDips::screen);
-// distance(k, s) pair k's signed distance [m] at the fraction s of the step. Returns
-// ([(pair, s, d, level), ...] the dips found, queries made).
-nb::tuple ContactRhs::pair_dips(F1 y0, F1 y1, double h, I1 pairs0, F1 dist0, I1 pairs1,
-                                F1 dist1, bool start_known, I1 active, double margin,
+// The screen of contacts between step ends over a step of h [s], for Python's watch: Q (5,
+// n >= nv) the step's interpolant coefficients (packbot.ode.DenseSegment._coefficients) over
+// theta in [0, theta_max] (h / the interpolant's own step); the start's sweep (pairs0, dist0
+// [m]; start_known: a pair absent from it is at least margin [m] away, else it is queried),
+// the end's (pairs1, dist1), the contact set's active pairs, pen_tol [m] the penetration
+// tolerance (PairDips::screen); distance(k, s) pair k's signed distance [m] at the fraction s
+// of the step. Returns ([(pair, s, d, level), ...] the dips found, queries made).
+nb::tuple ContactRhs::pair_dips(F2 Q, double theta_max, double h, I1 pairs0, F1 dist0,
+                                I1 pairs1, F1 dist1, bool start_known, I1 active, double margin,
                                 double pen_tol, nb::callable distance) {
-  if (y0.shape(0) < static_cast<size_t>(2 * nv_) || y1.shape(0) < static_cast<size_t>(2 * nv_))
-    throw std::invalid_argument("pair_dips: y0, y1 (2 nv at least) expected");
+  if (Q.shape(0) != 5 || Q.shape(1) < static_cast<size_t>(nv_))
+    throw std::invalid_argument("pair_dips: Q (5, nv at least) expected");
   if (pairs0.shape(0) != dist0.shape(0) || pairs1.shape(0) != dist1.shape(0))
     throw std::invalid_argument("pair_dips: one distance per pair expected");
+  if (!(h > 0.0) || !(theta_max > 0.0) || !(pen_tol > 0.0) || !(margin > 0.0))
+    throw std::invalid_argument("pair_dips: h, theta_max, pen_tol and margin must be > 0");
   if (!dips_.ready() || reach_.size() != static_cast<size_t>(nv_))
     throw std::invalid_argument("pair_dips: set_pair_joints and set_reach first");
-  packbot_native::PairDips::speed_bounds(y0.data(), y1.data(), nv_, h, vmax_);
+  packbot_native::PairDips::speed_bounds(Q.data(), Q.shape(1), nv_, theta_max, vmax_);
   std::vector<packbot_native::Dip> found;
   auto dist = [&](int64_t k, double s) { return nb::cast<double>(distance(k, s)); };
   const int64_t evals = dips_.screen(vmax_.data(), reach_.data(), h, pairs1.data(),

@@ -11,8 +11,8 @@
 // reach_j the bound on the distance from joint j's axis to the pieces it moves (the step
 // bound's; packbot.contact.pairs.reach_bounds) and the joints those between the two pieces'
 // chains (the ones both pieces hang from move them rigidly together: d does not change).
-// |v_j| over the step is bounded by the joint's cubic Hermite of (q, v) at the step's ends:
-// its derivative, a quadratic, at its largest on [0, 1]. With d(a) and d(b) known at the
+// |v_j| over the step is the largest speed of q_j on the step's dense output (the path the
+// distance queries follow): the derivative of its polynomial at its largest on the step. With d(a) and d(b) known at the
 // ends of an interval of the step, no d inside it is below (d(a) + d(b) - L (b - a)) / 2;
 // where that bound is negative the interval is halved at a distance query on the step's
 // dense output, level by level in time order, until every piece of the step is proven clear, or the
@@ -49,8 +49,10 @@ class PairDips {
  public:
   // pair k's joints: idx[start[k]] ... idx[start[k + 1] - 1] (velocity indices)
   void set(const int64_t *start, size_t n_pairs, const int64_t *idx, size_t n_idx, int nv) {
+    if (start[0] != 0 || start[n_pairs] != static_cast<int64_t>(n_idx))
+      throw std::invalid_argument("pair_joints: start must rise from 0 to len(idx)");
     for (size_t k = 0; k < n_pairs; ++k)
-      if (start[k] < 0 || start[k + 1] < start[k] || start[k + 1] > static_cast<int64_t>(n_idx))
+      if (start[k + 1] < start[k])
         throw std::invalid_argument("pair_joints: start must rise from 0 to len(idx)");
     for (size_t i = 0; i < n_idx; ++i)
       if (idx[i] < 0 || idx[i] >= nv)
@@ -61,22 +63,37 @@ class PairDips {
   bool ready() const { return !start_.empty(); }
   size_t pairs() const { return start_.empty() ? 0 : start_.size() - 1; }
 
-  // The largest |v_j| [rad/s] of each joint's cubic Hermite over the step of h [s] from
-  // y0 = (q0, v0) to y1 = (q1, v1) (nv each), into vmax.
-  static void speed_bounds(const double *y0, const double *y1, int nv, double h,
+  // The largest |dq_j/dt| [rad/s] of each joint's position on the step's dense output, into
+  // vmax (nv): Q (5 rows of stride `stride`, the first nv columns the positions) the
+  // interpolant's coefficients, q(theta) = Q0 + hz (Q1 theta + Q2 theta^2 + Q3 theta^3 +
+  // Q4 theta^4) (packbot.ode.DenseSegment's basis: the quartic of Dormand-Prince, or the
+  // cubic Hermite of a Rosenbrock step, Q4 = 0), over theta in [0, theta_max]. The derivative
+  // Q1 + 2 Q2 theta + 3 Q3 theta^2 + 4 Q4 theta^3, at its ends and its interior extremes.
+  static void speed_bounds(const double *Q, size_t stride, int nv, double theta_max,
                            std::vector<double> &vmax) {
     vmax.resize(static_cast<size_t>(nv));
     for (int j = 0; j < nv; ++j) {
-      const double q0 = y0[j], q1 = y1[j], d0 = h * y0[nv + j], d1 = h * y1[nv + j];
-      // q'(s) = A s^2 + B s + C on s in [0, 1] (per unit s: / h for per second)
-      const double A = 6.0 * q0 + 3.0 * d0 - 6.0 * q1 + 3.0 * d1;
-      const double B = -6.0 * q0 - 4.0 * d0 + 6.0 * q1 - 2.0 * d1;
-      double m = std::max(std::abs(d0), std::abs(d1));
-      if (A != 0.0) {
-        const double s = -B / (2.0 * A);
-        if (s > 0.0 && s < 1.0) m = std::max(m, std::abs((A * s + B) * s + d0));
+      const double c1 = Q[stride + j], c2 = 2.0 * Q[2 * stride + j], c3 = 3.0 * Q[3 * stride + j],
+                   c4 = 4.0 * Q[4 * stride + j];
+      auto f = [&](double th) { return ((c4 * th + c3) * th + c2) * th + c1; };
+      double m = std::max(std::abs(f(0.0)), std::abs(f(theta_max)));
+      // f'(th) = 3 c4 th^2 + 2 c3 th + c2
+      const double A = 3.0 * c4, B = 2.0 * c3, C = c2;
+      double roots[2];
+      int nr = 0;
+      if (A == 0.0) {
+        if (B != 0.0) roots[nr++] = -C / B;
+      } else {
+        const double disc = B * B - 4.0 * A * C;
+        if (disc >= 0.0) {
+          const double sq = std::sqrt(disc);
+          roots[nr++] = (-B - sq) / (2.0 * A);
+          roots[nr++] = (-B + sq) / (2.0 * A);
+        }
       }
-      vmax[static_cast<size_t>(j)] = h > 0.0 ? m / h : 0.0;
+      for (int i = 0; i < nr; ++i)
+        if (roots[i] > 0.0 && roots[i] < theta_max) m = std::max(m, std::abs(f(roots[i])));
+      vmax[static_cast<size_t>(j)] = m;
     }
   }
 
@@ -93,7 +110,7 @@ class PairDips {
   // a pair of the set within pen_tol at the end is left to its rows (held, released, or
   // re-patched below -pen_tol at the end). The screen's resolution is pen_tol / 20: no part
   // of a step it proves clear goes below the level it looks for by more than that. At most
-  // max_evals queries per pair. Appends the dips found to out (all pairs, or the first only);
+  // max_evals queries per pair inside the step (and one at its start when it is not known). Appends the dips found to out (all pairs, or the first only);
   // returns the number of queries.
   template <class Dist>
   int64_t screen(const double *vmax, const double *reach, double h, const int64_t *p1,
@@ -158,7 +175,6 @@ class PairDips {
     while (!stack_.empty()) {
       next_.clear();
       for (const Piece &p : stack_) {
-        if (found && p.b > dip.s) break;  // (after the dip found: not looked at)
         const double w = Ls * (p.b - p.a);
         if (0.5 * (p.da + p.db - w) >= 0.0 || 0.5 * w <= tol) continue;
         if (used >= max_evals) {

@@ -67,6 +67,29 @@ struct DenseOutput {
       {0, -282668133.0 / 205662961, 2019193451.0 / 616988883, -1453857185.0 / 822651844},
       {0, 40617522.0 / 29380423, -110615467.0 / 29380423, 69997945.0 / 29380423}};
 
+  // The interpolant's coefficients of the first m components into Q (5 rows of m):
+  // y(theta) = Q0 + h (Q1 theta + Q2 theta^2 + Q3 theta^3 + Q4 theta^4), packbot.ode's
+  // DenseSegment._coefficients (HermiteSegment's with hermite).
+  static void coefficients(const double *z, double h, int n, int m, bool hermite, double *Q) {
+    for (int c = 0; c < m; ++c) {
+      Q[c] = z[c];
+      if (hermite) {
+        const double y0 = z[c], f0 = z[n + c], f1 = z[7 * n + c];
+        const double dy = (z[2 * n + c] - y0) / h;
+        Q[m + c] = f0;
+        Q[2 * m + c] = 3.0 * dy - 2.0 * f0 - f1;
+        Q[3 * m + c] = f0 + f1 - 2.0 * dy;
+        Q[4 * m + c] = 0.0;
+        continue;
+      }
+      for (int k = 0; k < 4; ++k) {
+        double acc = 0.0;
+        for (int j = 0; j < 7; ++j) acc += P[j][k] * z[(1 + j) * n + c];
+        Q[(k + 1) * m + c] = acc;
+      }
+    }
+  }
+
   // y(t) into out (n): the step [t0, t1] of size h with stages z (8, n), y1 its end; a
   // Rosenbrock step (hermite) by the cubic Hermite interpolant on y0 = z[0], f0 = z[1],
   // y1 = z[2], f1 = z[7] (packbot.ode.HermiteSegment).
@@ -367,21 +390,6 @@ class Stretch {
           if (!held) pending = true;
         }
       }
-      // a pair in contact and out again inside the step (pair_dips.hpp): Python's watch
-      // locates it on the step's dense output (NormalLaw._dip_crossings)
-      if (!pending && rhs_.dips().ready()) {
-        PairDips::speed_bounds(z, y1_.data(), nv_, step, vmax_);
-        auto dist = [&](int64_t k, double f) {
-          DenseOutput::at(t + f * step, t, t_new, step, z, y1_.data(), n_, implicit, yq_.data());
-          return api_.distance(api_.self, yq_.data(), k);
-        };
-        dips_.clear();
-        rhs_.dips().screen(vmax_.data(), rhs_.reach().data(), step, pairs_.data(), dist_.data(),
-                           static_cast<size_t>(ns), last_pairs_.data(), last_dist_.data(),
-                           start_known ? last_n_ : 0, start_known, active, na, margin_,
-                           pen_tol_, DIP_QUERIES, dist, dips_, true);
-        if (!dips_.empty()) pending = true;
-      }
       // after_step: the crawl rule, the limit stops' release (JointStops.release_limits)
       if (!pending && static_cast<int>(crawl.size()) + 1 >= crawl_steps_) {
         double sum = 0.0;  // (the deque's sum, oldest first, with this step)
@@ -401,6 +409,26 @@ class Stretch {
       }
       // a step ending on a scheduled action's time is Python's (its samples, the action)
       if (!pending && t_new >= t_sched - 1e-12 && t_new < t_last) pending = true;
+      // a pair in contact and out again inside the step (pair_dips.hpp): Python's watch
+      // locates it on the step's dense output (NormalLaw._dip_crossings)
+      if (!pending && rhs_.dips().ready()) {
+        if (rhs_.dips().pairs() != static_cast<size_t>(api_.n_pairs) ||
+            rhs_.reach().size() != static_cast<size_t>(nv_))
+          throw std::invalid_argument("the screen's pairs or reach do not match the sweep's");
+        coef_.resize(5 * static_cast<size_t>(nv_));
+        DenseOutput::coefficients(z, step, n_, nv_, implicit, coef_.data());
+        PairDips::speed_bounds(coef_.data(), static_cast<size_t>(nv_), nv_, 1.0, vmax_);
+        auto dist = [&](int64_t k, double f) {
+          DenseOutput::at(t + f * step, t, t_new, step, z, y1_.data(), n_, implicit, yq_.data());
+          return api_.distance(api_.self, yq_.data(), k);
+        };
+        dips_.clear();
+        rhs_.dips().screen(vmax_.data(), rhs_.reach().data(), step, pairs_.data(), dist_.data(),
+                           static_cast<size_t>(ns), last_pairs_.data(), last_dist_.data(),
+                           start_known ? last_n_ : 0, start_known, active, na, margin_,
+                           pen_tol_, DIP_QUERIES, dist, dips_, true);
+        if (!dips_.empty()) pending = true;
+      }
       bool repatched = false;
       if (!pending && stale) {
         // A re-patch changes the patches the samples' contact forces are read from: Python
@@ -691,7 +719,7 @@ class Stretch {
   static constexpr double excursion_tol_ = 1e-9;
   // (the step end's screen of contacts between its ends: pair_dips.hpp)
   std::vector<Dip> dips_;
-  std::vector<double> vmax_, yq_;
+  std::vector<double> vmax_, yq_, coef_;
   int crawl_steps_;
   double crawl_step_, sample_dt_, duration_;
   bool stiff_switch_;

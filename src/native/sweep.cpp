@@ -369,22 +369,9 @@ class Sweep {
   }
 
   double dip_distance(const double *q, size_t p) {
-    const size_t K = first_.size();
     for (int i = 0; i < model_.nq; ++i) pq_[i] = q[i];
     pin::forwardKinematics(model_, data_, pq_);
-    if (dip_requests_.empty()) {
-      dip_requests_.assign(K, request_);
-      dip_functors_.resize(K);
-    }
-    if (!dip_functors_[p])
-      dip_functors_[p] = std::make_unique<coal::ComputeDistance>(shapes_[first_[p]].get(),
-                                                                 shapes_[second_[p]].get());
-    pin::SE3 M[2];
-    place_pair(p, M);
-    coal::DistanceResult &res = point_result_;
-    res.clear();
-    (*dip_functors_[p])(coal_of(M[0]), coal_of(M[1]), dip_requests_[p], res);
-    return res.min_distance;
+    return query(dip_, p).min_distance;
   }
 
   // The contact patches of ``pairs`` within ``tol`` [m] at q: (sizes, normals, depths, points1,
@@ -448,26 +435,18 @@ class Sweep {
   // second GeometryData, made pristine at its first point query), with that data's own request
   // and functor per pair, which no sweep shares: the same GJK warm starts, so the same numbers
   // to the bit. Leaves the sweep's state (its q, boxes, witness points) as it was.
-  nb::tuple point_distance(F1 q, int64_t k) {
-    const size_t K = first_.size();
+  // q's size and a pair index k checked (point_distance's, dip_distance's).
+  void check_pair_query(const F1 &q, int64_t k) const {
     check_q(q);
-    if (k < 0 || k >= static_cast<int64_t>(K))
+    if (k < 0 || k >= static_cast<int64_t>(first_.size()))
       throw std::invalid_argument("a pair index is out of range");
+  }
+
+  nb::tuple point_distance(F1 q, int64_t k) {
+    check_pair_query(q, k);
     for (int i = 0; i < model_.nq; ++i) pq_[i] = q.data()[i];
     pin::forwardKinematics(model_, data_, pq_);
-    const size_t p = static_cast<size_t>(k);
-    if (point_requests_.empty()) {  // (the second data's requests, as a new copy has them)
-      point_requests_.assign(K, request_);
-      point_functors_.resize(K);
-    }
-    if (!point_functors_[p])
-      point_functors_[p] = std::make_unique<coal::ComputeDistance>(shapes_[first_[p]].get(),
-                                                                   shapes_[second_[p]].get());
-    pin::SE3 M[2];
-    place_pair(p, M);
-    coal::DistanceResult &res = point_result_;
-    res.clear();
-    (*point_functors_[p])(coal_of(M[0]), coal_of(M[1]), point_requests_[p], res);
+    const coal::DistanceResult &res = query(point_, static_cast<size_t>(k));
     double *a = nullptr, *b = nullptr, *n = nullptr;
     auto a_arr = new_array<double>({3}, &a);
     auto b_arr = new_array<double>({3}, &b);
@@ -488,28 +467,15 @@ class Sweep {
   // as it was.
   nb::tuple distances(F1 q, I1 pairs) {
     const size_t n = check_query(q, pairs);
-    const size_t K = first_.size();
     for (int i = 0; i < model_.nq; ++i) pq_[i] = q.data()[i];
     pin::forwardKinematics(model_, data_, pq_);
-    if (all_requests_.empty()) {
-      all_requests_.assign(K, request_);
-      all_functors_.resize(K);
-    }
     double *d = nullptr, *a = nullptr, *b = nullptr, *nrm = nullptr;
     auto d_arr = new_array<double>({n}, &d);
     auto a_arr = new_array<double>({n, 3}, &a);
     auto b_arr = new_array<double>({n, 3}, &b);
     auto n_arr = new_array<double>({n, 3}, &nrm);
-    coal::DistanceResult &res = point_result_;
     for (size_t i = 0; i < n; ++i) {
-      const size_t p = static_cast<size_t>(pairs.data()[i]);
-      if (!all_functors_[p])
-        all_functors_[p] = std::make_unique<coal::ComputeDistance>(shapes_[first_[p]].get(),
-                                                                   shapes_[second_[p]].get());
-      pin::SE3 M[2];
-      place_pair(p, M);
-      res.clear();
-      (*all_functors_[p])(coal_of(M[0]), coal_of(M[1]), all_requests_[p], res);
+      const coal::DistanceResult &res = query(all_, static_cast<size_t>(pairs.data()[i]));
       d[i] = res.min_distance;
       for (int c = 0; c < 3; ++c) {
         a[3 * i + c] = res.nearest_points[0][c];
@@ -851,15 +817,32 @@ class Sweep {
   std::shared_ptr<const PlaneSet> planes_;  // (set_planes; shared by fresh() copies)
   coal::ContactPatchResult patch_res_;  // (contact_patch's)
   std::vector<double> loc1_, loc2_, off_, raw_, scratch_;  // (materials' scratch)
-  // (point_distance's: the second data's requests and functors, made on first use)
-  std::vector<coal::DistanceRequest> point_requests_;
-  std::vector<std::unique_ptr<coal::ComputeDistance>> point_functors_;
+  // A query's own GJK requests and distance functors per pair, made on first use: no query's
+  // warm starts depend on another's.
+  struct QuerySet {
+    std::vector<coal::DistanceRequest> requests;
+    std::vector<std::unique_ptr<coal::ComputeDistance>> functors;
+  };
+  // Pair p's distance by the set's request and functor, at the placements of the last
+  // forward kinematics into data_ (the result lives until the next query).
+  const coal::DistanceResult &query(QuerySet &set, size_t p) {
+    if (set.requests.empty()) {
+      set.requests.assign(first_.size(), request_);
+      set.functors.resize(first_.size());
+    }
+    if (!set.functors[p])
+      set.functors[p] = std::make_unique<coal::ComputeDistance>(shapes_[first_[p]].get(),
+                                                                shapes_[second_[p]].get());
+    pin::SE3 M[2];
+    place_pair(p, M);
+    point_result_.clear();
+    (*set.functors[p])(coal_of(M[0]), coal_of(M[1]), set.requests[p], point_result_);
+    return point_result_;
+  }
+  // point_distance's (the second GeometryData's requests, as a new copy has them),
+  // distances', dip_distance's
+  QuerySet point_, all_, dip_;
   coal::DistanceResult point_result_;
-  // (distances': its own requests and functors, made on first use)
-  std::vector<coal::DistanceRequest> all_requests_;
-  std::vector<coal::DistanceRequest> dip_requests_;  // (dip_distance's)
-  std::vector<std::unique_ptr<coal::ComputeDistance>> dip_functors_;
-  std::vector<std::unique_ptr<coal::ComputeDistance>> all_functors_;
 };
 
 NB_MODULE(_native_coal, m) {
@@ -880,6 +863,13 @@ NB_MODULE(_native_coal, m) {
       .def("sweep", &Sweep::sweep, nb::arg("q"), nb::arg("margin"))
       .def("patches", &Sweep::patches, nb::arg("q"), nb::arg("pairs"), nb::arg("tol"))
       .def("point_distance", &Sweep::point_distance, nb::arg("q"), nb::arg("k"))
+      .def(
+          "dip_distance",
+          [](Sweep &self, F1 q, int64_t k) {
+            self.check_pair_query(q, k);
+            return self.dip_distance(q.data(), static_cast<size_t>(k));
+          },
+          nb::arg("q"), nb::arg("k"))
       .def("candidates", &Sweep::candidates, nb::arg("q"), nb::arg("margin"))
       .def("distances", &Sweep::distances, nb::arg("q"), nb::arg("pairs"))
       .def("set_planes", &Sweep::set_planes, nb::arg("N"), nb::arg("o"), nb::arg("start"))

@@ -13,7 +13,7 @@
 
 #include <cstdint>
 
-#define PACKBOT_SWEEP_API "packbot.sweep_api"
+#define PACKBOT_SWEEP_API "packbot.sweep_api.2"  // (its version: the struct below)
 
 struct SweepApi {
   void *self;
