@@ -16,7 +16,7 @@ import pytest
 
 import packbot
 from packbot.contact import normal_law, normal_set, timestep
-from packbot.contact.normal_tolerances import FACE_ALIGN, SLIDE_TOL
+from packbot.contact.normal_tolerances import FACE_ALIGN, POINT_TOL, SLIDE_TOL
 from packbot.mujoco_model import WRIST_JOINTS
 
 
@@ -34,7 +34,7 @@ def _world_point(law, joint: int, local: np.ndarray) -> np.ndarray:
 def collapse(robot):
     """The collapse (2 s): at every accepted step's end, each vertex-on-face patch's vertex,
     the distance from it to Coal's witness point on its body, and its slide since built."""
-    seen: list[tuple[int, float, float, float]] = []
+    seen: list[tuple[int, float, float, float, float]] = []
     after = normal_law.NormalLaw.after_step
 
     def watched(self, t, y):
@@ -55,7 +55,8 @@ def collapse(robot):
             # (its p2 - p1 was along n when built: offset0 = 0)
             assert np.abs(p.offset0).max() < 1e-9
             slide = float(np.linalg.norm(rel - (rel @ n) * n))
-            seen.append((key, float(np.linalg.norm(vertex - witness)), slide, c.distance))
+            gap = float(rel @ n)  # (the patch's gap: the vertex's height over the face)
+            seen.append((key, float(np.linalg.norm(vertex - witness)), slide, c.distance, gap))
         return out
 
     cfg = packbot.SimConfig(contact_mode="normal", mu=0.5, locked_joints=WRIST_JOINTS)
@@ -69,10 +70,15 @@ def test_a_vertex_on_a_face_is_kept_while_it_slides(collapse):
     res, seen = collapse
     assert seen, "no vertex-on-face patch in the collapse: the test covers nothing"
     # kept beyond SLIDE_TOL (the rule before re-patched at 1 mm) ...
-    assert max(s for _, _, s, _ in seen) > 3.0 * SLIDE_TOL
-    # ... and still where the bodies touch: the vertex is Coal's witness point on its body
-    touching = [w for _, w, _, d in seen if d < 1e-4]
-    assert touching and max(touching) < 1e-6, max(touching)
+    assert max(s for _, _, s, _, _ in seen) > 3.0 * SLIDE_TOL
+    # ... and still where the bodies touch: the vertex's height over the face is the pair's
+    # distance to POINT_TOL (the rule that rebuilds the patch otherwise), and in most samples
+    # the vertex is Coal's witness point on its body (not in all: with an edge lying almost
+    # flat on the face, a point 2e-5 m along it is as close, to 2.3e-7 m)
+    touching = [(w, gap - d) for _, w, _, d, gap in seen if d < 1e-4]
+    assert touching
+    assert max(abs(off) for _, off in touching) < POINT_TOL
+    assert np.median([w for w, _ in touching]) < 1e-6
     assert -res.diagnostics.min_distance <= 1e-5
 
 

@@ -109,7 +109,7 @@ CASES = {  # (config, start pose, duration [s], least re-patches in the stretch,
     "collapse": (dict(mu=0.5, locked_joints=WRIST_JOINTS), "drive", 5.0, 20, 2),
     "frictionless": (dict(mu=0.0, locked_joints=WRIST_JOINTS), "drive", 3.0, 40, 5),
     "sticky": (dict(mu=1.2, locked_joints=WRIST_JOINTS), "high", 3.0, 10, 0),
-    "wrist-free": (dict(mu=0.5), "drive", 3.0, 10, 0),
+    "wrist-free": (dict(mu=0.5), "drive", 3.0, 5, 0),
 }
 
 

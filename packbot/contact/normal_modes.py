@@ -82,7 +82,7 @@ class ModeSelection(ConstrainedDynamics):
             return native
         events: list[ModeEvent] = []
         Jn, drift, gap, vn, extra = self._problem(q, v)
-        touch = [int(r) for r in np.flatnonzero((gap <= TOUCH_GAP) & (vn <= SPEED_BAND))]
+        touch = [int(r) for r in np.flatnonzero((gap <= TOUCH_GAP) & (np.abs(vn) <= SPEED_BAND))]
         self.engaged = touch
         if self.mu > 0.0:
             for p, ex in zip(self.pairs.values(), extra, strict=True):
@@ -260,7 +260,7 @@ class ModeSelection(ConstrainedDynamics):
         ):
             return False
         Jn, drift, gap, vn, extra = self._problem(q, v)
-        touch = (gap <= TOUCH_GAP) & (vn <= SPEED_BAND)
+        touch = (gap <= TOUCH_GAP) & (np.abs(vn) <= SPEED_BAND)
         E = np.array(engaged, dtype=np.intp)
         if not bool(touch[E].all()):
             return False

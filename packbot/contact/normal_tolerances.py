@@ -16,7 +16,11 @@ PENETRATION_TOL = 1e-5
 PATCH_TOL = 1e-4
 #: Hysteresis of the force conditions [N] (release, cone).
 FORCE_BAND = 1e-6
-#: A touching row separating slower than this takes part in the mode problem [m/s].
+#: A touching row whose normal speed is within this of zero takes part in the mode problem
+#: [m/s] (rad/s for a stop). One approaching faster is left free: an engaged row's gap keeps
+#: the speed it had when engaged (the mode holds its acceleration at zero), so such a row would
+#: drift through its surface; free, it is an impact at -POINT_TOL. (After a restart's impulse
+#: no touching row approaches; a re-patch, which applies none, can find one.)
 SPEED_BAND = 1e-6
 #: Hysteresis of the stick condition [m/s]: a slipping pair sticks once its sliding velocity
 #: has come back through zero by this much along its friction direction. Smaller bands let

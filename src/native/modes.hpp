@@ -73,7 +73,7 @@ class Selection {
     const int nv = R.nv;
     touch_.clear();
     for (int r = 0; r < R.m; ++r)
-      if (R.gap[r] <= c.touch_gap && R.vn[r] <= c.speed_band) touch_.push_back(r);
+      if (R.gap[r] <= c.touch_gap && std::abs(R.vn[r]) <= c.speed_band) touch_.push_back(r);
     engaged = touch_;
     if (c.mu > 0.0) {
       for (int p = 0; p < R.np; ++p) {
@@ -127,7 +127,7 @@ class Selection {
     gave_up = false;
     const int nv = R.nv;
     std::vector<char> touch(R.m, 0), mine(R.m, 0);
-    for (int r = 0; r < R.m; ++r) touch[r] = R.gap[r] <= c.touch_gap && R.vn[r] <= c.speed_band;
+    for (int r = 0; r < R.m; ++r) touch[r] = R.gap[r] <= c.touch_gap && std::abs(R.vn[r]) <= c.speed_band;
     for (int r : held) {
       if (!touch[r]) return DONE;
       mine[r] = 1;
