@@ -3,6 +3,7 @@
 from packbot.collision import CollisionWorld, Contact, ContactPatch, PairInfo
 from packbot.config import SimConfig
 from packbot.contact_forces import ContactForce, ContactTable
+from packbot.contact_impulses import ContactImpulse, ImpactTable
 from packbot.environment import FLOOR, Environment, Obstacle
 from packbot.errors import (
     ConfigurationError,
@@ -37,6 +38,7 @@ __all__ = [
     "ConfigurationError",
     "Contact",
     "ContactForce",
+    "ContactImpulse",
     "ContactPatch",
     "ContactTable",
     "ControllerError",
@@ -46,6 +48,7 @@ __all__ = [
     "Event",
     "Failure",
     "Identification",
+    "ImpactTable",
     "InitialCollisionError",
     "JointParams",
     "ModelError",

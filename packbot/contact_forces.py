@@ -130,9 +130,8 @@ class ContactTable:
         point2: Body 2's material points [m], world frame, shape (K, 3).
         normal: Unit normals from body 1 to body 2, world frame, shape (K, 3).
         force: Forces on body 2 [N], world frame, shape (K, 3).
-        known: Per sample, whether the law could say its forces, shape (N,): False inside a
-            time-stepping window and under the report's law (such a sample has no rows; its
-            contacts are unknown, not absent).
+        known: Per sample, whether the law could say its forces, shape (N,): False under the
+            report's law (such a sample has no rows; its contacts are unknown, not absent).
         limit_torque: Per sample, the torque each joint position stop exerts on its joint
             [N*m], shape (N, nv) (positive along +q; 0 off the stops; NaN where not known).
     """

@@ -335,7 +335,6 @@ class _Run:
             self.drive.set_failures(self.failures_in)
             self.law.settle(t, self.y)
             return
-        # Freezing: the impulse that stops joint j, the law's locked joints kept still.
         j = int(np.flatnonzero(self.sys.free == self.robot.params.index(failure.joint))[0])
         v_new, idx = freeze_impulse(self.sys, q, v, j, self.law.held())
         moved = tuple(self.sys.names[i] for i in idx)
@@ -392,6 +391,7 @@ class _Run:
             tau_friction=tau_fr,
             effort=effort,
             contacts=self.rec.contact_table(self.drive.robot.model.nv),
+            impacts=self.events.impact_table(self.drive.robot.model.nv),
             failures=tuple(self.failures_in),
             control_ticks=self.schedule.ticks,
             environment=Environment() if self.environment is None else self.environment,

@@ -24,6 +24,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from packbot.contact_forces import ContactTable, SampleForces
+from packbot.contact_impulses import ImpactTable
 from packbot.drive import Drive
 from packbot.errors import ModelError, SimulationError
 from packbot.ode import DenseSegment
@@ -58,6 +59,14 @@ class EventLog(list[Event]):
     def __init__(self, max_events: int) -> None:
         super().__init__()
         self.max_events = max_events
+        #: The impacts' contact impulses, each (t [s], the records: impulses [N*s] in the force
+        #: slots, the stops' impulses [N*m*s] in the limit slot, full coordinates)
+        #: (:class:`~packbot.contact_impulses.ImpactTable`).
+        self.impulses: list[tuple[float, SampleForces]] = []
+
+    def impact_table(self, nv: int) -> ImpactTable:
+        """The impacts' impulses logged (``nv``: the full model's velocity dimension)."""
+        return ImpactTable.from_log(self.impulses, nv)
 
     def log(self, event: Event, count: bool = True) -> None:
         """Append an event; one that counts and takes the log past the limit stops the run.
@@ -137,7 +146,7 @@ def contact_sampler(
             _, _, applied, friction = drive.torques(t, y)
             return np.asarray(applied + friction, dtype=np.float64)
 
-        found = law.contact_forces(y[:n], y[n : 2 * n], tau)
+        found = law.contact_forces(y[:n], y[n : 2 * n], tau, t)
         if found is None or n == n_full:
             return found
         full = np.zeros(n_full)  # (the stops' torques in full coordinates: locks' are 0)

@@ -17,6 +17,7 @@ from numpy.typing import NDArray
 from packbot import result_file
 from packbot.config import SimConfig
 from packbot.contact_forces import ContactForce, ContactTable, joint_torque
+from packbot.contact_impulses import ContactImpulse, ImpactTable
 from packbot.errors import (
     ConfigurationError,
     PackbotError,
@@ -221,7 +222,10 @@ class SimResult:
         effort: Effective effort limits [N*m], shape (N, nv) (a weak joint's scaled).
         contacts: The contact forces of every sample (:class:`~packbot.contact_forces.
             ContactTable`; read them with :meth:`contacts_at`): the contact-normal mode's
-            engaged contacts, empty for the other modes and inside time-stepping windows.
+            engaged contacts (inside a time-stepping window, its steps' mean forces), empty
+            for the other modes.
+        impacts: The impacts' contact impulses (:class:`~packbot.contact_impulses.
+            ImpactTable`; read them with :meth:`impulses_at`): the contact-normal mode's.
         failures: The failures injected during the run.
         control_ticks: Number of ticks of a sampled-data controller.
         environment: The run's obstacles (None: a result built without one; ``simulate``
@@ -244,6 +248,7 @@ class SimResult:
     tau_friction: NDArray[np.float64]
     effort: NDArray[np.float64]
     contacts: ContactTable = field(default_factory=ContactTable)
+    impacts: ImpactTable = field(default_factory=ImpactTable)
     failures: tuple[Failure, ...] = ()
     control_ticks: int = 0
     environment: Environment | None = None
@@ -348,13 +353,25 @@ class SimResult:
         k = self.sample_index(t, before=before)
         return self.contacts.at_sample(k)
 
+    @checked_arguments
+    def impulses_at(self, t: float) -> list[ContactImpulse]:
+        """The contact impulses of the impacts at time t [s] (within 1e-12 s; world frame).
+
+        Conventions (:mod:`packbot.contact_impulses`): ``impulse`` [N*s] acts on ``link2``
+        at ``point``, ``link1`` receives its opposite. Empty where no impact was at t (an
+        event that is not an impact, a release or a stick, has none).
+        """
+        if isinstance(t, bool) or not isinstance(t, (int, float)) or not np.isfinite(t):
+            raise ConfigurationError("t", t, "a finite time [s]")
+        return [c for i in self.impacts.index(float(t)) for c in self.impacts.of(i)]
+
     @property
     def contacts_known(self) -> NDArray[np.bool_]:
         """Per sample, whether its contact forces are known, shape (N,) (a copy).
 
-        False inside a time-stepping window of the contact-normal mode and under the report's
-        law (``joint_clamp``, ``handoff``): the contacts of such a sample are unknown, not
-        absent (:meth:`contacts_at` gives none, :meth:`contact_torques` NaN).
+        False under the report's law (``joint_clamp``, ``handoff``): the contacts of such a
+        sample are unknown, not absent (:meth:`contacts_at` gives none,
+        :meth:`contact_torques` NaN).
         """
         known = self.contacts.known
         if len(known) != len(self.t):  # (a table without the mask: a result built by hand)
@@ -483,6 +500,15 @@ class SimResult:
             arrays[f"contact_{name}"] = np.asarray(getattr(table, name), dtype=np.float64)
         arrays["contact_known"] = self.contacts_known.astype(np.int64)
         arrays["contact_limit_torque"] = self.limit_torque
+        imp = self.impacts
+        arrays["impact_t"] = np.asarray(imp.t, dtype=np.float64)
+        for name in CONTACT_INTS:
+            arrays[f"impact_{name}"] = np.asarray(getattr(imp.rows, name), dtype=np.int64)
+        for name in CONTACT_VECTORS:
+            arrays[f"impact_{name}"] = np.asarray(getattr(imp.rows, name), dtype=np.float64)
+        arrays["impact_limit_impulse"] = np.asarray(imp.limit_impulse).reshape(
+            len(imp), len(self.joint_names)
+        )
         meta = {
             "format": RESULT_FORMAT,
             "packbot_version": __version__,
@@ -503,6 +529,7 @@ class SimResult:
                 for e in ev
             ],
             "contact_pairs": [list(p) for p in table.pairs],
+            "impact_pairs": [list(p) for p in imp.rows.pairs],
         }
         arrays["format"] = np.array(RESULT_FORMAT)
         arrays["meta_json"] = np.array(json.dumps(meta, allow_nan=True))
@@ -625,11 +652,16 @@ class SimResult:
             payload=None if pay is None else _rebuild(saved, "meta_json.payload", Payload, pay),
             scenario_text=meta["scenario_text"],
             contacts=ContactTable(pairs=tuple(meta["contact_pairs"]), **saved.contacts),
+            impacts=_impacts(saved, len(meta["joint_names"])),
         )
 
     @checked_arguments
-    def to_dataframe(self, what: Literal["samples", "contacts"] = "samples") -> pd.DataFrame:
-        """The samples, or the contacts, as a pandas DataFrame (needs ``packbot[pandas]``).
+    def to_dataframe(
+        self, what: Literal["samples", "contacts", "impulses"] = "samples"
+    ) -> pd.DataFrame:
+        """The samples, the contacts or the impacts' impulses as a pandas DataFrame.
+
+        Needs ``packbot[pandas]``.
 
         ``"samples"``: one row per sample, indexed by ``t`` [s]; columns ``q:<joint>`` [rad],
         ``v:<joint>`` [rad/s], ``tau:<joint>``, ``tau_cmd:<joint>``, ``tau_friction:<joint>``,
@@ -642,15 +674,20 @@ class SimResult:
         ``force_*`` [N] (world frame, the force on link2), ``normal_force`` [N] and
         ``friction_force`` [N] (the tangential part's magnitude).
 
+        ``"impulses"``: one row per contact and impact (:attr:`impacts`), indexed by the
+        impact's ``t`` [s]; columns ``impact`` (its index), the pair's names and points as
+        above, ``normal_*``, ``impulse_*`` [N*s] (on link2), ``normal_impulse`` and
+        ``friction_impulse`` [N*s].
+
         Args:
-            what: ``"samples"`` or ``"contacts"``.
+            what: ``"samples"``, ``"contacts"`` or ``"impulses"``.
 
         Raises:
             PackbotError: pandas is not installed.
-            ConfigurationError: ``what`` is neither.
+            ConfigurationError: ``what`` is none of them.
         """
-        if what not in ("samples", "contacts"):
-            raise ConfigurationError("what", what, "'samples' or 'contacts'")
+        if what not in ("samples", "contacts", "impulses"):
+            raise ConfigurationError("what", what, "'samples', 'contacts' or 'impulses'")
         try:
             import pandas as pd
         except ImportError as exc:
@@ -658,20 +695,25 @@ class SimResult:
                 'SimResult.to_dataframe needs pandas: pip install "packbot[pandas]"'
             ) from exc
         columns: dict[str, Any] = {}
-        if what == "contacts":
-            tab = self.contacts
+        if what != "samples":
+            impulses = what == "impulses"
+            tab = self.impacts.rows if impulses else self.contacts
+            times = self.impacts.t if impulses else self.t
+            force = "impulse" if impulses else "force"
             names = [tab.pairs[int(k)] for k in tab.pair]
-            columns["sample"] = np.asarray(tab.sample)
+            columns["impact" if impulses else "sample"] = np.asarray(tab.sample)
             for k, key in enumerate(("link1", "piece1", "link2", "piece2")):
                 columns[key] = [n[k] for n in names]
             for key in ("point", "point1", "point2", "normal", "force"):
                 arr = np.asarray(getattr(tab, key))
                 for k, axis in enumerate("xyz"):
-                    columns[f"{key}_{axis}"] = arr[:, k]
+                    columns[f"{force if key == 'force' else key}_{axis}"] = arr[:, k]
             fn = np.einsum("ij,ij->i", tab.force, tab.normal)
-            columns["normal_force"] = fn
-            columns["friction_force"] = np.linalg.norm(tab.force - fn[:, None] * tab.normal, axis=1)
-            t = np.asarray(self.t)[np.asarray(tab.sample, dtype=np.intp)]
+            columns[f"normal_{force}"] = fn
+            columns[f"friction_{force}"] = np.linalg.norm(
+                tab.force - fn[:, None] * tab.normal, axis=1
+            )
+            t = np.asarray(times)[np.asarray(tab.sample, dtype=np.intp)]
             return pd.DataFrame(columns, index=pd.Index(t, name="t"))
         for name in ("q", "v", "tau", "tau_cmd", "tau_friction", "effort"):
             arr = np.asarray(getattr(self, name))
@@ -679,6 +721,18 @@ class SimResult:
                 columns[f"{name}:{joint}"] = arr[:, k]
         columns["energy"] = np.asarray(self.energy)
         return pd.DataFrame(columns, index=pd.Index(np.asarray(self.t), name="t"))
+
+
+def _impacts(saved: SavedResult, n_joints: int) -> ImpactTable:
+    """The impacts of a file's checked contents (none for a file of an earlier format)."""
+    cols = dict(saved.impacts)
+    if not cols:
+        return ImpactTable(rows=ContactTable(limit_torque=np.zeros((0, n_joints))))
+    t = cols.pop("t")
+    rows = ContactTable(
+        pairs=tuple(saved.meta["impact_pairs"]), known=np.ones(len(t), dtype=bool), **cols
+    )
+    return ImpactTable(t=t, rows=rows)
 
 
 def _tuples(value: Any) -> Any:

@@ -22,7 +22,7 @@ import struct
 import zipfile
 import zlib
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from types import TracebackType
 from typing import IO, Any, NoReturn
@@ -44,6 +44,7 @@ __all__ = [
     "EVENT_FLOATS",
     "EVENT_STRINGS",
     "EVENT_VELOCITIES",
+    "IMPACT_ARRAYS",
     "MAX_JSON_DEPTH",
     "MAX_MEMBERS",
     "MAX_META_CHARS",
@@ -55,6 +56,7 @@ __all__ = [
     "RESULT_FORMAT",
     "RESULT_FORMAT_1",
     "RESULT_FORMAT_2",
+    "RESULT_FORMAT_3",
     "SAMPLE_ARRAYS",
     "NpyHeader",
     "ResultArchive",
@@ -67,13 +69,15 @@ __all__ = [
 ]
 
 #: The format tag of a file written by :meth:`SimResult.save` (its version after the slash).
-RESULT_FORMAT = "packbot.SimResult/3"
+RESULT_FORMAT = "packbot.SimResult/4"
 #: The tag of the format before the contact forces (read: a result without them).
 RESULT_FORMAT_1 = "packbot.SimResult/1"
 #: The tag of the format before the stops' torques and the known mask (read: every sample
 #: counted known, as that format stored an unknown sample as one without contacts; the
 #: stops' torques NaN).
 RESULT_FORMAT_2 = "packbot.SimResult/2"
+#: The tag of the format before the impacts' impulses (read: a result without impacts).
+RESULT_FORMAT_3 = "packbot.SimResult/3"
 #: The sample arrays, one row per sample time: ``t`` and ``energy`` of shape (N,), the others
 #: (N, number of joints).
 SAMPLE_ARRAYS = ("t", "q", "v", "tau", "energy", "tau_cmd", "tau_friction", "effort")
@@ -94,6 +98,15 @@ CONTACT_VECTORS = ("point", "point1", "point2", "normal", "force")
 CONTACT_SAMPLES = ("known", "limit_torque")
 #: The contact forces' entries.
 CONTACT_ARRAYS = tuple(f"contact_{n}" for n in (*CONTACT_INTS, *CONTACT_VECTORS, *CONTACT_SAMPLES))
+#: The impacts' entries (:class:`packbot.ImpactTable`): ``impact_t`` (I,) [s], the rows'
+#: ``impact_sample`` (the impact's index) and ``impact_pair`` (of ``meta_json.impact_pairs``),
+#: their vectors (K, 3) (``impact_force``: the impulses [N*s]) and ``impact_limit_impulse``
+#: (I, number of joints) [N*m*s].
+IMPACT_ARRAYS = (
+    "impact_t",
+    *(f"impact_{n}" for n in (*CONTACT_INTS, *CONTACT_VECTORS)),
+    "impact_limit_impulse",
+)
 #: The event floats that may be NaN (not measured): the distance and the energies.
 _EVENT_NAN_OK = ("distance", "energy_before", "energy_after")
 #: Plain copies for a reader with NumPy alone: checked by their headers, never read.
@@ -106,6 +119,7 @@ READ_ENTRIES: tuple[str, ...] = (
     *(f"event_{n}" for n in EVENT_FLOATS),
     *(f"event_{n}{s}" for n in EVENT_VELOCITIES for s in ("_len", "")),
     *CONTACT_ARRAYS,
+    *IMPACT_ARRAYS,
 )
 #: Every entry a result file has (any other is an ``extra``: a 0-d text entry).
 ENTRIES: tuple[str, ...] = (*READ_ENTRIES, *PLAIN_COPIES)
@@ -124,6 +138,7 @@ META_FIELDS = (
     "scenario_text",
     "events",
     "contact_pairs",
+    "impact_pairs",
 )
 #: The fields of an event in the JSON metadata.
 _EVENT_META = (*EVENT_STRINGS, "relevant_joints")
@@ -406,6 +421,9 @@ class SavedResult:
         contacts: Each of :data:`CONTACT_INTS` and :data:`CONTACT_VECTORS` -> its column
             (int64, float64), checked against the samples and ``meta["contact_pairs"]``
             (empty for a file of the format before them).
+        impacts: ``t`` and the impacts' columns as ``contacts`` (``limit_torque``: the stops'
+            impulses), checked against ``meta["impact_pairs"]`` (empty for a file of the
+            formats before them).
     """
 
     path: Path
@@ -414,6 +432,7 @@ class SavedResult:
     event_velocities: dict[str, list[NDArray[np.float64]]]
     meta: dict[str, Any]
     contacts: dict[str, NDArray[Any]]
+    impacts: dict[str, NDArray[Any]] = field(default_factory=dict)
 
     def fail(self, entry: str, reason: str) -> NoReturn:
         """Raise the :class:`~packbot.errors.ResultFileError` of ``entry`` of this file."""
@@ -437,6 +456,10 @@ _SHAPES = {
     **{f"contact_{n}": "2-d real" for n in CONTACT_VECTORS},
     "contact_known": "1-d int",
     "contact_limit_torque": "2-d real",
+    "impact_t": "1-d real",
+    **{f"impact_{n}": "1-d int" for n in CONTACT_INTS},
+    **{f"impact_{n}": "2-d real" for n in CONTACT_VECTORS},
+    "impact_limit_impulse": "2-d real",
 }
 _WHAT = {
     "text": "text (a NumPy str array)",
@@ -477,7 +500,7 @@ def read_saved(path: str | Path) -> SavedResult:
         if _check_header(archive, "format", "0-d text").nbytes > _FORMAT_BYTES:
             archive.fail("format", f"a tag of over {_FORMAT_BYTES} bytes")
         tag = archive.text("format")
-        if tag not in (RESULT_FORMAT, RESULT_FORMAT_2, RESULT_FORMAT_1):
+        if tag not in (RESULT_FORMAT, RESULT_FORMAT_3, RESULT_FORMAT_2, RESULT_FORMAT_1):
             archive.fail("format", f"format {_short(tag)}, expected {RESULT_FORMAT!r}")
         version_1 = tag == RESULT_FORMAT_1
         heads = _check_entries(archive, tag)
@@ -528,40 +551,70 @@ def read_saved(path: str | Path) -> SavedResult:
             contacts["limit_torque"] = np.full((len(t), n_joints), np.nan)
         elif not version_1:
             contacts.update(_contact_samples(archive, len(t), n_joints))
-    return SavedResult(archive.path, arrays, floats, vels, meta, contacts)
+        impacts = (
+            _impacts(archive, n_joints, len(meta["impact_pairs"])) if tag == RESULT_FORMAT else {}
+        )
+    return SavedResult(archive.path, arrays, floats, vels, meta, contacts, impacts)
 
 
-def _contacts(archive: ResultArchive, n_samples: int, n_pairs: int) -> dict[str, NDArray[Any]]:
-    """The contact columns: K rows each, samples in order, pairs of ``contact_pairs``."""
-    k = archive.header("contact_sample").shape[0]
+def _impacts(archive: ResultArchive, n_joints: int, n_pairs: int) -> dict[str, NDArray[Any]]:
+    """The impacts' entries: their times (non-decreasing), rows and stops' impulses."""
+    n = archive.header("impact_t").shape[0]
+    shape = archive.header("impact_limit_impulse").shape
+    if shape != (n, n_joints):
+        archive.fail(
+            "impact_limit_impulse", f"shape {shape} (expected {(n, n_joints)}: a row per impact)"
+        )
+    t = _floats(archive, "impact_t")
+    if not np.all(t[1:] >= t[:-1]):
+        k = int(np.flatnonzero(t[1:] < t[:-1])[0])
+        archive.fail(
+            "impact_t", f"impact_t[{k + 1}] < impact_t[{k}] (expected times that never decrease)"
+        )
+    out = _contacts(archive, n, n_pairs, "impact_")
+    out["t"] = t
+    out["limit_torque"] = _floats(archive, "impact_limit_impulse")
+    return out
+
+
+def _contacts(
+    archive: ResultArchive, n_samples: int, n_pairs: int, prefix: str = "contact_"
+) -> dict[str, NDArray[Any]]:
+    """The contact columns: K rows each, samples in order, pairs of ``contact_pairs``.
+
+    ``prefix`` ``"impact_"``: the impacts' rows (their "samples" the impacts, their pairs
+    ``impact_pairs``).
+    """
+    k = archive.header(f"{prefix}sample").shape[0]
     for name in CONTACT_INTS:
-        shape = archive.header(f"contact_{name}").shape
+        shape = archive.header(f"{prefix}{name}").shape
         if shape != (k,):
-            archive.fail(f"contact_{name}", f"shape {shape} (expected ({k},), as contact_sample)")
+            archive.fail(f"{prefix}{name}", f"shape {shape} (expected ({k},), as {prefix}sample)")
     for name in CONTACT_VECTORS:
-        shape = archive.header(f"contact_{name}").shape
+        shape = archive.header(f"{prefix}{name}").shape
         if shape != (k, 3):
-            archive.fail(f"contact_{name}", f"shape {shape} (expected ({k}, 3): a row per contact)")
+            archive.fail(f"{prefix}{name}", f"shape {shape} (expected ({k}, 3): a row per contact)")
     out: dict[str, NDArray[Any]] = {}
+    what = "impact" if prefix == "impact_" else "sample"
     for name, bound in (("sample", n_samples), ("pair", n_pairs)):
-        col = np.asarray(archive.array(f"contact_{name}"), dtype=np.int64)
+        col = np.asarray(archive.array(f"{prefix}{name}"), dtype=np.int64)
         bad = (col < 0) | (col >= bound)
         if name == "sample" and len(col) > 1:
             bad[1:] |= col[1:] < col[:-1]
         if bad.any():
             i = int(np.flatnonzero(bad)[0])
             archive.fail(
-                f"contact_{name}",
-                f"contact_{name}[{i}] = {int(col[i])} (expected "
+                f"{prefix}{name}",
+                f"{prefix}{name}[{i}] = {int(col[i])} (expected "
                 + (
-                    f"non-decreasing sample indices in [0, {n_samples}))"
+                    f"non-decreasing {what} indices in [0, {n_samples}))"
                     if name == "sample"
-                    else f"an index of meta_json.contact_pairs, in [0, {n_pairs}))"
+                    else f"an index of meta_json.{prefix}pairs, in [0, {n_pairs}))"
                 ),
             )
         out[name] = col
     for name in CONTACT_VECTORS:
-        out[name] = _floats(archive, f"contact_{name}")
+        out[name] = _floats(archive, f"{prefix}{name}")
     return out
 
 
@@ -590,9 +643,11 @@ def _check_entries(archive: ResultArchive, tag: str = RESULT_FORMAT) -> dict[str
     """
     absent: tuple[str, ...] = ()
     if tag == RESULT_FORMAT_1:
-        absent = CONTACT_ARRAYS
+        absent = CONTACT_ARRAYS + IMPACT_ARRAYS
     elif tag == RESULT_FORMAT_2:
-        absent = tuple(f"contact_{n}" for n in CONTACT_SAMPLES)
+        absent = tuple(f"contact_{n}" for n in CONTACT_SAMPLES) + IMPACT_ARRAYS
+    elif tag == RESULT_FORMAT_3:
+        absent = IMPACT_ARRAYS
     entries = [e for e in ENTRIES if e not in absent]
     missing = [e for e in entries if e not in archive.members]
     if missing:
@@ -603,8 +658,10 @@ def _check_entries(archive: ResultArchive, tag: str = RESULT_FORMAT) -> dict[str
     for entry in archive.members:
         if entry in heads:
             continue
-        if entry.startswith(("event_", "contact_")):
-            archive.fail(entry, "an unknown entry (the event_ and contact_ names are the format's)")
+        if entry.startswith(("event_", "contact_", "impact_")):
+            archive.fail(
+                entry, "an unknown entry (the event_, contact_ and impact_ names are the format's)"
+            )
         head = archive.header(entry)
         if head.kind != "text" or head.shape != ():
             archive.fail(
@@ -723,15 +780,21 @@ def check_meta(meta: object, fail: Fail, tag: str = RESULT_FORMAT) -> dict[str, 
     Args:
         meta: The parsed JSON.
         fail: Raises the error of an entry (``fail(entry, reason)``).
-        tag: The file's format tag (:data:`RESULT_FORMAT_1`: no ``contact_pairs``).
+        tag: The file's format tag (:data:`RESULT_FORMAT_1`: no ``contact_pairs``; a format
+            before :data:`RESULT_FORMAT`: no ``impact_pairs``).
 
     Returns:
-        ``meta``, with ``rest_time`` a float or None (and ``contact_pairs`` a list of tuples,
-        empty for the format before them).
+        ``meta``, with ``rest_time`` a float or None (and ``contact_pairs`` and
+        ``impact_pairs`` lists of tuples, empty for the formats before them).
     """
     if not isinstance(meta, dict):
         fail("meta_json", f"a JSON {type(meta).__name__} (expected an object)")
-    fields = [k for k in META_FIELDS if not (tag == RESULT_FORMAT_1 and k == "contact_pairs")]
+    fields = [
+        k
+        for k in META_FIELDS
+        if not (tag == RESULT_FORMAT_1 and k == "contact_pairs")
+        and not (tag != RESULT_FORMAT and k == "impact_pairs")
+    ]
     for key in fields:
         if key not in meta:
             fail(f"meta_json.{key}", "missing (expected in the metadata)")
@@ -740,14 +803,15 @@ def check_meta(meta: object, fail: Fail, tag: str = RESULT_FORMAT) -> dict[str, 
             fail(f"meta_json.{key}", f"an unknown field (expected {', '.join(fields)})")
     if meta["format"] != tag:
         fail("meta_json.format", f"{_short(meta['format'])} (expected {tag!r})")
-    pairs = _list_of(meta.get("contact_pairs", []), list, fail, "meta_json.contact_pairs", "pairs")
-    for k, pair in enumerate(pairs):
-        if len(pair) != 4 or not all(isinstance(x, str) for x in pair):
-            fail(
-                f"meta_json.contact_pairs[{k}]",
-                f"{_short(pair)} (expected [link1, piece1, link2, piece2], four strings)",
-            )
-    meta["contact_pairs"] = [tuple(p) for p in pairs]
+    for name in ("contact_pairs", "impact_pairs"):
+        pairs = _list_of(meta.get(name, []), list, fail, f"meta_json.{name}", "pairs")
+        for k, pair in enumerate(pairs):
+            if len(pair) != 4 or not all(isinstance(x, str) for x in pair):
+                fail(
+                    f"meta_json.{name}[{k}]",
+                    f"{_short(pair)} (expected [link1, piece1, link2, piece2], four strings)",
+                )
+        meta[name] = [tuple(p) for p in pairs]
     for key in ("packbot_version", "scenario_text"):
         if not isinstance(meta[key], str):
             fail(f"meta_json.{key}", f"{_short(meta[key])} (expected a string)")

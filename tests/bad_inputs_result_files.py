@@ -43,6 +43,7 @@ from packbot.result_file import (
     CONTACT_ARRAYS,
     ENTRIES,
     EVENT_FLOATS,
+    IMPACT_ARRAYS,
     MAX_MEMBERS,
     SAMPLE_ARRAYS,
 )
@@ -56,6 +57,7 @@ READ_IN_FILE_ORDER = (
     "event_v_after_len",
     "event_v_after",
     *CONTACT_ARRAYS,
+    *IMPACT_ARRAYS,
     "format",
     "meta_json",
 )
@@ -285,7 +287,11 @@ def register(cat: ModuleType) -> None:
     # -- bytes inserted inside a member: the members up to it are no longer where the zip
     # directory says (the first one a load reads: t for an array, the format tag otherwise)
     for k, name in enumerate(FILE_ORDER):
-        first = "t" if k < len(SAMPLE_ARRAYS) + 8 + len(CONTACT_ARRAYS) else "format"
+        first = (
+            "t"
+            if k < len(SAMPLE_ARRAYS) + 8 + len(CONTACT_ARRAYS) + len(IMPACT_ARRAYS)
+            else "format"
+        )
 
         def make_insert(c: Any, raw: bytes, a: Any, name: str = name) -> bytes:
             m = layout(raw)[name]
@@ -437,10 +443,30 @@ def register(cat: ModuleType) -> None:
     per_sample("contact-limit-3", "contact_limit_torque", lambda n: np.zeros((n, 3)), "shape")
     replaced("contact-limit-missing", "contact_limit_torque", None, "missing")
 
+    # -- the impacts' entries
+    def impacts(id: str, n: int, *words: str, **entries: Any) -> None:
+        """A case with ``n`` impacts (their stops' impulses zero) and ``entries`` replaced."""
+        base = {"impact_t": np.arange(n, dtype=float), "impact_limit_impulse": np.zeros((n, 8))}
+        case(id, lambda c, raw, a: npz(a, **(base | entries)), *words)
+
+    impacts("impact-t-decreasing", 2, entry("impact_t"), "never decrease", impact_t=[0.2, 0.1])
+    impacts("impact-t-nan", 1, entry("impact_t"), "finite", impact_t=[np.nan])
+    impacts("impact-limit-short", 2, entry("impact_limit_impulse"), "shape",
+            impact_limit_impulse=np.zeros((1, 8)))  # fmt: skip
+    rows = {
+        f"impact_{n}": np.zeros((1, 3)) for n in ("point", "point1", "point2", "normal", "force")
+    }
+    impacts("impact-sample-out-of-range", 1, entry("impact_sample"), "impact indices",
+            impact_sample=np.array([3]), impact_pair=np.array([0]), **rows)  # fmt: skip
+    impacts("impact-pair-out-of-range", 1, entry("impact_pair"), "impact_pairs",
+            impact_sample=np.array([0]), impact_pair=np.array([0]), **rows)  # fmt: skip
+    replaced("impact-force-4-columns", "impact_force", np.zeros((0, 4)), entry("impact_force"))
+    replaced("impact-t-missing", "impact_t", None, entry("impact_t"), "missing")
+
     # -- the text entries and the plain copies
     replaced("text-format-missing", "format", None, "no format tag")
     replaced("text-meta_json-missing", "meta_json", None, "no format tag")
-    replaced("text-format-other-version", "format", np.array("packbot.SimResult/4"), "/4")
+    replaced("text-format-other-version", "format", np.array("packbot.SimResult/5"), "/5")
     replaced("text-format-empty", "format", np.array(""), entry("format"), "expected")
     replaced("text-format-number", "format", np.array(1.0), entry("format"), "dtype")
     replaced("text-format-1d", "format", np.array(["packbot.SimResult/1"]), entry("format"))
@@ -534,9 +560,10 @@ def register(cat: ModuleType) -> None:
     ):
         meta_case(f"no-{key}", dropper(key), entry(f"{m}.{key}"), "missing")
     meta_case("unknown-field", setter("colour", "red"), entry(f"{m}.colour"), "unknown")
-    meta_case("format-other", setter("format", "packbot.SimResult/4"), entry(f"{m}.format"))
+    meta_case("format-other", setter("format", "packbot.SimResult/5"), entry(f"{m}.format"))
     meta_case("format-older", setter("format", "packbot.SimResult/1"), entry(f"{m}.format"))
     meta_case("contact-pairs-number", setter("contact_pairs", 3), entry(f"{m}.contact_pairs"))
+    meta_case("impact-pairs-number", setter("impact_pairs", 3), entry(f"{m}.impact_pairs"))
     meta_case(
         "contact-pairs-three-names",
         setter("contact_pairs", [["link3", "link3/tube", "link1"]]),

@@ -48,6 +48,7 @@ PUBLIC_MODULES = {
     "packbot.integrator": "integrator.md",
     "packbot.result": "result.md",
     "packbot.contact_forces": "contact_forces.md",
+    "packbot.contact_impulses": "contact_impulses.md",
     "packbot.failures": "failures.md",
     "packbot.actuators": "actuators.md",
     "packbot.payload": "payload.md",

@@ -292,8 +292,13 @@ def test_a_file_of_the_format_before_the_stop_torques_loads(collapse, tmp_path) 
 
     path = collapse.save(tmp_path / "r.npz")
     with np.load(path, allow_pickle=False) as z:
-        arrays = {k: z[k] for k in z.files if k not in ("contact_known", "contact_limit_torque")}
+        arrays = {
+            k: z[k]
+            for k in z.files
+            if k not in ("contact_known", "contact_limit_torque") and not k.startswith("impact_")
+        }
     meta = json.loads(str(arrays["meta_json"]))
+    del meta["impact_pairs"]
     meta["format"] = RESULT_FORMAT_2
     arrays["meta_json"] = np.array(json.dumps(meta))
     arrays["format"] = np.array(RESULT_FORMAT_2)
@@ -309,9 +314,9 @@ def test_a_file_of_the_format_before_contacts_loads_without_them(collapse, tmp_p
 
     path = collapse.save(tmp_path / "r.npz")
     with np.load(path, allow_pickle=False) as z:
-        arrays = {k: z[k] for k in z.files if not k.startswith("contact_")}
+        arrays = {k: z[k] for k in z.files if not k.startswith(("contact_", "impact_"))}
     meta = json.loads(str(arrays["meta_json"]))
-    del meta["contact_pairs"]
+    del meta["contact_pairs"], meta["impact_pairs"]
     meta["format"] = RESULT_FORMAT_1
     arrays["meta_json"] = np.array(json.dumps(meta))
     arrays["format"] = np.array(RESULT_FORMAT_1)

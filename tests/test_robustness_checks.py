@@ -400,3 +400,14 @@ def test_no_limit_overrun(robot, start, e, duration):
     now: at most 1.0e-6 rad on both (the limit events' own tolerance)."""
     _, c = _run(robot, start, 0.0, e, duration)
     assert c.overrun.overrun <= rc.OVERRUN_BOUND, c.overrun
+
+
+def test_an_approaching_stop_is_not_engaged_at_a_repatch(robot):
+    """Start 71 (mu 1.2, e 0, wrist free): a re-patch of another pair re-selected the modes
+    while the jaw moved toward its lower stop at 4.5e-3 rad/s, 4e-7 rad before it; the mode
+    problem engaged the approaching stop row, whose gap then kept its approach speed, and the
+    jaw drifted 1.03e-5 rad past the stop. A touching row joins the mode problem only while
+    |v_n| <= SPEED_BAND now: the approach is an impact. Measured now: 1.0e-6 rad (the limit
+    events' own tolerance); asserted within twice that."""
+    _, c = _run(robot, 71, 1.2, 0.0, 0.97)
+    assert c.overrun.overrun <= 2e-6, c.overrun

@@ -28,6 +28,7 @@ Who calls what, and when (docs/simulator.md, "The loop and the contact laws"):
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, Protocol
@@ -232,14 +233,15 @@ class ContactLaw(Protocol):
         ...
 
     def contact_forces(
-        self, q: FloatArray, v: FloatArray, tau: Callable[[], FloatArray]
+        self, q: FloatArray, v: FloatArray, tau: Callable[[], FloatArray], t: float = math.nan
     ) -> SampleForces | None:
         """The contacts of the current mode at (q, v) under the joint torques ``tau()`` [N*m].
 
         ``tau`` is called only when the law has contacts to report (it may call the user's
-        torque function). The contacts, each (names, point, point1, point2 [m], normal, force
-        on body 2 [N]), world frame (:mod:`packbot.contact_forces`; empty: no contact), and
-        the joint position stops' torques [N*m]; None: the law cannot say (the report's
-        clamps, a time-stepping window's steps).
+        torque function); ``t`` [s] is the sample's time (a time-stepping window reads the
+        forces of the step that holds it). The contacts, each (names, point, point1, point2
+        [m], normal, force on body 2 [N]), world frame (:mod:`packbot.contact_forces`; empty:
+        no contact), and the joint position stops' torques [N*m]; None: the law cannot say
+        (the report's clamps).
         """
         ...

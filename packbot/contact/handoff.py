@@ -357,6 +357,8 @@ class HandoffContacts(NormalContacts):
         """The normal mode's impulse, the clamp rows at their true velocity (J v+ >= 0).
 
         Clamped joints moving toward their contact are stopped first (:meth:`stop_clamped`).
+        Its impulses are not recorded (``impact_rows`` None): the clamp rows are the report's
+        joint clamps, not contact forces (as the hand-off's samples are not known).
         """
         v = self.stop_clamped(v, minv, self.clamps)
         self._velocity_level = True
@@ -364,6 +366,7 @@ class HandoffContacts(NormalContacts):
             return super().impulse(q, v, minv)
         finally:
             self._velocity_level = False
+            self.impact_rows = None
 
     def stop_slow(self, q: FloatArray, v: FloatArray, minv: FloatArray) -> FloatArray:
         """The normal mode's stop of slow slides, the clamp rows at their true velocity."""

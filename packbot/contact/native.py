@@ -407,7 +407,7 @@ class NativeRhs:
 
     def impact(
         self, contacts: ContactRows, q: FloatArray, v: FloatArray, minv: FloatArray, **kw: Any
-    ) -> tuple[int, FloatArray, bool]:
+    ) -> tuple[int, FloatArray, bool, NDArray[np.int64], FloatArray]:
         """The restart's impact, in one native call.
 
         See :meth:`packbot.contact.normal_steps.RestartSteps.impulse`, whose arithmetic it
@@ -415,14 +415,18 @@ class NativeRhs:
         contact set's layout is loaded first.
 
         Returns:
-            (status, v1, bounced): 0 no touching row approaches (v unchanged); 1 the velocity
-            after the impact v1 [rad/s], ``bounced`` whether restitution was applied; 2 the
-            caller's own impulse (a frictional answer not taken, an LCP residual too large).
+            (status, v1, bounced, rows, P): 0 no touching row approaches (v unchanged); 1 the
+            velocity after the impact v1 [rad/s], ``bounced`` whether restitution was applied,
+            the touching rows and their impulses P (rows, 3), blocks (t1, t2, n) [N*s,
+            N*m*s]; 2 the caller's own impulse (a frictional answer not taken, an LCP residual
+            too large). Without an impact, no rows.
         """
         self.load_layout(contacts)
         out = np.empty(len(v))
-        status, bounced = self._rhs.impact(_reals(q), _reals(v), _reals(minv), out_v=out, **kw)
-        return int(status), out, bool(bounced)
+        got = self._rhs.impact(_reals(q), _reals(v), _reals(minv), out_v=out, **kw)
+        if int(got[0]) != 1:
+            return int(got[0]), out, bool(got[1]), np.zeros(0, dtype=np.int64), np.zeros((0, 3))
+        return 1, out, bool(got[1]), np.asarray(got[2]), np.asarray(got[3])
 
     def stop_slow(
         self, contacts: ContactRows, q: FloatArray, v: FloatArray, minv: FloatArray, **kw: Any

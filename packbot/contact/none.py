@@ -7,6 +7,7 @@ clamp, :mod:`packbot.contact.stops`), and joint friction and brakes hold them.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 
 import numpy as np
@@ -28,7 +29,7 @@ class NoneLaw(JointStops):
     """
 
     def contact_forces(
-        self, q: FloatArray, v: FloatArray, tau: Callable[[], FloatArray]
+        self, q: FloatArray, v: FloatArray, tau: Callable[[], FloatArray], t: float = math.nan
     ) -> SampleForces | None:
         """No collisions, no contact; the joint stops' torques: their engaged clamps' lock torques.
 

@@ -33,7 +33,7 @@ if TYPE_CHECKING:
     from packbot.contact.normal_contacts import NormalContacts
     from packbot.contact.normal_patch import _Pair
 
-__all__ = ["mode_forces"]
+__all__ = ["mode_forces", "pair_frame", "pair_names", "pair_points", "row_impulses"]
 
 FloatArray = NDArray[np.float64]
 
@@ -65,7 +65,7 @@ def mode_forces(
         return SampleForces([], limit)
     pin.forwardKinematics(nc.model, data, q)
     pairs = nc._pair_list
-    frames = [_frame(data, p) for p in pairs]
+    frames = [pair_frame(data, p) for p in pairs]
     if nc.resting:
         return _rest_forces(nc, data, pairs, frames, q, a_free, minv)
     ev = nc.evaluate(q, v, a_free, minv)
@@ -87,11 +87,11 @@ def mode_forces(
             continue
         T = frames[i]  # rows t1, t2, n (world)
         n = T[2]
-        names = _names(p)
+        names = pair_names(p)
         dirn = np.broadcast_to(n, (K, 3))
         if nc.mu > 0.0 and not p.stick:  # the force columns J_n - mu J_s: lambda (n - mu s)
             dirn = n - nc.mu * nc.slip_directions(p, extra[i])
-        touch, p1, p2 = _points(data, p)
+        touch, p1, p2 = pair_points(data, p)
         for j, r in at:
             out.append((names, touch[j], p1[j], p2[j], n.copy(), float(lam[r]) * dirn[j]))
         k = stick_k.get(i)
@@ -99,6 +99,49 @@ def mode_forces(
             f = np.asarray(lam[k] * T[0] + lam[k + 1] * T[1], dtype=np.float64)
             c = _centre(data, p)
             out.append((names, c, c, c, n.copy(), f))
+    return SampleForces(out, limit)
+
+
+def row_impulses(
+    nc: NormalContacts, data: Any, q: FloatArray, rows: NDArray[np.intp], P: FloatArray
+) -> SampleForces:
+    """An impact's impulses on its touching rows as records (:mod:`packbot.contact_impulses`).
+
+    Args:
+        nc: The contact set (its pairs and limits as the impact's rows had them).
+        data: A Pinocchio data of the set's model for the placements (not the set's own).
+        q: The impact's configuration [rad].
+        rows: The touching rows (the pairs' points, then the limits).
+        P: Their impulses (rows, 3), blocks (t1, t2, n) in the pair's contact frame [N*s];
+            a limit row's normal part [N*m*s].
+
+    Returns:
+        Per touching point with a normal impulse, (names, point, point1, point2 [m], normal,
+        impulse on body 2 [N*s]), world frame; in the limit slot the stops' impulses [N*m*s]
+        (nv,).
+    """
+    limit = np.zeros(nc.nv)
+    pairs = nc._pair_list
+    start = _row_starts(pairs)
+    m_p = start[-1] + len(pairs[-1].local1) if pairs else 0
+    limits = list(nc.limits)
+    pin.forwardKinematics(nc.model, data, q)
+    out: list[SampleContact] = []
+    placed: dict[int, tuple[FloatArray, tuple[FloatArray, FloatArray, FloatArray]]] = {}
+    for r, block in zip(np.asarray(rows).tolist(), np.asarray(P, dtype=np.float64), strict=True):
+        if r >= m_p:  # a limit row: its Jacobian is -side e_j
+            j, side = limits[r - m_p]
+            limit[j] -= side * float(block[2])
+            continue
+        if not block[2] > 0.0:
+            continue
+        i = int(np.searchsorted(start, r, side="right")) - 1
+        p = pairs[i]
+        if i not in placed:
+            placed[i] = (pair_frame(data, p), pair_points(data, p))
+        T, (touch, p1, p2) = placed[i]
+        j = r - start[i]
+        out.append((pair_names(p), touch[j], p1[j], p2[j], T[2].copy(), block @ T))
     return SampleForces(out, limit)
 
 
@@ -151,10 +194,10 @@ def _rest_forces(
             continue
         i, j = owner[r]
         if i not in points:
-            points[i] = _points(data, pairs[i])
+            points[i] = pair_points(data, pairs[i])
         T = frames[i]
         touch_at, p1, p2 = points[i]
-        out.append((_names(pairs[i]), touch_at[j], p1[j], p2[j], T[2].copy(), f3 @ T))
+        out.append((pair_names(pairs[i]), touch_at[j], p1[j], p2[j], T[2].copy(), f3 @ T))
     return SampleForces(out, limit)
 
 
@@ -167,18 +210,19 @@ def _row_starts(pairs: list[_Pair]) -> list[int]:
     return out
 
 
-def _names(p: _Pair) -> PairNames:
+def pair_names(p: _Pair) -> PairNames:
+    """The pair's (link1, piece1, link2, piece2)."""
     info = p.info
     return (info.link1, info.piece1, info.link2, info.piece2)
 
 
-def _frame(data: Any, p: _Pair) -> FloatArray:
+def pair_frame(data: Any, p: _Pair) -> FloatArray:
     """The pair's contact frame in the world: rows t1, t2, n (n from body 1 to body 2)."""
     R = data.oMi[p.info.joint1 if p.on1 else p.info.joint2].rotation
     return np.asarray(p.frame2 @ R.T, dtype=np.float64)
 
 
-def _points(data: Any, p: _Pair) -> tuple[FloatArray, FloatArray, FloatArray]:
+def pair_points(data: Any, p: _Pair) -> tuple[FloatArray, FloatArray, FloatArray]:
     """The patch points [m], (K, 3) world: where they touch, body 1's and body 2's.
 
     They touch at the material point of the body not carrying the normal: the rows' exact

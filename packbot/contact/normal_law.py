@@ -190,6 +190,7 @@ class NormalLaw(PatchEvents):
         w = self.window
         if w is None:
             return None
+        w.stepper.forces.clear()  # (the last segment's samples are recorded)
         after, self._after_run = self._after_run, None
         if after is not None and after[0] == t and after[1] == y.tobytes():
             pending = after[2]  # (the step the run stopped at: not offered to a run again)
@@ -843,15 +844,17 @@ class NormalLaw(PatchEvents):
         return np.asarray(friction + w.stepper.joint_torque, dtype=np.float64)
 
     def contact_forces(
-        self, q: FloatArray, v: FloatArray, tau: Callable[[], FloatArray]
+        self, q: FloatArray, v: FloatArray, tau: Callable[[], FloatArray], t: float = math.nan
     ) -> SampleForces | None:
         """The current mode's contact forces and stop torques at (q, v) (``mode_forces``).
 
-        None inside a time-stepping window (its steps' impulses are not kept yet).
+        Inside a time-stepping window, the mean forces of the step that holds the sample's time
+        t [s] (:class:`~packbot.contact.window_forces.WindowForces`); None if no step kept
+        holds t.
         """
         nc = self.normal
         if self.window is not None:
-            return None
+            return self.window.stepper.forces.at(t)
         if not nc.engaged:
             return SampleForces([], np.zeros(self.sys.nv))
         # a resting arm's samples under one torque are one state: its contacts are found once

@@ -107,6 +107,9 @@ class ContactSet:
         self.joint_fdir: FloatArray | None = None
         self.resting = False  # captured at rest (see capture)
         self.bounced = False  # the last impulse had restitution
+        #: the last impulse's touching rows and their impulses (rows, 3), blocks (t1, t2, n)
+        #: [N*s, N*m*s] (:meth:`impulse`); None: it applied none
+        self.impact_rows: tuple[NDArray[np.intp], FloatArray] | None = None
         #: The law's compiled right-hand side (set by the law; None: the Python path), for the
         #: restart's projection and impact (:mod:`packbot.contact.normal_steps`).
         self.native: NativeRhs | None = None

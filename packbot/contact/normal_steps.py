@@ -392,9 +392,10 @@ class RestartSteps(ConstrainedDynamics):
         the LCP) could otherwise add energy: measured 2.5e-5 J at an impact of the camera head
         on link 1's tube (the collapse from a random start, mu = 0.5, wrist locked).
         """
+        self.impact_rows = None
         native = self.native
         if native is not None:  # (its frictional impact is the compiled conic solver's)
-            status, v1, bounced = native.impact(
+            status, v1, bounced, rows, P = native.impact(
                 self, q, v, minv, mu=self.mu, restitution=self.e, zeno=self.zeno_speed,
                 touch_gap=TOUCH_GAP, res_tol=RESIDUAL_TOL, conic_tol=IMPACT_CONIC_TOL,
                 max_iterations=IMPACT_ADMM_ITERATIONS, accept=IMPACT_ADMM_ACCEPT,
@@ -403,6 +404,7 @@ class RestartSteps(ConstrainedDynamics):
                 return v
             if status == 1:
                 self.bounced = bounced
+                self.impact_rows = (rows, P)
                 return v1
         Jn, _, gap, vn, extra = self._problem(q, v)
         touch = np.flatnonzero(gap <= TOUCH_GAP)
@@ -423,6 +425,7 @@ class RestartSteps(ConstrainedDynamics):
             if res <= IMPACT_ADMM_ACCEPT:
                 dv = minv @ J3.T @ x
                 if _energy_change(x, J3 @ v, J3 @ dv) <= 0.0:
+                    self.impact_rows = (touch, x.reshape(-1, 3))
                     return np.asarray(v + dv, dtype=np.float64)
                 tried.append("frictional (gains energy)")
             else:
@@ -435,6 +438,9 @@ class RestartSteps(ConstrainedDynamics):
                 if tried:
                     log.debug("impact: %s; frictionless e=%g used", ", ".join(tried), e_k)
                 self.bounced = e_k > 0.0
+                blocks = np.zeros((len(touch), 3))
+                blocks[:, 2] = P
+                self.impact_rows = (touch, blocks)
                 return np.asarray(v + dv, dtype=np.float64)
             tried.append(f"frictionless e={e_k:g} (gains energy)")
         return v  # not reached: the inelastic candidate is always taken

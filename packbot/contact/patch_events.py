@@ -10,9 +10,11 @@ from numpy.typing import NDArray
 from packbot.contact.base import Crossing, Key
 from packbot.contact.normal_contacts import NormalContacts
 from packbot.contact.normal_dynamics import _Eval
+from packbot.contact.normal_forces import row_impulses
 from packbot.contact.normal_modes import ModeEvent
 from packbot.contact.normal_tolerances import PENETRATION_TOL
 from packbot.contact.pairs import PairLaw
+from packbot.contact_forces import SampleForces
 from packbot.ode import DenseSegment
 
 if TYPE_CHECKING:
@@ -129,7 +131,14 @@ class PatchEvents(PairLaw):
         coul = self.drive.path.coulomb
         contacts.joint_coulomb = coul if coul.any() else None
         contacts.joint_fdir = self.drive.fdir
-        return contacts.restart(q, v, a_free, self.sys.minv(q))
+        q1, v1, events = contacts.restart(q, v, a_free, self.sys.minv(q))
+        if contacts.impact_rows is not None:  # (its impulses, in the run's impact log)
+            rows, P = contacts.impact_rows
+            found = row_impulses(contacts, contacts.model.createData(), q1, rows, P)
+            self.events.impulses.append(
+                (t, SampleForces(found.contacts, self.sys.v_full(found.limit_torque)))
+            )
+        return q1, v1, events
 
     def _repatch(self, contacts: NormalContacts, t: float, y: FloatArray) -> FloatArray:
         """Re-patch a contact problem's sliding pairs at (t, y); the state after."""

@@ -333,7 +333,7 @@ class JointStops:
         return self.locks.locked
 
     def contact_forces(
-        self, q: FloatArray, v: FloatArray, tau: Callable[[], FloatArray]
+        self, q: FloatArray, v: FloatArray, tau: Callable[[], FloatArray], t: float = math.nan
     ) -> SampleForces | None:
         """None: the report's clamps act on joints, not as forces on pairs (unknown)."""
         return None

@@ -383,7 +383,6 @@ def adopt_repatches(law: NormalLaw, out: dict[str, Any]) -> None:
         if not np.array_equal(sd, p.slip_dir):
             p.slip_dir = sd.copy()
     nc.engaged = rp["engaged"][0].tolist()
-    nc.n_painleve += rp["painleve"]
     for _ in range(rp["gave_up"]):
         log.warning("contact problem unsolved even with sticking contacts")
     law.diag.restarts += n

@@ -83,6 +83,7 @@ from numpy.typing import NDArray
 from packbot.contact import conic
 from packbot.contact import window_impulses as wi
 from packbot.contact.pairs import reach_bounds
+from packbot.contact.window_forces import WindowForces
 from packbot.contact.window_impulses import WindowImpulses
 from packbot.errors import PackbotError
 from packbot.ode import DenseSegment
@@ -260,6 +261,9 @@ class MoreauJeanStepper:
         #: The Python problem and solvers of the steps the extension does not take, and
         #: every step's warm start.
         self.impulses = WindowImpulses(system, drive, contacts, config)
+        #: The steps' impulses as their samples' contact forces (cleared by the law once a
+        #: segment's samples are recorded).
+        self.forces = WindowForces(contacts, system.model.createData())
         # the last step's sweep at its end: (q bytes, margin [m], result), or None
         self._next_sweep: tuple[bytes, float, Any] | None = None
         # the last step's end state (q, v bytes) and its energy [J], or None
@@ -317,6 +321,7 @@ class MoreauJeanStepper:
         sig = lay.signature(x, list(c.limits), c.mu, self.h * self.drive.path.coulomb[cj], cj)
         self.joint_torque = np.zeros(n)
         self.joint_torque[cj] = x[3 * m :] / h
+        self.forces.keep(t, t + h, q, x)  # (on the rows solved: the projection may change them)
         end = (v_f, v1, q1, energies)
         first = None if pending is None else pending[1]
         return self._finish(

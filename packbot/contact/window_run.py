@@ -211,6 +211,10 @@ def run_native(
         stepper.joint_torque[cj] = x[m3:] / float(out["h_kept"])
         bound = stepper.h * coul[cj]
         signature = lay.signature(x, list(contacts.limits), contacts.mu, bound, cj)
+        kept, ends = out["impulses"], [t, *out["times"].tolist()]
+        for k in range(steps):  # (one contact set for all: the run stops where it changes)
+            q0 = y[:n] if k == 0 else out["states"][k - 1, :n]
+            stepper.forces.keep(ends[k], ends[k + 1], q0, kept[k])
         q_bytes = state[:n].tobytes()
         result = world.dispatch.result(out["swept"], out["dist"], out["best"], out["best_d"])
         stepper._next_sweep = (q_bytes, float(out["margin"]), result)

@@ -14,8 +14,9 @@ sensor on every link): :attr:`Controller.contacts` (a list of
 :class:`~packbot.contact_forces.ContactForce`, world frame) and :attr:`Controller.
 contact_torque` (their joint torque [N*m], shape (nv,), with the joint position stops' torques
 added: M a + C v + g = tau + contact_torque).
-Both are None where the contact law cannot say (the report's law, a time-stepping window of
-the contact-normal mode) and before the first tick; an empty list and zeros with no contact.
+Both are None where the contact law cannot say (the report's law) and before the first tick;
+an empty list and zeros with no contact. Inside a time-stepping window of the contact-normal
+mode they are the forces of the window step ending at the tick (its impulses over its length).
 The impacts between two ticks are impulses, not forces at a tick: :attr:`Controller.
 contact_impulse` is their joint impulse [N*m*s] (M (v+ - v-) summed; M at the tick).
 

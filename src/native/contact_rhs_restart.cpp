@@ -93,7 +93,9 @@ int ContactRhs::project_round_raw(const double *q, const double *v, const double
 // else (2, False): the caller's own impulse (its ADMM, its frictionless candidates). mu = 0
 // (or after a frictional answer not taken: never here): Lemke on LCP(G, target), target =
 // v_n + e min(v_n, 0), residual at most res_tol (else (2, False)), taken when e = 0 or it
-// adds no energy, else the inelastic one. out_v = v + M^-1 J^T P [rad/s]: (1, bounced).
+// adds no energy, else the inelastic one. out_v = v + M^-1 J^T P [rad/s]: (1, bounced, rows,
+// P): the touching rows (nt,) and their impulses (nt, 3), blocks (t1, t2, n) [N*s, N*m*s]
+// (the frictionless impact's tangential parts 0).
 nb::tuple ContactRhs::impact(F1 q, F1 v, F2 minv, double mu, double restitution, double zeno,
                              double touch_gap, double res_tol, double conic_tol, int max_iterations,
                              double accept, Out1 out_v) {
@@ -108,6 +110,14 @@ nb::tuple ContactRhs::impact(F1 q, F1 v, F2 minv, double mu, double restitution,
     if (std::isnan(gap_[r]) || std::isnan(vn_[r])) return nb::make_tuple(2, false);
   if (nt == 0 || vmin >= 0.0) return nb::make_tuple(0, false);
   const double e = vmin < -zeno ? restitution : 0.0;
+  // the impact taken: its rows and their blocks (t1, t2, n), normal only when `x3` is false
+  auto taken = [&](bool bounced, const double *x, bool x3) {
+    std::vector<int64_t> rows(touch_.begin(), touch_.end());
+    std::vector<double> P(3 * static_cast<size_t>(nt), 0.0);
+    for (int a = 0; a < nt; ++a)
+      for (int b = x3 ? 0 : 2; b < 3; ++b) P[3 * a + b] = x3 ? x[3 * a + b] : x[a];
+    return nb::make_tuple(1, bounced, owned_vec(rows), owned_mat(P, nt, 3));
+  };
   const double *Mi = minv.data();
   const double *vv = v.data();
   double *ov = out_v.data();
@@ -154,7 +164,7 @@ nb::tuple ContactRhs::impact(F1 q, F1 v, F2 minv, double mu, double restitution,
     impulse_dv(J3.data(), rt, Mi, x.data());
     if (energy_change(J3.data(), rt, x.data(), w.data()) > 0.0) return nb::make_tuple(2, false);
     for (int i = 0; i < nv; ++i) ov[i] = vv[i] + dv_[i];
-    return nb::make_tuple(1, e > 0.0);
+    return taken(e > 0.0, x.data(), true);
   }
   delassus(Mi, nt);
   std::vector<double> Jt(static_cast<size_t>(nt) * nv), vt(nt);
@@ -173,7 +183,7 @@ nb::tuple ContactRhs::impact(F1 q, F1 v, F2 minv, double mu, double restitution,
     impulse_dv(Jt.data(), nt, Mi, zt_.data());
     if (ek == 0.0 || energy_change(Jt.data(), nt, zt_.data(), vt.data()) <= 0.0) {
       for (int i = 0; i < nv; ++i) ov[i] = vv[i] + dv_[i];
-      return nb::make_tuple(1, ek > 0.0);
+      return taken(ek > 0.0, zt_.data(), false);
     }
   }
   return nb::make_tuple(2, false);  // (not reached: the inelastic candidate is always taken)

@@ -333,6 +333,7 @@ nb::dict ContactRhs::window_run(nb::capsule api, Out1 y, double t, double t_end,
   std::vector<double> x(guess.data(), guess.data() + guess.shape(0)), xn, bound(B), work(nv);
   std::vector<double> vf(nv), v1(nv), q1(nv), y1(n2);
   std::vector<double> removed, states, times;  // (the steps kept: energy removed, states, ends)
+  std::vector<double> impulses;                // (and their impulses, one row of x each)
   double rho = rho0, margin = sweep_margin, h_kept = 0.0;
   int64_t min_pair = -1;
   int steps = 0, status = 0, handed = 0;
@@ -411,6 +412,7 @@ nb::dict ContactRhs::window_run(nb::capsule api, Out1 y, double t, double t_end,
     }
     states.insert(states.end(), y1.begin(), y1.end());
     times.push_back(t1);
+    impulses.insert(impulses.end(), xn.begin(), xn.end());
     // the law's closest distance: the step's start sweep (NormalLaw.advance, note_min)
     if (best >= 0 && best_d < min_d) {
       min_d = best_d;
@@ -447,6 +449,9 @@ nb::dict ContactRhs::window_run(nb::capsule api, Out1 y, double t, double t_end,
   out["min_pair"] = min_pair;
   out["states"] = owned_mat(states, states.size() / n2, n2);
   out["times"] = owned_vec(times);
+  // each kept step's impulses (steps, 3 m + boxes), on the run's rows (its set does not change)
+  const size_t kept = static_cast<size_t>(steps);
+  out["impulses"] = owned_mat(impulses, kept, kept ? impulses.size() / kept : 0);
   out["swept"] = owned_vec(spairs);
   out["dist"] = owned_vec(sdist);
   out["margin"] = margin;

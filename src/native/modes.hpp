@@ -127,7 +127,8 @@ class Selection {
     gave_up = false;
     const int nv = R.nv;
     std::vector<char> touch(R.m, 0), mine(R.m, 0);
-    for (int r = 0; r < R.m; ++r) touch[r] = R.gap[r] <= c.touch_gap && std::abs(R.vn[r]) <= c.speed_band;
+    for (int r = 0; r < R.m; ++r)
+      touch[r] = R.gap[r] <= c.touch_gap && std::abs(R.vn[r]) <= c.speed_band;
     for (int r : held) {
       if (!touch[r]) return DONE;
       mine[r] = 1;

@@ -237,10 +237,10 @@ class Stretch {
     std::vector<uint8_t> stick, on1;
     std::vector<double> slip;
     std::vector<int64_t> engaged;
-    // out: the last re-patch's q before its projection [rad], the Painleve fallbacks and the
-    // friction given up over the run's re-patches
+    // out: the last re-patch's q before its projection [rad] and the friction given up over
+    // the run's re-patches (a Painleve fallback is handed back: the loop's window)
     std::vector<double> q_patch;
-    int64_t painleve = 0, gave_up = 0, relaid = 0;  // (relaid: re-patches of a new shape)
+    int64_t gave_up = 0, relaid = 0;  // (relaid: re-patches of a new shape)
     // the last projection's sweep (valid: one was made in this run) and, after a hand-back
     // that had swept, that sweep (spare) at q_spare
     bool proj_valid = false, spare = false;
@@ -647,7 +647,6 @@ class Stretch {
     rp_.stick.swap(stick_w_);
     rp_.slip.swap(slip_w_);
     rp_.engaged.assign(o.engaged.begin(), o.engaged.end());
-    rp_.painleve += o.painleve;
     rp_.gave_up += o.gave_up ? 1 : 0;
     rp_.relaid += same_shape ? 0 : 1;
     rhs_.load_plan(o.engaged, rp_.stick.data(), rp_.slip.data());

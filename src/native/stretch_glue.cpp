@@ -69,7 +69,7 @@ void stretch_set_modes(StretchT &st, bool on, U1 stick, U1 on1, F2 slip, I1 enga
   rp.on1.assign(on1.data(), on1.data() + np);
   rp.slip.assign(slip.data(), slip.data() + 3 * np);
   rp.engaged.assign(engaged.data(), engaged.data() + engaged.shape(0));
-  rp.painleve = rp.gave_up = rp.relaid = 0;
+  rp.gave_up = rp.relaid = 0;
   rp.proj_valid = rp.spare = false;
   rp.q_patch.clear();
 }
@@ -83,7 +83,6 @@ nb::dict stretch_repatched(StretchT &st) {
   out["stick"] = owned(rp.stick, 1, np);
   out["slip"] = owned(rp.slip, np, 3);
   out["engaged"] = owned(rp.engaged, 1, rp.engaged.size());
-  out["painleve"] = rp.painleve;
   out["gave_up"] = rp.gave_up;
   out["relaid"] = rp.relaid;
   for (int w = 0; w < 2; ++w) {

@@ -1,0 +1,131 @@
+"""The impulses of a run's impacts: one record per contact point and impact (world frame).
+
+At an impact the contact-normal mode's restart solves one problem for the impulses of every
+touching row (:meth:`~packbot.contact.normal_steps.RestartSteps.impulse`: Newton's law with
+restitution, Coulomb's cone); the velocities jump by M^-1 J^T P. What one contact's impulse is
+(:class:`ContactImpulse`) and how a run keeps them (:class:`ImpactTable`) live here; the
+conventions are the contact forces' (:mod:`packbot.contact_forces`), with impulses [N*s] for
+forces [N]:
+
+* ``impulse`` [N*s] (world frame) acts on body 2 (``link2``) at ``point``; body 1 receives its
+  opposite; its component along ``normal`` (from body 1 to body 2) is the normal impulse (>= 0),
+  the rest is the friction impulse, which acts at each body's own material point;
+* a joint on its position stop takes its stop's impulse [N*m*s] (per joint, positive along +q).
+
+With them M(q) (v+ - v-) = sum J^T P + the stops' impulses at the impact's configuration q (the
+drift projection's), v- and v+ the velocities just before and after the impulse. The restart
+then stops the slow slides (``stop_slow``: velocities below the stick speed) and may capture a
+rest (every velocity to zero): those last changes of the event's velocities are not in the
+records.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import NDArray
+
+from packbot.contact_forces import ContactTable, SampleForces
+
+__all__ = ["ContactImpulse", "ImpactTable"]
+
+FloatArray = NDArray[np.float64]
+
+
+@dataclass(frozen=True, kw_only=True)
+class ContactImpulse:
+    """One contact's impulse at one impact (world frame; see the module for the conventions).
+
+    Attributes:
+        link1: Body 1 of the pair (distal).
+        piece1: Its convex piece.
+        link2: Body 2 of the pair (proximal, chassis or obstacle).
+        piece2: Its convex piece.
+        point: Where the bodies touch [m], world frame, shape (3,).
+        point1: Body 1's material point [m], world frame, shape (3,).
+        point2: Body 2's material point [m], world frame, shape (3,).
+        normal: Unit contact normal from body 1 to body 2, world frame, shape (3,).
+        impulse: Impulse on body 2 from body 1 [N*s], world frame, shape (3,).
+    """
+
+    link1: str
+    piece1: str
+    link2: str
+    piece2: str
+    point: FloatArray
+    point1: FloatArray
+    point2: FloatArray
+    normal: FloatArray
+    impulse: FloatArray
+
+    @property
+    def normal_impulse(self) -> float:
+        """The impulse's component along the normal [N*s] (>= 0)."""
+        return float(self.impulse @ self.normal)
+
+    @property
+    def pair(self) -> str:
+        """The pair as the diagnostics name it: ``"piece1 - piece2"``."""
+        return f"{self.piece1} - {self.piece2}"
+
+
+@dataclass(frozen=True)
+class ImpactTable:
+    """Every impact of a run with its contacts' impulses.
+
+    Attributes:
+        t: The time of each impact [s], shape (I,), non-decreasing.
+        rows: Its contacts as a :class:`~packbot.contact_forces.ContactTable` whose sample
+            index is the impact's index in :attr:`t`, whose ``force`` column holds the
+            impulses [N*s] and whose ``limit_torque`` holds the stops' impulses [N*m*s], shape
+            (I, nv).
+    """
+
+    t: FloatArray = field(default_factory=lambda: np.zeros(0))
+    rows: ContactTable = field(default_factory=ContactTable)
+
+    def __len__(self) -> int:
+        """The number of impacts."""
+        return len(self.t)
+
+    @classmethod
+    def from_log(cls, log: Sequence[tuple[float, SampleForces]], nv: int) -> ImpactTable:
+        """The table of the impacts a law logged, each (t [s], its contacts' impulses).
+
+        Args:
+            log: Per impact its time and its records (force slots: impulses [N*s]; the limit
+                slot: the stops' impulses [N*m*s], full coordinates).
+            nv: The number of joint velocities.
+        """
+        t = np.array([t for t, _ in log], dtype=np.float64)
+        return cls(t=t, rows=ContactTable.from_samples([s for _, s in log], nv))
+
+    @property
+    def limit_impulse(self) -> FloatArray:
+        """The stops' impulses [N*m*s] per impact and joint, shape (I, nv)."""
+        return np.asarray(self.rows.limit_torque, dtype=np.float64)
+
+    def of(self, i: int) -> list[ContactImpulse]:
+        """The contacts' impulses of impact i."""
+        return [
+            ContactImpulse(
+                link1=c.link1,
+                piece1=c.piece1,
+                link2=c.link2,
+                piece2=c.piece2,
+                point=c.point,
+                point1=c.point1,
+                point2=c.point2,
+                normal=c.normal,
+                impulse=c.force,
+            )
+            for c in self.rows.at_sample(i)
+        ]
+
+    def index(self, t: float) -> list[int]:
+        """The impacts at time t [s] (within 1e-12 s), in order."""
+        lo = int(np.searchsorted(self.t, t - 1e-12, side="left"))
+        hi = int(np.searchsorted(self.t, t + 1e-12, side="right"))
+        return list(range(lo, hi))
