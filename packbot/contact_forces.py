@@ -37,6 +37,7 @@ __all__ = [
     "ContactForce",
     "ContactTable",
     "PairNames",
+    "PairPoint",
     "SampleContact",
     "SampleForces",
     "joint_torque",
@@ -65,20 +66,18 @@ class SampleForces(NamedTuple):
 
 
 @dataclass(frozen=True, kw_only=True)
-class ContactForce:
-    """One contact's force at one sample (world frame; see the module for the conventions).
+class PairPoint:
+    """Where one contact of a pair acts (world frame; see the module for the conventions).
 
     Attributes:
         link1: Body 1 of the pair (distal).
         piece1: Its convex piece.
         link2: Body 2 of the pair (proximal, chassis or obstacle).
         piece2: Its convex piece.
-        point: Where the bodies touch [m], world frame, shape (3,): the normal force acts there.
+        point: Where the bodies touch [m], world frame, shape (3,): the normal part acts there.
         point1: Body 1's material point [m] (its friction acts there), world, shape (3,).
         point2: Body 2's material point [m] (its friction acts there), world, shape (3,).
         normal: Unit contact normal from body 1 to body 2, world frame, shape (3,).
-        force: Force on body 2 from body 1 [N], world frame, shape (3,) (body 1 receives
-            ``-force``).
     """
 
     link1: str
@@ -89,6 +88,24 @@ class ContactForce:
     point1: FloatArray
     point2: FloatArray
     normal: FloatArray
+
+    @property
+    def pair(self) -> str:
+        """The pair as the diagnostics name it: ``"piece1 - piece2"`` (``link3/tube - ...``)."""
+        return f"{self.piece1} - {self.piece2}"
+
+
+@dataclass(frozen=True, kw_only=True)
+class ContactForce(PairPoint):
+    """One contact's force at one sample (world frame; see the module for the conventions).
+
+    The pair and its points: :class:`PairPoint`.
+
+    Attributes:
+        force: Force on body 2 from body 1 [N], world frame, shape (3,) (body 1 receives
+            ``-force``).
+    """
+
     force: FloatArray
 
     @classmethod
@@ -110,11 +127,6 @@ class ContactForce:
         """The force's tangential part [N], world frame, shape (3,)."""
         return np.asarray(self.force - self.normal_force * self.normal, dtype=np.float64)
 
-    @property
-    def pair(self) -> str:
-        """The pair as the diagnostics name it: ``"piece1 - piece2"`` (``link3/tube - ...``)."""
-        return f"{self.piece1} - {self.piece2}"
-
 
 @dataclass(frozen=True)
 class ContactTable:
@@ -131,7 +143,8 @@ class ContactTable:
         normal: Unit normals from body 1 to body 2, world frame, shape (K, 3).
         force: Forces on body 2 [N], world frame, shape (K, 3).
         known: Per sample, whether the law could say its forces, shape (N,): False under the
-            report's law (such a sample has no rows; its contacts are unknown, not absent).
+            report's law and at a window's opening instant (such a sample has no rows; its
+            contacts are unknown, not absent).
         limit_torque: Per sample, the torque each joint position stop exerts on its joint
             [N*m], shape (N, nv) (positive along +q; 0 off the stops; NaN where not known).
     """

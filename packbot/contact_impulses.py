@@ -1,6 +1,8 @@
 """The impulses of a run's impacts: one record per contact point and impact (world frame).
 
-At an impact the contact-normal mode's restart solves one problem for the impulses of every
+An *impact* here is every restart of the contact-normal mode that applied an impulse: at an
+``impact`` event, and at any other event (a limit reached, a re-patch) whose restart found a
+touching row approaching. The restart solves one problem for the impulses of every
 touching row (:meth:`~packbot.contact.normal_steps.RestartSteps.impulse`: Newton's law with
 restitution, Coulomb's cone); the velocities jump by M^-1 J^T P. What one contact's impulse is
 (:class:`ContactImpulse`) and how a run keeps them (:class:`ImpactTable`) live here; the
@@ -27,7 +29,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import NDArray
 
-from packbot.contact_forces import ContactTable, SampleForces
+from packbot.contact_forces import ContactTable, PairPoint, SampleForces
 
 __all__ = ["ContactImpulse", "ImpactTable"]
 
@@ -35,29 +37,15 @@ FloatArray = NDArray[np.float64]
 
 
 @dataclass(frozen=True, kw_only=True)
-class ContactImpulse:
+class ContactImpulse(PairPoint):
     """One contact's impulse at one impact (world frame; see the module for the conventions).
 
+    The pair and its points: :class:`~packbot.contact_forces.PairPoint`.
+
     Attributes:
-        link1: Body 1 of the pair (distal).
-        piece1: Its convex piece.
-        link2: Body 2 of the pair (proximal, chassis or obstacle).
-        piece2: Its convex piece.
-        point: Where the bodies touch [m], world frame, shape (3,).
-        point1: Body 1's material point [m], world frame, shape (3,).
-        point2: Body 2's material point [m], world frame, shape (3,).
-        normal: Unit contact normal from body 1 to body 2, world frame, shape (3,).
         impulse: Impulse on body 2 from body 1 [N*s], world frame, shape (3,).
     """
 
-    link1: str
-    piece1: str
-    link2: str
-    piece2: str
-    point: FloatArray
-    point1: FloatArray
-    point2: FloatArray
-    normal: FloatArray
     impulse: FloatArray
 
     @property
@@ -65,18 +53,14 @@ class ContactImpulse:
         """The impulse's component along the normal [N*s] (>= 0)."""
         return float(self.impulse @ self.normal)
 
-    @property
-    def pair(self) -> str:
-        """The pair as the diagnostics name it: ``"piece1 - piece2"``."""
-        return f"{self.piece1} - {self.piece2}"
-
 
 @dataclass(frozen=True)
 class ImpactTable:
     """Every impact of a run with its contacts' impulses.
 
     Attributes:
-        t: The time of each impact [s], shape (I,), non-decreasing.
+        t: The time of each impact [s] (each restart that applied an impulse), shape (I,),
+            non-decreasing.
         rows: Its contacts as a :class:`~packbot.contact_forces.ContactTable` whose sample
             index is the impact's index in :attr:`t`, whose ``force`` column holds the
             impulses [N*s] and whose ``limit_torque`` holds the stops' impulses [N*m*s], shape
@@ -104,11 +88,21 @@ class ImpactTable:
 
     @property
     def limit_impulse(self) -> FloatArray:
-        """The stops' impulses [N*m*s] per impact and joint, shape (I, nv)."""
+        """The stops' impulses [N*m*s] per impact and joint, shape (I, nv).
+
+        (0, 0) for an empty table built without its joints.
+        """
         return np.asarray(self.rows.limit_torque, dtype=np.float64)
 
     def of(self, i: int) -> list[ContactImpulse]:
-        """The contacts' impulses of impact i."""
+        """The contacts' impulses of impact i.
+
+        Args:
+            i: The impact's index in :attr:`t`.
+
+        Returns:
+            Its records, one per touching point with a normal impulse.
+        """
         return [
             ContactImpulse(
                 link1=c.link1,
@@ -125,7 +119,14 @@ class ImpactTable:
         ]
 
     def index(self, t: float) -> list[int]:
-        """The impacts at time t [s] (within 1e-12 s), in order."""
+        """The impacts at a time, in order.
+
+        Args:
+            t: Time [s]; an impact within 1e-12 s of it counts.
+
+        Returns:
+            Their indices in :attr:`t`.
+        """
         lo = int(np.searchsorted(self.t, t - 1e-12, side="left"))
         hi = int(np.searchsorted(self.t, t + 1e-12, side="right"))
         return list(range(lo, hi))

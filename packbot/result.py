@@ -224,14 +224,14 @@ class SimResult:
             ContactTable`; read them with :meth:`contacts_at`): the contact-normal mode's
             engaged contacts (inside a time-stepping window, its steps' mean forces), empty
             for the other modes.
-        impacts: The impacts' contact impulses (:class:`~packbot.contact_impulses.
-            ImpactTable`; read them with :meth:`impulses_at`): the contact-normal mode's.
         failures: The failures injected during the run.
         control_ticks: Number of ticks of a sampled-data controller.
         environment: The run's obstacles (None: a result built without one; ``simulate``
             gives the floor alone when it was called without an environment).
         payload: The run's payload, or None.
         scenario_text: The scenario file's text ("" for a run not made from a file).
+        impacts: The restarts' contact impulses (:class:`~packbot.contact_impulses.
+            ImpactTable`; read them with :meth:`impulses_at`): the contact-normal mode's.
     """
 
     t: NDArray[np.float64]
@@ -248,12 +248,12 @@ class SimResult:
     tau_friction: NDArray[np.float64]
     effort: NDArray[np.float64]
     contacts: ContactTable = field(default_factory=ContactTable)
-    impacts: ImpactTable = field(default_factory=ImpactTable)
     failures: tuple[Failure, ...] = ()
     control_ticks: int = 0
     environment: Environment | None = None
     payload: Payload | None = None
     scenario_text: str = ""
+    impacts: ImpactTable = field(default_factory=ImpactTable)
 
     @checked_arguments
     def events_of(self, *kinds: str) -> list[Event]:
@@ -355,11 +355,12 @@ class SimResult:
 
     @checked_arguments
     def impulses_at(self, t: float) -> list[ContactImpulse]:
-        """The contact impulses of the impacts at time t [s] (within 1e-12 s; world frame).
+        """The contact impulses of the restarts at time t [s] (within 1e-12 s; world frame).
 
         Conventions (:mod:`packbot.contact_impulses`): ``impulse`` [N*s] acts on ``link2``
-        at ``point``, ``link1`` receives its opposite. Empty where no impact was at t (an
-        event that is not an impact, a release or a stick, has none).
+        at ``point``, ``link1`` receives its opposite. Every restart that applied an impulse
+        has them (an ``impact`` event's, and a ``limit`` or ``repatch`` event's whose restart
+        found a touching row approaching); empty where none did (a release, a stick).
         """
         if isinstance(t, bool) or not isinstance(t, (int, float)) or not np.isfinite(t):
             raise ConfigurationError("t", t, "a finite time [s]")
@@ -369,7 +370,8 @@ class SimResult:
     def contacts_known(self) -> NDArray[np.bool_]:
         """Per sample, whether its contact forces are known, shape (N,) (a copy).
 
-        False under the report's law (``joint_clamp``, ``handoff``): the contacts of such a
+        False under the report's law (``joint_clamp``, ``handoff``) and at a time-stepping
+        window's opening instant (recorded before its first step): the contacts of such a
         sample are unknown, not absent (:meth:`contacts_at` gives none,
         :meth:`contact_torques` NaN).
         """

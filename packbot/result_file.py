@@ -552,13 +552,21 @@ def read_saved(path: str | Path) -> SavedResult:
         elif not version_1:
             contacts.update(_contact_samples(archive, len(t), n_joints))
         impacts = (
-            _impacts(archive, n_joints, len(meta["impact_pairs"])) if tag == RESULT_FORMAT else {}
+            _impacts(archive, (float(t[0]), float(t[-1])), n_joints, meta)
+            if tag == RESULT_FORMAT
+            else {}
         )
     return SavedResult(archive.path, arrays, floats, vels, meta, contacts, impacts)
 
 
-def _impacts(archive: ResultArchive, n_joints: int, n_pairs: int) -> dict[str, NDArray[Any]]:
-    """The impacts' entries: their times (non-decreasing), rows and stops' impulses."""
+def _impacts(
+    archive: ResultArchive, span: tuple[float, float], n_joints: int, meta: dict[str, Any]
+) -> dict[str, NDArray[Any]]:
+    """The impacts' entries: their times, rows and stops' impulses.
+
+    The times never decrease and lie within the samples' ``span`` [s]; the rows' pairs are
+    those of ``meta["impact_pairs"]``.
+    """
     n = archive.header("impact_t").shape[0]
     shape = archive.header("impact_limit_impulse").shape
     if shape != (n, n_joints):
@@ -571,7 +579,15 @@ def _impacts(archive: ResultArchive, n_joints: int, n_pairs: int) -> dict[str, N
         archive.fail(
             "impact_t", f"impact_t[{k + 1}] < impact_t[{k}] (expected times that never decrease)"
         )
-    out = _contacts(archive, n, n_pairs, "impact_")
+    outside = (t < span[0]) | (t > span[1])
+    if outside.any():
+        k = int(np.flatnonzero(outside)[0])
+        archive.fail(
+            "impact_t",
+            f"impact_t[{k}] = {float(t[k])!r} (expected times within the samples' "
+            f"[{span[0]!r}, {span[1]!r}])",
+        )
+    out = _contacts(archive, n, len(meta["impact_pairs"]), "impact_")
     out["t"] = t
     out["limit_torque"] = _floats(archive, "impact_limit_impulse")
     return out

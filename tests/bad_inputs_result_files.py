@@ -446,11 +446,12 @@ def register(cat: ModuleType) -> None:
     # -- the impacts' entries
     def impacts(id: str, n: int, *words: str, **entries: Any) -> None:
         """A case with ``n`` impacts (their stops' impulses zero) and ``entries`` replaced."""
-        base = {"impact_t": np.arange(n, dtype=float), "impact_limit_impulse": np.zeros((n, 8))}
+        base = {"impact_t": np.linspace(0.0, 0.02, n), "impact_limit_impulse": np.zeros((n, 8))}
         case(id, lambda c, raw, a: npz(a, **(base | entries)), *words)
 
-    impacts("impact-t-decreasing", 2, entry("impact_t"), "never decrease", impact_t=[0.2, 0.1])
+    impacts("impact-t-decreasing", 2, entry("impact_t"), "never decrease", impact_t=[0.02, 0.01])
     impacts("impact-t-nan", 1, entry("impact_t"), "finite", impact_t=[np.nan])
+    impacts("impact-t-after-the-run", 1, entry("impact_t"), "within", impact_t=[1.0])
     impacts("impact-limit-short", 2, entry("impact_limit_impulse"), "shape",
             impact_limit_impulse=np.zeros((1, 8)))  # fmt: skip
     rows = {

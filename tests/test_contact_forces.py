@@ -10,6 +10,8 @@ independently (the extremes of the tube's normal force under the same balance an
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pinocchio as pin
 import pytest
@@ -287,42 +289,42 @@ def test_contacts_survive_save_and_load(collapse, tmp_path) -> None:
     np.testing.assert_array_equal(back.limit_torque, collapse.limit_torque)
 
 
-def test_a_file_of_the_format_before_the_stop_torques_loads(collapse, tmp_path) -> None:
+def older_file(
+    res: packbot.SimResult,
+    tmp_path: Path,
+    tag: str,
+    drop: tuple[str, ...],
+    meta_drop: tuple[str, ...],
+) -> Path:
+    """A file of an earlier format: ``res`` saved, the entries starting with ``drop`` and the
+    metadata fields ``meta_drop`` taken out, tagged ``tag``."""
     import json
 
-    path = collapse.save(tmp_path / "r.npz")
+    path = res.save(tmp_path / "r.npz")
     with np.load(path, allow_pickle=False) as z:
-        arrays = {
-            k: z[k]
-            for k in z.files
-            if k not in ("contact_known", "contact_limit_torque") and not k.startswith("impact_")
-        }
+        arrays = {k: z[k] for k in z.files if not k.startswith(drop)}
     meta = json.loads(str(arrays["meta_json"]))
-    del meta["impact_pairs"]
-    meta["format"] = RESULT_FORMAT_2
+    for key in meta_drop:
+        del meta[key]
+    meta["format"] = tag
     arrays["meta_json"] = np.array(json.dumps(meta))
-    arrays["format"] = np.array(RESULT_FORMAT_2)
+    arrays["format"] = np.array(tag)
     old = tmp_path / "old.npz"
     np.savez_compressed(old, **arrays)
+    return old
+
+
+def test_a_file_of_the_format_before_the_stop_torques_loads(collapse, tmp_path) -> None:
+    drop = ("contact_known", "contact_limit_torque", "impact_")
+    old = older_file(collapse, tmp_path, RESULT_FORMAT_2, drop, ("impact_pairs",))
     back = packbot.SimResult.load(old)
     np.testing.assert_array_equal(back.contacts.force, collapse.contacts.force)
     assert back.contacts_known.all() and np.isnan(back.limit_torque).all()
 
 
 def test_a_file_of_the_format_before_contacts_loads_without_them(collapse, tmp_path) -> None:
-    import json
-
-    path = collapse.save(tmp_path / "r.npz")
-    with np.load(path, allow_pickle=False) as z:
-        arrays = {k: z[k] for k in z.files if not k.startswith(("contact_", "impact_"))}
-    meta = json.loads(str(arrays["meta_json"]))
-    del meta["contact_pairs"], meta["impact_pairs"]
-    meta["format"] = RESULT_FORMAT_1
-    arrays["meta_json"] = np.array(json.dumps(meta))
-    arrays["format"] = np.array(RESULT_FORMAT_1)
-    old = tmp_path / "old.npz"
-    np.savez_compressed(old, **arrays)
-    back = packbot.SimResult.load(old)
+    drop, meta_drop = ("contact_", "impact_"), ("contact_pairs", "impact_pairs")
+    back = packbot.SimResult.load(older_file(collapse, tmp_path, RESULT_FORMAT_1, drop, meta_drop))
     assert len(back.contacts) == 0
     np.testing.assert_array_equal(back.q, collapse.q)
 

@@ -411,3 +411,21 @@ def test_an_approaching_stop_is_not_engaged_at_a_repatch(robot):
     events' own tolerance); asserted within twice that."""
     _, c = _run(robot, 71, 1.2, 0.0, 0.97)
     assert c.overrun.overrun <= 2e-6, c.overrun
+
+
+def test_a_slowing_slide_has_tangential_friction(robot):
+    """Start 26 (mu 1.2, e 0, wrists locked): link 3's tube slides slower and slower on the
+    shoulder casing from 0.53 s; its friction direction blended the slip's onset direction,
+    fixed in the world while the normal turned, and so had a part along the normal (0.17 at
+    0.945 s), applied at material points 2.2 cm apart: the energy rose by 0.0145 J from 0.925
+    to 0.960 s. With the onset direction's tangential part: 7e-5 J over 3 s (asserted 1e-3 J
+    over the first second), and the sliding points' forces on their cones: |f_t| = mu f_n
+    (to 1e-9: the force lambda (n - mu s) with s tangential; 1.35 f_n before)."""
+    res, c = _run(robot, 26, 1.2, 0.0, 1.0, "locked")
+    assert c.energy.rise <= 1e-3, c.energy
+    k = int(np.searchsorted(res.t, 0.945))
+    cs = [x for x in res.contacts_at(res.t[k]) if x.pair == "link3/tube - link1/shoulder_casing"]
+    assert cs
+    for x in cs:
+        ratio = float(np.linalg.norm(x.friction_force)) / x.normal_force
+        assert ratio == pytest.approx(1.2, rel=1e-9), ratio

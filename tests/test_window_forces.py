@@ -15,7 +15,7 @@ from test_normal_cascade import start_pose
 
 import packbot
 from packbot.contact import native, normal_law, timestep
-from packbot.contact.window_forces import step_forces
+from packbot.contact.window_forces import WindowForces
 from packbot.contact_forces import joint_torque
 
 pytestmark = pytest.mark.skipif(not native.available(), reason="packbot._native not built")
@@ -50,14 +50,56 @@ def windowed(robot) -> packbot.SimResult:
     return _run(robot, 16, 0.5, 1.5)
 
 
+class _Set:
+    """A stand-in contact set: no pairs, one limit row (joint 1, upper) in a 2-dof model."""
+
+    def __init__(self) -> None:
+        self.model = pin.Model()
+        for k in range(2):
+            parent = k
+            self.model.addJoint(parent, pin.JointModelRY(), pin.SE3.Identity(), f"j{k}")
+        self.pairs: dict = {}
+        self.limits = {(1, 1): 0.5}
+        self.nv = 2
+
+
+def test_a_sample_reads_the_step_that_holds_it() -> None:
+    """The loop's rule: a sample at t belongs to the first step whose end + 1e-12 s reaches
+    t (a sample at a step's end is that step's); none before the first step, after the last
+    or at a time that is not finite. Each step's own impulse tells which one was read."""
+    c = _Set()
+    wf = WindowForces(c, c.model.createData())  # type: ignore[arg-type]
+    for k, (t0, t1) in enumerate([(0.0, 1e-3), (1e-3, 2e-3), (2e-3, 2.5e-3)]):
+        x = np.array([0.0, 0.0, k + 1.0])  # the limit row's normal impulse [N*m*s]
+        wf.keep(t0, t1, np.zeros(2), x)
+
+    def which(t: float) -> float | None:
+        found = wf.at(t)
+        return None if found is None else float(-found.limit_torque[1] * 1e-3)
+
+    assert which(0.0) == which(5e-4) == which(1e-3) == pytest.approx(1.0)
+    assert which(1e-3 + 1e-13) == pytest.approx(1.0)  # (within the 1e-12 s of its end)
+    assert which(1e-3 + 1e-9) == which(2e-3) == pytest.approx(2.0)
+    # the last step is 0.5 ms long: its mean torque is x / h
+    assert float(-wf.at(2.4e-3).limit_torque[1]) == pytest.approx(3.0 / 5e-4)
+    assert wf.at(-1e-9) is None and wf.at(2.6e-3) is None and wf.at(float("nan")) is None
+    wf.clear()
+    assert wf.at(5e-4) is None
+
+
 def test_window_samples_are_known_and_in_their_cones(windowed) -> None:
     """Every sample inside a window carries its step's forces: known, with contacts, each
     pushing (normal part >= 0) and in its friction cone (|f_t| <= mu f_n, to 1e-9 relative:
-    the ADMM's cone projection is exact up to rounding)."""
+    the ADMM's cone projection is exact up to rounding). Unknown: only a window's opening
+    instant, recorded before the window's first step."""
     res = windowed
     inside = _inside(res)
     assert inside.sum() > 100, inside.sum()
     assert res.contacts_known[inside].all()
+    opening = np.zeros(len(res.t), dtype=bool)
+    for e in res.events_of("timestep"):
+        opening |= res.t == e.t
+    assert opening.any() and res.contacts_known[~opening].all()
     with_contacts = 0
     for k in np.flatnonzero(inside):
         cs = res.contacts_at(res.t[k])
@@ -71,9 +113,10 @@ def test_window_samples_are_known_and_in_their_cones(windowed) -> None:
 
 
 def test_each_window_step_closes_its_equations(robot, monkeypatch) -> None:
-    """Per step (the stepper's own, not the native runs'), the recorded forces and stop
-    torques at q0 give the step's velocity change exactly: h (J^T f + tau_stops) =
-    M(q0) (v1 - v_f), to 1e-9 of the gravity torque's size (rounding: measured 1e-13)."""
+    """Per step (the stepper's own, native runs off), the forces a sample inside the step and
+    at its end reads (``WindowForces.at``) give the step's velocity change exactly at q0:
+    h (J^T f + tau_stops) = M(q0) (v1 - v_f), to 1e-9 of the gravity torque's size (rounding:
+    measured 1e-13); steps with limit rows among them."""
     monkeypatch.setattr(normal_law, "run_native", lambda *a, **k: None)
     steps: list[tuple] = []
     real = timestep.MoreauJeanStepper._finish
@@ -81,20 +124,21 @@ def test_each_window_step_closes_its_equations(robot, monkeypatch) -> None:
     def finish(self, t, y, h, tail, target, applied, end, *args, **kwargs):
         n = self.n
         v_f, v1 = end[0], end[1]
-        t0, t1, q0, x, pairs, limits = self.forces._steps[-1]
-        assert t0 == t and abs(t1 - t0 - h) < 1e-15
-        found = step_forces(self.sys.model, self.sys.model.createData(), q0, x, h, pairs,
-                            limits, n)  # fmt: skip
-        steps.append((y[:n].copy(), v_f.copy(), v1.copy(), h, found))
+        for t_s in (t + 0.5 * h, t + h):  # (a sample inside the step, one at its end)
+            found = self.forces.at(t_s)
+            assert found is not None
+            limits = bool(self.forces._steps[-1][5])
+            steps.append((y[:n].copy(), v_f.copy(), v1.copy(), h, found, limits))
         return real(self, t, y, h, tail, target, applied, end, *args, **kwargs)
 
     monkeypatch.setattr(timestep.MoreauJeanStepper, "_finish", finish)
-    _run(robot, 16, 0.5, 0.6)
-    assert len(steps) > 50, len(steps)
+    _run(robot, 16, 0.5, 1.5)
+    assert len(steps) > 100, len(steps)
+    assert sum(s[5] for s in steps) > 10  # (steps whose rows include a limit)
     model = robot.model
     data = model.createData()
     worst, with_contacts = 0.0, 0
-    for q0, v_f, v1, h, found in steps:
+    for q0, v_f, v1, h, found, _ in steps:
         g = pin.computeGeneralizedGravity(model, data, q0)
         Q = joint_torque(model, model.createData(), q0, found.contacts)
         M = pin.crba(model, data, q0)
@@ -131,3 +175,22 @@ def test_window_samples_close_the_sampled_motion(robot, windowed) -> None:
         out.append(np.linalg.norm(resid) / np.linalg.norm(g))
     assert len(out) > 100, len(out)
     assert float(np.median(out)) <= 1e-3, float(np.median(out))
+
+
+def test_native_runs_record_the_forces_of_their_own_steps(robot, windowed, monkeypatch) -> None:
+    """The native runs of window steps (one call for many steps) record the same forces as the
+    steps taken one by one (their arithmetic is the same): every window sample's contacts
+    equal, to 1e-9 of the largest force (a step's impulses shifted onto another step would
+    differ by the change over a step, 1e-3 of it and more)."""
+    monkeypatch.setattr(normal_law, "run_native", lambda *a, **k: None)
+    one_by_one = _run(robot, 16, 0.5, 1.5)
+    a, b = windowed, one_by_one
+    assert len(a.t) == len(b.t)
+    inside = _inside(a)
+    scale = float(np.abs(a.contacts.force).max())
+    for k in np.flatnonzero(inside):
+        ca, cb = a.contacts_at(a.t[k]), b.contacts_at(b.t[k])
+        assert [c.pair for c in ca] == [c.pair for c in cb], a.t[k]
+        for x, y in zip(ca, cb, strict=True):
+            assert np.abs(x.force - y.force).max() <= 1e-9 * scale, (a.t[k], x.pair)
+    np.testing.assert_allclose(a.limit_torque[inside], b.limit_torque[inside], atol=1e-9 * scale)

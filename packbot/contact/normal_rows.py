@@ -210,22 +210,26 @@ class ContactRows(ContactSet):
         """The unit sliding direction of body 2 relative to body 1 at each patch point (world).
 
         Each point's own: the tangential part v_t of its relative velocity (J_p2 - J_p1) v
-        (``ex["vr"]``), blended with the pair's onset direction s0 below :data:`STICK_SPEED`,
-        s = (v_t + STICK_SPEED s0) / |...| (s0 where that is zero), so a slip starting from
-        rest has the direction of its onset and a slowing slide keeps a smooth direction until
-        its stick event. The friction force -mu lambda s then does work
-        -mu lambda s . v_t <= 0 at every point (to the blend's STICK_SPEED): a patch spinning
-        about its normal slides its points in different directions, and the direction of
-        the patch centre for all of them made friction push some points along their slide
-        (energy gained; measured 0.95 J on a random start). The same rule as the compiled
-        engine's ``point_slip_direction`` (src/native/rows.hpp).
+        (``ex["vr"]``), blended with the tangential part s0_t of the pair's onset direction s0
+        below :data:`STICK_SPEED`, s = (v_t + STICK_SPEED s0_t) / |...| (s0 where that is
+        zero), so a slip starting from rest has the direction of its onset and a slowing slide
+        keeps a smooth direction until its stick event. The friction force -mu lambda s then
+        does work -mu lambda s . v_t <= 0 at every point (to the blend's STICK_SPEED): a patch
+        spinning about its normal slides its points in different directions, and the
+        direction of the patch centre for all of them made friction push some points along
+        their slide (energy gained; measured 0.95 J on a random start). s0 is fixed in the
+        world at the onset and the normal turns with its body: s0 itself gave s a normal part
+        (0.17 on wrist-locked start 26 at mu 1.2, 0.4 s after the onset), a force along n at
+        the material points 2.2 cm apart, which did +0.6 W of work. The same rule as the
+        compiled engine's ``point_slip_direction`` (src/native/rows.hpp).
 
         Returns:
             (K, 3): one direction per patch point of the pair, in the pair's row order.
         """
         vr = ex["vr"]  # (K, 3) the points' relative velocities p2' - p1' [m/s]
         n = ex["n"]
-        w = vr - np.outer(vr @ n, n) + STICK_SPEED * p.slip_dir
+        s0 = p.slip_dir
+        w = vr - np.outer(vr @ n, n) + STICK_SPEED * (s0 - (s0 @ n) * n)
         nw = np.sqrt(np.einsum("ki,ki->k", w, w))
         out = np.empty_like(w)
         for j in range(len(w)):

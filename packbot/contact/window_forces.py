@@ -14,14 +14,16 @@ configuration q0, where the step's Jacobians were taken:
 * a row with no normal impulse is not reported (it is in the set, not in contact).
 
 With these the step's equations close exactly: h (sum of J^T f + the stops' torques) =
-M (v1 - v_f) at q0, with v_f the step's free velocity (tests/test_window_forces.py). A step whose
-energy guard scaled its end velocity back (``StepInfo.removed``) applied the impulses recorded
-here, not the scaled ones.
+M (v1 - v_f) at q0, with v_f the step's free velocity and v1 its end velocity as solved
+(tests/test_window_forces.py). A step whose energy guard scaled its end velocity back
+(``StepInfo.removed``) reports the impulses it solved, not the scaled ones. A sample at a
+window's opening instant is recorded before the window's first step: its forces are not known.
 """
 
 from __future__ import annotations
 
 import bisect
+import math
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -35,7 +37,7 @@ if TYPE_CHECKING:
     from packbot.contact.normal_contacts import NormalContacts
     from packbot.contact.normal_patch import _Pair
 
-__all__ = ["WindowForces"]
+__all__ = ["WindowForces", "step_forces"]
 
 FloatArray = NDArray[np.float64]
 
@@ -62,7 +64,14 @@ class WindowForces:
         self._steps.clear()
 
     def keep(self, t0: float, t1: float, q0: FloatArray, x: FloatArray) -> None:
-        """Keep a step [t0, t1] from q0 and its impulses x on the contact set's rows as now."""
+        """Keep a step and its impulses on the contact set's rows as they are now.
+
+        Args:
+            t0: The step's start [s].
+            t1: Its end [s].
+            q0: Its start configuration [rad].
+            x: Its impulses (:func:`step_forces`).
+        """
         c = self.contacts
         self._ends.append(t1 + 1e-12)
         self._steps.append(
@@ -74,8 +83,10 @@ class WindowForces:
         """The forces of the step that holds t [s], or None: no step kept holds t.
 
         The step that holds t is the loop's for a step's samples: the first whose end + 1e-12 s
-        reaches t.
+        reaches t. A time that is not finite (a caller that gave none) is held by no step.
         """
+        if not math.isfinite(t):
+            return None
         i = bisect.bisect_left(self._ends, t)
         if i >= len(self._steps) or t < self._steps[i][0] - 1e-12:
             return None
@@ -106,6 +117,10 @@ def step_forces(
         pairs: The pairs of its rows, in order.
         limits: Its limits (joint, side), in order.
         nv: Velocity dimension.
+
+    Returns:
+        Per patch point with a normal impulse, (names, point, point1, point2 [m], normal,
+        mean force on body 2 [N]), world frame; the stops' mean torques [N*m] (nv,).
     """
     limit = np.zeros(nv)
     if not pairs and not limits:

@@ -109,18 +109,21 @@ inline void pinv(const double *G, int n, double rcond, std::vector<double> &out)
 
 // The sliding direction s (world, unit) of body 2 relative to body 1 at patch point k of pair
 // p, for its friction force -mu lambda s (ContactRows.slip_directions): the tangential part
-// v_t of the point's relative velocity (J_p2 - J_p1) v, blended with the pair's onset
-// direction s0 below stick_speed, s = (v_t + stick_speed s0) / |...| (s0 where that is zero).
-// Each point's own slide, not the patch centre's: a patch spinning about its normal slides
-// its points in different directions, and one direction for all would make friction do
-// positive work on some of them.
+// v_t of the point's relative velocity (J_p2 - J_p1) v, blended with the tangential part s0_t
+// of the pair's onset direction s0 below stick_speed, s = (v_t + stick_speed s0_t) / |...|
+// (s0 where that is zero). Each point's own slide, not the patch centre's: a patch spinning
+// about its normal slides its points in different directions, and one direction for all
+// would make friction do positive work on some of them. s0 is fixed in the world at the
+// onset and the normal turns with its body: s0 itself would give s a normal part, a force
+// along n applied at the material points, which did work (+0.6 W on a slowing slide).
 inline void point_slip_direction(const double *dJp_k, const double *n, const double *v, int nv,
                                  const double *s0, double stick_speed, double *s) {
   double vr[3];
   for (int i = 0; i < 3; ++i) vr[i] = dense::dot(dJp_k + i * nv, v, nv);
   const double vn = vr[0] * n[0] + vr[1] * n[1] + vr[2] * n[2];
+  const double sn = s0[0] * n[0] + s0[1] * n[1] + s0[2] * n[2];
   double w[3];
-  for (int i = 0; i < 3; ++i) w[i] = vr[i] - vn * n[i] + stick_speed * s0[i];
+  for (int i = 0; i < 3; ++i) w[i] = vr[i] - vn * n[i] + stick_speed * (s0[i] - sn * n[i]);
   const double nw = dense::norm3(w);
   for (int i = 0; i < 3; ++i) s[i] = nw > 0.0 ? w[i] / nw : s0[i];
 }
