@@ -8,7 +8,9 @@ Prints two tables:
   ``mj_contactForce``) finds it at its own rest;
 - the collapse's wall time [s] with the forces recorded (as ``simulate`` runs) and with the
   recorder's contact sampler replaced by one that records none, interleaved in one process,
-  medians of ``--repeats`` runs each.
+  medians of ``--repeats`` runs each; the same for a window-heavy wrist-free random start
+  (start 16 of ``benchmarks/robustness.py``, mu 0.5, e 0, 1.5 s, 1 ms samples: its window
+  samples' forces are read from their steps' impulses).
 
     python benchmarks/contact_forces.py [--repeats 9]
 """
@@ -57,6 +59,14 @@ def _mujoco_forces(robot: packbot.Robot) -> dict[frozenset[str], float]:
     return out
 
 
+def _windowed(robot: packbot.Robot) -> packbot.SimResult:
+    from robustness import start_poses  # (the benchmark's poses; benchmarks/ on the path)
+
+    cfg = packbot.SimConfig(contact_mode="normal", mu=MU, restitution=0.0, sample_dt=1e-3)
+    q0 = start_poses(robot, 17, 2026, 2 * cfg.contact_tolerance)[16]
+    return packbot.simulate(robot, q0, np.zeros(robot.nq), 1.5, config=cfg)
+
+
 def _none(drive: Any, law: Any) -> Any:
     return lambda t, y: None
 
@@ -78,22 +88,23 @@ def main(argv: list[str] | None = None) -> None:
         key = frozenset({p1.replace("/", "__"), p2.replace("/", "__")})
         print(f"| {p1} - {p2} | {fn:.2f} | {mj.get(key, float('nan')):.2f} |")
     real = recorder.contact_sampler
-    times: dict[str, list[float]] = {"recorded": [], "not recorded": []}
-    _collapse(robot)  # (warm)
-    for _ in range(args.repeats):
-        for name in times:
-            recorder.contact_sampler = real if name == "recorded" else _none  # type: ignore[assignment]
-            t0 = time.perf_counter()
-            _collapse(robot)
-            times[name].append(time.perf_counter() - t0)
-    recorder.contact_sampler = real  # type: ignore[assignment]
-    print()
-    print(f"| collapse, 3 s ({args.repeats} interleaved runs) | median wall time [s] | ratio |")
-    print("|---|---|---|")
-    base = statistics.median(times["not recorded"])
-    for name, ts in times.items():
-        med = statistics.median(ts)
-        print(f"| contact forces {name} | {med:.4f} | {med / base:.2f} |")
+    for label, run in (("collapse, 3 s", _collapse), ("wrist-free start 16, 1.5 s", _windowed)):
+        times: dict[str, list[float]] = {"recorded": [], "not recorded": []}
+        run(robot)  # (warm)
+        for _ in range(args.repeats):
+            for name in times:
+                recorder.contact_sampler = real if name == "recorded" else _none  # type: ignore[assignment]
+                t0 = time.perf_counter()
+                run(robot)
+                times[name].append(time.perf_counter() - t0)
+        recorder.contact_sampler = real  # type: ignore[assignment]
+        print()
+        print(f"| {label} ({args.repeats} interleaved runs) | median wall time [s] | ratio |")
+        print("|---|---|---|")
+        base = statistics.median(times["not recorded"])
+        for name, ts in times.items():
+            med = statistics.median(ts)
+            print(f"| contact forces {name} | {med:.4f} | {med / base:.2f} |")
 
 
 if __name__ == "__main__":
