@@ -1197,16 +1197,21 @@ def _run_pool(
             inflight: dict[Future[tuple[RunRecord, RunFiles]], Run] = {}
             alone: Run | None = None  # the run submitted alone, if any
             lost: list[Run] = []
+            broken = False  # (a submit found the pool broken: a worker died since the last wait)
+
             try:
-                while (queue or isolate or inflight) and not lost:
+                while (queue or isolate or inflight) and not lost and not broken:
                     if isolate:
                         if not inflight:
                             alone = isolate.popleft()
-                            inflight[pool.submit(execute, alone, runner, timeout, "local")] = alone
+                            broken = not _submit(pool, inflight, alone, isolate, runner, timeout)
+                            alone = None if broken else alone
                     else:
-                        while queue and len(inflight) <= n:
+                        while queue and len(inflight) <= n and not broken:
                             run = queue.popleft()
-                            inflight[pool.submit(execute, run, runner, timeout, "local")] = run
+                            broken = not _submit(pool, inflight, run, queue, runner, timeout)
+                    if broken and not inflight:
+                        break
                     done, _ = wait(inflight, return_when=FIRST_COMPLETED)
                     for fut in done:
                         run = inflight.pop(fut)
@@ -1233,6 +1238,27 @@ def _run_pool(
                 ids = ", ".join(r.id for r in lost)
                 log.warning("a worker process died; running again one at a time: %s", ids)
                 isolate.extend(lost)
+
+
+def _submit(
+    pool: ProcessPoolExecutor,
+    inflight: dict[Future[tuple[RunRecord, RunFiles]], Run],
+    run: Run,
+    back: deque[Run],
+    runner: Runner,
+    timeout: float | None,
+) -> bool:
+    """Submit ``run`` to ``pool`` (into ``inflight``); False if the pool is broken already.
+
+    A worker that died since the last wait breaks the pool before its future says so: the run
+    goes back to the front of ``back`` (not started, it cannot have killed the worker).
+    """
+    try:
+        inflight[pool.submit(execute, run, runner, timeout, "local")] = run
+    except BrokenProcessPool:
+        back.appendleft(run)
+        return False
+    return True
 
 
 def _terminate(pool: ProcessPoolExecutor) -> None:

@@ -896,3 +896,22 @@ def test_the_same_matrix_written_differently_is_accepted(tmp_path: Path) -> None
     m4 = Matrix(name="toy", base="toy", axes={"x": [1.0, 2.5]})
     with pytest.raises(ConfigurationError, match="another version of matrix 'toy'.*in: axes;"):
         run_batch(m4, out, runs=runs, workers=0, runner=toy_runner)
+
+
+def test_a_submit_to_a_pool_a_worker_just_broke_puts_the_run_back(tmp_path: Path) -> None:
+    # A worker that died between two waits breaks the pool before any future says so: the next
+    # submit raises BrokenProcessPool. The run goes back to the front of its queue, not started
+    # (it cannot have killed the worker), and the pool is replaced (CI saw the raise escape).
+    from collections import deque
+    from concurrent.futures.process import BrokenProcessPool
+
+    class Broken:
+        def submit(self, *args: Any, **kwargs: Any) -> Any:
+            raise BrokenProcessPool("a child process terminated abruptly")
+
+    _, runs = toy_runs(tmp_path)
+    queue = deque(runs[1:])
+    inflight: dict[Any, Any] = {}
+    ok = batch_module._submit(Broken(), inflight, runs[0], queue, toy_runner, None)  # type: ignore[arg-type]
+    assert not ok and not inflight
+    assert list(queue) == runs
