@@ -149,6 +149,9 @@ class ContactRhs:
     def energies(
         self, Q: NDArray[np.float64], V: NDArray[np.float64], out: NDArray[np.float64]
     ) -> None: ...
+    def neutral_velocity(
+        self, q0: NDArray[np.float64], q1: NDArray[np.float64], v: NDArray[np.float64]
+    ) -> float: ...
     def end_locks(
         self, y1: NDArray[np.float64]
     ) -> tuple[NDArray[np.float64], NDArray[np.float64]] | None: ...

@@ -2,41 +2,22 @@
 
 from __future__ import annotations
 
-import io
-import json
-import os
-import tempfile
-from collections.abc import Callable, Mapping
-from dataclasses import asdict, dataclass, field, fields
+from collections.abc import Mapping
+from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Literal, TypeVar
+from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
 from numpy.typing import NDArray
 
-from packbot import result_file
+from packbot import result_file, result_store
 from packbot.config import SimConfig
 from packbot.contact_forces import ContactForce, ContactTable, joint_torque
 from packbot.contact_impulses import ContactImpulse, ImpactTable
-from packbot.errors import (
-    ConfigurationError,
-    PackbotError,
-    ResultFileError,
-    ResultValueError,
-    UnknownNameError,
-)
+from packbot.errors import ConfigurationError, PackbotError, ResultFileError, UnknownNameError
 from packbot.failures import Failure
 from packbot.keywords import checked_arguments
-from packbot.result_file import (
-    CONTACT_INTS,
-    CONTACT_VECTORS,
-    EVENT_FLOATS,
-    EVENT_STRINGS,
-    SAMPLE_ARRAYS,
-    SavedResult,
-    check_value,
-    read_saved,
-)
+from packbot.result_file import SAMPLE_ARRAYS, read_saved
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -51,11 +32,6 @@ __all__ = ["EVENT_KINDS", "RESULT_FORMAT", "Diagnostics", "Event", "ResultFileEr
 RESULT_FORMAT = result_file.RESULT_FORMAT
 #: The arrays of a result, each saved as it is.
 _ARRAYS = SAMPLE_ARRAYS
-#: The float fields of an event (saved as arrays, so NaN and every bit survive).
-_EVENT_FLOATS = EVENT_FLOATS
-#: The string fields of an event (saved as JSON).
-_EVENT_STRINGS = EVENT_STRINGS
-T = TypeVar("T")
 
 
 EventKind = Literal[
@@ -179,6 +155,12 @@ class Diagnostics:
         window_energy_removed: Energy the windows' guard removed [J]: the sum over their steps
             of what a step would have gained beyond the applied torques' work
             (:mod:`packbot.contact.timestep`).
+        projection_energy_removed: Energy the contact-normal mode's drift projections took
+            from the kinetic energy [J]: a projection moves the arm out of the surfaces it was
+            carried into, which would add the potential energy the motion into them had turned
+            into kinetic; it scales the velocity to leave the energy as it was
+            (:meth:`NormalContacts.neutral_velocity
+            <packbot.contact.normal_contacts.NormalContacts.neutral_velocity>`).
     """
 
     steps: int = 0
@@ -194,6 +176,7 @@ class Diagnostics:
     windows: int = 0
     window_steps: int = 0
     window_energy_removed: float = 0.0
+    projection_energy_removed: float = 0.0
 
 
 @checked_arguments
@@ -329,7 +312,6 @@ class SimResult:
             )
         return robot
 
-    @checked_arguments
     @checked_arguments
     def contacts_at(self, t: float, *, before: bool = False) -> list[ContactForce]:
         """The contacts at sample time t, each with its force (world frame).
@@ -480,91 +462,7 @@ class SimResult:
         Raises:
             ConfigurationError: An ``extra`` name that the file's own entries use.
         """
-        from packbot import __version__
-
-        out = Path(path)
-        if out.is_dir():
-            raise PackbotError(f"cannot save a result to {str(out)!r}: it is a directory")
-        arrays: dict[str, Any] = {
-            name: np.asarray(getattr(self, name), dtype=np.float64) for name in _ARRAYS
-        }
-        ev = self.events
-        for name in _EVENT_FLOATS:
-            arrays[f"event_{name}"] = np.array([getattr(e, name) for e in ev], dtype=np.float64)
-        for name in ("v_before", "v_after"):
-            vs = [np.asarray(getattr(e, name), dtype=np.float64).ravel() for e in ev]
-            arrays[f"event_{name}_len"] = np.array([len(x) for x in vs], dtype=np.int64)
-            arrays[f"event_{name}"] = np.concatenate(vs) if vs else np.zeros(0)
-        table = self.contacts
-        for name in CONTACT_INTS:
-            arrays[f"contact_{name}"] = np.asarray(getattr(table, name), dtype=np.int64)
-        for name in CONTACT_VECTORS:
-            arrays[f"contact_{name}"] = np.asarray(getattr(table, name), dtype=np.float64)
-        arrays["contact_known"] = self.contacts_known.astype(np.int64)
-        arrays["contact_limit_torque"] = self.limit_torque
-        imp = self.impacts
-        arrays["impact_t"] = np.asarray(imp.t, dtype=np.float64)
-        for name in CONTACT_INTS:
-            arrays[f"impact_{name}"] = np.asarray(getattr(imp.rows, name), dtype=np.int64)
-        for name in CONTACT_VECTORS:
-            arrays[f"impact_{name}"] = np.asarray(getattr(imp.rows, name), dtype=np.float64)
-        arrays["impact_limit_impulse"] = np.asarray(imp.limit_impulse).reshape(
-            len(imp), len(self.joint_names)
-        )
-        meta = {
-            "format": RESULT_FORMAT,
-            "packbot_version": __version__,
-            "joint_names": list(self.joint_names),
-            "rest_time": self.rest_time,
-            "control_ticks": int(self.control_ticks),
-            "config": asdict(self.config),
-            "diagnostics": asdict(self.diagnostics),
-            "failures": [asdict(f) for f in self.failures],
-            "environment": None if self.environment is None else asdict(self.environment),
-            "payload": None if self.payload is None else asdict(self.payload),
-            "scenario_text": self.scenario_text,
-            "events": [
-                {
-                    **{name: getattr(e, name) for name in _EVENT_STRINGS},
-                    "relevant_joints": list(e.relevant_joints),
-                }
-                for e in ev
-            ],
-            "contact_pairs": [list(p) for p in table.pairs],
-            "impact_pairs": [list(p) for p in imp.rows.pairs],
-        }
-        arrays["format"] = np.array(RESULT_FORMAT)
-        arrays["meta_json"] = np.array(json.dumps(meta, allow_nan=True))
-        # Plain copies for a reader with NumPy alone (the keys of packbot's scenario writer);
-        # load() reads meta_json.
-        arrays |= {
-            "joint_names": np.array(self.joint_names, dtype=str),
-            "scenario_text": np.array(self.scenario_text),
-            "packbot_version": np.array(__version__),
-            "config_json": np.array(json.dumps(meta["config"])),
-            "rest_time": np.array(np.nan if self.rest_time is None else self.rest_time),
-        }
-        for name, text in (extra or {}).items():
-            if name in arrays or name.startswith("event_"):
-                raise ConfigurationError(
-                    f"extra[{name!r}]", name, "a name the file's own entries do not use"
-                )
-            arrays[name] = np.array(str(text))
-        buf = io.BytesIO()
-        np.savez_compressed(buf, **arrays)
-        out.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(dir=out.parent, prefix=f".{out.name}.", suffix=".tmp")
-        try:
-            with os.fdopen(fd, "wb") as fh:
-                fh.write(buf.getvalue())
-            umask = os.umask(0o022)  # mkstemp makes the file private: give it the usual mode
-            os.umask(umask)
-            os.chmod(tmp, 0o666 & ~umask)
-            os.replace(tmp, out)
-        except BaseException:
-            Path(tmp).unlink(missing_ok=True)
-            raise
-        return out
+        return result_store.write_result(self, path, extra)
 
     @classmethod
     @checked_arguments
@@ -587,75 +485,8 @@ class SimResult:
             ResultValueError: A stored setting, obstacle, failure or payload that its
                 constructor refuses (both a ``ResultFileError`` and a ``ConfigurationError``).
         """
-        return cls._from_saved(read_saved(path))
-
-    @classmethod
-    def _from_saved(cls, saved: SavedResult) -> SimResult:
-        """The result from a file's checked contents (the objects through their constructors)."""
-        from packbot.environment import Environment, Obstacle
-        from packbot.payload import Payload
-
-        meta = saved.meta
-        env = meta["environment"]
-        environment = None
-        if env is not None:
-            obstacles = tuple(
-                _rebuild(saved, f"meta_json.environment.obstacles[{k}]", Obstacle, ob)
-                for k, ob in enumerate(env["obstacles"])
-            )
-            environment = _rebuild(
-                saved, "meta_json.environment", Environment, {"obstacles": obstacles}
-            )
-        pay = meta["payload"]
-        ev_meta = meta["events"]
-        for k, em in enumerate(ev_meta):
-            if em["kind"] not in EVENT_KINDS:
-                saved.fail(
-                    f"meta_json.events[{k}].kind",
-                    f"{em['kind']!r} (expected one of {', '.join(EVENT_KINDS)})",
-                )
-        floats, vels = saved.event_floats, saved.event_velocities
-        events = [
-            Event(
-                t=float(floats["t"][k]),
-                kind=em["kind"],
-                link1=em["link1"],
-                link2=em["link2"],
-                piece1=em["piece1"],
-                piece2=em["piece2"],
-                distance=float(floats["distance"][k]),
-                relevant_joints=tuple(em["relevant_joints"]),
-                v_before=vels["v_before"][k],
-                v_after=vels["v_after"][k],
-                energy_before=float(floats["energy_before"][k]),
-                energy_after=float(floats["energy_after"][k]),
-            )
-            for k, em in enumerate(ev_meta)
-        ]
-        diag = meta["diagnostics"]
-        _known_fields(saved, "meta_json.diagnostics", Diagnostics, diag)
-        for f in fields(Diagnostics):
-            if f.name in diag:
-                kind = type(f.default).__name__  # int, float or str
-                check_value(diag[f.name], saved.fail, f"meta_json.diagnostics.{f.name}", kind)
-        return cls(
-            **saved.arrays,
-            events=events,
-            rest_time=meta["rest_time"],
-            joint_names=tuple(meta["joint_names"]),
-            config=_rebuild(saved, "meta_json.config", SimConfig, meta["config"]),
-            diagnostics=Diagnostics(**diag),
-            failures=tuple(
-                _rebuild(saved, f"meta_json.failures[{k}]", Failure, f)
-                for k, f in enumerate(meta["failures"])
-            ),
-            control_ticks=meta["control_ticks"],
-            environment=environment,
-            payload=None if pay is None else _rebuild(saved, "meta_json.payload", Payload, pay),
-            scenario_text=meta["scenario_text"],
-            contacts=ContactTable(pairs=tuple(meta["contact_pairs"]), **saved.contacts),
-            impacts=_impacts(saved, len(meta["joint_names"])),
-        )
+        saved = read_saved(path)
+        return result_store.rebuild_result(saved, cls, Event, Diagnostics, EVENT_KINDS)
 
     @checked_arguments
     def to_dataframe(
@@ -723,49 +554,6 @@ class SimResult:
                 columns[f"{name}:{joint}"] = arr[:, k]
         columns["energy"] = np.asarray(self.energy)
         return pd.DataFrame(columns, index=pd.Index(np.asarray(self.t), name="t"))
-
-
-def _impacts(saved: SavedResult, n_joints: int) -> ImpactTable:
-    """The impacts of a file's checked contents (none for a file of an earlier format)."""
-    cols = dict(saved.impacts)
-    if not cols:
-        return ImpactTable(rows=ContactTable(limit_torque=np.zeros((0, n_joints))))
-    t = cols.pop("t")
-    rows = ContactTable(
-        pairs=tuple(saved.meta["impact_pairs"]), known=np.ones(len(t), dtype=bool), **cols
-    )
-    return ImpactTable(t=t, rows=rows)
-
-
-def _tuples(value: Any) -> Any:
-    """JSON lists back to the tuples the dataclasses hold (recursively)."""
-    if isinstance(value, list):
-        return tuple(_tuples(v) for v in value)
-    return value
-
-
-def _known_fields(saved: SavedResult, entry: str, cls: type, values: Mapping[str, Any]) -> None:
-    """Every key of ``values`` is a field of the dataclass ``cls`` (else the entry's error)."""
-    names = [f.name for f in fields(cls)]
-    for key in values:
-        if key not in names:
-            saved.fail(f"{entry}.{key}", f"an unknown field (expected one of {', '.join(names)})")
-
-
-def _rebuild(saved: SavedResult, entry: str, cls: Callable[..., T], values: Mapping[str, Any]) -> T:
-    """``cls(**values)`` (JSON lists as tuples), its refusal an error naming the file's entry.
-
-    Raises:
-        ResultValueError: The constructor refused a value (a ``ConfigurationError``).
-        ResultFileError: An unknown or missing field, or another refusal of the constructor.
-    """
-    _known_fields(saved, entry, cls, values)  # type: ignore[arg-type]
-    try:
-        return cls(**{k: _tuples(v) for k, v in values.items()})
-    except ConfigurationError as exc:
-        raise ResultValueError(saved.path, entry, exc) from exc
-    except (PackbotError, TypeError, ValueError, OverflowError) as exc:
-        saved.fail(entry, f"{type(exc).__name__}: {exc}")
 
 
 def rest_time(t: NDArray[np.float64], v: NDArray[np.float64], speed: float) -> float | None:

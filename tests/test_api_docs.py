@@ -96,6 +96,7 @@ INTERNAL_MODULES = {
     "packbot.paths",
     "packbot.recorder",
     "packbot.result_file",
+    "packbot.result_store",
     "packbot.scenario_schema",
     "packbot.schedule",
     "packbot.srdfgen",
@@ -104,6 +105,7 @@ INTERNAL_MODULES = {
     "packbot.ticks",
     "packbot.tolerances",
     "packbot.tomlfile",
+    "packbot.urdf_check",
     "packbot.urdfgen",
     "packbot.validation",
 }

@@ -126,3 +126,54 @@ def test_the_collapse_comes_to_rest_without_penetrating_or_gaining_energy(robot)
     flows = np.diff(t) > 0.0  # (an event's pre and post samples share a time)
     assert float(np.diff(E)[flows].max()) <= 1e-6
     assert E[-1] < E[0]
+
+
+def _lifted(robot, rng):
+    """(q0, q1, v): a configuration, one moved by a small step against gravity (its potential
+    energy higher, as a projection out of a surface gravity pressed the arm into), a velocity."""
+    model, data = robot.model, robot.model.createData()
+    q0 = pin.neutral(model) + 0.3 * rng.standard_normal(model.nq)
+    g = pin.computeGeneralizedGravity(model, data, q0)  # dV/dq [N*m]
+    q1 = q0 + 1e-5 * g / np.linalg.norm(g)  # (up the potential's gradient)
+    return q0, q1, rng.standard_normal(model.nv)
+
+
+def test_a_projections_velocity_leaves_the_energy_as_it_was(robot, rng):
+    """``neutral_velocity``: a projection q0 -> q1 that would raise the energy by moving the arm
+    against gravity with v kept scales v (its direction kept: every velocity condition of a
+    contact set is homogeneous) so that E(q1, v1) = E(q0, v), measured by Pinocchio's Python
+    bindings (armature included); the energy removed is the kinetic energy's
+    fall. Where the kinetic energy is smaller than the rise, v goes to zero; a move that lowers
+    the energy is left as it is. Tolerances: rounding of energies of ~10 J (1e-12 relative)."""
+    model, data = robot.model, robot.model.createData()
+
+    def mass(q):
+        M = pin.crba(model, data, q)  # (armature on its diagonal; the upper triangle)
+        return np.triu(M) + np.triu(M, 1).T
+
+    def energy(q, v):  # (as Pinocchio's Python bindings give it)
+        return 0.5 * float(v @ mass(q) @ v) + pin.computePotentialEnergy(model, data, q)
+
+    rhs = native.native_rhs(robot.model)
+    for _ in range(5):
+        q0, q1, v = _lifted(robot, rng)
+        rise = energy(q1, v) - energy(q0, v)
+        assert rise > 1e-6  # (the lift does raise it)
+        v1, removed = rhs.neutral_velocity(q0, q1, v)
+        e0 = energy(q0, v)
+        assert energy(q1, v1) == pytest.approx(e0, rel=1e-12, abs=1e-12)
+        s = float(v1 @ v) / float(v @ v)
+        assert 0.0 < s < 1.0
+        np.testing.assert_allclose(v1, s * v, rtol=0.0, atol=1e-14 * np.abs(v).max())
+        kin = 0.5 * float(v @ mass(q1) @ v)
+        assert removed == pytest.approx(kin * (1.0 - s * s), rel=1e-9)
+        assert removed == pytest.approx(rise, rel=1e-9)
+        # too slow to pay for the lift: at rest, the kinetic energy all removed
+        slow = 1e-6 * v
+        v2, removed2 = rhs.neutral_velocity(q0, q1, slow)
+        assert not v2.any()
+        assert removed2 == pytest.approx(0.5 * float(slow @ mass(q1) @ slow))
+        # the move back down lowers the energy: left as it is
+        v3, removed3 = rhs.neutral_velocity(q1, q0, v)
+        np.testing.assert_array_equal(v3, v)
+        assert removed3 == 0.0

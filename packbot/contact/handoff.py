@@ -270,7 +270,9 @@ class HandoffContacts(NormalContacts):
         with self._locked():
             return super().select_modes(q, v, a_c, minv_c, keep=keep)
 
-    def repatch(self, q: FloatArray, v: FloatArray, a_free_fn: Any, minv: FloatArray) -> FloatArray:
+    def repatch(
+        self, q: FloatArray, v: FloatArray, a_free_fn: Any, minv: FloatArray
+    ) -> tuple[FloatArray, FloatArray]:
         """The normal mode's re-patch, bilateral joints locked."""
         if self._bypass():
             return super().repatch(q, v, a_free_fn, minv)

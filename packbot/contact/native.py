@@ -356,6 +356,26 @@ class NativeRhs:
         self._rhs.energies(_reals(q), _reals(v), out)
         return out
 
+    def neutral_velocity(
+        self, q0: FloatArray, q1: FloatArray, v: FloatArray
+    ) -> tuple[FloatArray, float]:
+        """A drift projection q0 -> q1's velocity that adds no energy, and the energy removed.
+
+        ``ContactRhs.neutral_velocity`` (:meth:`NormalContacts.neutral_velocity
+        <packbot.contact.normal_contacts.NormalContacts.neutral_velocity>`).
+
+        Args:
+            q0: Configuration before the projection [rad].
+            q1: Configuration after it [rad].
+            v: Velocity [rad/s] (not modified).
+
+        Returns:
+            The velocity [rad/s] and the energy removed [J] (0 where the move adds none).
+        """
+        out = np.array(v, dtype=np.float64)
+        removed = self._rhs.neutral_velocity(_reals(q0), _reals(q1), out)
+        return out, float(removed)
+
     def window_step(
         self, contacts: NormalContacts, y: FloatArray, h: float, **kw: Any
     ) -> tuple[int, FloatArray | None, float, int, float, tuple[float, float, float] | None]:

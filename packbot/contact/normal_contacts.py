@@ -50,6 +50,7 @@ class NormalContacts(RestartSteps, ModeSelection):
         q_in = q
         q = self.project(q, v, minv)
         if q is not q_in and not np.array_equal(q, q_in):
+            v = self.neutral_velocity(q_in, q, v)
             # the impulse's energy balance is exact only with M at the q it acts on
             minv = np.array(pin.computeMinverse(self.model, self.data, q), dtype=np.float64)
             lower = self._lower  # (Pinocchio fills the upper triangle)
@@ -63,7 +64,9 @@ class NormalContacts(RestartSteps, ModeSelection):
         events += self.select_modes(q, v, a_free_fn(q, v), minv)
         return q, v, events
 
-    def repatch(self, q: FloatArray, v: FloatArray, a_free_fn: Any, minv: FloatArray) -> FloatArray:
+    def repatch(
+        self, q: FloatArray, v: FloatArray, a_free_fn: Any, minv: FloatArray
+    ) -> tuple[FloatArray, FloatArray]:
         """Recompute the patches of a sliding contact, correct drift and select the modes again.
 
         The engaged rows before are kept when they still solve the mode problem
@@ -71,10 +74,33 @@ class NormalContacts(RestartSteps, ModeSelection):
         ``select_modes(keep=True)``.
 
         Returns:
-            The corrected configuration [rad].
+            The corrected configuration [rad] and the velocity after it [rad/s]
+            (:meth:`neutral_velocity`).
         """
         signature, engaged = self.row_signature(), list(self.engaged)
         self.refresh(q)
+        q_in = q
         q = self.project(q, v, minv)
+        if q is not q_in and not np.array_equal(q, q_in):
+            v = self.neutral_velocity(q_in, q, v)
         self.repatch_modes(q, v, a_free_fn(q, v), minv, signature, engaged)
-        return q
+        return q, v
+
+    def neutral_velocity(self, q0: FloatArray, q1: FloatArray, v: FloatArray) -> FloatArray:
+        """The velocity after a drift projection q0 -> q1 that adds no energy [rad/s].
+
+        The projection moves the arm out of the surfaces it drifted or was carried into (an
+        event's tolerance, a stale patch's last micrometres) along the rows' normals, against
+        gravity when gravity pressed it in, and keeps the velocity: the energy
+        E = 1/2 v^T M(q) v + V(q) would rise by E(q1, v) - E(q0, v), energy the motion into
+        the surface had turned from potential into kinetic. A positive change is taken from
+        the kinetic energy by scaling v (the least change of v in the metric M(q1) that
+        reaches the energy, and one that keeps every velocity condition of the contact set:
+        they are homogeneous); to zero where the kinetic energy is smaller. A change that
+        lowers the energy is left. The removed energy is added to
+        :attr:`projection_energy_removed` [J]. The extension's ``ContactRhs.neutral_velocity``
+        (the compiled stretch's re-patch calls it too).
+        """
+        v1, removed = self._rows_rhs().neutral_velocity(q0, q1, v)
+        self.projection_energy_removed += removed
+        return v1

@@ -101,6 +101,9 @@ class ContactSet:
         self.limits: dict[tuple[int, int], float] = {}  # (joint, side) -> limit [rad]
         self.engaged: list[int] = []  # row indices
         self.n_painleve = 0
+        #: Energy the drift projections' velocity scaling removed [J]
+        #: (``NormalContacts.neutral_velocity``).
+        self.projection_energy_removed = 0.0
         #: Joint Coulomb friction and brake torques F_j [N*m] (0: none) and the drive's sliding
         #: directions, for the rest capture (set by the law; None: no joint friction).
         self.joint_coulomb: FloatArray | None = None

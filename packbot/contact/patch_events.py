@@ -131,7 +131,9 @@ class PatchEvents(PairLaw):
         coul = self.drive.path.coulomb
         contacts.joint_coulomb = coul if coul.any() else None
         contacts.joint_fdir = self.drive.fdir
+        removed = contacts.projection_energy_removed
         q1, v1, events = contacts.restart(q, v, a_free, self.sys.minv(q))
+        self.diag.projection_energy_removed += contacts.projection_energy_removed - removed
         if contacts.impact_rows is not None:  # (its impulses, in the run's impact log)
             rows, P = contacts.impact_rows
             found = row_impulses(contacts, contacts.model.createData(), q1, rows, P)
@@ -148,5 +150,7 @@ class PatchEvents(PairLaw):
         def a_free(qq: FloatArray, vv: FloatArray) -> FloatArray:
             return self.free_accel(t, np.concatenate([qq, vv, tail]))
 
-        q = contacts.repatch(q, v, a_free, self.sys.minv(q))
+        removed = contacts.projection_energy_removed
+        q, v = contacts.repatch(q, v, a_free, self.sys.minv(q))
+        self.diag.projection_energy_removed += contacts.projection_energy_removed - removed
         return np.concatenate([q, v, tail])

@@ -383,6 +383,8 @@ def adopt_repatches(law: NormalLaw, out: dict[str, Any]) -> None:
         if not np.array_equal(sd, p.slip_dir):
             p.slip_dir = sd.copy()
     nc.engaged = rp["engaged"][0].tolist()
+    nc.projection_energy_removed += rp["energy_removed"]
+    law.diag.projection_energy_removed += rp["energy_removed"]
     for _ in range(rp["gave_up"]):
         log.warning("contact problem unsolved even with sticking contacts")
     law.diag.restarts += n

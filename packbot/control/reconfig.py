@@ -58,9 +58,9 @@ from packbot.control._common import (
     resolve_gains,
     resolve_vector3,
 )
+from packbot.control._goal_planner import GoalPlanner, ancestors
 from packbot.control.base import Sensor
 from packbot.control.detector import Detection, MomentumObserver, default_threshold
-from packbot.control.ik import solve_position_ik
 from packbot.control.model_based import ModelBasedController
 from packbot.control.path_check import path_warning
 from packbot.control.trajectory import MIN_JERK_PEAK_SPEED, QuinticSegment
@@ -300,146 +300,27 @@ class ReconfigurableController(ModelBasedController):
             )
             self.observer.reset(t0, np.asarray(q0, dtype=float), np.asarray(v0, dtype=float))
         q0 = np.asarray(q0, dtype=float)
-        goal, detail = self._solve_goal(q0, frozen=[])
+        goal, detail = self._planner().solve_goal(q0, frozen=[])
         self._start_move(t0, q0, np.asarray(v0, dtype=float), goal)
         self.events.append(ReconfigEvent(t=t0, kind="plan", detail=detail, q_goal=goal.copy()))
 
     # ------------------------------------------------------------------ planning
-    def _frame_joints(self, model: pin.Model) -> list[int]:
-        """Indices (into q of ``model``) of the joints that move the frame."""
-        fid = model.getFrameId(self.frame)
-        parent = model.frames[fid].parentJoint
-        return sorted(model.joints[j].idx_q for j in model.supports[parent] if j > 0)
-
-    def _ancestors(self, j: int) -> set[int]:
-        """Indices (into q) of the joints that carry joint ``j`` (``j`` excluded)."""
-        model, _ = self._md()
-        jid = model.getJointId(model.names[1 + j])
-        return {model.joints[i].idx_q for i in model.supports[jid] if 0 < i != jid}
-
-    def _clear(self, q_full: FloatArray) -> bool:
-        assert self._world is not None
-        return not self._world.in_collision(q_full, self.clearance)
-
-    def _swing_clear(self, q_full: FloatArray, loose: int, samples: int = 9) -> bool:
-        """Collision free with the loose joint anywhere within +/- swing_check of q_full."""
-        for dq in np.linspace(-self.swing_check, self.swing_check, samples):
-            qq = q_full.copy()
-            qq[loose] += dq
-            if not self._clear(qq):
-                return False
-        return True
-
-    def _path_clear(self, qa: FloatArray, qb: FloatArray, samples: int = 20) -> bool:
-        return all(self._clear(qa + s * (qb - qa)) for s in np.linspace(0.0, 1.0, samples)[1:])
-
-    def _candidates(self, q: FloatArray, active: list[int], lower: FloatArray, upper: FloatArray):  # type: ignore[no-untyped-def]
-        """Seeds: the current configuration, then random ones (active joints only)."""
-        yield q.copy()
-        for _ in range(self.ik_seeds):
-            s = q.copy()
-            s[active] = self._rng.uniform(lower[active], upper[active])
-            yield s
-
-    def _solve_goal(self, q: FloatArray, frozen: list[int]) -> tuple[FloatArray, str]:
-        """IK for the target with the frozen joints at their current angles (full coords)."""
-        model, _ = self._md()
-        if frozen:
-            ids = [model.getJointId(model.names[1 + j]) for j in frozen]
-            red = pin.buildReducedModel(model, ids, q)
-        else:
-            red = model
-        keep = np.array([j for j in range(model.nq) if j not in frozen], dtype=int)
-        active = self._frame_joints(red)
-        lower = np.asarray(red.lowerPositionLimit)
-        upper = np.asarray(red.upperPositionLimit)
-
-        def full(qr: FloatArray) -> FloatArray:
-            out = q.copy()
-            out[keep] = qr
-            return out
-
-        best: tuple[float, FloatArray, float] | None = None
-        fallback: tuple[float, FloatArray] | None = None
-        for k, seed in enumerate(self._candidates(q[keep], active, lower, upper)):
-            res = solve_position_ik(  # the clearance and the path are checked below
-                red, self.frame, self.target, seed, active=active, tol=1e-4, collision_free=False
-            )
-            if fallback is None or res.error < fallback[0]:
-                fallback = (res.error, res.q)
-            if not res.success:
-                continue
-            qf = full(res.q)
-            if not (self._clear(qf) and self._path_clear(q, qf)):
-                continue
-            cost = float(np.max(np.abs(qf - q)))
-            if best is None or cost < best[0]:
-                best = (cost, qf, res.error)
-            if k == 0:
-                break  # the solution nearest the current configuration is taken as is
-        if best is not None:
-            return best[1], f"IK error {best[2] * 1000:.3g} mm, {len(active)} joints"
-        assert fallback is not None
-        log.warning("no collision-free IK solution for the target; going to the closest point")
-        return full(fallback[1]), f"target out of reach: IK error {fallback[0] * 1000:.3g} mm"
-
-    def _solve_loose_goal(self, q: FloatArray, loose: int) -> tuple[FloatArray, str]:
-        """Goal with the loose joint at a stable equilibrium and the frame at the target."""
+    def _planner(self) -> GoalPlanner:
+        """The goal planner on the healthy model, with the current settings and generator."""
         model, data = self._md()
-        # The loose joint and the joints that carry it place the frame (the others keep their
-        # angles); if the loose joint does not carry the frame, all the frame's joints do.
-        frame_joints = set(self._frame_joints(model))
-        carry = self._ancestors(loose) | {loose}
-        movers = frame_joints & carry if loose in frame_joints else frame_joints | {loose}
-        active = sorted(j for j in movers if j not in self.failed or j == loose)
-        lower = np.asarray(model.lowerPositionLimit)[active]
-        upper = np.asarray(model.upperPositionLimit)[active]
-        k_loose = active.index(loose)
-        room = 0.5 * (upper[k_loose] - lower[k_loose])
-        lower[k_loose] += min(self.loose_margin, room - 1e-6)
-        upper[k_loose] -= min(self.loose_margin, room - 1e-6)
-        g_scale = 10.0  # [N*m per m]: weight of the equilibrium residual
-
-        def resid(x: FloatArray) -> FloatArray:
-            qq = q.copy()
-            qq[active] = x
-            pin.framesForwardKinematics(model, data, qq)
-            g = pin.computeGeneralizedGravity(model, data, qq)[loose]
-            return np.concatenate(
-                [data.oMf[self._frame_id].translation - self.target, [g / g_scale]]
-            )
-
-        def stable(qq: FloatArray) -> bool:
-            h = 1e-5
-            qp, qm = qq.copy(), qq.copy()
-            qp[loose] += h
-            qm[loose] -= h
-            gp = pin.computeGeneralizedGravity(model, data, qp)[loose]
-            gm = pin.computeGeneralizedGravity(model, data, qm)[loose]
-            return bool((gp - gm) / (2 * h) > 0)
-
-        from scipy.optimize import least_squares  # lazy: scipy.optimize costs ~65 ms of import
-
-        best: tuple[float, FloatArray] | None = None
-        for seed in self._candidates(
-            q, active, np.asarray(model.lowerPositionLimit), np.asarray(model.upperPositionLimit)
-        ):
-            x0 = np.clip(seed[active], lower + 1e-9, upper - 1e-9)
-            sol = least_squares(resid, x0, bounds=(lower, upper), xtol=1e-10, ftol=1e-12)
-            qq = q.copy()
-            qq[active] = sol.x
-            r = resid(sol.x)
-            if abs(r[3]) * g_scale > 1e-3 or not stable(qq) or not self._swing_clear(qq, loose):
-                continue
-            err = float(np.linalg.norm(r[:3]))
-            if best is None or err < best[0] - 1e-6:
-                best = (err, qq)
-            if err < 1e-4:
-                break
-        if best is None:
-            log.warning("no stable collision-free equilibrium of the loose joint; holding")
-            return q.copy(), "no stable equilibrium found: holding"
-        return best[1], f"stable equilibrium, frame error {best[0] * 1000:.3g} mm"
+        assert self._world is not None
+        return GoalPlanner(
+            model,
+            data,
+            self._world,
+            self.frame,
+            self.target,
+            clearance=self.clearance,
+            ik_seeds=self.ik_seeds,
+            swing_check=self.swing_check,
+            loose_margin=self.loose_margin,
+            rng=self._rng,
+        )
 
     def _start_move(self, t: float, q: FloatArray, v: FloatArray, goal: FloatArray) -> None:
         assert self.robot is not None
@@ -484,7 +365,7 @@ class ReconfigurableController(ModelBasedController):
         self._pivot = np.array(
             [
                 i
-                for i in sorted(set().union(*(self._ancestors(int(k)) for k in self._loose)))
+                for i in sorted(set().union(*(ancestors(model, int(k)) for k in self._loose)))
                 if i not in self.failed
             ],
             dtype=int,
@@ -496,9 +377,9 @@ class ReconfigurableController(ModelBasedController):
             red.gravity.linear = self.gravity.copy()
             self._track_model, self._track_data = red, red.createData()
         if kind == "loose":
-            goal, detail = self._solve_loose_goal(q, j)
+            goal, detail = self._planner().solve_loose_goal(q, j, set(self.failed))
         else:
-            goal, detail = self._solve_goal(q, frozen)
+            goal, detail = self._planner().solve_goal(q, frozen)
         vv = v.copy()
         vv[frozen] = 0.0
         self._start_move(t, q, vv, goal)

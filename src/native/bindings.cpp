@@ -188,6 +188,8 @@ NB_MODULE(_native, m) {
            nb::arg("active"), nb::arg("near"), nb::arg("pen_tol"))
       .def("set_locks", &ContactRhs::set_locks, nb::arg("locked"))
       .def("energies", &ContactRhs::energies, nb::arg("Q"), nb::arg("V"), nb::arg("out"))
+      .def("neutral_velocity", &ContactRhs::neutral_velocity, nb::arg("q0"), nb::arg("q1"),
+           nb::arg("v"))
       .def("end_locks", &ContactRhs::end_locks, nb::arg("y1"))
       .def("set_screen", &ContactRhs::set_screen, nb::arg("rows"), nb::arg("torque_band"),
            nb::arg("accel_band"))

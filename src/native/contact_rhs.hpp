@@ -112,6 +112,10 @@ class ContactRhs {
   void minverse_at(const double *q, double *out);
   void free_accel_raw(const double *q, const double *v, double *out);
   void energies(F2 Q, F2 V, Out1 out);
+  // A drift projection q0 -> q1's velocity that adds no energy (contact_rhs_restart.cpp): v
+  // in/out [rad/s]; the energy removed [J].
+  double neutral_velocity_raw(const double *q0, const double *q1, double *v);
+  double neutral_velocity(F1 q0, F1 q1, Out1 v);
   void set_torque(F1 applied, F1 viscous, F1 coulomb_dir);
   static nb::ndarray<nb::numpy, int64_t, nb::ndim<2>> owned_mat_i(const std::vector<int64_t> &v,
                                                                    size_t rows, size_t cols);

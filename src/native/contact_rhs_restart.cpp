@@ -35,6 +35,37 @@ int ContactRhs::project_round(F1 q, F1 v, F2 minv, double touch_gap, double pen_
                            out_q.data());
 }
 
+// The velocity after a drift projection q0 -> q1 that adds no energy
+// (packbot.contact.normal_contacts.NormalContacts.neutral_velocity, the one implementation;
+// the stretch's re-patch calls it too): the projection moves the arm out of the surfaces it
+// was carried into, keeping v, so E = 1/2 v^T M(q) v + V(q) changes by E(q1, v) - E(q0, v).
+// A rise is taken from the kinetic energy at q1 by scaling v (the least change of v in the
+// metric M(q1) that reaches the energy; every velocity condition of a contact set is
+// homogeneous, so it still holds), to zero where the kinetic energy is smaller; a fall is left.
+// v in/out [rad/s]; returns the energy removed [J] (0 where none).
+double ContactRhs::neutral_velocity_raw(const double *q0, const double *q1, double *v) {
+  const int nv = nv_;
+  Eigen::VectorXd a(nv), b(nv);
+  for (int i = 0; i < nv; ++i) {
+    a[i] = q0[i];
+    b[i] = q1[i];
+  }
+  const double e0 = 0.5 * kinetic(a, v) + potential(a);
+  const double kin = 0.5 * kinetic(b, v);
+  const double excess = kin + potential(b) - e0;
+  if (!(excess > 0.0)) return 0.0;
+  const double s = kin > 0.0 ? std::sqrt(std::max(0.0, kin - excess) / kin) : 0.0;
+  for (int i = 0; i < nv; ++i) v[i] *= s;
+  return kin * (1.0 - s * s);
+}
+
+double ContactRhs::neutral_velocity(F1 q0, F1 q1, Out1 v) {
+  const size_t nv = static_cast<size_t>(nv_);
+  if (q0.shape(0) != nv || q1.shape(0) != nv || v.shape(0) != nv)
+    throw std::invalid_argument("neutral_velocity: q0, q1 and v (nv) expected");
+  return neutral_velocity_raw(q0.data(), q1.data(), v.data());
+}
+
 // project_round on raw arrays (sizes checked by the caller; the layout loaded).
 int ContactRhs::project_round_raw(const double *q, const double *v, const double *minv,
                                   double touch_gap, double pen_tol, double res_tol, double *oq) {

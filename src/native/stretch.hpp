@@ -241,6 +241,7 @@ class Stretch {
     // the run's re-patches (a Painleve fallback is handed back: the loop's window)
     std::vector<double> q_patch;
     int64_t gave_up = 0, relaid = 0;  // (relaid: re-patches of a new shape)
+    double energy_removed = 0.0;  // [J] by the projections' velocity (neutral_velocity_raw)
     // the last projection's sweep (valid: one was made in this run) and, after a hand-back
     // that had swept, that sweep (spare) at q_spare
     bool proj_valid = false, spare = false;
@@ -491,6 +492,7 @@ class Stretch {
       if (repatched) {
         // the integrator's restart: RK45Stepper.reset(t, y, h=max(h, 1e-6), defer=True)
         std::copy(q_new_.begin(), q_new_.end(), z);
+        std::copy(v_new_.begin(), v_new_.end(), z + nv_);
         for (int i = 0; i < n; ++i) ay[i] = std::abs(z[i]);
         s.h = std::min(std::max(s.h, 1e-6), s.h_max);
         s.max_factor = StepControl::MAX_FACTOR_FIRST;
@@ -631,6 +633,11 @@ class Stretch {
           return hand_back(true);
     }
     if (rp_.hand_back_at == 3) return hand_back(swept);
+    // the velocity after the projection (NormalContacts.neutral_velocity: no energy added)
+    v_new_.assign(v, v + nv);
+    const double removed = st == 0 ? 0.0 : rhs_.neutral_velocity_raw(q, q_new_.data(),
+                                                                     v_new_.data());
+    v = v_new_.data();
     // the modes (ModeSelection.repatch_modes: keep_modes of the engaged rows, else select_modes
     // with keep, natively), a_free at the projected q and M^-1 at q
     afree_.resize(nv);
@@ -648,6 +655,7 @@ class Stretch {
     rp_.slip.swap(slip_w_);
     rp_.engaged.assign(o.engaged.begin(), o.engaged.end());
     rp_.gave_up += o.gave_up ? 1 : 0;
+    rp_.energy_removed += removed;
     rp_.relaid += same_shape ? 0 : 1;
     rhs_.load_plan(o.engaged, rp_.stick.data(), rp_.slip.data());
     rp_.q_patch.assign(q, q + nv);
@@ -731,7 +739,7 @@ class Stretch {
   Repatch rp_;
   std::vector<int64_t> m_sizes_, m_flags_;
   std::vector<double> m_frame2_, m_centres_, m_l1_, m_l2_, m_off_;
-  std::vector<double> lay_local_, lay_off_, lay_slide_, minv_, q_new_, afree_, slip_w_;
+  std::vector<double> lay_local_, lay_off_, lay_slide_, minv_, q_new_, v_new_, afree_, slip_w_;
   std::vector<uint8_t> stick_w_;
   std::vector<int> K_;  // (the new patches' sizes)
   int64_t pend_best_ = -1;

@@ -70,6 +70,7 @@ void stretch_set_modes(StretchT &st, bool on, U1 stick, U1 on1, F2 slip, I1 enga
   rp.slip.assign(slip.data(), slip.data() + 3 * np);
   rp.engaged.assign(engaged.data(), engaged.data() + engaged.shape(0));
   rp.gave_up = rp.relaid = 0;
+  rp.energy_removed = 0.0;
   rp.proj_valid = rp.spare = false;
   rp.q_patch.clear();
 }
@@ -85,6 +86,7 @@ nb::dict stretch_repatched(StretchT &st) {
   out["engaged"] = owned(rp.engaged, 1, rp.engaged.size());
   out["gave_up"] = rp.gave_up;
   out["relaid"] = rp.relaid;
+  out["energy_removed"] = rp.energy_removed;
   for (int w = 0; w < 2; ++w) {
     const bool on = w == 0 ? rp.proj_valid : rp.spare;
     const char *name = w == 0 ? "proj" : "spare";
