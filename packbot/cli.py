@@ -480,7 +480,7 @@ def _write_manifest(out: Path, scenario: Scenario, status: str, files: Iterable[
     """
     from packbot import __version__
     from packbot.batch import file_sha256
-    from packbot.scenario import _atomic_write
+    from packbot.paths import atomic_write
 
     names = sorted({p.name for p in files if p.parent == out and _is_plain_name(p.name)})
     checksums = {}
@@ -498,7 +498,7 @@ def _write_manifest(out: Path, scenario: Scenario, status: str, files: Iterable[
         "checksums": checksums,
     }
     text = json.dumps(data, indent=2) + "\n"
-    _atomic_write(out / MANIFEST_NAME, lambda fh: fh.write(text), binary=False)
+    atomic_write(out / MANIFEST_NAME, lambda fh: fh.write(text), binary=False)
 
 
 def _written_files(paths: dict[str, Any], scenario: Scenario) -> list[Path]:

@@ -17,12 +17,21 @@ would split the one-line messages that quote it). Anything else is allowed: a sc
 from __future__ import annotations
 
 import os
+import tempfile
+from collections.abc import Callable
 from pathlib import Path
-from typing import Any
+from typing import IO, Any
 
 from packbot.errors import ConfigurationError
 
-__all__ = ["MAX_STEM_BYTES", "STEM_RULE", "check_stem", "inside", "is_plain_name"]
+__all__ = [
+    "MAX_STEM_BYTES",
+    "STEM_RULE",
+    "atomic_write",
+    "check_stem",
+    "inside",
+    "is_plain_name",
+]
 
 #: Longest stem [bytes of UTF-8]: file systems allow 255 per name, the suffixes packbot adds
 #: (``_partial_events.csv``, ``.bad-<n>``, a temporary file's ``.<name>.<random>.tmp``) need the
@@ -83,3 +92,29 @@ def inside(field: str, folder: str | os.PathLike[str], path: str | os.PathLike[s
     if target != root and root not in target.parents:
         raise ConfigurationError(field, str(path), f"a path inside the folder {folder}")
     return Path(path)
+
+
+def atomic_write(path: Path, write: Callable[[Any], None], binary: bool) -> None:
+    """Write a file whole or not at all: into a temporary file of its folder, then renamed.
+
+    A run stopped while writing leaves the old file (or none), never half of one. The file
+    gets the usual mode (0o666 less the umask; ``mkstemp`` makes it private).
+
+    Args:
+        path: The file (its folder is made if missing).
+        write: Called with the open file (bytes if ``binary``, else text with newline="").
+        binary: Whether the file is written as bytes.
+    """
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    try:
+        fh: IO[Any]
+        with os.fdopen(fd, "wb") if binary else os.fdopen(fd, "w", newline="") as fh:
+            write(fh)
+        umask = os.umask(0o022)  # mkstemp makes the file private: give it the usual mode
+        os.umask(umask)
+        os.chmod(tmp, 0o666 & ~umask)
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise

@@ -12,8 +12,6 @@ from __future__ import annotations
 
 import io
 import json
-import os
-import tempfile
 from collections.abc import Callable, Mapping
 from dataclasses import asdict, fields
 from pathlib import Path
@@ -26,6 +24,7 @@ from packbot.contact_forces import ContactTable
 from packbot.contact_impulses import ImpactTable
 from packbot.errors import ConfigurationError, PackbotError, ResultValueError
 from packbot.failures import Failure
+from packbot.paths import atomic_write
 from packbot.result_file import (
     CONTACT_INTS,
     CONTACT_VECTORS,
@@ -133,18 +132,7 @@ def write_result(result: SimResult, path: str | Path, extra: Mapping[str, str] |
         arrays[name] = np.array(str(text))
     buf = io.BytesIO()
     np.savez_compressed(buf, **arrays)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=out.parent, prefix=f".{out.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            fh.write(buf.getvalue())
-        umask = os.umask(0o022)  # mkstemp makes the file private: give it the usual mode
-        os.umask(umask)
-        os.chmod(tmp, 0o666 & ~umask)
-        os.replace(tmp, out)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+    atomic_write(out, lambda fh: fh.write(buf.getvalue()), binary=True)
     return out
 
 

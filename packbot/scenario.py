@@ -38,8 +38,6 @@ import dataclasses
 import io
 import logging
 import math
-import os
-import tempfile
 import types
 import typing
 import warnings
@@ -47,7 +45,7 @@ from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from functools import partial
 from pathlib import Path
-from typing import IO, TYPE_CHECKING, Any, Literal, get_args, get_origin
+from typing import TYPE_CHECKING, Any, Literal, get_args, get_origin
 
 import numpy as np
 from numpy.typing import NDArray
@@ -66,7 +64,7 @@ from packbot.errors import (
 from packbot.failures import Failure, check_sequence
 from packbot.keywords import checked_arguments
 from packbot.outputs import IMAGE_FORMATS, PLOT_KINDS, OcclusionCheck, Outputs
-from packbot.paths import check_stem, inside
+from packbot.paths import atomic_write, check_stem, inside
 from packbot.payload import Payload
 from packbot.scenario_schema import json_schema as _json_schema
 from packbot.validation import (
@@ -798,22 +796,6 @@ _EVENT_COLUMNS = (
 )
 
 
-def _atomic_write(path: Path, write: Callable[[Any], None], binary: bool) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        fh: IO[Any]
-        with os.fdopen(fd, "wb") if binary else os.fdopen(fd, "w", newline="") as fh:
-            write(fh)
-        umask = os.umask(0o022)  # mkstemp makes the file private: give it the usual mode
-        os.umask(umask)
-        os.chmod(tmp, 0o666 & ~umask)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-
-
 @checked_arguments
 def save_run(
     result: SimResult, scenario: Scenario, out_dir: str | Path, stem: str | None = None
@@ -885,7 +867,7 @@ def save_run(
             )
 
     events = out / f"{stem}_events.csv"
-    _atomic_write(events, write_events, binary=False)
+    atomic_write(events, write_events, binary=False)
     return {"trajectory": traj, "events": events}
 
 
@@ -955,7 +937,7 @@ def write_outputs(
             for i, t in enumerate(result.t):
                 w.writerow(spreadsheet_row([f"{t:.6f}", *(col[i] or "" for col in blocked)]))
 
-        _atomic_write(path, write_table, binary=False)
+        atomic_write(path, write_table, binary=False)
         written["occlusion_table"] = path
     joints = scenario.outputs.joints
     for kind in kinds:

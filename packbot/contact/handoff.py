@@ -296,12 +296,14 @@ class HandoffContacts(NormalContacts):
         """
         held, signs = self.held, self.held_signs
         self.held, self.held_signs = [], {}
+        removed = self.projection_energy_removed  # (a restart solved again counts once)
         try:
             out = self._restart_with_locks(q, v, a_free_fn, minv)
             kicked = [j for j in held if 0.0 < abs(out[1][j]) <= HOLD_KICK]
             if kicked:
                 self.held = sorted(j for j in held if abs(out[1][j]) <= HOLD_KICK)
                 self.held_signs = {j: signs.get(j, set()) for j in self.held}
+                self.projection_energy_removed = removed
                 out = self._restart_with_locks(q, v, a_free_fn, minv)
             return out
         finally:

@@ -95,9 +95,10 @@ class NormalContacts(RestartSteps, ModeSelection):
         E = 1/2 v^T M(q) v + V(q) would rise by E(q1, v) - E(q0, v), energy the motion into
         the surface had turned from potential into kinetic. A positive change is taken from
         the kinetic energy by scaling v (the least change of v in the metric M(q1) that
-        reaches the energy, and one that keeps every velocity condition of the contact set:
-        they are homogeneous); to zero where the kinetic energy is smaller. A change that
-        lowers the energy is left. The removed energy is added to
+        reaches the energy; its direction kept, so the contact set's conditions at zero still
+        hold: no touching row approaching, sticking rows at rest); to zero where the kinetic
+        energy is smaller (the rest of the rise stays, uncounted). A change that lowers the
+        energy is left. The removed energy is added to
         :attr:`projection_energy_removed` [J]. The extension's ``ContactRhs.neutral_velocity``
         (the compiled stretch's re-patch calls it too).
         """

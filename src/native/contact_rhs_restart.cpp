@@ -40,8 +40,8 @@ int ContactRhs::project_round(F1 q, F1 v, F2 minv, double touch_gap, double pen_
 // the stretch's re-patch calls it too): the projection moves the arm out of the surfaces it
 // was carried into, keeping v, so E = 1/2 v^T M(q) v + V(q) changes by E(q1, v) - E(q0, v).
 // A rise is taken from the kinetic energy at q1 by scaling v (the least change of v in the
-// metric M(q1) that reaches the energy; every velocity condition of a contact set is
-// homogeneous, so it still holds), to zero where the kinetic energy is smaller; a fall is left.
+// metric M(q1) that reaches the energy; its direction kept, so the conditions at zero still
+// hold), to zero where the kinetic energy is smaller (the rest stays); a fall is left.
 // v in/out [rad/s]; returns the energy removed [J] (0 where none).
 double ContactRhs::neutral_velocity_raw(const double *q0, const double *q1, double *v) {
   const int nv = nv_;
