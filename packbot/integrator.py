@@ -33,7 +33,7 @@ from numpy.typing import NDArray
 from packbot import recorder
 from packbot.config import SimConfig
 from packbot.contact import make_law
-from packbot.contact.base import Crossing
+from packbot.contact.base import Crossing, StepSpan
 from packbot.control.base import Controller
 from packbot.drive import Drive, TorqueFunction
 from packbot.environment import Environment
@@ -124,8 +124,7 @@ class _Run:
         """A new phase from state y at t: model and law rebuilt, contacts found again."""
         qf, vf, tau_mf = self.full_state(y)
         self.build_phase(qf, vf, tau_mf)
-        self.law.rebuild(self.sys)
-        self.y = self.law.start(t, self.y, check=False)
+        self.y = self.law.start(t, self.y, False, self.sys)
 
     def full_state(self, y: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
         """(q, v, tau_m) in full coordinates from an integrated state."""
@@ -171,11 +170,10 @@ class _Run:
     def restart(self) -> None:
         """A fresh step from the current state (after an event or a changed state).
 
-        With a law whose native step has a first stage (the contact-normal mode), the restart's
-        derivative is left to the next step (nothing between a restart and it changes it).
+        The restart's derivative is left to the next step (nothing between a restart and it
+        changes it; the contact-normal mode's native step computes it in its first stage).
         """
-        defer = self.law.first_stage is not None
-        self.stepper.reset(self.t, self.y, h=max(self.stepper.h, 1e-6), defer=defer)
+        self.stepper.reset(self.t, self.y, h=max(self.stepper.h, 1e-6), defer=True)
 
     def run(self) -> None:
         """Integrate to the duration, event by event."""
@@ -185,7 +183,6 @@ class _Run:
         t_last = duration - 1e-12  # (the run ends within 1e-12 s of its duration)
         while self.t < t_last:
             t, y = self.t, self.y
-            stepper.h_max = law.step_bound(y)
             t_sched = schedule.next_time()
             if t_sched <= t + 1e-12:  # an event landed on a scheduled time
                 if self.run_scheduled(t):
@@ -193,29 +190,15 @@ class _Run:
                 continue
             # A window lands on every tick, the stepper on those that change the command.
             t_far = min(duration, schedule.horizon(ticks.cut))
-            try:
-                seg = law.advance(t, y, min(duration, t_sched))
-                if seg is None:
-                    kernel = law.step_kernel(t, y)
-                    if schedule.next_tick >= t_far:
-                        # the quiet steps at once (its compiled stretch, a rest held), if any
-                        st = law.stretch(stepper, t_far, t_last, t_sched, rec)
-                        if st is not None:
-                            rec.record_states(st.samples)
-                            seg = st.pending
-                            if seg is None and st.steps:
-                                self.t, self.y = stepper.t, stepper.y
-                                self.report_progress()
-                                continue
-                    if seg is None:
-                        # (a restart's derivative left to this step: the kernel's first stage)
-                        pend = stepper.f_pending and kernel is not None
-                        stiff = law.stiff_kernel if kernel is not None else None
-                        seg = stepper.step(t_far, kernel, law.first_stage if pend else None, stiff)
-            except StepSizeUnderflow:
-                if not law.rescue(t, y):
-                    raise
-                continue  # the law integrates the stiff stretch itself
+            span = StepSpan(
+                t_far, min(duration, t_sched), t_sched, t_last, schedule.next_tick >= t_far, rec
+            )
+            seg = law.step(stepper, t, y, span)
+            if seg is None:  # the steps taken are accepted (or the law takes the next ones)
+                if stepper.t != t:
+                    self.t, self.y = stepper.t, stepper.y
+                    self.report_progress()
+                continue
             crossings = law.watch(seg)
             t_star, at = self.locate(seg, crossings) if crossings else (seg.t1, [])
             # (no tick before the step's end or its first event: nothing to visit)

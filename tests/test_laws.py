@@ -16,7 +16,7 @@ import pytest
 
 import packbot
 import packbot.contact as contact
-from packbot.contact.base import Crossing
+from packbot.contact.base import ContactLaw, Crossing
 from packbot.drive import Drive
 from packbot.recorder import EventLog
 from packbot.result import Diagnostics, Event
@@ -202,12 +202,47 @@ def test_the_loop_has_no_contact_law_branch_and_no_law_imports_it():
         for a in n.names
         if n.module and n.module.startswith("packbot.contact")
     }
-    assert imported <= {"packbot.contact.make_law", "packbot.contact.base.Crossing"}
+    assert imported <= {
+        "packbot.contact.make_law",
+        "packbot.contact.base.Crossing",
+        "packbot.contact.base.StepSpan",
+    }
     for path in [*PACKAGE.joinpath("contact").glob("*.py"), PACKAGE / "drive.py"]:
         for node in ast.walk(ast.parse(path.read_text())):
             if isinstance(node, ast.ImportFrom):
                 assert node.module != "packbot.integrator", path
                 assert node.module != "packbot.schedule", path
+
+
+def test_the_protocol_is_the_loops_calls_only():
+    """ContactLaw holds what the loop calls and nothing else: each member is called by the
+    loop (or its recorder and ticks), and the loop calls no other method of the law."""
+    members = {
+        name
+        for name, value in vars(ContactLaw).items()
+        if not name.startswith("_") and (callable(value) or isinstance(value, property))
+    }
+    assert members == {
+        "start",
+        "torque_accel",
+        "step",
+        "watch",
+        "handle",
+        "after_step",
+        "settle",
+        "held",
+        "friction",
+        "contact_forces",
+    }
+    called = set()
+    for name in ("integrator.py", "recorder.py", "ticks.py"):
+        tree = ast.parse((PACKAGE / name).read_text())
+        for node in ast.walk(tree):
+            if isinstance(node, ast.Attribute) and isinstance(node.value, ast.Attribute | ast.Name):
+                owner = node.value.attr if isinstance(node.value, ast.Attribute) else node.value.id
+                if owner == "law":
+                    called.add(node.attr)
+    assert called == members
 
 
 # ------------------------------------------------------------------ each law alone

@@ -22,6 +22,11 @@ from packbot.failures import Failure
 from packbot.mujoco_model import WRIST_JOINTS
 
 
+def _no_hold(self, stepper, t_end):
+    """The law without the hold: None (the stepper takes its steps)."""
+    return None
+
+
 def _runs(robot, monkeypatch, duration, cfg, failures=(), q0=None):
     """The run from q0 (the drive pose) without the hold, then with it; the holds taken."""
     held = []
@@ -33,10 +38,10 @@ def _runs(robot, monkeypatch, duration, cfg, failures=(), q0=None):
             held.append((st.pending.t0, st.pending.t1))
         return st
 
-    monkeypatch.setattr(normal_law.NormalLaw, "_hold_at_rest", counted)
     out = []
     for on in (False, True):
-        monkeypatch.setattr(normal_law, "REST_HOLD", on)
+        # (off: the stepper's steps of max_step from the captured state)
+        monkeypatch.setattr(normal_law.NormalLaw, "_hold_at_rest", counted if on else _no_hold)
         out.append(
             packbot.simulate(
                 robot,
@@ -137,11 +142,10 @@ def test_no_hold_with_a_controller_tick_to_come(robot, monkeypatch):
         return hold(self, stepper, t_end)
 
     monkeypatch.setattr(NormalContacts, "capture", noted)
-    monkeypatch.setattr(normal_law.NormalLaw, "_hold_at_rest", counted)
     cfg = packbot.SimConfig(contact_mode="normal", mu=0.5, locked_joints=WRIST_JOINTS)
     res = []
     for on in (False, True):
-        monkeypatch.setattr(normal_law, "REST_HOLD", on)
+        monkeypatch.setattr(normal_law.NormalLaw, "_hold_at_rest", counted if on else _no_hold)
         res.append(
             packbot.simulate(
                 robot,

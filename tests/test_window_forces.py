@@ -14,7 +14,7 @@ import pytest
 from test_normal_cascade import start_pose
 
 import packbot
-from packbot.contact import native, normal_law, timestep
+from packbot.contact import native, normal_windows, timestep
 from packbot.contact.window_forces import WindowForces
 from packbot.contact_forces import joint_torque
 
@@ -117,7 +117,7 @@ def test_each_window_step_closes_its_equations(robot, monkeypatch) -> None:
     at its end reads (``WindowForces.at``) give the step's velocity change exactly at q0:
     h (J^T f + tau_stops) = M(q0) (v1 - v_f), to 1e-9 of the gravity torque's size (rounding:
     measured 1e-13); steps with limit rows among them."""
-    monkeypatch.setattr(normal_law, "run_native", lambda *a, **k: None)
+    monkeypatch.setattr(normal_windows, "run_native", lambda *a, **k: None)
     steps: list[tuple] = []
     real = timestep.MoreauJeanStepper._finish
 
@@ -182,7 +182,7 @@ def test_native_runs_record_the_forces_of_their_own_steps(robot, windowed, monke
     steps taken one by one (their arithmetic is the same): every window sample's contacts
     equal, to 1e-9 of the largest force (a step's impulses shifted onto another step would
     differ by the change over a step, 1e-3 of it and more)."""
-    monkeypatch.setattr(normal_law, "run_native", lambda *a, **k: None)
+    monkeypatch.setattr(normal_windows, "run_native", lambda *a, **k: None)
     one_by_one = _run(robot, 16, 0.5, 1.5)
     a, b = windowed, one_by_one
     assert len(a.t) == len(b.t)

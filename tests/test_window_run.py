@@ -13,7 +13,7 @@ from test_native_window import _window_rise
 from test_normal_cascade import GAIN_TOL, start_pose
 
 import packbot
-from packbot.contact import native, normal_law, timestep, window_run
+from packbot.contact import native, normal_windows, timestep, window_run
 from packbot.contact.normal_tolerances import PENETRATION_TOL
 from packbot.contact.timestep import StepSegment
 
@@ -37,7 +37,7 @@ def _run(robot, k: int, mu: float, duration: float = 3.0, **cfg_kw):
         **{"restitution": 0.0, **cfg_kw},
     )  # fmt: skip
     with pytest.MonkeyPatch.context() as mp:
-        mp.setattr(normal_law, "run_native", counted)
+        mp.setattr(normal_windows, "run_native", counted)
         res = packbot.simulate(
             robot, start_pose(robot, k), np.zeros(robot.model.nv), duration, config=cfg
         )

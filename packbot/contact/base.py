@@ -13,17 +13,16 @@ a :class:`~packbot.config.SimConfig`.
 Who calls what, and when (docs/simulator.md, "The loop and the contact laws"):
 
 - a new phase (the run's start, a frozen joint merged, a payload change): :meth:`~ContactLaw.
-  rebuild`, then :meth:`~ContactLaw.start` (the contacts and stops present);
-- every right-hand side: :meth:`~ContactLaw.accel` (the current mode's accelerations);
-- before each step: :meth:`~ContactLaw.step_bound`, then :meth:`~ContactLaw.advance` (a law
-  that integrates a stretch itself, the contact-normal mode's time-stepping windows, returns
-  its step; otherwise the loop's stepper takes it);
+  start` (the contacts and stops present; on the new phase's system);
+- every right-hand side: :meth:`~ContactLaw.torque_accel` (the current mode's accelerations);
+- each step: :meth:`~ContactLaw.step` (the law bounds it and takes it: with the loop's
+  stepper, several quiet steps at once, or its own time-stepping window);
 - after each step: :meth:`~ContactLaw.watch` (the event functions that changed sign);
   none: the step is accepted, :meth:`~ContactLaw.after_step`; else the loop locates the
   earliest crossing and calls :meth:`~ContactLaw.handle` with the crossings at that instant;
 - a failure or a payload change that keeps the phase: :meth:`~ContactLaw.settle`;
 - a freezing joint: :meth:`~ContactLaw.held` (the joints its impulse keeps still);
-- every sample: :meth:`~ContactLaw.friction`.
+- every sample: :meth:`~ContactLaw.friction` and :meth:`~ContactLaw.contact_forces`.
 """
 
 from __future__ import annotations
@@ -37,14 +36,13 @@ import numpy as np
 from numpy.typing import NDArray
 
 from packbot.collision import PairInfo
-from packbot.ode import DenseSegment, RK45Stepper, StepKernel, StiffKernel
+from packbot.ode import DenseSegment, RK45Stepper
 from packbot.system import System
 
 if TYPE_CHECKING:
-    from packbot.contact.stretch import SampleClock, Stretched
     from packbot.contact_forces import SampleForces
 
-__all__ = ["Active", "ContactLaw", "Crossing", "Key"]
+__all__ = ["Active", "ContactLaw", "Crossing", "Key", "SampleClock", "StepSpan"]
 
 FloatArray = NDArray[np.float64]
 #: An event function's identity: ``("pair", index)``, ``("limit", joint, side)``,
@@ -89,6 +87,41 @@ class Crossing:
     root: Callable[[float, float, float, float, float], float] | None = None
 
 
+class SampleClock(Protocol):
+    """The regular samples' clock of a run (:class:`packbot.recorder.Recorder` is one)."""
+
+    dt: float  #: the interval of the regular samples [s]
+    duration: float  #: the run's duration [s]
+    next_sample: int  #: the index of the next regular sample (at ``next_sample * dt``)
+
+    def record_states(self, ys: FloatArray) -> None:
+        """Keep the next regular samples from their states ys, shape (m, n), in order."""
+
+
+@dataclass(frozen=True)
+class StepSpan:
+    """How far the loop lets the next step go (:meth:`ContactLaw.step`).
+
+    Attributes:
+        t_end: The stepper's step ends here at the latest [s]: the duration, the next
+            scheduled action, or the next controller tick while the ticks change the command.
+        t_window: A time-stepping window's step ends here at the latest [s]: the duration or
+            the next scheduled time, every controller tick included (a window lands on each).
+        t_sched: The next scheduled action [s] (a stretch hands back a step ending there).
+        t_last: The run ends here [s].
+        several: Whether several steps may be taken at once (no controller tick before
+            ``t_end``).
+        clock: The run's regular samples (a stretch records its steps' samples there).
+    """
+
+    t_end: float
+    t_window: float
+    t_sched: float
+    t_last: float
+    several: bool
+    clock: SampleClock
+
+
 class ContactLaw(Protocol):
     """What the event loop asks of a contact law.
 
@@ -97,112 +130,46 @@ class ContactLaw(Protocol):
     contact-normal modes, positions (a drift correction), never tau_m.
     """
 
-    def rebuild(self, system: System) -> None:
-        """The integrated system changed (a new phase): every contact and mode is forgotten."""
-        ...
-
-    def start(self, t: float, y: FloatArray, check: bool) -> FloatArray:
-        """The contacts and limit stops present at (t, y); returns the state after.
+    def start(
+        self, t: float, y: FloatArray, check: bool, system: System | None = None
+    ) -> FloatArray:
+        """A phase starts at (t, y): the contacts and limit stops present; the state after.
 
         Args:
             t: Time [s].
             y: State.
             check: Raise ``InitialCollisionError`` if a pair penetrates (the run's start).
+            system: The new phase's integrated system (a frozen joint merged, a payload
+                change): every contact, stop, lock and mode of the last phase is forgotten
+                first. None: the system the law holds (the run's start).
         """
-        ...
-
-    def accel(self, q: FloatArray, v: FloatArray, a_free: FloatArray) -> FloatArray:
-        """Accelerations [rad/s^2] of the current mode, from the free ones (fixed in a step)."""
         ...
 
     def torque_accel(self, q: FloatArray, v: FloatArray, tau: FloatArray) -> FloatArray:
         """Accelerations [rad/s^2] of the current mode under the joint torques tau [N*m].
 
-        The right-hand side's call: ``accel`` of the free accelerations (Pinocchio's ABA),
-        or a law's own path computing both at once (the contact-normal mode's native call).
+        The right-hand side's call, fixed within a step (the mode changes only at events).
         """
         ...
 
-    def step_kernel(self, t: float, y: FloatArray) -> StepKernel | None:
-        """A compiled step of the current mode from (t, y), or None: the stages call ``rhs``.
+    def step(
+        self, stepper: RK45Stepper, t: float, y: FloatArray, span: StepSpan
+    ) -> DenseSegment | None:
+        """The next step from the loop's state (t, y), at the stepper's state.
 
-        The stepper's stages (:meth:`packbot.ode.RK45Stepper.step`'s ``kernel``) on the same
-        right-hand side, its modes and torques fixed over the step (the contact-normal mode's
-        native step).
-        """
-        ...
-
-    @property
-    def stiff_kernel(self) -> StiffKernel | None:
-        """The linearly implicit counterpart of :meth:`step_kernel`'s kernel, or None.
-
-        Read right after :meth:`step_kernel` returned a kernel: the stepper's ``stiff``
-        (:meth:`packbot.ode.RK45Stepper.step`), for the stretches where the explicit step is
-        held at its stability bound.
-        """
-        ...
-
-    @property
-    def first_stage(self) -> Callable[[FloatArray], bool] | None:
-        """The compiled step's first stage, which takes a restart's derivative, or None.
-
-        When not None, the loop leaves the derivative at a restart to the next step
-        (:meth:`packbot.ode.RK45Stepper.reset`'s ``defer``): this stage at its start when the
-        step is the law's :meth:`step_kernel`, else the right-hand side there.
-        """
-        ...
-
-    def step_bound(self, y: FloatArray) -> float:
-        """The longest step [s] from y that the law's event detection allows."""
-        ...
-
-    def stretch(
-        self,
-        stepper: RK45Stepper,
-        t_end: float,
-        t_last: float,
-        t_sched: float,
-        clock: SampleClock,
-    ) -> Stretched | None:
-        """Several steps at once from the stepper's state, or None: the loop steps.
-
-        Offered by the loop right after :meth:`step_kernel`, with no controller tick before
-        ``t_end``. When it returned a kernel, a restart's derivative may be pending (then the
-        kernel's :attr:`first_stage` computes it) and the stepper may be stiff (then the steps
-        are :attr:`stiff_kernel`'s, as the stepper's would be); without one, a law may still
-        take steps that need no kernel (the contact-normal mode holds an arm at rest).
-        The steps kept are watched and accepted (the law and the stepper are past them; the
-        loop records their samples); a pending step is the stepper's last step, not yet
-        watched (:class:`~packbot.contact.stretch.Stretched`).
-
-        Args:
-            stepper: The loop's stepper.
-            t_end: No step beyond this time [s].
-            t_last: The run ends here [s].
-            t_sched: The next scheduled action [s] (a step ending there is handed back).
-            clock: The run's regular samples.
-        """
-        ...
-
-    def advance(self, t: float, y: FloatArray, t_end: float) -> DenseSegment | None:
-        """Steps the law takes itself (a time-stepping window), or None: the loop's stepper.
-
-        One step, or several as one segment (a run of window steps); the loop treats the
-        segment as one step.
-
-        Args:
-            t: Time [s].
-            y: State.
-            t_end: The step may not pass this time [s] (the run's end, a scheduled action).
-        """
-        ...
-
-    def rescue(self, t: float, y: FloatArray) -> bool:
-        """The loop's stepper cannot go on from (t, y): take over, or not.
+        The law bounds the step (its event detection's longest step), then takes it: with the
+        loop's stepper (its own compiled stages where they serve), several at once (a stretch
+        of quiet steps: their samples go to ``span.clock``), or itself (a time-stepping
+        window's steps, one segment).
 
         Returns:
-            True if the law takes the next steps itself (:meth:`advance`), False to let the
-            run fail (the stepper's step size underflowed).
+            The step to watch (:meth:`watch`), or None: there is none to watch, the loop
+            goes on from the stepper's state (the steps taken are accepted and sampled, or
+            none was taken: the stepper could not go on and the law takes the next steps
+            itself).
+
+        Raises:
+            StepSizeUnderflow: The stepper cannot go on and the law cannot either.
         """
         ...
 

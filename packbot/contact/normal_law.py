@@ -10,9 +10,7 @@ from __future__ import annotations
 import dataclasses
 import logging
 import math
-from collections import deque
 from collections.abc import Callable, Iterable, Sequence
-from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -20,26 +18,39 @@ from numpy.typing import NDArray
 
 from packbot.collision import PairInfo, SweepResult
 from packbot.contact import native
-from packbot.contact.base import Active, Crossing, Key
+from packbot.contact.base import Active, Crossing, Key, SampleClock, StepSpan
 from packbot.contact.locks import JointLocks
 from packbot.contact.normal_contacts import NormalContacts
 from packbot.contact.normal_forces import mode_forces
-from packbot.contact.normal_tolerances import PENETRATION_TOL, POINT_TOL
+from packbot.contact.normal_inside import limit_excursions, pair_dips
+from packbot.contact.normal_tolerances import PENETRATION_TOL
+from packbot.contact.normal_windows import (
+    CASCADE_EVENTS,
+    CASCADE_SPAN,
+    CHATTER_EVENTS,
+    CHATTER_SPAN,
+    CRAWL_STEP,
+    CRAWL_STEPS,
+    HOLD_SPEED,
+    RELAPSE_EVENTS,
+    RELAPSE_SPAN,
+    WINDOW_MIN,
+    Window,
+    WindowTriggers,
+)
 from packbot.contact.pairs import pair_joints, reach_bounds
 from packbot.contact.patch_events import PatchEvents
 from packbot.contact.stretch import (
     LawInputs,
     QuietStretch,
-    SampleClock,
     Stretched,
     adopt_repatches,
     quiet_stretch,
     repatch_modes,
 )
 from packbot.contact.timestep import QUIET_STEPS, MoreauJeanStepper, StepSegment
-from packbot.contact.window_run import StepChain, run_native
 from packbot.contact_forces import SampleForces
-from packbot.ode import DenseSegment, RK45Stepper, StepKernel, StiffKernel
+from packbot.ode import DenseSegment, RK45Stepper, StepKernel, StepSizeUnderflow
 from packbot.system import System
 
 __all__ = [
@@ -58,65 +69,8 @@ __all__ = [
 
 log = logging.getLogger(__name__)
 
-#: Whether an arm captured at rest is held there in one step to the next controller tick,
-#: scheduled action or the run's end (:meth:`NormalLaw.stretch`), instead of the stepper's
-#: steps of ``max_step`` (tests and benchmarks switch it off to compare).
-REST_HOLD = True
 
 FloatArray = NDArray[np.float64]
-
-
-#: A cascade: CASCADE_EVENTS restarts within CASCADE_SPAN [s] (a pile-up at one instant), or
-#: CHATTER_EVENTS within CHATTER_SPAN [s] (a chattering slide: the drive-pose collapse with the
-#: wrist free and mu = 0.8 made 10,000 a second; a jam cycling through impacts, stick/slip and
-#: a joint limit every 3 ms: wrist-free start 17, mu 1.2, 3,985 events in 1.8 s) start a
-#: time-stepping window. CHATTER_SPAN was 0.032 s (a restart every millisecond on average);
-#: at 0.25 s (one every 7.8 ms) the 24 wrist-free starts of ``benchmarks/robustness.py``
-#: take a median 0.65 -> 0.59 s (mu 0), 0.36 -> 0.33 s (mu 0.5), 0.31 -> 0.23 s (mu 1.2), the
-#: worst 1.29 -> 1.15, 1.59 -> 1.50, 2.42 -> 0.83 s; the windows remove at most 0.029 J in a
-#: run (0.0056 J before; frictionless); the wrist-locked starts, the collapse and the golden
-#: results are unchanged (no such rate there). A chatter that comes back within CHATTER_SPAN
-#: of a window's end opens the next window after RELAPSE_EVENTS restarts at the same rate, and
-#: that window lasts twice the last one (a relapse): the jam above resumed into the same cycle
-#: after each 20 ms window and took 32 more restarts to open the next one, 2,570 events in 3 s
-#: on a rounding-level change of the dynamics; with the rule, 226 events in 7 windows.
-CASCADE_EVENTS = 20
-CASCADE_SPAN = 1e-3
-CHATTER_EVENTS = 32
-CHATTER_SPAN = 0.25
-#: The stepper crawls when CRAWL_STEPS accepted steps average less than CRAWL_STEP [s] (a slow
-#: slide whose friction direction turns is stiff for the explicit stepper: measured 117,824
-#: steps of 7 us in 0.8 s on a wrist-free start; the collapse averages 2.3 ms): a window opens.
-CRAWL_STEPS = 400
-CRAWL_STEP = 2.5e-5
-#: A joint with Coulomb friction or a brake slower than this [rad/s] while contacts push
-#: starts a window (its hold and the contact forces are one problem).
-HOLD_SPEED = 1e-3
-#: The shortest time-stepping window [s]; doubled when a cascade follows the previous window's
-#: end within RELAPSE_SPAN [s].
-WINDOW_MIN = 0.02
-RELAPSE_SPAN = 0.05
-#: Within RELAPSE_SPAN of a window's end, RELAPSE_EVENTS restarts within CASCADE_SPAN start the
-#: next window (a relapse: the resumed state cascades at once; measured on wrist-free start 4,
-#: mu 0.8: each of its six resumes was followed by 24 stick/slip restarts within 0.5 ms, a few
-#: milliseconds of CPU time each, before the 20th opened the next window).
-RELAPSE_EVENTS = 5
-#: How far past a stop [rad] the cubic Hermite of a step's ends must reach for the step's dense
-#: output to be asked (:meth:`NormalLaw._excursion_crossings`; a joint resting on its stop reads
-#: its stop to rounding; the compiled stretch's screen uses the same 1e-9).
-EXCURSION_TOL = 1e-9
-
-
-@dataclass
-class _Window:
-    """A time-stepping window of the normal mode (:mod:`packbot.contact.timestep`)."""
-
-    stepper: MoreauJeanStepper
-    t_start: float
-    until: float  # the earliest exit [s]
-    energy_in: float  # [J]
-    quiet: int = 0  # steps whose signature equalled the previous one
-    last: Any = None  # the previous step's signature
 
 
 class NormalLaw(PatchEvents):
@@ -132,7 +86,7 @@ class NormalLaw(PatchEvents):
     :data:`RELAPSE_EVENTS` within :data:`RELAPSE_SPAN` of a window's end; or
     :data:`CHATTER_EVENTS` within :data:`CHATTER_SPAN`: a chattering slide)
     the law integrates a window with fixed time steps itself
-    (:class:`~packbot.contact.timestep.MoreauJeanStepper`, through :meth:`advance`): one
+    (:class:`~packbot.contact.timestep.MoreauJeanStepper`, through :meth:`step`): one
     complementarity problem per step, no event location. The window lasts at least
     :data:`WINDOW_MIN` (doubled when the next cascade follows within :data:`RELAPSE_SPAN` of
     its end) and ends once the steps' decisions have held for
@@ -145,8 +99,7 @@ class NormalLaw(PatchEvents):
     """
 
     def __init__(self, *args: Any, **kwargs: Any) -> None:
-        self._min_len = WINDOW_MIN
-        self._last_exit = -math.inf
+        self.triggers = WindowTriggers()
         super().__init__(*args, **kwargs)
 
     def rebuild(self, system: System) -> None:
@@ -166,70 +119,58 @@ class NormalLaw(PatchEvents):
             self.normal.stops = (system.upper, system.lower)
         self._native.set_reach(self.reach, self.cfg.margin, self.cfg.max_step)  # (step_bound)
         self._native.set_pair_joints(*pair_joints(system.model, self.world.pairs))
-        self.window: _Window | None = None
-        self._recent: deque[float] = deque(maxlen=CHATTER_EVENTS)
-        self._steps: deque[float] = deque(maxlen=CRAWL_STEPS)  # the last steps' sizes [s]
+        self.window: Window | None = None
+        self.triggers.reset()
         self._clear: FloatArray | None = None  # a step end the screen found clear (watch)
         self._start_swept = True  # whether last_d was swept at the next step's start
         self._ready: FloatArray | None = None  # a state the native modes are loaded for
         self._offered = False  # whether step_kernel offered the native step at the loop's state
         self._stretch: QuietStretch | None = None  # (the compiled stretch of quiet steps)
-        # (t, y bytes, pending step) where a native run of window steps stopped (see advance)
-        self._after_run: tuple[float, bytes, Any] | None = None
 
     # ------------------------------------------------------------------ windows
-    def advance(self, t: float, y: FloatArray, t_end: float) -> DenseSegment | None:
-        """In a window, time steps from (t, y) (not past t_end); else None.
+    def step(
+        self, stepper: RK45Stepper, t: float, y: FloatArray, span: StepSpan
+    ) -> DenseSegment | None:
+        """The next step from (t, y): a window's, the quiet steps at once, or the stepper's.
 
-        First the steps that keep their contact set, in one native call
-        (:func:`~packbot.contact.window_run.run_native`), returned as one segment
-        (:class:`~packbot.contact.window_run.StepChain`); the next call then takes the step
-        they stopped at (finishing it when they took it: pending), as the step-by-step loop
-        would. Else one step.
+        Bounded by :meth:`step_bound`. In a window, its time steps (:meth:`Window.advance
+        <packbot.contact.normal_windows.Window.advance>`). Else
+        the stepper's step with the native stages of the current modes where they serve
+        (:meth:`step_kernel`, the native RODAS4 attempt for its stiff stretches, the native
+        first stage after a restart), preceded, with no controller tick before
+        ``span.t_end``, by the quiet steps in one native call (:meth:`stretch`: their samples
+        recorded, None returned if no step is left to watch). A step-size underflow (a stiff
+        or discontinuous stretch) opens a window there (None returned).
         """
-        w = self.window
-        if w is None:
+        stepper.h_max = self.step_bound(y)
+        try:
+            if self.window is not None:
+                w = self.window
+                return w.advance(t, y, span.t_window, self.diag, self.note_min, self.energy)
+            kernel = self.step_kernel(t, y)
+            if span.several:
+                st = self.stretch(stepper, span.t_end, span.t_last, span.t_sched, span.clock)
+                if st is not None:
+                    span.clock.record_states(st.samples)
+                    if st.pending is not None or st.steps:
+                        return st.pending
+            if kernel is None:
+                return stepper.step(span.t_end)
+            # (a restart's derivative left to this step: the kernel's first stage)
+            first = self._native.first if stepper.f_pending else None
+            return stepper.step(span.t_end, kernel, first, self._native.stiff)
+        except StepSizeUnderflow:
+            if self.window is not None:
+                raise
+            self._enter(t, y, "the stepper's step size underflowed")
             return None
-        w.stepper.forces.clear()  # (the last segment's samples are recorded)
-        after, self._after_run = self._after_run, None
-        if after is not None and after[0] == t and after[1] == y.tobytes():
-            pending = after[2]  # (the step the run stopped at: not offered to a run again)
-        else:
-            run = run_native(
-                w.stepper, t, y, t_end, w.until, w.quiet, w.last, self.diag.min_distance
-            )
-            pending = None if run is None else run.pending
-            if run is not None and run.steps:
-                self.diag.window_steps += run.steps
-                self.diag.sweeps += run.steps
-                for removed in run.removed.tolist():
-                    self.diag.window_energy_removed += removed
-                self.note_min(run.min_d, run.min_pair)
-                w.quiet, w.last = run.quiet, run.signature
-                self._after_run = (run.times[-1], run.states[-1].tobytes(), pending)
-                return StepChain(run.times, list(run.states))
-        seg, info = w.stepper.step(t, y, t_end, self.energy, pending=pending)
-        self.diag.window_steps += 1
-        self.diag.sweeps += 1
-        self.diag.window_energy_removed += info.removed
-        self.note_min(*info.closest)  # the step's sweep at its start (the previous step's end)
-        w.quiet = w.quiet + 1 if info.signature == w.last else 0
-        w.last = info.signature
-        return seg
-
-    def rescue(self, t: float, y: FloatArray) -> bool:
-        """A step-size underflow at (t, y) (a stiff or discontinuous stretch): a window."""
-        if self.window is not None:
-            return False
-        self._enter(t, y, "the stepper's step size underflowed")
-        return True
 
     def watch(self, seg: DenseSegment) -> list[Crossing]:
         """The event functions (none in a window: its steps resolve their contacts)."""
         self._clear = None
         if self.window is not None:
             return []
-        self._steps.append(seg.h)
+        self.triggers.steps.append(seg.h)
         y1 = seg.y1
         sw = self._end_sweep(y1)
         code = self._end_code(y1, sw)
@@ -242,96 +183,33 @@ class NormalLaw(PatchEvents):
         return out
 
     def _excursion_crossings(self, seg: DenseSegment) -> list[Crossing]:
-        """Joints that pass a stop inside the step and are within it at both of its ends.
+        """Joints past a stop inside the step and within it at its ends.
 
-        A long step (35 ms with the wrists locked) can carry a joint past its stop and back
-        with no event at the step's end: the candidates are the extremes of the cubic Hermite
-        of the joint's (q, v) at the step's ends beyond a stop
-        (``ContactRhs.limit_excursions``); an extreme the step's dense output confirms is an
-        event, located before it: a stop's ``limit`` event, or for a stop in the contact set
-        (a free row) its row's ``impact``. A held stop's row (engaged) is left to the modes.
+        :func:`~packbot.contact.normal_inside.limit_excursions`.
         """
         if not self.cfg.joint_limits or self.normal.resting:
             return []
-        found = self._native.limit_excursions(seg.y0, seg.y1, seg.h, EXCURSION_TOL)
-        out: list[Crossing] = []
-        normal = self.normal
-        for j, side, s in found:
-            lim = float(self.sys.upper[j] if side > 0 else self.sys.lower[j])
-            key: Key
-            if (j, side) in normal.limits:
-                if normal.limit_engaged(j, side):
-                    continue
-                kind, key = "impact", ("mode", "nrow", normal.limit_row(j, side))
-                offset = POINT_TOL
-            else:
-                kind, key, offset = "limit", ("limit", j, side), 0.0
-
-            def g(
-                t: float, j: int = j, side: int = side, lim: float = lim, c: float = offset
-            ) -> float:
-                return float(side * (lim - seg(t)[j])) + c  # [rad]
-
-            t_m = seg.t0 + s * seg.h
-            g_m, g0 = g(t_m), g(seg.t0)
-            if not (g_m < 0.0 < g0):
-                continue  # (the dense output stays within the stop there)
-
-            def early(t: float, g: Callable[[float], float] = g, t_m: float = t_m) -> float:
-                return g(min(t, t_m))
-
-            out.append(Crossing(kind, key, early, g0, g_m))
-        return out
+        return limit_excursions(seg, self._native, self.normal, self.sys.upper, self.sys.lower)
 
     def _dip_crossings(self, seg: DenseSegment, sw: SweepResult) -> list[Crossing]:
-        """Pairs that touch inside the step and are apart at both of its ends.
+        """Pairs that touch inside the step and are apart at its ends.
 
-        A fast, grazing pass (the camera head through a flipper's corner within one step)
-        starts and ends the step apart: each swept pair is screened over the step by
-        conservative advancement on its distance
-        (:meth:`~packbot.contact.native.NativeRhs.pair_dips`); a query on the dense output
-        that finds it touching is an ``impact`` (a pair of the contact set: its patch rebuilt
-        there), one that finds a pair of the set leaving from contact below
-        -:data:`PENETRATION_TOL` a ``repatch``, each located before that query.
+        :func:`~packbot.contact.normal_inside.pair_dips`.
         """
         active = np.array([k[1] for k in self.active if k[0] == "pair"], dtype=np.int64)
         # the kept distances are the step start's, unless a re-patch's projection moved it
         # since they were swept (then each pair is queried at the start when needed)
         last = self.last_d if self._start_swept else {}
         self._start_swept = True
-        start = (
-            np.fromiter(last.keys(), np.int64, len(last)),
-            np.fromiter(last.values(), float, len(last)),
-        )
         n = self.n
 
-        def distance(pair: int, y: FloatArray) -> float:
+        def screen(pair: int, y: FloatArray) -> float:
             self.diag.distance_queries += 1
             return self.world.screen_distance(y[:n], pair)
 
-        found, _ = self._native.pair_dips(
-            seg, start, (sw.pairs, sw.distances), active, self.cfg.margin, distance
+        return pair_dips(
+            seg, sw, self._native, active, last, self.cfg.margin, screen, self.distance
         )
-        out: list[Crossing] = []
-        for p_idx, s, _, level in found:
-            t_m = seg.t0 + s * seg.h
-
-            def g(t: float, p_idx: int = p_idx, level: float = level) -> float:
-                return self.distance(p_idx, seg(t)) - level  # [m]
-
-            g0 = last.get(p_idx, math.nan) - level
-            if not g0 > 0.0:
-                g0 = g(seg.t0)
-            g_m = g(t_m)  # (the located function's own value there: a bracket it agrees with)
-            if not g_m <= 0.0 < g0:
-                continue
-
-            def early(t: float, g: Callable[[float], float] = g, t_m: float = t_m) -> float:
-                return g(min(t, t_m))
-
-            kind = "impact" if level == 0.0 else "repatch"
-            out.append(Crossing(kind, ("pair", p_idx), early, g0, g_m))
-        return out
 
     def after_step(self, t: float, y: FloatArray) -> FloatArray | None:
         """After an accepted step; in a window, its end once the contacts have settled.
@@ -343,8 +221,7 @@ class NormalLaw(PatchEvents):
         """
         w = self.window
         if w is None:
-            steps = self._steps
-            if len(steps) == CRAWL_STEPS and sum(steps) < CRAWL_STEPS * CRAWL_STEP:
+            if self.triggers.crawling():
                 y_new = super().after_step(t, y)
                 y = y if y_new is None else y_new
                 if self.window is None:  # (the re-patch's Painleve fallback may have opened one)
@@ -368,13 +245,12 @@ class NormalLaw(PatchEvents):
     def _enter(self, t: float, y: FloatArray, why: str, relapse_span: float = RELAPSE_SPAN) -> None:
         """Start a window at (t, y) (``why``: for the log).
 
-        It lasts twice as long as the last one when the last one ended within
-        ``relapse_span`` [s] (a relapse), else :data:`WINDOW_MIN` at least.
+        Its shortest length: :meth:`WindowTriggers.opening
+        <packbot.contact.normal_windows.WindowTriggers.opening>` with ``relapse_span`` [s].
         """
         self._keep_end_eval()
         self._ready = None
-        relapse = t - self._last_exit <= relapse_span
-        self._min_len = 2.0 * self._min_len if relapse else WINDOW_MIN
+        min_len = self.triggers.opening(t, relapse_span)
         n = self.n
         q, v = y[:n], y[n : 2 * n]
         self.drive.fdir[:] = 0.0  # Coulomb friction and brakes are rows of the steps
@@ -382,17 +258,16 @@ class NormalLaw(PatchEvents):
         stepper = MoreauJeanStepper(
             self.sys, self.drive, self.normal, self.cfg, reach=self.reach, native=self._native
         )
-        self.window = _Window(stepper, t, t + self._min_len, self.energy(q, v))
+        self.window = Window(stepper, t, t + min_len, self.energy(q, v))
         self.diag.windows += 1
-        self._steps.clear()
         self.log_event(t, "timestep", q, v, v, None)
-        log.debug("t=%.6f: %s: time steps for %.3g s at least", t, why, self._min_len)
+        log.debug("t=%.6f: %s: time steps for %.3g s at least", t, why, min_len)
 
     def _resume(self, t: float, y: FloatArray) -> FloatArray:
         """End the window at (t, y): the event-driven mode restarts from that state."""
         assert self.window is not None
         n = self.n
-        self._last_exit = t
+        self.triggers.closed(t)
         self.log_event(t, "resume", y[:n], y[n : 2 * n], y[n : 2 * n], None)
         self.rebuild(self.sys)  # every contact and mode forgotten (the window is ended)
         self._after_event(y)  # the distances at the window's end (and the deepest one)
@@ -416,7 +291,7 @@ class NormalLaw(PatchEvents):
         :meth:`accel` (to rounding); a singular Delassus matrix falls back to :meth:`accel`.
         """
         if self.window is not None:
-            # The window's steps integrate (advance); the loop's right-hand side only gives the
+            # The window's steps integrate (step); the loop's right-hand side only gives the
             # stepper's restart value (a tick inside the window), recomputed when the window
             # ends. The window's steps re-patch pairs in the contact set, so its engaged rows
             # (the event-driven modes') may no longer index them: the free accelerations.
@@ -429,26 +304,6 @@ class NormalLaw(PatchEvents):
             if a is not None:
                 return a
         return self.accel(q, v, self.sys.aba(q, v, tau))
-
-    @property
-    def first_stage(self) -> Callable[[FloatArray], bool] | None:
-        """The native step's first stage after a restart.
-
-        Where :meth:`step_kernel` offers the native step, :meth:`torque_accel` at its start
-        would take the native call on the same modes and torques: the same numbers (the
-        stepper's deferred derivative, :meth:`RK45Stepper.reset
-        <packbot.ode.RK45Stepper.reset>`'s ``defer``).
-        """
-        return self._native.first
-
-    @property
-    def stiff_kernel(self) -> StiffKernel | None:
-        """The native RODAS4 attempt on the modes :meth:`step_kernel` loaded.
-
-        For the stepper's stiff stretches (a slow slide whose friction direction decays
-        sideways fast: :attr:`NativeRhs.stiff <packbot.contact.native.NativeRhs.stiff>`).
-        """
-        return self._native.stiff
 
     def step_kernel(self, t: float, y: FloatArray) -> StepKernel | None:
         """The native Dormand-Prince step of the current modes, or None (the stages call rhs).
@@ -518,7 +373,7 @@ class NormalLaw(PatchEvents):
                 [(j, side, self._limit_held(j, side)) for j, side in stops], dtype=np.int64
             ).reshape(-1, 3),
             lim_value=np.array([upper[j] if side > 0 else lower[j] for j, side in stops]),
-            crawl=np.array(self._steps, dtype=np.float64),
+            crawl=np.array(self.triggers.steps, dtype=np.float64),
             min_d=self.diag.min_distance,
             # (a subclass's hooks: its re-patches are the loop's)
             modes=repatch_modes(self) if type(self) is NormalLaw else None,
@@ -569,8 +424,7 @@ class NormalLaw(PatchEvents):
         t, y = stepper.t, stepper.y
         n = self.n
         if (
-            not REST_HOLD
-            or t_end <= t
+            t_end <= t
             or len(y) != 2 * n
             or y[n:].any()
             or self.locks.conditional
@@ -590,7 +444,7 @@ class NormalLaw(PatchEvents):
             out: The native call's results (:meth:`QuietStretch.run
                 <packbot.contact.stretch.QuietStretch.run>`).
         """
-        self._steps.extend(out["hs"][0].tolist())
+        self.triggers.steps.extend(out["hs"][0].tolist())
         self.diag.sweeps += out["steps"]
         self.note_min(out["min_d"], out["min_pair"])
         pairs, distances = out["last_pairs"][0], out["last_dist"][0]
@@ -770,22 +624,9 @@ class NormalLaw(PatchEvents):
             self.drive.fdir[:] = 0.0
         elif self.drive.path.coulomb.any():
             self.settle_modes(t, y_new, candidates=stick, log_stick=True)
-        recent = self._recent
-        recent.append(t)
-        relapse = t - self._last_exit <= RELAPSE_SPAN
-        pile = min(RELAPSE_EVENTS, CASCADE_EVENTS) if relapse else CASCADE_EVENTS
-        piled = len(recent) >= pile and t - recent[-pile] <= CASCADE_SPAN
-        # a chatter: CHATTER_EVENTS within CHATTER_SPAN; within CHATTER_SPAN of the last
-        # window's end, RELAPSE_EVENTS at the same rate (the chatter came back)
-        again = t - self._last_exit <= CHATTER_SPAN
-        chat = RELAPSE_EVENTS if again else CHATTER_EVENTS
-        span = CHATTER_SPAN * chat / CHATTER_EVENTS
-        chatter = len(recent) >= chat and t - recent[-chat] <= span
-        if piled or chatter:
-            recent.clear()
-            # (a chatter that came back within its own span of the last window's end is a
-            # relapse too: the window doubles)
-            self._enter(t, y_new, "events piled up", CHATTER_SPAN if chatter else RELAPSE_SPAN)
+        relapse_span = self.triggers.piled_up(t)
+        if relapse_span is not None:
+            self._enter(t, y_new, "events piled up", relapse_span)
         elif self._held_with_contacts(v_new):
             self._enter(t, y_new, "joints held by friction while contacts push")
         elif any(me.kind == "painleve" for me in mode_events):

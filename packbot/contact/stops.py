@@ -38,18 +38,17 @@ from numpy.typing import NDArray
 
 from packbot.collision import PairInfo
 from packbot.config import SimConfig
-from packbot.contact.base import Active, Crossing, Key
+from packbot.contact.base import Active, Crossing, Key, StepSpan
 from packbot.contact.lock_step import SCREEN_MARGIN as SCREEN_MARGIN
 from packbot.contact.lock_step import NativeLockStep
 from packbot.contact.locks import TORQUE_BAND, JointLocks
 from packbot.drive import Drive
-from packbot.ode import DenseSegment, RK45Stepper, StepKernel, StiffKernel
+from packbot.ode import DenseSegment, RK45Stepper, StepKernel
 from packbot.recorder import EventLog
 from packbot.result import Diagnostics, Event
 from packbot.system import System
 
 if TYPE_CHECKING:
-    from packbot.contact.stretch import SampleClock, Stretched
     from packbot.contact_forces import SampleForces
 
 __all__ = [
@@ -196,12 +195,17 @@ class JointStops:
         self.active: dict[Key, Active] = {}
         self._lock_step = NativeLockStep(system, self.drive)  # the native step, its screen
 
-    def start(self, t: float, y: FloatArray, check: bool) -> FloatArray:
+    def start(
+        self, t: float, y: FloatArray, check: bool, system: System | None = None
+    ) -> FloatArray:
         """Contacts (pairs within the contact tolerance) and limit stops at (t, y).
 
         Each gets its event's handling at t (an impact with zero speed gets its clamps); with
-        none, the locks and holds are settled. Returns the state after.
+        none, the locks and holds are settled. Returns the state after. A new phase's
+        ``system``: :meth:`rebuild` on it first.
         """
+        if system is not None:
+            self.rebuild(system)
         crossings = self._initial_pairs(y, check)
         if self.cfg.joint_limits:
             for j in range(self.n):
@@ -241,27 +245,6 @@ class JointStops:
         """Whether the current mode's accelerations are the locks' alone (no rows of the law)."""
         return self._locks_only
 
-    @property
-    def stiff_kernel(self) -> StiffKernel | None:
-        """None: the lock modes' native steps stay explicit (ContactLaw.stiff_kernel)."""
-        return None
-
-    @property
-    def first_stage(self) -> Callable[[FloatArray], bool] | None:
-        """None: a restart computes its derivative at once (ContactLaw.first_stage)."""
-        return None
-
-    def stretch(
-        self,
-        stepper: RK45Stepper,
-        t_end: float,
-        t_last: float,
-        t_sched: float,
-        clock: SampleClock,
-    ) -> Stretched | None:
-        """None: the lock modes' steps are taken one by one (ContactLaw.stretch)."""
-        return None
-
     def step_kernel(self, t: float, y: FloatArray) -> StepKernel | None:
         """The native Dormand-Prince step of the current lock mode, or None (the stages call rhs).
 
@@ -292,13 +275,17 @@ class JointStops:
         """``max_step``: without a collision world nothing else bounds a step."""
         return self.cfg.max_step
 
-    def advance(self, t: float, y: FloatArray, t_end: float) -> DenseSegment | None:
-        """None: the loop's stepper takes every step (only the normal mode has windows)."""
-        return None
+    def step(
+        self, stepper: RK45Stepper, t: float, y: FloatArray, span: StepSpan
+    ) -> DenseSegment | None:
+        """One step of the loop's stepper from (t, y), not past ``span.t_end``.
 
-    def rescue(self, t: float, y: FloatArray) -> bool:
-        """False: a step-size underflow stops the run (only the normal mode has windows)."""
-        return False
+        Bounded by :meth:`step_bound`; its stages are :meth:`step_kernel`'s compiled call
+        where that serves, else the stepper's calls of the right-hand side. A step-size
+        underflow stops the run (only the contact-normal mode takes over there).
+        """
+        stepper.h_max = self.step_bound(y)
+        return stepper.step(span.t_end, self.step_kernel(t, y))
 
     def watch(self, seg: DenseSegment) -> list[Crossing]:
         """Event functions that changed sign over the step (evaluated at its end).

@@ -34,12 +34,13 @@ from __future__ import annotations
 
 import logging
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any, Protocol
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import NDArray
 
 from packbot.contact import native
+from packbot.contact.base import SampleClock
 from packbot.contact.normal_contacts import NormalContacts
 from packbot.contact.normal_tolerances import (
     BAUMGARTE,
@@ -81,17 +82,6 @@ PENDING = 1
 #: The native run's status after a re-patch it took where the loop goes on (the stepper
 #: restarted there, its derivative left to the next step).
 REPATCHED = 8
-
-
-class SampleClock(Protocol):
-    """The regular samples' clock of a run (:class:`packbot.recorder.Recorder` is one)."""
-
-    dt: float  #: the interval of the regular samples [s]
-    duration: float  #: the run's duration [s]
-    next_sample: int  #: the index of the next regular sample (at ``next_sample * dt``)
-
-    def record_states(self, ys: FloatArray) -> None:
-        """Keep the next regular samples from their states ys, shape (m, n), in order."""
 
 
 @dataclass(frozen=True, slots=True)
