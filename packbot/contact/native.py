@@ -275,6 +275,21 @@ class NativeRhs:
         cond, a, lam, gap, vn, vt, slide2 = got
         return _Eval(a, lam, gap, vn, vt, cond=cond, slide2=slide2)
 
+    def forces(self, lam: FloatArray, on1: NDArray[np.uint8]) -> tuple[Any, ...]:
+        """The contact forces of the loaded plan's modes on the rows last computed.
+
+        ``ContactRhs.forces`` (``src/native/contact_rhs_forces.cpp``) after :meth:`evaluate`
+        (or :meth:`rows`) at the sample's state, with the multipliers ``lam`` of the plan's
+        problem (engaged rows, then two per sticking pair) and each pair's ``on1`` (its normal
+        carried by body 1).
+
+        Returns:
+            who (k, 2): each record's pair and row (-1: a sticking pair's centre); touch,
+            point1, point2 [m], normal, force on body 2 [N], each (k, 3), world; the joint
+            stops' torques (nv,) [N*m].
+        """
+        return tuple(self._rhs.forces(_reals(lam), np.ascontiguousarray(on1, dtype=np.uint8)))
+
     def forget_loaded(self) -> None:
         """Forget what is loaded: the next :meth:`load` loads the layout and plan in full.
 

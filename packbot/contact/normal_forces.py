@@ -15,6 +15,9 @@ solved a second way):
 
 A joint limit row is not a contact: its multiplier is the stop's torque on its joint
 (``-side lambda``: an upper stop pushes toward -q), reported per joint beside the contacts.
+With the modes fixed the records are the extension's (``ContactRhs.forces``,
+``src/native/contact_rhs_forces.cpp``, on the rows of the evaluation); at rest they are built
+here from the frictional problem's solution.
 Conventions of the records: :mod:`packbot.contact_forces`.
 """
 
@@ -63,42 +66,20 @@ def mode_forces(
     limit = np.zeros(nc.nv)
     if not nc.engaged:
         return SampleForces([], limit)
-    pin.forwardKinematics(nc.model, data, q)
     pairs = nc._pair_list
-    frames = [pair_frame(data, p) for p in pairs]
-    if nc.resting:
+    ev = None if nc.resting else nc.evaluate(q, v, a_free, minv)
+    if ev is None or ev.rest is not None:
+        pin.forwardKinematics(nc.model, data, q)
+        frames = [pair_frame(data, p) for p in pairs]
         return _rest_forces(nc, data, pairs, frames, q, a_free, minv)
-    ev = nc.evaluate(q, v, a_free, minv)
-    if ev.rest is not None:
-        return _rest_forces(nc, data, pairs, frames, q, a_free, minv)
-    plan = nc._plan()
-    start = _row_starts(pairs)
-    lam = np.asarray(ev.lam, dtype=np.float64)
-    extra = nc._problem(q, v)[4] if nc.mu > 0.0 else []
-    pos = {int(r): i for i, r in enumerate(plan.engaged)}
-    n_e = len(plan.engaged)
-    _stop_torques(nc, pairs, {r: float(lam[i]) for r, i in pos.items()}, limit)
-    stick_k = {int(i): n_e + 2 * k for k, i in enumerate(plan.sticks)}
-    out: list[SampleContact] = []
-    for i, p in enumerate(pairs):
-        K = len(p.local1)
-        at = [(j, pos[start[i] + j]) for j in range(K) if start[i] + j in pos]
-        if not at:
-            continue
-        T = frames[i]  # rows t1, t2, n (world)
-        n = T[2]
-        names = pair_names(p)
-        dirn = np.broadcast_to(n, (K, 3))
-        if nc.mu > 0.0 and not p.stick:  # the force columns J_n - mu J_s: lambda (n - mu s)
-            dirn = n - nc.mu * nc.slip_directions(p, extra[i])
-        touch, p1, p2 = pair_points(data, p)
-        for j, r in at:
-            out.append((names, touch[j], p1[j], p2[j], n.copy(), float(lam[r]) * dirn[j]))
-        k = stick_k.get(i)
-        if k is not None:  # a sticking pair's friction, at its patch centre
-            f = np.asarray(lam[k] * T[0] + lam[k + 1] * T[1], dtype=np.float64)
-            c = _centre(data, p)
-            out.append((names, c, c, c, n.copy(), f))
+    # the rows of the evaluation (its state): the extension's records of the plan's forces
+    on1 = np.array([p.on1 for p in pairs], dtype=np.uint8)
+    who, touch, p1, p2, normal, force, limit = nc._rows_rhs().forces(ev.lam, on1)
+    names = [pair_names(p) for p in pairs]
+    out: list[SampleContact] = [
+        (names[i], touch[k], p1[k], p2[k], normal[k], force[k])
+        for k, i in enumerate(who[:, 0].tolist())
+    ]
     return SampleForces(out, limit)
 
 
@@ -232,12 +213,3 @@ def pair_points(data: Any, p: _Pair) -> tuple[FloatArray, FloatArray, FloatArray
     a = np.asarray(p.local1 @ M1.rotation.T + M1.translation, dtype=np.float64)
     b = np.asarray(p.local2 @ M2.rotation.T + M2.translation, dtype=np.float64)
     return (b if p.on1 else a), a, b
-
-
-def _centre(data: Any, p: _Pair) -> FloatArray:
-    """Where the patch centres touch [m], world frame (as :func:`_points`)."""
-    if p.on1:
-        M2 = data.oMi[p.info.joint2]
-        return np.asarray(M2.rotation @ np.ravel(p.centre2) + M2.translation, dtype=np.float64)
-    M1 = data.oMi[p.info.joint1]
-    return np.asarray(M1.rotation @ np.ravel(p.centre1) + M1.translation, dtype=np.float64)

@@ -146,6 +146,7 @@ NB_MODULE(_native, m) {
       .def("rows", &ContactRhs::rows_out, nb::arg("q"), nb::arg("v"))
       .def("evaluate", &ContactRhs::evaluate_at, nb::arg("q"), nb::arg("v"), nb::arg("a_free"),
            nb::arg("minv"))
+      .def("forces", &ContactRhs::forces_out, nb::arg("lam"), nb::arg("on1"))
       .def("set_layout", &ContactRhs::set_layout)
       .def("set_patches", &ContactRhs::set_patches, nb::arg("local"), nb::arg("frame2"),
            nb::arg("offset0"), nb::arg("slide_tol2"))

@@ -22,6 +22,7 @@
 //   contact_rhs_passes.cpp    Pinocchio's passes (aba, M^-1, crba, ...: their one instance)
 //   contact_rhs_rows.cpp      the contact rows
 //   contact_rhs_dynamics.cpp  the constrained accelerations of the modes
+//   contact_rhs_forces.cpp    the contact forces of the modes (their multipliers as forces)
 //   contact_rhs_locks.cpp     the joint locks (the report's law instead of the contact rows)
 //   contact_rhs_events.cpp    the step end: its evaluation, a row's event, its screen
 //   contact_rhs_step.cpp      the integrator steps (Dormand-Prince 5(4), RODAS4)
@@ -151,6 +152,9 @@ class ContactRhs {
                       std::vector<double> &lam);
   nb::object evaluate_at(F1 q, F1 v, F1 a_free, F2 minv);
   nb::tuple last() const;
+
+  // ---- the contact forces of the modes: contact_rhs_forces.cpp
+  nb::tuple forces_out(F1 lam, U1 on1);
 
   // ---- the joint locks: contact_rhs_locks.cpp
   void set_locks(I1 locked);
