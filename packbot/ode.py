@@ -50,6 +50,26 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from packbot.errors import ConfigurationError, PackbotError
+from packbot.step_control import (
+    ERROR_EXPONENT,
+    MAX_FACTOR,
+    MAX_FACTOR_FIRST,
+    ROS_ERROR_EXPONENT,
+    ControlState,
+    error_norm,
+    initial_step,
+    landing,
+    next_step,
+    shrink_factor,
+    stiffness_switch,
+)
+from packbot.step_control import MIN_FACTOR as MIN_FACTOR  # (importable from here as before)
+from packbot.step_control import NONSTIFF_RATIO as NONSTIFF_RATIO
+from packbot.step_control import ROS_MAX_FACTOR as ROS_MAX_FACTOR
+from packbot.step_control import SAFETY as SAFETY
+from packbot.step_control import STIFF_RATIO as STIFF_RATIO
+from packbot.step_control import STIFF_STEPS as STIFF_STEPS
+from packbot.step_control import STRETCH as STRETCH
 
 __all__ = [
     "ControlState",
@@ -166,30 +186,6 @@ _P8T = np.zeros((5, 8))
 _P8T[0, 0] = 1.0
 _P8T[1:, 1:] = _P.T
 
-#: Safety factor of the step-size controller [-].
-SAFETY = 0.9
-#: Smallest step-size factor after a rejection [-].
-MIN_FACTOR = 0.2
-#: Largest step-size growth on the first step after a (re)start [-].
-MAX_FACTOR_FIRST = 5.0
-#: Largest step-size growth once a step has been accepted since the last (re)start [-].
-MAX_FACTOR = 10.0
-#: Exponent of the error in the step-size factor: -1 / (order of the error estimator + 1).
-ERROR_EXPONENT = -1.0 / 5.0
-#: A step that would end within this fraction of itself before ``t_end`` is stretched onto it.
-STRETCH = 0.01
-#: Dormand-Prince steps count as stiff when their ``h |lambda|`` estimate exceeds this [-]
-#: (the method's stability bound on the negative real axis is about 3.3; DOPRI5 uses 3.25).
-STIFF_RATIO = 3.0
-#: Successive stiff Dormand-Prince steps after which the stepper takes Rosenbrock steps [-].
-STIFF_STEPS = 3
-#: A Rosenbrock step whose next step size times its Jacobian's spectral radius is below this
-#: hands back to Dormand-Prince (which is then stable at that step size) [-].
-NONSTIFF_RATIO = 3.0
-#: Exponent of the error in the Rosenbrock step-size factor: -1 / (embedded order 3 + 1).
-ROS_ERROR_EXPONENT = -1.0 / 4.0
-#: Largest step-size growth of a Rosenbrock step [-] (rodas.f's default).
-ROS_MAX_FACTOR = 6.0
 #: ``RK45Stepper.f`` while it is pending (a deferred reset).
 _NO_F = np.empty(0)
 
@@ -368,25 +364,6 @@ class HermiteSegment(DenseSegment):
         return Q
 
 
-@dataclass(frozen=True, slots=True)
-class ControlState:
-    """A stepper's step-size control between two steps (:meth:`RK45Stepper.control`).
-
-    Attributes:
-        h: The next step's size [s] (before the cap at ``h_max``).
-        max_factor: The next step's growth cap [-] (:data:`MAX_FACTOR_FIRST` after a reset).
-        stiff_run: Successive steps whose stiffness estimate exceeded :data:`STIFF_RATIO`.
-        stiff: Whether the next steps are Rosenbrock steps.
-        ay: ``|y|`` of the current state, shape (n,) (do not modify).
-    """
-
-    h: float
-    max_factor: float
-    stiff_run: int
-    stiff: bool
-    ay: FloatArray
-
-
 class RK45Stepper:
     """Dormand-Prince 5(4) stepper with error control, FSAL and dense output; forward in time.
 
@@ -529,7 +506,9 @@ class RK45Stepper:
         self.stiff = False
         self._stiff_run = 0
         if h is None:
-            h = self._initial_step(t, y, f, ay)
+            atol, rtol, h_max = self.atol, self.rtol, self.h_max
+            h = initial_step(self._rhs, t, y, f, ay, atol, rtol, h_max, self._inv_n)
+            self.n_rhs += 1  # (the probe call)
         self.h = min(float(h), self.h_max)
 
     def control(self) -> ControlState:
@@ -608,26 +587,6 @@ class RK45Stepper:
         """
         self.reset(t_new, y_new, self.h)
 
-    def _initial_step(self, t: float, y: FloatArray, f: FloatArray, ay: FloatArray) -> float:
-        """Hairer's initial step size for an order-4 error estimator (1 right-hand-side call)."""
-        inv_sc = 1.0 / (self.atol + self.rtol * ay)
-        v = y * inv_sc
-        d0 = math.sqrt(float(np.dot(v, v)) * self._inv_n)
-        v = f * inv_sc
-        d1 = math.sqrt(float(np.dot(v, v)) * self._inv_n)
-        h0 = 1e-6 if d0 < 1e-5 or d1 < 1e-5 else 0.01 * d0 / d1
-        h0 = min(h0, self.h_max)
-        f1 = np.asarray(self._rhs(t + h0, y + h0 * f), dtype=np.float64)
-        self.n_rhs += 1
-        v = (f1 - f) * inv_sc
-        d2 = math.sqrt(float(np.dot(v, v)) * self._inv_n) / h0
-        d = max(d1, d2)
-        h1 = max(1e-6, h0 * 1e-3) if d <= 1e-15 else (0.01 / d) ** 0.2
-        h = min(100.0 * h0, h1)
-        if not math.isfinite(h):  # the probe rhs call returned inf/nan: start cautiously
-            h = h0
-        return h
-
     def _stages(
         self, t: float, t_new: float, h: float, Z: FloatArray
     ) -> tuple[FloatArray, FloatArray, float]:
@@ -648,14 +607,9 @@ class RK45Stepper:
         Z[6] = rhs(t + c5 * h, np.dot(r5, Z[:6]))
         y_new = np.dot(r6, Z[:7])
         Z[7] = rhs(t_new, y_new)
-        # Scaled RMS norm of the error estimate h * sum_j e_j k_j.
-        ev = np.dot(_E, Z[1:])
+        ev = np.dot(_E, Z[1:])  # the error estimate h * sum_j e_j k_j, divided by h
         ay1 = np.abs(y_new)
-        sc = np.maximum(self._ay, ay1)
-        sc *= self.rtol
-        sc += self.atol
-        ev /= sc
-        return y_new, ay1, h * math.sqrt(float(np.dot(ev, ev)) * self._inv_n)
+        return y_new, ay1, error_norm(ev, self._ay, ay1, self.rtol, self.atol, h, self._inv_n)
 
     def step(
         self,
@@ -733,12 +687,7 @@ class RK45Stepper:
         expo = ROS_ERROR_EXPONENT if implicit else ERROR_EXPONENT
         rejected = False
         while True:
-            t_new = t + h
-            h_wanted = -1.0
-            if t_new + STRETCH * h >= t_end:
-                h_wanted = h
-                t_new = t_end
-                h = t_end - t
+            t_new, h, h_wanted = landing(t, h, t_end)
             if kernel is not None:
                 y_new = np.empty(n)
                 ay1 = np.empty(n)
@@ -762,51 +711,27 @@ class RK45Stepper:
             # Rejected (also when err is nan: the rhs returned inf/nan).
             self.n_rejected += 1
             rejected = True
-            fac = SAFETY * err**expo
-            if not fac > MIN_FACTOR:
-                fac = MIN_FACTOR
-            h *= fac
+            h *= shrink_factor(err, expo)
             h_floor = max(self.h_min, 10.0 * math.ulp(t))
             if h < h_floor:
                 self.h = h
                 raise StepSizeUnderflow(t, h, h_floor)
         # Accepted.
         max_factor = ROS_MAX_FACTOR if implicit else self._max_factor
-        if err == 0.0:
-            fac = max_factor
-        else:
-            fac = SAFETY * err**expo
-            if fac > max_factor:
-                fac = max_factor
-        if rejected:
-            if fac > 1.0:
-                fac = 1.0
-        elif h_wanted > h:
-            # The step was shortened to land on t_end: the controller's proposal still holds.
-            h_next = h * fac
-            h = h_wanted if h_wanted > h_next else h_next
-            fac = 1.0
-        self.h = h * fac
+        self.h = next_step(h, err, expo, max_factor, rejected, h_wanted)
         self._max_factor = MAX_FACTOR
         self.n_steps += 1
-        if stiff is not None:
-            if implicit:
-                self.n_stiff_steps += 1
-                self.n_rhs += 1  # f(y1), the accepted attempt's last stage
-                seg: DenseSegment = HermiteSegment(t, t_new, t_new - t, y, y_new, Z)
-                if self.h * stiff.radius() < NONSTIFF_RATIO:
-                    self.stiff = False
-                    self._stiff_run = 0
-            else:
-                seg = DenseSegment(t, t_new, t_new - t, y, y_new, Z)
-                if stiff.stiffness() > STIFF_RATIO:
-                    self._stiff_run += 1
-                    if self._stiff_run >= STIFF_STEPS:
-                        self.stiff = True
-                else:
-                    self._stiff_run = 0
+        if implicit:
+            self.n_stiff_steps += 1
+            self.n_rhs += 1  # f(y1), the accepted attempt's last stage
+            seg: DenseSegment = HermiteSegment(t, t_new, t_new - t, y, y_new, Z)
         else:
             seg = DenseSegment(t, t_new, t_new - t, y, y_new, Z)
+        if stiff is not None:
+            estimate = stiff.radius() if implicit else stiff.stiffness()
+            self._stiff_run, self.stiff = stiffness_switch(
+                implicit, self._stiff_run, self.h, estimate
+            )
         self.t = t_new
         self.y = y_new
         self.f = Z[7]

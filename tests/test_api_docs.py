@@ -100,6 +100,7 @@ INTERNAL_MODULES = {
     "packbot.scenario_schema",
     "packbot.schedule",
     "packbot.srdfgen",
+    "packbot.step_control",
     "packbot.study_matrix_format",
     "packbot.system",
     "packbot.ticks",

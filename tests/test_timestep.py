@@ -15,7 +15,7 @@ import pytest
 from test_normal_cascade import GAIN_TOL, start_pose
 
 import packbot
-from packbot.contact import normal_law
+from packbot.contact import normal_law, normal_windows
 from packbot.contact.lcp import box_residual, solve_mixed_admm
 from packbot.contact.normal import PENETRATION_TOL
 from packbot.contact.timestep import WINDOW_STEP, MoreauJeanStepper, StepSegment
@@ -129,8 +129,8 @@ def test_a_run_stepped_in_windows_rests_where_the_event_driven_mode_rests(robot,
     # event-driven but for at most a short cascade window (an edge patch's two points taking
     # the load in turn at 0.33 s: 20 ms, 40 steps)
     assert exact.diagnostics.window_steps * WINDOW_STEP <= 0.05
-    monkeypatch.setattr(normal_law, "CASCADE_EVENTS", 1)
-    monkeypatch.setattr(normal_law, "WINDOW_MIN", 10.0)
+    monkeypatch.setattr(normal_windows, "CASCADE_EVENTS", 1)
+    monkeypatch.setattr(normal_windows, "WINDOW_MIN", 10.0)
     cfg = packbot.SimConfig(**base, sample_dt=WINDOW_STEP)
     stepped = packbot.simulate(robot, q0, np.zeros(robot.nq), 2.0, config=cfg)
     d = stepped.diagnostics
@@ -226,7 +226,7 @@ def test_an_unconverged_step_falls_back_to_the_frictionless_rows(robot, monkeypa
 
     monkeypatch.setattr(window_impulses, "solve_mixed_admm", bad)
     monkeypatch.setattr(conic, "solve_conic", bad_conic)
-    monkeypatch.setattr(normal_law, "CASCADE_EVENTS", 1)
+    monkeypatch.setattr(normal_windows, "CASCADE_EVENTS", 1)
     cfg = packbot.SimConfig(contact_mode="normal", mu=0.5, restitution=0.0, locked_joints=LOCKED)
     res = packbot.simulate(robot, robot.pose("drive"), np.zeros(robot.nq), 0.4, config=cfg)
     assert res.diagnostics.window_steps > 100
@@ -277,15 +277,15 @@ def test_the_crawl_detector_opens_a_window_after_crawl_steps(robot, monkeypatch)
     q0, v0 = robot.pose("drive"), np.zeros(robot.nq)
     plain = packbot.simulate(robot, q0, v0, 0.6, config=cfg)
     t_plain = min((e.t for e in plain.events_of("timestep")), default=np.inf)
-    monkeypatch.setattr(normal_law, "CRAWL_STEPS", 50)
-    monkeypatch.setattr(normal_law, "CRAWL_STEP", 1.0)  # [s]: every step is "slow"
+    monkeypatch.setattr(normal_windows, "CRAWL_STEPS", 50)
+    monkeypatch.setattr(normal_windows, "CRAWL_STEP", 1.0)  # [s]: every step is "slow"
     res = packbot.simulate(robot, q0, v0, 0.6, config=cfg)
     d = res.diagnostics
     assert d.windows >= 1
     assert -d.min_distance <= PENETRATION_TOL
     assert _event_gain(res) <= GAIN_TOL
     # the count: with 100 steps to average, the first window opens later, after more steps
-    monkeypatch.setattr(normal_law, "CRAWL_STEPS", 100)
+    monkeypatch.setattr(normal_windows, "CRAWL_STEPS", 100)
     later = packbot.simulate(robot, q0, v0, 0.6, config=cfg)
     t50 = res.events_of("timestep")[0].t
     t100 = later.events_of("timestep")[0].t
@@ -316,7 +316,7 @@ def test_an_unconverged_compiled_answer_falls_back_to_pinocchios_admm(robot, mon
     monkeypatch.setattr(conic, "solve_conic", unconverged)
     monkeypatch.setattr(window_impulses, "solve_mixed_admm", counted)
     monkeypatch.setattr(window_impulses, "CONIC_ITERATIONS", 1)  # (the native steps hand back)
-    monkeypatch.setattr(normal_law, "CASCADE_EVENTS", 1)
+    monkeypatch.setattr(normal_windows, "CASCADE_EVENTS", 1)
     cfg = packbot.SimConfig(contact_mode="normal", mu=0.5, restitution=0.0, locked_joints=LOCKED)
     res = packbot.simulate(robot, robot.pose("drive"), np.zeros(robot.nq), 0.3, config=cfg)
     assert res.diagnostics.window_steps > 100
@@ -337,7 +337,7 @@ def test_a_relapse_after_a_window_opens_the_next_one_within_a_few_restarts(robot
     windows by it."""
     q0 = start_pose(robot, 3)
     cfg = packbot.SimConfig(contact_mode="normal", mu=0.5, restitution=0.0)
-    n = normal_law.RELAPSE_EVENTS
+    n = normal_windows.RELAPSE_EVENTS
     seen: dict[str, list[float]] = {}
     law = normal_law.NormalLaw
     handle, enter, resume = law._handle, law._enter, law._resume
@@ -357,13 +357,13 @@ def test_a_relapse_after_a_window_opens_the_next_one_within_a_few_restarts(robot
     monkeypatch.setattr(law, "_handle", handled)
     monkeypatch.setattr(law, "_enter", entered)
     monkeypatch.setattr(law, "_resume", resumed)
-    for span in (normal_law.CASCADE_SPAN, 0.005):
-        monkeypatch.setattr(normal_law, "CASCADE_SPAN", span)
+    for span in (normal_windows.CASCADE_SPAN, 0.005):
+        monkeypatch.setattr(normal_windows, "CASCADE_SPAN", span)
         seen.update(restart=[], enter=[], resume=[])
         res = packbot.simulate(robot, q0, np.zeros(robot.nq), 1.8, config=cfg)
         by_rule = 0
         for t_end in seen["resume"]:
-            near = t_end + normal_law.RELAPSE_SPAN
+            near = t_end + normal_windows.RELAPSE_SPAN
             ts = [t for t in seen["restart"] if t_end <= t <= near]
             opened = [t for t in seen["enter"] if t_end < t]
             # the restart completing n within the span: the window opens there at the latest
@@ -372,7 +372,7 @@ def test_a_relapse_after_a_window_opens_the_next_one_within_a_few_restarts(robot
             if due is not None:
                 assert opened and opened[0] <= due, (span, t_end, ts[:8], opened[:1])
                 by_rule += opened[0] == due
-        if span > normal_law.CASCADE_SPAN:  # (at 1 ms the chatter rule opens them first)
+        if span > normal_windows.CASCADE_SPAN:  # (at 1 ms the chatter rule opens them first)
             assert by_rule >= 2, (span, seen["resume"], seen["enter"])
         assert _event_gain(res) <= GAIN_TOL
         assert -res.diagnostics.min_distance <= PENETRATION_TOL
@@ -390,8 +390,8 @@ def test_frictionless_steps_are_solved_by_the_compiled_solver(robot, monkeypatch
         return real(G, g, m)
 
     monkeypatch.setattr(WindowImpulses, "_frictionless", staticmethod(counted))
-    monkeypatch.setattr(normal_law, "CASCADE_EVENTS", 1)
-    monkeypatch.setattr(normal_law, "WINDOW_MIN", 10.0)
+    monkeypatch.setattr(normal_windows, "CASCADE_EVENTS", 1)
+    monkeypatch.setattr(normal_windows, "WINDOW_MIN", 10.0)
     cfg = packbot.SimConfig(contact_mode="normal", mu=0.0, restitution=0.0, locked_joints=LOCKED)
     res = packbot.simulate(robot, robot.pose("drive"), np.zeros(robot.nq), 0.4, config=cfg)
     d = res.diagnostics
@@ -406,8 +406,8 @@ def test_frictionless_steps_are_solved_by_the_compiled_solver(robot, monkeypatch
 def _spinning_window(robot, monkeypatch, duration=0.3):
     """The collapse from "drive" with the gripper and camera spinning, in one window from its
     first event (sliding patches: many are rebuilt)."""
-    monkeypatch.setattr(normal_law, "CASCADE_EVENTS", 1)
-    monkeypatch.setattr(normal_law, "WINDOW_MIN", 10.0)
+    monkeypatch.setattr(normal_windows, "CASCADE_EVENTS", 1)
+    monkeypatch.setattr(normal_windows, "WINDOW_MIN", 10.0)
     v0 = np.zeros(robot.nq)
     v0[robot.joint_names.index("gripper_roll")] = 80.0
     v0[robot.joint_names.index("camera_pan")] = -40.0
@@ -472,8 +472,8 @@ def test_a_window_at_rest_sweeps_once_a_step(robot, monkeypatch):
     monkeypatch.setattr(MoreauJeanStepper, "step", counted_step)
     # (joint friction: the joints' boxes, so each step through MoreauJeanStepper.step; a
     # native run of steps sweeps once a step by construction)
-    monkeypatch.setattr(normal_law, "CASCADE_EVENTS", 1)
-    monkeypatch.setattr(normal_law, "WINDOW_MIN", 10.0)
+    monkeypatch.setattr(normal_windows, "CASCADE_EVENTS", 1)
+    monkeypatch.setattr(normal_windows, "WINDOW_MIN", 10.0)
     cfg = packbot.SimConfig(
         contact_mode="normal", mu=0.5, restitution=0.0, joint_friction=True, locked_joints=LOCKED
     )

@@ -74,19 +74,7 @@ arm: it takes one force distribution of many (see :meth:`NormalContacts.capture`
 """
 
 from packbot.contact.normal_contacts import NormalContacts
-from packbot.contact.normal_law import (
-    CASCADE_EVENTS,
-    CASCADE_SPAN,
-    CHATTER_EVENTS,
-    CHATTER_SPAN,
-    CRAWL_STEP,
-    CRAWL_STEPS,
-    HOLD_SPEED,
-    RELAPSE_EVENTS,
-    RELAPSE_SPAN,
-    WINDOW_MIN,
-    NormalLaw,
-)
+from packbot.contact.normal_law import NormalLaw
 from packbot.contact.normal_modes import ModeEvent
 from packbot.contact.normal_tolerances import (
     BAUMGARTE,
@@ -102,6 +90,18 @@ from packbot.contact.normal_tolerances import (
     SPEED_BAND,
     STICK_BAND,
     TOUCH_GAP,
+)
+from packbot.contact.normal_windows import (
+    CASCADE_EVENTS,
+    CASCADE_SPAN,
+    CHATTER_EVENTS,
+    CHATTER_SPAN,
+    CRAWL_STEP,
+    CRAWL_STEPS,
+    HOLD_SPEED,
+    RELAPSE_EVENTS,
+    RELAPSE_SPAN,
+    WINDOW_MIN,
 )
 from packbot.contact.patch_events import PatchEvents
 

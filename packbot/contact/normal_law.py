@@ -18,26 +18,14 @@ from numpy.typing import NDArray
 
 from packbot.collision import PairInfo, SweepResult
 from packbot.contact import native
+from packbot.contact import normal_windows as windows
 from packbot.contact.base import Active, Crossing, Key, SampleClock, StepSpan
 from packbot.contact.locks import JointLocks
 from packbot.contact.normal_contacts import NormalContacts
 from packbot.contact.normal_forces import mode_forces
 from packbot.contact.normal_inside import limit_excursions, pair_dips
 from packbot.contact.normal_tolerances import PENETRATION_TOL
-from packbot.contact.normal_windows import (
-    CASCADE_EVENTS,
-    CASCADE_SPAN,
-    CHATTER_EVENTS,
-    CHATTER_SPAN,
-    CRAWL_STEP,
-    CRAWL_STEPS,
-    HOLD_SPEED,
-    RELAPSE_EVENTS,
-    RELAPSE_SPAN,
-    WINDOW_MIN,
-    Window,
-    WindowTriggers,
-)
+from packbot.contact.normal_windows import Window, WindowTriggers
 from packbot.contact.pairs import pair_joints, reach_bounds
 from packbot.contact.patch_events import PatchEvents
 from packbot.contact.stretch import (
@@ -53,19 +41,7 @@ from packbot.contact_forces import SampleForces
 from packbot.ode import DenseSegment, RK45Stepper, StepKernel, StepSizeUnderflow
 from packbot.system import System
 
-__all__ = [
-    "CASCADE_EVENTS",
-    "CASCADE_SPAN",
-    "CHATTER_EVENTS",
-    "CHATTER_SPAN",
-    "CRAWL_STEP",
-    "CRAWL_STEPS",
-    "HOLD_SPEED",
-    "RELAPSE_EVENTS",
-    "RELAPSE_SPAN",
-    "WINDOW_MIN",
-    "NormalLaw",
-]
+__all__ = ["NormalLaw"]
 
 log = logging.getLogger(__name__)
 
@@ -242,7 +218,7 @@ class NormalLaw(PatchEvents):
         if self.window is None:
             super().settle(t, y)
 
-    def _enter(self, t: float, y: FloatArray, why: str, relapse_span: float = RELAPSE_SPAN) -> None:
+    def _enter(self, t: float, y: FloatArray, why: str, relapse_span: float | None = None) -> None:
         """Start a window at (t, y) (``why``: for the log).
 
         Its shortest length: :meth:`WindowTriggers.opening
@@ -363,7 +339,7 @@ class NormalLaw(PatchEvents):
             or self.drive.fdir.any()
         ):
             return None
-        crawl = (CRAWL_STEPS, CRAWL_STEP)
+        crawl = (windows.CRAWL_STEPS, windows.CRAWL_STEP)
         st = self._stretch = quiet_stretch(self, stepper, clock, self._stretch, crawl)
         stops = [(k[1], k[2]) for k in self.active if k[0] == "limit"]
         upper, lower = self.sys.upper, self.sys.lower
@@ -672,7 +648,7 @@ class NormalLaw(PatchEvents):
             return False
         if self.locks.held:
             return True
-        stopped = (self.drive.path.coulomb > 0.0) & (np.abs(v) <= HOLD_SPEED)
+        stopped = (self.drive.path.coulomb > 0.0) & (np.abs(v) <= windows.HOLD_SPEED)
         return bool(stopped.any())
 
     def friction(

@@ -129,13 +129,14 @@ class WindowTriggers:
         recent.clear()
         return CHATTER_SPAN if chatter else RELAPSE_SPAN
 
-    def opening(self, t: float, relapse_span: float = RELAPSE_SPAN) -> float:
+    def opening(self, t: float, relapse_span: float | None = None) -> float:
         """A window opens at t [s]: its shortest length [s].
 
         Twice the last one's when the last one ended within ``relapse_span`` [s] (a
         relapse), else :data:`WINDOW_MIN`.
         """
-        relapse = t - self.last_exit <= relapse_span
+        span = RELAPSE_SPAN if relapse_span is None else relapse_span
+        relapse = t - self.last_exit <= span
         self.min_len = 2.0 * self.min_len if relapse else WINDOW_MIN
         self.steps.clear()
         return self.min_len

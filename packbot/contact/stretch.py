@@ -153,8 +153,8 @@ class QuietStretch:
         clock: The run's samples.
         crawl: The law's crawl rule, (steps, step [s]): the stepper crawls when that many
             accepted steps average less than that step
-            (:data:`~packbot.contact.normal_law.CRAWL_STEPS`,
-            :data:`~packbot.contact.normal_law.CRAWL_STEP`).
+            (:data:`~packbot.contact.normal_windows.CRAWL_STEPS`,
+            :data:`~packbot.contact.normal_windows.CRAWL_STEP`).
     """
 
     def __init__(
