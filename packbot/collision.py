@@ -74,7 +74,9 @@ class CollisionWorld:
     Args:
         robot: The loaded robot.
         environment: Static obstacles; None means the floor alone.
-        srdf: An SRDF file of link pairs not to test; None means the shipped one, False none.
+        srdf: An SRDF file of link pairs not to test; None means the robot's
+            (:attr:`Robot.srdf_path <packbot.model.Robot.srdf_path>`: PackBot's shipped one), True
+            the shipped one, False none.
         margin: Default query margin [m] for pruning and for witness read-back.
 
     Attributes:
@@ -105,10 +107,12 @@ class CollisionWorld:
         self._data = model.createData()
         self._body_names = {j: str(model.names[j]) for j in range(model.njoints)}
         srdf_path: Path | None = None
-        if srdf is not False:
-            srdf_path = data_dir("urdf") / SRDF_NAME if srdf in (None, True) else Path(str(srdf))
-            if not srdf_path.is_file():
-                raise ResourceNotFound(srdf_path, "run `packbot generate-srdf` to create it")
+        if srdf is None:
+            srdf_path = robot.srdf_path
+        elif srdf is not False:
+            srdf_path = data_dir("urdf") / SRDF_NAME if srdf is True else Path(str(srdf))
+        if srdf_path is not None and not srdf_path.is_file():
+            raise ResourceNotFound(srdf_path, "run `packbot generate-srdf` to create it")
         self.srdf_path = srdf_path
         # the fixed parts (shared with the worlds of the same robot, environment and SRDF)
         (

@@ -21,16 +21,21 @@ from packbot.params import Part
 
 __all__ = [
     "CYLINDER_SIDES",
+    "SPHERE_RINGS",
+    "convex_piece",
     "hull_triangles",
     "part_inertia",
     "part_vertices",
     "part_volume",
+    "primitive_vertices",
     "solid_mass_properties",
     "stl_bytes",
 ]
 
 #: Number of sides of the prisms that stand for cylinders.
 CYLINDER_SIDES = 16
+#: Latitude rings of the polyhedra that stand for spheres (each of 2 x this many points) [-].
+SPHERE_RINGS = 8
 
 _AXES = {"x": 0, "y": 1, "z": 2}
 
@@ -48,6 +53,49 @@ def _prism(radius: float, length: float, axis: str, n: int = CYLINDER_SIDES) -> 
         block[:, others[0]] = ring[:, 0]
         block[:, others[1]] = ring[:, 1]
     return pts
+
+
+def _sphere_points(radius: float, rings: int = SPHERE_RINGS) -> NDArray[np.float64]:
+    """Points on a sphere of ``radius`` [m]: the poles and ``rings`` rings of ``2 rings``."""
+    pts = [[0.0, 0.0, radius], [0.0, 0.0, -radius]]
+    for i in range(1, rings + 1):
+        lat = np.pi * i / (rings + 1) - np.pi / 2
+        ang = (np.arange(2 * rings) + 0.5 * (i % 2)) * np.pi / rings
+        r, z = radius * np.cos(lat), radius * np.sin(lat)
+        pts += [[r * np.cos(a), r * np.sin(a), z] for a in ang]
+    return np.asarray(pts, dtype=np.float64)
+
+
+def primitive_vertices(shape: coal.CollisionGeometry) -> NDArray[np.float64] | None:
+    """Vertices of the convex piece that stands for a URDF primitive, its frame [m], (N, 3).
+
+    A box is its 8 corners; a cylinder (axis z) a :data:`CYLINDER_SIDES`-gon prism with its
+    vertices on the circle; a sphere :data:`SPHERE_RINGS` rings of points on it; a capsule two
+    such half spheres. The polygonal pieces lie inside the round shapes (a modelling choice:
+    a 16-gon's sides are 1.9 % of the radius inside the circle). None: not a primitive.
+    """
+    if isinstance(shape, coal.Box):
+        half = np.asarray(shape.halfSide, dtype=float)
+        signs = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)])
+        return np.asarray(signs * half, dtype=np.float64)
+    if isinstance(shape, coal.Cylinder):
+        return _prism(float(shape.radius), 2.0 * float(shape.halfLength), "z")
+    if isinstance(shape, coal.Sphere):
+        return _sphere_points(float(shape.radius))
+    if isinstance(shape, coal.Capsule):
+        ball = _sphere_points(float(shape.radius))
+        h = float(shape.halfLength)
+        top, bottom = ball[ball[:, 2] >= 0.0], ball[ball[:, 2] <= 0.0]
+        lift = np.array([0.0, 0.0, h])
+        return np.vstack([top + lift, bottom - lift])
+    return None
+
+
+def convex_piece(points: NDArray[np.float64]) -> coal.ConvexBase:
+    """Coal's convex hull of ``points`` [m], (N, 3), with its faces (a ``coal.Convex``)."""
+    vec = coal.StdVec_Vec3s()
+    vec.extend(np.asarray(points, dtype=np.float64))
+    return coal.Convex.convexHull(vec, True, "Qt")
 
 
 def part_vertices(part: Part) -> NDArray[np.float64]:

@@ -273,14 +273,8 @@ def with_parameters(robot: Robot, values: ArrayLike) -> Robot:
         coulomb=coul.copy(),
     )
     model.armature = arm.copy()
-    return Robot(
-        model=model,
-        collision_model=robot.collision_model,
-        visual_model=robot.visual_model,
-        poses={k: v.copy() for k, v in robot.poses.items()},
-        params=params,
-        urdf_path=robot.urdf_path,
-        adjacent_links=robot.adjacent_links,
+    return dataclasses.replace(
+        robot, model=model, poses={k: v.copy() for k, v in robot.poses.items()}, params=params
     )
 
 

@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import logging
 import os
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -36,8 +36,10 @@ from packbot.errors import (
     UnknownNameError,
     URDFError,
 )
+from packbot.geometry import convex_piece, primitive_vertices
 from packbot.keywords import checked_arguments
-from packbot.resources import URDF_NAME, data_dir
+from packbot.resources import SRDF_NAME, URDF_NAME, data_dir, search_package_dirs
+from packbot.robots import ROBOTS, robot_files
 from packbot.urdf_check import INERTIA_RTOL as INERTIA_RTOL  # re-exported: the checks' tolerance
 from packbot.urdf_check import URDFChecker
 from packbot.validation import finite_number
@@ -97,10 +99,10 @@ class JointParams:
 @checked_arguments
 @dataclass
 class Robot:
-    """The PackBot EOD arm on its chassis.
+    """A fixed-base arm: PackBot's EOD arm on its chassis, or an arm loaded from its URDF.
 
     Attributes:
-        model: Pinocchio kinematic/dynamic model (fixed base ``base_link``; nq = nv = 8).
+        model: Pinocchio kinematic/dynamic model (fixed base; PackBot's nq = nv = 8).
         collision_model: Pinocchio geometry model; every piece a ``coal.Convex``.
         visual_model: Pinocchio geometry model for display.
         poses: Named poses, name -> q (shape (nq,)) [rad].
@@ -110,6 +112,9 @@ class Robot:
             body): their pieces touch by design and are never tested. Kept unchanged when joints
             are locked (a reduced model merges bodies, but two links that were not neighbours
             stay testable).
+        srdf_path: The SRDF whose disabled link pairs the collision world leaves out (PackBot:
+            the shipped one unless another was given); None: no pair but the adjacent ones.
+        tool_frame: The frame the Cartesian controllers and the study's task move [-].
     """
 
     model: pin.Model
@@ -119,6 +124,8 @@ class Robot:
     params: JointParams
     urdf_path: Path
     adjacent_links: frozenset[frozenset[str]] = frozenset()
+    srdf_path: Path | None = None
+    tool_frame: str = P.TOOL_FRAMES["gripper"]
 
     def __post_init__(self) -> None:
         if not self.adjacent_links:
@@ -128,6 +135,11 @@ class Robot:
     def joint_names(self) -> tuple[str, ...]:
         """Names of the actuated joints, in q order."""
         return self.params.names
+
+    @property
+    def is_packbot(self) -> bool:
+        """Whether this is PackBot (its parameter table, poses and scenarios apply)."""
+        return bool(self.params.table)
 
     @property
     def nq(self) -> int:
@@ -215,11 +227,18 @@ def _joint_params(model: pin.Model) -> JointParams:
     )
 
 
-def _convexify(geom_model: pin.GeometryModel) -> None:
-    """Replace every mesh by its convex hull, checking that the mesh was convex."""
+def _convexify(geom_model: pin.GeometryModel, exact: bool = True) -> None:
+    """Replace every mesh by its convex hull.
+
+    ``exact``: the mesh must have been convex (PackBot's pieces are, by design); otherwise the
+    hull stands for the mesh, and the volume it adds is logged.
+    """
     for go in geom_model.geometryObjects:
         mesh = go.geometry
         if not hasattr(mesh, "buildConvexHull"):
+            corners = primitive_vertices(mesh)
+            if corners is not None:  # a URDF box, cylinder or sphere: its convex piece
+                go.geometry = convex_piece(corners)
             continue
         pts = np.asarray(mesh.vertices(), dtype=float)
         if not np.all(np.isfinite(pts)):
@@ -235,7 +254,15 @@ def _convexify(geom_model: pin.GeometryModel) -> None:
         hull_vol = float(hull.computeVolume())
         if hull_vol <= 0.0:
             raise ConvexityError(go.name, "degenerate mesh: its hull has no volume", vol, hull_vol)
-        if abs(hull_vol - vol) > CONVEXITY_RTOL * hull_vol:
+        if not exact:
+            if abs(hull_vol - vol) > CONVEXITY_RTOL * hull_vol:
+                log.info(
+                    "%s: its convex hull stands for the mesh (%.3g m^3 against %.3g m^3)",
+                    go.name,
+                    hull_vol,
+                    vol,
+                )
+        elif abs(hull_vol - vol) > CONVEXITY_RTOL * hull_vol:
             raise ConvexityError(
                 go.name,
                 f"mesh is not convex: volume {vol:.6g} m^3 differs from its hull's {hull_vol:.6g} "
@@ -246,9 +273,17 @@ def _convexify(geom_model: pin.GeometryModel) -> None:
         go.geometry = hull
 
 
-def _name_pieces(geom_model: pin.GeometryModel, model: pin.Model) -> None:
-    """Name each piece ``link/part`` after the parameter table (Pinocchio names them link_k)."""
-    parts = {link.name: [p.name for p in link.parts if p.collision] for link in P.LINKS}
+def _name_pieces(geom_model: pin.GeometryModel, model: pin.Model, packbot: bool = True) -> None:
+    """Name each piece ``link/part`` (Pinocchio names them link_k).
+
+    PackBot's parts are the parameter table's; another arm's are numbered, ``link/k`` (k
+    counting the link's pieces from 0).
+    """
+    parts = (
+        {link.name: [p.name for p in link.parts if p.collision] for link in P.LINKS}
+        if packbot
+        else {}
+    )
     count: dict[str, int] = {}
     for go in geom_model.geometryObjects:
         link = str(model.frames[go.parentFrame].name)
@@ -289,33 +324,68 @@ def check_urdf(path: str | Path) -> str:
 
 
 @checked_arguments
-def load_robot(urdf: str | Path | None = None) -> Robot:
-    """Load the PackBot EOD model.
+def load_robot(
+    urdf: str | Path | None = None,
+    *,
+    package_dirs: Sequence[str | Path] | str | Path | None = None,
+    srdf: str | Path | None = None,
+    tool_frame: str | None = None,
+) -> Robot:
+    """Load PackBot's EOD arm, or any fixed-base arm described in URDF.
 
     The URDF is checked first (see :func:`check_urdf`), so that a bad model raises an error
-    naming the file, the element and the fix, never Pinocchio's bare exceptions.
+    naming the file, the element and the fix, never Pinocchio's bare exceptions. A file whose
+    ``<robot name>`` is ``packbot_eod`` is PackBot: its joints must be the parameter table's,
+    which supplies the armature, friction, poses and scenarios. Any other file is an arm of
+    revolute, prismatic and fixed joints: limits, effort and velocity limits, damping
+    (viscous friction) and friction (Coulomb) from its ``<limit>`` and ``<dynamics>``, zero
+    armature, each collision mesh replaced by its convex hull (logged with the volume it
+    adds), the poses ``"zero"`` (q = 0 clipped into the limits) and ``"middle"``.
 
     Args:
-        urdf: A URDF file to load instead of the shipped one (``packbot.urdf_path()``). Mesh URIs
-            ``package://packbot/...`` and relative paths resolve to that file's directory.
+        urdf: A URDF file to load instead of the shipped one (``packbot.urdf_path()``), or the
+            name of an arm of :data:`packbot.robots.ROBOTS` (``"ur5"``, ``"panda"``: with its
+            SRDF and tool frame, from the ``arms`` extra). Mesh URIs ``package://packbot/...``
+            and relative paths resolve to that file's directory.
+        package_dirs: Folders holding the ROS packages that ``package://<package>/`` mesh URIs
+            name (each folder holds packages, or is one); ``ROS_PACKAGE_PATH``'s are searched
+            after them.
+        srdf: An SRDF whose ``disable_collisions`` pairs are not tested. None: PackBot's
+            shipped SRDF for PackBot, none for another arm (every pair of non-adjacent links
+            is tested).
+        tool_frame: The frame the Cartesian controllers and the failure study's task move.
+            None: PackBot's ``gripper_tool``, or another arm's last frame.
 
     Returns:
-        The robot, with armature set from the parameter table and convex collision pieces.
+        The robot, with armature set and convex collision pieces.
 
     Raises:
-        ConfigurationError: ``urdf`` is not a path.
-        ResourceNotFound: The URDF file is missing (or is a directory).
-        URDFError: The URDF is malformed or unphysical, its joints are not the arm's, or a mesh
-            is missing, unreadable or corrupt (the subclasses of :class:`URDFError`).
-        ConvexityError: A collision mesh is not convex, or is degenerate.
+        ConfigurationError: ``urdf`` is not a path, ``package_dirs`` not folders.
+        ResourceNotFound: The URDF or SRDF file is missing (or is a directory).
+        URDFError: The URDF is malformed or unphysical, PackBot's joints are not the arm's, a
+            joint type packbot does not simulate, or a mesh is missing, unreadable or corrupt
+            (the subclasses of :class:`URDFError`).
+        ConvexityError: One of PackBot's collision meshes is not convex, or a mesh is
+            degenerate.
+        UnknownNameError: ``tool_frame`` is not a frame of the model.
     """
     if urdf is not None and not isinstance(urdf, (str, os.PathLike)):
-        raise ConfigurationError("urdf", urdf, "a path to a URDF file, or None for the shipped one")
+        raise ConfigurationError(
+            "urdf", urdf, f"a path to a URDF file, a name of {sorted(ROBOTS)}, or None for PackBot"
+        )
+    if isinstance(urdf, str) and urdf in ROBOTS and not Path(urdf).is_file():
+        named = robot_files(urdf)
+        urdf = named.urdf
+        srdf = named.srdf if srdf is None else srdf
+        tool_frame = named.tool_frame if tool_frame is None else tool_frame
+        given = [] if package_dirs is None else list(search_package_dirs(package_dirs))
+        package_dirs = [*given, *named.package_dirs]
     path = Path(urdf) if urdf is not None else data_dir("urdf") / URDF_NAME
     if not path.is_file():
         hint = "it is a directory: pass the .urdf file in it" if path.is_dir() else ""
         raise ResourceNotFound(path, hint)
-    checker = URDFChecker(path)
+    dirs = search_package_dirs(package_dirs)
+    checker = URDFChecker(path, dirs)
     text = checker.run()
     try:
         model = pin.buildModelFromXML(text)
@@ -326,18 +396,69 @@ def load_robot(urdf: str | Path | None = None) -> Robot:
         visual = pin.buildGeomFromUrdfString(model, text, pin.GeometryType.VISUAL)
     except (ValueError, RuntimeError) as exc:  # Coal could not parse a mesh
         raise checker.mesh_error(exc) from exc
-    _name_pieces(collision, model)
-    _name_pieces(visual, model)
-    _convexify(collision)
-    params = _joint_params(model)
+    packbot = checker.is_packbot
+    _name_pieces(collision, model, packbot)
+    _name_pieces(visual, model, packbot)
+    _convexify(collision, exact=packbot)
+    params = _joint_params(model) if packbot else _urdf_joint_params(model)
     model.armature = params.armature.copy()
     model.gravity.linear = np.array([0.0, 0.0, -P.GRAVITY])
-    poses = {name: np.zeros(model.nq) for name in P.POSES}
-    for name, values in P.POSES.items():
-        for joint, val in values.items():
-            poses[name][params.index(joint)] = val
+    if packbot:
+        poses = {name: np.zeros(model.nq) for name in P.POSES}
+        for name, values in P.POSES.items():
+            for joint, val in values.items():
+                poses[name][params.index(joint)] = val
+    else:
+        poses = {
+            "zero": np.clip(np.zeros(model.nq), params.lower, params.upper),
+            "middle": 0.5 * (params.lower + params.upper),
+        }
+    srdf_file = _srdf_file(srdf, packbot)
+    frame = _tool_frame(model, tool_frame, packbot)
     log.debug("loaded %s: nq=%d, %d collision pieces", path, model.nq, collision.ngeoms)
-    return Robot(model, collision, visual, poses, params, path)
+    return Robot(
+        model, collision, visual, poses, params, path, srdf_path=srdf_file, tool_frame=frame
+    )
+
+
+def _srdf_file(srdf: str | Path | None, packbot: bool) -> Path | None:
+    if srdf is None:
+        return data_dir("urdf") / SRDF_NAME if packbot else None
+    if not isinstance(srdf, (str, os.PathLike)):
+        raise ConfigurationError("srdf", srdf, "a path to an SRDF file, or None")
+    path = Path(srdf)
+    if not path.is_file():
+        raise ResourceNotFound(path, "pass an existing SRDF file, or None")
+    return path
+
+
+def _tool_frame(model: pin.Model, name: str | None, packbot: bool) -> str:
+    if name is None:
+        return (
+            P.TOOL_FRAMES["gripper"] if packbot else str(model.frames[len(model.frames) - 1].name)
+        )
+    if not isinstance(name, str) or not model.existFrame(name):
+        raise UnknownNameError("tool_frame", name, [str(f.name) for f in model.frames])
+    return name
+
+
+def _urdf_joint_params(model: pin.Model) -> JointParams:
+    """Joint data of an arm other than PackBot, from its URDF (model order)."""
+    names = tuple(str(n) for n in model.names[1:])
+    nv = model.nv
+    return JointParams(
+        names=names,
+        lower=np.array(model.lowerPositionLimit, dtype=float),
+        upper=np.array(model.upperPositionLimit, dtype=float),
+        velocity=np.array(model.velocityLimit, dtype=float),
+        effort=np.array(model.effortLimit, dtype=float),
+        gear_ratio=np.ones(nv),
+        rotor_inertia=np.zeros(nv),
+        armature=np.zeros(nv),
+        viscous=np.array(model.damping, dtype=float),
+        coulomb=np.array(model.friction, dtype=float),
+        table={},
+    )
 
 
 _SHIPPED: list[Robot] = []

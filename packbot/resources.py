@@ -14,10 +14,12 @@ installed wheel they are packaged as ``packbot/_data/urdf`` and ``packbot/_data/
 from __future__ import annotations
 
 import functools
+import os
+from collections.abc import Sequence
 from importlib.resources import files
 from pathlib import Path
 
-from packbot.errors import ResourceNotFound
+from packbot.errors import ConfigurationError, ResourceNotFound
 from packbot.keywords import checked_arguments
 
 __all__ = [
@@ -32,6 +34,7 @@ __all__ = [
     "package_dirs",
     "repo_root",
     "resolve_mesh_uri",
+    "search_package_dirs",
     "srdf_path",
     "urdf_path",
 ]
@@ -131,25 +134,64 @@ def mjcf_path() -> Path:
 
 
 @checked_arguments
-def resolve_mesh_uri(uri: str, urdf_dir: Path) -> Path | None:
+def resolve_mesh_uri(uri: str, urdf_dir: Path, package_dirs: Sequence[Path] = ()) -> Path | None:
     """The file a mesh URI written in a URDF stands for.
 
     ``package://packbot/X`` is ``urdf_dir/X`` (packbot's URDFs keep their meshes beside them);
-    ``file:///abs/X`` and an absolute path are themselves; a relative path is relative to
-    ``urdf_dir``. The file is not required to exist.
+    ``package://pkg/X`` of another package is ``d/pkg/X`` for the first of ``package_dirs``
+    where that file exists, or ``d/X`` where ``d`` is itself the package's folder (named
+    ``pkg``), as ROS resolves it; ``file:///abs/X`` and an absolute path are themselves; a
+    relative path is relative to ``urdf_dir``. Only another package's file must exist.
 
     Args:
         uri: The ``filename`` attribute of a URDF ``<mesh>``.
         urdf_dir: The (absolute) directory of the URDF file.
+        package_dirs: Folders that hold ROS packages (or are one), searched in order.
 
     Returns:
-        The path, or None for a URI packbot cannot resolve (another ROS package, a URL).
+        The path, or None for a URI packbot cannot resolve (a package found in none of
+        ``package_dirs``, a URL).
     """
     if uri.startswith(PACKAGE_URI):
         return urdf_dir / uri[len(PACKAGE_URI) :]
+    if uri.startswith("package://"):
+        package, _, rest = uri[len("package://") :].partition("/")
+        for d in package_dirs:
+            for candidate in (d / package / rest, d / rest if d.name == package else None):
+                if candidate is not None and candidate.is_file():
+                    return candidate
+        return None
     if uri.startswith("file://"):
         uri = uri[len("file://") :]
     elif "://" in uri:
         return None
     path = Path(uri)
     return path if path.is_absolute() else urdf_dir / path
+
+
+def search_package_dirs(package_dirs: Sequence[str | Path] | str | Path | None) -> tuple[Path, ...]:
+    """The folders searched for ``package://`` meshes: those given, then ``ROS_PACKAGE_PATH``'s.
+
+    Raises:
+        ConfigurationError: ``package_dirs`` is not a folder path or a list of them, or names
+            a folder that does not exist.
+    """
+    if package_dirs is None:
+        given: list[str | Path] = []
+    elif isinstance(package_dirs, (str, os.PathLike)):
+        given = [package_dirs]
+    elif isinstance(package_dirs, Sequence) and all(
+        isinstance(d, (str, os.PathLike)) for d in package_dirs
+    ):
+        given = list(package_dirs)
+    else:
+        raise ConfigurationError(
+            "package_dirs", package_dirs, "a folder path, a list of folder paths, or None"
+        )
+    dirs = [Path(d).expanduser().resolve() for d in given]
+    for d in dirs:
+        if not d.is_dir():
+            raise ConfigurationError("package_dirs", str(d), "folders that exist")
+    ros = os.environ.get("ROS_PACKAGE_PATH", "")
+    dirs += [Path(d) for d in ros.split(os.pathsep) if d and Path(d).is_dir()]
+    return tuple(dirs)

@@ -11,6 +11,7 @@ the potential energy of gravity [J].
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Sequence
 
 import numpy as np
@@ -217,7 +218,9 @@ def _reduced(robot: Robot, locked: list[int], q_ref: FloatArray) -> Robot:
     )
     model.armature = params.armature.copy()
     poses = {name: q[keep] for name, q in robot.poses.items()}
-    return Robot(model, coll, vis, poses, params, robot.urdf_path, robot.adjacent_links)
+    return dataclasses.replace(
+        robot, model=model, collision_model=coll, visual_model=vis, poses=poses, params=params
+    )
 
 
 def with_payload(robot: Robot, payload: Payload) -> Robot:
@@ -235,12 +238,4 @@ def with_payload(robot: Robot, payload: Payload) -> Robot:
         float(payload.mass), np.asarray(payload.com, dtype=float), payload.inertia_matrix()
     )
     model.appendBodyToJoint(frame.parentJoint, inertia, frame.placement)
-    return Robot(
-        model,
-        robot.collision_model,
-        robot.visual_model,
-        robot.poses,
-        robot.params,
-        robot.urdf_path,
-        robot.adjacent_links,
-    )
+    return dataclasses.replace(robot, model=model)

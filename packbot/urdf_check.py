@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import math
 import xml.etree.ElementTree as ET
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -37,6 +37,10 @@ __all__ = ["INERTIA_RTOL", "JointChecks", "URDFChecker"]
 INERTIA_RTOL = 1e-9
 
 _JOINT_TYPES = ("revolute", "continuous", "prismatic", "fixed", "floating", "planar")
+#: The movable joint types of an arm other than PackBot (one coordinate each, nq == nv).
+_ARM_JOINT_TYPES = ("revolute", "prismatic")
+#: ``<robot name=...>`` of PackBot's URDF: its joints are the parameter table's.
+PACKBOT_ROBOT = "packbot_eod"
 _REGENERATE = "or regenerate the shipped model with `packbot generate-model`"
 _INERTIA_KEYS = ("ixx", "ixy", "ixz", "iyy", "iyz", "izz")
 
@@ -140,11 +144,15 @@ class URDFChecker:
         path: The URDF file.
     """
 
-    def __init__(self, path: Path) -> None:
+    def __init__(self, path: Path, package_dirs: Sequence[Path] = ()) -> None:
         self.path = path
         self.dir = path.resolve().parent
+        self.package_dirs = tuple(package_dirs)
         self.meshes: list[_MeshRef] = []
         self.joint_checks = JointChecks(path)
+        #: Whether the file describes PackBot (``<robot name="packbot_eod">``): its joints must
+        #: then be the parameter table's (set by :meth:`run`).
+        self.is_packbot = True
 
     # -- helpers -------------------------------------------------------------------------------
 
@@ -248,11 +256,16 @@ class URDFChecker:
         mass = _number(raw)
         if mass is None:
             raise InertialError(self.path, link, "mass", raw, f"mass {raw!r} is not a number", fix)
+        inertia_el = inertial.find("inertia")
+        if mass == 0.0 and all(
+            _number(inertia_el.get(k, "0") if inertia_el is not None else "0") == 0.0
+            for k in _INERTIA_KEYS
+        ):
+            return  # a massless frame written out (mass 0, no inertia): as none at all
         if not (math.isfinite(mass) and mass > 0):
             raise InertialError(
                 self.path, link, "mass", mass, f"mass {raw} kg is not positive and finite", fix
             )
-        inertia_el = inertial.find("inertia")
         fix = (
             "give <inertia ixx ixy ixz iyy iyz izz> [kg*m^2] whose principal moments are positive "
             "and each at most the sum of the other two, as for any real body"
@@ -336,16 +349,18 @@ class URDFChecker:
                 raise MeshError(
                     self.path, link, uri, None, "<mesh> has no filename", "name the mesh file"
                 )
-            resolved = resolve_mesh_uri(uri, self.dir)
+            resolved = resolve_mesh_uri(uri, self.dir, self.package_dirs)
             if resolved is None:
+                searched = ", ".join(map(str, self.package_dirs)) or "none"
                 raise MeshError(
                     self.path,
                     link,
                     uri,
                     None,
-                    "packbot cannot resolve this URI",
-                    "write package://packbot/<path relative to the URDF's folder>, a path relative "
-                    "to that folder, or an absolute path",
+                    f"packbot cannot resolve this URI (package folders searched: {searched})",
+                    "pass the folder holding the package in load_robot(package_dirs=...) or "
+                    "ROS_PACKAGE_PATH; or write package://packbot/<path relative to the URDF's "
+                    "folder>, a path relative to that folder, or an absolute path",
                 )
             shape.set("filename", str(resolved))
             self.meshes.append(_MeshRef(link, uri, resolved))
@@ -354,15 +369,12 @@ class URDFChecker:
                 where, "is not a URDF shape", "use <mesh>, <box>, <cylinder> or <sphere>"
             )
 
-    def joints(self, root: ET.Element, links: Mapping[str, ET.Element]) -> list[str]:
-        """Check the joints and the tree they make; return the movable joints in file order."""
-        return self.joint_checks.check(root, links)
-
     def run(self) -> str:
         """All checks; the URDF text for Pinocchio, mesh file names made absolute."""
         root = self.parse()
+        self.is_packbot = root.get("name") == PACKBOT_ROBOT
         links = self.links(root)
-        self.joints(root, links)
+        self.joint_checks.check(root, links, P.ARM_JOINTS if self.is_packbot else None)
         self.mesh_files()
         return ET.tostring(root, encoding="unicode")
 
@@ -415,8 +427,17 @@ class JointChecks:
     def __init__(self, path: Path) -> None:
         self.path = path
 
-    def check(self, root: ET.Element, links: Mapping[str, ET.Element]) -> list[str]:
-        """Check the joints and the tree they make; return the movable joints in file order."""
+    def check(
+        self,
+        root: ET.Element,
+        links: Mapping[str, ET.Element],
+        arm_joints: Sequence[str] | None = P.ARM_JOINTS,
+    ) -> list[str]:
+        """Check the joints and the tree they make; return the movable joints in file order.
+
+        ``arm_joints``: the movable joints the file must have, each revolute (PackBot's); None:
+        any revolute and prismatic joints (another arm).
+        """
         seen: set[str] = set()
         parent_of: dict[str, tuple[str, str]] = {}  # child link -> (joint, parent link)
         movable: list[str] = []
@@ -490,7 +511,24 @@ class JointChecks:
                         "fix it, or omit it (packbot takes friction from packbot/params.py)",
                     )
         self._tree(links, parent_of)
-        for name in P.ARM_JOINTS:
+        if arm_joints is None:
+            for name in movable:
+                if types[name] not in _ARM_JOINT_TYPES:
+                    raise JointError(
+                        self.path,
+                        name,
+                        "",
+                        types[name],
+                        f"type is {types[name]!r}: packbot simulates fixed-base arms of "
+                        "revolute and prismatic joints (one coordinate each)",
+                        "make it revolute with <limit lower upper>, or fixed",
+                    )
+            if not movable:
+                raise URDFError(
+                    self.path, "joints", "the robot has no movable joint", "describe an arm"
+                )
+            return movable
+        for name in arm_joints:
             if name in types and types[name] != "revolute":
                 raise JointError(
                     self.path,
@@ -500,10 +538,10 @@ class JointChecks:
                     f"type is {types[name]!r}",
                     "packbot's arm joints are 'revolute' (with limits)",
                 )
-        missing = [n for n in P.ARM_JOINTS if n not in movable]
-        unexpected = [n for n in movable if n not in P.ARM_JOINTS]
+        missing = [n for n in arm_joints if n not in movable]
+        unexpected = [n for n in movable if n not in arm_joints]
         if missing or unexpected:
-            raise JointMismatchError(self.path, missing, unexpected, movable, P.ARM_JOINTS)
+            raise JointMismatchError(self.path, missing, unexpected, movable, arm_joints)
         return movable
 
     def _axis(self, joint: str, el: ET.Element | None) -> None:

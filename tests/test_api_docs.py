@@ -42,6 +42,7 @@ PUBLIC_MODULES = {
     "packbot": "index.md",
     "packbot.model": "model.md",
     "packbot.resources": "resources.md",
+    "packbot.robots": "robots.md",
     "packbot.params": "params.md",
     "packbot.uncertainty": "uncertainty.md",
     "packbot.config": "config.md",

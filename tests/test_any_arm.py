@@ -1,0 +1,206 @@
+"""Arms other than PackBot: loaded from their URDF (a two-link arm written here, UR5 and Panda
+from example-robot-data), simulated, checked against an independent integration and physics."""
+
+from __future__ import annotations
+
+import numpy as np
+import pinocchio as pin
+import pytest
+from scipy.integrate import solve_ivp
+
+import packbot
+from packbot.contact.normal_tolerances import PENETRATION_TOL
+from packbot.errors import (
+    ConfigurationError,
+    JointError,
+    MeshError,
+    ResourceNotFound,
+    UnknownNameError,
+)
+from packbot.robots import ROBOTS, robot_files
+
+LINK = """
+  <link name="{name}">
+    <inertial><origin xyz="0 0 {c}"/><mass value="{m}"/>
+      <inertia ixx="{i}" ixy="0" ixz="0" iyy="{i}" iyz="0" izz="{j}"/></inertial>
+    <collision><origin xyz="0 0 {c}"/><geometry>{shape}</geometry></collision>
+  </link>"""
+
+JOINT = """
+  <joint name="{name}" type="{kind}">
+    <parent link="{parent}"/><child link="{child}"/>
+    <origin xyz="0 0 {z}"/><axis xyz="0 1 0"/>
+    <limit lower="-3" upper="3" effort="50" velocity="10"/>{dynamics}
+  </joint>"""
+
+
+def two_link_urdf(kind: str = "revolute", dynamics: str = "", mesh: str = "") -> str:
+    """Two links of 0.4 m hanging from joint1 at 1 m (a box base, a cylinder, a sphere)."""
+    base = '<box size="0.2 0.2 0.1"/>'
+    links = [
+        LINK.format(name="base", c=0.05, m=5.0, i=0.02, j=0.02, shape=base),
+        LINK.format(
+            name="upper",
+            c=-0.2,
+            m=2.0,
+            i=0.03,
+            j=0.004,
+            shape=mesh or '<cylinder radius="0.04" length="0.4"/>',
+        ),
+        LINK.format(name="fore", c=-0.2, m=1.0, i=0.015, j=0.002, shape='<sphere radius="0.05"/>'),
+        '\n  <link name="tip"/>',
+    ]
+    joints = [
+        JOINT.format(
+            name="joint1", kind=kind, parent="base", child="upper", z=1.0, dynamics=dynamics
+        ),
+        JOINT.format(
+            name="joint2", kind="revolute", parent="upper", child="fore", z=-0.4, dynamics=""
+        ),
+        '\n  <joint name="tip_joint" type="fixed"><parent link="fore"/><child link="tip"/>'
+        '<origin xyz="0 0 -0.4"/></joint>',
+    ]
+    return '<robot name="two_link">' + "".join(links) + "".join(joints) + "\n</robot>\n"
+
+
+@pytest.fixture()
+def two_link(tmp_path):
+    path = tmp_path / "two_link.urdf"
+    path.write_text(two_link_urdf(dynamics='\n    <dynamics damping="0.1" friction="0.2"/>'))
+    return packbot.load_robot(path)
+
+
+def test_a_two_link_arm_loads_with_its_urdf_data(two_link) -> None:
+    r = two_link
+    assert r.joint_names == ("joint1", "joint2")
+    assert not r.is_packbot
+    assert r.tool_frame == "tip"
+    np.testing.assert_array_equal(r.params.lower, [-3.0, -3.0])
+    np.testing.assert_array_equal(r.params.effort, [50.0, 50.0])
+    np.testing.assert_array_equal(r.params.viscous, [0.1, 0.0])  # <dynamics damping>
+    np.testing.assert_array_equal(r.params.coulomb, [0.2, 0.0])  # <dynamics friction>
+    np.testing.assert_array_equal(r.params.armature, [0.0, 0.0])
+    assert set(r.poses) == {"zero", "middle"}
+    assert r.srdf_path is None
+
+
+def test_primitives_become_convex_pieces_of_their_volume(two_link) -> None:
+    vols = {
+        str(g.name): float(g.geometry.computeVolume())
+        for g in two_link.collision_model.geometryObjects
+    }
+    assert all(
+        type(g.geometry).__name__ == "Convex" for g in two_link.collision_model.geometryObjects
+    )
+    assert vols["base/0"] == pytest.approx(0.2 * 0.2 * 0.1, rel=1e-9)
+    n = 16  # a 16-gon prism inscribed in the cylinder: (n/2) r^2 sin(2 pi / n) h
+    assert vols["upper/0"] == pytest.approx(n / 2 * 0.04**2 * np.sin(2 * np.pi / n) * 0.4, rel=1e-9)
+    sphere = 4 / 3 * np.pi * 0.05**3
+    assert 0.9 * sphere < vols["fore/0"] < sphere  # inside the sphere, close to it
+
+
+def test_free_motion_matches_an_independent_integration_of_pinocchios_aba(two_link) -> None:
+    """No contact, no limit reached: the arm swings as Pinocchio's ABA says, to 1e-6 rad (joint
+    friction is off by default: the URDF's damping and friction act with joint_friction)."""
+    r = two_link
+    q0 = np.array([0.6, -0.4])
+    cfg = packbot.SimConfig(contact_mode="none", rtol=1e-10, atol=1e-12, sample_dt=0.05)
+    res = packbot.simulate(r, q0, np.zeros(2), 1.0, config=cfg)
+    model = r.model.copy()
+    data = model.createData()
+
+    def f(_t, y):
+        q, v = y[:2], y[2:]
+        return np.concatenate([v, pin.aba(model, data, q, v, np.zeros(2))])
+
+    y0 = np.concatenate([q0, np.zeros(2)])
+    ref = solve_ivp(f, (0.0, 1.0), y0, dense_output=True, rtol=1e-12, atol=1e-12)
+    assert np.abs(res.q - ref.sol(res.t)[:2].T).max() < 1e-6
+    assert np.abs(res.q).max() < 3.0  # (no limit reached: the check is of free motion)
+
+
+def test_a_continuous_joint_is_refused_by_name(tmp_path) -> None:
+    path = tmp_path / "arm.urdf"
+    path.write_text(two_link_urdf(kind="continuous"))
+    with pytest.raises(JointError, match="joint1"):
+        packbot.load_robot(path)
+
+
+def test_bad_loading_arguments_are_named(tmp_path, two_link) -> None:
+    path = tmp_path / "arm.urdf"
+    path.write_text(two_link_urdf(mesh='<mesh filename="package://nowhere/meshes/a.stl"/>'))
+    with pytest.raises(MeshError, match="package folders searched"):
+        packbot.load_robot(path, package_dirs=[tmp_path])
+    with pytest.raises(ConfigurationError, match="package_dirs"):
+        packbot.load_robot(path, package_dirs=[tmp_path / "missing"])
+    with pytest.raises(ConfigurationError, match="package_dirs"):
+        packbot.load_robot(path, package_dirs=3)
+    good = tmp_path / "good.urdf"
+    good.write_text(two_link_urdf())
+    with pytest.raises(UnknownNameError, match="tool_frame"):
+        packbot.load_robot(good, tool_frame="no_such_frame")
+    with pytest.raises(ResourceNotFound):
+        packbot.load_robot(good, srdf=tmp_path / "missing.srdf")
+
+
+def test_a_package_uri_resolves_through_package_dirs(tmp_path) -> None:
+    import coal
+
+    from packbot.geometry import hull_triangles, primitive_vertices, stl_bytes
+
+    mesh_dir = tmp_path / "my_arm" / "meshes"
+    mesh_dir.mkdir(parents=True)
+    corners = primitive_vertices(coal.Box(0.1, 0.1, 0.4))
+    (mesh_dir / "upper.stl").write_bytes(stl_bytes(hull_triangles(corners)))
+    path = tmp_path / "arm.urdf"
+    path.write_text(two_link_urdf(mesh='<mesh filename="package://my_arm/meshes/upper.stl"/>'))
+    r = packbot.load_robot(path, package_dirs=[tmp_path])
+    vols = {
+        str(g.name): float(g.geometry.computeVolume()) for g in r.collision_model.geometryObjects
+    }
+    assert vols["upper/0"] == pytest.approx(0.1 * 0.1 * 0.4, rel=1e-6)
+
+
+# ------------------------------------------------------------------ UR5 and Panda
+#: Start poses clear of the floor and of the arm itself [rad].
+RAISED = {
+    "ur5": {"shoulder_lift_joint": -1.2, "elbow_joint": 0.6, "wrist_1_joint": -1.0},
+    "panda": {"panda_joint2": 0.3, "panda_joint4": -1.2, "panda_joint6": 1.5},
+}
+
+
+def _named(name: str) -> packbot.Robot:
+    try:
+        robot_files(name)
+    except ResourceNotFound:
+        pytest.skip("example-robot-data is not installed (the arms extra)")
+    return packbot.load_robot(name)
+
+
+@pytest.mark.parametrize("name", ["ur5", "panda"])
+def test_a_named_arm_loads(name) -> None:
+    r = _named(name)
+    assert not r.is_packbot and r.srdf_path is not None and r.srdf_path.is_file()
+    assert r.model.existFrame(r.tool_frame)
+    assert all(type(g.geometry).__name__ == "Convex" for g in r.collision_model.geometryObjects)
+    assert r.nq == {"ur5": 6, "panda": 9}[name]
+
+
+@pytest.mark.parametrize("name", ["ur5", "panda"])
+def test_a_named_arm_collapses_onto_the_floor_without_penetrating_or_gaining_energy(name) -> None:
+    """Zero torque from a raised pose, the contact-normal mode: the arm falls and comes to
+    rest on the floor (or on itself); no pair passes below -PENETRATION_TOL at the samples,
+    and no event adds energy beyond rounding."""
+    r = _named(name)
+    q0 = r.q_from(RAISED[name], base="zero")
+    cfg = packbot.SimConfig(contact_mode="normal", mu=0.5, sample_dt=0.005)
+    res = packbot.simulate(r, q0, np.zeros(r.nq), 2.0, config=cfg)
+    assert res.diagnostics.min_distance > -PENETRATION_TOL
+    gains = [e.energy_after - e.energy_before for e in res.events if e.kind == "impact"]
+    assert max(gains, default=0.0) < 1e-9
+    assert res.energy[-1] <= res.energy[0] + 1e-6
+
+
+def test_the_registry_names_the_shipped_arm() -> None:
+    assert ROBOTS["packbot"] is None
+    assert packbot.load_robot("packbot").is_packbot
