@@ -174,20 +174,22 @@ def _cmd_info(args: argparse.Namespace) -> int:
     from packbot.model import load_robot
 
     try:
-        robot = load_robot(args.urdf)
+        robot = load_robot(args.urdf, package_dirs=args.package_dir or None)
     except PackbotError:
         raise
     except (ValueError, RuntimeError) as exc:  # a parser's own error: still bad input
         raise _UsageError(f"--urdf {args.urdf}: not a loadable URDF: {exc}") from None
     m, p = robot.model, robot.params
-    out = [f"PackBot EOD model: {robot.urdf_path}", f"nq = {m.nq}, nv = {m.nv}", ""]
+    title = "PackBot EOD model" if robot.is_packbot else f"arm {m.name!r}"
+    out = [f"{title}: {robot.urdf_path}", f"nq = {m.nq}, nv = {m.nv}", ""]
+    w = max(13, *(len(n) + 1 for n in p.names))
     out.append(
-        f"{'joint':<13}{'lower':>8}{'upper':>8}{'vel':>7}{'effort':>8}{'ratio':>7}"
+        f"{'joint':<{w}}{'lower':>8}{'upper':>8}{'vel':>7}{'effort':>8}{'ratio':>7}"
         f"{'armature':>10}{'viscous':>9}{'coulomb':>9}   [rad, rad/s, N*m, kg*m^2, N*m*s/rad]"
     )
     for i, name in enumerate(p.names):
         out.append(
-            f"{name:<13}{p.lower[i]:8.3f}{p.upper[i]:8.3f}{p.velocity[i]:7.2f}{p.effort[i]:8.1f}"
+            f"{name:<{w}}{p.lower[i]:8.3f}{p.upper[i]:8.3f}{p.velocity[i]:7.2f}{p.effort[i]:8.1f}"
             f"{p.gear_ratio[i]:7.0f}{p.armature[i]:10.5f}{p.viscous[i]:9.3f}{p.coulomb[i]:9.3f}"
         )
     out.append("")
@@ -202,8 +204,8 @@ def _cmd_info(args: argparse.Namespace) -> int:
     out.append(f"collision pieces: {robot.collision_model.ngeoms} convex")
     out.append("")
     data = m.createData()
-    tool = m.getFrameId("gripper_tool")
-    out.append(f"{'pose':<8} q [rad] in joint order; gripper tool position in base_link [m]")
+    tool = m.getFrameId(robot.tool_frame)
+    out.append(f"{'pose':<8} q [rad] in joint order; {robot.tool_frame} position in the base [m]")
     for name, q in robot.poses.items():
         pin.framesForwardKinematics(m, data, q)
         xyz = " ".join(f"{v:6.3f}" for v in data.oMf[tool].translation)
@@ -1244,7 +1246,17 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
 
     p = sub.add_parser("info", help="print the model's joints, limits, masses and named poses")
-    p.add_argument("--urdf", default=None, help="a URDF to load instead of the shipped one")
+    p.add_argument(
+        "--urdf",
+        default=None,
+        help="a URDF to load instead of the shipped one, or an arm's name (ur5, panda)",
+    )
+    p.add_argument(
+        "--package-dir",
+        action="append",
+        default=[],
+        help="a folder holding the ROS packages of the URDF's package:// meshes (repeatable)",
+    )
     p.set_defaults(func=_cmd_info)
 
     p = sub.add_parser(

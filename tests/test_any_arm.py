@@ -204,3 +204,15 @@ def test_a_named_arm_collapses_onto_the_floor_without_penetrating_or_gaining_ene
 def test_the_registry_names_the_shipped_arm() -> None:
     assert ROBOTS["packbot"] is None
     assert packbot.load_robot("packbot").is_packbot
+
+
+def test_info_prints_another_arm(tmp_path, capsys) -> None:
+    from packbot.cli import main
+
+    path = tmp_path / "two_link.urdf"
+    path.write_text(two_link_urdf())
+    assert main(["info", "--urdf", str(path)]) == 0
+    out = capsys.readouterr().out
+    assert "arm 'two_link'" in out and "joint2" in out and "tip position" in out
+    assert main(["info", "--urdf", str(path), "--package-dir", str(tmp_path / "missing")]) == 2
+    assert "package_dirs" in capsys.readouterr().err
