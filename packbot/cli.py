@@ -280,9 +280,9 @@ def _summary(res: SimResult, scenario: Scenario, duration: float, dist: Any) -> 
 
     cfg = res.config
     d = res.diagnostics
-    final = "  ".join(
-        f"{n}={res.q[-1, res.joint(n)]:+.4f}" for n in ("turret", "shoulder", "elbow1", "elbow2")
-    )
+    big = ("turret", "shoulder", "elbow1", "elbow2")  # PackBot's; another arm: all its joints
+    shown = big if set(big) <= set(res.joint_names) else res.joint_names
+    final = "  ".join(f"{n}={res.q[-1, res.joint(n)]:+.4f}" for n in shown)
     kinds: dict[str, int] = {}
     for e in res.events:
         kinds[e.kind] = kinds.get(e.kind, 0) + 1
@@ -653,8 +653,13 @@ def _run(
 
     from packbot.errors import ConfigurationError
     from packbot.inputs import check_initial_state
-    from packbot.model import load_robot
-    from packbot.scenario import load_scenario, run_scenario, save_run, write_outputs
+    from packbot.scenario import (
+        load_scenario,
+        run_scenario,
+        save_run,
+        scenario_robot,
+        write_outputs,
+    )
 
     _duration(duration_arg)
     wall0 = time.perf_counter()
@@ -664,7 +669,7 @@ def _run(
         raise _UsageError(f"scenario {scenario_name}: {exc}") from None
     _check_name(scenario)
     out, old = _prepare_out(out_arg if out_arg is not None else f"out/{scenario.name}", overwrite)
-    robot = load_robot()
+    robot = scenario_robot(scenario)
     try:
         scenario.validate(robot)
         # the initial collision check too, before the earlier run's files are deleted

@@ -91,7 +91,8 @@ class Outputs:
         plots: Plot kinds (:data:`PLOT_KINDS`); None: automatic (joints, distance, energy; plus
             tracking, torques and tool_path with a controller, occlusion with an occlusion
             check).
-        joints: Joints shown in the joint, tracking and torque plots.
+        joints: Joints shown in the joint, tracking and torque plots (the default: PackBot's
+            planar joints; on another arm, all its joints: :meth:`joints_of`).
         formats: Image formats of the plots ("png", "svg").
         html: Whether ``packbot run`` also writes the browser animation.
         occlusion: A camera-occlusion check, or None.
@@ -102,6 +103,12 @@ class Outputs:
     formats: tuple[str, ...] = IMAGE_FORMATS
     html: bool = False
     occlusion: OcclusionCheck | None = None
+
+    def joints_of(self, joint_names: tuple[str, ...], is_packbot: bool) -> tuple[str, ...]:
+        """The joints to plot on an arm: :attr:`joints`, or all of another arm's by default."""
+        if not is_packbot and self.joints == _PLANAR_JOINTS:
+            return joint_names
+        return self.joints
 
     def validate(self) -> None:
         """Raise :class:`ConfigurationError` naming the first bad field."""

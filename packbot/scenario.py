@@ -66,6 +66,7 @@ from packbot.keywords import checked_arguments
 from packbot.outputs import IMAGE_FORMATS, PLOT_KINDS, OcclusionCheck, Outputs
 from packbot.paths import atomic_write, check_stem, inside
 from packbot.payload import Payload
+from packbot.scenario_robot import RobotSpec, load_spec_robot, robot_spec
 from packbot.scenario_schema import json_schema as _json_schema
 from packbot.validation import (
     MAX_OBSTACLES,
@@ -96,6 +97,7 @@ __all__ = [
     "save_run",
     "scenario_from_dict",
     "scenario_path",
+    "scenario_robot",
     "write_outputs",
 ]
 
@@ -103,6 +105,7 @@ log = logging.getLogger(__name__)
 
 #: The valid top-level keys of a scenario file.
 TOP_LEVEL_KEYS: tuple[str, ...] = (
+    "robot",
     "description",
     "duration",
     "initial",
@@ -144,6 +147,8 @@ class Scenario:
         outputs: Plots and other outputs.
         source_text: The scenario file's text ("" when built in code).
         source_path: The scenario file, or None.
+        robot: The arm (the file's ``robot``: :class:`~packbot.scenario_robot.RobotSpec`), or
+            None: PackBot.
     """
 
     name: str
@@ -162,6 +167,7 @@ class Scenario:
     outputs: Outputs = field(default_factory=Outputs)
     source_text: str = ""
     source_path: Path | None = None
+    robot: RobotSpec | None = None
 
     @checked_arguments
     def validate(self, robot: Robot | None = None) -> None:
@@ -202,7 +208,7 @@ class Scenario:
             raise ConfigurationError(
                 "payload.frame", self.payload.frame, tuple(f.name for f in robot.model.frames)
             )
-        for k, j in enumerate(self.outputs.joints):
+        for k, j in enumerate(self.outputs.joints_of(robot.joint_names, robot.is_packbot)):
             if j not in names:
                 raise ConfigurationError(f"outputs.joints[{k}]", j, names)
         occ = self.outputs.occlusion
@@ -550,6 +556,7 @@ def scenario_from_dict(data: Mapping[str, Any], *, name: str, source_text: str =
         raise ConfigurationError("duration", None, "a finite positive time [s] (required)")
     duration = _coerce("duration", data["duration"], float)
     description = _coerce("description", data.get("description", ""), str)
+    robot = robot_spec(data["robot"]) if "robot" in data else None
 
     initial = _table(data.get("initial", {}), "initial")
     _check_keys(initial, "initial", _INITIAL_KEYS)
@@ -614,6 +621,7 @@ def scenario_from_dict(data: Mapping[str, Any], *, name: str, source_text: str =
         environment=environment,
         outputs=outputs,
         source_text=source_text,
+        robot=robot,
     )
     scenario.validate()
     return scenario
@@ -720,6 +728,18 @@ def load_scenario(name_or_path: str | Path) -> Scenario:
 
 # ---------------------------------------------------------------------------------- running
 @checked_arguments
+def scenario_robot(scenario: Scenario) -> Robot:
+    """The arm a scenario runs on: its file's ``robot``, or PackBot.
+
+    Relative paths are taken from the scenario file's folder.
+
+    Raises:
+        ModelError: The arm cannot be loaded (:func:`packbot.load_robot`'s errors).
+    """
+    return load_spec_robot(scenario.robot, scenario.source_path)
+
+
+@checked_arguments
 def run_scenario(
     scenario: Scenario,
     robot: Robot | None = None,
@@ -732,7 +752,7 @@ def run_scenario(
 
     Args:
         scenario: The scenario.
-        robot: The robot (default: :func:`packbot.load_robot`).
+        robot: The robot (default: the scenario's, :func:`scenario_robot`).
         duration: Simulated time [s] instead of the scenario's (e.g. shortened in tests).
         progress: Called with the simulated time [s] after each accepted step.
         controller: Your controller instead of the scenario's (built for ``robot``); None: the
@@ -746,14 +766,14 @@ def run_scenario(
         SimulationError: The run could not continue (says what and when).
     """
     from packbot.integrator import simulate
-    from packbot.model import Robot, load_robot
+    from packbot.model import Robot
 
     if not isinstance(scenario, Scenario):
         raise ConfigurationError(
             "scenario", scenario, "a packbot.scenario.Scenario (from load_scenario())"
         )
     if robot is None:
-        robot = load_robot()
+        robot = scenario_robot(scenario)
     elif not isinstance(robot, Robot):
         raise ConfigurationError("robot", robot, "None or a packbot.Robot (from load_robot())")
     scenario.validate(robot)
@@ -939,7 +959,7 @@ def write_outputs(
 
         atomic_write(path, write_table, binary=False)
         written["occlusion_table"] = path
-    joints = scenario.outputs.joints
+    joints = scenario.outputs.joints_of(robot.joint_names, robot.is_packbot)
     for kind in kinds:
         base = out / f"{stem}_{kind}"
         if kind == "joints":

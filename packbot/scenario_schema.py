@@ -34,6 +34,7 @@ from packbot.environment import Obstacle
 from packbot.failures import Failure
 from packbot.outputs import IMAGE_FORMATS, PLOT_KINDS, OcclusionCheck, Outputs
 from packbot.payload import Payload
+from packbot.robots import ROBOTS
 
 if TYPE_CHECKING:
     from packbot.model import Robot
@@ -263,6 +264,25 @@ def json_schema(robot: Robot | None = None) -> dict[str, Any]:
         "schema` from packbot's own definitions; the loader checks ranges too.",
         "type": "object",
         "properties": {
+            "robot": {
+                "description": "The arm (docs/scenarios.md, 'Other arms'): a name "
+                f"({', '.join(ROBOTS)}), a URDF path, or a [robot] table; PackBot without it. "
+                "The joint, pose and frame names of this schema are PackBot's.",
+                "anyOf": [
+                    {"type": "string", "minLength": 1},
+                    {
+                        "type": "object",
+                        "properties": {
+                            "urdf": {"type": "string", "minLength": 1},
+                            "package_dirs": {"type": "array", "items": {"type": "string"}},
+                            "srdf": {"type": "string", "minLength": 1},
+                            "tool_frame": {"type": "string", "minLength": 1},
+                        },
+                        "required": ["urdf"],
+                        "additionalProperties": False,
+                    },
+                ],
+            },
             "description": {"type": "string", "description": "One line saying what it shows."},
             "duration": {
                 "type": "number",

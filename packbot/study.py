@@ -468,8 +468,8 @@ def _check_inputs(
     workspace_samples: int,
 ) -> tuple[Scenario, Robot]:
     from packbot.config import CONTACT_MODES
-    from packbot.model import Robot, load_robot
-    from packbot.scenario import Scenario, load_scenario
+    from packbot.model import Robot
+    from packbot.scenario import Scenario, load_scenario, scenario_robot
 
     if isinstance(scenario, (str, Path)):
         scenario = load_scenario(scenario)
@@ -478,7 +478,7 @@ def _check_inputs(
             "scenario", scenario, "a scenario name, a TOML path or a packbot.scenario.Scenario"
         )
     if robot is None:
-        robot = load_robot()
+        robot = scenario_robot(scenario)
     elif not isinstance(robot, Robot):
         raise ConfigurationError("robot", robot, "None or a packbot.Robot (from load_robot())")
     if not scenario.failures:

@@ -434,8 +434,7 @@ def plan_uncertain_run(
         UnknownNameError: An unknown scenario or parameter name.
     """
     from packbot.control.user_code import controller_factory
-    from packbot.model import load_robot
-    from packbot.scenario import Scenario, load_scenario
+    from packbot.scenario import Scenario, load_scenario, scenario_robot
     from packbot.uncertainty import sample_values
 
     samples, seed = _check_draw(samples, seed)
@@ -447,7 +446,11 @@ def plan_uncertain_run(
         )
     if duration is not None:
         finite_number("duration", duration, low=0.0, low_open=True, unit="s", what="a time")
-    robot = load_robot()
+    robot = scenario_robot(scenario)
+    if not robot.is_packbot:
+        raise ConfigurationError(
+            "scenario.robot", scenario.robot, "PackBot (the uncertain model is its parameter table)"
+        )
     scenario.validate(robot)
     if controller is not None:
         controller_factory(controller)(robot)  # a factory that fails does so before any arm

@@ -216,3 +216,62 @@ def test_info_prints_another_arm(tmp_path, capsys) -> None:
     assert "arm 'two_link'" in out and "joint2" in out and "tip position" in out
     assert main(["info", "--urdf", str(path), "--package-dir", str(tmp_path / "missing")]) == 2
     assert "package_dirs" in capsys.readouterr().err
+
+
+# ------------------------------------------------------------------ scenario files
+def _arm_scenario(tmp_path, robot_line: str) -> object:
+    (tmp_path / "arms").mkdir(exist_ok=True)
+    (tmp_path / "arms" / "two_link.urdf").write_text(two_link_urdf())
+    path = tmp_path / "swing.toml"
+    path.write_text(
+        f"duration = 0.5\n{robot_line}\n\n[initial]\nq = {{ joint1 = 0.6 }}\n\n"
+        '[[failures]]\njoint = "joint2"\nkind = "frozen"\nt = 0.2\n'
+    )
+    return path
+
+
+def test_a_scenario_runs_on_the_arm_it_names(tmp_path) -> None:
+    from packbot.scenario import load_scenario, run_scenario, scenario_robot
+
+    path = _arm_scenario(tmp_path, 'robot = "arms/two_link.urdf"')  # (relative to the file)
+    scenario = load_scenario(path)
+    assert scenario_robot(scenario).joint_names == ("joint1", "joint2")
+    res = run_scenario(scenario)
+    assert res.joint_names == ("joint1", "joint2")
+    assert [e.kind for e in res.events if e.kind == "freeze"] == ["freeze"]
+    table = _arm_scenario(tmp_path, '[robot]\nurdf = "arms/two_link.urdf"\ntool_frame = "fore"')
+    assert scenario_robot(load_scenario(table)).tool_frame == "fore"
+
+
+@pytest.mark.parametrize(
+    ("line", "field"),
+    [
+        ("robot = 3", "robot"),
+        ('robot = ""', "robot"),
+        ('[robot]\nurdf = "arms/two_link.urdf"\ncolour = "red"', "robot.colour"),
+        ('[robot]\ntool_frame = "fore"', "robot.urdf"),
+        ('[robot]\nurdf = "arms/two_link.urdf"\npackage_dirs = "ros"', "robot.package_dirs"),
+    ],
+)
+def test_a_bad_robot_key_is_named(tmp_path, line, field) -> None:
+    from packbot.scenario import load_scenario
+
+    with pytest.raises(ConfigurationError) as exc:
+        load_scenario(_arm_scenario(tmp_path, line))
+    assert exc.value.field == field
+
+
+def test_the_cli_runs_a_scenario_of_another_arm(tmp_path) -> None:
+    from packbot.cli import main
+
+    path = _arm_scenario(tmp_path, 'robot = "arms/two_link.urdf"')
+    out = tmp_path / "out"
+    assert main(["run", str(path), "--out", str(out), "--plot"]) == 0
+    assert (out / "swing.npz").is_file() and (out / "swing_joints.png").is_file()
+
+
+def test_an_uncertain_run_refuses_another_arm(tmp_path) -> None:
+    path = _arm_scenario(tmp_path, 'robot = "arms/two_link.urdf"')
+    with pytest.raises(ConfigurationError) as exc:
+        packbot.uncertain_run(path, samples=2)
+    assert exc.value.field == "scenario.robot"

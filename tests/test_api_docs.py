@@ -98,6 +98,7 @@ INTERNAL_MODULES = {
     "packbot.recorder",
     "packbot.result_file",
     "packbot.result_store",
+    "packbot.scenario_robot",
     "packbot.scenario_schema",
     "packbot.schedule",
     "packbot.srdfgen",

@@ -246,7 +246,7 @@ def test_info_malformed_urdf_is_exit_2_naming_the_file(tmp_path, capsys):
 def test_info_a_parser_error_from_the_loader_is_exit_2(tmp_path, capsys, monkeypatch):
     import packbot.model
 
-    def broken(path=None):
+    def broken(path=None, **_options):
         raise ValueError("Pinocchio could not parse it")
 
     monkeypatch.setattr(packbot.model, "load_robot", broken)

@@ -212,7 +212,9 @@ def study_figures(result: StudyResult) -> dict[str, Figure]:
     ax.legend(fontsize="small", loc="best")
     figs["study_task_error"] = fig
 
-    joints = list(result.scenario.outputs.joints)
+    joints = list(
+        result.scenario.outputs.joints_of(result.robot.joint_names, result.robot.is_packbot)
+    )
     for kind, caption in (
         ("joints", "angles against their limits (dashed)"),
         ("torques", "torques against their limits in force (dashed)"),
