@@ -28,7 +28,7 @@ class NoneLaw(JointStops):
     native Dormand-Prince step where that serves (:meth:`JointStops.step_kernel`).
     """
 
-    def contact_forces(
+    def contacts(
         self, q: FloatArray, v: FloatArray, tau: Callable[[], FloatArray], t: float = math.nan
     ) -> SampleForces | None:
         """No collisions, no contact; the joint stops' torques: their engaged clamps' lock torques.

@@ -212,11 +212,11 @@ class NormalLaw(PatchEvents):
             return None
         return self._resume(t, y)
 
-    def settle(self, t: float, y: FloatArray) -> None:
+    def _forces_changed(self, t: float, y: FloatArray) -> None:
         """The forces changed at t (in a window the next step sees them)."""
         self._ready = None
         if self.window is None:
-            super().settle(t, y)
+            super()._forces_changed(t, y)
 
     def _enter(self, t: float, y: FloatArray, why: str, relapse_span: float | None = None) -> None:
         """Start a window at (t, y) (``why``: for the log).
@@ -660,7 +660,7 @@ class NormalLaw(PatchEvents):
             return super().friction(q, v, applied, friction)
         return np.asarray(friction + w.stepper.joint_torque, dtype=np.float64)
 
-    def contact_forces(
+    def contacts(
         self, q: FloatArray, v: FloatArray, tau: Callable[[], FloatArray], t: float = math.nan
     ) -> SampleForces | None:
         """The current mode's contact forces and stop torques at (q, v) (``mode_forces``).

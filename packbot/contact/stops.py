@@ -38,7 +38,7 @@ from numpy.typing import NDArray
 
 from packbot.collision import PairInfo
 from packbot.config import SimConfig
-from packbot.contact.base import Active, Crossing, Key, StepSpan
+from packbot.contact.base import SETTLE, Active, Crossing, ForceReport, Key, StepSpan
 from packbot.contact.lock_step import SCREEN_MARGIN as SCREEN_MARGIN
 from packbot.contact.lock_step import NativeLockStep
 from packbot.contact.locks import TORQUE_BAND, JointLocks
@@ -300,7 +300,14 @@ class JointStops:
         return out
 
     def handle(self, t: float, y: FloatArray, crossings: Sequence[Crossing]) -> FloatArray:
-        """Apply the events at t to state y; returns the post-event state."""
+        """Apply the events at t to state y; returns the post-event state.
+
+        :data:`~packbot.contact.base.SETTLE` alone: the forces changed, the modes settled
+        again (:meth:`_forces_changed`), y returned.
+        """
+        if len(crossings) == 1 and crossings[0] is SETTLE:
+            self._forces_changed(t, y)
+            return y
         y_new = self._handle(t, y, crossings)
         self._after_event(y_new)
         return y_new
@@ -311,15 +318,19 @@ class JointStops:
         self.release_limits(t, y)
         return self._refresh(t, y)
 
-    def settle(self, t: float, y: FloatArray) -> None:
-        """The forces changed at t: locks and holds made consistent again."""
+    def _forces_changed(self, t: float, y: FloatArray) -> None:
+        """The forces changed at t (a failure, a payload): locks and holds made consistent."""
         self.settle_modes(t, y)
+
+    def forces(self) -> ForceReport:
+        """The current mode's forces: the law reports them itself (:meth:`held`, ...)."""
+        return self
 
     def held(self) -> tuple[int, ...]:
         """Every joint with a_j = 0 in the current mode (engaged or held), sorted."""
         return self.locks.locked
 
-    def contact_forces(
+    def contacts(
         self, q: FloatArray, v: FloatArray, tau: Callable[[], FloatArray], t: float = math.nan
     ) -> SampleForces | None:
         """None: the report's clamps act on joints, not as forces on pairs (unknown)."""
