@@ -53,7 +53,7 @@ def test_a_clear_screen_only_where_the_python_checks_find_nothing(
             return out
         # what the Python checks find at this step end
         pair_events = self._swept_crossings(seg, sw)
-        limit_events = self._limit_crossings(seg, y1)
+        limit_events = self.stops.crossings(seg, y1, self.active)
         q, v = y1[: self.n], y1[self.n : 2 * self.n]
         beyond = bool(((q >= self.sys.upper) | (q <= self.sys.lower)).any())
         ev = self._native.end_eval(self.normal, y1)

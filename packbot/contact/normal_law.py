@@ -151,7 +151,7 @@ class NormalLaw(PatchEvents):
         sw = self._end_sweep(y1)
         code = self._end_code(y1, sw)
         # (the order of JointStops.watch: limits, pairs, modes, holds)
-        out = self._limit_crossings(seg, y1) if code < 0 or code & 8 else []
+        out = self.stops.crossings(seg, y1, self.active) if code < 0 or code & 8 else []
         out.extend(self._excursion_crossings(seg))
         out.extend(self._screened_crossings(seg, y1, sw, code))
         out.extend(self._dip_crossings(seg, sw))
@@ -608,29 +608,6 @@ class NormalLaw(PatchEvents):
         elif any(me.kind == "painleve" for me in mode_events):
             self._enter(t, y_new, "no contact mode is consistent (Painleve)")
         return y_new
-
-    def _hold_event(
-        self, t: float, y: FloatArray, q: FloatArray, v: FloatArray, c: Crossing, stick: list[int]
-    ) -> FloatArray:
-        """A held joint slips, or a sliding one stops (Coulomb friction, brakes); new v.
-
-        As in the other laws (:class:`~packbot.contact.stops.JointStops`): the slip takes the
-        direction of the torque the hold needed; a stopped joint becomes a candidate that
-        :meth:`settle_modes` holds or lets slide on.
-        """
-        j = c.key[1]
-        fdir = self.drive.fdir
-        if c.kind == "slip":
-            lam = self.hold_torque(t, self.with_v(y, v), j)
-            self.locks.set_held({k: b for k, b in self.locks.held.items() if k != j})
-            fdir[j] = -math.copysign(1.0, lam)
-            self.log_event(t, "slip", q, v, v, None, joints=(self.sys.names[j],), joint=j)
-        elif c.kind == "stick":
-            v = v.copy()
-            v[j] = 0.0
-            fdir[j] = 0.0
-            stick.append(j)
-        return v
 
     def _held_with_contacts(self, v: FloatArray) -> bool:
         """Joints held (or stopped) by friction or a brake while contact rows push.
