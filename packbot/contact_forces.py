@@ -1,7 +1,7 @@
 """The contact forces of a run: one record per contact point and sample (world frame).
 
 The contact law reports, at every sample, the forces of its current contact problem
-(:meth:`packbot.contact.base.ContactLaw.contact_forces`): in the contact-normal mode the
+(:meth:`packbot.contact.base.ForceReport.contacts`): in the contact-normal mode the
 forces of the constrained dynamics' mode (each engaged patch point's normal force, with its
 Coulomb friction when the pair slips; a sticking pair's friction force at its patch centre),
 at rest the frictional problem the rest capture solved (per-point cones). What one contact is

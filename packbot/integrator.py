@@ -33,7 +33,7 @@ from numpy.typing import NDArray
 from packbot import recorder
 from packbot.config import SimConfig
 from packbot.contact import make_law
-from packbot.contact.base import Crossing, StepSpan
+from packbot.contact.base import SETTLE, Crossing, StepSpan
 from packbot.control.base import Controller
 from packbot.drive import Drive, TorqueFunction
 from packbot.environment import Environment
@@ -148,11 +148,11 @@ class _Run:
 
     def measure(self, t: float, y: FloatArray) -> Sample:
         """The sample of state y at t (see :func:`packbot.recorder.measure`)."""
-        return measure(t, y, self.drive, self.law.friction)
+        return measure(t, y, self.drive, self.law.forces().friction)
 
     def measure_many(self, ts: list[float], ys: list[FloatArray]) -> Samples | None:
         """The samples of several states at once (:func:`packbot.recorder.measure_many`)."""
-        return measure_many(ts, ys, self.drive, self.law.friction)
+        return measure_many(ts, ys, self.drive, self.law.forces().friction)
 
     # ------------------------------------------------------------------ loop
     def start(self) -> None:
@@ -316,10 +316,10 @@ class _Run:
         self.log_action(Event(t, "failure", failure.joint, failure.kind), vf, vf, e, e)
         if failure.kind != "frozen":
             self.drive.set_failures(self.failures_in)
-            self.law.settle(t, self.y)
+            self.y = self.law.handle(t, self.y, [SETTLE])
             return
         j = int(np.flatnonzero(self.sys.free == self.robot.params.index(failure.joint))[0])
-        v_new, idx = freeze_impulse(self.sys, q, v, j, self.law.held())
+        v_new, idx = freeze_impulse(self.sys, q, v, j, self.law.forces().held())
         moved = tuple(self.sys.names[i] for i in idx)
         ev = Event(t, "freeze", failure.joint, distance=float(qf[self.sys.free[j]]))
         ev = dataclasses.replace(ev, relevant_joints=moved)
@@ -343,7 +343,7 @@ class _Run:
             v = momentum_kept(self.sys, q, momentum)
             self.y = self.y.copy()
             self.y[n : 2 * n] = v
-            self.law.settle(t, self.y)
+            self.y = self.law.handle(t, self.y, [SETTLE])
         ev = Event(t, what, self.payload.frame if self.payload else "", "")
         self.log_action(ev, vf0, self.sys.v_full(v), e0, self.sys.energy(q, v))
 

@@ -100,8 +100,9 @@ def measure(
         t: Time [s].
         y: Integrated state (q, v[, tau_m]).
         drive: The run's torques (its system is the current phase's).
-        held: The contact law's :meth:`~packbot.contact.base.ContactLaw.friction`: the
-            friction column with each held joint's holding torque.
+        held: The contact law's :meth:`ForceReport.friction
+            <packbot.contact.base.ForceReport.friction>`: the friction column with each held
+            joint's holding torque.
     """
     sys = drive.sys
     n = sys.nv
@@ -132,7 +133,8 @@ def contact_sampler(
 
     Args:
         drive: The run's torques (applied and friction: what the right-hand side integrates).
-        law: The run's contact law (:meth:`~packbot.contact.base.ContactLaw.contact_forces`).
+        law: The run's contact law (its :meth:`ForceReport.contacts
+            <packbot.contact.base.ForceReport.contacts>`).
 
     Returns:
         (t [s], integrated state y) -> the contacts of that sample and its stops' torques in
@@ -146,7 +148,7 @@ def contact_sampler(
             _, _, applied, friction = drive.torques(t, y)
             return np.asarray(applied + friction, dtype=np.float64)
 
-        found = law.contact_forces(y[:n], y[n : 2 * n], tau, t)
+        found = law.forces().contacts(y[:n], y[n : 2 * n], tau, t)
         if found is None or n == n_full:
             return found
         full = np.zeros(n_full)  # (the stops' torques in full coordinates: locks' are 0)
@@ -204,7 +206,8 @@ def measure_many(
         ts: Times [s].
         ys: Integrated states (q, v[, tau_m]), one per time.
         drive: The run's torques (its system is the current phase's).
-        held: The contact law's :meth:`~packbot.contact.base.ContactLaw.friction`.
+        held: The contact law's :meth:`ForceReport.friction
+            <packbot.contact.base.ForceReport.friction>`.
     """
     if drive.ctrl_fn is not None:
         return None
@@ -282,7 +285,8 @@ class Recorder:
         measure_many: The samples at several (t, y) at once (:func:`measure_many`'s columns;
             None: that function cannot, they are measured one by one), or None.
         contacts: The contact forces of the sample at (t, y) (the law's
-            :meth:`~packbot.contact.base.ContactLaw.contact_forces`), or None: none kept.
+            :meth:`ForceReport.contacts <packbot.contact.base.ForceReport.contacts>`), or None:
+            none kept.
     """
 
     #: Rows allocated beyond the regular samples and the final state (event samples).

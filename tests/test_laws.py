@@ -16,7 +16,7 @@ import pytest
 
 import packbot
 import packbot.contact as contact
-from packbot.contact.base import ContactLaw, Crossing
+from packbot.contact.base import ContactLaw, Crossing, ForceReport
 from packbot.drive import Drive
 from packbot.recorder import EventLog
 from packbot.result import Diagnostics, Event
@@ -34,9 +34,7 @@ PROTOCOL = (
     "watch",
     "handle",
     "after_step",
-    "settle",
-    "held",
-    "friction",
+    "forces",
 )
 
 
@@ -86,7 +84,7 @@ def test_make_law_builds_the_configured_law_with_the_whole_protocol(robot, field
     a_free = np.arange(n, dtype=float)
     np.testing.assert_array_equal(law.accel(y[:n], y[n:], a_free), a_free)  # free mode
     assert 0.0 < law.step_bound(y) <= cfg.max_step
-    assert law.held() == ()
+    assert law.forces().held() == ()
 
 
 @pytest.mark.parametrize("joints", [("camera_pan",), ("gripper_roll", "elbow2"), None])
@@ -205,6 +203,7 @@ def test_the_loop_has_no_contact_law_branch_and_no_law_imports_it():
     assert imported <= {
         "packbot.contact.make_law",
         "packbot.contact.base.Crossing",
+        "packbot.contact.base.SETTLE",
         "packbot.contact.base.StepSpan",
     }
     for path in [*PACKAGE.joinpath("contact").glob("*.py"), PACKAGE / "drive.py"]:
@@ -215,8 +214,9 @@ def test_the_loop_has_no_contact_law_branch_and_no_law_imports_it():
 
 
 def test_the_protocol_is_the_loops_calls_only():
-    """ContactLaw holds what the loop calls and nothing else: each member is called by the
-    loop (or its recorder and ticks), and the loop calls no other method of the law."""
+    """ContactLaw holds what the loop calls and nothing else, at most 8 members: each is
+    called by the loop (or its recorder and ticks), and the loop calls no other method of the
+    law; the samples and a freeze read the law's forces through its ForceReport."""
     members = {
         name
         for name, value in vars(ContactLaw).items()
@@ -229,12 +229,12 @@ def test_the_protocol_is_the_loops_calls_only():
         "watch",
         "handle",
         "after_step",
-        "settle",
-        "held",
-        "friction",
-        "contact_forces",
+        "forces",
     }
-    called = set()
+    assert len(members) <= 8
+    report = {name for name in vars(ForceReport) if not name.startswith("_")}
+    assert report == {"held", "friction", "contacts"}
+    called, read = set(), set()
     for name in ("integrator.py", "recorder.py", "ticks.py"):
         tree = ast.parse((PACKAGE / name).read_text())
         for node in ast.walk(tree):
@@ -242,7 +242,15 @@ def test_the_protocol_is_the_loops_calls_only():
                 owner = node.value.attr if isinstance(node.value, ast.Attribute) else node.value.id
                 if owner == "law":
                     called.add(node.attr)
+            if (
+                isinstance(node, ast.Attribute)
+                and isinstance(node.value, ast.Call)
+                and isinstance(node.value.func, ast.Attribute)
+                and node.value.func.attr == "forces"
+            ):
+                read.add(node.attr)
     assert called == members
+    assert read == report  # (the report's members, each read through law.forces())
 
 
 # ------------------------------------------------------------------ each law alone

@@ -1,7 +1,7 @@
 """The contact-normal mode's step-end screen against the Python checks it stands in for.
 
-After a native step, ``NormalLaw._contact_crossings`` asks the extension once
-(``NativeRhs.end_check``) which of its checks can find something: the pairs' events, the
+After a native step, ``NormalLaw.watch`` asks the extension once (``normal_watch.end_code``:
+``NativeRhs.end_check``) which of its checks can find something: the pairs' events, the
 modes' conditions, the refresh of a sliding contact's stale patch; only those run. At every
 step end of real runs (the collapse with and without friction, an arm with every joint free),
 each check is run all the same and must agree with the screen: a clear screen only where the
@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 
 import packbot
-from packbot.contact import native
+from packbot.contact import native, normal_watch
 from packbot.contact.normal_law import NormalLaw
 
 
@@ -44,7 +44,7 @@ def test_a_clear_screen_only_where_the_python_checks_find_nothing(
     monkeypatch, mu, duration, wrist
 ) -> None:
     seen: Counter[str] = Counter()
-    screened = NormalLaw._screened_crossings
+    screened = normal_watch.screened_crossings
 
     def checked(self, seg, y1, sw, code):
         out = screened(self, seg, y1, sw, code)
@@ -53,7 +53,7 @@ def test_a_clear_screen_only_where_the_python_checks_find_nothing(
             return out
         # what the Python checks find at this step end
         pair_events = self._swept_crossings(seg, sw)
-        limit_events = self._limit_crossings(seg, y1)
+        limit_events = self.stops.crossings(seg, y1, self.active)
         q, v = y1[: self.n], y1[self.n : 2 * self.n]
         beyond = bool(((q >= self.sys.upper) | (q <= self.sys.lower)).any())
         ev = self._native.end_eval(self.normal, y1)
@@ -76,7 +76,7 @@ def test_a_clear_screen_only_where_the_python_checks_find_nothing(
         seen["limits"] += bool(code & 8)
         return out
 
-    monkeypatch.setattr(NormalLaw, "_screened_crossings", checked)
+    monkeypatch.setattr(normal_watch, "screened_crossings", checked)
     res = _collapse(mu, duration, wrist)
     assert res.diagnostics.steps > 100
     assert seen["clear"] > 0
@@ -126,7 +126,7 @@ def test_a_skipped_load_finds_the_current_modes_loaded(monkeypatch) -> None:
 
 def test_the_screen_answers_only_at_the_last_native_steps_end(monkeypatch) -> None:
     got: list[tuple[NormalLaw, np.ndarray]] = []
-    screened = NormalLaw._screened_crossings
+    screened = normal_watch.screened_crossings
 
     def keep(self, seg, y1, sw, code):
         out = screened(self, seg, y1, sw, code)
@@ -134,7 +134,7 @@ def test_the_screen_answers_only_at_the_last_native_steps_end(monkeypatch) -> No
             got.append((self, y1))
         return out
 
-    monkeypatch.setattr(NormalLaw, "_screened_crossings", keep)
+    monkeypatch.setattr(normal_watch, "screened_crossings", keep)
     _collapse(0.5, 0.5)
     law, y1 = got[-1]
     rhs = law._native

@@ -96,10 +96,10 @@ def test_a_steps_samples_measured_at_once_are_the_samples_one_by_one(robot):
             seg = run.stepper.step(1.0)
             ts = list(np.linspace(seg.t0, seg.t1, 4))
             ys = [seg(t) for t in ts]
-            cols = measure_many(ts, ys, run.drive, run.law.friction)
+            cols = measure_many(ts, ys, run.drive, run.law.forces().friction)
             assert cols is not None
             for i, (t, y) in enumerate(zip(ts, ys, strict=True)):
-                one = measure(t, y, run.drive, run.law.friction)
+                one = measure(t, y, run.drive, run.law.forces().friction)
                 for block, value in zip(cols, one, strict=True):
                     row = np.broadcast_to(block, (len(ts), *np.shape(value)))[i]
                     if block is cols[-1]:  # the energy: (v^T M) v summed in the extension's
@@ -117,4 +117,7 @@ def test_a_steps_samples_measured_at_once_are_the_samples_one_by_one(robot):
     )
     run.start()
     seg = run.stepper.step(1.0)
-    assert measure_many([seg.t0, seg.t1], [seg.y0, seg.y1], run.drive, run.law.friction) is None
+    assert (
+        measure_many([seg.t0, seg.t1], [seg.y0, seg.y1], run.drive, run.law.forces().friction)
+        is None
+    )

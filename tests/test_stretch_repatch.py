@@ -67,9 +67,7 @@ class _Counts:
             self.used += spare is not None and d.spare is None
             return out
 
-        from packbot.contact import normal_law
-
-        monkeypatch.setattr(normal_law, "adopt_repatches", adopted)
+        monkeypatch.setattr(stretch, "adopt_repatches", adopted)
         monkeypatch.setattr(NormalContacts, "repatch", python)
         monkeypatch.setattr(NativeDispatch, "keep_spare", kept)
         monkeypatch.setattr(NativeDispatch, "sweep", swept)

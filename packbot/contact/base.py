@@ -20,9 +20,11 @@ Who calls what, and when (docs/simulator.md, "The loop and the contact laws"):
 - after each step: :meth:`~ContactLaw.watch` (the event functions that changed sign);
   none: the step is accepted, :meth:`~ContactLaw.after_step`; else the loop locates the
   earliest crossing and calls :meth:`~ContactLaw.handle` with the crossings at that instant;
-- a failure or a payload change that keeps the phase: :meth:`~ContactLaw.settle`;
-- a freezing joint: :meth:`~ContactLaw.held` (the joints its impulse keeps still);
-- every sample: :meth:`~ContactLaw.friction` and :meth:`~ContactLaw.contact_forces`.
+- a failure or a payload change that keeps the phase: :meth:`~ContactLaw.handle` with
+  :data:`SETTLE` (the forces changed: an event without an event function);
+- a freezing joint, and every sample: :meth:`~ContactLaw.forces`, the report of the current
+  mode's forces (:class:`ForceReport`: the joints held still, the friction column with their
+  holding torques, the contacts' forces).
 """
 
 from __future__ import annotations
@@ -42,7 +44,16 @@ from packbot.system import System
 if TYPE_CHECKING:
     from packbot.contact_forces import SampleForces
 
-__all__ = ["Active", "ContactLaw", "Crossing", "Key", "SampleClock", "StepSpan"]
+__all__ = [
+    "SETTLE",
+    "Active",
+    "ContactLaw",
+    "Crossing",
+    "ForceReport",
+    "Key",
+    "SampleClock",
+    "StepSpan",
+]
 
 FloatArray = NDArray[np.float64]
 #: An event function's identity: ``("pair", index)``, ``("limit", joint, side)``,
@@ -85,6 +96,12 @@ class Crossing:
     g0: float
     g1: float
     root: Callable[[float, float, float, float, float], float] | None = None
+
+
+#: The forces changed at an instant without an event function crossing (a failure that keeps
+#: the phase, a payload picked up): handed to :meth:`ContactLaw.handle` alone, it makes the
+#: law's locks, holds and modes consistent with the new forces, the state kept.
+SETTLE = Crossing("settle", ("settle",), lambda t: 0.0, 0.0, 0.0)
 
 
 class SampleClock(Protocol):
@@ -178,28 +195,40 @@ class ContactLaw(Protocol):
         ...
 
     def handle(self, t: float, y: FloatArray, crossings: Sequence[Crossing]) -> FloatArray:
-        """Apply the events at t (those located at the earliest crossing); the state after."""
+        """Apply the events at t (those located at the earliest crossing); the state after.
+
+        ``crossings`` may be ``[SETTLE]`` alone: the forces changed at t (a failure, a
+        payload), the locks, holds and modes made consistent again; y is returned as it is.
+        """
         ...
 
     def after_step(self, t: float, y: FloatArray) -> FloatArray | None:
         """A step ended at (t, y) with no event; a changed state (the loop restarts) or None."""
         ...
 
-    def settle(self, t: float, y: FloatArray) -> None:
-        """The forces changed at t (a failure, a payload): the modes again (y is kept)."""
+    def forces(self) -> ForceReport:
+        """The report of the current mode's forces (a freezing joint's, every sample's)."""
         ...
 
+
+class ForceReport(Protocol):
+    """A law's forces in its current mode, as a freeze and the samples read them."""
+
     def held(self) -> tuple[int, ...]:
-        """The joints the law holds still (engaged locks, friction holds), sorted."""
+        """The joints held still (engaged locks, friction holds), sorted."""
         ...
 
     def friction(
         self, q: FloatArray, v: FloatArray, applied: FloatArray, friction: FloatArray
     ) -> FloatArray:
-        """The joint friction torques [N*m] to report: each held joint's holding torque."""
+        """The joint friction torques [N*m] to report: each held joint's holding torque.
+
+        ``friction`` itself (the same array) when no joint is held: the recorder then
+        measures a step's samples at once (:func:`packbot.recorder.measure_many`).
+        """
         ...
 
-    def contact_forces(
+    def contacts(
         self, q: FloatArray, v: FloatArray, tau: Callable[[], FloatArray], t: float = math.nan
     ) -> SampleForces | None:
         """The contacts of the current mode at (q, v) under the joint torques ``tau()`` [N*m].

@@ -9,9 +9,9 @@ v_p1) = J_n v``). This includes the turret and the camera pan, which the report 
 Velocity reset, on the relevant joints R (e = restitution), ``reset_rule``: ``"zero"`` (the
 report's: ``v_i <- -e v_i`` for i in R; on a coupled arm this can *add* kinetic energy) or
 ``"momentum"`` (an impulsive torque on the joints of R only, the other joints keeping their
-generalized momentum; never adds energy for e <= 1); :func:`~packbot.contact.stops.impact_reset`
-(in :mod:`packbot.contact.stops`, where the limit stops use it too). A reset that would set a
-joint clamped by another contact moving toward it is widened to that joint.
+generalized momentum; never adds energy for e <= 1): :mod:`packbot.contact.resets`, whose
+impulse the limit stops use too. A reset that would set a joint clamped by another contact
+moving toward it is widened to that joint.
 
 Clamp directions (the direction in which a clamped joint may not accelerate):
 
@@ -38,7 +38,7 @@ first; a pair whose clamps are all released that comes back to the contact toler
 A pair restarted at d = 0 exactly (a secondary intersection located on its event side: Coal's
 distance of touching pieces) that rebounds is not found again at the step's start: its next
 ``secondary_intersection`` is its return to d = 0, approaching, where the law applies its reset
-(:func:`~packbot.contact.stops.return_crossing`).
+(:func:`~packbot.contact.position_stops.return_crossing`).
 """
 
 from __future__ import annotations
@@ -50,7 +50,8 @@ from numpy.typing import NDArray
 
 from packbot.contact.base import Active, Crossing, Key
 from packbot.contact.pairs import PairLaw
-from packbot.contact.stops import impact_reset, return_crossing
+from packbot.contact.position_stops import return_crossing
+from packbot.contact.resets import impact_reset
 from packbot.ode import DenseSegment
 from packbot.system import System
 

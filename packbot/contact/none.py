@@ -13,7 +13,8 @@ from collections.abc import Callable
 import numpy as np
 from numpy.typing import NDArray
 
-from packbot.contact.stops import JointStops, friction_share
+from packbot.contact.holds import friction_share
+from packbot.contact.stops import JointStops
 from packbot.contact_forces import SampleForces
 
 FloatArray = NDArray[np.float64]
@@ -28,14 +29,14 @@ class NoneLaw(JointStops):
     native Dormand-Prince step where that serves (:meth:`JointStops.step_kernel`).
     """
 
-    def contact_forces(
+    def contacts(
         self, q: FloatArray, v: FloatArray, tau: Callable[[], FloatArray], t: float = math.nan
     ) -> SampleForces | None:
         """No collisions, no contact; the joint stops' torques: their engaged clamps' lock torques.
 
         A clamp engaged here is a joint on its position stop (no pair clamps a joint in this
         mode); where friction or a brake also holds the joint, the stop carries what the
-        friction's bound does not (:func:`~packbot.contact.stops.friction_share`).
+        friction's bound does not (:func:`~packbot.contact.holds.friction_share`).
         """
         limit = np.zeros(len(q))
         locks = self.locks

@@ -18,11 +18,14 @@ A joint limit row is not a contact: its multiplier is the stop's torque on its j
 With the modes fixed the records are the extension's (``ContactRhs.forces``,
 ``src/native/contact_rhs_forces.cpp``, on the rows of the evaluation); at rest they are built
 here from the frictional problem's solution.
-Conventions of the records: :mod:`packbot.contact_forces`.
+Conventions of the records: :mod:`packbot.contact_forces`. :class:`NormalReport` is the
+mode's report of its forces at the samples (:class:`~packbot.contact.base.ForceReport`).
 """
 
 from __future__ import annotations
 
+import math
+from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -34,9 +37,17 @@ from packbot.contact_forces import PairNames, SampleContact, SampleForces
 
 if TYPE_CHECKING:
     from packbot.contact.normal_contacts import NormalContacts
+    from packbot.contact.normal_law import NormalLaw
     from packbot.contact.normal_patch import _Pair
 
-__all__ = ["mode_forces", "pair_frame", "pair_names", "pair_points", "row_impulses"]
+__all__ = [
+    "NormalReport",
+    "mode_forces",
+    "pair_frame",
+    "pair_names",
+    "pair_points",
+    "row_impulses",
+]
 
 FloatArray = NDArray[np.float64]
 
@@ -213,3 +224,66 @@ def pair_points(data: Any, p: _Pair) -> tuple[FloatArray, FloatArray, FloatArray
     a = np.asarray(p.local1 @ M1.rotation.T + M1.translation, dtype=np.float64)
     b = np.asarray(p.local2 @ M2.rotation.T + M2.translation, dtype=np.float64)
     return (b if p.on1 else a), a, b
+
+
+class NormalReport:
+    """The contact-normal mode's forces at a sample: its :class:`~packbot.contact.base.ForceReport`.
+
+    One per phase of the law (built with its contact set): the contacts' placements for the
+    records, and a resting arm's contacts found once per state and torque.
+
+    Args:
+        law: The law (its contact set, its window, its joint locks and holds).
+    """
+
+    def __init__(self, law: NormalLaw) -> None:
+        self.law = law
+        self._data = law.sys.model.createData()  # (the contact forces' placements)
+        self._rest: tuple[Any, SampleForces | None] = (None, None)
+
+    def held(self) -> tuple[int, ...]:
+        """The joints held still (engaged and held locks), sorted."""
+        return self.law.held()
+
+    def friction(
+        self, q: FloatArray, v: FloatArray, applied: FloatArray, friction: FloatArray
+    ) -> FloatArray:
+        """The friction torques [N*m]; in a window, the last step's Coulomb and brake torques."""
+        w = self.law.window
+        if w is None:
+            return self.law.friction(q, v, applied, friction)
+        return np.asarray(friction + w.stepper.joint_torque, dtype=np.float64)
+
+    def contacts(
+        self, q: FloatArray, v: FloatArray, tau: Callable[[], FloatArray], t: float = math.nan
+    ) -> SampleForces | None:
+        """The current mode's contact forces and stop torques at (q, v) (:func:`mode_forces`).
+
+        Inside a time-stepping window, the mean forces of the step that holds the sample's time
+        t [s] (:class:`~packbot.contact.window_forces.WindowForces`); None if no step kept
+        holds t.
+        """
+        law = self.law
+        nc, sys = law.normal, law.sys
+        if law.window is not None:
+            return law.window.stepper.forces.at(t)
+        if not nc.engaged:
+            return SampleForces([], np.zeros(sys.nv))
+        # a resting arm's samples under one torque are one state: its contacts are found once
+        torque = tau()
+        key = (nc._version, q.tobytes(), torque.tobytes()) if nc.resting and not v.any() else None
+        if key is not None and self._rest[0] == key:
+            return self._rest[1]
+        # the free accelerations with the joint locks alone (not the compiled right-hand side's
+        # call: a call there would forget the step end it keeps for the step end's checks)
+        a_free = sys.aba(q, v, torque)
+        if law.locks.any_locked:
+            a_free = law.locks.accelerations(a_free, sys.minv(q))
+        kept = nc._last_eval  # (the step end's evaluation, kept for its own state)
+        try:
+            found = mode_forces(nc, self._data, q, v, a_free, sys.minv(q))
+        finally:
+            nc._last_eval = kept
+        if key is not None:
+            self._rest = (key, found)
+        return found

@@ -7,37 +7,34 @@ window (:mod:`packbot.contact.timestep`) where events pile up; its thresholds ar
 
 from __future__ import annotations
 
-import dataclasses
 import logging
 import math
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Iterable, Sequence
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
-from packbot.collision import PairInfo, SweepResult
+from packbot.collision import PairInfo
 from packbot.contact import native
+from packbot.contact import normal_watch as watching
 from packbot.contact import normal_windows as windows
-from packbot.contact.base import Active, Crossing, Key, SampleClock, StepSpan
+from packbot.contact.base import (
+    Active,
+    Crossing,
+    ForceReport,
+    Key,
+    SampleClock,
+    StepSpan,
+)
 from packbot.contact.locks import JointLocks
 from packbot.contact.normal_contacts import NormalContacts
-from packbot.contact.normal_forces import mode_forces
-from packbot.contact.normal_inside import limit_excursions, pair_dips
-from packbot.contact.normal_tolerances import PENETRATION_TOL
+from packbot.contact.normal_forces import NormalReport
 from packbot.contact.normal_windows import Window, WindowTriggers
 from packbot.contact.pairs import pair_joints, reach_bounds
 from packbot.contact.patch_events import PatchEvents
-from packbot.contact.stretch import (
-    LawInputs,
-    QuietStretch,
-    Stretched,
-    adopt_repatches,
-    quiet_stretch,
-    repatch_modes,
-)
-from packbot.contact.timestep import QUIET_STEPS, MoreauJeanStepper, StepSegment
-from packbot.contact_forces import SampleForces
+from packbot.contact.stretch import QuietStretch, Stretched, hold_at_rest, law_stretch
+from packbot.contact.timestep import QUIET_STEPS, MoreauJeanStepper
 from packbot.ode import DenseSegment, RK45Stepper, StepKernel, StepSizeUnderflow
 from packbot.system import System
 
@@ -88,8 +85,7 @@ class NormalLaw(PatchEvents):
         self.normal = NormalContacts.from_config(system.model, system.data, system.world, self.cfg)
         self._native = native.native_rhs(system.model)
         self.normal.native = self._native  # (the restart's projection and impact)
-        self._force_data = system.model.createData()  # (the contact forces' placements)
-        self._rest_contacts: tuple[Any, SampleForces | None] = (None, None)
+        self.report = NormalReport(self)  # (its forces at the samples)
         if self.cfg.joint_limits:  # (the step end's screen, the drift projection)
             self._native.set_limits(system.upper, system.lower)
             self.normal.stops = (system.upper, system.lower)
@@ -149,43 +145,14 @@ class NormalLaw(PatchEvents):
         self.triggers.steps.append(seg.h)
         y1 = seg.y1
         sw = self._end_sweep(y1)
-        code = self._end_code(y1, sw)
+        code = watching.end_code(self, y1, sw)
         # (the order of JointStops.watch: limits, pairs, modes, holds)
-        out = self._limit_crossings(seg, y1) if code < 0 or code & 8 else []
-        out.extend(self._excursion_crossings(seg))
-        out.extend(self._screened_crossings(seg, y1, sw, code))
-        out.extend(self._dip_crossings(seg, sw))
+        out = self.stops.crossings(seg, y1, self.active) if code < 0 or code & 8 else []
+        out.extend(watching.excursion_crossings(self, seg))
+        out.extend(watching.screened_crossings(self, seg, y1, sw, code))
+        out.extend(watching.dip_crossings(self, seg, sw))
         out.extend(self._hold_crossings(seg, y1))
         return out
-
-    def _excursion_crossings(self, seg: DenseSegment) -> list[Crossing]:
-        """Joints past a stop inside the step and within it at its ends.
-
-        :func:`~packbot.contact.normal_inside.limit_excursions`.
-        """
-        if not self.cfg.joint_limits or self.normal.resting:
-            return []
-        return limit_excursions(seg, self._native, self.normal, self.sys.upper, self.sys.lower)
-
-    def _dip_crossings(self, seg: DenseSegment, sw: SweepResult) -> list[Crossing]:
-        """Pairs that touch inside the step and are apart at its ends.
-
-        :func:`~packbot.contact.normal_inside.pair_dips`.
-        """
-        active = np.array([k[1] for k in self.active if k[0] == "pair"], dtype=np.int64)
-        # the kept distances are the step start's, unless a re-patch's projection moved it
-        # since they were swept (then each pair is queried at the start when needed)
-        last = self.last_d if self._start_swept else {}
-        self._start_swept = True
-        n = self.n
-
-        def screen(pair: int, y: FloatArray) -> float:
-            self.diag.distance_queries += 1
-            return self.world.screen_distance(y[:n], pair)
-
-        return pair_dips(
-            seg, sw, self._native, active, last, self.cfg.margin, screen, self.distance
-        )
 
     def after_step(self, t: float, y: FloatArray) -> FloatArray | None:
         """After an accepted step; in a window, its end once the contacts have settled.
@@ -212,11 +179,11 @@ class NormalLaw(PatchEvents):
             return None
         return self._resume(t, y)
 
-    def settle(self, t: float, y: FloatArray) -> None:
+    def _forces_changed(self, t: float, y: FloatArray) -> None:
         """The forces changed at t (in a window the next step sees them)."""
         self._ready = None
         if self.window is None:
-            super().settle(t, y)
+            super()._forces_changed(t, y)
 
     def _enter(self, t: float, y: FloatArray, why: str, relapse_span: float | None = None) -> None:
         """Start a window at (t, y) (``why``: for the log).
@@ -224,7 +191,7 @@ class NormalLaw(PatchEvents):
         Its shortest length: :meth:`WindowTriggers.opening
         <packbot.contact.normal_windows.WindowTriggers.opening>` with ``relapse_span`` [s].
         """
-        self._keep_end_eval()
+        watching.keep_end_eval(self)
         self._ready = None
         min_len = self.triggers.opening(t, relapse_span)
         n = self.n
@@ -323,166 +290,24 @@ class NormalLaw(PatchEvents):
         t_sched: float,
         clock: SampleClock,
     ) -> Stretched | None:
-        """The quiet steps from the stepper's state in one native call (:mod:`.stretch`).
+        """The quiet steps from the stepper's state in one native call, or None.
 
-        Offered right after :meth:`step_kernel` offered the native step (its modes and torques
-        loaded), outside a window, with no conditional lock or Coulomb-sliding joint (their
-        conditions are watched in Python) and with the compiled sweep; else None. An arm
-        captured at rest is held there instead (:meth:`_hold_at_rest`).
+        :func:`~packbot.contact.stretch.law_stretch` (an arm captured at rest is held there
+        instead: :meth:`_hold_at_rest`).
         """
-        if self.normal.resting:
-            return self._hold_at_rest(stepper, t_end)
-        if (
-            not self._offered
-            or self.window is not None
-            or self.locks.conditional
-            or self.drive.fdir.any()
-        ):
-            return None
-        crawl = (windows.CRAWL_STEPS, windows.CRAWL_STEP)
-        st = self._stretch = quiet_stretch(self, stepper, clock, self._stretch, crawl)
-        stops = [(k[1], k[2]) for k in self.active if k[0] == "limit"]
-        upper, lower = self.sys.upper, self.sys.lower
-        inputs = LawInputs(
-            active=np.array([k[1] for k in self.active if k[0] == "pair"], dtype=np.int64),
-            limits=np.array(
-                [(j, side, self._limit_held(j, side)) for j, side in stops], dtype=np.int64
-            ).reshape(-1, 3),
-            lim_value=np.array([upper[j] if side > 0 else lower[j] for j, side in stops]),
-            crawl=np.array(self.triggers.steps, dtype=np.float64),
-            min_d=self.diag.min_distance,
-            # (a subclass's hooks: its re-patches are the loop's)
-            modes=repatch_modes(self) if type(self) is NormalLaw else None,
-        )
-        self.world.dispatch.spare = None
-        done, out = st.run(stepper, t_end, t_last, t_sched, clock, inputs)
-        k = out["samples_before"]
-        if out["repatches"] and k > 0:
-            # the samples before its first re-patch, their forces read from the contact set as
-            # the stretch found it (those after, from the set its last re-patch leaves)
-            clock.record_states(done.samples[:k])
-            done = dataclasses.replace(done, samples=done.samples[k:])
-        adopt_repatches(self, out)
-        if done.steps:
-            self._stretched(stepper.y if done.pending is None else done.pending.y0, out)
-            if out["repatches"]:
-                self._ready = None  # (the modes and patches loaded again from the set's)
-        if done.pending is not None:
-            # its sweep, for the watch to reuse (the same numbers: Coal's warm-started GJK
-            # would not give them bit for bit a second time)
-            self.world.dispatch.adopt(
-                done.pending.y1[: self.n],
-                out["pending_pairs"][0],
-                out["pending_dist"][0],
-                out["pending_best"],
-                out["pending_best_d"],
-            )
-        return done
+        return law_stretch(self, stepper, t_end, t_last, t_sched, clock, type(self) is NormalLaw)
 
     def _hold_at_rest(self, stepper: RK45Stepper, t_end: float) -> Stretched | None:
         """The arm captured at rest, held there to t_end in one step (pending), or None.
 
-        The rest capture (:meth:`NormalContacts.capture
-        <packbot.contact.normal_steps.RestartSteps.capture>`) stops every joint and holds it
-        until a mode condition says otherwise (``nrest``: the accelerations the arm would
-        have without the hold). With the torques fixed (a held command, or none, and no motor
-        lag: :meth:`~packbot.drive.Drive.step_torques`) nothing changes until the next
-        controller tick or scheduled action: the stepper's steps from such a state keep it
-        bit for bit, each one a right-hand side, a sweep and the checks at its end. One step
-        to t_end does the same once; the loop watches it as any step (its end's sweep and
-        conditions: the state's) and records its samples (the state). The stepper restarts at
-        its end.
-
-        Args:
-            stepper: The loop's stepper, at the loop's state.
-            t_end: The step's end [s] (no controller tick before it).
+        :func:`~packbot.contact.stretch.hold_at_rest`.
         """
-        t, y = stepper.t, stepper.y
-        n = self.n
-        if (
-            t_end <= t
-            or len(y) != 2 * n
-            or y[n:].any()
-            or self.locks.conditional
-            or self.drive.fdir.any()
-            or self.drive.step_torques(t, y) is None
-        ):
-            return None
-        seg = StepSegment(t, t_end, y, y.copy())
-        stepper.reset(t_end, seg.y1, h=stepper.h, defer=True)
-        return Stretched(0, np.zeros((0, len(y))), seg)
-
-    def _stretched(self, y: FloatArray, out: dict[str, Any]) -> None:
-        """Past a stretch's kept steps, ending at y: what watch and after_step keep.
-
-        Args:
-            y: The last kept step's end (its modes still loaded: the native step's next start).
-            out: The native call's results (:meth:`QuietStretch.run
-                <packbot.contact.stretch.QuietStretch.run>`).
-        """
-        self.triggers.steps.extend(out["hs"][0].tolist())
-        self.diag.sweeps += out["steps"]
-        self.note_min(out["min_d"], out["min_pair"])
-        pairs, distances = out["last_pairs"][0], out["last_dist"][0]
-        pairs.setflags(write=False)
-        distances.setflags(write=False)
-        self._pending_arr = self._last_arr = (pairs, distances)
-        self._pending_d = self._last_d = None
-        self._start_swept = out["repatches"] == 0  # (a re-patch's projection moves q)
-        self._clear = self._ready = y
-        self.world.dispatch.owe()  # (its pieces are owed at the last compiled sweep's q)
+        return hold_at_rest(self, stepper, t_end)
 
     def _pair_crossings(
         self, key: Key, p_idx: int, seg: DenseSegment, d0: float, d1: float
     ) -> list[Crossing]:
         return self._patch_pair_crossings(key, p_idx, seg, d0, d1)
-
-    def _contact_crossings(self, seg: DenseSegment, y1: FloatArray) -> list[Crossing]:
-        sw = self._end_sweep(y1)
-        return self._screened_crossings(seg, y1, sw, self._end_code(y1, sw))
-
-    def _end_code(self, y1: FloatArray, sw: SweepResult) -> int:
-        """The step end's screen (:meth:`~packbot.contact.native.NativeRhs.end_check`).
-
-        After a native step (:meth:`step_kernel`), one call on its last stage's evaluation and
-        the end's sweep says which checks of :meth:`watch` and :meth:`after_step` can find
-        something: the limits' (bit 8), the pairs' (an impact, a release, a re-patch: 1), the
-        modes' (a negative condition: 2) and :meth:`_refresh`'s (a sliding contact's stale
-        patch: 4). -1: not a native step's end (every check runs).
-        """
-        rhs = self._native
-        if self.normal.empty:
-            return -1
-        active = np.array([k[1] for k in self.active if k[0] == "pair"], dtype=np.int64)
-        return rhs.end_check(
-            y1,
-            sw.pairs,
-            sw.distances,
-            active,
-            self.cfg.proximity_tolerance,
-            PENETRATION_TOL,
-        )
-
-    def _screened_crossings(
-        self, seg: DenseSegment, y1: FloatArray, sw: SweepResult, code: int
-    ) -> list[Crossing]:
-        """The pairs' and modes' events over the step: the checks the screen's code asks for.
-
-        As without the screen; a step end it finds clear of pair, mode and refresh checks
-        (the common case) is marked for :meth:`_refresh` (nothing to re-patch there).
-        """
-        if code < 0:  # not a native step's end: every check
-            out = self._swept_crossings(seg, sw)
-            out.extend(self._mode_crossings(seg, y1))
-            return out
-        out = self._swept_crossings(seg, sw) if code & 1 else []
-        if code & 2:
-            out.extend(self._mode_crossings(seg, y1))
-        elif code & 4:  # the evaluation the refresh reads (end_eval's, as without the screen)
-            self._native.end_eval(self.normal, y1)
-        else:
-            self._clear = y1
-        return out
 
     def _pairs_to_check(self, pairs: list[int], distances: list[float]) -> Iterable[int]:
         """The pairs that can have an event (see :meth:`_patch_pair_crossings`).
@@ -498,31 +323,11 @@ class NormalLaw(PatchEvents):
             if d <= 0.0 or (d > near and ("pair", pairs[i]) in active)
         ]
 
-    def _mode_crossings(self, seg: DenseSegment, y1: FloatArray) -> list[Crossing]:
-        nc = self.normal
-        if nc.empty:
-            return []
-        rhs = self._native
-        ev = rhs.end_eval(nc, y1)  # a native step's end: its last stage evaluated the conditions
-        if ev is not None and ev.cond is not None and ev.cond >= 0.0:
-            return []
-        # (ev None: not a native step, its modes are not the loaded ones)
-        return self._problem_crossings(nc, seg, y1, None if ev is None else rhs)
-
     def _limit_held(self, j: int, side: int) -> bool:
         return self.normal.limit_engaged(j, side)
 
     def _drop_limit(self, j: int, side: int) -> None:
         self.normal.remove_limit(j, side)
-
-    def _keep_end_eval(self) -> None:
-        """The last step end's evaluation kept by the contact set, as without the screen.
-
-        A step end the screen found clear (:meth:`_screened_crossings`) did not hand its
-        evaluation to the contact set; before events or a window, which may read it, it does.
-        """
-        if self._clear is not None:
-            self._native.end_eval(self.normal, self._clear)
 
     def _refresh(self, t: float, y: FloatArray) -> FloatArray | None:
         # A sliding contact's patch is rebuilt only once it is stale (slid SLIDE_TOL or its gap
@@ -545,7 +350,7 @@ class NormalLaw(PatchEvents):
 
     def _handle(self, t: float, y: FloatArray, crossings: Sequence[Crossing]) -> FloatArray:
         """Events of the normal mode: update the contact set, then impulse and modes."""
-        self._keep_end_eval()
+        watching.keep_end_eval(self)
         normal, world = self.normal, self.world
         n = self.n
         q, v = y[:n], y[n : 2 * n].copy()
@@ -603,93 +408,15 @@ class NormalLaw(PatchEvents):
         relapse_span = self.triggers.piled_up(t)
         if relapse_span is not None:
             self._enter(t, y_new, "events piled up", relapse_span)
-        elif self._held_with_contacts(v_new):
+        elif windows.held_with_contacts(self.normal, self.locks, self.drive, v_new):
             self._enter(t, y_new, "joints held by friction while contacts push")
         elif any(me.kind == "painleve" for me in mode_events):
             self._enter(t, y_new, "no contact mode is consistent (Painleve)")
         return y_new
 
-    def _hold_event(
-        self, t: float, y: FloatArray, q: FloatArray, v: FloatArray, c: Crossing, stick: list[int]
-    ) -> FloatArray:
-        """A held joint slips, or a sliding one stops (Coulomb friction, brakes); new v.
-
-        As in the other laws (:class:`~packbot.contact.stops.JointStops`): the slip takes the
-        direction of the torque the hold needed; a stopped joint becomes a candidate that
-        :meth:`settle_modes` holds or lets slide on.
-        """
-        j = c.key[1]
-        fdir = self.drive.fdir
-        if c.kind == "slip":
-            lam = self.hold_torque(t, self.with_v(y, v), j)
-            self.locks.set_held({k: b for k, b in self.locks.held.items() if k != j})
-            fdir[j] = -math.copysign(1.0, lam)
-            self.log_event(t, "slip", q, v, v, None, joints=(self.sys.names[j],), joint=j)
-        elif c.kind == "stick":
-            v = v.copy()
-            v[j] = 0.0
-            fdir[j] = 0.0
-            stick.append(j)
-        return v
-
-    def _held_with_contacts(self, v: FloatArray) -> bool:
-        """Joints held (or stopped) by friction or a brake while contact rows push.
-
-        The event-driven modes solve the holds (:class:`~packbot.contact.locks.JointLocks`)
-        and the contact forces (:class:`NormalContacts`) apart, which is exact while only one
-        of them acts; when both do, the joints' holding torques and the contact forces are one
-        problem: a window's steps solve it (boxes and cones together). A resting arm (rest
-        capture) needs neither.
-
-        Args:
-            v: Velocities [rad/s] after the restart.
-        """
-        if not self.normal.engaged or self.normal.resting:
-            return False
-        if self.locks.held:
-            return True
-        stopped = (self.drive.path.coulomb > 0.0) & (np.abs(v) <= windows.HOLD_SPEED)
-        return bool(stopped.any())
-
-    def friction(
-        self, q: FloatArray, v: FloatArray, applied: FloatArray, friction: FloatArray
-    ) -> FloatArray:
-        """The friction torques [N*m]; in a window, the last step's Coulomb and brake torques."""
-        w = self.window
-        if w is None:
-            return super().friction(q, v, applied, friction)
-        return np.asarray(friction + w.stepper.joint_torque, dtype=np.float64)
-
-    def contact_forces(
-        self, q: FloatArray, v: FloatArray, tau: Callable[[], FloatArray], t: float = math.nan
-    ) -> SampleForces | None:
-        """The current mode's contact forces and stop torques at (q, v) (``mode_forces``).
-
-        Inside a time-stepping window, the mean forces of the step that holds the sample's time
-        t [s] (:class:`~packbot.contact.window_forces.WindowForces`); None if no step kept
-        holds t.
-        """
-        nc = self.normal
-        if self.window is not None:
-            return self.window.stepper.forces.at(t)
-        if not nc.engaged:
-            return SampleForces([], np.zeros(self.sys.nv))
-        # a resting arm's samples under one torque are one state: its contacts are found once
-        torque = tau()
-        key = (nc._version, q.tobytes(), torque.tobytes()) if nc.resting and not v.any() else None
-        if key is not None and self._rest_contacts[0] == key:
-            return self._rest_contacts[1]
-        # (not the compiled right-hand side's call: a call there would forget the step end it
-        # keeps for the step end's checks)
-        a_free = super().accel(q, v, self.sys.aba(q, v, torque))
-        kept = nc._last_eval  # (the step end's evaluation, kept for its own state)
-        try:
-            found = mode_forces(nc, self._force_data, q, v, a_free, self.sys.minv(q))
-        finally:
-            nc._last_eval = kept
-        if key is not None:
-            self._rest_contacts = (key, found)
-        return found
+    def forces(self) -> ForceReport:
+        """The current mode's forces at the samples (its :class:`NormalReport`)."""
+        return self.report
 
     def _sync_pairs(self) -> None:
         """Pairs and stops that the drift projection put in the contact set become active.

@@ -16,7 +16,7 @@ import math
 from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -25,6 +25,11 @@ from packbot.contact.timestep import MoreauJeanStepper
 from packbot.contact.window_run import StepChain, run_native
 from packbot.ode import DenseSegment
 from packbot.result import Diagnostics
+
+if TYPE_CHECKING:
+    from packbot.contact.locks import JointLocks
+    from packbot.contact.normal_contacts import NormalContacts
+    from packbot.drive import Drive
 
 __all__ = [
     "CASCADE_EVENTS",
@@ -39,6 +44,7 @@ __all__ = [
     "WINDOW_MIN",
     "Window",
     "WindowTriggers",
+    "held_with_contacts",
 ]
 
 FloatArray = NDArray[np.float64]
@@ -78,6 +84,31 @@ RELAPSE_SPAN = 0.05
 #: mu 0.8: each of its six resumes was followed by 24 stick/slip restarts within 0.5 ms, a few
 #: milliseconds of CPU time each, before the 20th opened the next window).
 RELAPSE_EVENTS = 5
+
+
+def held_with_contacts(
+    normal: NormalContacts, locks: JointLocks, drive: Drive, v: FloatArray
+) -> bool:
+    """Joints held (or stopped) by friction or a brake while contact rows push: a window.
+
+    The event-driven modes solve the holds (:class:`~packbot.contact.locks.JointLocks`) and
+    the contact forces (:class:`~packbot.contact.normal_contacts.NormalContacts`) apart, which
+    is exact while only one of them acts; when both do, the joints' holding torques and the
+    contact forces are one problem: a window's steps solve it (boxes and cones together). A
+    resting arm (rest capture) needs neither.
+
+    Args:
+        normal: The law's contact set.
+        locks: The law's joint locks.
+        drive: The run's torques (the joints' Coulomb bounds).
+        v: Velocities [rad/s] after the restart.
+    """
+    if not normal.engaged or normal.resting:
+        return False
+    if locks.held:
+        return True
+    stopped = (drive.path.coulomb > 0.0) & (np.abs(v) <= HOLD_SPEED)
+    return bool(stopped.any())
 
 
 class WindowTriggers:

@@ -32,6 +32,7 @@ samples' dense output is summed in another order than numpy's, to rounding.
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
@@ -40,6 +41,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from packbot.contact import native
+from packbot.contact import normal_windows as windows
 from packbot.contact.base import SampleClock
 from packbot.contact.normal_contacts import NormalContacts
 from packbot.contact.normal_tolerances import (
@@ -55,6 +57,7 @@ from packbot.contact.normal_tolerances import (
     STICK_SPEED,
     TOUCH_GAP,
 )
+from packbot.contact.timestep import StepSegment
 from packbot.ode import DenseSegment, HermiteSegment, RK45Stepper
 
 if TYPE_CHECKING:
@@ -69,6 +72,8 @@ __all__ = [
     "SampleClock",
     "Stretched",
     "adopt_repatches",
+    "hold_at_rest",
+    "law_stretch",
     "quiet_stretch",
     "repatch_modes",
 ]
@@ -404,3 +409,130 @@ def quiet_stretch(
     ):
         return last
     return QuietStretch(rhs, api, law, stepper, clock, crawl)
+
+
+def law_stretch(
+    law: NormalLaw,
+    stepper: RK45Stepper,
+    t_end: float,
+    t_last: float,
+    t_sched: float,
+    clock: SampleClock,
+    own: bool,
+) -> Stretched | None:
+    """The law's quiet steps from the stepper's state in one native call (:class:`QuietStretch`).
+
+    Offered right after :meth:`NormalLaw.step_kernel
+    <packbot.contact.normal_law.NormalLaw.step_kernel>` offered the native step (its modes and
+    torques loaded), outside a window, with no conditional lock or Coulomb-sliding joint (their
+    conditions are watched in Python) and with the compiled sweep; else None. An arm captured
+    at rest is held there instead (the law's ``_hold_at_rest``: :func:`hold_at_rest`).
+
+    Args:
+        law: The contact-normal mode's law.
+        stepper: The loop's stepper, at the loop's state.
+        t_end: The stepper's steps end here at the latest [s].
+        t_last: The run ends here [s].
+        t_sched: The next scheduled action [s].
+        clock: The run's regular samples.
+        own: Whether the law's re-patches are the stretch's own (a law of NormalLaw's class:
+            a subclass's hooks make its re-patches the loop's).
+    """
+    if law.normal.resting:
+        return law._hold_at_rest(stepper, t_end)
+    if not law._offered or law.window is not None or law.locks.conditional or law.drive.fdir.any():
+        return None
+    crawl = (windows.CRAWL_STEPS, windows.CRAWL_STEP)
+    st = law._stretch = quiet_stretch(law, stepper, clock, law._stretch, crawl)
+    stops = [(k[1], k[2]) for k in law.active if k[0] == "limit"]
+    upper, lower = law.sys.upper, law.sys.lower
+    inputs = LawInputs(
+        active=np.array([k[1] for k in law.active if k[0] == "pair"], dtype=np.int64),
+        limits=np.array(
+            [(j, side, law._limit_held(j, side)) for j, side in stops], dtype=np.int64
+        ).reshape(-1, 3),
+        lim_value=np.array([upper[j] if side > 0 else lower[j] for j, side in stops]),
+        crawl=np.array(law.triggers.steps, dtype=np.float64),
+        min_d=law.diag.min_distance,
+        modes=repatch_modes(law) if own else None,
+    )
+    law.world.dispatch.spare = None
+    done, out = st.run(stepper, t_end, t_last, t_sched, clock, inputs)
+    k = out["samples_before"]
+    if out["repatches"] and k > 0:
+        # the samples before its first re-patch, their forces read from the contact set as
+        # the stretch found it (those after, from the set its last re-patch leaves)
+        clock.record_states(done.samples[:k])
+        done = dataclasses.replace(done, samples=done.samples[k:])
+    adopt_repatches(law, out)
+    if done.steps:
+        _kept(law, stepper.y if done.pending is None else done.pending.y0, out)
+        if out["repatches"]:
+            law._ready = None  # (the modes and patches loaded again from the set's)
+    if done.pending is not None:
+        # its sweep, for the watch to reuse (the same numbers: Coal's warm-started GJK
+        # would not give them bit for bit a second time)
+        law.world.dispatch.adopt(
+            done.pending.y1[: law.n],
+            out["pending_pairs"][0],
+            out["pending_dist"][0],
+            out["pending_best"],
+            out["pending_best_d"],
+        )
+    return done
+
+
+def hold_at_rest(law: NormalLaw, stepper: RK45Stepper, t_end: float) -> Stretched | None:
+    """The arm captured at rest, held there to t_end in one step (pending), or None.
+
+    The rest capture (:meth:`NormalContacts.capture
+    <packbot.contact.normal_steps.RestartSteps.capture>`) stops every joint and holds it
+    until a mode condition says otherwise (``nrest``: the accelerations the arm would
+    have without the hold). With the torques fixed (a held command, or none, and no motor
+    lag: :meth:`~packbot.drive.Drive.step_torques`) nothing changes until the next
+    controller tick or scheduled action: the stepper's steps from such a state keep it
+    bit for bit, each one a right-hand side, a sweep and the checks at its end. One step
+    to t_end does the same once; the loop watches it as any step (its end's sweep and
+    conditions: the state's) and records its samples (the state). The stepper restarts at
+    its end.
+
+    Args:
+        law: The contact-normal mode's law.
+        stepper: The loop's stepper, at the loop's state.
+        t_end: The step's end [s] (no controller tick before it).
+    """
+    t, y = stepper.t, stepper.y
+    n = law.n
+    if (
+        t_end <= t
+        or len(y) != 2 * n
+        or y[n:].any()
+        or law.locks.conditional
+        or law.drive.fdir.any()
+        or law.drive.step_torques(t, y) is None
+    ):
+        return None
+    seg = StepSegment(t, t_end, y, y.copy())
+    stepper.reset(t_end, seg.y1, h=stepper.h, defer=True)
+    return Stretched(0, np.zeros((0, len(y))), seg)
+
+
+def _kept(law: NormalLaw, y: FloatArray, out: dict[str, Any]) -> None:
+    """Past a stretch's kept steps, ending at y: what watch and after_step keep.
+
+    Args:
+        law: The contact-normal mode's law.
+        y: The last kept step's end (its modes still loaded: the native step's next start).
+        out: The native call's results (:meth:`QuietStretch.run`).
+    """
+    law.triggers.steps.extend(out["hs"][0].tolist())
+    law.diag.sweeps += out["steps"]
+    law.note_min(out["min_d"], out["min_pair"])
+    pairs, distances = out["last_pairs"][0], out["last_dist"][0]
+    pairs.setflags(write=False)
+    distances.setflags(write=False)
+    law._pending_arr = law._last_arr = (pairs, distances)
+    law._pending_d = law._last_d = None
+    law._start_swept = out["repatches"] == 0  # (a re-patch's projection moves q)
+    law._clear = law._ready = y
+    law.world.dispatch.owe()  # (its pieces are owed at the last compiled sweep's q)

@@ -17,7 +17,7 @@ theta = 1, i.e. symplectic Euler with impulses):
    ``h |v_j| +`` :data:`LIMIT_GAP` of a limit. ``d_act`` = :data:`ACTIVE_GAP` plus twice the
    distance any point can travel in the step, h sum_j r_j |v_j| with r_j the joint's reach
    bound (:func:`reach_bounds`). A pair's patch is kept while it describes the contact (the
-   event-driven mode's rule: :meth:`NormalContacts.stale_pairs`).
+   event-driven mode's rule: :meth:`NormalContacts.stale_pairs`): :mod:`.window_set`.
 2. **Free velocity**: v_f = v + h a_free(t + h/2, q_m, v_m) (applied torques, gravity,
    Coriolis, viscous joint friction), at the explicit midpoint q_m = q (+) (h/2) v,
    v_m = v + (h/2) a_free(t, q, v): an Euler step v + h a_free(t, q, v) gains energy where a
@@ -85,6 +85,7 @@ from packbot.contact import window_impulses as wi
 from packbot.contact.pairs import reach_bounds
 from packbot.contact.window_forces import WindowForces
 from packbot.contact.window_impulses import WindowImpulses
+from packbot.contact.window_set import WindowSet
 from packbot.errors import PackbotError
 from packbot.ode import DenseSegment
 
@@ -273,10 +274,8 @@ class MoreauJeanStepper:
         #: it moves: a point's speed is at most reach . |v| (see reach_bounds; ``reach``: the
         #: caller's, for the same model and world).
         self.reach = reach_bounds(system.model, contacts.world) if reach is None else reach
-        # (_update_limits: its joints within reach of their limits, and the limits' keys in
-        # the same order, joint by joint, upper (+1) before lower (-1))
-        self._near_limit = np.zeros((self.n, 2), dtype=bool)
-        self._limit_keys = [(j, side) for j in range(self.n) for side in (1, -1)]
+        #: The contact set's updates at each step (the pairs and limits within its reach).
+        self.set = WindowSet(system, contacts, self.reach, config.joint_limits)
 
     def step(
         self,
@@ -445,10 +444,10 @@ class MoreauJeanStepper:
             y_mid[n : 2 * n] = v + 0.5 * h * a0
             v_f = v + h * self.drive.free_accel(t + 0.5 * h, y_mid)
 
-        closest = self._update_set(q, v, v_f, h)
-        # the impulses, and again with the stops they drive a joint past (each round adds one
-        # stop at least: its limit rows then hold it)
+        # the set, the impulses, and again with the stops they drive a joint past (each round
+        # adds one stop at least: its limit rows then hold it)
         reach = LIMIT_GAP + h * np.maximum(np.abs(v), np.abs(v_f))
+        closest = self.set.update(q, v, v_f, h, ACTIVE_GAP, reach, self._next_sweep)
         while True:
             if crossed_v1 is None and torques is not None and contacts.pairs:
                 fast = self._native_call(y, h, torques, closest, None)
@@ -463,7 +462,7 @@ class MoreauJeanStepper:
                 crossed_v1 = v1
             before = len(contacts.limits)
             np.maximum(reach, LIMIT_GAP + h * np.abs(crossed_v1), out=reach)
-            self._update_limits(q, reach)
+            self.set.update_limits(q, reach)
             if len(contacts.limits) <= before:
                 # (not reached: a crossed stop is within h |v1| of q, so it joins the set)
                 raise RuntimeError("the stops the impulses cross did not join the set")
@@ -562,68 +561,6 @@ class MoreauJeanStepper:
         y1 = np.concatenate([q1, v1, tail])
         info = StepInfo(sig, m, residual, removed, projected, closest)
         return StepSegment(t, t + h, y, y1), info
-
-    def _update_set(
-        self, q: FloatArray, v: FloatArray, v_f: FloatArray, h: float
-    ) -> tuple[float, int]:
-        """The pairs and limits within reach of the step form the contact set.
-
-        A pair already in the set keeps its patch while the patch describes the contact (its
-        points have not slid apart and its smallest gap is the pair's distance: the
-        event-driven mode's rule, :meth:`NormalContacts.stale_pairs`); a new or stale one is
-        patched at q.
-
-        Returns:
-            The smallest signed distance of the sweep [m] and its pair (-1: none).
-        """
-        contacts, cfg = self.contacts, self.cfg
-        r = self.reach  # (a point's speed is at most r . |v|)
-        speed = max(float(r @ np.abs(v)), float(r @ np.abs(v_f)))
-        d_act = ACTIVE_GAP + 2.0 * h * speed
-        near: dict[int, float] = {}
-        closest = (math.inf, -1)
-        if contacts.world is not None:
-            cached = self._next_sweep
-            if cached is not None and cached[0] == q.tobytes() and cached[1] >= d_act:
-                sw = cached[2]  # the previous step's sweep at its end, wide enough
-            else:
-                sw = contacts.world.sweep(q, margin=max(d_act, 1e-9))
-            closest = (float(sw.min_distance), int(sw.min_pair))
-            within = sw.distances <= d_act
-            near = dict(zip(sw.pairs[within].tolist(), sw.distances[within].tolist(), strict=True))
-        for k in [k for k in contacts.pairs if k not in near]:
-            contacts.remove_pair(k)
-        stale = contacts.stale_pairs(q, v, near)
-        redo = set(stale) | (near.keys() - contacts.pairs.keys())
-        contacts.add_pairs(q, list(redo), tol=d_act)
-        if cfg.joint_limits:
-            self._update_limits(q, LIMIT_GAP + h * np.maximum(np.abs(v), np.abs(v_f)))
-        return closest
-
-    def _update_limits(self, q: FloatArray, reach: FloatArray) -> None:
-        """The joint limits within ``reach`` [rad] of q join the set, the others leave it.
-
-        In the order of the joints, the upper limit before the lower (the rows' order).
-        """
-        sys, limits = self.sys, self.contacts.limits
-        near = self._near_limit  # (joints, 2): upper, lower
-        np.less_equal(sys.upper - q, reach, out=near[:, 0])  # (an infinite limit never is)
-        np.less_equal(q - sys.lower, reach, out=near[:, 1])
-        if not limits and not near.any():
-            return  # (the usual step far from the limits: none in the set, none near)
-        # the limits within reach in the rows' order: by joint, the upper before the lower
-        keys = self._limit_keys
-        want = [keys[i] for i in np.flatnonzero(near).tolist()]
-        if len(want) == len(limits) and all(k in limits for k in want):
-            return  # (the usual step: no change)
-        upper, lower = near[:, 0].tolist(), near[:, 1].tolist()
-        for j in range(self.n):
-            for side, within, lim in ((1, upper[j], sys.upper[j]), (-1, lower[j], sys.lower[j])):
-                if within:
-                    if (j, side) not in limits:
-                        self.contacts.add_limit(j, side, float(lim))
-                elif (j, side) in limits:
-                    self.contacts.remove_limit(j, side)
 
     def _layout(self) -> _PairLayout:
         """The layout of the contact set's rows (kept while the set's own layout is)."""
