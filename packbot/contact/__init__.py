@@ -4,8 +4,11 @@ Every law is one class behind one protocol (:class:`~packbot.contact.base.Contac
 is all the event loop (:mod:`packbot.integrator`) knows of it:
 
 - :mod:`packbot.contact.base`: the protocol and the records the loop and the laws share;
-- :mod:`packbot.contact.stops`: limit stops and joint holds (every law has them), the base of
-  every law; :mod:`packbot.contact.pairs`: the signed distances of a law with collisions;
+- :mod:`packbot.contact.stops`: the base of every law, composing the constraint pools every
+  law has: the joint position stops (:mod:`packbot.contact.position_stops`), the friction holds
+  (:mod:`packbot.contact.holds`), the joint locks (:mod:`packbot.contact.locks`), the velocity
+  resets (:mod:`packbot.contact.resets`); :mod:`packbot.contact.pairs`: the signed distances of
+  a law with collisions;
 - :mod:`packbot.contact.none`: ``contact_mode="none"`` (no collisions, limit stops only);
 - :mod:`packbot.contact.joint_clamp`: the 2010 report's law (``contact_mode="joint_clamp"``):
   relevant joints, velocity reset rules, clamp directions;

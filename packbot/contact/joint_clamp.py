@@ -321,5 +321,5 @@ class JointClampLaw(PairLaw):
             d=c.distance,
             joints=tuple(self.sys.names[i] for i in acted),
         )
-        self.note_reset(event.energy_before, event.energy_after)
+        self.log.reset_gain(event.energy_before, event.energy_after)
         return v_new

@@ -98,8 +98,7 @@ class JointStops:
         self.locks = JointLocks(system.nv)
         self.active: dict[Key, Active] = {}
         self.log = LawLog(system, self.events, self.diag)
-        self.log_event = self.log.event  # (every law logs its events so)
-        self.note_reset = self.log.reset_gain
+        self.log_event = self.log.event  # (the laws log their events through it)
         self.stops = PositionStops(system, self.cfg, self.log)
         self.holds = JointHolds(system, self.drive, self.log)
         self._lock_step = NativeLockStep(system, self.drive)  # the native step, its screen
