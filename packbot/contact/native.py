@@ -31,6 +31,8 @@ from packbot.contact.normal_eval import _Eval
 from packbot.contact.normal_tolerances import (
     BAUMGARTE,
     FORCE_BAND,
+    NULL_GAP,
+    NULL_ROW,
     PENETRATION_TOL,
     POINT_TOL,
     RESIDUAL_TOL,
@@ -168,6 +170,7 @@ class NativeRhs:
         self._plan_id: Any = None  # the _Plan loaded
         self._locked_id: Any = None  # the locked joints loaded (set_locks)
         self._screen_id: Any = None  # the lock conditions' rows loaded (set_screen)
+        self._row_mode: tuple[tuple[int, ...], bool] = ((), False)  # (set_row_mode's)
 
     def load(self, contacts: NormalContacts, plan: Any) -> None:
         """Load the contact set's layout and the modes' plan (only when they changed)."""
@@ -190,8 +193,14 @@ class NativeRhs:
 
         Only when the layout changed; the modes' plan is then loaded again by :meth:`load`. A
         layout of the loaded one's shape (a re-patch: the same index arrays) loads its patches
-        alone.
+        alone. The layout's clamp rows (``ContactRhs.set_clamps``) and the set's row mode
+        (``ContactRhs.set_row_mode``: the locked joints whose frozen rows sit apart, the clamp
+        rows' velocity level; ``src/native/contact_rhs_clamps.cpp``) are loaded with it.
         """
+        mode = contacts._row_mode
+        if mode != self._row_mode:
+            self._rhs.set_row_mode(_ints(mode[0]), mode[1], NULL_ROW, NULL_GAP)
+            self._row_mode = mode
         lay = contacts._layout()
         old = self._layout_id
         if lay is old:
@@ -219,6 +228,8 @@ class NativeRhs:
                 _reals(lay.lim_side),
                 _reals(lay.lim_value),
             )
+            if len(lay.clamp_joint):
+                self._rhs.set_clamps(_ints(lay.clamp_joint), _reals(lay.clamp_side))
             self._rhs.set_conditions(
                 _reals(lay.offset0), _reals(lay.slide_tol2), FORCE_BAND, POINT_TOL, STICK_BAND
             )
@@ -254,6 +265,7 @@ class NativeRhs:
         v: FloatArray,
         a_free: FloatArray,
         minv: FloatArray,
+        forces: bool = False,
     ) -> _Eval | None:
         """The constrained accelerations of the plan's modes at (q, v), a_free and M^-1 given.
 
@@ -262,18 +274,19 @@ class NativeRhs:
         sliding direction at the patch centre, blended with the onset direction below
         ``STICK_SPEED``), the sticking pairs' tangential rows, Baumgarte's targets, the
         Delassus system and its solve; with the smallest mode condition (``cond``) and the
-        patches' largest squared slides (``slide2``).
+        patches' largest squared slides (``slide2``); with ``forces``, the rows' generalized force
+        C^T lambda (``qc``) [N*m].
 
         Returns:
             The evaluation, or None: the Delassus matrix is singular (the caller solves by
             least squares).
         """
         self.load(contacts, plan)
-        got = self._rhs.evaluate(q, v, _reals(a_free), _reals(minv))
+        got = self._rhs.evaluate(q, v, _reals(a_free), _reals(minv), forces)
         if got is None:
             return None
-        cond, a, lam, gap, vn, vt, slide2 = got
-        return _Eval(a, lam, gap, vn, vt, cond=cond, slide2=slide2)
+        cond, a, lam, gap, vn, vt, slide2, qc = got
+        return _Eval(a, lam, gap, vn, vt, qc=qc, cond=cond, slide2=slide2)
 
     def forces(self, lam: FloatArray, on1: NDArray[np.uint8]) -> tuple[Any, ...]:
         """The contact forces of the loaded plan's modes on the rows last computed.
@@ -318,6 +331,26 @@ class NativeRhs:
             self._rhs.set_locks(_ints(locked))
             self._locked_id = locked
             self._layout_id = None
+
+    def lock_subspace(
+        self, a_free: FloatArray, minv: FloatArray, locked: list[int]
+    ) -> tuple[FloatArray, FloatArray]:
+        """Free accelerations and M^-1 with the joints ``locked`` fixed (a_j = 0).
+
+        ``ContactRhs.lock_subspace`` (``src/native/contact_rhs_clamps.cpp``): the Schur
+        complement M^-1_c = M^-1 - M^-1 S^T (S M^-1 S^T)^-1 S M^-1 and
+        a_c = a_free - M^-1 S^T (S M^-1 S^T)^-1 a_free[S], their rows and columns of S zero.
+
+        Args:
+            a_free: Unconstrained accelerations [rad/s^2].
+            minv: M^-1.
+            locked: The joints S (velocity indices).
+
+        Returns:
+            (a_c [rad/s^2], M^-1_c), new arrays.
+        """
+        a_c, minv_c = self._rhs.lock_subspace(_reals(a_free), _reals(minv), _ints(locked))
+        return a_c, minv_c
 
     def holds_locks(self, locked: NDArray[np.intp]) -> bool:
         """Whether ``locked`` (the locks' array, by identity) is the lock set loaded last."""

@@ -48,6 +48,8 @@ class _Layout:
     lim_joint: NDArray[np.intp]  # (limits,) velocity index of each limit row
     lim_side: FloatArray  # (limits,) +1 upper, -1 lower
     lim_value: FloatArray  # (limits,) the limit [rad]
+    clamp_joint: NDArray[np.intp]  # (clamps,) velocity index of each clamp row
+    clamp_side: FloatArray  # (clamps,) its forbidden direction s (+1 or -1): the row -s e_j
     offset0: FloatArray  # (m_p, 2) per pair row, its tangential offset when built [m]
     slide_tol2: FloatArray  # (pairs,) the square of the slide each patch goes stale at [m^2]
 
@@ -76,12 +78,13 @@ class ContactRows(ContactSet):
 
         And per pair the tangential rows and the velocities at the patch centre
         (:meth:`NativeRhs.rows <packbot.contact.native.NativeRhs.rows>`: every patch point of
-        every pair at once). The result depends only on (q, v) and the contact set, so it is cached
+        every pair at once; the hand-off's clamp rows after the limit rows). The result depends only
+        on (q, v), the contact set and its row mode (``_row_mode``), so it is cached
         (a few states: the mode conditions and the restart's problems ask for the same state
         several times); the cache is emptied whenever the contact set changes. The arrays
         returned are read-only.
         """
-        key = (q.tobytes(), v.tobytes())
+        key = (q.tobytes(), v.tobytes(), self._row_mode)
         hit = self._kin_cache.get(key)
         if hit is not None:
             return hit
@@ -131,6 +134,7 @@ class ContactRows(ContactSet):
         shape = (
             tuple([(k, len(p.local1), p.on1) for k, p in self.pairs.items()]),
             tuple(self.limits.items()),
+            tuple(self.clamps),
         )
         prev = self._lay_prev
         if prev is not None and prev[0] == shape:
@@ -174,6 +178,8 @@ class ContactRows(ContactSet):
             lim_joint=np.array([j for (j, _), _ in limits], dtype=np.intp),
             lim_side=np.array([side for (_, side), _ in limits], dtype=np.float64),
             lim_value=np.array([value for _, value in limits], dtype=np.float64),
+            clamp_joint=np.array([j for j, _ in self.clamps], dtype=np.intp),
+            clamp_side=np.array([s for _, s in self.clamps], dtype=np.float64),
             offset0=_offset0(pairs),
             slide_tol2=np.array([p.slide_tol**2 for p in pairs], dtype=np.float64),
         )

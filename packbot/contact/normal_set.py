@@ -99,6 +99,14 @@ class ContactSet:
         self.nv = int(model.nv)
         self.pairs: dict[int, _Pair] = {}
         self.limits: dict[tuple[int, int], float] = {}  # (joint, side) -> limit [rad]
+        #: One-sided joint rows (joint, s) after the limit rows, J = -s e_j: the hand-off's
+        #: clamps (:class:`~packbot.contact.handoff.HandoffContacts`; none in the normal mode).
+        self.clamps: list[tuple[int, int]] = []
+        #: How the rows are reported (:meth:`NativeRhs.load_layout
+        #: <packbot.contact.native.NativeRhs.load_layout>`): the locked joints whose frozen
+        #: rows sit apart (none: no row does), and whether the clamp rows carry their true
+        #: velocity (velocity level) or 0 (acceleration level).
+        self._row_mode: tuple[tuple[int, ...], bool] = ((), False)
         self.engaged: list[int] = []  # row indices
         self.n_painleve = 0
         #: Energy the drift projections' velocity scaling removed [J]
@@ -124,7 +132,7 @@ class ContactSet:
         #: The extension's contact rows and constrained accelerations for this set's own calls
         #: (its layout and plan loaded there; built at the first call: see ContactRows._rows_rhs).
         self._rows_native: NativeRhs | None = None
-        self._kin_cache: dict[tuple[bytes, bytes], Any] = {}  # see _kinematics
+        self._kin_cache: dict[tuple[Any, ...], Any] = {}  # see _kinematics
         self._planes_cache: dict[int, tuple[FloatArray, FloatArray]] = {}
         self._unbounded_cache: dict[int, bool] = {}
         self._built: tuple[bytes, float] = (b"", math.nan)  # (see add_pairs)

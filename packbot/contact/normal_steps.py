@@ -15,7 +15,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from packbot.contact.lcp import lcp_residual, solve_ncp_admm
-from packbot.contact.normal_dynamics import _OWN_PROBLEM, ConstrainedDynamics
+from packbot.contact.normal_dynamics import ConstrainedDynamics
 from packbot.contact.normal_modes import ModeEvent, _psd_lcp
 from packbot.contact.normal_tolerances import (
     CAPTURE_ACCEL,
@@ -138,7 +138,7 @@ class RestartSteps(ConstrainedDynamics):
         if self.mu == 0.0 or not self.pairs:
             return v
         native = self.native
-        if native is not None and type(self)._problem is _OWN_PROBLEM:
+        if native is not None:
             status, v1 = native.stop_slow(
                 self, q, v, minv, touch_gap=TOUCH_GAP, speed_band=SPEED_BAND,
                 stick_speed=STICK_SPEED, capture_speed=CAPTURE_SPEED,
