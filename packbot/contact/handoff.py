@@ -70,12 +70,10 @@ from numpy.typing import NDArray
 from packbot.collision import PairInfo
 from packbot.contact.base import Active, Crossing, Key
 from packbot.contact.joint_clamp import JointClampLaw
-from packbot.contact.lcp import lcp_residual, lemke, solve_lcp_psd, solve_small
 from packbot.contact.locks import ACCEL_BAND, TORQUE_BAND
 from packbot.contact.normal_contacts import NormalContacts
 from packbot.contact.normal_dynamics import _Eval
 from packbot.contact.normal_modes import ModeEvent
-from packbot.contact.normal_tolerances import RESIDUAL_TOL
 from packbot.contact.patch_events import PatchEvents
 from packbot.contact.stops import HOLD_KICK, RECEDE_SPEED, STICK_SPEED, friction_share
 from packbot.ode import DenseSegment
@@ -170,15 +168,6 @@ class HandoffContacts(NormalContacts):
         if self.clamp_of_row(row) is not None:
             return None, None
         return super().row_owner(row)
-
-    def _rows(self, clamps: list[tuple[int, int]]) -> FloatArray:
-        """Rows J = -s e_j of the given clamps, shape (len(clamps), nv)."""
-        m = len(clamps)
-        rows = np.zeros((m, self.nv))
-        joints = np.array([j for j, _ in clamps], dtype=np.intp)
-        signs = np.array([s for _, s in clamps], dtype=float)
-        rows[np.arange(m), joints] = -signs
-        return rows
 
     # ------------------------------------------------------------------ locked joints
     def _lock(self, a_free: FloatArray, minv: FloatArray) -> tuple[FloatArray, FloatArray]:
@@ -295,9 +284,11 @@ class HandoffContacts(NormalContacts):
     ) -> dict[int, float]:
         """The torques [N*m] holding the held joints, with the contact forces of the modes.
 
-        tau_S = -(M^-1_SS)^-1 (a_free + M^-1 Q_c)_S on the locked joints S (module docstring),
-        the same sign convention as :meth:`JointLocks.torques
-        <packbot.contact.locks.JointLocks.torques>` (a torque added on the joint).
+        tau_S = -(M^-1_SS)^-1 (a_free + M^-1 Q_c)_S on the locked joints S (module docstring;
+        the extension's :meth:`NativeRhs.lock_torques <packbot.contact.native.NativeRhs.
+        lock_torques>`, Q_c from the evaluation's ``qc``), the same sign convention as
+        :meth:`JointLocks.torques <packbot.contact.locks.JointLocks.torques>` (a torque added on
+        the joint).
 
         Args:
             q: Configuration [rad].
@@ -310,11 +301,11 @@ class HandoffContacts(NormalContacts):
         """
         if not self.held or self.resting:
             return {}
-        ev = self.evaluate(q, v, a_free, minv, forces=True)
-        rhs = a_free if ev.qc is None else a_free + minv @ ev.qc
-        idx = np.array(self.locked_joints, dtype=np.intp)
-        tau = solve_small(minv[np.ix_(idx, idx)], -rhs[idx])
-        pos = {int(j): k for k, j in enumerate(idx)}
+        qc = self.evaluate(q, v, a_free, minv, forces=True).qc
+        assert qc is not None  # (not resting)
+        locked = self.locked_joints
+        tau = self._rows_rhs().lock_torques(a_free, minv, qc, locked)
+        pos = {j: k for k, j in enumerate(locked)}
         return {j: float(tau[pos[j]]) for j in self.held}
 
     def _locked_fn(self, a_free_fn: Any, minv: FloatArray) -> Any:
@@ -350,7 +341,9 @@ class HandoffContacts(NormalContacts):
 
         The LCP w = G P + J v >= 0, P >= 0, complementary, on the clamp rows J alone
         (G = J M^-1 J^T); P [N*m*s] pushes each approaching clamped joint to a stop (both rows
-        of a bilateral joint: it stops). Perfectly inelastic: never adds energy.
+        of a bilateral joint: it stops). Perfectly inelastic: never adds energy. The
+        extension's :meth:`NativeRhs.stop_joints <packbot.contact.native.NativeRhs.
+        stop_joints>` (Lemke).
 
         Args:
             v: Joint velocities [rad/s].
@@ -362,18 +355,10 @@ class HandoffContacts(NormalContacts):
         """
         if not clamps:
             return v
-        J = self._rows(clamps)
-        w = J @ v
-        if float(w.min()) >= 0.0:
-            return v
-        G = J @ minv @ J.T
-        P = solve_lcp_psd(G, w)
-        res = lcp_residual(G, w, P)
-        if res > RESIDUAL_TOL:
-            P2 = lemke(G, w)
-            if P2 is not None and lcp_residual(G, w, P2) < res:
-                P = P2
-        return np.asarray(v + minv @ J.T @ P, dtype=np.float64)
+        status, out = self._rows_rhs().stop_joints(v, minv, clamps, one_sided=True)
+        if status == 2:
+            log.warning("clamped joints' stop unsolved (LCP on %s): velocity kept", clamps)
+        return out if status == 1 else v
 
     # ------------------------------------------------------------------ conditions
     def conditions(self, ev: _Eval) -> dict[tuple[Any, ...], tuple[str, float]]:
@@ -800,12 +785,8 @@ class HandoffLaw(JointClampLaw, PatchEvents):
         ]
         if not creep:
             return v
-        minv = self.sys.minv(q)
-        J = mixed._rows(creep)
-        P = np.linalg.solve(J @ minv @ J.T, -(J @ v))
-        out = np.asarray(v + minv @ J.T @ P, dtype=np.float64)
-        out[[j for j, _ in creep]] = 0.0
-        return out
+        status, out = mixed._rows_rhs().stop_joints(v, self.sys.minv(q), creep, one_sided=False)
+        return out if status == 1 else v
 
     def _slip_direction(self, t: float, y: FloatArray, j: int, minv: FloatArray) -> None:
         """A joint slipping from rest takes a direction its acceleration follows.

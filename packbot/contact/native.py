@@ -352,6 +352,50 @@ class NativeRhs:
         a_c, minv_c = self._rhs.lock_subspace(_reals(a_free), _reals(minv), _ints(locked))
         return a_c, minv_c
 
+    def lock_torques(
+        self, a_free: FloatArray, minv: FloatArray, qc: FloatArray, locked: list[int]
+    ) -> FloatArray:
+        """The torques [N*m] holding the joints ``locked`` at rest under the rows' force ``qc``.
+
+        ``ContactRhs.lock_torques``: tau_S = -(M^-1_SS)^-1 (a_free + M^-1 qc)_S, with qc =
+        C^T lambda [N*m] (an evaluation's ``qc``), a_free [rad/s^2] and M^-1 the full arm's.
+
+        Returns:
+            One torque per joint of ``locked``, in its order.
+        """
+        return np.asarray(
+            self._rhs.lock_torques(_reals(a_free), _reals(minv), _reals(qc), _ints(locked))
+        )
+
+    def stop_joints(
+        self, v: FloatArray, minv: FloatArray, clamps: list[tuple[int, int]], one_sided: bool
+    ) -> tuple[int, FloatArray]:
+        """The least (M-weighted) joint impulse on the clamp rows -s e_j of ``clamps`` alone.
+
+        ``ContactRhs.stop_joints`` (``src/native/contact_rhs_clamps.cpp``): after it every
+        row's velocity is >= 0 (``one_sided``: an LCP, Lemke's answer to ``RESIDUAL_TOL``;
+        perfectly inelastic) or 0 (equalities; the rows' joints then exactly at rest).
+
+        Args:
+            v: Joint velocities [rad/s].
+            minv: M^-1.
+            clamps: The rows, (joint, s).
+            one_sided: Inequalities (else equalities).
+
+        Returns:
+            (status, v+): 0 no row approaches (one-sided), 1 the velocity after [rad/s], 2
+            unsolved (v+ = v).
+        """
+        status, out = self._rhs.stop_joints(
+            _reals(v),
+            _reals(minv),
+            _ints([j for j, _ in clamps]),
+            _reals([s for _, s in clamps]),
+            one_sided,
+            RESIDUAL_TOL,
+        )
+        return int(status), out
+
     def holds_locks(self, locked: NDArray[np.intp]) -> bool:
         """Whether ``locked`` (the locks' array, by identity) is the lock set loaded last."""
         return locked is self._locked_id

@@ -193,6 +193,10 @@ NB_MODULE(_native, m) {
            nb::arg("velocity_level"), nb::arg("null_row"), nb::arg("null_gap"))
       .def("lock_subspace", &ContactRhs::lock_subspace, nb::arg("a_free"), nb::arg("minv"),
            nb::arg("locked"))
+      .def("lock_torques", &ContactRhs::lock_torques, nb::arg("a_free"), nb::arg("minv"),
+           nb::arg("qc"), nb::arg("locked"))
+      .def("stop_joints", &ContactRhs::stop_joints, nb::arg("v"), nb::arg("minv"),
+           nb::arg("joint"), nb::arg("side"), nb::arg("one_sided"), nb::arg("res_tol"))
       .def("energies", &ContactRhs::energies, nb::arg("Q"), nb::arg("V"), nb::arg("out"))
       .def("neutral_velocity", &ContactRhs::neutral_velocity, nb::arg("q0"), nb::arg("q1"),
            nb::arg("v"))

@@ -167,6 +167,9 @@ class ContactRhs {
   void set_clamps(I1 joint, F1 side);
   void set_row_mode(I1 locked, bool velocity_level, double null_row, double null_gap);
   nb::tuple lock_subspace(F1 a_free, F2 minv, I1 locked) const;
+  nb::ndarray<nb::numpy, double, nb::ndim<1>> lock_torques(F1 a_free, F2 minv, F1 qc,
+                                                           I1 locked) const;
+  nb::tuple stop_joints(F1 v, F2 minv, I1 joint, F1 side, bool one_sided, double res_tol);
 
   // ---- the step end and its events: contact_rhs_events.cpp
   nb::object end_eval(F1 y1);

@@ -13,14 +13,20 @@
 // (lock_subspace, the Schur complement M^-1_c = M^-1 - M^-1 S^T (S M^-1 S^T)^-1 S M^-1), and
 // a row the locked joints freeze (no entry on the free joints beyond null_row times its
 // largest: the two bodies' Jacobians cancel there) is reported apart, gap null_gap and v_n 0,
-// while set_row_mode's locked set holds it.
+// while set_row_mode's locked set holds it. A locked joint's holding torque comes from the same
+// elimination (lock_torques), and the hand-off's joint stops (stop_joints: a clamped joint
+// approaching its contact before the impact, a clamp creeping away after it) are least joint
+// impulses on the clamp rows alone.
 
 #include "contact_rhs.hpp"
+#include "lcp.hpp"
+#include "small_solve.hpp"
 
 #include <Eigen/LU>
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <stdexcept>
 #include <vector>
 
@@ -119,4 +125,73 @@ nb::tuple ContactRhs::lock_subspace(F1 a_free, F2 minv, I1 locked) const {
     for (int c = 0; c < n; ++c) mc[j * N + c] = mc[c * N + j] = 0.0;
   }
   return nb::make_tuple(vec(ac.data(), N), mat(mc.data(), N, N));
+}
+
+// The torques [N*m] holding the joints `locked` at a_S = 0 under the rows' generalized force qc
+// = C^T lambda [N*m] (ContactRhs.evaluate's with_qc): M a = M a_free + qc + S^T tau with a_S = 0,
+// so tau = -(M^-1_SS)^-1 (a_free + M^-1 qc)_S (a_free [rad/s^2] and M^-1 the full arm's).
+nb::ndarray<nb::numpy, double, nb::ndim<1>> ContactRhs::lock_torques(F1 a_free, F2 minv, F1 qc,
+                                                                   I1 locked) const {
+  const int n = nv_;
+  const size_t N = static_cast<size_t>(n);
+  if (a_free.shape(0) != N || qc.shape(0) != N || minv.shape(0) != N || minv.shape(1) != N)
+    throw std::invalid_argument("lock_torques: a_free, qc (nv) and minv (nv, nv) expected");
+  const std::vector<int64_t> S = packbot_native::ints(locked);
+  check_joints(S, n, "lock_torques");
+  const int k = static_cast<int>(S.size());
+  const double *Mi = minv.data(), *af = a_free.data(), *f = qc.data();
+  std::vector<double> W(static_cast<size_t>(k) * k), r(k), tau(k, 0.0);
+  for (int a = 0; a < k; ++a) {
+    const int64_t j = S[a];
+    double s = 0.0;
+    for (int c = 0; c < n; ++c) s += Mi[j * n + c] * f[c];
+    r[a] = -(af[j] + s);
+    for (int b = 0; b < k; ++b) W[a * k + b] = Mi[j * n + S[b]];
+  }
+  if (!packbot_native::solve_small(k, W.data(), r.data(), tau.data()))
+    throw std::runtime_error("lock_torques: M^-1 singular on the locked joints");
+  return vec(tau.data(), static_cast<size_t>(k));
+}
+
+// The least (M-weighted) joint impulse P on the clamp rows J = -s e_j of (joint, side) alone,
+// v+ = v + M^-1 J^T P [rad/s] (v and M^-1 the full arm's): one_sided, every row's velocity
+// J v+ >= 0 (LCP w = G P + J v >= 0, P >= 0, complementary, G = J M^-1 J^T: Lemke, its residual
+// at most res_tol; perfectly inelastic, it never adds energy); else J v+ = 0 (the equalities
+// G P = -J v), the rows' joints then set exactly at rest. Returns (status, v+): 0 no row
+// approaches (one-sided: v kept), 1 v+, 2 unsolved (v kept).
+nb::tuple ContactRhs::stop_joints(F1 v, F2 minv, I1 joint, F1 side, bool one_sided,
+                                  double res_tol) {
+  const int n = nv_;
+  const size_t N = static_cast<size_t>(n);
+  if (v.shape(0) != N || minv.shape(0) != N || minv.shape(1) != N || joint.shape(0) != side.shape(0))
+    throw std::invalid_argument("stop_joints: v (nv), minv (nv, nv), one side per joint expected");
+  const std::vector<int64_t> J = packbot_native::ints(joint);
+  check_joints(J, n, "stop_joints");
+  const int k = static_cast<int>(J.size());
+  const double *Mi = minv.data(), *vv = v.data(), *s = side.data();
+  std::vector<double> out(vv, vv + n), G(static_cast<size_t>(k) * k), w(k), P(k, 0.0);
+  double wmin = std::numeric_limits<double>::infinity();
+  for (int a = 0; a < k; ++a) {
+    w[a] = -s[a] * vv[J[a]];
+    wmin = std::min(wmin, w[a]);
+    for (int b = 0; b < k; ++b) G[a * k + b] = s[a] * s[b] * Mi[J[a] * n + J[b]];
+  }
+  if (k == 0 || (one_sided && wmin >= 0.0)) return nb::make_tuple(0, vec(out.data(), N));
+  bool ok;
+  if (one_sided) {
+    ok = packbot_native::lcp::lemke_solved(G.data(), w.data(), k, res_tol, P.data(), lcp_);
+  } else {
+    std::vector<double> r(k);
+    for (int a = 0; a < k; ++a) r[a] = -w[a];
+    ok = packbot_native::solve_small(k, G.data(), r.data(), P.data());
+  }
+  if (!ok) return nb::make_tuple(2, vec(vv, N));
+  for (int i = 0; i < n; ++i) {
+    double d = 0.0;
+    for (int a = 0; a < k; ++a) d += Mi[i * n + J[a]] * (-s[a] * P[a]);
+    out[i] += d;
+  }
+  if (!one_sided)
+    for (int a = 0; a < k; ++a) out[J[a]] = 0.0;
+  return nb::make_tuple(1, vec(out.data(), N));
 }
