@@ -61,7 +61,7 @@ from __future__ import annotations
 import logging
 import math
 from collections.abc import Iterable, Iterator, Sequence
-from contextlib import contextmanager
+from contextlib import AbstractContextManager, contextmanager
 from typing import Any
 
 import numpy as np
@@ -184,11 +184,19 @@ class HandoffContacts(NormalContacts):
         finally:
             self._row_mode = mode
 
-    def _locked(self) -> Any:
-        """Inside: the calls work in the locked subspace (the rows it freezes apart)."""
+    def _locked(self) -> AbstractContextManager[None]:
+        """Inside: the calls work in the locked subspace (the rows it freezes apart).
+
+        A pair whose bodies the locked joints join rigidly (the arm's link 3 on link 1 with
+        both elbows locked) has rows with no component on the free joints: their gaps cannot
+        change, their forces do nothing, and in the problems they would be zero rows of the
+        Delassus matrix (with a Baumgarte term on a micrometre gap, an infeasible LCP). The
+        extension reports such a row apart (gap ``NULL_GAP``, v_n 0: not touching, no event;
+        :data:`~packbot.contact.normal_tolerances.NULL_ROW`) while the joints stay locked.
+        """
         return self._row_level(tuple(self.locked_joints), self._row_mode[1])
 
-    def _velocity(self) -> Any:
+    def _velocity(self) -> AbstractContextManager[None]:
         """Inside: the clamp rows carry their true velocity (the impulse's level)."""
         return self._row_level(self._row_mode[0], True)
 

@@ -474,8 +474,8 @@ def _impact_cones(
     The windows' low-rank ADMM (:func:`packbot.contact.conic.solve_conic`) on the factor
     A = J3 C of G3 = J3 M^-1 J3^T (C C^T = M^-1, Cholesky), to a true residual of
     :data:`IMPACT_CONIC_TOL` within :data:`IMPACT_ADMM_ITERATIONS`; where its answer is above
-    :data:`IMPACT_ADMM_ACCEPT`, or M^-1 has no Cholesky factor (singular: joints held by the
-    hand-off's rows), Pinocchio's ADMM (:func:`_impact_admm`).
+    :data:`IMPACT_ADMM_ACCEPT`, or M^-1 has no Cholesky factor (singular: the hand-off's locked
+    joints, where the extension's answer was not taken), Pinocchio's ADMM (:func:`_impact_admm`).
 
     Returns:
         The impulses (blocks (t1, t2, n) [N*s]) and their true residual.
@@ -484,7 +484,7 @@ def _impact_cones(
 
     try:
         C = np.linalg.cholesky(minv)
-    except np.linalg.LinAlgError:  # a singular M^-1 (the hand-off's held joints)
+    except np.linalg.LinAlgError:  # a singular M^-1 (the hand-off's locked joints)
         return _impact_admm(model, data, G3, g3, mus)
     A = np.ascontiguousarray(J3 @ C)
     x, res, _, _ = conic.solve_conic(
