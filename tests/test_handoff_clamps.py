@@ -13,6 +13,7 @@ import pinocchio as pin
 import pytest
 
 import packbot
+from packbot.contact import native
 from packbot.contact.handoff import HandoffContacts
 from packbot.system import System
 
@@ -39,7 +40,7 @@ def test_locked_joints_are_held_by_torques_on_themselves_alone(arm, rng, locked)
     sysm, mixed, q, M, minv = arm
     v = 0.5 * rng.standard_normal(len(q))
     a_free = sysm.aba(q, v, np.zeros(len(q)))
-    a_c, minv_c = mixed._rows_rhs().lock_subspace(a_free, minv, locked)
+    a_c, minv_c = native.lock_subspace(mixed._rows_rhs(), a_free, minv, locked)
     free = np.setdiff1d(np.arange(len(q)), locked)
     hold = M @ (a_c - a_free)
     assert np.all(a_c[locked] == 0.0)
@@ -50,7 +51,7 @@ def test_locked_joints_are_held_by_torques_on_themselves_alone(arm, rng, locked)
     assert np.all(a[locked] == 0.0)
     assert np.abs((M @ a - f)[free]).max() <= REL_TOL * np.abs(f).max()
     # the holding torques of the same elimination
-    tau = mixed._rows_rhs().lock_torques(a_free, minv, np.zeros(len(q)), locked)
+    tau = native.lock_torques(mixed._rows_rhs(), a_free, minv, np.zeros(len(q)), locked)
     assert tau == pytest.approx(hold[locked], rel=REL_TOL, abs=REL_TOL * np.abs(hold).max())
 
 
@@ -79,7 +80,7 @@ def test_a_creeping_clamp_is_stopped_exactly(arm, rng):
     _, mixed, q, M, minv = arm
     creep = [(1, 1), (3, -1)]
     v = rng.standard_normal(len(q))
-    status, out = mixed._rows_rhs().stop_joints(v, minv, creep, one_sided=False)
+    status, out = native.stop_joints(mixed._rows_rhs(), v, minv, creep, one_sided=False)
     assert status == 1
     assert out[1] == 0.0 and out[3] == 0.0
     imp = M @ (out - v)

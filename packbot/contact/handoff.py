@@ -68,6 +68,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from packbot.collision import PairInfo
+from packbot.contact import native
 from packbot.contact.base import Active, Crossing, Key
 from packbot.contact.joint_clamp import JointClampLaw
 from packbot.contact.locks import ACCEL_BAND, TORQUE_BAND
@@ -99,7 +100,7 @@ class HandoffContacts(NormalContacts):
     The clamp rows and the locked joints are the extension's (``src/native/
     contact_rhs_clamps.cpp``): the rows come with the patch and limit rows from every native
     call, and the locked subspace's M^-1 and free accelerations from
-    :meth:`NativeRhs.lock_subspace <packbot.contact.native.NativeRhs.lock_subspace>`.
+    :func:`~packbot.contact.native.lock_subspace`.
 
     Attributes:
         clamps: The one-sided clamps in force, (joint index, forbidden acceleration direction
@@ -112,6 +113,7 @@ class HandoffContacts(NormalContacts):
 
     def __init__(self, *args: Any, **kwargs: Any) -> None:
         super().__init__(*args, **kwargs)
+        self.clamps: list[tuple[int, int]] = []
         self.bilateral: list[int] = []
         self.held: list[int] = []
         self.held_signs: dict[int, set[int]] = {}
@@ -172,7 +174,7 @@ class HandoffContacts(NormalContacts):
     # ------------------------------------------------------------------ locked joints
     def _lock(self, a_free: FloatArray, minv: FloatArray) -> tuple[FloatArray, FloatArray]:
         """Free accelerations and M^-1 with the locked joints S fixed (a_j = 0)."""
-        return self._rows_rhs().lock_subspace(a_free, minv, self.locked_joints)
+        return native.lock_subspace(self._rows_rhs(), a_free, minv, self.locked_joints)
 
     @contextmanager
     def _row_level(self, locked: tuple[int, ...], velocity: bool) -> Iterator[None]:
@@ -293,8 +295,8 @@ class HandoffContacts(NormalContacts):
         """The torques [N*m] holding the held joints, with the contact forces of the modes.
 
         tau_S = -(M^-1_SS)^-1 (a_free + M^-1 Q_c)_S on the locked joints S (module docstring;
-        the extension's :meth:`NativeRhs.lock_torques <packbot.contact.native.NativeRhs.
-        lock_torques>`, Q_c from the evaluation's ``qc``), the same sign convention as
+        the extension's :func:`~packbot.contact.native.lock_torques`, Q_c from the
+        evaluation's ``qc``), the same sign convention as
         :meth:`JointLocks.torques <packbot.contact.locks.JointLocks.torques>` (a torque added on
         the joint).
 
@@ -312,7 +314,7 @@ class HandoffContacts(NormalContacts):
         qc = self.evaluate(q, v, a_free, minv, forces=True).qc
         assert qc is not None  # (not resting)
         locked = self.locked_joints
-        tau = self._rows_rhs().lock_torques(a_free, minv, qc, locked)
+        tau = native.lock_torques(self._rows_rhs(), a_free, minv, qc, locked)
         pos = {j: k for k, j in enumerate(locked)}
         return {j: float(tau[pos[j]]) for j in self.held}
 
@@ -350,8 +352,7 @@ class HandoffContacts(NormalContacts):
         The LCP w = G P + J v >= 0, P >= 0, complementary, on the clamp rows J alone
         (G = J M^-1 J^T); P [N*m*s] pushes each approaching clamped joint to a stop (both rows
         of a bilateral joint: it stops). Perfectly inelastic: never adds energy. The
-        extension's :meth:`NativeRhs.stop_joints <packbot.contact.native.NativeRhs.
-        stop_joints>` (Lemke).
+        extension's :func:`~packbot.contact.native.stop_joints` (Lemke).
 
         Args:
             v: Joint velocities [rad/s].
@@ -363,7 +364,7 @@ class HandoffContacts(NormalContacts):
         """
         if not clamps:
             return v
-        status, out = self._rows_rhs().stop_joints(v, minv, clamps, one_sided=True)
+        status, out = native.stop_joints(self._rows_rhs(), v, minv, clamps, one_sided=True)
         if status == 2:
             log.warning("clamped joints' stop unsolved (LCP on %s): velocity kept", clamps)
         return out if status == 1 else v
@@ -793,7 +794,8 @@ class HandoffLaw(JointClampLaw, PatchEvents):
         ]
         if not creep:
             return v
-        status, out = mixed._rows_rhs().stop_joints(v, self.sys.minv(q), creep, one_sided=False)
+        rhs = mixed._rows_rhs()
+        status, out = native.stop_joints(rhs, v, self.sys.minv(q), creep, one_sided=False)
         return out if status == 1 else v
 
     def _slip_direction(self, t: float, y: FloatArray, j: int, minv: FloatArray) -> None:

@@ -54,7 +54,10 @@ __all__ = [
     "NativeModes",
     "NativeRhs",
     "available",
+    "lock_subspace",
+    "lock_torques",
     "native_rhs",
+    "stop_joints",
     "stretch",
 ]
 
@@ -331,70 +334,6 @@ class NativeRhs:
             self._rhs.set_locks(_ints(locked))
             self._locked_id = locked
             self._layout_id = None
-
-    def lock_subspace(
-        self, a_free: FloatArray, minv: FloatArray, locked: list[int]
-    ) -> tuple[FloatArray, FloatArray]:
-        """Free accelerations and M^-1 with the joints ``locked`` fixed (a_j = 0).
-
-        ``ContactRhs.lock_subspace`` (``src/native/contact_rhs_clamps.cpp``): the Schur
-        complement M^-1_c = M^-1 - M^-1 S^T (S M^-1 S^T)^-1 S M^-1 and
-        a_c = a_free - M^-1 S^T (S M^-1 S^T)^-1 a_free[S], their rows and columns of S zero.
-
-        Args:
-            a_free: Unconstrained accelerations [rad/s^2].
-            minv: M^-1.
-            locked: The joints S (velocity indices).
-
-        Returns:
-            (a_c [rad/s^2], M^-1_c), new arrays.
-        """
-        a_c, minv_c = self._rhs.lock_subspace(_reals(a_free), _reals(minv), _ints(locked))
-        return a_c, minv_c
-
-    def lock_torques(
-        self, a_free: FloatArray, minv: FloatArray, qc: FloatArray, locked: list[int]
-    ) -> FloatArray:
-        """The torques [N*m] holding the joints ``locked`` at rest under the rows' force ``qc``.
-
-        ``ContactRhs.lock_torques``: tau_S = -(M^-1_SS)^-1 (a_free + M^-1 qc)_S, with qc =
-        C^T lambda [N*m] (an evaluation's ``qc``), a_free [rad/s^2] and M^-1 the full arm's.
-
-        Returns:
-            One torque per joint of ``locked``, in its order.
-        """
-        return np.asarray(
-            self._rhs.lock_torques(_reals(a_free), _reals(minv), _reals(qc), _ints(locked))
-        )
-
-    def stop_joints(
-        self, v: FloatArray, minv: FloatArray, clamps: list[tuple[int, int]], one_sided: bool
-    ) -> tuple[int, FloatArray]:
-        """The least (M-weighted) joint impulse on the clamp rows -s e_j of ``clamps`` alone.
-
-        ``ContactRhs.stop_joints`` (``src/native/contact_rhs_clamps.cpp``): after it every
-        row's velocity is >= 0 (``one_sided``: an LCP, Lemke's answer to ``RESIDUAL_TOL``;
-        perfectly inelastic) or 0 (equalities; the rows' joints then exactly at rest).
-
-        Args:
-            v: Joint velocities [rad/s].
-            minv: M^-1.
-            clamps: The rows, (joint, s).
-            one_sided: Inequalities (else equalities).
-
-        Returns:
-            (status, v+): 0 no row approaches (one-sided), 1 the velocity after [rad/s], 2
-            unsolved (v+ = v).
-        """
-        status, out = self._rhs.stop_joints(
-            _reals(v),
-            _reals(minv),
-            _ints([j for j, _ in clamps]),
-            _reals([s for _, s in clamps]),
-            one_sided,
-            RESIDUAL_TOL,
-        )
-        return int(status), out
 
     def holds_locks(self, locked: NDArray[np.intp]) -> bool:
         """Whether ``locked`` (the locks' array, by identity) is the lock set loaded last."""
@@ -867,6 +806,83 @@ class NativeRhs:
     def last(self) -> tuple[FloatArray, ...]:
         """The last call's (a_free, M^-1, lam, gap, v_n, v_t, G, rhs): copies, for tests."""
         return tuple(self._rhs.last())
+
+
+# ---- the hand-off's calls (HandoffContacts: src/native/contact_rhs_clamps.cpp) on a NativeRhs
+def lock_subspace(
+    rhs: NativeRhs, a_free: FloatArray, minv: FloatArray, locked: list[int]
+) -> tuple[FloatArray, FloatArray]:
+    """Free accelerations and M^-1 with the joints ``locked`` fixed (a_j = 0).
+
+    ``ContactRhs.lock_subspace`` (``src/native/contact_rhs_clamps.cpp``): the Schur
+    complement M^-1_c = M^-1 - M^-1 S^T (S M^-1 S^T)^-1 S M^-1 and
+    a_c = a_free - M^-1 S^T (S M^-1 S^T)^-1 a_free[S], their rows and columns of S zero.
+
+    Args:
+        rhs: The contact set's native right-hand side.
+        a_free: Unconstrained accelerations [rad/s^2].
+        minv: M^-1.
+        locked: The joints S (velocity indices).
+
+    Returns:
+        (a_c [rad/s^2], M^-1_c), new arrays.
+    """
+    a_c, minv_c = rhs._rhs.lock_subspace(_reals(a_free), _reals(minv), _ints(locked))
+    return a_c, minv_c
+
+
+def lock_torques(
+    rhs: NativeRhs, a_free: FloatArray, minv: FloatArray, qc: FloatArray, locked: list[int]
+) -> FloatArray:
+    """The torques [N*m] holding the joints ``locked`` at rest under the rows' force ``qc``.
+
+    ``ContactRhs.lock_torques``: tau_S = -(M^-1_SS)^-1 (a_free + M^-1 qc)_S, with qc =
+    C^T lambda [N*m] (an evaluation's ``qc``), a_free [rad/s^2] and M^-1 the full arm's.
+
+    Args:
+        rhs: The contact set's native right-hand side.
+        a_free: Unconstrained accelerations [rad/s^2].
+        minv: M^-1.
+        qc: The rows' generalized force [N*m].
+        locked: The joints S (velocity indices).
+
+    Returns:
+        One torque per joint of ``locked``, in its order.
+    """
+    return np.asarray(
+        rhs._rhs.lock_torques(_reals(a_free), _reals(minv), _reals(qc), _ints(locked))
+    )
+
+
+def stop_joints(
+    rhs: NativeRhs, v: FloatArray, minv: FloatArray, clamps: list[tuple[int, int]], one_sided: bool
+) -> tuple[int, FloatArray]:
+    """The least (M-weighted) joint impulse on the clamp rows -s e_j of ``clamps`` alone.
+
+    ``ContactRhs.stop_joints`` (``src/native/contact_rhs_clamps.cpp``): after it every
+    row's velocity is >= 0 (``one_sided``: an LCP, Lemke's answer to ``RESIDUAL_TOL``;
+    perfectly inelastic) or 0 (equalities; the rows' joints then exactly at rest).
+
+    Args:
+        rhs: The contact set's native right-hand side.
+        v: Joint velocities [rad/s].
+        minv: M^-1.
+        clamps: The rows, (joint, s).
+        one_sided: Inequalities (else equalities).
+
+    Returns:
+        (status, v+): 0 no row approaches (one-sided), 1 the velocity after [rad/s], 2
+        unsolved (v+ = v).
+    """
+    status, out = rhs._rhs.stop_joints(
+        _reals(v),
+        _reals(minv),
+        _ints([j for j, _ in clamps]),
+        _reals([s for _, s in clamps]),
+        one_sided,
+        RESIDUAL_TOL,
+    )
+    return int(status), out
 
 
 def stretch(rhs: NativeRhs, api: Any, **constants: Any) -> Any:

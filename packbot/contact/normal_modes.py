@@ -188,24 +188,13 @@ class ModeSelection(ConstrainedDynamics):
     ) -> list[ModeEvent] | None:
         """:meth:`select_modes` (after :meth:`keep_modes` of ``held``) in one native call.
 
-        None where it does not run (no compiled right-hand side, a resting contact set, kept
-        rows ``held`` of a subclass's own dynamics or conditions) or hands back; else the modes
-        are set and the mode changes returned. (The hand-off's :meth:`evaluate` is this class's
-        inside its selection, which runs in the locked subspace: its own conditions are only
-        keep_modes' violated.)
+        None where it does not run (no compiled right-hand side, a resting contact set, rows
+        ``held`` to keep under a subclass's dynamics or conditions: keep_modes' violated) or
+        hands back; else the modes are set and the mode changes returned.
         """
         native = self.native
-        if (
-            native is None
-            or self.resting
-            or (
-                held
-                and (
-                    type(self).evaluate is not _OWN_EVALUATE
-                    or type(self).conditions is not _OWN_CONDITIONS  # (keep_modes' violated)
-                )
-            )
-        ):
+        own = type(self).evaluate is _OWN_EVALUATE and type(self).conditions is _OWN_CONDITIONS
+        if native is None or self.resting or (held and not own):
             return None
         out = native.select_modes(self, q, v, a_free, minv, keep, held)
         if out is None:

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import copy
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -70,6 +71,15 @@ class _Plan:
 
 class ContactRows(ContactSet):
     """The contact set with its rows (see the module)."""
+
+    #: One-sided joint rows (joint, s) after the limit rows, J = -s e_j: the hand-off's clamps
+    #: (:class:`~packbot.contact.handoff.HandoffContacts` sets them; none in the normal mode).
+    clamps: Sequence[tuple[int, int]] = ()
+    #: How the rows are reported (:meth:`NativeRhs.load_layout
+    #: <packbot.contact.native.NativeRhs.load_layout>`): the locked joints whose frozen rows
+    #: sit apart (none: no row does), and whether the clamp rows carry their true velocity
+    #: (velocity level) or 0 (acceleration level).
+    _row_mode: tuple[tuple[int, ...], bool] = ((), False)
 
     def _kinematics(
         self, q: FloatArray, v: FloatArray

@@ -99,14 +99,6 @@ class ContactSet:
         self.nv = int(model.nv)
         self.pairs: dict[int, _Pair] = {}
         self.limits: dict[tuple[int, int], float] = {}  # (joint, side) -> limit [rad]
-        #: One-sided joint rows (joint, s) after the limit rows, J = -s e_j: the hand-off's
-        #: clamps (:class:`~packbot.contact.handoff.HandoffContacts`; none in the normal mode).
-        self.clamps: list[tuple[int, int]] = []
-        #: How the rows are reported (:meth:`NativeRhs.load_layout
-        #: <packbot.contact.native.NativeRhs.load_layout>`): the locked joints whose frozen
-        #: rows sit apart (none: no row does), and whether the clamp rows carry their true
-        #: velocity (velocity level) or 0 (acceleration level).
-        self._row_mode: tuple[tuple[int, ...], bool] = ((), False)
         self.engaged: list[int] = []  # row indices
         self.n_painleve = 0
         #: Energy the drift projections' velocity scaling removed [J]
