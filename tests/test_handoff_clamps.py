@@ -86,3 +86,26 @@ def test_a_creeping_clamp_is_stopped_exactly(arm, rng):
     imp = M @ (out - v)
     assert np.abs(imp[[0, 2]]).max() <= REL_TOL * np.abs(imp).max()
     assert out @ M @ out <= v @ M @ v
+
+
+#: A random start (seed 5's eighth of tests' sampler, wrist locked) whose handed-off pair comes
+#: to rest with elbow2 clamped both ways: the rest condition is then solved in the locked
+#: subspace, whose M^-1 is singular (it raised numpy's LinAlgError before).
+REST_LOCKED = [1.2986306016560674, 1.5819228928654157, -0.33307452384163216, 0.30885023080253715,
+               -1.6, 0.0, 0.0, 0.0]  # fmt: skip
+
+
+def test_a_handed_off_pair_comes_to_rest_with_a_joint_locked_both_ways(robot):
+    cfg = packbot.SimConfig(
+        contact_mode="joint_clamp",
+        locked_joints=("camera_tilt", "camera_pan", "gripper_roll", "gripper_jaw"),
+        mu=0.5,
+        restitution=0.3,
+        reset_rule="momentum",
+        handoff=True,
+    )
+    res = packbot.simulate(robot, np.array(REST_LOCKED), np.zeros(robot.nq), 3.0, config=cfg)
+    (handoff,) = res.events_of("handoff")
+    assert res.rest_time is not None and res.rest_time > handoff.t
+    for e in res.events:
+        assert e.energy_after <= e.energy_before + 1e-9, (e.t, e.kind)

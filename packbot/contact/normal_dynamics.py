@@ -13,6 +13,7 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+import pinocchio as pin
 from numpy.typing import NDArray
 
 from packbot.contact.lcp import solve_mixed_admm, solve_ncp_admm, solve_small
@@ -347,7 +348,12 @@ class ConstrainedDynamics(ContactRows):
         a = np.asarray(a_free + minv @ J3.T @ x, dtype=np.float64)
         forces = np.asarray(x[:m3], dtype=np.float64).reshape(-1, 3)
         rows = np.asarray(J3[:m3], dtype=np.float64)
-        torque = rows.T @ forces.ravel() - np.linalg.solve(minv, a)
+        if not bool(np.all(np.diag(minv) > 0.0)):  # the hand-off's locked subspace's M^-1_c
+            M = pin.crba(self.model, self.data, q)
+            Ma = (np.triu(M) + np.triu(M, 1).T) @ a
+        else:
+            Ma = np.linalg.solve(minv, a)
+        torque = rows.T @ forces.ravel() - Ma
         for arr in (a, touch, forces, rows, mus, torque):
             arr.setflags(write=False)
         return RestSolution(a, touch, forces, rows, mus, torque)
