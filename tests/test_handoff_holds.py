@@ -170,7 +170,7 @@ def test_the_holding_torque_balances_the_contact_forces(robot, braked):
     minv = sysm.minv(q)
     mixed.select_modes(q, v, a_free, minv)
     assert mixed.engaged, "the handed-off pair does not push"
-    ev = mixed.evaluate(q, v, a_free, minv)
+    ev = mixed.evaluate(q, v, a_free, minv, forces=True)
     tau = mixed.hold_torques(q, v, a_free, minv)
     M = pin.crba(sysm.model, sysm.data, q)
     M = np.triu(M) + np.triu(M, 1).T

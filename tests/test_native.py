@@ -77,6 +77,7 @@ class _EmptySet:
         self._pair_list: list = []
         self.pairs: dict = {}
         self.plan = self._nc._plan()
+        self._row_mode = self._nc._row_mode
 
     def _layout(self):
         return self._nc._layout()

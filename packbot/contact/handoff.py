@@ -61,21 +61,20 @@ from __future__ import annotations
 import logging
 import math
 from collections.abc import Iterable, Iterator, Sequence
-from contextlib import contextmanager
+from contextlib import AbstractContextManager, contextmanager
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
 from packbot.collision import PairInfo
+from packbot.contact import native
 from packbot.contact.base import Active, Crossing, Key
 from packbot.contact.joint_clamp import JointClampLaw
-from packbot.contact.lcp import lcp_residual, lemke, solve_lcp_psd, solve_small
 from packbot.contact.locks import ACCEL_BAND, TORQUE_BAND
 from packbot.contact.normal_contacts import NormalContacts
 from packbot.contact.normal_dynamics import _Eval
 from packbot.contact.normal_modes import ModeEvent
-from packbot.contact.normal_tolerances import RESIDUAL_TOL
 from packbot.contact.patch_events import PatchEvents
 from packbot.contact.stops import HOLD_KICK, RECEDE_SPEED, STICK_SPEED, friction_share
 from packbot.ode import DenseSegment
@@ -86,11 +85,6 @@ __all__ = ["HandoffContacts", "HandoffLaw"]
 FloatArray = NDArray[np.float64]
 log = logging.getLogger(__name__)
 
-#: A row is frozen by the bilateral joints when its largest entry on the other joints is below
-#: NULL_ROW times its largest entry [-] (rounding: the two bodies' Jacobians cancel there).
-NULL_ROW = 1e-9
-#: The gap reported for such a row [m]: far from touching.
-NULL_GAP = 1.0
 #: An engaged clamp row whose joint the restart's impulse leaves receding slower than this
 #: [rad/s] stays engaged, its joint stopped (:meth:`HandoffLaw._stop_creeping_clamps`): the
 #: Zeno end of a clamp's release and return at one instant, as ``SimConfig.zeno_speed`` ends a
@@ -102,6 +96,11 @@ class HandoffContacts(NormalContacts):
     """Handed-off pairs (patch rows) plus the joint_clamp clamps as one-sided joint rows.
 
     Same arguments as :class:`~packbot.contact.normal.NormalContacts`.
+
+    The clamp rows and the locked joints are the extension's (``src/native/
+    contact_rhs_clamps.cpp``): the rows come with the patch and limit rows from every native
+    call, and the locked subspace's M^-1 and free accelerations from
+    :func:`~packbot.contact.native.lock_subspace`.
 
     Attributes:
         clamps: The one-sided clamps in force, (joint index, forbidden acceleration direction
@@ -118,8 +117,7 @@ class HandoffContacts(NormalContacts):
         self.bilateral: list[int] = []
         self.held: list[int] = []
         self.held_signs: dict[int, set[int]] = {}
-        self._velocity_level = False  # clamp rows report their true velocity (impulse level)
-        self._reduced = False  # inside a call already working in the bilateral-locked subspace
+        self.native = self._rows_rhs()  # (the restart's native steps on this set's rows)
 
     @property
     def constrained(self) -> bool:
@@ -157,7 +155,9 @@ class HandoffContacts(NormalContacts):
             for r in self.engaged
             if r < base or (r in old and old[r] in index)
         ]
-        self.clamps = new
+        if new != self.clamps:  # (the rows' layout)
+            self.clamps = new
+            self._invalidate()
         self.bilateral = sorted(j for j, ss in signs.items() if len(ss) == 2)
 
     def clamp_of_row(self, row: int) -> tuple[int, int] | None:
@@ -171,89 +171,55 @@ class HandoffContacts(NormalContacts):
             return None, None
         return super().row_owner(row)
 
-    def _rows(self, clamps: list[tuple[int, int]]) -> FloatArray:
-        """Rows J = -s e_j of the given clamps, shape (len(clamps), nv)."""
-        m = len(clamps)
-        rows = np.zeros((m, self.nv))
-        joints = np.array([j for j, _ in clamps], dtype=np.intp)
-        signs = np.array([s for _, s in clamps], dtype=float)
-        rows[np.arange(m), joints] = -signs
-        return rows
-
-    def _problem(
-        self, q: FloatArray, v: FloatArray
-    ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray, list[dict[str, Any]]]:
-        Jn, drift, gap, vn, extra = super()._problem(q, v)
-        if self._reduced and len(gap):
-            gap, vn = self._null_rows_apart(Jn, gap, vn)
-        m = len(self.clamps)
-        if m == 0:
-            return Jn, drift, gap, vn, extra
-        rows = self._rows(self.clamps)
-        vc = rows @ v if self._velocity_level else np.zeros(m)
-        z = np.zeros(m)
-        return (
-            np.vstack([Jn, rows]),
-            np.concatenate([drift, z]),
-            np.concatenate([gap, z]),
-            np.concatenate([vn, vc]),
-            extra,
-        )
-
-    # ------------------------------------------------------------------ bilateral joints
-    def _null_rows_apart(
-        self, Jn: FloatArray, gap: FloatArray, vn: FloatArray
-    ) -> tuple[FloatArray, FloatArray]:
-        """Rows that the locked joints freeze, reported apart (gap NULL_GAP, v_n 0).
-
-        A pair whose bodies the bilateral joints join rigidly (the arm's link 3 on link 1 with
-        both elbows locked) has a row with no component on the free joints: its gap cannot
-        change, its force does nothing, and in the problems it would be a zero row of the
-        Delassus matrix (with a Baumgarte term on a micrometre gap, an infeasible LCP). Such a
-        row sits out of every problem (not touching, no event) while the joints stay locked.
-        """
-        free = np.ones(self.nv, dtype=bool)
-        free[self.locked_joints] = False
-        scale = np.abs(Jn).max(axis=1, initial=0.0)
-        null = np.abs(Jn[:, free]).max(axis=1, initial=0.0) <= NULL_ROW * scale
-        if not null.any():
-            return gap, vn
-        gap, vn = gap.copy(), vn.copy()
-        gap[null] = NULL_GAP
-        vn[null] = 0.0
-        return gap, vn
-
+    # ------------------------------------------------------------------ locked joints
     def _lock(self, a_free: FloatArray, minv: FloatArray) -> tuple[FloatArray, FloatArray]:
         """Free accelerations and M^-1 with the locked joints S fixed (a_j = 0)."""
-        idx = np.array(self.locked_joints, dtype=np.intp)
-        K = minv[:, idx]
-        W = minv[np.ix_(idx, idx)]
-        minv_c = minv - K @ np.linalg.solve(W, K.T)
-        a_c = a_free - K @ np.linalg.solve(W, a_free[idx])
-        minv_c[idx, :] = 0.0
-        minv_c[:, idx] = 0.0
-        a_c[idx] = 0.0
-        return np.asarray(a_c, dtype=np.float64), np.asarray(minv_c, dtype=np.float64)
+        return native.lock_subspace(self._rows_rhs(), a_free, minv, self.locked_joints)
 
     @contextmanager
-    def _locked(self) -> Iterator[None]:
-        self._reduced = True
+    def _row_level(self, locked: tuple[int, ...], velocity: bool) -> Iterator[None]:
+        """The rows reported with these locked joints' frozen rows apart, at this level."""
+        mode = self._row_mode
+        self._row_mode = (locked, velocity)
         try:
             yield
         finally:
-            self._reduced = False
+            self._row_mode = mode
+
+    def _locked(self) -> AbstractContextManager[None]:
+        """Inside: the calls work in the locked subspace (the rows it freezes apart).
+
+        A pair whose bodies the locked joints join rigidly (the arm's link 3 on link 1 with
+        both elbows locked) has rows with no component on the free joints: their gaps cannot
+        change, their forces do nothing, and in the problems they would be zero rows of the
+        Delassus matrix (with a Baumgarte term on a micrometre gap, an infeasible LCP). The
+        extension reports such a row apart (gap ``NULL_GAP``, v_n 0: not touching, no event;
+        :data:`~packbot.contact.normal_tolerances.NULL_ROW`) while the joints stay locked.
+        """
+        return self._row_level(tuple(self.locked_joints), self._row_mode[1])
+
+    def _velocity(self) -> AbstractContextManager[None]:
+        """Inside: the clamp rows carry their true velocity (the impulse's level)."""
+        return self._row_level(self._row_mode[0], True)
 
     def _bypass(self) -> bool:
         """No locked joint, or already in the locked subspace: call the base method."""
-        return self._reduced or not self.locked_joints
+        return bool(self._row_mode[0]) or not self.locked_joints
 
-    def evaluate(self, q: FloatArray, v: FloatArray, a_free: FloatArray, minv: FloatArray) -> _Eval:
-        """The normal mode's constrained dynamics, bilateral joints locked."""
+    def evaluate(
+        self,
+        q: FloatArray,
+        v: FloatArray,
+        a_free: FloatArray,
+        minv: FloatArray,
+        forces: bool = False,
+    ) -> _Eval:
+        """The normal mode's constrained dynamics, the locked joints fixed."""
         if self._bypass():
-            return super().evaluate(q, v, a_free, minv)
+            return super().evaluate(q, v, a_free, minv, forces)
         a_c, minv_c = self._lock(a_free, minv)
         with self._locked():
-            return super().evaluate(q, v, a_c, minv_c)
+            return super().evaluate(q, v, a_c, minv_c, forces)
 
     def select_modes(
         self,
@@ -328,9 +294,11 @@ class HandoffContacts(NormalContacts):
     ) -> dict[int, float]:
         """The torques [N*m] holding the held joints, with the contact forces of the modes.
 
-        tau_S = -(M^-1_SS)^-1 (a_free + M^-1 Q_c)_S on the locked joints S (module docstring),
-        the same sign convention as :meth:`JointLocks.torques
-        <packbot.contact.locks.JointLocks.torques>` (a torque added on the joint).
+        tau_S = -(M^-1_SS)^-1 (a_free + M^-1 Q_c)_S on the locked joints S (module docstring;
+        the extension's :func:`~packbot.contact.native.lock_torques`, Q_c from the
+        evaluation's ``qc``), the same sign convention as
+        :meth:`JointLocks.torques <packbot.contact.locks.JointLocks.torques>` (a torque added on
+        the joint).
 
         Args:
             q: Configuration [rad].
@@ -343,11 +311,11 @@ class HandoffContacts(NormalContacts):
         """
         if not self.held or self.resting:
             return {}
-        ev = self.evaluate(q, v, a_free, minv)
-        rhs = a_free if ev.qc is None else a_free + minv @ ev.qc
-        idx = np.array(self.locked_joints, dtype=np.intp)
-        tau = solve_small(minv[np.ix_(idx, idx)], -rhs[idx])
-        pos = {int(j): k for k, j in enumerate(idx)}
+        qc = self.evaluate(q, v, a_free, minv, forces=True).qc
+        assert qc is not None  # (not resting)
+        locked = self.locked_joints
+        tau = native.lock_torques(self._rows_rhs(), a_free, minv, qc, locked)
+        pos = {j: k for k, j in enumerate(locked)}
         return {j: float(tau[pos[j]]) for j in self.held}
 
     def _locked_fn(self, a_free_fn: Any, minv: FloatArray) -> Any:
@@ -365,20 +333,16 @@ class HandoffContacts(NormalContacts):
         joint clamps, not contact forces (as the hand-off's samples are not known).
         """
         v = self.stop_clamped(v, minv, self.clamps)
-        self._velocity_level = True
         try:
-            return super().impulse(q, v, minv)
+            with self._velocity():
+                return super().impulse(q, v, minv)
         finally:
-            self._velocity_level = False
             self.impact_rows = None
 
     def stop_slow(self, q: FloatArray, v: FloatArray, minv: FloatArray) -> FloatArray:
         """The normal mode's stop of slow slides, the clamp rows at their true velocity."""
-        self._velocity_level = True
-        try:
+        with self._velocity():
             return super().stop_slow(q, v, minv)
-        finally:
-            self._velocity_level = False
 
     def stop_clamped(
         self, v: FloatArray, minv: FloatArray, clamps: list[tuple[int, int]]
@@ -387,7 +351,8 @@ class HandoffContacts(NormalContacts):
 
         The LCP w = G P + J v >= 0, P >= 0, complementary, on the clamp rows J alone
         (G = J M^-1 J^T); P [N*m*s] pushes each approaching clamped joint to a stop (both rows
-        of a bilateral joint: it stops). Perfectly inelastic: never adds energy.
+        of a bilateral joint: it stops). Perfectly inelastic: never adds energy. The
+        extension's :func:`~packbot.contact.native.stop_joints` (Lemke).
 
         Args:
             v: Joint velocities [rad/s].
@@ -399,18 +364,10 @@ class HandoffContacts(NormalContacts):
         """
         if not clamps:
             return v
-        J = self._rows(clamps)
-        w = J @ v
-        if float(w.min()) >= 0.0:
-            return v
-        G = J @ minv @ J.T
-        P = solve_lcp_psd(G, w)
-        res = lcp_residual(G, w, P)
-        if res > RESIDUAL_TOL:
-            P2 = lemke(G, w)
-            if P2 is not None and lcp_residual(G, w, P2) < res:
-                P = P2
-        return np.asarray(v + minv @ J.T @ P, dtype=np.float64)
+        status, out = native.stop_joints(self._rows_rhs(), v, minv, clamps, one_sided=True)
+        if status == 2:
+            log.warning("clamped joints' stop unsolved (LCP on %s): velocity kept", clamps)
+        return out if status == 1 else v
 
     # ------------------------------------------------------------------ conditions
     def conditions(self, ev: _Eval) -> dict[tuple[Any, ...], tuple[str, float]]:
@@ -837,12 +794,9 @@ class HandoffLaw(JointClampLaw, PatchEvents):
         ]
         if not creep:
             return v
-        minv = self.sys.minv(q)
-        J = mixed._rows(creep)
-        P = np.linalg.solve(J @ minv @ J.T, -(J @ v))
-        out = np.asarray(v + minv @ J.T @ P, dtype=np.float64)
-        out[[j for j, _ in creep]] = 0.0
-        return out
+        rhs = mixed._rows_rhs()
+        status, out = native.stop_joints(rhs, v, self.sys.minv(q), creep, one_sided=False)
+        return out if status == 1 else v
 
     def _slip_direction(self, t: float, y: FloatArray, j: int, minv: FloatArray) -> None:
         """A joint slipping from rest takes a direction its acceleration follows.

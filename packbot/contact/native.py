@@ -31,6 +31,8 @@ from packbot.contact.normal_eval import _Eval
 from packbot.contact.normal_tolerances import (
     BAUMGARTE,
     FORCE_BAND,
+    NULL_GAP,
+    NULL_ROW,
     PENETRATION_TOL,
     POINT_TOL,
     RESIDUAL_TOL,
@@ -52,7 +54,10 @@ __all__ = [
     "NativeModes",
     "NativeRhs",
     "available",
+    "lock_subspace",
+    "lock_torques",
     "native_rhs",
+    "stop_joints",
     "stretch",
 ]
 
@@ -168,6 +173,7 @@ class NativeRhs:
         self._plan_id: Any = None  # the _Plan loaded
         self._locked_id: Any = None  # the locked joints loaded (set_locks)
         self._screen_id: Any = None  # the lock conditions' rows loaded (set_screen)
+        self._row_mode: tuple[tuple[int, ...], bool] = ((), False)  # (set_row_mode's)
 
     def load(self, contacts: NormalContacts, plan: Any) -> None:
         """Load the contact set's layout and the modes' plan (only when they changed)."""
@@ -190,8 +196,14 @@ class NativeRhs:
 
         Only when the layout changed; the modes' plan is then loaded again by :meth:`load`. A
         layout of the loaded one's shape (a re-patch: the same index arrays) loads its patches
-        alone.
+        alone. The layout's clamp rows (``ContactRhs.set_clamps``) and the set's row mode
+        (``ContactRhs.set_row_mode``: the locked joints whose frozen rows sit apart, the clamp
+        rows' velocity level; ``src/native/contact_rhs_clamps.cpp``) are loaded with it.
         """
+        mode = contacts._row_mode
+        if mode != self._row_mode:
+            self._rhs.set_row_mode(_ints(mode[0]), mode[1], NULL_ROW, NULL_GAP)
+            self._row_mode = mode
         lay = contacts._layout()
         old = self._layout_id
         if lay is old:
@@ -219,6 +231,8 @@ class NativeRhs:
                 _reals(lay.lim_side),
                 _reals(lay.lim_value),
             )
+            if len(lay.clamp_joint):
+                self._rhs.set_clamps(_ints(lay.clamp_joint), _reals(lay.clamp_side))
             self._rhs.set_conditions(
                 _reals(lay.offset0), _reals(lay.slide_tol2), FORCE_BAND, POINT_TOL, STICK_BAND
             )
@@ -254,6 +268,7 @@ class NativeRhs:
         v: FloatArray,
         a_free: FloatArray,
         minv: FloatArray,
+        forces: bool = False,
     ) -> _Eval | None:
         """The constrained accelerations of the plan's modes at (q, v), a_free and M^-1 given.
 
@@ -262,18 +277,19 @@ class NativeRhs:
         sliding direction at the patch centre, blended with the onset direction below
         ``STICK_SPEED``), the sticking pairs' tangential rows, Baumgarte's targets, the
         Delassus system and its solve; with the smallest mode condition (``cond``) and the
-        patches' largest squared slides (``slide2``).
+        patches' largest squared slides (``slide2``); with ``forces``, the rows' generalized force
+        C^T lambda (``qc``) [N*m].
 
         Returns:
             The evaluation, or None: the Delassus matrix is singular (the caller solves by
             least squares).
         """
         self.load(contacts, plan)
-        got = self._rhs.evaluate(q, v, _reals(a_free), _reals(minv))
+        got = self._rhs.evaluate(q, v, _reals(a_free), _reals(minv), forces)
         if got is None:
             return None
-        cond, a, lam, gap, vn, vt, slide2 = got
-        return _Eval(a, lam, gap, vn, vt, cond=cond, slide2=slide2)
+        cond, a, lam, gap, vn, vt, slide2, qc = got
+        return _Eval(a, lam, gap, vn, vt, qc=qc, cond=cond, slide2=slide2)
 
     def forces(self, lam: FloatArray, on1: NDArray[np.uint8]) -> tuple[Any, ...]:
         """The contact forces of the loaded plan's modes on the rows last computed.
@@ -790,6 +806,83 @@ class NativeRhs:
     def last(self) -> tuple[FloatArray, ...]:
         """The last call's (a_free, M^-1, lam, gap, v_n, v_t, G, rhs): copies, for tests."""
         return tuple(self._rhs.last())
+
+
+# ---- the hand-off's calls (HandoffContacts: src/native/contact_rhs_clamps.cpp) on a NativeRhs
+def lock_subspace(
+    rhs: NativeRhs, a_free: FloatArray, minv: FloatArray, locked: list[int]
+) -> tuple[FloatArray, FloatArray]:
+    """Free accelerations and M^-1 with the joints ``locked`` fixed (a_j = 0).
+
+    ``ContactRhs.lock_subspace`` (``src/native/contact_rhs_clamps.cpp``): the Schur
+    complement M^-1_c = M^-1 - M^-1 S^T (S M^-1 S^T)^-1 S M^-1 and
+    a_c = a_free - M^-1 S^T (S M^-1 S^T)^-1 a_free[S], their rows and columns of S zero.
+
+    Args:
+        rhs: The contact set's native right-hand side.
+        a_free: Unconstrained accelerations [rad/s^2].
+        minv: M^-1.
+        locked: The joints S (velocity indices).
+
+    Returns:
+        (a_c [rad/s^2], M^-1_c), new arrays.
+    """
+    a_c, minv_c = rhs._rhs.lock_subspace(_reals(a_free), _reals(minv), _ints(locked))
+    return a_c, minv_c
+
+
+def lock_torques(
+    rhs: NativeRhs, a_free: FloatArray, minv: FloatArray, qc: FloatArray, locked: list[int]
+) -> FloatArray:
+    """The torques [N*m] holding the joints ``locked`` at rest under the rows' force ``qc``.
+
+    ``ContactRhs.lock_torques``: tau_S = -(M^-1_SS)^-1 (a_free + M^-1 qc)_S, with qc =
+    C^T lambda [N*m] (an evaluation's ``qc``), a_free [rad/s^2] and M^-1 the full arm's.
+
+    Args:
+        rhs: The contact set's native right-hand side.
+        a_free: Unconstrained accelerations [rad/s^2].
+        minv: M^-1.
+        qc: The rows' generalized force [N*m].
+        locked: The joints S (velocity indices).
+
+    Returns:
+        One torque per joint of ``locked``, in its order.
+    """
+    return np.asarray(
+        rhs._rhs.lock_torques(_reals(a_free), _reals(minv), _reals(qc), _ints(locked))
+    )
+
+
+def stop_joints(
+    rhs: NativeRhs, v: FloatArray, minv: FloatArray, clamps: list[tuple[int, int]], one_sided: bool
+) -> tuple[int, FloatArray]:
+    """The least (M-weighted) joint impulse on the clamp rows -s e_j of ``clamps`` alone.
+
+    ``ContactRhs.stop_joints`` (``src/native/contact_rhs_clamps.cpp``): after it every
+    row's velocity is >= 0 (``one_sided``: an LCP, Lemke's answer to ``RESIDUAL_TOL``;
+    perfectly inelastic) or 0 (equalities; the rows' joints then exactly at rest).
+
+    Args:
+        rhs: The contact set's native right-hand side.
+        v: Joint velocities [rad/s].
+        minv: M^-1.
+        clamps: The rows, (joint, s).
+        one_sided: Inequalities (else equalities).
+
+    Returns:
+        (status, v+): 0 no row approaches (one-sided), 1 the velocity after [rad/s], 2
+        unsolved (v+ = v).
+    """
+    status, out = rhs._rhs.stop_joints(
+        _reals(v),
+        _reals(minv),
+        _ints([j for j, _ in clamps]),
+        _reals([s for _, s in clamps]),
+        one_sided,
+        RESIDUAL_TOL,
+    )
+    return int(status), out
 
 
 def stretch(rhs: NativeRhs, api: Any, **constants: Any) -> Any:

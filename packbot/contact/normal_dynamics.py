@@ -1,8 +1,8 @@
 """The constrained dynamics with the modes fixed, and the mode conditions.
 
 :meth:`ConstrainedDynamics.evaluate` solves the engaged rows' accelerations (in the
-extension: :meth:`NativeRhs.evaluate <packbot.contact.native.NativeRhs.evaluate>`; numpy for a
-subclass's own rows); :meth:`~ConstrainedDynamics.
+extension: :meth:`NativeRhs.evaluate <packbot.contact.native.NativeRhs.evaluate>`; numpy's
+least squares where its Delassus matrix is singular); :meth:`~ConstrainedDynamics.
 conditions` and :meth:`~ConstrainedDynamics.violated` give the mode conditions whose sign
 changes are the events (release, impact, slip, stick, the resting arm's slip).
 """
@@ -13,6 +13,7 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+import pinocchio as pin
 from numpy.typing import NDArray
 
 from packbot.contact.lcp import solve_mixed_admm, solve_ncp_admm, solve_small
@@ -61,7 +62,14 @@ class RestSolution:
 class ConstrainedDynamics(ContactRows):
     """The contact set's accelerations and mode conditions with the modes fixed."""
 
-    def evaluate(self, q: FloatArray, v: FloatArray, a_free: FloatArray, minv: FloatArray) -> _Eval:
+    def evaluate(
+        self,
+        q: FloatArray,
+        v: FloatArray,
+        a_free: FloatArray,
+        minv: FloatArray,
+        forces: bool = False,
+    ) -> _Eval:
         """Constrained accelerations with the modes fixed, and what the conditions need.
 
         Args:
@@ -69,6 +77,7 @@ class ConstrainedDynamics(ContactRows):
             v: Velocity [rad/s].
             a_free: Unconstrained accelerations [rad/s^2].
             minv: M^-1 at q.
+            forces: Also the engaged rows' generalized force (``qc``; zero without one).
         """
         if self.resting:  # captured: at rest while the rest condition holds
             _, _, gap, vn, extra = self._problem(q, v)
@@ -77,18 +86,16 @@ class ConstrainedDynamics(ContactRows):
         plan = self._plan()
         if not len(plan.engaged):
             _, _, gap, vn, extra = self._problem(q, v)
-            return _Eval(a_free, np.zeros(0), gap, vn, _centre_velocities(extra))
-        if type(self)._problem is _OWN_PROBLEM:
-            return self._evaluate_compiled(q, v, a_free, minv, plan)
-        return self._evaluate_rows(q, v, a_free, minv, plan)
+            qc = np.zeros(self.nv) if forces else None
+            return _Eval(a_free, np.zeros(0), gap, vn, _centre_velocities(extra), qc=qc)
+        return self._evaluate_compiled(q, v, a_free, minv, plan, forces)
 
     def _evaluate_rows(
         self, q: FloatArray, v: FloatArray, a_free: FloatArray, minv: FloatArray, plan: _Plan
     ) -> _Eval:
-        """:meth:`evaluate` on the rows of :meth:`_problem`, in numpy.
+        """:meth:`evaluate` in numpy, by least squares where the Delassus matrix is singular.
 
-        The same problem as :meth:`_evaluate_compiled`, on any subclass's rows (the hand-off's
-        clamps).
+        :meth:`_evaluate_compiled`'s fallback, where the extension's solve finds it singular.
         """
         Jn, drift, gap, vn, extra = self._problem(q, v)
         vt = _centre_velocities(extra)
@@ -117,7 +124,13 @@ class ConstrainedDynamics(ContactRows):
         return _Eval(a_free + MC @ lam, lam, gap, vn, vt, qc=Cm.T @ lam)
 
     def _evaluate_compiled(
-        self, q: FloatArray, v: FloatArray, a_free: FloatArray, minv: FloatArray, plan: _Plan
+        self,
+        q: FloatArray,
+        v: FloatArray,
+        a_free: FloatArray,
+        minv: FloatArray,
+        plan: _Plan,
+        forces: bool = False,
     ) -> _Eval:
         """:meth:`evaluate` in one call of the extension.
 
@@ -127,7 +140,7 @@ class ConstrainedDynamics(ContactRows):
             slip_dir = np.array([p.slip_dir for p in self._pair_list])
         else:
             slip_dir = self._no_slip_dirs
-        ev = self._rows_rhs().evaluate(self, plan, q, v, a_free, minv)  # type: ignore[arg-type]
+        ev = self._rows_rhs().evaluate(self, plan, q, v, a_free, minv, forces)  # type: ignore[arg-type]
         if ev is None:  # a singular Delassus matrix: numpy's path (least squares)
             return self._evaluate_rows(q, v, a_free, minv, plan)
         # Kept for the same state asked again (the step's end: the stepper's last stage, then
@@ -288,14 +301,13 @@ class ConstrainedDynamics(ContactRows):
             minv.tobytes(),
             None if coul is None else coul.tobytes(),
             None if fdir is None else fdir.tobytes(),
+            self._row_mode,
         )
-        own = type(self)._problem is _OWN_PROBLEM
         got = self._rest_cache
-        if own and got is not None and got[0] == key:
+        if got is not None and got[0] == key:
             return got[1]
         sol = self._rest_solve(q, a_free, minv)
-        if own:
-            self._rest_cache = (key, sol)
+        self._rest_cache = (key, sol)
         return sol
 
     def _rest_accel_solve(
@@ -336,14 +348,17 @@ class ConstrainedDynamics(ContactRows):
         a = np.asarray(a_free + minv @ J3.T @ x, dtype=np.float64)
         forces = np.asarray(x[:m3], dtype=np.float64).reshape(-1, 3)
         rows = np.asarray(J3[:m3], dtype=np.float64)
-        torque = rows.T @ forces.ravel() - np.linalg.solve(minv, a)
+        if not bool(np.all(np.diag(minv) > 0.0)):  # the hand-off's locked subspace's M^-1_c
+            M = pin.crba(self.model, self.data, q)
+            Ma = (np.triu(M) + np.triu(M, 1).T) @ a
+        else:
+            Ma = np.linalg.solve(minv, a)
+        torque = rows.T @ forces.ravel() - Ma
         for arr in (a, touch, forces, rows, mus, torque):
             arr.setflags(write=False)
         return RestSolution(a, touch, forces, rows, mus, torque)
 
 
-#: The contact set's own rows: a subclass adding rows (the hand-off) takes the numpy path.
-_OWN_PROBLEM = ContactRows._problem
 _OWN_EVALUATE = ConstrainedDynamics.evaluate
 _OWN_CONDITIONS = ConstrainedDynamics.conditions
 _OWN_VIOLATED = ConstrainedDynamics.violated

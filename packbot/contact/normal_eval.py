@@ -25,7 +25,7 @@ class _Eval:
     vn: FloatArray  # every row
     vt: FloatArray  # (pairs, 3): relative tangential velocity at each patch centre (world)
     rest: tuple[FloatArray, FloatArray, FloatArray] | None = None  # (q, a_free, M^-1) at rest
-    # the rows' generalized force C^T lambda [N*m] (numpy path only; None: not computed)
+    # the rows' generalized force C^T lambda [N*m] (None: not asked for, see evaluate's forces)
     qc: FloatArray | None = None
     cond: float | None = None  # the smallest mode condition (compiled path; see violated)
     slide2: FloatArray | None = None  # (pairs,) largest squared slide (compiled; see stale)

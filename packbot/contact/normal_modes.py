@@ -21,7 +21,6 @@ from packbot.contact.lcp import lcp_residual, lemke, solve_lcp_psd
 from packbot.contact.normal_dynamics import (
     _OWN_CONDITIONS,
     _OWN_EVALUATE,
-    _OWN_PROBLEM,
     _OWN_VIOLATED,
     ConstrainedDynamics,
 )
@@ -173,8 +172,7 @@ class ModeSelection(ConstrainedDynamics):
     def _keeps_own_rows(self, signature: tuple[Any, ...]) -> bool:
         """Whether :meth:`keep_modes` may keep the engaged rows of before a re-patch."""
         return (
-            type(self)._problem is _OWN_PROBLEM
-            and type(self).evaluate is _OWN_EVALUATE
+            type(self).evaluate is _OWN_EVALUATE
             and type(self).violated is _OWN_VIOLATED
             and signature == self.row_signature()
         )
@@ -190,18 +188,13 @@ class ModeSelection(ConstrainedDynamics):
     ) -> list[ModeEvent] | None:
         """:meth:`select_modes` (after :meth:`keep_modes` of ``held``) in one native call.
 
-        None where it does not run (no compiled right-hand side, a subclass's own rows, a
-        resting contact set) or hands back; else the modes are set
-        and the mode changes returned.
+        None where it does not run (no compiled right-hand side, a resting contact set, rows
+        ``held`` to keep under a subclass's dynamics or conditions: keep_modes' violated) or
+        hands back; else the modes are set and the mode changes returned.
         """
         native = self.native
-        if (
-            native is None
-            or self.resting
-            or type(self)._problem is not _OWN_PROBLEM
-            or type(self).evaluate is not _OWN_EVALUATE
-            or type(self).conditions is not _OWN_CONDITIONS  # (keep_modes' violated)
-        ):
+        own = type(self).evaluate is _OWN_EVALUATE and type(self).conditions is _OWN_CONDITIONS
+        if native is None or self.resting or (held and not own):
             return None
         out = native.select_modes(self, q, v, a_free, minv, keep, held)
         if out is None:
@@ -241,7 +234,7 @@ class ModeSelection(ConstrainedDynamics):
         Sticking pairs stay sticking and sliding pairs take the direction of their sliding
         velocity, as ``select_modes(keep=True)`` does; where that problem has one solution,
         the same one. Otherwise (False) the caller selects the modes in full. The contact
-        set's own rows only (a subclass's rows take the full selection).
+        set's own dynamics only (a subclass's take the full selection).
 
         Args:
             q: Configuration [rad].
@@ -253,7 +246,6 @@ class ModeSelection(ConstrainedDynamics):
         """
         if (
             not engaged
-            or type(self)._problem is not _OWN_PROBLEM
             or type(self).evaluate is not _OWN_EVALUATE
             or type(self).violated is not _OWN_VIOLATED
             or signature != self.row_signature()

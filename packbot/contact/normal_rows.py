@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import copy
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -48,6 +49,8 @@ class _Layout:
     lim_joint: NDArray[np.intp]  # (limits,) velocity index of each limit row
     lim_side: FloatArray  # (limits,) +1 upper, -1 lower
     lim_value: FloatArray  # (limits,) the limit [rad]
+    clamp_joint: NDArray[np.intp]  # (clamps,) velocity index of each clamp row
+    clamp_side: FloatArray  # (clamps,) its forbidden direction s (+1 or -1): the row -s e_j
     offset0: FloatArray  # (m_p, 2) per pair row, its tangential offset when built [m]
     slide_tol2: FloatArray  # (pairs,) the square of the slide each patch goes stale at [m^2]
 
@@ -69,6 +72,15 @@ class _Plan:
 class ContactRows(ContactSet):
     """The contact set with its rows (see the module)."""
 
+    #: One-sided joint rows (joint, s) after the limit rows, J = -s e_j: the hand-off's clamps
+    #: (:class:`~packbot.contact.handoff.HandoffContacts` sets them; none in the normal mode).
+    clamps: Sequence[tuple[int, int]] = ()
+    #: How the rows are reported (:meth:`NativeRhs.load_layout
+    #: <packbot.contact.native.NativeRhs.load_layout>`): the locked joints whose frozen rows
+    #: sit apart (none: no row does), and whether the clamp rows carry their true velocity
+    #: (velocity level) or 0 (acceleration level).
+    _row_mode: tuple[tuple[int, ...], bool] = ((), False)
+
     def _kinematics(
         self, q: FloatArray, v: FloatArray
     ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray, list[dict[str, Any]]]:
@@ -76,12 +88,13 @@ class ContactRows(ContactSet):
 
         And per pair the tangential rows and the velocities at the patch centre
         (:meth:`NativeRhs.rows <packbot.contact.native.NativeRhs.rows>`: every patch point of
-        every pair at once). The result depends only on (q, v) and the contact set, so it is cached
+        every pair at once; the hand-off's clamp rows after the limit rows). The result depends only
+        on (q, v), the contact set and its row mode (``_row_mode``), so it is cached
         (a few states: the mode conditions and the restart's problems ask for the same state
         several times); the cache is emptied whenever the contact set changes. The arrays
         returned are read-only.
         """
-        key = (q.tobytes(), v.tobytes())
+        key = (q.tobytes(), v.tobytes(), self._row_mode)
         hit = self._kin_cache.get(key)
         if hit is not None:
             return hit
@@ -131,6 +144,7 @@ class ContactRows(ContactSet):
         shape = (
             tuple([(k, len(p.local1), p.on1) for k, p in self.pairs.items()]),
             tuple(self.limits.items()),
+            tuple(self.clamps),
         )
         prev = self._lay_prev
         if prev is not None and prev[0] == shape:
@@ -174,6 +188,8 @@ class ContactRows(ContactSet):
             lim_joint=np.array([j for (j, _), _ in limits], dtype=np.intp),
             lim_side=np.array([side for (_, side), _ in limits], dtype=np.float64),
             lim_value=np.array([value for _, value in limits], dtype=np.float64),
+            clamp_joint=np.array([j for j, _ in self.clamps], dtype=np.intp),
+            clamp_side=np.array([s for _, s in self.clamps], dtype=np.float64),
             offset0=_offset0(pairs),
             slide_tol2=np.array([p.slide_tol**2 for p in pairs], dtype=np.float64),
         )

@@ -124,7 +124,7 @@ class ContactSet:
         #: The extension's contact rows and constrained accelerations for this set's own calls
         #: (its layout and plan loaded there; built at the first call: see ContactRows._rows_rhs).
         self._rows_native: NativeRhs | None = None
-        self._kin_cache: dict[tuple[bytes, bytes], Any] = {}  # see _kinematics
+        self._kin_cache: dict[tuple[Any, ...], Any] = {}  # see _kinematics
         self._planes_cache: dict[int, tuple[FloatArray, FloatArray]] = {}
         self._unbounded_cache: dict[int, bool] = {}
         self._built: tuple[bytes, float] = (b"", math.nan)  # (see add_pairs)

@@ -15,7 +15,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from packbot.contact.lcp import lcp_residual, solve_ncp_admm
-from packbot.contact.normal_dynamics import _OWN_PROBLEM, ConstrainedDynamics
+from packbot.contact.normal_dynamics import ConstrainedDynamics
 from packbot.contact.normal_modes import ModeEvent, _psd_lcp
 from packbot.contact.normal_tolerances import (
     CAPTURE_ACCEL,
@@ -138,7 +138,7 @@ class RestartSteps(ConstrainedDynamics):
         if self.mu == 0.0 or not self.pairs:
             return v
         native = self.native
-        if native is not None and type(self)._problem is _OWN_PROBLEM:
+        if native is not None:
             status, v1 = native.stop_slow(
                 self, q, v, minv, touch_gap=TOUCH_GAP, speed_band=SPEED_BAND,
                 stick_speed=STICK_SPEED, capture_speed=CAPTURE_SPEED,
@@ -474,8 +474,8 @@ def _impact_cones(
     The windows' low-rank ADMM (:func:`packbot.contact.conic.solve_conic`) on the factor
     A = J3 C of G3 = J3 M^-1 J3^T (C C^T = M^-1, Cholesky), to a true residual of
     :data:`IMPACT_CONIC_TOL` within :data:`IMPACT_ADMM_ITERATIONS`; where its answer is above
-    :data:`IMPACT_ADMM_ACCEPT`, or M^-1 has no Cholesky factor (singular: joints held by the
-    hand-off's rows), Pinocchio's ADMM (:func:`_impact_admm`).
+    :data:`IMPACT_ADMM_ACCEPT`, or M^-1 has no Cholesky factor (singular: the hand-off's locked
+    joints, where the extension's answer was not taken), Pinocchio's ADMM (:func:`_impact_admm`).
 
     Returns:
         The impulses (blocks (t1, t2, n) [N*s]) and their true residual.
@@ -484,7 +484,7 @@ def _impact_cones(
 
     try:
         C = np.linalg.cholesky(minv)
-    except np.linalg.LinAlgError:  # a singular M^-1 (the hand-off's held joints)
+    except np.linalg.LinAlgError:  # a singular M^-1 (the hand-off's locked joints)
         return _impact_admm(model, data, G3, g3, mus)
     A = np.ascontiguousarray(J3 @ C)
     x, res, _, _ = conic.solve_conic(

@@ -70,3 +70,10 @@ RESIDUAL_TOL = 1e-7
 #: Rounds of the drift projection (:meth:`NormalContacts.project`): each adds to the contact set
 #: the pairs that the previous one made penetrate.
 PROJECT_ROUNDS = 3
+
+#: A row is frozen by the locked joints (the hand-off's bilateral and held joints) when its
+#: largest entry on the other joints is below NULL_ROW times its largest entry [-] (rounding:
+#: the two bodies' Jacobians cancel there).
+NULL_ROW = 1e-9
+#: The gap reported for such a row [m]: far from touching.
+NULL_GAP = 1.0

@@ -145,7 +145,7 @@ NB_MODULE(_native, m) {
       .def_prop_ro("nv", &ContactRhs::nv)
       .def("rows", &ContactRhs::rows_out, nb::arg("q"), nb::arg("v"))
       .def("evaluate", &ContactRhs::evaluate_at, nb::arg("q"), nb::arg("v"), nb::arg("a_free"),
-           nb::arg("minv"))
+           nb::arg("minv"), nb::arg("with_qc") = false)
       .def("forces", &ContactRhs::forces_out, nb::arg("lam"), nb::arg("on1"))
       .def("set_layout", &ContactRhs::set_layout)
       .def("set_patches", &ContactRhs::set_patches, nb::arg("local"), nb::arg("frame2"),
@@ -188,6 +188,15 @@ NB_MODULE(_native, m) {
       .def("end_check", &ContactRhs::end_check, nb::arg("y1"), nb::arg("swept"), nb::arg("dist"),
            nb::arg("active"), nb::arg("near"), nb::arg("pen_tol"))
       .def("set_locks", &ContactRhs::set_locks, nb::arg("locked"))
+      .def("set_clamps", &ContactRhs::set_clamps, nb::arg("joint"), nb::arg("side"))
+      .def("set_row_mode", &ContactRhs::set_row_mode, nb::arg("locked"),
+           nb::arg("velocity_level"), nb::arg("null_row"), nb::arg("null_gap"))
+      .def("lock_subspace", &ContactRhs::lock_subspace, nb::arg("a_free"), nb::arg("minv"),
+           nb::arg("locked"))
+      .def("lock_torques", &ContactRhs::lock_torques, nb::arg("a_free"), nb::arg("minv"),
+           nb::arg("qc"), nb::arg("locked"))
+      .def("stop_joints", &ContactRhs::stop_joints, nb::arg("v"), nb::arg("minv"),
+           nb::arg("joint"), nb::arg("side"), nb::arg("one_sided"), nb::arg("res_tol"))
       .def("energies", &ContactRhs::energies, nb::arg("Q"), nb::arg("V"), nb::arg("out"))
       .def("neutral_velocity", &ContactRhs::neutral_velocity, nb::arg("q0"), nb::arg("q1"),
            nb::arg("v"))

@@ -24,6 +24,7 @@
 //   contact_rhs_dynamics.cpp  the constrained accelerations of the modes
 //   contact_rhs_forces.cpp    the contact forces of the modes (their multipliers as forces)
 //   contact_rhs_locks.cpp     the joint locks (the report's law instead of the contact rows)
+//   contact_rhs_clamps.cpp    the hand-off's joint clamp rows and locked joints
 //   contact_rhs_events.cpp    the step end: its evaluation, a row's event, its screen
 //   contact_rhs_step.cpp      the integrator steps (Dormand-Prince 5(4), RODAS4)
 //   contact_rhs_window.cpp    the time-stepping window (Moreau-Jean)
@@ -150,7 +151,7 @@ class ContactRhs {
                       const std::vector<double> &slip_dir, const double *a_free, const double *Mi,
                       double mu, double stick_speed, double baumgarte, double *a, double *cond,
                       std::vector<double> &lam);
-  nb::object evaluate_at(F1 q, F1 v, F1 a_free, F2 minv);
+  nb::object evaluate_at(F1 q, F1 v, F1 a_free, F2 minv, bool with_qc);
   nb::tuple last() const;
 
   // ---- the contact forces of the modes: contact_rhs_forces.cpp
@@ -161,6 +162,14 @@ class ContactRhs {
   nb::object end_locks(F1 y1);
   void set_screen(F2 rows, double torque_band, double accel_band);
   double end_screen(F1 y1, double margin);
+
+  // ---- the hand-off's clamp rows and locked joints: contact_rhs_clamps.cpp
+  void set_clamps(I1 joint, F1 side);
+  void set_row_mode(I1 locked, bool velocity_level, double null_row, double null_gap);
+  nb::tuple lock_subspace(F1 a_free, F2 minv, I1 locked) const;
+  nb::ndarray<nb::numpy, double, nb::ndim<1>> lock_torques(F1 a_free, F2 minv, F1 qc,
+                                                           I1 locked) const;
+  nb::tuple stop_joints(F1 v, F2 minv, I1 joint, F1 side, bool one_sided, double res_tol);
 
   // ---- the step end and its events: contact_rhs_events.cpp
   nb::object end_eval(F1 y1);
@@ -350,6 +359,9 @@ class ContactRhs {
   // (the joint locks: contact_rhs_locks.cpp)
   bool lock_accel();
 
+  // (the hand-off's rows: contact_rhs_clamps.cpp)
+  void clamp_rows();
+
   // (the step end and its events: contact_rhs_events.cpp)
   bool at_end(F1 y1) const;
 
@@ -388,7 +400,12 @@ class ContactRhs {
   // layout
   std::vector<int64_t> joints_, body_, pair_, rows_, centre_, normal_body_, lim_joint_;
   std::vector<double> masks_, local_, frame2_, lim_side_, lim_value_;
-  int nb_ = 0, n2h_ = 0, h_ = 0, np_ = 0, mp_ = 0, ml_ = 0, m_ = 0;
+  int nb_ = 0, n2h_ = 0, h_ = 0, np_ = 0, mp_ = 0, ml_ = 0, mc_ = 0, m_ = 0;
+  // the clamp rows (set_clamps: after the limits) and how the rows are reported (set_row_mode)
+  std::vector<int64_t> clamp_joint_, row_locked_;
+  std::vector<double> clamp_side_;
+  bool clamp_velocity_ = false;
+  double null_row_ = 0.0, null_gap_ = 0.0;
   // plan
   std::vector<int64_t> engaged_, row_slip_, sticks_;
   double mu_ = 0.0, stick_speed_ = 0.0, baumgarte_ = 0.0;

@@ -137,7 +137,7 @@ bool ContactRhs::evaluate_modes(const std::vector<int> &eng, const std::vector<c
 // contact set's Python side: packbot.contact.normal_dynamics.ConstrainedDynamics.evaluate):
 // end_eval's tuple (cond, a, lam, gap, vn, vt, slide2) there; None when the Delassus matrix
 // is singular (the caller solves by least squares).
-nb::object ContactRhs::evaluate_at(F1 q, F1 v, F1 a_free, F2 minv) {
+nb::object ContactRhs::evaluate_at(F1 q, F1 v, F1 a_free, F2 minv, bool with_qc) {
   const size_t n = static_cast<size_t>(nv_);
   if (q.shape(0) != n || v.shape(0) != n || a_free.shape(0) != n || minv.shape(0) != n ||
       minv.shape(1) != n)
@@ -153,9 +153,19 @@ nb::object ContactRhs::evaluate_at(F1 q, F1 v, F1 a_free, F2 minv) {
   }
   if (!solve_plan()) return nb::none();
   const double cond = end_conditions();
+  nb::object qc = nb::none();
+  if (with_qc) {  // the rows' generalized force C^T lambda [N*m] (the hand-off's holding torques)
+    std::vector<double> f(static_cast<size_t>(nv_), 0.0);
+    for (int c = 0; c < nv_; ++c) {
+      double s = 0.0;
+      for (int e = 0; e < n_; ++e) s += C_[e * nv_ + c] * lam_[e];
+      f[c] = s;
+    }
+    qc = nb::cast(vec(f.data(), n));
+  }
   return nb::make_tuple(cond, vec(a_.data(), nv_), vec(lam_.data(), n_), vec(gap_.data(), m_),
                         vec(vn_.data(), m_), mat(vt_.data(), np_, 3),
-                        vec(slide2_.data(), np_));
+                        vec(slide2_.data(), np_), qc);
 }
 
 // The last call's unconstrained accelerations, M^-1, forces, gaps, normal velocities,

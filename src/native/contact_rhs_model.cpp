@@ -95,6 +95,8 @@ void ContactRhs::set_layout(I1 joints, F2 masks, I1 body, F2 local, I1 pair, I1 
   lim_joint_ = ints(lim_joint);
   lim_side_ = reals(lim_side);
   lim_value_ = reals(lim_value);
+  clamp_joint_.clear();  // (set_clamps after it: a new layout has none)
+  clamp_side_.clear();
   layout_changed();
 }
 
@@ -111,11 +113,12 @@ void ContactRhs::layout_changed() {
   np_ = static_cast<int>(centre_.size());
   mp_ = static_cast<int>(rows_.size());
   ml_ = static_cast<int>(lim_joint_.size());
-  m_ = mp_ + ml_;
+  mc_ = static_cast<int>(clamp_joint_.size());
+  m_ = mp_ + ml_ + mc_;
   if (static_cast<int>(masks_.size()) != nb_ * nv_ || static_cast<int>(local_.size()) != 4 * n2h_ ||
       static_cast<int>(pair_.size()) != h_ || static_cast<int>(frame2_.size()) != 9 * np_ ||
       static_cast<int>(normal_body_.size()) != np_ || static_cast<int>(lim_side_.size()) != ml_ ||
-      static_cast<int>(lim_value_.size()) != ml_)
+      static_cast<int>(lim_value_.size()) != ml_ || static_cast<int>(clamp_side_.size()) != mc_)
     throw std::invalid_argument("inconsistent layout shapes");
   for (auto j : joints_)
     if (j < 0 || j >= static_cast<int64_t>(model_.njoints))

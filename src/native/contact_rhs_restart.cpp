@@ -120,8 +120,9 @@ int ContactRhs::project_round_raw(const double *q, const double *v, const double
 // restitution e applies when a touching row approaches faster than zeno [m/s] (else 0).
 // mu > 0: the frictional impact, blocks (t1, t2, n) per touching row (a limit row: no
 // tangential part, mu 0), on the conic solver (conic::solve, from zeros, to conic_tol within
-// max_iterations): taken when its residual is at most accept and it adds no kinetic energy,
-// else (2, False): the caller's own impulse (its ADMM, its frictionless candidates). mu = 0
+// max_iterations; on the factor of M^-1, that of the locked subspace's M^-1_c with the
+// hand-off's locked joints): taken when its residual is at most accept and it adds no kinetic
+// energy, else (2, False): the caller's own impulse (its ADMM, its frictionless candidates). mu = 0
 // (or after a frictional answer not taken: never here): Lemke on LCP(G, target), target =
 // v_n + e min(v_n, 0), residual at most res_tol (else (2, False)), taken when e = 0 or it
 // adds no energy, else the inelastic one. out_v = v + M^-1 J^T P [rad/s]: (1, bounced, rows,
@@ -172,8 +173,16 @@ nb::tuple ContactRhs::impact(F1 q, F1 v, F2 minv, double mu, double restitution,
     }
     std::vector<double> Ms(Mi, Mi + static_cast<size_t>(nv) * nv), C;
     packbot_native::conic::factor(Ms, nv, 0.0, C);
-    for (int i = 0; i < nv; ++i)
+    for (int i = 0; i < nv; ++i) {
+      // a joint of the hand-off's locked subspace (set_row_mode; M^-1_c's row and column 0):
+      // its factor's column is 0 (contact_rhs_clamps.cpp)
+      if (Ms[i * nv + i] == 0.0 &&
+          std::find(row_locked_.begin(), row_locked_.end(), i) != row_locked_.end()) {
+        C[i * nv + i] = 0.0;
+        continue;
+      }
       if (!(C[i * nv + i] > 1e-150)) return nb::make_tuple(2, false);
+    }
     std::vector<double> A(static_cast<size_t>(rt) * nv, 0.0), g(rt, 0.0), w(rt, 0.0);
     for (int i = 0; i < rt; ++i) {
       double sv = 0.0;

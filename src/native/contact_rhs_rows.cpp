@@ -229,6 +229,7 @@ void ContactRhs::rows() {
     gap_[mp_ + i] = s * (lim_value_[i] - q_[j]);
     vn_[mp_ + i] = -s * v_[j];
   }
+  if (mc_ > 0 || !row_locked_.empty()) clamp_rows();  // (the hand-off's: contact_rhs_clamps.cpp)
   for (int p = 0; p < np_; ++p) {
     // the centres' tangential slides t . (c2 - c1), the tangents turning with the frame's
     // body b: their exact derivatives (as the normal rows above); the
