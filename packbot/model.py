@@ -214,10 +214,7 @@ def _joint_params(model: pin.Model) -> JointParams:
             raise URDFError("urdf", f"joint {n!r}", "joint order differs from velocity order")
     return JointParams(
         names=names,
-        lower=np.array(model.lowerPositionLimit, dtype=float),
-        upper=np.array(model.upperPositionLimit, dtype=float),
-        velocity=np.array(model.velocityLimit, dtype=float),
-        effort=np.array(model.effortLimit, dtype=float),
+        **_model_limits(model),
         gear_ratio=ratio,
         rotor_inertia=rotor,
         armature=ratio**2 * rotor,
@@ -442,16 +439,23 @@ def _tool_frame(model: pin.Model, name: str | None, packbot: bool) -> str:
     return name
 
 
+def _model_limits(model: pin.Model) -> dict[str, NDArray[np.float64]]:
+    """The model's position [rad or m], velocity and effort limits, as JointParams takes them."""
+    return {
+        "lower": np.array(model.lowerPositionLimit, dtype=float),
+        "upper": np.array(model.upperPositionLimit, dtype=float),
+        "velocity": np.array(model.velocityLimit, dtype=float),
+        "effort": np.array(model.effortLimit, dtype=float),
+    }
+
+
 def _urdf_joint_params(model: pin.Model) -> JointParams:
     """Joint data of an arm other than PackBot, from its URDF (model order)."""
     names = tuple(str(n) for n in model.names[1:])
     nv = model.nv
     return JointParams(
         names=names,
-        lower=np.array(model.lowerPositionLimit, dtype=float),
-        upper=np.array(model.upperPositionLimit, dtype=float),
-        velocity=np.array(model.velocityLimit, dtype=float),
-        effort=np.array(model.effortLimit, dtype=float),
+        **_model_limits(model),
         gear_ratio=np.ones(nv),
         rotor_inertia=np.zeros(nv),
         armature=np.zeros(nv),
