@@ -15,6 +15,7 @@ import pinocchio as pin
 from numpy.typing import NDArray
 
 from packbot.errors import ConfigurationError, ConvexityError
+from packbot.geometry import convex_piece
 from packbot.keywords import checked_arguments
 from packbot.validation import (
     MAX_CONVEX_POINTS,
@@ -154,9 +155,7 @@ class Obstacle:
             n = np.asarray(self.normal, dtype=float)
             nn = float(np.linalg.norm(n))
             return coal.Halfspace(n / nn, self.offset / nn)
-        vec = coal.StdVec_Vec3s()
-        vec.extend(np.asarray(self.points, dtype=float))
-        return coal.Convex.convexHull(vec, True, "Qt")
+        return convex_piece(np.asarray(self.points, dtype=float))
 
     def world_aabb(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """Lower and upper corners of the world-frame bounding box [m].
