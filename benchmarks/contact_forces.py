@@ -1,6 +1,6 @@
 """The contact forces on the collapse's rest, against MuJoCo, and what recording them costs.
 
-Prints two tables:
+Prints four tables:
 
 - the rest forces of the collapse (contact-normal mode, mu 0.5, wrist and camera locked, 3 s):
   each pair's summed normal force [N] as packbot records it (the analytic centre of the
@@ -10,7 +10,8 @@ Prints two tables:
   recorder's contact sampler replaced by one that records none, interleaved in one process,
   medians of ``--repeats`` runs each; the same for a window-heavy wrist-free random start
   (start 16 of ``benchmarks/robustness.py``, mu 0.5, e 0, 1.5 s, 1 ms samples: its window
-  samples' forces are read from their steps' impulses).
+  samples' forces are read from their steps' impulses), and for the report's law's collapse
+  (``joint_clamp``, 3 s: its clamps' torques).
 
     python benchmarks/contact_forces.py [--repeats 9]
 """
@@ -67,6 +68,12 @@ def _windowed(robot: packbot.Robot) -> packbot.SimResult:
     return packbot.simulate(robot, q0, np.zeros(robot.nq), 1.5, config=cfg)
 
 
+def _report(robot: packbot.Robot) -> packbot.SimResult:
+    """The report's law's collapse (its clamp torques recorded), 3 s."""
+    cfg = packbot.SimConfig(contact_mode="joint_clamp", locked_joints=WRIST_JOINTS)
+    return packbot.simulate(robot, robot.pose("drive"), np.zeros(robot.nq), 3.0, config=cfg)
+
+
 def _none(drive: Any, law: Any) -> Any:
     return lambda t, y: None
 
@@ -88,7 +95,12 @@ def main(argv: list[str] | None = None) -> None:
         key = frozenset({p1.replace("/", "__"), p2.replace("/", "__")})
         print(f"| {p1} - {p2} | {fn:.2f} | {mj.get(key, float('nan')):.2f} |")
     real = recorder.contact_sampler
-    for label, run in (("collapse, 3 s", _collapse), ("wrist-free start 16, 1.5 s", _windowed)):
+    runs = (
+        ("collapse, 3 s", _collapse),
+        ("wrist-free start 16, 1.5 s", _windowed),
+        ("the report's law's collapse, 3 s", _report),
+    )
+    for label, run in runs:
         times: dict[str, list[float]] = {"recorded": [], "not recorded": []}
         run(robot)  # (warm)
         for _ in range(args.repeats):

@@ -59,10 +59,16 @@ class SampleForces(NamedTuple):
         contacts: Its contacts (:data:`SampleContact` each).
         limit_torque: The joint position stops' torques [N*m], shape (nv,): the torque each
             stop exerts on its joint (positive along +q; 0 off the stops).
+        clamp_torque: The report's law's clamps' torques [N*m], shape (nv,) (positive along
+            +q), or None: no clamp acts (zeros). Under the report's law (``joint_clamp``,
+            ``handoff``) a contact's clamps hold the joints between its bodies: the torque
+            each engaged clamp exerts on its joint (a limit stop under that law is a clamp
+            too), a Cartesian force nowhere.
     """
 
     contacts: list[SampleContact]
     limit_torque: FloatArray
+    clamp_torque: FloatArray | None = None
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -142,11 +148,14 @@ class ContactTable:
         point2: Body 2's material points [m], world frame, shape (K, 3).
         normal: Unit normals from body 1 to body 2, world frame, shape (K, 3).
         force: Forces on body 2 [N], world frame, shape (K, 3).
-        known: Per sample, whether the law could say its forces, shape (N,): False under the
-            report's law and at a window's opening instant (such a sample has no rows; its
-            contacts are unknown, not absent).
+        known: Per sample, whether the law could say its forces, shape (N,): False at a
+            time-stepping window's opening instant (such a sample has no rows; its contacts
+            are unknown, not absent).
         limit_torque: Per sample, the torque each joint position stop exerts on its joint
             [N*m], shape (N, nv) (positive along +q; 0 off the stops; NaN where not known).
+        clamp_torque: Per sample, the torque each of the report's law's clamps exerts on its
+            joint [N*m], shape (N, nv) (positive along +q; 0 where none acts, and in the
+            other modes; NaN where not known); (0, 0): a table built without it (zeros).
     """
 
     pairs: tuple[PairNames, ...] = ()
@@ -159,6 +168,7 @@ class ContactTable:
     force: FloatArray = field(default_factory=lambda: np.zeros((0, 3)))
     known: NDArray[np.bool_] = field(default_factory=lambda: np.zeros(0, dtype=bool))
     limit_torque: FloatArray = field(default_factory=lambda: np.zeros((0, 0)))
+    clamp_torque: FloatArray = field(default_factory=lambda: np.zeros((0, 0)))
 
     def __len__(self) -> int:
         """The number of rows (contacts over all samples)."""
@@ -174,9 +184,11 @@ class ContactTable:
         """
         known = np.array([s is not None for s in samples], dtype=bool)
         limit = np.full((len(samples), nv), np.nan)
+        clamp = np.full((len(samples), nv), np.nan)
         for k, s in enumerate(samples):
             if s is not None:
                 limit[k] = s.limit_torque
+                clamp[k] = 0.0 if s.clamp_torque is None else s.clamp_torque
         index: dict[PairNames, int] = {}
         rows_sample: list[int] = []
         rows_pair: list[int] = []
@@ -195,10 +207,11 @@ class ContactTable:
                 nrm.append(normal)
                 frc.append(force)
         if not rows_sample:
-            return cls(known=known, limit_torque=limit)
+            return cls(known=known, limit_torque=limit, clamp_torque=clamp)
         return cls(
             known=known,
             limit_torque=limit,
+            clamp_torque=clamp,
             pairs=tuple(index),
             sample=np.array(rows_sample, dtype=np.int64),
             pair=np.array(rows_pair, dtype=np.int64),

@@ -63,8 +63,8 @@ class ImpactTable:
             non-decreasing.
         rows: Its contacts as a :class:`~packbot.contact_forces.ContactTable` whose sample
             index is the impact's index in :attr:`t`, whose ``force`` column holds the
-            impulses [N*s] and whose ``limit_torque`` holds the stops' impulses [N*m*s], shape
-            (I, nv).
+            impulses [N*s], whose ``limit_torque`` holds the stops' impulses [N*m*s], shape
+            (I, nv), and whose ``clamp_torque`` the clamps' (:attr:`clamp_impulse`).
     """
 
     t: FloatArray = field(default_factory=lambda: np.zeros(0))
@@ -93,6 +93,19 @@ class ImpactTable:
         (0, 0) for an empty table built without its joints.
         """
         return np.asarray(self.rows.limit_torque, dtype=np.float64)
+
+    @property
+    def clamp_impulse(self) -> FloatArray:
+        """The report's law's clamps' impulses [N*m*s] per impact and joint, shape (I, nv).
+
+        A hand-off's restart (:mod:`packbot.contact.handoff`): the joint impulse its clamped
+        joints received (positive along +q); 0 in the other modes. (0, 0) for an empty table
+        built without its joints.
+        """
+        clamp = self.rows.clamp_torque
+        if clamp.shape[0] != len(self.t):  # (a table built without the column: zeros)
+            return np.zeros_like(self.rows.limit_torque)
+        return np.asarray(clamp, dtype=np.float64)
 
     def of(self, i: int) -> list[ContactImpulse]:
         """The contacts' impulses of impact i.

@@ -151,9 +151,12 @@ def contact_sampler(
         found = law.forces().contacts(y[:n], y[n : 2 * n], tau, t)
         if found is None or n == n_full:
             return found
-        full = np.zeros(n_full)  # (the stops' torques in full coordinates: locks' are 0)
-        full[drive.sys.free] = found.limit_torque  # (the phase's system: a failure locks)
-        return SampleForces(found.contacts, full)
+        # (the stops' and clamps' torques in full coordinates: a failure's locked joints' 0)
+        return SampleForces(
+            found.contacts,
+            drive.sys.v_full(found.limit_torque),
+            None if found.clamp_torque is None else drive.sys.v_full(found.clamp_torque),
+        )
 
     n_full = drive.robot.model.nv
     return sample

@@ -352,10 +352,11 @@ class SimResult:
     def contacts_known(self) -> NDArray[np.bool_]:
         """Per sample, whether its contact forces are known, shape (N,) (a copy).
 
-        False under the report's law (``joint_clamp``, ``handoff``) and at a time-stepping
-        window's opening instant (recorded before its first step): the contacts of such a
-        sample are unknown, not absent (:meth:`contacts_at` gives none,
-        :meth:`contact_torques` NaN).
+        False at a time-stepping window's opening instant (recorded before its first step):
+        the contacts of such a sample are unknown, not absent (:meth:`contacts_at` gives none,
+        :meth:`contact_torques`, :attr:`limit_torque` and :attr:`clamp_torque` NaN). Under the
+        report's law (``joint_clamp``) a sample is known, its clamped pairs acting through
+        :attr:`clamp_torque` alone.
         """
         known = self.contacts.known
         if len(known) != len(self.t):  # (a table without the mask: a result built by hand)
@@ -369,12 +370,35 @@ class SimResult:
         The torque each hard stop exerts on its joint: positive along +q, 0 off the stops,
         NaN where the forces are not known (:attr:`contacts_known`). With
         :meth:`contact_torques` it closes the equations of motion of the free joints:
-        M(q) a + C(q, v) v + g(q) = tau + tau_friction + contact_torques + limit_torque.
+        M(q) a + C(q, v) v + g(q) = tau + tau_friction + contact_torques + limit_torque +
+        :attr:`clamp_torque`.
         """
         lim = self.contacts.limit_torque
         if lim.shape != self.q.shape:
             return np.full(self.q.shape, np.nan)
         return np.array(lim, dtype=np.float64)
+
+    @property
+    def clamp_torque(self) -> NDArray[np.float64]:
+        """The report's law's clamp torques [N*m] at every sample, shape (N, nv) (a copy).
+
+        Under the report's law (``contact_mode="joint_clamp"``, with or without ``handoff``) a
+        pair in contact acts on the arm through clamps on the joints between its bodies, not
+        as a force at a point: the torque each engaged clamp exerts on its joint (positive
+        along +q), a joint clamped both ways and a handed-off problem's locked joints
+        included; 0 where no clamp acts and in the other modes; NaN where the forces are not
+        known (:attr:`contacts_known`). The handed-off pairs' own forces are contacts
+        (:meth:`contacts_at`). Where only a position stop holds a joint its torque is the
+        stop's (:attr:`limit_torque`); where a pair's clamp holds it too, the clamp's. The
+        equations of motion of the free joints close with it: M(q) a + C(q, v) v + g(q) =
+        tau + tau_friction + contact_torques + limit_torque + clamp_torque.
+        """
+        clamp = self.contacts.clamp_torque
+        if clamp.shape != self.q.shape:
+            out = np.zeros(self.q.shape)
+            out[~self.contacts_known] = np.nan
+            return out
+        return np.array(clamp, dtype=np.float64)
 
     @checked_arguments
     def sample_index(self, t: float, *, before: bool = False) -> int:

@@ -57,6 +57,7 @@ __all__ = [
     "RESULT_FORMAT_1",
     "RESULT_FORMAT_2",
     "RESULT_FORMAT_3",
+    "RESULT_FORMAT_4",
     "SAMPLE_ARRAYS",
     "NpyHeader",
     "ResultArchive",
@@ -69,7 +70,7 @@ __all__ = [
 ]
 
 #: The format tag of a file written by :meth:`SimResult.save` (its version after the slash).
-RESULT_FORMAT = "packbot.SimResult/4"
+RESULT_FORMAT = "packbot.SimResult/5"
 #: The tag of the format before the contact forces (read: a result without them).
 RESULT_FORMAT_1 = "packbot.SimResult/1"
 #: The tag of the format before the stops' torques and the known mask (read: every sample
@@ -78,6 +79,11 @@ RESULT_FORMAT_1 = "packbot.SimResult/1"
 RESULT_FORMAT_2 = "packbot.SimResult/2"
 #: The tag of the format before the impacts' impulses (read: a result without impacts).
 RESULT_FORMAT_3 = "packbot.SimResult/3"
+#: The tag of the format before the report's law's clamp torques (read: clamp torques 0 where
+#: the forces are known, NaN where not; the impacts' clamp impulses 0).
+RESULT_FORMAT_4 = "packbot.SimResult/4"
+#: The entries :data:`RESULT_FORMAT_4` does not have.
+CLAMP_ARRAYS = ("contact_clamp_torque", "impact_clamp_impulse")
 #: The sample arrays, one row per sample time: ``t`` and ``energy`` of shape (N,), the others
 #: (N, number of joints).
 SAMPLE_ARRAYS = ("t", "q", "v", "tau", "energy", "tau_cmd", "tau_friction", "effort")
@@ -93,19 +99,21 @@ EVENT_VELOCITIES = ("v_before", "v_after")
 CONTACT_INTS = ("sample", "pair")
 #: The contact forces' vector columns, shape (K, 3) each (:class:`packbot.ContactTable`).
 CONTACT_VECTORS = ("point", "point1", "point2", "normal", "force")
-#: The contact forces' per-sample entries: ``contact_known`` (N,) 0/1 and
-#: ``contact_limit_torque`` (N, number of joints) [N*m] (NaN where not known).
-CONTACT_SAMPLES = ("known", "limit_torque")
+#: The contact forces' per-sample entries: ``contact_known`` (N,) 0/1,
+#: ``contact_limit_torque`` and ``contact_clamp_torque`` (N, number of joints) [N*m] (NaN where
+#: not known).
+CONTACT_SAMPLES = ("known", "limit_torque", "clamp_torque")
 #: The contact forces' entries.
 CONTACT_ARRAYS = tuple(f"contact_{n}" for n in (*CONTACT_INTS, *CONTACT_VECTORS, *CONTACT_SAMPLES))
 #: The impacts' entries (:class:`packbot.ImpactTable`): ``impact_t`` (I,) [s], the rows'
 #: ``impact_sample`` (the impact's index) and ``impact_pair`` (of ``meta_json.impact_pairs``),
-#: their vectors (K, 3) (``impact_force``: the impulses [N*s]) and ``impact_limit_impulse``
-#: (I, number of joints) [N*m*s].
+#: their vectors (K, 3) (``impact_force``: the impulses [N*s]), ``impact_limit_impulse`` and
+#: ``impact_clamp_impulse`` (I, number of joints) [N*m*s].
 IMPACT_ARRAYS = (
     "impact_t",
     *(f"impact_{n}" for n in (*CONTACT_INTS, *CONTACT_VECTORS)),
     "impact_limit_impulse",
+    "impact_clamp_impulse",
 )
 #: The event floats that may be NaN (not measured): the distance and the energies.
 _EVENT_NAN_OK = ("distance", "energy_before", "energy_after")
@@ -456,10 +464,12 @@ _SHAPES = {
     **{f"contact_{n}": "2-d real" for n in CONTACT_VECTORS},
     "contact_known": "1-d int",
     "contact_limit_torque": "2-d real",
+    "contact_clamp_torque": "2-d real",
     "impact_t": "1-d real",
     **{f"impact_{n}": "1-d int" for n in CONTACT_INTS},
     **{f"impact_{n}": "2-d real" for n in CONTACT_VECTORS},
     "impact_limit_impulse": "2-d real",
+    "impact_clamp_impulse": "2-d real",
 }
 _WHAT = {
     "text": "text (a NumPy str array)",
@@ -500,7 +510,13 @@ def read_saved(path: str | Path) -> SavedResult:
         if _check_header(archive, "format", "0-d text").nbytes > _FORMAT_BYTES:
             archive.fail("format", f"a tag of over {_FORMAT_BYTES} bytes")
         tag = archive.text("format")
-        if tag not in (RESULT_FORMAT, RESULT_FORMAT_3, RESULT_FORMAT_2, RESULT_FORMAT_1):
+        if tag not in (
+            RESULT_FORMAT,
+            RESULT_FORMAT_4,
+            RESULT_FORMAT_3,
+            RESULT_FORMAT_2,
+            RESULT_FORMAT_1,
+        ):
             archive.fail("format", f"format {_short(tag)}, expected {RESULT_FORMAT!r}")
         version_1 = tag == RESULT_FORMAT_1
         heads = _check_entries(archive, tag)
@@ -549,30 +565,35 @@ def read_saved(path: str | Path) -> SavedResult:
         if tag == RESULT_FORMAT_2:
             contacts["known"] = np.ones(len(t), dtype=bool)
             contacts["limit_torque"] = np.full((len(t), n_joints), np.nan)
+            contacts["clamp_torque"] = np.full((len(t), n_joints), np.nan)
         elif not version_1:
-            contacts.update(_contact_samples(archive, len(t), n_joints))
+            contacts.update(_contact_samples(archive, len(t), n_joints, tag == RESULT_FORMAT))
         impacts = (
-            _impacts(archive, (float(t[0]), float(t[-1])), n_joints, meta)
-            if tag == RESULT_FORMAT
+            _impacts(archive, (float(t[0]), float(t[-1])), n_joints, meta, tag == RESULT_FORMAT)
+            if tag in (RESULT_FORMAT, RESULT_FORMAT_4)
             else {}
         )
     return SavedResult(archive.path, arrays, floats, vels, meta, contacts, impacts)
 
 
 def _impacts(
-    archive: ResultArchive, span: tuple[float, float], n_joints: int, meta: dict[str, Any]
+    archive: ResultArchive,
+    span: tuple[float, float],
+    n_joints: int,
+    meta: dict[str, Any],
+    clamps: bool = True,
 ) -> dict[str, NDArray[Any]]:
-    """The impacts' entries: their times, rows and stops' impulses.
+    """The impacts' entries: their times, rows, stops' and clamps' impulses.
 
     The times never decrease and lie within the samples' ``span`` [s]; the rows' pairs are
-    those of ``meta["impact_pairs"]``.
+    those of ``meta["impact_pairs"]``. ``clamps`` False: a file of :data:`RESULT_FORMAT_4`
+    (no clamp impulses: zeros).
     """
     n = archive.header("impact_t").shape[0]
-    shape = archive.header("impact_limit_impulse").shape
-    if shape != (n, n_joints):
-        archive.fail(
-            "impact_limit_impulse", f"shape {shape} (expected {(n, n_joints)}: a row per impact)"
-        )
+    for name in ("impact_limit_impulse", "impact_clamp_impulse")[: 2 if clamps else 1]:
+        shape = archive.header(name).shape
+        if shape != (n, n_joints):
+            archive.fail(name, f"shape {shape} (expected {(n, n_joints)}: a row per impact)")
     t = _floats(archive, "impact_t")
     if not np.all(t[1:] >= t[:-1]):
         k = int(np.flatnonzero(t[1:] < t[:-1])[0])
@@ -590,6 +611,9 @@ def _impacts(
     out = _contacts(archive, n, len(meta["impact_pairs"]), "impact_")
     out["t"] = t
     out["limit_torque"] = _floats(archive, "impact_limit_impulse")
+    out["clamp_torque"] = (
+        _floats(archive, "impact_clamp_impulse") if clamps else np.zeros((n, n_joints))
+    )
     return out
 
 
@@ -635,10 +659,16 @@ def _contacts(
 
 
 def _contact_samples(
-    archive: ResultArchive, n_samples: int, n_joints: int
+    archive: ResultArchive, n_samples: int, n_joints: int, clamps: bool = True
 ) -> dict[str, NDArray[Any]]:
-    """The per-sample contact entries: the known mask (0/1) and the stops' torques [N*m]."""
-    for name, want in (("known", (n_samples,)), ("limit_torque", (n_samples, n_joints))):
+    """The per-sample contact entries: the known mask (0/1), the stops' and clamps' torques.
+
+    ``clamps`` False: a file of :data:`RESULT_FORMAT_4` (clamp torques 0 where known, NaN
+    where not).
+    """
+    names = ("known", "limit_torque", "clamp_torque")[: 3 if clamps else 2]
+    for name in names:
+        want = (n_samples,) if name == "known" else (n_samples, n_joints)
         shape = archive.header(f"contact_{name}").shape
         if shape != want:
             archive.fail(f"contact_{name}", f"shape {shape} (expected {want}: a row per sample)")
@@ -648,7 +678,11 @@ def _contact_samples(
         i = int(np.flatnonzero(bad)[0])
         archive.fail("contact_known", f"contact_known[{i}] = {int(known[i])} (expected 0 or 1)")
     limit = _floats(archive, "contact_limit_torque", nan_ok=True)
-    return {"known": known.astype(bool), "limit_torque": limit}
+    if clamps:
+        clamp = _floats(archive, "contact_clamp_torque", nan_ok=True)
+    else:
+        clamp = np.where(known.astype(bool)[:, None], 0.0, np.nan) * np.ones((1, n_joints))
+    return {"known": known.astype(bool), "limit_torque": limit, "clamp_torque": clamp}
 
 
 def _check_entries(archive: ResultArchive, tag: str = RESULT_FORMAT) -> dict[str, NpyHeader]:
@@ -663,7 +697,9 @@ def _check_entries(archive: ResultArchive, tag: str = RESULT_FORMAT) -> dict[str
     elif tag == RESULT_FORMAT_2:
         absent = tuple(f"contact_{n}" for n in CONTACT_SAMPLES) + IMPACT_ARRAYS
     elif tag == RESULT_FORMAT_3:
-        absent = IMPACT_ARRAYS
+        absent = IMPACT_ARRAYS + CLAMP_ARRAYS
+    elif tag == RESULT_FORMAT_4:
+        absent = CLAMP_ARRAYS
     entries = [e for e in ENTRIES if e not in absent]
     missing = [e for e in entries if e not in archive.members]
     if missing:
@@ -809,7 +845,7 @@ def check_meta(meta: object, fail: Fail, tag: str = RESULT_FORMAT) -> dict[str, 
         k
         for k in META_FIELDS
         if not (tag == RESULT_FORMAT_1 and k == "contact_pairs")
-        and not (tag != RESULT_FORMAT and k == "impact_pairs")
+        and not (tag not in (RESULT_FORMAT, RESULT_FORMAT_4) and k == "impact_pairs")
     ]
     for key in fields:
         if key not in meta:

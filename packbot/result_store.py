@@ -82,6 +82,7 @@ def write_result(result: SimResult, path: str | Path, extra: Mapping[str, str] |
         arrays[f"contact_{name}"] = np.asarray(getattr(table, name), dtype=np.float64)
     arrays["contact_known"] = result.contacts_known.astype(np.int64)
     arrays["contact_limit_torque"] = result.limit_torque
+    arrays["contact_clamp_torque"] = result.clamp_torque
     imp = result.impacts
     arrays["impact_t"] = np.asarray(imp.t, dtype=np.float64)
     for name in CONTACT_INTS:
@@ -89,6 +90,9 @@ def write_result(result: SimResult, path: str | Path, extra: Mapping[str, str] |
     for name in CONTACT_VECTORS:
         arrays[f"impact_{name}"] = np.asarray(getattr(imp.rows, name), dtype=np.float64)
     arrays["impact_limit_impulse"] = np.asarray(imp.limit_impulse).reshape(
+        len(imp), len(result.joint_names)
+    )
+    arrays["impact_clamp_impulse"] = np.asarray(imp.clamp_impulse).reshape(
         len(imp), len(result.joint_names)
     )
     meta = {
@@ -230,7 +234,11 @@ def _impacts(saved: SavedResult, n_joints: int) -> ImpactTable:
     """The impacts of a file's checked contents (none for a file of an earlier format)."""
     cols = dict(saved.impacts)
     if not cols:
-        return ImpactTable(rows=ContactTable(limit_torque=np.zeros((0, n_joints))))
+        return ImpactTable(
+            rows=ContactTable(
+                limit_torque=np.zeros((0, n_joints)), clamp_torque=np.zeros((0, n_joints))
+            )
+        )
     t = cols.pop("t")
     rows = ContactTable(
         pairs=tuple(saved.meta["impact_pairs"]), known=np.ones(len(t), dtype=bool), **cols

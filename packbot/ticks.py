@@ -112,7 +112,8 @@ class Ticks:
     def _sense(self, t: float, y: FloatArray, qf: FloatArray) -> None:
         """Tell a contact-sensing controller the contacts at (t, y) and their joint torque.
 
-        The joint torque is the contacts' (J^T f) and the joint position stops' together.
+        The joint torque is the contacts' (J^T f), the joint position stops' and the report's
+        law's clamps' together.
         """
         assert self.controller is not None
         found = None if self.contacts is None else self.contacts(t, y)
@@ -138,9 +139,12 @@ class Ticks:
             ctrl.contacts = ctrl.contact_torque = None
             return
         ctrl.contacts = [ContactForce.from_sample(c) for c in found.contacts]
-        # (the joint stops' torques with the contacts': all the arm's known external torque)
-        tau_c = joint_torque(model, self._data, qf, found.contacts)
-        ctrl.contact_torque = tau_c + found.limit_torque
+        # (the joint stops' and the report's clamps' torques with the contacts': all the arm's
+        # known external torque)
+        tau_c = joint_torque(model, self._data, qf, found.contacts) + found.limit_torque
+        if found.clamp_torque is not None:
+            tau_c = tau_c + found.clamp_torque
+        ctrl.contact_torque = tau_c
 
     def same(self, tau: FloatArray) -> bool:
         """Whether a new command is the held one (see :data:`HOLD_FRACTION`)."""

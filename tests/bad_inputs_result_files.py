@@ -442,11 +442,18 @@ def register(cat: ModuleType) -> None:
     )
     per_sample("contact-limit-3", "contact_limit_torque", lambda n: np.zeros((n, 3)), "shape")
     replaced("contact-limit-missing", "contact_limit_torque", None, "missing")
+    per_sample("contact-clamp-3", "contact_clamp_torque", lambda n: np.zeros((n, 3)), "shape")
+    replaced("contact-clamp-missing", "contact_clamp_torque", None, "missing")
 
     # -- the impacts' entries
     def impacts(id: str, n: int, *words: str, **entries: Any) -> None:
-        """A case with ``n`` impacts (their stops' impulses zero) and ``entries`` replaced."""
-        base = {"impact_t": np.linspace(0.0, 0.02, n), "impact_limit_impulse": np.zeros((n, 8))}
+        """A case with ``n`` impacts (their stops' and clamps' impulses zero), ``entries``
+        replaced."""
+        base = {
+            "impact_t": np.linspace(0.0, 0.02, n),
+            "impact_limit_impulse": np.zeros((n, 8)),
+            "impact_clamp_impulse": np.zeros((n, 8)),
+        }
         case(id, lambda c, raw, a: npz(a, **(base | entries)), *words)
 
     impacts("impact-t-decreasing", 2, entry("impact_t"), "never decrease", impact_t=[0.02, 0.01])
@@ -454,6 +461,8 @@ def register(cat: ModuleType) -> None:
     impacts("impact-t-after-the-run", 1, entry("impact_t"), "within", impact_t=[1.0])
     impacts("impact-limit-short", 2, entry("impact_limit_impulse"), "shape",
             impact_limit_impulse=np.zeros((1, 8)))  # fmt: skip
+    impacts("impact-clamp-short", 2, entry("impact_clamp_impulse"), "shape",
+            impact_clamp_impulse=np.zeros((1, 8)))  # fmt: skip
     rows = {
         f"impact_{n}": np.zeros((1, 3)) for n in ("point", "point1", "point2", "normal", "force")
     }
@@ -467,7 +476,7 @@ def register(cat: ModuleType) -> None:
     # -- the text entries and the plain copies
     replaced("text-format-missing", "format", None, "no format tag")
     replaced("text-meta_json-missing", "meta_json", None, "no format tag")
-    replaced("text-format-other-version", "format", np.array("packbot.SimResult/5"), "/5")
+    replaced("text-format-other-version", "format", np.array("packbot.SimResult/6"), "/6")
     replaced("text-format-empty", "format", np.array(""), entry("format"), "expected")
     replaced("text-format-number", "format", np.array(1.0), entry("format"), "dtype")
     replaced("text-format-1d", "format", np.array(["packbot.SimResult/1"]), entry("format"))
@@ -561,7 +570,7 @@ def register(cat: ModuleType) -> None:
     ):
         meta_case(f"no-{key}", dropper(key), entry(f"{m}.{key}"), "missing")
     meta_case("unknown-field", setter("colour", "red"), entry(f"{m}.colour"), "unknown")
-    meta_case("format-other", setter("format", "packbot.SimResult/5"), entry(f"{m}.format"))
+    meta_case("format-other", setter("format", "packbot.SimResult/6"), entry(f"{m}.format"))
     meta_case("format-older", setter("format", "packbot.SimResult/1"), entry(f"{m}.format"))
     meta_case("contact-pairs-number", setter("contact_pairs", 3), entry(f"{m}.contact_pairs"))
     meta_case("impact-pairs-number", setter("impact_pairs", 3), entry(f"{m}.impact_pairs"))

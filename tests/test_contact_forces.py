@@ -21,7 +21,7 @@ from scipy.optimize import minimize
 import packbot
 from packbot.contact.static_forces import analytic_centre
 from packbot.errors import ConfigurationError
-from packbot.result_file import RESULT_FORMAT_1, RESULT_FORMAT_2
+from packbot.result_file import RESULT_FORMAT_1, RESULT_FORMAT_2, RESULT_FORMAT_4
 
 WRIST = ("camera_tilt", "camera_pan", "gripper_roll", "gripper_jaw")
 MU = 0.5
@@ -195,24 +195,36 @@ def test_analytic_centre_keeps_a_determinate_distribution() -> None:
     np.testing.assert_allclose(x, solver, rtol=1e-12)
 
 
-def test_report_law_records_no_contact_forces(robot) -> None:
-    cfg = packbot.SimConfig(contact_mode="joint_clamp", locked_joints=WRIST)
+def test_report_law_records_its_clamps_torques_not_contact_forces(robot) -> None:
+    """Under the report's law a clamped pair acts through its clamps: no Cartesian force, the
+    clamps' torques on their joints; at the final rest they hold gravity on every free joint."""
+    # (the turret locked too: unclamped under this law, it would drift on at 0.2 mrad/s)
+    cfg = packbot.SimConfig(contact_mode="joint_clamp", locked_joints=(*WRIST, "turret"))
     res = packbot.simulate(robot, robot.pose("drive"), np.zeros(8), 1.0, config=cfg)
-    assert len(res.contacts) == 0
-    assert res.contacts_at(1.0) == []
-    # unknown, not absent: no sample known, their torques NaN
-    assert not res.contacts_known.any()
-    assert np.isnan(res.contact_torques(robot)).all() and np.isnan(res.limit_torque).all()
+    assert len(res.contacts) == 0 and res.contacts_at(1.0) == []
+    assert res.contacts_known.all()  # every sample's forces are known: the clamps'
+    assert not np.any(res.contact_torques(robot))
+    clamp = res.clamp_torque
+    assert np.isfinite(clamp).all() and np.abs(clamp).max() > 5.0  # (clamps engage: a real test)
+    wrist = [robot.joint_names.index(j) for j in WRIST]
+    assert not np.any(clamp[0]) and not np.any(clamp[:, wrist])
+    # the last sample rests clamped: clamps, stops and friction hold gravity on the free joints
+    free = [robot.joint_names.index(j) for j in ("shoulder", "elbow1", "elbow2")]
+    k = len(res.t) - 1
+    assert np.abs(res.v[k]).max() < 1e-9
+    g = pin.computeGeneralizedGravity(robot.model, robot.model.createData(), res.q[k])
+    held = res.tau[k] + res.tau_friction[k] + res.limit_torque[k] + clamp[k]
+    assert np.linalg.norm((held - g)[free]) <= 1e-9 * np.linalg.norm(g[free])
 
 
 def _balance(robot: packbot.Robot, res: packbot.SimResult, free: list[int]) -> FloatArray:
-    """Per sample inside the run, |M a + h - tau - tau_fr - J^T f - tau_stop| on the free
-    joints [N*m], with a by central differences of the recorded v (NaN: a sample whose
+    """Per sample inside the run, |M a + h - tau - tau_fr - J^T f - tau_stop - tau_clamp| on
+    the free joints [N*m], with a by central differences of the recorded v (NaN: a sample whose
     neighbours are not both one sample_dt away, or across a kink: one-sided differences that
     disagree by over 5 %, an impact or a restart between)."""
     model, data = robot.model, robot.model.createData()
     t, q, v = res.t, res.q, res.v
-    Q, L = res.contact_torques(robot), res.limit_torque
+    Q, L = res.contact_torques(robot), res.limit_torque + res.clamp_torque
     dt = res.config.sample_dt
     out = np.full(len(t), np.nan)
     for k in range(1, len(t) - 1):
@@ -227,16 +239,35 @@ def _balance(robot: packbot.Robot, res: packbot.SimResult, free: list[int]) -> F
     return out
 
 
-@pytest.mark.parametrize("mode", ["normal", "none"])
+#: The collapse's settings per mode: the report's law with the momentum reset and e = 0.5,
+#: where the hand-off hands link 2's elbow1 casing over at 0.787 s (tests/test_handoff.py).
+_COLLAPSES = {
+    "normal": {"contact_mode": "normal"},
+    "none": {"contact_mode": "none"},
+    "joint_clamp": {"contact_mode": "joint_clamp", "reset_rule": "momentum", "restitution": 0.5},
+    "handoff": {
+        "contact_mode": "joint_clamp", "reset_rule": "momentum", "restitution": 0.5,
+        "handoff": True,
+    },
+}  # fmt: skip
+
+
+@pytest.mark.parametrize("mode", list(_COLLAPSES))
 def test_recorded_forces_close_the_equations_of_motion_during_the_collapse(robot, mode) -> None:
-    """The recorded contact forces and stop torques balance M a + h - tau on the free joints
-    at every sample of the moving collapse, not only at rest: the whole motion, impacts, stops,
-    slides and re-patches included (a stretch of samples recorded with another mode's forces,
-    or a stop's torque left out, shows up as a run of samples off by newtons)."""
-    cfg = packbot.SimConfig(contact_mode=mode, mu=MU, locked_joints=WRIST, sample_dt=2e-4)
+    """The recorded contact forces, stop and clamp torques balance M a + h - tau on the free
+    joints at every sample of the moving collapse, not only at rest: the whole motion, impacts,
+    stops, clamps, slides, re-patches and the hand-off's mixed problem included (a stretch of
+    samples recorded with another mode's forces, or a stop's or clamp's torque left out, shows
+    up as a run of samples off by newtons)."""
+    cfg = packbot.SimConfig(**_COLLAPSES[mode], mu=MU, locked_joints=WRIST, sample_dt=2e-4)
     res = packbot.simulate(robot, robot.pose("drive"), np.zeros(8), 1.5, config=cfg)
     assert res.contacts_known.all()
-    assert np.abs(res.limit_torque).max() > 5.0  # (elbow1 reaches its stop: a real test)
+    # (elbow1 reaches its stop, or the clamps engage: a real test)
+    assert np.abs(res.limit_torque + res.clamp_torque).max() > 5.0
+    if mode == "handoff":  # the handed-off pair's forces are contacts
+        assert res.events_of("handoff") and len(res.contacts) > 0
+    else:
+        assert mode == "normal" or len(res.contacts) == 0
     r = _balance(robot, res, _free(res))
     ok = np.isfinite(r)
     assert ok.sum() > 0.9 * len(r)
@@ -315,11 +346,22 @@ def older_file(
 
 
 def test_a_file_of_the_format_before_the_stop_torques_loads(collapse, tmp_path) -> None:
-    drop = ("contact_known", "contact_limit_torque", "impact_")
+    drop = ("contact_known", "contact_limit_torque", "contact_clamp_torque", "impact_")
     old = older_file(collapse, tmp_path, RESULT_FORMAT_2, drop, ("impact_pairs",))
     back = packbot.SimResult.load(old)
     np.testing.assert_array_equal(back.contacts.force, collapse.contacts.force)
     assert back.contacts_known.all() and np.isnan(back.limit_torque).all()
+
+
+def test_a_file_of_the_format_before_the_clamp_torques_loads(robot, tmp_path) -> None:
+    cfg = packbot.SimConfig(contact_mode="joint_clamp", locked_joints=WRIST)
+    res = packbot.simulate(robot, robot.pose("drive"), np.zeros(8), 1.0, config=cfg)
+    assert np.abs(res.clamp_torque).max() > 0.0
+    drop = ("contact_clamp_torque", "impact_clamp_impulse")
+    back = packbot.SimResult.load(older_file(res, tmp_path, RESULT_FORMAT_4, drop, ()))
+    # (that format recorded a report's law's sample as not known, as this one does not)
+    assert not np.any(back.clamp_torque) and not np.any(back.impacts.clamp_impulse)
+    np.testing.assert_array_equal(back.limit_torque, res.limit_torque)
 
 
 def test_a_file_of_the_format_before_contacts_loads_without_them(collapse, tmp_path) -> None:
@@ -380,11 +422,23 @@ def test_a_contact_sensing_controller_is_told_the_forces(robot) -> None:
     assert sorted(c.pair for c in contacts) == sorted(c.pair for c in res.contacts_at(3.0))
 
 
-def test_the_report_law_tells_no_forces(robot) -> None:
+def test_the_report_law_tells_its_clamps_torques(robot) -> None:
+    """Under the report's law a contact-sensing controller is told no contact, and the clamps'
+    torques as the contacts' joint torque: at rest they hold gravity on the free joints."""
     ctrl = _Sensing(dt=0.05)
-    cfg = packbot.SimConfig(contact_mode="joint_clamp", locked_joints=WRIST)
-    packbot.simulate(robot, robot.pose("drive"), np.zeros(8), 0.5, controller=ctrl, config=cfg)
-    assert all(torque is None and contacts is None for _, torque, _, contacts in ctrl.told)
+    cfg = packbot.SimConfig(contact_mode="joint_clamp", locked_joints=(*WRIST, "turret"))
+    res = packbot.simulate(
+        robot, robot.pose("drive"), np.zeros(8), 1.0, controller=ctrl, config=cfg
+    )
+    assert all(contacts == [] and torque is not None for _, torque, _, contacts in ctrl.told)
+    t, torque, _, _ = ctrl.told[-1]
+    k = res.sample_index(float(res.t[-1]))
+    assert t > 0.9 and np.abs(res.v[k]).max() < 1e-9  # (told at rest)
+    g = pin.computeGeneralizedGravity(robot.model, robot.model.createData(), res.q[k])
+    free = [robot.joint_names.index(j) for j in ("shoulder", "elbow1", "elbow2")]
+    assert np.linalg.norm((torque + res.tau_friction[k] - g)[free]) <= 1e-6 * np.linalg.norm(
+        g[free]
+    )
 
 
 def test_the_contact_plot_draws_each_pair(collapse, tmp_path) -> None:

@@ -293,3 +293,45 @@ def test_joint_friction_with_the_handoff_dissipates_and_comes_to_rest(robot, rub
             # at rest: exactly under the mixed problem, to rounding under the joint locks
             assert np.all(np.abs(res.v[inside, j]) <= 1e-12), name
             assert np.all(np.abs(res.tau_friction[inside, j]) <= bound[j] + TORQUE_TOL), name
+
+
+def test_the_recorded_forces_hold_the_arm_at_rest_under_the_handed_off_pair(robot, rubbing):
+    """At the rest under the handed-off pair, its contact forces, the clamps' torques and the
+    joints' friction (the rest problem's boxes, each within its bound) hold gravity on every
+    free joint; the pair's forces push and lie in their cone."""
+    res = rubbing
+    ((t_on, t_off),) = _handed_off(res)
+    k = len(res.t) - 1
+    assert res.rest_time is not None and t_on < res.rest_time < t_off
+    contacts = res.contacts_at(float(res.t[k]))
+    assert contacts and res.contacts_known[k]
+    for c in contacts:
+        fn = c.normal_force
+        assert fn >= -TORQUE_TOL
+        assert np.linalg.norm(c.friction_force) <= res.config.mu * fn + TORQUE_TOL
+    free = [j for j, name in enumerate(robot.joint_names) if name not in WRIST]
+    g = pin.computeGeneralizedGravity(robot.model, robot.model.createData(), res.q[k])
+    held = (
+        res.tau[k] + res.tau_friction[k] + res.contact_torques(robot)[k]
+        + res.limit_torque[k] + res.clamp_torque[k]
+    )  # fmt: skip
+    assert np.linalg.norm((held - g)[free]) <= 1e-6 * np.linalg.norm(g[free])
+    bound = np.array(robot.params.coulomb)
+    assert np.all(np.abs(res.tau_friction[k]) <= bound + TORQUE_TOL)
+    assert np.any(np.abs(res.tau_friction[k][free]) > 1e-3)  # (the friction holds: a real test)
+
+
+def test_the_handed_off_restarts_record_their_impulses(robot, braked):
+    """The mixed problem's restarts log their impulses: each patch point's normal impulse
+    pushes and lies in its cone, and the clamp rows' impulses act on joints only."""
+    res = braked
+    assert len(res.impacts) > 0
+    rows = [c for t in res.impacts.t for c in res.impulses_at(float(t))]
+    assert rows  # (a handed-off pair's impacts)
+    for c in rows:
+        pn = float(c.impulse @ c.normal)
+        assert pn > 0.0
+        assert np.linalg.norm(c.impulse - pn * c.normal) <= res.config.mu * pn * (1 + 1e-9)
+    assert res.impacts.clamp_impulse.shape == (len(res.impacts), robot.nq)
+    wrist = [robot.joint_names.index(j) for j in WRIST]
+    assert not np.any(res.impacts.clamp_impulse[:, wrist])

@@ -129,10 +129,12 @@ def test_impulses_survive_save_and_load(bounced, tmp_path) -> None:
             getattr(back.impacts.rows, name), getattr(res.impacts.rows, name)
         )
     np.testing.assert_array_equal(back.impacts.limit_impulse, res.impacts.limit_impulse)
+    np.testing.assert_array_equal(back.impacts.clamp_impulse, res.impacts.clamp_impulse)
 
 
 def test_a_file_of_the_format_before_impacts_loads_without_them(bounced, tmp_path) -> None:
-    old = older_file(bounced, tmp_path, RESULT_FORMAT_3, ("impact_",), ("impact_pairs",))
+    drop = ("impact_", "contact_clamp_torque")
+    old = older_file(bounced, tmp_path, RESULT_FORMAT_3, drop, ("impact_pairs",))
     back = packbot.SimResult.load(old)
     assert len(back.impacts) == 0 and back.impulses_at(bounced.impacts.t[0]) == []
     np.testing.assert_array_equal(back.contacts.force, bounced.contacts.force)

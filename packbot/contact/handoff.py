@@ -69,14 +69,15 @@ from numpy.typing import NDArray
 
 from packbot.collision import PairInfo
 from packbot.contact import native
-from packbot.contact.base import Active, Crossing, Key
+from packbot.contact.base import Active, Crossing, ForceReport, Key
+from packbot.contact.handoff_forces import HandoffReport
 from packbot.contact.joint_clamp import JointClampLaw
 from packbot.contact.locks import ACCEL_BAND, TORQUE_BAND
 from packbot.contact.normal_contacts import NormalContacts
 from packbot.contact.normal_dynamics import _Eval
 from packbot.contact.normal_modes import ModeEvent
 from packbot.contact.patch_events import PatchEvents
-from packbot.contact.stops import HOLD_KICK, RECEDE_SPEED, STICK_SPEED, friction_share
+from packbot.contact.stops import HOLD_KICK, RECEDE_SPEED, STICK_SPEED
 from packbot.ode import DenseSegment
 from packbot.system import System
 
@@ -328,16 +329,14 @@ class HandoffContacts(NormalContacts):
     def impulse(self, q: FloatArray, v: FloatArray, minv: FloatArray) -> FloatArray:
         """The normal mode's impulse, the clamp rows at their true velocity (J v+ >= 0).
 
-        Clamped joints moving toward their contact are stopped first (:meth:`stop_clamped`).
-        Its impulses are not recorded (``impact_rows`` None): the clamp rows are the report's
-        joint clamps, not contact forces (as the hand-off's samples are not known).
+        Clamped joints moving toward their contact are stopped first (:meth:`stop_clamped`:
+        a velocity reset of the report's law, in the event's velocities, not an impulse of the
+        run's impact log). The second stage's impulses are recorded (``impact_rows``): the
+        patch rows' as contact impulses, the clamp rows' as the clamps' joint impulses.
         """
         v = self.stop_clamped(v, minv, self.clamps)
-        try:
-            with self._velocity():
-                return super().impulse(q, v, minv)
-        finally:
-            self.impact_rows = None
+        with self._velocity():
+            return super().impulse(q, v, minv)
 
     def stop_slow(self, q: FloatArray, v: FloatArray, minv: FloatArray) -> FloatArray:
         """The normal mode's stop of slow slides, the clamp rows at their true velocity."""
@@ -403,6 +402,8 @@ class HandoffLaw(JointClampLaw, PatchEvents):
 
     Attributes:
         mixed: The handed-off pairs and the clamp rows.
+        report: The forces at the samples (:class:`~packbot.contact.handoff_forces.
+            HandoffReport`).
     """
 
     def rebuild(self, system: System) -> None:
@@ -415,6 +416,11 @@ class HandoffLaw(JointClampLaw, PatchEvents):
             self.cfg,
             check_others=False,  # its other pairs are the joint_clamp mode's
         )
+        self.report = HandoffReport(self)
+
+    def forces(self) -> ForceReport:
+        """The current mode's forces at the samples (its :class:`HandoffReport`)."""
+        return self.report
 
     @property
     def mixed_on(self) -> bool:
@@ -463,23 +469,6 @@ class HandoffLaw(JointClampLaw, PatchEvents):
                 g = max(g, -s * tj + TORQUE_BAND)
             out[("hold", j)] = g if len(signs) != 2 else 1.0
         return out
-
-    def friction(
-        self, q: FloatArray, v: FloatArray, applied: FloatArray, friction: FloatArray
-    ) -> FloatArray:
-        """The friction torques [N*m], each held joint's holding torque in place.
-
-        While the mixed problem is on, the holding torques with its contact forces (the part
-        within the bound: :func:`~packbot.contact.stops.friction_share`).
-        """
-        if not (self.mixed_on and self.locks.held):
-            return super().friction(q, v, applied, friction)
-        a_free = self.sys.aba(q, v, applied + friction)
-        tau = self.mixed.hold_torques(q, v, a_free, self.sys.minv(q))
-        friction = friction.copy()
-        for j, tj in tau.items():
-            friction[j] = friction_share(tj, self.locks.held[j])
-        return friction
 
     def _pair_crossings(
         self, key: Key, p_idx: int, seg: DenseSegment, d0: float, d1: float

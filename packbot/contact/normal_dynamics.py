@@ -49,6 +49,8 @@ class RestSolution:
         mu: Each row's friction coefficient (0 for a limit row), shape (m,).
         torque: The rows' joint torque that holds the arm exactly still [N*m], shape (nv,):
             J^T of ``forces`` less M a (the solver leaves a within its tolerance of 0).
+        friction: The joints' Coulomb friction and brake torques holding them [N*m], shape
+            (nv,) (each within its bound; 0 on joints without): the problem's joint boxes.
     """
 
     a: FloatArray
@@ -57,6 +59,7 @@ class RestSolution:
     rows: FloatArray
     mu: FloatArray
     torque: FloatArray
+    friction: FloatArray
 
 
 class ConstrainedDynamics(ContactRows):
@@ -340,7 +343,10 @@ class ConstrainedDynamics(ContactRows):
                 self.model, self.data, J @ minv @ J.T, J @ a_free, mus, self._joint_of[cj], coul[cj]
             )
             J3 = J
+            friction = np.zeros(self.nv)
+            friction[cj] = x[len(x) - len(cj) :]
         else:
+            friction = np.zeros(self.nv)
             G3 = J3 @ minv @ J3.T
             x, res = solve_ncp_admm(self.model, self.data, G3, J3 @ a_free, mus)
         if res > 1e-6:
@@ -354,9 +360,9 @@ class ConstrainedDynamics(ContactRows):
         else:
             Ma = np.linalg.solve(minv, a)
         torque = rows.T @ forces.ravel() - Ma
-        for arr in (a, touch, forces, rows, mus, torque):
+        for arr in (a, touch, forces, rows, mus, torque, friction):
             arr.setflags(write=False)
-        return RestSolution(a, touch, forces, rows, mus, torque)
+        return RestSolution(a, touch, forces, rows, mus, torque, friction)
 
 
 _OWN_EVALUATE = ConstrainedDynamics.evaluate

@@ -26,7 +26,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
 import pinocchio as pin
@@ -42,14 +42,33 @@ if TYPE_CHECKING:
 
 __all__ = [
     "NormalReport",
+    "RowForces",
     "mode_forces",
     "pair_frame",
     "pair_names",
     "pair_points",
+    "rest_friction",
+    "row_forces",
     "row_impulses",
 ]
 
 FloatArray = NDArray[np.float64]
+
+
+class RowForces(NamedTuple):
+    """A contact set's forces at a state as its problem found them.
+
+    Attributes:
+        found: The contacts and the joint stops' torques (:func:`mode_forces`).
+        beyond: The engaged rows after the patch and limit rows (a hand-off's clamp rows):
+            row -> its normal multiplier [N*m].
+        qc: The rows' generalized force C^T lambda [N*m], shape (nv,) (every row's; at rest
+            with the joints' friction boxes' torques).
+    """
+
+    found: SampleForces
+    beyond: dict[int, float]
+    qc: FloatArray
 
 
 def mode_forces(
@@ -74,11 +93,26 @@ def mode_forces(
         (names, point, point1, point2 [m], normal, force on body 2 [N]) per contact point,
         and the joint stops' torques [N*m] (nv,).
     """
+    return row_forces(nc, data, q, v, a_free, minv).found
+
+
+def row_forces(
+    nc: NormalContacts,
+    data: Any,
+    q: FloatArray,
+    v: FloatArray,
+    a_free: FloatArray,
+    minv: FloatArray,
+) -> RowForces:
+    """:func:`mode_forces`, with the multipliers of the rows it does not place and C^T lambda.
+
+    Same arguments as :func:`mode_forces`.
+    """
     limit = np.zeros(nc.nv)
     if not nc.engaged:
-        return SampleForces([], limit)
+        return RowForces(SampleForces([], limit), {}, np.zeros(nc.nv))
     pairs = nc._pair_list
-    ev = None if nc.resting else nc.evaluate(q, v, a_free, minv)
+    ev = None if nc.resting else nc.evaluate(q, v, a_free, minv, forces=True)
     if ev is None or ev.rest is not None:
         pin.forwardKinematics(nc.model, data, q)
         frames = [pair_frame(data, p) for p in pairs]
@@ -91,7 +125,10 @@ def mode_forces(
         (names[i], touch[k], p1[k], p2[k], normal[k], force[k])
         for k, i in enumerate(who[:, 0].tolist())
     ]
-    return SampleForces(out, limit)
+    base = sum(len(p.local1) for p in pairs) + len(nc.limits)
+    beyond = {r: float(ev.lam[e]) for e, r in enumerate(nc.engaged) if r >= base}
+    assert ev.qc is not None  # (asked for)
+    return RowForces(SampleForces(out, limit), beyond, ev.qc)
 
 
 def row_impulses(
@@ -110,9 +147,10 @@ def row_impulses(
     Returns:
         Per touching point with a normal impulse, (names, point, point1, point2 [m], normal,
         impulse on body 2 [N*s]), world frame; in the limit slot the stops' impulses [N*m*s]
-        (nv,).
+        (nv,), in the clamp slot a hand-off's clamp rows' (None: none).
     """
     limit = np.zeros(nc.nv)
+    clamp = np.zeros(nc.nv)
     pairs = nc._pair_list
     start = _row_starts(pairs)
     m_p = start[-1] + len(pairs[-1].local1) if pairs else 0
@@ -121,6 +159,11 @@ def row_impulses(
     out: list[SampleContact] = []
     placed: dict[int, tuple[FloatArray, tuple[FloatArray, FloatArray, FloatArray]]] = {}
     for r, block in zip(np.asarray(rows).tolist(), np.asarray(P, dtype=np.float64), strict=True):
+        if r >= m_p + len(limits):  # a hand-off's clamp row: its Jacobian is -s e_j
+            cl = nc.clamp_of_row(r)
+            assert cl is not None  # (only the hand-off's set has rows beyond its limits)
+            clamp[cl[0]] -= cl[1] * float(block[2])
+            continue
         if r >= m_p:  # a limit row: its Jacobian is -side e_j
             j, side = limits[r - m_p]
             limit[j] -= side * float(block[2])
@@ -134,7 +177,7 @@ def row_impulses(
         T, (touch, p1, p2) = placed[i]
         j = r - start[i]
         out.append((pair_names(p), touch[j], p1[j], p2[j], T[2].copy(), block @ T))
-    return SampleForces(out, limit)
+    return SampleForces(out, limit, clamp if clamp.any() else None)
 
 
 def _stop_torques(
@@ -163,12 +206,12 @@ def _rest_forces(
     q: FloatArray,
     a_free: FloatArray,
     minv: FloatArray,
-) -> SampleForces:
+) -> RowForces:
     """The resting arm's contacts: the frictional problem's force of every touching point."""
     limit = np.zeros(nc.nv)
     sol = nc.rest_solution(q, a_free, minv)
     if sol is None:
-        return SampleForces([], limit)
+        return RowForces(SampleForces([], limit), {}, np.zeros(nc.nv))
     touch = sol.touch
     x = analytic_centre(sol.rows, sol.forces, sol.mu, sol.torque)
     start = _row_starts(pairs)
@@ -181,8 +224,12 @@ def _rest_forces(
     _stop_torques(
         nc, pairs, {r: float(f3[2]) for r, f3 in zip(touch.tolist(), x, strict=True)}, limit
     )
+    base = start[-1] + len(pairs[-1].local1) + len(nc.limits) if pairs else len(nc.limits)
+    beyond: dict[int, float] = {}
     for r, f3 in zip(touch.tolist(), x, strict=True):
-        if r not in owner:  # a limit row
+        if r not in owner:  # a limit row, or one beyond (a hand-off's clamp row)
+            if r >= base:
+                beyond[r] = float(f3[2])
             continue
         i, j = owner[r]
         if i not in points:
@@ -190,7 +237,38 @@ def _rest_forces(
         T = frames[i]
         touch_at, p1, p2 = points[i]
         out.append((pair_names(pairs[i]), touch_at[j], p1[j], p2[j], T[2].copy(), f3 @ T))
-    return SampleForces(out, limit)
+    # (at rest the joints' friction boxes act too: with the rows' force, all that holds it)
+    qc = sol.rows.T @ np.asarray(x, dtype=np.float64).ravel() + sol.friction
+    return RowForces(SampleForces(out, limit), beyond, np.asarray(qc, dtype=np.float64))
+
+
+def rest_friction(
+    nc: NormalContacts, q: FloatArray, a_free: FloatArray, minv: FloatArray, friction: FloatArray
+) -> FloatArray | None:
+    """A resting arm's joint friction torques [N*m]: the rest problem's joint boxes, or None.
+
+    At rest the joints' Coulomb friction and brakes are boxes of the rest capture's frictional
+    problem (:meth:`~packbot.contact.normal_dynamics.ConstrainedDynamics.rest_solution`):
+    their torques replace the sliding Coulomb torque ``-F_j s_j`` of ``friction``.
+
+    Args:
+        nc: The contact set.
+        q: Configuration [rad].
+        a_free: Unconstrained accelerations [rad/s^2] (as the set's rest condition has them).
+        minv: M^-1 at q (as the rest condition has it).
+        friction: The friction torques of the drive [N*m] (viscous and sliding Coulomb).
+
+    Returns:
+        The friction torques at rest, or None: the set does not rest, no joint has Coulomb
+        friction, or the rest problem is not solved.
+    """
+    coul, fdir = nc.joint_coulomb, nc.joint_fdir
+    if not (nc.resting and nc.engaged) or coul is None or fdir is None:
+        return None
+    sol = nc.rest_solution(q, a_free, minv)
+    if sol is None:
+        return None
+    return np.asarray(friction + coul * fdir + sol.friction, dtype=np.float64)
 
 
 def _row_starts(pairs: list[_Pair]) -> list[int]:
@@ -248,11 +326,35 @@ class NormalReport:
     def friction(
         self, q: FloatArray, v: FloatArray, applied: FloatArray, friction: FloatArray
     ) -> FloatArray:
-        """The friction torques [N*m]; in a window, the last step's Coulomb and brake torques."""
-        w = self.law.window
-        if w is None:
-            return self.law.friction(q, v, applied, friction)
-        return np.asarray(friction + w.stepper.joint_torque, dtype=np.float64)
+        """The friction torques [N*m] of the current mode.
+
+        In a window, the last step's Coulomb and brake torques; at rest, the rest problem's
+        (:func:`rest_friction`); otherwise the law's.
+        """
+        law = self.law
+        w = law.window
+        if w is not None:
+            return np.asarray(friction + w.stepper.joint_torque, dtype=np.float64)
+        nc, sys = law.normal, law.sys
+        if nc.resting and nc.joint_coulomb is not None:  # the rest problem's joint boxes
+            found = rest_friction(
+                nc, q, self._a_free(q, v, applied + friction), sys.minv(q), friction
+            )
+            if found is not None:
+                return found
+        return law.friction(q, v, applied, friction)
+
+    def _a_free(self, q: FloatArray, v: FloatArray, torque: FloatArray) -> FloatArray:
+        """The free accelerations [rad/s^2] under ``torque`` [N*m] with the joint locks alone.
+
+        (Not the compiled right-hand side's call: a call there would forget the step end it
+        keeps for the step end's checks.)
+        """
+        law = self.law
+        a_free = law.sys.aba(q, v, torque)
+        if law.locks.any_locked:
+            a_free = law.locks.accelerations(a_free, law.sys.minv(q))
+        return a_free
 
     def contacts(
         self, q: FloatArray, v: FloatArray, tau: Callable[[], FloatArray], t: float = math.nan
@@ -274,11 +376,7 @@ class NormalReport:
         key = (nc._version, q.tobytes(), torque.tobytes()) if nc.resting and not v.any() else None
         if key is not None and self._rest[0] == key:
             return self._rest[1]
-        # the free accelerations with the joint locks alone (not the compiled right-hand side's
-        # call: a call there would forget the step end it keeps for the step end's checks)
-        a_free = sys.aba(q, v, torque)
-        if law.locks.any_locked:
-            a_free = law.locks.accelerations(a_free, sys.minv(q))
+        a_free = self._a_free(q, v, torque)
         kept = nc._last_eval  # (the step end's evaluation, kept for its own state)
         try:
             found = mode_forces(nc, self._data, q, v, a_free, sys.minv(q))

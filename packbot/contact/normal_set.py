@@ -405,6 +405,10 @@ class ContactSet:
             k += n
         return None, list(self.limits)[row - k]
 
+    def clamp_of_row(self, row: int) -> tuple[int, int] | None:
+        """The clamp (joint, s) of a row after the limit rows (the hand-off's only); None."""
+        return None
+
     def row_signature(self) -> tuple[Any, ...]:
         """What the row indices mean: the pairs (index, patch size) and limits, in row order."""
         return tuple((k, len(p.local1)) for k, p in self.pairs.items()), tuple(self.limits)

@@ -137,8 +137,16 @@ class PatchEvents(PairLaw):
         if contacts.impact_rows is not None:  # (its impulses, in the run's impact log)
             rows, P = contacts.impact_rows
             found = row_impulses(contacts, contacts.model.createData(), q1, rows, P)
+            clamp = found.clamp_torque
             self.events.impulses.append(
-                (t, SampleForces(found.contacts, self.sys.v_full(found.limit_torque)))
+                (
+                    t,
+                    SampleForces(
+                        found.contacts,
+                        self.sys.v_full(found.limit_torque),
+                        None if clamp is None else self.sys.v_full(clamp),
+                    ),
+                )
             )
         return q1, v1, events
 

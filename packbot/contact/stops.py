@@ -21,9 +21,7 @@ ContactLaw`):
 
 from __future__ import annotations
 
-import math
-from collections.abc import Callable, Sequence
-from typing import TYPE_CHECKING
+from collections.abc import Sequence
 
 import numpy as np
 from numpy.typing import NDArray
@@ -32,6 +30,7 @@ from packbot.config import SimConfig
 from packbot.contact.base import SETTLE, Active, Crossing, ForceReport, Key, StepSpan
 from packbot.contact.holds import STICK_SPEED, JointHolds, friction_share
 from packbot.contact.law_log import LawLog
+from packbot.contact.lock_forces import LockReport
 from packbot.contact.lock_step import SCREEN_MARGIN as SCREEN_MARGIN
 from packbot.contact.lock_step import NativeLockStep
 from packbot.contact.locks import JointLocks
@@ -42,9 +41,6 @@ from packbot.ode import DenseSegment, RK45Stepper, StepKernel
 from packbot.recorder import EventLog
 from packbot.result import Diagnostics
 from packbot.system import System
-
-if TYPE_CHECKING:
-    from packbot.contact_forces import SampleForces
 
 # (HOLD_KICK, STICK_SPEED and friction_share are the resets' and the holds': the hand-off
 # reads them here)
@@ -73,6 +69,8 @@ class JointStops:
             PositionStops`).
         holds: The friction holds (:class:`~packbot.contact.holds.JointHolds`).
         log: The law's event writer (:class:`~packbot.contact.law_log.LawLog`).
+        lock_report: The forces at the samples (:class:`~packbot.contact.lock_forces.
+            LockReport`: the locks' torques).
     """
 
     def __init__(
@@ -88,6 +86,7 @@ class JointStops:
         self.events = events
         self.diag = diag
         self._locks_only = type(self).accel is JointStops.accel
+        self.lock_report = LockReport(self)
         self.rebuild(system)
 
     # ------------------------------------------------------------------ the protocol
@@ -216,18 +215,12 @@ class JointStops:
         self.settle_modes(t, y)
 
     def forces(self) -> ForceReport:
-        """The current mode's forces: the law reports them itself (:meth:`held`, ...)."""
-        return self
+        """The current mode's forces: its locks' torques (:attr:`lock_report`)."""
+        return self.lock_report
 
     def held(self) -> tuple[int, ...]:
         """Every joint with a_j = 0 in the current mode (engaged or held), sorted."""
         return self.locks.locked
-
-    def contacts(
-        self, q: FloatArray, v: FloatArray, tau: Callable[[], FloatArray], t: float = math.nan
-    ) -> SampleForces | None:
-        """None: the report's clamps act on joints, not as forces on pairs (unknown)."""
-        return None
 
     def friction(
         self, q: FloatArray, v: FloatArray, applied: FloatArray, friction: FloatArray

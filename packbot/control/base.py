@@ -12,10 +12,12 @@ through the failure and actuator models (effort limits, friction) before it acts
 each tick, the contact forces at the tick's state (the simulator knows them: a force-torque
 sensor on every link): :attr:`Controller.contacts` (a list of
 :class:`~packbot.contact_forces.ContactForce`, world frame) and :attr:`Controller.
-contact_torque` (their joint torque [N*m], shape (nv,), with the joint position stops' torques
-added: M a + C v + g = tau + contact_torque).
-Both are None where the contact law cannot say (the report's law) and before the first tick;
-an empty list and zeros with no contact. Inside a time-stepping window of the contact-normal
+contact_torque` (their joint torque [N*m], shape (nv,), with the joint position stops' and the
+report's law's clamps' torques added: M a + C v + g = tau + contact_torque).
+Under the report's law (``joint_clamp``) the list is empty (its contacts act through clamps on
+joints: ``contact_torque`` holds their torques). Both are None where the contact law cannot say
+(a time-stepping window's opening instant) and before the first tick; an empty list and zeros
+with no contact. Inside a time-stepping window of the contact-normal
 mode they are the forces of the window step ending at the tick (its impulses over its length).
 The impacts between two ticks are impulses, not forces at a tick: :attr:`Controller.
 contact_impulse` is their joint impulse [N*m*s] (M (v+ - v-) summed; M at the tick).
@@ -133,7 +135,8 @@ class Controller(ABC):
     contact_sensing: ClassVar[bool] = False
     #: The contacts at the tick's state (world frame), or None: not known (see the module).
     contacts: list[ContactForce] | None = None
-    #: Their joint torque and the joint position stops' [N*m], shape (nv,), or None: not known.
+    #: Their joint torque with the joint stops' and clamps' [N*m], shape (nv,), or None: not
+    #: known.
     contact_torque: FloatArray | None = None
     #: The joint impulse [N*m*s] of the impacts since the previous tick, shape (nv,): M (v+ -
     #: v-) summed over them (zeros: none), or None before the first tick.

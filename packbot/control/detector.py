@@ -25,7 +25,7 @@ not mistaken for a failure:
   tau_contact=, contact_impulse=)``: a contact-sensing controller's
   :attr:`~packbot.control.Controller.contact_torque` and ``contact_impulse``), the contacts'
   joint torque and the impacts' momentum enter the model, and the joints are judged during the
-  contact too. Where it cannot (the report's law), ``in_contact`` (a
+  contact too (under the report's law, the clamps' torques). Where it cannot, ``in_contact`` (a
   callable of the measured q, asked only when a residual is over its threshold) says whether
   the arm touches something: then no joint is judged, and not before ``contact_hold`` seconds
   after the last touch (five time constants: the contact's residual has decayed to 1 %). The
