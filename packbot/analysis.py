@@ -330,7 +330,7 @@ def workspace(
     *,
     samples: int = 4000,
     seed: int = 0,
-    frame: str = "gripper_tool",
+    frame: str | None = None,
     q_ref: ArrayLike | None = None,
     environment: Environment | None = None,
 ) -> Workspace:
@@ -345,7 +345,8 @@ def workspace(
             ``q_ref`` angle).
         samples: Configurations to sample.
         seed: Seed of the sampler.
-        frame: The frame whose positions are collected.
+        frame: The frame whose positions are collected; None: the robot's tool frame
+            (:attr:`packbot.Robot.tool_frame`, PackBot's ``gripper_tool``).
         q_ref: Configuration of the joints not sampled [rad] (default: the ``stand`` pose).
         environment: Obstacles (None: the floor).
 
@@ -372,6 +373,7 @@ def workspace(
         fz = (name, float(angle))
     model = robot.model
     data = model.createData()
+    frame = robot.tool_frame if frame is None else frame
     idx = _attr_names(model, frame)
     if fz is not None:
         jf = robot.params.index(fz[0])
@@ -509,6 +511,7 @@ def _reach_one(
             ws.frame,
             target,
             ws.q[int(i)],
+            robot=robot,
             active=active,
             tol=tol,
             max_iter=max_iter,

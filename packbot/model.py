@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import logging
 import os
+import weakref
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -140,6 +141,19 @@ class Robot:
     def is_packbot(self) -> bool:
         """Whether this is PackBot (its parameter table, poses and scenarios apply)."""
         return bool(self.params.table)
+
+    @property
+    def home_pose(self) -> str:
+        """The pose a controller's default target or posture is before a run supplies q0.
+
+        The first named pose: PackBot's ``drive``, another arm's ``zero``.
+
+        Raises:
+            UnknownNameError: The robot has no named pose.
+        """
+        if not self.poses:
+            raise UnknownNameError("pose", None, ["a robot with named poses"])
+        return next(iter(self.poses))
 
     @property
     def nq(self) -> int:
@@ -413,9 +427,11 @@ def load_robot(
     srdf_file = _srdf_file(srdf, packbot)
     frame = _tool_frame(model, tool_frame, packbot)
     log.debug("loaded %s: nq=%d, %d collision pieces", path, model.nq, collision.ngeoms)
-    return Robot(
+    robot = Robot(
         model, collision, visual, poses, params, path, srdf_path=srdf_file, tool_frame=frame
     )
+    _LOADED[:] = [r for r in _LOADED if r() is not None] + [weakref.ref(robot)]
+    return robot
 
 
 def _srdf_file(srdf: str | Path | None, packbot: bool) -> Path | None:
@@ -466,6 +482,8 @@ def _urdf_joint_params(model: pin.Model) -> JointParams:
 
 
 _SHIPPED: list[Robot] = []
+#: The robots :func:`load_robot` returned that are still alive, oldest first.
+_LOADED: list[weakref.ref[Robot]] = []
 
 
 def _shipped_robot() -> Robot:
@@ -473,6 +491,20 @@ def _shipped_robot() -> Robot:
     if not _SHIPPED:
         _SHIPPED.append(load_robot())
     return _SHIPPED[0]
+
+
+def _robot_of_model(model: pin.Model) -> Robot | None:
+    """The loaded robot whose arm ``model`` is (:func:`_same_arm`), or None.
+
+    The robots :func:`load_robot` returned and still alive, the latest first, then the shipped
+    PackBot (loaded once if needed).
+    """
+    for ref in reversed(_LOADED):
+        robot = ref()
+        if robot is not None and _same_arm(model, robot.model):
+            return robot
+    shipped = _shipped_robot()
+    return shipped if _same_arm(model, shipped.model) else None
 
 
 def _same_arm(a: pin.Model, b: pin.Model) -> bool:

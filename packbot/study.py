@@ -2,8 +2,9 @@
 
 :func:`study` runs a scenario with ``[[failures]]`` three times:
 
-- ``healthy``: the failures removed; the positions of ``gripper_tool`` against time on this run
-  are the *task*;
+- ``healthy``: the failures removed; the positions of the robot's tool frame
+  (:attr:`packbot.Robot.tool_frame`, PackBot's ``gripper_tool``) against time on this run are the
+  *task*;
 - ``failed``: the failures injected, the scenario's controller unaware (not informed; a
   reconfigurable controller's detector switched off);
 - ``reconfigured``: the failures injected, :class:`~packbot.control.recovery.TaskRecovery` in
@@ -17,7 +18,7 @@ Each run gets :class:`RunMetrics` against the task (errors [m], detection and re
 the task's points after the failure tested for reach with the frozen joint at its angle
 (:func:`packbot.analysis.reach`), a loose joint without gravity torque (nothing holds it), a
 stuck joint, a weak motor that cannot hold the final pose; after the run, a loose joint for which
-no stable equilibrium puts the gripper on the task. For a loose joint, :class:`LooseSettling`
+no stable equilibrium puts the tool on the task. For a loose joint, :class:`LooseSettling`
 compares where the arm comes to rest with the equilibria :func:`packbot.analysis.
 loose_joint_equilibria` predicts for the other joints' final angles.
 
@@ -82,7 +83,7 @@ FloatArray = NDArray[np.float64]
 RUN_NAMES: tuple[str, ...] = ("healthy", "failed", "reconfigured")
 #: Default recovery tolerance on the task error [m].
 DEFAULT_TOLERANCE = 0.01
-#: The frame whose path is the task.
+#: PackBot's task frame (its tool frame); a study's task is its robot's ``tool_frame``.
 TASK_FRAME = "gripper_tool"
 #: A loose joint slower than this at the end is at rest [rad/s].
 REST_SPEED = 0.01
@@ -173,7 +174,7 @@ class StudyRun:
         result: The simulation result, or None.
         metrics: Its metrics, or None without a result.
         task_error: Task error at each sample of ``result`` [m], or None.
-        tool: ``gripper_tool`` position at each sample [m], shape (N, 3), or None.
+        tool: The tool frame's position at each sample [m], shape (N, 3), or None.
         controller_log: The reconfigured run's :attr:`TaskRecovery.log` (empty otherwise).
         suspended: Intervals [s] in which its observer judged no joint (the arm touched
             something).
@@ -320,7 +321,7 @@ class StudyResult:
         tolerance_m: Recovery tolerance on the task error [m].
         contact_mode: The contact mode of the runs.
         task_t: Times of the task [s] (the healthy run's samples; empty without one).
-        task_x: The task: ``gripper_tool`` positions [m], shape (N, 3).
+        task_x: The task: the tool frame's positions [m], shape (N, 3).
         healthy: The healthy run.
         failed: The failed run.
         reconfigured: The reconfigured run.
@@ -388,7 +389,7 @@ class StudyResult:
             "contact_mode": self.contact_mode,
             "duration_s": self.duration_s,
             "tolerance_m": self.tolerance_m,
-            "task_frame": TASK_FRAME,
+            "task_frame": self.robot.tool_frame,
             "failures": [
                 {k: _json_number(v) for k, v in dataclasses.asdict(f).items()} | {"t_s": f.t}
                 for f in self.failures
@@ -873,17 +874,8 @@ def _run(setup: _RunSetup, name: str, task: tuple[FloatArray, FloatArray] | None
 
 
 def _tool_path(robot: Robot, result: SimResult) -> FloatArray:
-    """``gripper_tool`` positions [m] at each sample, shape (N, 3)."""
-    import pinocchio as pin
-
-    model = robot.model
-    data = model.createData()
-    fid = model.getFrameId(TASK_FRAME)
-    out = np.empty((len(result.t), 3))
-    for i, q in enumerate(result.q):
-        pin.framesForwardKinematics(model, data, np.asarray(q, dtype=float))
-        out[i] = data.oMf[fid].translation
-    return out
+    """The robot's tool frame positions [m] at each sample, shape (N, 3)."""
+    return result.frame_positions(robot.tool_frame, robot)
 
 
 def _task_at(task_t: FloatArray, task_x: FloatArray, t: FloatArray) -> FloatArray:
@@ -1051,7 +1043,7 @@ def _assess(
                 )
             if j not in frame_joints:
                 check["reachable"] = True
-                check["note"] = f"{f.joint} does not move {TASK_FRAME}"
+                check["note"] = f"{f.joint} does not move {robot.tool_frame}"
             elif len(frozen_like) > 1:
                 check["note"] = "not assessed: more than one frozen joint"
                 reasons.append("reach not assessed: more than one frozen joint")
@@ -1135,7 +1127,7 @@ def _assess(
             x = task_x[-1]
             reasons.append(
                 f"a loose joint cannot be held: no stable, collision-free equilibrium of "
-                f"{e.joint} puts {TASK_FRAME} at the task's final point ({x[0]:.3f}, "
+                f"{e.joint} puts {robot.tool_frame} at the task's final point ({x[0]:.3f}, "
                 f"{x[1]:.3f}, {x[2]:.3f}) m; the arm holds where it is"
             )
         elif e.kind == "replan" and "frame error" in e.detail:
@@ -1147,7 +1139,7 @@ def _assess(
                 possible = False
                 reasons.append(
                     f"a loose joint cannot be held on the task: the best stable equilibrium of "
-                    f"{e.joint} leaves {TASK_FRAME} {mm:.3g} mm from its final point"
+                    f"{e.joint} leaves {robot.tool_frame} {mm:.3g} mm from its final point"
                 )
     if reconf.status == "ok" and not any(e.kind == "detect" for e in reconf.controller_log):
         reasons.append("the reconfigured run's observer flagged no joint")
@@ -1156,7 +1148,7 @@ def _assess(
 
 def _frame_joints(robot: Robot) -> set[int]:
     model = robot.model
-    parent = model.frames[model.getFrameId(TASK_FRAME)].parentJoint
+    parent = model.frames[model.getFrameId(robot.tool_frame)].parentJoint
     return {model.joints[j].idx_q for j in model.supports[parent] if j > 0}
 
 

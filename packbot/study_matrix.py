@@ -267,8 +267,9 @@ def study_cell(
     :data:`packbot.batch.Runner`; ``controller`` and ``recovery`` are :func:`packbot.study`'s
     (import paths or picklable classes: they travel to the worker processes).
 
-    Studies the cell's scenario (:func:`packbot.study`, a fresh robot), writes its study
-    (:func:`packbot.viz.study_report.write_study`) into a temporary folder and returns its
+    Studies the cell's scenario (:func:`packbot.study`, a fresh robot: the scenario's arm),
+    writes its study (:func:`packbot.viz.study_report.write_study`) into a temporary folder
+    and returns its
     files as ``"<cell id>/<name>"`` (the batch writes them into the cell's folder) and the
     cell's headline metrics (the record's ``metrics``: the failure, the verdict, each run's
     status and final task error [m], the reconfigured run's detection and recovery times [s]).
@@ -276,8 +277,7 @@ def study_cell(
     Raises:
         CellTimeout: The wall-time limit was exceeded (``progress`` raised).
     """
-    from packbot.model import load_robot
-    from packbot.scenario import scenario_from_dict
+    from packbot.scenario import scenario_from_dict, scenario_robot
     from packbot.study import study
     from packbot.viz.study_report import write_study
 
@@ -298,7 +298,7 @@ def study_cell(
     scenario = scenario_from_dict(run.scenario, name=run.id, source_text=run.source_text)
     result = study(
         scenario,
-        robot=load_robot(),
+        robot=scenario_robot(scenario),
         tolerance=options.tolerance,
         workspace_samples=options.workspace_samples,
         seed=options.seed,

@@ -23,6 +23,7 @@ from packbot.validation import (
     GRAVITY_MAX,
     finite_number,
     is_number,
+    name_str,
     real_array,
     vector,
 )
@@ -36,8 +37,10 @@ __all__ = [
     "QLike",
     "check_gain_spec",
     "check_q_spec",
+    "controlled_frame",
     "controller_model",
     "damping_ratio",
+    "frame_spec",
     "loop_frequency",
     "resolve_gains",
     "resolve_gravity",
@@ -54,6 +57,31 @@ DEFAULT_GRAVITY: tuple[float, float, float] = (0.0, 0.0, -9.81)
 QLike = str | Sequence[float] | Mapping[str, float] | FloatArray
 #: A per-joint gain: a number, a list of nv numbers, or a {joint: gain} table.
 GainLike = float | Sequence[float] | Mapping[str, float] | FloatArray
+
+
+def frame_spec(field: str, frame: str | None) -> str | None:
+    """A controller's ``frame`` argument checked: a frame name, or None (the robot's tool frame).
+
+    Raises:
+        ConfigurationError: Neither None nor a non-empty string (names ``field``).
+    """
+    if frame is None:
+        return None
+    return name_str(field, frame, "a frame name (a non-empty string), or None: the tool frame")
+
+
+def controlled_frame(model: pin.Model, robot: Robot, frame: str | None) -> tuple[str, int]:
+    """The frame a controller moves, by name and id in ``model``.
+
+    ``frame``, or ``robot``'s tool frame (:attr:`packbot.Robot.tool_frame`) for None.
+
+    Raises:
+        UnknownNameError: ``frame`` is not a frame of the model (lists the frames).
+    """
+    name = robot.tool_frame if frame is None else frame
+    if not isinstance(name, str) or not model.existFrame(name):
+        raise UnknownNameError("frame", name, [f.name for f in model.frames])
+    return name, int(model.getFrameId(name))
 
 
 def _finite(x: object) -> bool:

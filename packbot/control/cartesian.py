@@ -30,6 +30,8 @@ from packbot.control._common import (
     QLike,
     check_gain_spec,
     check_q_spec,
+    controlled_frame,
+    frame_spec,
     loop_frequency,
     resolve_gains,
     resolve_q,
@@ -38,8 +40,8 @@ from packbot.control._common import (
 from packbot.control.base import Sensor
 from packbot.control.model_based import ModelBasedController
 from packbot.control.pd import default_gains
-from packbot.errors import ConfigurationError, UnknownNameError
-from packbot.validation import finite_number, is_number, name_str, real_array
+from packbot.errors import ConfigurationError
+from packbot.validation import finite_number, is_number, real_array
 
 if TYPE_CHECKING:
     from packbot.model import Robot
@@ -94,7 +96,8 @@ class CartesianPD(ModelBasedController):
     Args:
         target: Target position of the frame [m], world frame, or a pose name (the frame's
             position at that pose).
-        frame: The controlled frame (default ``"gripper_tool"``).
+        frame: The controlled frame; None: the robot's tool frame (:attr:`packbot.Robot.tool_frame`,
+            PackBot's ``gripper_tool``).
         orientation: Target orientation: None (position only), a 3x3 rotation matrix (world
             frame), or a pose name (the frame's orientation at that pose).
         kp: Translational stiffness [N/m]: a number or 3 numbers (world x, y, z).
@@ -117,7 +120,7 @@ class CartesianPD(ModelBasedController):
         self,
         *,
         target: str | Sequence[float] | FloatArray,
-        frame: str = "gripper_tool",
+        frame: str | None = None,
         orientation: str | FloatArray | Sequence[Sequence[float]] | None = None,
         kp: float | Sequence[float] = 400.0,
         kd: float | Sequence[float] = 80.0,
@@ -140,7 +143,8 @@ class CartesianPD(ModelBasedController):
         check_gain_spec(k_posture, "controller.k_posture")
         check_gain_spec(damping, "controller.damping")
         self.target_spec = target
-        self.frame = name_str("controller.frame", frame, "a frame name (a non-empty string)")
+        self.frame_spec = frame_spec("controller.frame", frame)
+        self.frame = "" if frame is None else frame
         self.orientation_spec = orientation
         self.kp, self.kd = _gain3(kp, "controller.kp"), _gain3(kd, "controller.kd")
         self.kp_rot = _gain3(kp_rot, "controller.kp_rot")
@@ -168,12 +172,10 @@ class CartesianPD(ModelBasedController):
         """Resolve the frame, target, posture and gains for ``robot``."""
         super().prepare(robot)
         model, data = self._md()
-        if not isinstance(self.frame, str) or not model.existFrame(self.frame):
-            raise UnknownNameError("frame", self.frame, [f.name for f in model.frames])
-        self.frame_id = model.getFrameId(self.frame)
+        self.frame, self.frame_id = controlled_frame(model, robot, self.frame_spec)
         self.target = self._resolve_position(robot, self.target_spec)
         self.rotation = self._resolve_rotation(robot, self.orientation_spec)
-        base = robot.pose("drive") if q0 is None else np.asarray(q0, dtype=float)
+        base = robot.pose(robot.home_pose) if q0 is None else np.asarray(q0, dtype=float)
         spec = self.posture_spec
         self.posture = (
             base.copy() if spec is None else resolve_q(robot, spec, "controller.posture", base)

@@ -68,7 +68,8 @@ class RecoveryContext:
         robot: The robot (healthy model).
         task_t: Times of the task [s], shape (N,), increasing (duplicates removed).
         task_x: The frame's task positions [m], shape (N, 3).
-        frame: The frame that follows the task.
+        frame: The frame that follows the task ("": the robot's tool frame,
+            :attr:`packbot.Robot.tool_frame`, set to its name).
         environment: Obstacles (None: the floor).
         gravity: Gravity [m/s^2].
         joint_friction: Whether the joints have the parameter table's friction.
@@ -81,7 +82,7 @@ class RecoveryContext:
     robot: Robot
     task_t: FloatArray
     task_x: FloatArray
-    frame: str = "gripper_tool"
+    frame: str = ""
     environment: Environment | None = None
     gravity: tuple[float, float, float] = DEFAULT_GRAVITY
     joint_friction: bool = False
@@ -91,6 +92,8 @@ class RecoveryContext:
     _task_v: FloatArray = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
+        if not self.frame:
+            object.__setattr__(self, "frame", self.robot.tool_frame)
         object.__setattr__(self, "_task_v", np.gradient(self.task_x, self.task_t, axis=0))
 
     def task(self, t: float) -> tuple[FloatArray, FloatArray]:

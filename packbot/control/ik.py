@@ -28,7 +28,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from packbot.errors import ConfigurationError, IKCollisionError
 from packbot.keywords import checked_arguments
-from packbot.model import Robot, _same_arm, _shipped_robot
+from packbot.model import Robot, _robot_of_model, _same_arm
 from packbot.validation import MAX_IK_ITERATIONS, boolean, integer
 
 if TYPE_CHECKING:
@@ -86,8 +86,7 @@ def _geometry(model: Any, robot: Any) -> tuple[pin.Model, Robot | None]:
                 "robot", robot, "None or the packbot.Robot of this model (same joints)"
             )
         return model, robot
-    shipped = _shipped_robot()
-    return model, (shipped if _same_arm(model, shipped.model) else None)
+    return model, _robot_of_model(model)
 
 
 def _iterate(
@@ -189,9 +188,10 @@ def solve_position_ik(
             :class:`~packbot.errors.IKCollisionError` when every solution that reaches the
             target collides. False: solve from ``q0`` alone and flag the result
             (``colliding``). Needs the model's collision pieces: ``model`` a Robot, ``robot``
-            given, or a pin.Model of the shipped arm's kinematics (``robot.model``, a copy of
-            it, with a payload's body or another gravity), checked against the shipped
-            robot's pieces.
+            given, or a pin.Model of a loaded arm's kinematics (``robot.model`` of a robot
+            :func:`~packbot.load_robot` returned, a copy of it, with a payload's body or
+            another gravity; PackBot's even if not loaded), checked against that robot's
+            pieces.
         robot: The Robot of ``model`` (when ``model`` is a pin.Model of another URDF).
         environment: Obstacles of the check; None: the floor alone.
         seeds: Random starts tried after ``q0`` when its solution collides.

@@ -109,7 +109,7 @@ class JointPD(ModelBasedController):
         """Resolve the target and gains for ``robot`` (q0 supplies the target if None)."""
         super().prepare(robot)
         model, data = self._md()
-        base = robot.pose("drive") if q0 is None else np.asarray(q0, dtype=float)
+        base = robot.pose(robot.home_pose) if q0 is None else np.asarray(q0, dtype=float)
         if self.target_spec is None:
             self.target = base.copy()
         else:

@@ -1,6 +1,6 @@
-"""Reconfigurable control: bring the gripper to a target, and again after a joint fails.
+"""Reconfigurable control: bring the tool to a target, and again after a joint fails.
 
-:class:`ReconfigurableController` places a frame (default ``gripper_tool``) at a target position
+:class:`ReconfigurableController` places a frame (default the tool frame) at a target position
 [m] and holds it there:
 
 1. Plan: inverse kinematics (:func:`~packbot.control.ik.solve_position_ik`, damped least squares
@@ -53,7 +53,9 @@ from packbot.control._common import (
     DEFAULT_GRAVITY,
     GainLike,
     check_gain_spec,
+    controlled_frame,
     damping_ratio,
+    frame_spec,
     loop_frequency,
     resolve_gains,
     resolve_vector3,
@@ -65,9 +67,9 @@ from packbot.control.model_based import ModelBasedController
 from packbot.control.path_check import path_warning
 from packbot.control.trajectory import MIN_JERK_PEAK_SPEED, QuinticSegment
 from packbot.environment import Environment
-from packbot.errors import ConfigurationError, UnknownNameError
+from packbot.errors import ConfigurationError
 from packbot.keywords import checked_arguments
-from packbot.validation import boolean, finite_number, integer, name_str
+from packbot.validation import boolean, finite_number, integer
 
 if TYPE_CHECKING:
     from packbot.failures import Failure
@@ -115,7 +117,8 @@ class ReconfigurableController(ModelBasedController):
     Args:
         target: Target position of the frame [m], world frame, or a pose name (the frame's
             position at that pose).
-        frame: The placed frame.
+        frame: The placed frame; None: the robot's tool frame (:attr:`packbot.Robot.tool_frame`,
+            PackBot's ``gripper_tool``).
         speed_fraction: Moves peak at this fraction of each joint's speed limit [-], in (0, 1].
         min_move_time: Shortest move [s].
         omega: Natural frequency of the tracking loop [rad/s] (gains omega^2, 2 zeta omega),
@@ -158,7 +161,7 @@ class ReconfigurableController(ModelBasedController):
         self,
         *,
         target: str | Sequence[float] | FloatArray,
-        frame: str = "gripper_tool",
+        frame: str | None = None,
         speed_fraction: float = 0.5,
         min_move_time: float = 0.5,
         omega: float = 20.0,
@@ -185,7 +188,8 @@ class ReconfigurableController(ModelBasedController):
         if not (isinstance(target, str) and target):
             resolve_vector3(target, "controller.target", "3 finite coordinates [m] or a pose name")
         self.target_spec = target
-        self.frame = name_str("controller.frame", frame, "a frame name (a non-empty string)")
+        self.frame_spec = frame_spec("controller.frame", frame)
+        self.frame = "" if frame is None else frame
         self.speed_fraction = finite_number(
             "controller.speed_fraction", speed_fraction, low=0.0, high=1.0, low_open=True
         )
@@ -257,9 +261,7 @@ class ReconfigurableController(ModelBasedController):
         """Resolve the target, frame and thresholds; build the collision world."""
         super().prepare(robot)
         model, data = self._md()
-        if not isinstance(self.frame, str) or not model.existFrame(self.frame):
-            raise UnknownNameError("frame", self.frame, [f.name for f in model.frames])
-        self._frame_id = model.getFrameId(self.frame)
+        self.frame, self._frame_id = controlled_frame(model, robot, self.frame_spec)
         if isinstance(self.target_spec, str):
             pin.framesForwardKinematics(model, data, robot.pose(self.target_spec))
             self.target = data.oMf[self._frame_id].translation.copy()

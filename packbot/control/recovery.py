@@ -3,7 +3,7 @@
 :class:`TaskRecovery` is the controller of the "reconfigured" run of a failure study
 (:func:`packbot.study`). It wraps the scenario's own controller (``nominal``: a built-in one,
 a user's :class:`~packbot.control.Controller`, or None for zero torque) and a task: the
-positions [m] of a frame (default ``gripper_tool``) against time [s], as recorded on a healthy
+positions [m] of a frame (default the robot's tool frame) against time [s], as recorded on a healthy
 run. Until a failure is detected it returns exactly the nominal controller's command, so that a
 healthy arm does what the scenario does. It is not told of failures: a momentum observer
 (:class:`~packbot.control.detector.MomentumObserver`, thresholds as
@@ -29,7 +29,14 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from packbot.control._common import DEFAULT_GRAVITY, GainLike, check_gain_spec, resolve_gains
+from packbot.control._common import (
+    DEFAULT_GRAVITY,
+    GainLike,
+    check_gain_spec,
+    controlled_frame,
+    frame_spec,
+    resolve_gains,
+)
 from packbot.control.base import Controller
 from packbot.control.context import FailureReport, ModelSwitch, RecoveryContext, RecoveryEvent
 from packbot.control.detector import Detection, MomentumObserver, default_threshold
@@ -38,7 +45,7 @@ from packbot.environment import Environment
 from packbot.errors import ConfigurationError
 from packbot.failures import Failure
 from packbot.payload import Payload
-from packbot.validation import finite_number, name_str, real_array
+from packbot.validation import finite_number, real_array
 
 if TYPE_CHECKING:
     from packbot.model import Robot
@@ -85,7 +92,8 @@ class TaskRecovery(Controller):
             be shared with another simulation (it is reset here).
         task_t: Times of the task samples [s], shape (N,), non-decreasing, N >= 2.
         task_x: Frame positions [m], world frame, shape (N, 3).
-        frame: The frame that follows the task.
+        frame: The frame that follows the task; None: the robot's tool frame
+            (:attr:`packbot.Robot.tool_frame`, PackBot's ``gripper_tool``).
         strategy: The recovery strategy (None: a :class:`BaselineRecovery` with the tracking
             settings below). Made for this run (it may keep state).
         omega: Natural frequency of the built-in strategy's tracking loops [rad/s].
@@ -131,7 +139,7 @@ class TaskRecovery(Controller):
         nominal: Controller | None,
         task_t: ArrayLike,
         task_x: ArrayLike,
-        frame: str = "gripper_tool",
+        frame: str | None = None,
         strategy: RecoveryStrategy | None = None,
         omega: float = 20.0,
         zeta: float = 1.0,
@@ -169,7 +177,8 @@ class TaskRecovery(Controller):
         self.task_t, self.task_x = t[keep], x[keep]
         if len(self.task_t) < 2:
             raise ConfigurationError("task_t", task_t, "at least 2 distinct times [s]")
-        self.frame = name_str("frame", frame, "a frame name (a non-empty string)")
+        self.frame_spec = frame_spec("frame", frame)
+        self.frame = "" if frame is None else frame
         if strategy is not None and not isinstance(strategy, RecoveryStrategy):
             raise ConfigurationError(
                 "strategy", strategy, "None (built-in) or a packbot.control.RecoveryStrategy"
@@ -241,10 +250,7 @@ class TaskRecovery(Controller):
         """Reset the nominal controller and the observer at (q0 [rad], v0 [rad/s])."""
         q0 = np.asarray(q0, dtype=float)
         v0 = np.asarray(v0, dtype=float)
-        if not robot.model.existFrame(self.frame):
-            from packbot.errors import UnknownNameError
-
-            raise UnknownNameError("frame", self.frame, [f.name for f in robot.model.frames])
+        self.frame = controlled_frame(robot.model, robot, self.frame_spec)[0]
         threshold = resolve_gains(
             robot, self.threshold_spec, "threshold", default_threshold(robot.params)
         )

@@ -207,7 +207,9 @@ def study_figures(result: StudyResult) -> dict[str, Figure]:
     ax.set_ylim(bottom=0.0)
     ax.set_ylabel("task error |x - x*| [mm]")
     ax.set_xlabel("time [s]")
-    ax.set_title(f"{title}: gripper_tool against the healthy run's path", fontsize="medium")
+    ax.set_title(
+        f"{title}: {result.robot.tool_frame} against the healthy run's path", fontsize="medium"
+    )
     ax.grid(alpha=0.3)
     ax.legend(fontsize="small", loc="best")
     figs["study_task_error"] = fig
@@ -633,8 +635,8 @@ def study_page(result: StudyResult, pngs: dict[str, bytes] | None = None) -> str
 <p>{esc(sc.description)}<br>controller <b>{esc(result.controller or sc.controller)}</b>,
 recovery strategy <b>{esc(_strategy(result))}</b>, contact mode
 <b>{esc(result.contact_mode)}</b>, failures: <b>{esc(fails)}</b>, {result.duration_s:g} s simulated,
-tolerance {result.tolerance_m * 1000:g} mm. The task is the healthy run's <code>gripper_tool</code>
-path.</p>
+tolerance {result.tolerance_m * 1000:g} mm. The task is the healthy run's
+<code>{esc(result.robot.tool_frame)}</code> path.</p>
 <div class="panes">{"".join(panes)}</div>
 <div id="controls"><button id="play">play</button>
 <input id="slider" type="range" min="{data["t0"]}" max="{data["t1"]}" step="0.001"
