@@ -263,7 +263,7 @@ class SimResult:
 
     @checked_arguments
     def frame_positions(
-        self, frame: str = "gripper_tool", robot: Robot | None = None
+        self, frame: str | None = None, robot: Robot | None = None
     ) -> NDArray[np.float64]:
         """World positions [m] of a frame's origin at every sample, shape (N, 3).
 
@@ -272,7 +272,8 @@ class SimResult:
 
         Args:
             frame: A frame of the model (a link, a joint or a tool frame such as
-                ``"gripper_tool"`` or ``"camera_optical"``).
+                ``"camera_optical"``); None: the robot's tool frame
+                (:attr:`packbot.Robot.tool_frame`, PackBot's ``gripper_tool``).
             robot: The robot the run simulated; None: the shipped one
                 (:func:`packbot.load_robot`, loaded once). A result does not store its model:
                 a run of another URDF needs that robot here.
@@ -285,6 +286,7 @@ class SimResult:
 
         robot = self._robot_of(robot)
         model = robot.model
+        frame = robot.tool_frame if frame is None else frame
         if not isinstance(frame, str) or not model.existFrame(frame):
             raise UnknownNameError("frame", frame, sorted({str(f.name) for f in model.frames}))
         fid = model.getFrameId(frame)

@@ -199,6 +199,14 @@ def test_a_named_arm_collapses_onto_the_floor_without_penetrating_or_gaining_ene
     gains = [e.energy_after - e.energy_before for e in res.events if e.kind == "impact"]
     assert max(gains, default=0.0) < 1e-9
     assert res.energy[-1] <= res.energy[0] + 1e-6
+    # the tool's path by default: the arm's tool frame (placed by Pinocchio at each sample)
+    tool = res.frame_positions(robot=r)
+    data = r.model.createData()
+    pin.framesForwardKinematics(r.model, data, res.q[-1])
+    np.testing.assert_allclose(
+        tool[-1], data.oMf[r.model.getFrameId(r.tool_frame)].translation, atol=1e-12
+    )
+    assert np.linalg.norm(tool[-1] - tool[0]) > 0.05  # (it fell: a real path)
 
 
 def test_the_registry_names_the_shipped_arm() -> None:
