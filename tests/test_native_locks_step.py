@@ -280,3 +280,31 @@ def test_the_lock_step_loads_each_held_command_once_and_screens_only_its_lock_se
     assert step.rhs is not None and not step.screened(y, other)
     fresh = NativeLockStep(law.sys, law.drive)
     assert fresh.rhs is None and not fresh.screened(y, law.locks)
+
+
+@pytest.mark.parametrize("locked", [(), (2,), (0, 1, 2, 3, 4)])
+def test_the_lock_torques_at_a_sample_are_the_locks_solve(robot, locked):
+    """The extension's lock torques at a state (a sample between steps) equal the locks' own
+    solve (M a = tau - h + S^T lambda, a_S = 0) to rounding, in each lock mode, and leave the
+    loaded mode's state alone."""
+    from packbot.contact.locks import JointLocks
+
+    sysm = System(robot, robot.pose("drive"), packbot.SimConfig(contact_mode="none"), None)
+    rhs = native.NativeRhs(sysm.model)
+    rng = np.random.default_rng(7)
+    with pytest.raises(ValueError, match="lock mode"):
+        rhs.lock_torques_at(np.zeros(8), np.zeros(8), np.zeros(8))
+    locks = JointLocks(8)
+    locks.set_held({j: 1e3 for j in locked})  # (held: locked both ways, whatever the sign)
+    rhs.set_locks(locks.locked_index)
+    for _ in range(5):
+        q = robot.pose("drive") + rng.uniform(-0.3, 0.3, 8)
+        v, tau = rng.normal(size=8), rng.normal(scale=5.0, size=8)
+        lam = rhs.lock_torques_at(q, v, tau)
+        assert lam is not None and lam.shape == (len(locked),)
+        _, want = locks.torques(sysm.aba(q, v, tau), sysm.minv(q))
+        scale = 1.0 + max((abs(x) for x in want.values()), default=0.0)
+        np.testing.assert_allclose(lam, [want[j] for j in locked], atol=1e-10 * scale)
+    assert rhs.end_locks(np.zeros(16)) is None  # (still no step: nothing was made up)
+    with pytest.raises(ValueError, match="nv entries"):
+        rhs.lock_torques_at(np.zeros(7), np.zeros(8), np.zeros(8))

@@ -61,11 +61,14 @@ class LockReport:
             t: The sample's time [s] (unused).
         """
         lock = self.lock_torques(q, v, tau)
-        law = self.law
-        pairs = {j for a in law.active.values() if a.pair is not None for j, _ in a.clamps}
-        on_pairs = np.zeros(len(q), dtype=bool)
-        on_pairs[sorted(pairs)] = True
-        return SampleForces([], np.where(on_pairs, 0.0, lock), np.where(on_pairs, lock, 0.0))
+        if not self.law.locks.engaged:
+            return SampleForces([], lock)
+        clamp = np.zeros(len(q))
+        for a in self.law.active.values():
+            if a.pair is not None:  # a pair's clamps: their joints' torques are the clamps'
+                for j, _ in a.clamps:
+                    clamp[j], lock[j] = lock[j] + clamp[j], 0.0
+        return SampleForces([], lock, clamp)
 
     def lock_torques(
         self, q: FloatArray, v: FloatArray, tau: Callable[[], FloatArray]
@@ -76,15 +79,27 @@ class LockReport:
         <packbot.contact.locks.JointLocks.torques>`, positive along +q) under the joint torques
         ``tau()`` [N*m]; where friction or a brake also holds the joint, the lock carries what
         the friction's bound does not (:func:`~packbot.contact.holds.friction_share`: the
-        friction torques reported, :meth:`friction`, carry the rest). Zero off the locks.
+        friction torques reported, :meth:`friction`, carry the rest). Zero off the locks. The
+        arithmetic of the law's native steps (:meth:`NativeRhs.lock_torques_at
+        <packbot.contact.native.NativeRhs.lock_torques_at>`) where their lock mode is the
+        locks' current set (the last step's), else the locks' own solve.
         """
         out = np.zeros(len(q))
-        locks = self.law.locks
+        law = self.law
+        locks = law.locks
         if not locks.engaged:
             return out
-        sys = self.law.sys
-        _, lam = locks.torques(sys.aba(q, v, tau()), sys.minv(q))
-        for j in locks.engaged:
-            bound = locks.held.get(j)
-            out[j] = lam[j] - (0.0 if bound is None else friction_share(lam[j], bound))
+        idx = locks.locked_index
+        torque = tau()
+        rhs = law._lock_step.rhs  # (the law's native steps' lock mode, where it is loaded)
+        lam = None
+        if rhs is not None and rhs.holds_locks(idx):
+            lam = rhs.lock_torques_at(q, v, torque)
+        if lam is None:
+            sys = law.sys
+            torques = locks.torques(sys.aba(q, v, torque), sys.minv(q))[1]
+            lam = np.array([torques[j] for j in idx.tolist()], dtype=np.float64)
+        out[idx] = lam
+        for j, bound in locks.held.items():  # a held joint's friction carries its share
+            out[j] = out[j] - friction_share(out[j], bound) if j in locks.engaged else 0.0
         return out

@@ -349,6 +349,22 @@ class NativeRhs:
         """
         return self._rhs.end_locks(y1)
 
+    def lock_torques_at(self, q: FloatArray, v: FloatArray, tau: FloatArray) -> FloatArray | None:
+        """The loaded lock mode's lock torques [N*m] at (q, v) under the joint torques tau.
+
+        M a = tau - h + S_L^T lambda (:meth:`set_locks`'s joints, in its order): the
+        arithmetic of the mode's right-hand side, asked at a sample between steps (the last
+        step's end, which :meth:`end_locks` and :meth:`end_screen` read, is kept). None where
+        its closed form does not hold (a singular pivot).
+
+        Args:
+            q: Configuration [rad].
+            v: Velocity [rad/s].
+            tau: Joint torques [N*m] (applied and friction).
+        """
+        out = self._rhs.lock_torques_at(_reals(q), _reals(v), _reals(tau))
+        return None if out is None else np.asarray(out, dtype=np.float64)
+
     def end_screen(
         self, rows: FloatArray, y1: FloatArray, margin: float, torque_band: float, accel_band: float
     ) -> float:

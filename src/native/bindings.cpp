@@ -201,6 +201,8 @@ NB_MODULE(_native, m) {
       .def("neutral_velocity", &ContactRhs::neutral_velocity, nb::arg("q0"), nb::arg("q1"),
            nb::arg("v"))
       .def("end_locks", &ContactRhs::end_locks, nb::arg("y1"))
+      .def("lock_torques_at", &ContactRhs::lock_torques_at, nb::arg("q"), nb::arg("v"),
+           nb::arg("tau"))
       .def("set_screen", &ContactRhs::set_screen, nb::arg("rows"), nb::arg("torque_band"),
            nb::arg("accel_band"))
       .def("end_screen", &ContactRhs::end_screen, nb::arg("y1"), nb::arg("margin"))

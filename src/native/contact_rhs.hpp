@@ -160,6 +160,7 @@ class ContactRhs {
   // ---- the joint locks: contact_rhs_locks.cpp
   void set_locks(I1 locked);
   nb::object end_locks(F1 y1);
+  nb::object lock_torques_at(F1 q, F1 v, F1 tau);
   void set_screen(F2 rows, double torque_band, double accel_band);
   double end_screen(F1 y1, double margin);
 

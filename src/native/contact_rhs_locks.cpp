@@ -55,6 +55,35 @@ nb::object ContactRhs::end_locks(F1 y1) {
   return nb::make_tuple(vec(a_.data(), nv_), vec(lock_lam_.data(), lock_lam_.size()));
 }
 
+// The lock torques lambda_L [N*m] of the loaded lock mode at (q, v) under the joint torques
+// tau [N*m] (M a = tau - h + S_L^T lambda, in set_locks's order), or None where its closed
+// form does not hold (a singular pivot). A sample's question between steps: the step state
+// (the accelerations, lock torques and state of the last stage, which end_locks and
+// end_screen read) is kept as it was.
+nb::object ContactRhs::lock_torques_at(F1 q, F1 v, F1 tau) {
+  const size_t n = static_cast<size_t>(nv_);
+  if (lock_mode_ < 0) throw std::invalid_argument("lock_torques_at: no lock mode (set_locks)");
+  if (q.shape(0) != n || v.shape(0) != n || tau.shape(0) != n)
+    throw std::invalid_argument("lock_torques_at: q, v and tau of nv entries expected");
+  const Eigen::VectorXd q0 = q_, v0 = v_, x0 = x_, af0 = a_free_, a0 = a_;
+  const std::vector<double> lam0 = lock_lam_;
+  for (size_t i = 0; i < n; ++i) {
+    q_[i] = q.data()[i];
+    v_[i] = v.data()[i];
+    x_[i] = tau.data()[i];
+  }
+  jac_valid_ = false;  // (the passes below overwrite data_)
+  const bool ok = lock_accel();
+  nb::object out = ok ? nb::cast(vec(lock_lam_.data(), lock_lam_.size())) : nb::none();
+  q_ = q0;
+  v_ = v0;
+  x_ = x0;
+  a_free_ = af0;
+  a_ = a0;
+  lock_lam_ = lam0;
+  return out;
+}
+
 // The lock conditions of packbot.contact.locks.JointLocks.conditions_of, as rows
 // (kind, index, s, bound): kind 0 a held joint (index: its lock torque's position; s its
 // one-sided clamp's sign or 0; bound F_j [N*m]): g = F_j + torque_band - |lambda| or, with
