@@ -116,6 +116,7 @@ class Robot:
         srdf_path: The SRDF whose disabled link pairs the collision world leaves out (PackBot:
             the shipped one unless another was given); None: no pair but the adjacent ones.
         tool_frame: The frame the Cartesian controllers and the study's task move [-].
+        package_dirs: The folders its ``package://`` mesh URIs were resolved in (the loader's).
     """
 
     model: pin.Model
@@ -127,6 +128,7 @@ class Robot:
     adjacent_links: frozenset[frozenset[str]] = frozenset()
     srdf_path: Path | None = None
     tool_frame: str = P.TOOL_FRAMES["gripper"]
+    package_dirs: tuple[Path, ...] = ()
 
     def __post_init__(self) -> None:
         if not self.adjacent_links:
@@ -428,7 +430,15 @@ def load_robot(
     frame = _tool_frame(model, tool_frame, packbot)
     log.debug("loaded %s: nq=%d, %d collision pieces", path, model.nq, collision.ngeoms)
     robot = Robot(
-        model, collision, visual, poses, params, path, srdf_path=srdf_file, tool_frame=frame
+        model,
+        collision,
+        visual,
+        poses,
+        params,
+        path,
+        srdf_path=srdf_file,
+        tool_frame=frame,
+        package_dirs=tuple(dirs),
     )
     _LOADED[:] = [r for r in _LOADED if r() is not None] + [weakref.ref(robot)]
     return robot

@@ -4,8 +4,10 @@
 ``<mujoco><compiler .../></mujoco>`` extension), after rewriting the URDF text in memory:
 
 - mesh URIs ``package://packbot/meshes/X.stl`` become file names ``X.stl`` with ``meshdir``
-  pointing at the URDF's ``meshes/`` directory (MuJoCo collides the convex hull of each mesh,
-  which matches our convex pieces);
+  pointing at the URDF's ``meshes/`` directory; another arm's (``package://`` of other packages,
+  relative paths) their absolute paths, resolved as :func:`packbot.load_robot` resolved them
+  (``robot.package_dirs``), and the visuals MuJoCo cannot read (COLLADA) dropped (MuJoCo
+  collides the convex hull of each mesh, which matches our convex pieces);
 - the locked joints become ``fixed`` joints whose origin includes their locked angle
   (``origin * Rot(axis, q_j)``), so the welded bodies sit where our locked model has them;
 - ``<dynamics>`` (joint damping and friction) is removed: no damping, no joint friction.
@@ -15,7 +17,7 @@ joints with the URDF range, the floor (our default :class:`~packbot.environment.
 the halfspace z <= 0) as a plane, Coulomb friction ``mu`` on every geom (elliptic cone),
 a stiff ``solref`` (default: time constant ``2 * timestep``, critical damping, the stiffest that
 MuJoCo allows without instability) on contacts and limits, and one ``<exclude>`` per SRDF pair
-(``packbot_eod.srdf``: adjacent and never-colliding links), so that MuJoCo tests the same
+(the robot's SRDF, ``packbot_eod.srdf`` for PackBot: adjacent and never-colliding links), so that MuJoCo tests the same
 candidate pairs as :class:`~packbot.collision.CollisionWorld` (MuJoCo also skips bodies welded
 together, which we only skip when their distance cannot change). The chassis ``base_link`` is
 welded to the world.
@@ -41,6 +43,7 @@ import pinocchio as pin
 from numpy.typing import NDArray
 
 from packbot.errors import ConfigurationError, ModelError, UnknownNameError
+from packbot.resources import resolve_mesh_uri
 
 if TYPE_CHECKING:
     from packbot.environment import Environment
@@ -65,7 +68,6 @@ WRIST_JOINTS: tuple[str, ...] = ("camera_tilt", "camera_pan", "gripper_roll", "g
 MujocoIntegrator = Literal["euler", "implicitfast", "rk4"]
 MUJOCO_INTEGRATORS: tuple[str, ...] = get_args(MujocoIntegrator)
 
-_SRDF_NAME = "packbot_eod.srdf"
 _PACKAGE = "package://packbot/meshes/"
 
 
@@ -163,18 +165,38 @@ def _srdf_pairs(path: Path) -> list[tuple[str, str]]:
 
 
 def _rewrite_urdf(
-    text: str, meshdir: Path, locked: dict[str, float], compiler: dict[str, str]
+    text: str,
+    meshdir: Path,
+    locked: dict[str, float],
+    compiler: dict[str, str],
+    package_dirs: Sequence[Path] = (),
 ) -> str:
+    """The URDF as MuJoCo reads it, the locked joints fixed.
+
+    PackBot's meshes by file name in ``meshdir``, another arm's by their absolute path
+    (resolved in its folder and ``package_dirs``); the visuals MuJoCo cannot read are dropped
+    (it discards the visuals anyway).
+    """
     root = ET.fromstring(text)
     for link in root.iter("link"):  # unique geom names (MuJoCo warns on duplicates)
         for el in (*link.findall("collision"), *link.findall("visual")):
             if "name" in el.attrib:
                 el.attrib["name"] = f"{link.attrib['name']}__{el.attrib['name']}"
+        for el in link.findall("visual"):
+            mesh = el.find("geometry/mesh")
+            if mesh is not None and Path(mesh.attrib.get("filename", "")).suffix.lower() not in (
+                ".stl",
+                ".obj",
+                ".msh",
+            ):
+                link.remove(el)
     for mesh in root.iter("mesh"):
         name = mesh.attrib["filename"]
         if name.startswith(_PACKAGE):
-            name = name[len(_PACKAGE) :]
-        mesh.attrib["filename"] = Path(name).name
+            mesh.attrib["filename"] = Path(name[len(_PACKAGE) :]).name
+            continue
+        found = resolve_mesh_uri(name, meshdir.parent, package_dirs)
+        mesh.attrib["filename"] = str(found) if found is not None else Path(name).name
     for joint in root.iter("joint"):
         for dyn in joint.findall("dynamics"):
             joint.remove(dyn)
@@ -206,7 +228,7 @@ def build_mujoco_model(
     robot: Robot,
     *,
     q_locked: Sequence[float] | NDArray[np.float64] | None = None,
-    locked_joints: Sequence[str] = WRIST_JOINTS,
+    locked_joints: Sequence[str] | None = None,
     timestep: float = 5e-4,
     mu: float = 0.5,
     solref: tuple[float, float] | None = None,
@@ -220,9 +242,10 @@ def build_mujoco_model(
 
     Args:
         robot: The loaded robot (its URDF, armature and gravity are used).
-        q_locked: Our full q [rad] giving the angles of the locked joints; None: the "drive"
-            pose.
-        locked_joints: Joints made fixed at their ``q_locked`` angle.
+        q_locked: Our full q [rad] giving the angles of the locked joints; None: the robot's
+            :attr:`~packbot.Robot.home_pose` (PackBot's "drive").
+        locked_joints: Joints made fixed at their ``q_locked`` angle; None: PackBot's
+            :data:`WRIST_JOINTS` (the report's collapse), none of another arm's.
         timestep: MuJoCo integration step [s].
         mu: Coulomb (sliding) friction coefficient of every geom [-]; 0: frictionless
             (``condim=1``).
@@ -237,7 +260,8 @@ def build_mujoco_model(
             timesteps.
         environment: Static obstacles; only halfspaces are supported (each becomes a plane);
             None: the floor z = 0.
-        srdf: SRDF of link pairs never to test; None: the one beside the URDF.
+        srdf: SRDF of link pairs never to test; None: the robot's (:attr:`~packbot.Robot.
+            srdf_path`; none: only MuJoCo's own parent-child exclusion).
         joint_dynamics: Keep the joints' friction (``SimConfig.joint_friction``): each hinge's
             viscous friction ``robot.params.viscous`` [N*m*s/rad] as MuJoCo ``damping`` and its
             Coulomb friction ``robot.params.coulomb`` [N*m] as ``frictionloss``; False: none.
@@ -251,6 +275,8 @@ def build_mujoco_model(
             non-halfspace obstacle.
         ModelError: mujoco is not installed, or it rejects the model.
     """
+    if locked_joints is None:
+        locked_joints = WRIST_JOINTS if robot.is_packbot else ()
     spec, xml, q_lock, ref = _arm_spec(
         robot,
         q_locked=q_locked,
@@ -306,7 +332,7 @@ def _arm_spec(
     ref = (2.0 * timestep, 1.0) if solref is None else (float(solref[0]), float(solref[1]))
     _check_positive("solref[0]", ref[0])
     _check_positive("solref[1]", ref[1])
-    q_lock = robot.pose("drive") if q_locked is None else np.asarray(q_locked, dtype=float)
+    q_lock = robot.pose(robot.home_pose) if q_locked is None else np.asarray(q_locked, dtype=float)
     if q_lock.shape != (robot.nq,):
         raise ConfigurationError("q_locked", q_lock.shape, f"shape ({robot.nq},)")
     env = Environment() if environment is None else environment
@@ -328,7 +354,9 @@ def _arm_spec(
         "autolimits": "true",
         "strippath": "false",
     }
-    xml = _rewrite_urdf(urdf.read_text(), urdf.parent / "meshes", locked, compiler)
+    xml = _rewrite_urdf(
+        urdf.read_text(), urdf.parent / "meshes", locked, compiler, robot.package_dirs
+    )
     try:
         spec = mujoco.MjSpec.from_string(xml)
     except ValueError as exc:
@@ -377,8 +405,8 @@ def _arm_spec(
         geom.solimp = imp
         geom.margin = 0.0
         geom.gap = 0.0
-    srdf_path = urdf.parent / _SRDF_NAME if srdf is None else Path(srdf)
-    for a, b in _srdf_pairs(srdf_path):
+    srdf_path = robot.srdf_path if srdf is None else Path(srdf)
+    for a, b in () if srdf_path is None else _srdf_pairs(srdf_path):
         spec.add_exclude(bodyname1=a, bodyname2=b)
     return spec, xml, q_lock, ref
 
