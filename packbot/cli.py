@@ -232,8 +232,25 @@ def _cmd_generate_model(args: argparse.Namespace) -> int:
 
 def _cmd_generate_srdf(args: argparse.Namespace) -> int:
     from packbot.model import load_robot
-    from packbot.srdfgen import write_srdf
+    from packbot.srdfgen import generate_srdf, write_srdf
 
+    if args.out is not None or args.urdf is not None:  # an arm's SRDF, to a file
+        if args.out is None:
+            raise _UsageError("--urdf needs --out FILE (the SRDF to write)")
+        if args.root is not None:
+            raise _UsageError("--out and --root exclude each other")
+        out = Path(args.out)
+        if out.is_dir() or not out.parent.is_dir():
+            raise _UsageError(f"--out {out}: expected a file path in an existing folder")
+        try:
+            robot = load_robot(args.urdf, package_dirs=args.package_dir or None)
+        except PackbotError:
+            raise
+        except (ValueError, RuntimeError) as exc:  # a parser's own error: still bad input
+            raise _UsageError(f"--urdf {args.urdf}: not a loadable URDF: {exc}") from None
+        out.write_text(generate_srdf(robot, samples=args.samples, clearance=args.clearance))
+        print(f"wrote {out}")
+        return 0
     root = _root_dir(args.root)
     if not (root / "urdf").is_dir():
         print(
@@ -1276,7 +1293,8 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser(
         "generate-srdf",
-        help="sample the joint space and write urdf/packbot/packbot_eod.srdf (groups, pairs)",
+        help="sample the joint space and write urdf/packbot/packbot_eod.srdf, or an arm's SRDF "
+        "to --out (groups, pairs)",
     )
     p.add_argument(
         "--samples", type=_positive_int, default=20000, help="random configurations (20000)"
@@ -1286,6 +1304,20 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument(
         "--root", type=_folder, default=None, help="repository root (default: this checkout)"
+    )
+    p.add_argument(
+        "--urdf",
+        default=None,
+        help="another arm: a URDF or an arm's name (ur5, panda); with --out",
+    )
+    p.add_argument(
+        "--package-dir",
+        action="append",
+        default=[],
+        help="a folder holding the ROS packages of the URDF's package:// meshes (repeatable)",
+    )
+    p.add_argument(
+        "--out", default=None, help="write the SRDF to this file (pass it as load_robot(srdf=))"
     )
     p.set_defaults(func=_cmd_generate_srdf)
 

@@ -17,9 +17,10 @@ joints with the URDF range, the floor (our default :class:`~packbot.environment.
 the halfspace z <= 0) as a plane, Coulomb friction ``mu`` on every geom (elliptic cone),
 a stiff ``solref`` (default: time constant ``2 * timestep``, critical damping, the stiffest that
 MuJoCo allows without instability) on contacts and limits, and one ``<exclude>`` per SRDF pair
-(the robot's SRDF, ``packbot_eod.srdf`` for PackBot: adjacent and never-colliding links), so that MuJoCo tests the same
-candidate pairs as :class:`~packbot.collision.CollisionWorld` (MuJoCo also skips bodies welded
-together, which we only skip when their distance cannot change). The chassis ``base_link`` is
+(the robot's SRDF, ``packbot_eod.srdf`` for PackBot: adjacent and never-colliding links), so
+that MuJoCo tests the same candidate pairs as :class:`~packbot.collision.CollisionWorld`
+(MuJoCo also skips bodies welded together, which we only skip when their distance cannot
+change). The chassis ``base_link`` is
 welded to the world.
 
 :func:`run_collapse` integrates it with zero control from a pose and reports the rest pose, the

@@ -1750,6 +1750,18 @@ cli("generate-srdf-samples-str", ["generate-srdf", "--samples", "many"], "many")
 cli("generate-srdf-samples-float", ["generate-srdf", "--samples", "1.5"], "1.5")
 cli("generate-srdf-clearance-negative", ["generate-srdf", "--clearance", "-0.1"], "--clearance")
 cli("generate-srdf-clearance-nan", ["generate-srdf", "--clearance", "nan"], "--clearance")
+cli("generate-srdf-urdf-without-out", ["generate-srdf", "--urdf", "panda"], "--out")
+cli(
+    "generate-srdf-out-and-root",
+    lambda c: ["generate-srdf", "--out", str(c.tmp / "a.srdf"), "--root", str(c.tmp)],
+    "--root",
+)
+cli("generate-srdf-out-a-folder", lambda c: ["generate-srdf", "--out", str(c.tmp)], "--out")
+cli(
+    "generate-srdf-urdf-missing",
+    lambda c: ["generate-srdf", "--urdf", str(c.tmp / "none.urdf"), "--out", str(c.tmp / "a")],
+    "none.urdf",
+)
 cli(
     "generate-srdf-root-without-urdf",
     lambda c: ["generate-srdf", "--samples", "1", "--root", str(c.tmp)],

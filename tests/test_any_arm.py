@@ -264,6 +264,38 @@ def test_info_prints_another_arm(tmp_path, capsys) -> None:
     assert "package_dirs" in capsys.readouterr().err
 
 
+def test_a_sampled_srdf_leaves_out_only_pairs_that_never_touch(tmp_path, capsys) -> None:
+    """``packbot generate-srdf --urdf panda --out F`` samples the joint space (MoveIt's setup
+    assistant's rule, a 5 cm clearance): the Panda loaded with that SRDF tests fewer pairs (16
+    left out at 3000 samples; the UR5's full joint ranges leave none 5 cm clear), and on an
+    independent sample of configurations every pair it leaves out stays clear."""
+    from packbot.cli import main
+
+    _named("panda")
+    out = tmp_path / "panda.srdf"
+    assert main(["generate-srdf", "--urdf", "panda", "--samples", "3000", "--out", str(out)]) == 0
+    text = out.read_text()
+    assert 'reason="Never"' in text and '<group name="arm">' in text
+    files = robot_files("panda")
+    full = packbot.load_robot("panda")
+    sampled = packbot.load_robot(files.urdf, package_dirs=files.package_dirs, srdf=out)
+    every = packbot.CollisionWorld(full, packbot.Environment.empty(), srdf=False)
+    kept = packbot.CollisionWorld(sampled, packbot.Environment.empty())
+    assert len(kept.pairs) < len(every.pairs)
+    names = {(p.piece1, p.piece2) for p in kept.pairs}
+    left_out = [k for k, p in enumerate(every.pairs) if (p.piece1, p.piece2) not in names]
+    assert left_out
+    rng = np.random.default_rng(11)
+    lo, hi = full.params.lower, full.params.upper
+    for _ in range(300):
+        d = every.all_distances(rng.uniform(lo, hi))
+        assert d[left_out].min() > 0.0
+    # usage errors: exit 2 without a traceback
+    assert main(["generate-srdf", "--urdf", "panda"]) == 2
+    assert main(["generate-srdf", "--out", str(tmp_path / "no" / "x.srdf")]) == 2
+    assert "--out" in capsys.readouterr().err
+
+
 # ------------------------------------------------------------------ scenario files
 def _arm_scenario(tmp_path, robot_line: str) -> object:
     (tmp_path / "arms").mkdir(exist_ok=True)
