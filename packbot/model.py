@@ -17,12 +17,14 @@ file, the element and the fix.
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 import os
 import weakref
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pinocchio as pin
@@ -343,6 +345,7 @@ def load_robot(
     package_dirs: Sequence[str | Path] | str | Path | None = None,
     srdf: str | Path | None = None,
     tool_frame: str | None = None,
+    armature: Mapping[str, float] | str | Path | None = None,
 ) -> Robot:
     """Load PackBot's EOD arm, or any fixed-base arm described in URDF.
 
@@ -368,6 +371,10 @@ def load_robot(
             is tested).
         tool_frame: The frame the Cartesian controllers and the failure study's task move.
             None: PackBot's ``gripper_tool``, or another arm's last frame.
+        armature: The joints' armature (the rotor's reflected inertia, added to M's diagonal)
+            [kg*m^2, kg for a prismatic joint], joint name -> value, or a sidecar TOML file
+            with an ``[armature]`` table of the same; the joints it names replace the URDF's
+            zero (PackBot's sourced table's value). None: PackBot's table, another arm's zero.
 
     Returns:
         The robot, with armature set and convex collision pieces.
@@ -414,6 +421,8 @@ def load_robot(
     _name_pieces(visual, model, packbot)
     _convexify(collision, exact=packbot)
     params = _joint_params(model) if packbot else _urdf_joint_params(model)
+    if armature is not None:
+        params = dataclasses.replace(params, armature=_armature(armature, params))
     model.armature = params.armature.copy()
     model.gravity.linear = np.array([0.0, 0.0, -P.GRAVITY])
     if packbot:
@@ -442,6 +451,42 @@ def load_robot(
     )
     _LOADED[:] = [r for r in _LOADED if r() is not None] + [weakref.ref(robot)]
     return robot
+
+
+def _armature(spec: Mapping[str, float] | str | Path, params: JointParams) -> NDArray[np.float64]:
+    """The armature array [kg*m^2] of ``load_robot(armature=)``: a mapping or a TOML file's.
+
+    Raises:
+        ConfigurationError: Not a mapping or a file path, a file without an ``[armature]``
+            table, or a value that is not a finite number >= 0.
+        ResourceNotFound: The file is missing.
+        UnknownNameError: A joint the arm does not have.
+    """
+    from packbot import tomlfile
+
+    values: Any = spec
+    if isinstance(spec, (str, os.PathLike)):
+        path = Path(spec)
+        if not path.is_file():
+            raise ResourceNotFound(path, "pass an existing TOML file with an [armature] table")
+        tomlfile.check_file_size(path, "armature", str(path))
+        values = tomlfile.loads(path.read_text(), "armature", str(path)).get("armature")
+        if not isinstance(values, dict):
+            raise ConfigurationError(
+                "armature", str(path), "a TOML file with an [armature] table (joint = value)"
+            )
+    if not isinstance(values, Mapping):
+        raise ConfigurationError(
+            "armature", spec, "a mapping joint -> armature [kg*m^2], a TOML file, or None"
+        )
+    out = np.array(params.armature, dtype=np.float64)
+    for name, value in values.items():
+        if name not in params.names:
+            raise UnknownNameError("armature joint", name, params.names)
+        out[params.names.index(name)] = finite_number(
+            f"armature.{name}", value, low=0.0, unit="kg*m^2"
+        )
+    return out
 
 
 def _srdf_file(srdf: str | Path | None, packbot: bool) -> Path | None:

@@ -29,7 +29,7 @@ if TYPE_CHECKING:
 __all__ = ["ROBOT_KEYS", "RobotSpec", "load_spec_robot", "robot_spec"]
 
 #: The keys of a ``[robot]`` table.
-ROBOT_KEYS: tuple[str, ...] = ("urdf", "package_dirs", "srdf", "tool_frame")
+ROBOT_KEYS: tuple[str, ...] = ("urdf", "package_dirs", "srdf", "tool_frame", "armature")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -42,12 +42,15 @@ class RobotSpec:
         package_dirs: Folders of the URDF's ``package://`` meshes (relative as ``urdf``).
         srdf: An SRDF of the link pairs not to test, or None (the loader's default).
         tool_frame: The tool frame, or None (the loader's default).
+        armature: The joints' armature: joint -> [kg*m^2] (a ``[robot.armature]`` table), a
+            sidecar TOML file (relative as ``urdf``), or None (the loader's default).
     """
 
     urdf: str = "packbot"
     package_dirs: tuple[str, ...] = ()
     srdf: str | None = None
     tool_frame: str | None = None
+    armature: str | tuple[tuple[str, float], ...] | None = None
 
 
 def _text(path: str, value: Any) -> str:
@@ -77,7 +80,15 @@ def robot_spec(value: Any) -> RobotSpec:
     dirs = value.get("package_dirs", [])
     if isinstance(dirs, str) or not isinstance(dirs, list):
         raise ConfigurationError("robot.package_dirs", dirs, "an array of folder paths")
+    arm = value.get("armature")
+    if isinstance(arm, Mapping):
+        armature: str | tuple[tuple[str, float], ...] | None = tuple(
+            (str(k), v) for k, v in arm.items()
+        )
+    else:
+        armature = None if arm is None else _text("robot.armature", arm)
     return RobotSpec(
+        armature=armature,
         urdf=_text("robot.urdf", value["urdf"]),
         package_dirs=tuple(_text(f"robot.package_dirs[{k}]", d) for k, d in enumerate(dirs)),
         srdf=_text("robot.srdf", value["srdf"]) if "srdf" in value else None,
@@ -111,4 +122,11 @@ def load_spec_robot(spec: RobotSpec | None, source: Path | None = None) -> Robot
         package_dirs=[here(d) for d in spec.package_dirs] or None,
         srdf=here(spec.srdf) if spec.srdf is not None else None,
         tool_frame=spec.tool_frame,
+        armature=(
+            here(spec.armature)
+            if isinstance(spec.armature, str)
+            else None
+            if spec.armature is None
+            else dict(spec.armature)
+        ),
     )

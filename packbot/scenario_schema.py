@@ -277,6 +277,17 @@ def json_schema(robot: Robot | None = None) -> dict[str, Any]:
                             "package_dirs": {"type": "array", "items": {"type": "string"}},
                             "srdf": {"type": "string", "minLength": 1},
                             "tool_frame": {"type": "string", "minLength": 1},
+                            "armature": {
+                                "description": "joint -> armature [kg*m^2], or a TOML file "
+                                "with an [armature] table",
+                                "anyOf": [
+                                    {"type": "string", "minLength": 1},
+                                    {
+                                        "type": "object",
+                                        "additionalProperties": {"type": "number", "minimum": 0},
+                                    },
+                                ],
+                            },
                         },
                         "required": ["urdf"],
                         "additionalProperties": False,

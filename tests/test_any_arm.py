@@ -119,6 +119,65 @@ def test_free_motion_matches_an_independent_integration_of_pinocchios_aba(two_li
     assert np.abs(res.q).max() < 3.0  # (no limit reached: the check is of free motion)
 
 
+def test_armature_from_a_mapping_or_a_sidecar_file(tmp_path) -> None:
+    """``armature=`` (joint -> kg*m^2, or a TOML sidecar's ``[armature]``) is added to M's
+    diagonal, and the arm swings as Pinocchio's ABA with that armature says; bad values are
+    named."""
+    path = tmp_path / "arm.urdf"
+    path.write_text(two_link_urdf())
+    plain = packbot.load_robot(path)
+    side = tmp_path / "arm.armature.toml"
+    side.write_text("[armature]\njoint1 = 0.05\n")
+    for spec in ({"joint1": 0.05}, side, str(side)):
+        r = packbot.load_robot(path, armature=spec)
+        np.testing.assert_array_equal(r.params.armature, [0.05, 0.0])
+        q = np.array([0.3, -0.2])
+        M = pin.crba(r.model, r.model.createData(), q)
+        M0 = pin.crba(plain.model, plain.model.createData(), q)
+        np.testing.assert_allclose(np.triu(M) - np.triu(M0), np.diag([0.05, 0.0]), atol=1e-15)
+    q0 = np.array([0.6, -0.4])
+    cfg = packbot.SimConfig(contact_mode="none", rtol=1e-10, atol=1e-12, sample_dt=0.05)
+    res = packbot.simulate(r, q0, np.zeros(2), 1.0, config=cfg)
+    slow = packbot.simulate(plain, q0, np.zeros(2), 1.0, config=cfg)
+    model = r.model.copy()
+    data = model.createData()
+
+    def f(_t, y):
+        return np.concatenate([y[2:], pin.aba(model, data, y[:2], y[2:], np.zeros(2))])
+
+    ref = solve_ivp(f, (0.0, 1.0), np.concatenate([q0, np.zeros(2)]), dense_output=True,
+                    rtol=1e-12, atol=1e-12)  # fmt: skip
+    assert np.abs(res.q - ref.sol(res.t)[:2].T).max() < 1e-6
+    assert np.abs(res.q - slow.q).max() > 1e-3  # (the armature changes the swing: a real test)
+    with pytest.raises(UnknownNameError, match="armature joint"):
+        packbot.load_robot(path, armature={"joint9": 0.1})
+    with pytest.raises(ConfigurationError, match=r"armature\.joint1"):
+        packbot.load_robot(path, armature={"joint1": -1.0})
+    with pytest.raises(ConfigurationError, match="armature"):
+        packbot.load_robot(path, armature=3)
+    bad = tmp_path / "bad.toml"
+    bad.write_text("joint1 = 0.1\n")
+    with pytest.raises(ConfigurationError, match=r"\[armature\] table"):
+        packbot.load_robot(path, armature=bad)
+    with pytest.raises(ResourceNotFound):
+        packbot.load_robot(path, armature=tmp_path / "missing.toml")
+
+
+def test_a_scenario_names_its_arms_armature(tmp_path) -> None:
+    from packbot.scenario_robot import load_spec_robot, robot_spec
+
+    (tmp_path / "arm.urdf").write_text(two_link_urdf())
+    (tmp_path / "arm.armature.toml").write_text("[armature]\njoint2 = 0.02\n")
+    table = {"urdf": "arm.urdf", "armature": {"joint1": 0.05}}
+    r = load_spec_robot(robot_spec(table), tmp_path / "s.toml")
+    np.testing.assert_array_equal(r.params.armature, [0.05, 0.0])
+    file = {"urdf": "arm.urdf", "armature": "arm.armature.toml"}  # (relative to the file)
+    r = load_spec_robot(robot_spec(file), tmp_path / "s.toml")
+    np.testing.assert_array_equal(r.params.armature, [0.0, 0.02])
+    with pytest.raises(ConfigurationError, match="robot.armature"):
+        robot_spec({"urdf": "arm.urdf", "armature": 3})
+
+
 def test_a_continuous_joint_is_refused_by_name(tmp_path) -> None:
     path = tmp_path / "arm.urdf"
     path.write_text(two_link_urdf(kind="continuous"))
