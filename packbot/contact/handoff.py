@@ -49,7 +49,8 @@ joint's clamps are not rows (the joint is locked anyway): its hold condition tak
 :class:`~packbot.contact.locks.JointLocks` does. A bounded torque does nothing in an instant: at
 an impulse the held joints are free (an impact may set a braked joint moving; it then slides,
 its friction opposing; one it would set moving slower than ``HOLD_KICK`` stays held), and the
-holds are chosen again after it (:meth:`HandoffLaw._settle_holds`).
+holds are chosen again after it (:meth:`MixedHolds.settle
+<packbot.contact.handoff_holds.MixedHolds.settle>`).
 
 When the last handed-off pair leaves the contact set (its distance beyond the proximity
 tolerance) the clamps go back to :class:`~packbot.contact.locks.JointLocks` and that pair's next
@@ -71,13 +72,14 @@ from packbot.collision import PairInfo
 from packbot.contact import native
 from packbot.contact.base import Active, Crossing, ForceReport, Key
 from packbot.contact.handoff_forces import HandoffReport
+from packbot.contact.handoff_holds import MixedHolds
 from packbot.contact.joint_clamp import JointClampLaw
 from packbot.contact.locks import ACCEL_BAND, TORQUE_BAND
 from packbot.contact.normal_contacts import NormalContacts
 from packbot.contact.normal_dynamics import _Eval
 from packbot.contact.normal_modes import ModeEvent
 from packbot.contact.patch_events import PatchEvents
-from packbot.contact.stops import HOLD_KICK, RECEDE_SPEED, STICK_SPEED
+from packbot.contact.stops import HOLD_KICK, RECEDE_SPEED
 from packbot.ode import DenseSegment
 from packbot.system import System
 
@@ -404,6 +406,8 @@ class HandoffLaw(JointClampLaw, PatchEvents):
         mixed: The handed-off pairs and the clamp rows.
         report: The forces at the samples (:class:`~packbot.contact.handoff_forces.
             HandoffReport`).
+        holds_mixed: The friction holds under a handed-off pair (:class:`~packbot.contact.
+            handoff_holds.MixedHolds`).
     """
 
     def rebuild(self, system: System) -> None:
@@ -417,6 +421,7 @@ class HandoffLaw(JointClampLaw, PatchEvents):
             check_others=False,  # its other pairs are the joint_clamp mode's
         )
         self.report = HandoffReport(self)
+        self.holds_mixed = MixedHolds(self)
 
     def forces(self) -> ForceReport:
         """The current mode's forces at the samples (its :class:`HandoffReport`)."""
@@ -450,25 +455,11 @@ class HandoffLaw(JointClampLaw, PatchEvents):
     def lock_conditions(self, t: float, y: FloatArray) -> dict[tuple[str, int], float]:
         """The holds' conditions; while the mixed problem is on, with its contact forces.
 
-        Keys ``("hold", j)``: g = F_j + TORQUE_BAND - |tau_j| with tau_j from
-        :meth:`HandoffContacts.hold_torques`, or the push of the joint's one-sided clamp (as in
-        :meth:`JointLocks.conditions <packbot.contact.locks.JointLocks.conditions>`); a joint
-        clamped both ways never slips. Negative: a ``slip`` event.
+        :meth:`MixedHolds.conditions <packbot.contact.handoff_holds.MixedHolds.conditions>`.
         """
         if not self.mixed_on:
             return super().lock_conditions(t, y)
-        n = self.n
-        q, v = y[:n], y[n : 2 * n]
-        tau = self.mixed.hold_torques(q, v, self.free_accel(t, y), self.sys.minv(q))
-        out: dict[tuple[str, int], float] = {}
-        for j, tj in tau.items():
-            signs = self.mixed.held_signs.get(j, set())
-            g = self.locks.held[j] + TORQUE_BAND - abs(tj)
-            if len(signs) == 1:
-                (s,) = signs
-                g = max(g, -s * tj + TORQUE_BAND)
-            out[("hold", j)] = g if len(signs) != 2 else 1.0
-        return out
+        return self.holds_mixed.conditions(t, y)
 
     def _pair_crossings(
         self, key: Key, p_idx: int, seg: DenseSegment, d0: float, d1: float
@@ -531,7 +522,7 @@ class HandoffLaw(JointClampLaw, PatchEvents):
             t: Time [s].
             y: State.
             candidates: Joints with Coulomb friction that just stopped (see
-                :meth:`_settle_holds`).
+                :meth:`MixedHolds.settle <packbot.contact.handoff_holds.MixedHolds.settle>`).
             log_stick: Log a ``stick`` event for each candidate that sticks.
         """
         mixed = self.mixed
@@ -548,7 +539,7 @@ class HandoffLaw(JointClampLaw, PatchEvents):
         self.apply_clamps()
         mixed.refresh(q)
         if coul.any():
-            self._settle_holds(t, y, candidates, log_stick)
+            self.holds_mixed.settle(t, y, candidates, log_stick)
         else:
             mixed.select_modes(q, v, self.free_accel(t, y), self.sys.minv(q))
         if not mixed.pairs:  # the refresh dropped the last pair: the locks take the clamps
@@ -557,79 +548,6 @@ class HandoffLaw(JointClampLaw, PatchEvents):
             self.settle_modes(t, y_new, candidates=candidates, log_stick=log_stick)
             return
         self._release_receding_rows(t, y)
-
-    def _settle_holds(
-        self, t: float, y: FloatArray, candidates: Sequence[int], log_stick: bool
-    ) -> None:
-        """The holds (Coulomb friction, brakes) and the mixed problem's modes, together.
-
-        The rules of :meth:`JointStops.settle_modes <packbot.contact.stops.JointStops.
-        settle_modes>` with the contact forces in the holding torques
-        (:meth:`HandoffContacts.hold_torques`):
-
-        - a held joint that moves (an impulse, which a bounded torque cannot resist, set it
-          moving) slides in the direction of its speed;
-        - a joint with Coulomb friction at rest that is not held, and each candidate, tries to
-          hold (bound F_j);
-        - the modes are selected with the holds locked; the hold whose torque exceeds its bound
-          the most (a one-sided clamp that pushes supplies any torque, a joint clamped both
-          ways never slips) slides in the direction opposite to that torque, and the modes are
-          selected again, until every hold is within its bound.
-
-        Logs a ``slip`` for each hold lost and, with ``log_stick``, a ``stick`` for each
-        candidate held.
-        """
-        mixed, n = self.mixed, self.n
-        q, v = y[:n], y[n : 2 * n]
-        bound = self.drive.path.coulomb
-        fdir = self.drive.fdir
-        held = {j: b for j, b in self.locks.held.items() if bound[j] > 0}
-        slipped: list[int] = []
-        for j in list(held):
-            if abs(v[j]) > STICK_SPEED:  # set moving by an impulse: it slides
-                del held[j]
-                fdir[j] = math.copysign(1.0, v[j])
-                slipped.append(j)
-        trial: list[int] = []
-        for j in np.flatnonzero(bound > 0).tolist():
-            if j in held:
-                continue
-            if abs(v[j]) > STICK_SPEED:  # sliding (a stopped candidate the impulse moved too)
-                fdir[j] = math.copysign(1.0, v[j])
-            elif fdir[j] == 0.0 or j in candidates:
-                trial.append(j)
-        for j in trial:
-            fdir[j] = 0.0
-            held[j] = float(bound[j])
-        minv = self.sys.minv(q)
-        for _ in range(len(held) + 1):
-            self.locks.set_held(held)
-            self.apply_clamps()
-            a_free = self.free_accel(t, y)  # the sliding joints' friction as now directed
-            mixed.select_modes(q, v, a_free, minv)
-            tau = mixed.hold_torques(q, v, a_free, minv)
-            worst, excess = -1, 0.0
-            for j, tj in tau.items():
-                signs = mixed.held_signs.get(j, set())
-                if len(signs) == 2 or (len(signs) == 1 and -next(iter(signs)) * tj >= 0.0):
-                    continue  # the contact supplies the torque
-                over = abs(tj) - held[j] - 0.5 * TORQUE_BAND
-                if over > excess:
-                    worst, excess = j, over
-            if worst < 0:
-                break
-            del held[worst]
-            fdir[worst] = -math.copysign(1.0, tau[worst])
-            slipped.append(worst)
-        for j in slipped:
-            if abs(v[j]) <= STICK_SPEED:
-                self._slip_direction(t, y, j, minv)
-        for j in slipped:
-            self.log_event(t, "slip", q, v, v, None, joints=(self.sys.names[j],), joint=j)
-        if log_stick:
-            for j in trial:
-                if j in held:
-                    self.log_event(t, "stick", q, v, v, None, joints=(self.sys.names[j],), joint=j)
 
     def _release_receding_rows(self, t: float, y: FloatArray) -> None:
         """Engaged clamp rows on receding joints released, the modes selected again (logged).
@@ -742,7 +660,7 @@ class HandoffLaw(JointClampLaw, PatchEvents):
             self.drive.fdir[:] = 0.0
             self.apply_clamps()
         elif self.drive.path.coulomb.any():  # the holds chosen with the modes: the net change
-            self._settle_holds(t, y_new, stick, True)
+            self.holds_mixed.settle(t, y_new, stick, True)
             for j in self.locks.held:  # held: at rest (the impulse's rounding residue dropped)
                 y_new[n + j] = 0.0
             mode_events = [me for me in mode_events if me.kind not in ("stick", "slip")]
@@ -786,28 +704,6 @@ class HandoffLaw(JointClampLaw, PatchEvents):
         rhs = mixed._rows_rhs()
         status, out = native.stop_joints(rhs, v, self.sys.minv(q), creep, one_sided=False)
         return out if status == 1 else v
-
-    def _slip_direction(self, t: float, y: FloatArray, j: int, minv: FloatArray) -> None:
-        """A joint slipping from rest takes a direction its acceleration follows.
-
-        The direction opposite to the holding torque is the one its acceleration takes when
-        the joint's mobility is positive, which a sliding contact's friction (not derived
-        from a potential) can reverse. If joint j's acceleration does not follow ``fdir_j``
-        (beyond ACCEL_BAND), the other direction is tried with the modes selected again, and
-        kept if consistent (else the first stays: neither is, a Painleve-type case, logged).
-        """
-        n, mixed, fdir = self.n, self.mixed, self.drive.fdir
-        q, v = y[:n], y[n : 2 * n]
-        for attempt in range(2):
-            a_free = self.free_accel(t, y)
-            if attempt:
-                mixed.select_modes(q, v, a_free, minv)
-            a = mixed.evaluate(q, v, a_free, minv).a
-            if fdir[j] * a[j] >= -ACCEL_BAND:
-                return
-            fdir[j] = -fdir[j]
-        log.debug("t=%.9f: joint %s slips inconsistently in both directions", t, j)
-        mixed.select_modes(q, v, self.free_accel(t, y), minv)
 
     def _slip(self, t: float, y: FloatArray, j: int) -> None:
         """Held joint j slips: it slides against the torque its hold needed (logged)."""
