@@ -33,6 +33,7 @@ from typing import TYPE_CHECKING, Any, NamedTuple, NoReturn
 from packbot.errors import PackbotError, SimulationError, close_match
 
 if TYPE_CHECKING:
+    from packbot.model import Robot
     from packbot.result import SimResult
     from packbot.scenario import Scenario
     from packbot.uncertain_batch import UncertainReport
@@ -167,18 +168,28 @@ def _root_dir(value: str | None) -> Path:
     return root
 
 
-def _cmd_info(args: argparse.Namespace) -> int:
-    import numpy as np
-    import pinocchio as pin
+def _cli_robot(args: argparse.Namespace) -> Robot:
+    """The arm of ``--urdf`` and ``--package-dir`` (PackBot without them).
 
+    Raises:
+        PackbotError: The loader's errors (a missing file, a bad URDF).
+        _UsageError: A parser's own error on the file (still bad input).
+    """
     from packbot.model import load_robot
 
     try:
-        robot = load_robot(args.urdf, package_dirs=args.package_dir or None)
+        return load_robot(args.urdf, package_dirs=args.package_dir or None)
     except PackbotError:
         raise
     except (ValueError, RuntimeError) as exc:  # a parser's own error: still bad input
         raise _UsageError(f"--urdf {args.urdf}: not a loadable URDF: {exc}") from None
+
+
+def _cmd_info(args: argparse.Namespace) -> int:
+    import numpy as np
+    import pinocchio as pin
+
+    robot = _cli_robot(args)
     m, p = robot.model, robot.params
     title = "PackBot EOD model" if robot.is_packbot else f"arm {m.name!r}"
     out = [f"{title}: {robot.urdf_path}", f"nq = {m.nq}, nv = {m.nv}", ""]
@@ -242,12 +253,7 @@ def _cmd_generate_srdf(args: argparse.Namespace) -> int:
         out = Path(args.out)
         if out.is_dir() or not out.parent.is_dir():
             raise _UsageError(f"--out {out}: expected a file path in an existing folder")
-        try:
-            robot = load_robot(args.urdf, package_dirs=args.package_dir or None)
-        except PackbotError:
-            raise
-        except (ValueError, RuntimeError) as exc:  # a parser's own error: still bad input
-            raise _UsageError(f"--urdf {args.urdf}: not a loadable URDF: {exc}") from None
+        robot = _cli_robot(args)
         out.write_text(generate_srdf(robot, samples=args.samples, clearance=args.clearance))
         print(f"wrote {out}")
         return 0
