@@ -152,7 +152,8 @@ def loose_joint_equilibria(
             ignored).
         gravity: Gravity [m/s^2], world frame.
         environment: Obstacles for the collision check (None: the floor).
-        samples: Scan resolution over the joint's range.
+        samples: Scan resolution over the joint's range (a continuous joint's: the turn centred
+            on its angle in q_hold).
 
     Returns:
         The equilibria in increasing angle: zero-torque roots and loaded joint stops. Empty if
@@ -168,7 +169,8 @@ def loose_joint_equilibria(
         raise ConfigurationError("q_hold", q_hold, f"{robot.nq} finite angles [rad]")
     integer("samples", samples, low=3, high=MAX_SCAN_SAMPLES)
     model, data = _gravity_model(robot, gravity)
-    lo, hi = float(robot.params.lower[j]), float(robot.params.upper[j])
+    bounded = bool(robot.params.bounded[j])  # (a continuous joint: one turn about q_hold's)
+    lo, hi = (float(b[j]) for b in robot.params.sampling_bounds(q0))
 
     def g(a: float) -> float:
         q = q0.copy()
@@ -205,7 +207,7 @@ def loose_joint_equilibria(
         )
 
     tiny = 1e-9 * scale
-    if vals[0] > tiny:  # gravity (-g) pushes toward the lower stop
+    if bounded and vals[0] > tiny:  # gravity (-g) pushes toward the lower stop
         out.append(make(lo, "limit"))
     for k in range(samples - 1):
         a, b = vals[k], vals[k + 1]
@@ -214,7 +216,7 @@ def loose_joint_equilibria(
         if a * b < 0 or abs(b) <= tiny:
             root = grid[k + 1] if abs(b) <= tiny else brentq(g, grid[k], grid[k + 1], xtol=1e-12)
             out.append(make(float(root), "root"))
-    if vals[-1] < -tiny:  # pushed toward the upper stop
+    if bounded and vals[-1] < -tiny:  # pushed toward the upper stop
         out.append(make(hi, "limit"))
     return out
 
@@ -381,7 +383,7 @@ def workspace(
         idx = [i for i in idx if i != jf]
     fid = model.getFrameId(frame)
     rng = np.random.default_rng(seed)
-    lo, hi = robot.params.lower[idx], robot.params.upper[idx]
+    lo, hi = (b[idx] for b in robot.params.sampling_bounds(base))
     world = CollisionWorld(robot, environment)
     pts, qs = [], []
     for _ in range(samples):

@@ -31,6 +31,7 @@ import pinocchio as pin
 from numpy.typing import NDArray
 
 from packbot import params as P
+from packbot.continuous_joints import continuous_as_angles, sampling_bounds
 from packbot.errors import (
     ConfigurationError,
     ConvexityError,
@@ -62,8 +63,8 @@ class JointParams:
 
     Attributes:
         names: Joint names, model order.
-        lower: Lower position limits [rad].
-        upper: Upper position limits [rad].
+        lower: Lower position limits [rad or m] (-inf: none, a continuous joint).
+        upper: Upper position limits [rad or m] (+inf: none, a continuous joint).
         velocity: Velocity limits [rad/s].
         effort: Effort limits [N*m].
         gear_ratio: Gear ratios [-].
@@ -85,6 +86,24 @@ class JointParams:
     viscous: NDArray[np.float64]
     coulomb: NDArray[np.float64]
     table: Mapping[str, P.Param] = field(repr=False)
+
+    @property
+    def bounded(self) -> NDArray[np.bool_]:
+        """Whether each joint has position limits (a continuous joint has none: -inf, inf)."""
+        return np.isfinite(self.lower) & np.isfinite(self.upper)
+
+    def sampling_bounds(
+        self, centre: NDArray[np.float64] | None = None
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """Finite bounds to sample configurations in [rad or m]: the limits where there are.
+
+        A joint without limits (continuous) takes one turn, ``centre - pi`` to ``centre + pi``,
+        which holds every configuration of it once.
+
+        Args:
+            centre: The angles each unlimited joint's turn is centred on [rad] (None: zero).
+        """
+        return sampling_bounds(self.lower, self.upper, centre)
 
     @checked_arguments
     def index(self, joint: str) -> int:
@@ -353,7 +372,8 @@ def load_robot(
     naming the file, the element and the fix, never Pinocchio's bare exceptions. A file whose
     ``<robot name>`` is ``packbot_eod`` is PackBot: its joints must be the parameter table's,
     which supplies the armature, friction, poses and scenarios. Any other file is an arm of
-    revolute, prismatic and fixed joints: limits, effort and velocity limits, damping
+    revolute, continuous, prismatic and fixed joints (a continuous joint's coordinate its angle,
+    without limits: :mod:`packbot.continuous_joints`): limits, effort and velocity limits, damping
     (viscous friction) and friction (Coulomb) from its ``<limit>`` and ``<dynamics>``, zero
     armature, each collision mesh replaced by its convex hull (logged with the volume it
     adds), the poses ``"zero"`` (q = 0 clipped into the limits) and ``"middle"``.
@@ -408,7 +428,7 @@ def load_robot(
     checker = URDFChecker(path, dirs)
     text = checker.run()
     try:
-        model = pin.buildModelFromXML(text)
+        model = continuous_as_angles(pin.buildModelFromXML(text))
     except (ValueError, RuntimeError) as exc:  # checked above: should not happen
         raise URDFError(path, "", f"Pinocchio cannot build the model: {exc}") from exc
     try:
@@ -433,7 +453,7 @@ def load_robot(
     else:
         poses = {
             "zero": np.clip(np.zeros(model.nq), params.lower, params.upper),
-            "middle": 0.5 * (params.lower + params.upper),
+            "middle": 0.5 * np.add(*params.sampling_bounds()),  # (a continuous joint's 0)
         }
     srdf_file = _srdf_file(srdf, packbot)
     frame = _tool_frame(model, tool_frame, packbot)

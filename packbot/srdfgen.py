@@ -71,7 +71,7 @@ def sample_link_distances(
     integer("samples", samples, low=1, high=MAX_CONFIG_SAMPLES, what="a positive integer")
     world = CollisionWorld(robot, Environment.empty(), srdf=False)
     rng = np.random.default_rng(seed)
-    lo, hi = robot.params.lower, robot.params.upper
+    lo, hi = robot.params.sampling_bounds()
     keys = [(min(p.link1, p.link2), max(p.link1, p.link2)) for p in world.pairs]
     uniq = sorted(set(keys))
     col = np.array([uniq.index(k) for k in keys])

@@ -38,7 +38,7 @@ INERTIA_RTOL = 1e-9
 
 _JOINT_TYPES = ("revolute", "continuous", "prismatic", "fixed", "floating", "planar")
 #: The movable joint types of an arm other than PackBot (one coordinate each, nq == nv).
-_ARM_JOINT_TYPES = ("revolute", "prismatic")
+_ARM_JOINT_TYPES = ("revolute", "continuous", "prismatic")
 #: ``<robot name=...>`` of PackBot's URDF: its joints are the parameter table's.
 PACKBOT_ROBOT = "packbot_eod"
 _REGENERATE = "or regenerate the shipped model with `packbot generate-model`"
@@ -520,8 +520,8 @@ class JointChecks:
                         "",
                         types[name],
                         f"type is {types[name]!r}: packbot simulates fixed-base arms of "
-                        "revolute and prismatic joints (one coordinate each)",
-                        "make it revolute with <limit lower upper>, or fixed",
+                        "revolute, continuous and prismatic joints (one coordinate each)",
+                        "make it revolute with <limit lower upper>, continuous, or fixed",
                     )
             if not movable:
                 raise URDFError(

@@ -178,11 +178,12 @@ def test_a_scenario_names_its_arms_armature(tmp_path) -> None:
         robot_spec({"urdf": "arm.urdf", "armature": 3})
 
 
-def test_a_continuous_joint_is_refused_by_name(tmp_path) -> None:
+def test_a_planar_joint_is_refused_by_name(tmp_path) -> None:
     path = tmp_path / "arm.urdf"
-    path.write_text(two_link_urdf(kind="continuous"))
-    with pytest.raises(JointError, match="joint1"):
+    path.write_text(two_link_urdf(kind="planar"))
+    with pytest.raises(JointError, match="joint1") as exc:
         packbot.load_robot(path)
+    assert "revolute, continuous and prismatic" in str(exc.value)
 
 
 def test_bad_loading_arguments_are_named(tmp_path, two_link) -> None:

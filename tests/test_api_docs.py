@@ -83,6 +83,7 @@ INTERNAL_MODULES = {
     "packbot.collision_build",
     "packbot.collision_queries",
     "packbot.collision_records",
+    "packbot.continuous_joints",
     "packbot.csv_cells",
     "packbot.dh",
     "packbot.drive",

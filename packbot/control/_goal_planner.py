@@ -25,6 +25,7 @@ import pinocchio as pin
 from numpy.typing import NDArray
 
 from packbot.collision import CollisionWorld
+from packbot.continuous_joints import sampling_bounds
 from packbot.control.ik import solve_position_ik
 
 __all__ = ["GoalPlanner", "ancestors", "frame_joints"]
@@ -106,7 +107,8 @@ class GoalPlanner:
         yield q.copy()
         for _ in range(self.ik_seeds):
             s = q.copy()
-            s[active] = self.rng.uniform(lower[active], upper[active])
+            lo, hi = sampling_bounds(lower, upper, q)
+            s[active] = self.rng.uniform(lo[active], hi[active])
             yield s
 
     def solve_goal(self, q: FloatArray, frozen: list[int]) -> tuple[FloatArray, str]:

@@ -269,7 +269,7 @@ def exciting_trajectory(
         q0 = real_array("q_start", q_start, shape=(n,), expected=f"{n} finite angles [rad]")
     moving = joint_names("joints", joints, p.names) if joints is not None else p.names
     mask = np.array([name in moving for name in p.names])
-    lo, hi = p.lower, p.upper
+    lo, hi = p.sampling_bounds(q0)
     margin = np.where(mask, 0.5 * (1.0 - frac) * (hi - lo), 0.0)
     half = 0.5 * (hi - lo) - margin
     excursion = np.where(mask, np.minimum(amp, half), 0.0)

@@ -26,6 +26,7 @@ import numpy as np
 import pinocchio as pin
 from numpy.typing import ArrayLike, NDArray
 
+from packbot.continuous_joints import sampling_bounds
 from packbot.errors import ConfigurationError, IKCollisionError
 from packbot.keywords import checked_arguments
 from packbot.model import Robot, _robot_of_model, _same_arm
@@ -251,12 +252,13 @@ def solve_position_ik(
         return first
     lower = np.asarray(pin_model.lowerPositionLimit, dtype=float)
     upper = np.asarray(pin_model.upperPositionLimit, dtype=float)
+    lo, hi = sampling_bounds(lower, upper, q)
     rng = np.random.default_rng(seed)
     colliding = first if first.error <= tol else None  # the least penetrating on target
     closest = None  # the nearest collision-free solution that misses the target
     for k in range(1, seeds + 1):
         start = q.copy()
-        start[idx] = rng.uniform(lower[idx], upper[idx])
+        start[idx] = rng.uniform(lo[idx], hi[idx])
         res = checked(solve(start, k))
         if res.colliding:
             if res.error <= tol and (colliding is None or res.clearance > colliding.clearance):

@@ -39,6 +39,20 @@ def _vec(x: ArrayLike | None, n: int, field_name: str) -> FloatArray:
     return real_array(field_name, x, shape=(n,), expected=f"{n} finite numbers")
 
 
+def _limits(x: ArrayLike, n: int, field_name: str, none: float) -> FloatArray:
+    """Joint limits: n finite numbers, or ``none`` (-inf below, +inf above) where there is none."""
+    try:
+        arr = np.array(x, dtype=float)
+    except (TypeError, ValueError):
+        arr = None  # (real_array names it)
+    if arr is None or arr.shape != (n,):
+        return _vec(x, n, field_name)
+    open_ = arr == none
+    out = _vec(np.where(open_, 0.0, arr), n, field_name)
+    out[open_] = none
+    return out
+
+
 @checked_arguments
 @dataclass(kw_only=True)
 class QuinticSegment:
@@ -178,8 +192,9 @@ class JointTrajectory:
     Args:
         waypoints: Positions [rad], shape (m, n) with m >= 2.
         times: Times of the waypoints [s], shape (m,), strictly increasing.
-        lower: Optional lower joint limits [rad], shape (n,): every waypoint must be within.
-        upper: Optional upper joint limits [rad], shape (n,).
+        lower: Optional lower joint limits [rad], shape (n,): every waypoint must be within
+            (-inf: none, a continuous joint).
+        upper: Optional upper joint limits [rad], shape (n,) (+inf: none).
         v_max: Optional speed limits [rad/s], shape (n,): every segment's peak speed within.
 
     Raises:
@@ -213,7 +228,7 @@ class JointTrajectory:
         for name, lim, bad in (("lower", lower, lambda w, x: w < x), ("upper", upper, np.greater)):
             if lim is None:
                 continue
-            lim_a = _vec(lim, n, f"trajectory.{name}")
+            lim_a = _limits(lim, n, f"trajectory.{name}", -np.inf if name == "lower" else np.inf)
             hits = np.argwhere(bad(W, lim_a[None, :]))
             if len(hits):
                 k, j = hits[0]

@@ -154,7 +154,9 @@ class _Scene:
     ) -> _Scene:
         env = Environment() if environment is None else environment
         env.validate()
-        pviz = MeshcatVisualizer(robot.model, robot.collision_model, robot.visual_model)
+        # An arm whose URDF has no <visual> is shown by its collision pieces.
+        visual = robot.visual_model if robot.visual_model.ngeoms else robot.collision_model
+        pviz = MeshcatVisualizer(robot.model, robot.collision_model, visual)
         pviz.initViewer(viewer=viewer)
         pviz.loadViewerModel(rootNodeName=_ROOT, collision_color=list(COLLISION_RGBA))
         pviz.displayCollisions(collision)
