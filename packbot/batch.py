@@ -79,6 +79,7 @@ else:
     LOCK_WITH_FLOCK = True
 
 if TYPE_CHECKING:
+    from packbot.model import Robot
     from packbot.result import SimResult
 
 __all__ = [
@@ -552,9 +553,9 @@ def scenario_runner(run: Run, progress: Callable[[float], None]) -> tuple[dict[s
     ``packbot run``) into a temporary directory and returned as bytes, so that the process
     collecting the results (maybe on another machine) writes it.
     """
-    from packbot.scenario import run_scenario, save_run, scenario_from_dict
+    from packbot.scenario import run_scenario, save_run
 
-    scenario = scenario_from_dict(run.scenario, name=run.id, source_text=run.source_text)
+    scenario = run.build_scenario()
     result = run_scenario(scenario, progress=progress)
     quantities = summarize(result)
     with tempfile.TemporaryDirectory(prefix="packbot-run-") as tmp:
@@ -567,8 +568,8 @@ def scenario_runner(run: Run, progress: Callable[[float], None]) -> tuple[dict[s
 def check_runs(runs: Sequence[Run]) -> None:
     """Check every run's scenario before any is made: a bad value in a matrix is bad input.
 
-    Each run's resolved scenario is built (:func:`packbot.scenario.scenario_from_dict`: keys,
-    types, ranges) and checked against the robot (:meth:`packbot.scenario.Scenario.validate`:
+    Each run's resolved scenario is built (:meth:`packbot.matrix.Run.build_scenario`: keys,
+    types, ranges) and checked against its arm (:meth:`packbot.scenario.Scenario.validate`:
     the names of poses, joints, frames and links, and the controller's parameters), as
     :func:`scenario_runner` would at the start of the run. What only the simulation finds (an
     initial state in collision, a run that cannot continue) still fails that run alone.
@@ -577,16 +578,17 @@ def check_runs(runs: Sequence[Run]) -> None:
         ConfigurationError: A run's scenario is bad; the message names the run, its parameters
             and the field.
     """
-    from packbot.model import load_robot
-    from packbot.scenario import scenario_from_dict
+    from packbot.scenario import scenario_robot
 
-    robot = None
+    robots: dict[tuple[Any, Any], Robot] = {}  # each arm loaded once: (its spec, its folder)
     for run in runs:
         try:
-            scenario = scenario_from_dict(run.scenario, name=run.id, source_text=run.source_text)
-            if robot is None:
-                robot = load_robot()
-            scenario.validate(robot)
+            scenario = run.build_scenario()
+            where = None if scenario.source_path is None else scenario.source_path.parent
+            key = (scenario.robot, where)
+            if key not in robots:
+                robots[key] = scenario_robot(scenario)
+            scenario.validate(robots[key])
         except ConfigurationError as exc:
             raise ConfigurationError(
                 f"run {run.id} ({_params_text(run)}): {exc.field}", exc.value, exc.expected

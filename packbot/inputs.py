@@ -115,10 +115,9 @@ def check_inputs(
         if not isinstance(payload, Payload):
             raise ConfigurationError("payload", payload, "a packbot.Payload or None")
         payload.validate()
-        if not robot.model.existFrame(payload.frame):
-            raise UnknownNameError(
-                "frame", payload.frame, [str(f.name) for f in robot.model.frames]
-            )
+        frame = payload.held_in(robot.tool_frame).frame
+        if not robot.model.existFrame(frame):
+            raise UnknownNameError("frame", frame, [str(f.name) for f in robot.model.frames])
     if environment is not None:
         if not isinstance(environment, Environment):
             raise ConfigurationError("environment", environment, "None or a packbot.Environment")

@@ -344,7 +344,7 @@ class _Run:
             self.y = self.y.copy()
             self.y[n : 2 * n] = v
             self.y = self.law.handle(t, self.y, [SETTLE])
-        ev = Event(t, what, self.payload.frame if self.payload else "", "")
+        ev = Event(t, what, str(self.payload.frame) if self.payload else "", "")
         self.log_action(ev, vf0, self.sys.v_full(v), e0, self.sys.energy(q, v))
 
     def log_action(
@@ -454,6 +454,8 @@ def simulate(
         progress,
     )
     warn_settings(cfg)
+    if payload is not None:
+        payload = payload.held_in(robot.tool_frame)
     wall = time.perf_counter()
     run = _Run(
         robot,

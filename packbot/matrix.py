@@ -61,13 +61,16 @@ import re
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from packbot import tomlfile
 from packbot.errors import ConfigurationError, ResourceNotFound, UnknownNameError
 from packbot.keywords import checked_arguments
 from packbot.tolerances import Tolerances
 from packbot.validation import MAX_MATRIX_RUNS, at_most, name_str
+
+if TYPE_CHECKING:
+    from packbot.scenario import Scenario
 
 __all__ = [
     "MATRIX_FORMAT",
@@ -125,6 +128,10 @@ class Run:
             differs was made from another scenario and is stale.
         source_text: The base scenario file's text followed by the overrides as comments
             (stored with the run's trajectory).
+        source_path: The base scenario file, whose folder the scenario's relative paths (its
+            ``robot``'s URDF, SRDF, package folders) are taken from; None: the working
+            directory. Not part of ``digest``: the same scenario read from another folder is
+            the same run.
     """
 
     id: str
@@ -134,6 +141,20 @@ class Run:
     scenario_name: str
     digest: str
     source_text: str = ""
+    source_path: str | None = None
+
+    def build_scenario(self) -> Scenario:
+        """The run's :class:`~packbot.scenario.Scenario` (keys and values checked).
+
+        Raises:
+            ConfigurationError: A bad key or value (names its dotted path).
+        """
+        from packbot.scenario import scenario_from_dict
+
+        scenario = scenario_from_dict(self.scenario, name=self.id, source_text=self.source_text)
+        if self.source_path is not None:
+            scenario.source_path = Path(self.source_path)
+        return scenario
 
 
 @checked_arguments
@@ -279,13 +300,15 @@ class Matrix:
             The runs, in product order (first axis slowest), then the includes.
         """
         text = ""
+        source = None
         if base is None:
             from packbot.scenario import read_scenario_dict, scenario_path
 
             where = self.base_path()
             base = read_scenario_dict(where)
-            text = scenario_path(where).read_text(errors="replace")
-        return expand(self, base, base_text=text)
+            source = scenario_path(where)
+            text = source.read_text(errors="replace")
+        return expand(self, base, base_text=text, source_path=source)
 
 
 @checked_arguments
@@ -385,13 +408,20 @@ def parse_matrix(text: str, *, path: Path | None = None, default_name: str = "")
 
 
 @checked_arguments
-def expand(matrix: Matrix, base: Mapping[str, Any], *, base_text: str = "") -> list[Run]:
+def expand(
+    matrix: Matrix,
+    base: Mapping[str, Any],
+    *,
+    base_text: str = "",
+    source_path: str | Path | None = None,
+) -> list[Run]:
     """Expand a matrix over a base scenario dict into runs.
 
     Args:
         matrix: The (validated) matrix.
         base: The raw base scenario dict (as read from its TOML file).
         base_text: The base file's text (for :attr:`Run.source_text`).
+        source_path: The base file (for :attr:`Run.source_path`), or None.
 
     Returns:
         The runs: the Cartesian product of the axes (first axis slowest) minus the excluded
@@ -429,6 +459,7 @@ def expand(matrix: Matrix, base: Mapping[str, Any], *, base_text: str = "") -> l
                 scenario_name=scenario_name,
                 digest=digest(scenario),
                 source_text=_source_text(matrix, base_text, params),
+                source_path=None if source_path is None else str(Path(source_path).resolve()),
             )
         )
     return runs

@@ -1,15 +1,16 @@
 """A payload held in the gripper: a rigid mass with inertia, picked up and dropped at given times.
 
-While held, the payload is rigidly attached to the body carrying its frame (default the
-``gripper_tool`` frame, on the gripper's last moving body): the simulator adds its spatial inertia
-to that body's (``pin.Inertia``), so the dynamics change exactly. Picking up an object at rest
-while the gripper moves is an inelastic impact (the arm's generalized momentum is conserved);
-dropping it removes its inertia (the arm's joint velocities are unchanged).
+While held, the payload is rigidly attached to the body carrying its frame (default the robot's tool
+frame: PackBot's ``gripper_tool``, on the gripper's last moving body): the simulator adds its
+spatial inertia to that body's (``pin.Inertia``), so the dynamics change exactly. Picking up an
+object at rest while the gripper moves is an inelastic impact (the arm's generalized momentum is
+conserved); dropping it removes its inertia (the arm's joint velocities are unchanged).
 The payload has no collision geometry of its own (the gripper's pieces still collide).
 """
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -42,8 +43,8 @@ class Payload:
         inertia: Rotational inertia about the centre of mass, axes of ``frame``, as
             (ixx, iyy, izz, ixy, ixz, iyz) [kg*m^2]; all zero: a point mass. Positive
             semi-definite and physical (each principal moment at most the sum of the others).
-        frame: The Pinocchio frame it is held in (``gripper_tool`` by default; checked against
-            the robot by :func:`packbot.simulate`).
+        frame: The Pinocchio frame it is held in; None: the robot's ``tool_frame`` (PackBot's
+            ``gripper_tool``). Checked against the robot by :func:`packbot.simulate`.
         t_pick: Time it is picked up [s] (0: held from the start).
         t_drop: Time it is dropped [s], after ``t_pick``, or None (held to the end).
     """
@@ -51,7 +52,7 @@ class Payload:
     mass: float
     com: tuple[float, float, float] = (0.0, 0.0, 0.0)
     inertia: tuple[float, float, float, float, float, float] = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
-    frame: str = "gripper_tool"
+    frame: str | None = None
     t_pick: float = 0.0
     t_drop: float | None = None
 
@@ -106,10 +107,18 @@ class Payload:
             "mass": mass,
             "com": com,
             "inertia": inertia,
-            "frame": name_str("payload.frame", self.frame, "a frame name (a non-empty string)"),
+            "frame": None
+            if self.frame is None
+            else name_str(
+                "payload.frame", self.frame, "a frame name (a non-empty string), or None"
+            ),
             "t_pick": t_pick,
             "t_drop": t_drop,
         }
+
+    def held_in(self, tool_frame: str) -> Payload:
+        """This payload with its frame named: ``tool_frame`` [-] where ``frame`` is None."""
+        return self if self.frame is not None else dataclasses.replace(self, frame=tool_frame)
 
     def inertia_matrix(self) -> NDArray[np.float64]:
         """The 3x3 inertia about the centre of mass [kg*m^2], axes of ``frame``."""

@@ -204,9 +204,10 @@ class Scenario:
         for k, f in enumerate(self.failures):
             if f.joint not in names:
                 raise ConfigurationError(f"failures[{k}].joint", f.joint, names)
-        if self.payload is not None and not robot.model.existFrame(self.payload.frame):
+        frame = None if self.payload is None else self.payload.held_in(robot.tool_frame).frame
+        if frame is not None and not robot.model.existFrame(frame):
             raise ConfigurationError(
-                "payload.frame", self.payload.frame, tuple(f.name for f in robot.model.frames)
+                "payload.frame", frame, tuple(f.name for f in robot.model.frames)
             )
         for k, j in enumerate(self.outputs.joints_of(robot.joint_names, robot.is_packbot)):
             if j not in names:

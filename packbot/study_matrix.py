@@ -277,7 +277,7 @@ def study_cell(
     Raises:
         CellTimeout: The wall-time limit was exceeded (``progress`` raised).
     """
-    from packbot.scenario import scenario_from_dict, scenario_robot
+    from packbot.scenario import scenario_robot
     from packbot.study import study
     from packbot.viz.study_report import write_study
 
@@ -295,7 +295,7 @@ def study_cell(
         where["step"] = text.split(": ", 1)[-1]
         step(0.0)
 
-    scenario = scenario_from_dict(run.scenario, name=run.id, source_text=run.source_text)
+    scenario = run.build_scenario()
     result = study(
         scenario,
         robot=scenario_robot(scenario),

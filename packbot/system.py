@@ -230,10 +230,10 @@ def with_payload(robot: Robot, payload: Payload) -> Robot:
         UnknownNameError: The payload's frame is not a frame of the model.
     """
     model = robot.model.copy()
-    if not model.existFrame(payload.frame):
-        names = [str(f.name) for f in model.frames]
-        raise UnknownNameError("frame", payload.frame, names)
-    frame = model.frames[model.getFrameId(payload.frame)]
+    name = robot.tool_frame if payload.frame is None else payload.frame
+    if not model.existFrame(name):
+        raise UnknownNameError("frame", name, [str(f.name) for f in model.frames])
+    frame = model.frames[model.getFrameId(name)]
     inertia = pin.Inertia(
         float(payload.mass), np.asarray(payload.com, dtype=float), payload.inertia_matrix()
     )

@@ -413,3 +413,28 @@ def test_an_uncertain_run_refuses_another_arm(tmp_path) -> None:
     with pytest.raises(ConfigurationError) as exc:
         packbot.uncertain_run(path, samples=2)
     assert exc.value.field == "scenario.robot"
+
+
+def test_a_payload_is_held_in_the_arms_tool_frame_by_default(two_link) -> None:
+    """Payload(frame=None) on the two-link arm: held at its tool frame ("tip", 0.8 m below the
+    shoulder); the gravity torque at the shoulder grows by m g times the tip's horizontal lever
+    (1e-9 N*m), and the pick event names the frame."""
+    from packbot.system import with_payload
+
+    r = two_link
+    q = np.array([0.6, -0.4])
+    heavy = with_payload(r, packbot.Payload(mass=2.0))
+    data, hdata = r.model.createData(), heavy.model.createData()
+    pin.framesForwardKinematics(r.model, data, q)
+    tip = data.oMf[r.model.getFrameId("tip")].translation
+    joint1 = data.oMi[r.model.getJointId("joint1")].translation
+    extra = pin.computeGeneralizedGravity(heavy.model, hdata, q) - pin.computeGeneralizedGravity(
+        r.model, data, q
+    )
+    # the weight's torque about joint1's axis (y): ((tip - joint1) x (-m g e_z))_y; g(q) is the
+    # torque that balances gravity (M a + g = tau), its negative
+    weight = np.cross(tip - joint1, [0.0, 0.0, -2.0 * 9.81])[1]
+    assert abs(weight) > 1.0  # (a real lever)
+    assert abs(extra[0] + weight) < 1e-9
+    res = packbot.simulate(r, q, np.zeros(2), 0.2, payload=packbot.Payload(mass=2.0, t_pick=0.1))
+    assert [(e.kind, e.link1) for e in res.events if e.kind == "pick"] == [("pick", "tip")]

@@ -231,3 +231,131 @@ def test_an_srdf_is_sampled_over_one_turn_of_the_continuous_joint(arm, tmp_path)
 
     ranges = sample_link_distances(arm, samples=200, seed=0)
     assert ranges and all(np.isfinite(lo) and np.isfinite(hi) for lo, hi in ranges.values())
+
+
+def _spin_files(folder, urdf_text: str) -> None:
+    """The arm and a scenario of it (its URDF named relative to the scenario's folder)."""
+    (folder / "arms").mkdir(parents=True, exist_ok=True)
+    (folder / "arms" / "spinner.urdf").write_text(urdf_text)
+    (folder / "spin.toml").write_text(
+        'description = "spinner: the shoulder spins under a lid"\n'
+        'robot = "arms/spinner.urdf"\nduration = 0.6\n\n'
+        "[initial]\nq = { joint1 = 0.0, joint2 = 0.0 }\nv = { joint1 = 12.0 }\n\n"
+        '[[environment.obstacles]]\nname = "lid"\nkind = "box"\n'
+        "size = [0.3, 0.3, 0.1]\nxyz = [0.0, 0.0, 1.6]\n\n"
+        '[[failures]]\njoint = "joint2"\nkind = "loose"\nt = 0.1\n'
+    )
+
+
+def test_a_batch_of_the_arm_runs_in_worker_processes(tmp_path, urdf_text, monkeypatch) -> None:
+    """A matrix over the arm's scenario, run by two local worker processes from another working
+    directory: the arm's relative URDF path is the scenario file's (Run.source_path), every run
+    is checked against that arm before any starts, and each result names its joints."""
+    from packbot.batch import run_batch
+    from packbot.matrix import load_matrix
+
+    _spin_files(tmp_path / "cases", urdf_text)
+    (tmp_path / "cases" / "m.toml").write_text(
+        'base = "spin.toml"\n[axes]\n"config.mu" = [0.2, 0.8]\n'
+        '"config.contact_mode" = ["normal", "joint_clamp"]\n'
+    )
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    monkeypatch.chdir(elsewhere)
+    matrix = load_matrix(tmp_path / "cases" / "m.toml")
+    report = run_batch(matrix, tmp_path / "out", workers=2)
+    assert len(report.records) == 4
+    assert all(rec.status == "ok" for rec in report.records.values())
+    header = (tmp_path / "out" / "summary.csv").read_text().splitlines()[0].split(",")
+    assert "q.joint1" in header and "q.joint2" in header
+    rows = (tmp_path / "out" / "summary.csv").read_text().splitlines()[1:]
+    assert all(int(row.split(",")[header.index("n_impacts")]) >= 1 for row in rows)
+    # a bad joint name in an axis is refused before anything runs, naming the run and field
+    (tmp_path / "cases" / "bad.toml").write_text(
+        'base = "spin.toml"\n[axes]\n"failures.0.joint" = ["joint2", "elbow1"]\n'
+    )
+    with pytest.raises(packbot.errors.ConfigurationError, match="failures"):
+        run_batch(load_matrix(tmp_path / "cases" / "bad.toml"), tmp_path / "bad", workers=0)
+
+
+def test_a_study_matrix_of_the_arm_studies_each_cell(tmp_path, urdf_text) -> None:
+    """A study matrix over the elbow's failure kinds on the arm: each cell is a failure study
+    (healthy, failed, reconfigured) of that arm, with its report."""
+    from packbot.study_matrix import run_study_matrix
+
+    _spin_files(tmp_path, urdf_text)
+    (tmp_path / "reach.toml").write_text(
+        'robot = "arms/spinner.urdf"\nduration = 0.8\n\n'
+        "[initial]\nq = { joint1 = 0.5, joint2 = 0.3 }\n\n"
+        '[[failures]]\njoint = "joint2"\nkind = "frozen"\nt = 0.3\n\n'
+        '[controller]\nkind = "reconfig"\ntarget = [0.35, 0.0, 0.6]\nspeed_fraction = 0.2\n'
+        "inform = false\n"
+    )
+    (tmp_path / "sm.toml").write_text(
+        'base = "reach.toml"\n[axes]\n"failures.0.kind" = ["frozen", "loose"]\n\n'
+        "[study]\nworkspace_samples = 200\n"
+    )
+    report = run_study_matrix(tmp_path / "sm.toml", tmp_path / "out", workers=0)
+    assert len(report.batch.records) == 2
+    assert all(rec.status == "ok" for rec in report.batch.records.values())
+    pages = sorted((tmp_path / "out").glob("*/report.html"))
+    assert len(pages) == 2 and all("joint2" in p.read_text(encoding="utf-8") for p in pages)
+
+
+def _piece_placements(arm: packbot.Robot, q: np.ndarray) -> dict[str, np.ndarray]:
+    """World placements of the arm's pieces (its collision pieces: the URDF has no <visual>)."""
+    data = arm.model.createData()
+    gm = arm.collision_model
+    gd = gm.createData()
+    pin.updateGeometryPlacements(arm.model, data, gm, gd, q)
+    return {go.name: gd.oMg[k].homogeneous for k, go in enumerate(gm.geometryObjects)}
+
+
+def test_the_page_and_the_live_viewer_show_the_spinning_arm(arm, tmp_path) -> None:
+    """The recorded page animates the arm's pieces through the spin (the last key of the upper
+    link's piece is Pinocchio's placement at the last sample, 1e-6 m: the page's float32), and
+    the live viewer draws them and places them at a displayed configuration (1e-12)."""
+    import asyncio
+
+    import umsgpack
+    from test_viz import _clips, _commands
+    from tornado.websocket import websocket_connect
+
+    from packbot.viz import start_viewer, write_html
+
+    cfg = packbot.SimConfig(contact_mode="normal", sample_dt=0.01)
+    res = packbot.simulate(arm, np.zeros(2), np.array([12.0, 0.0]), 0.5, config=cfg)
+    page = write_html(arm, res, tmp_path / "spin.html")
+    clips = _clips(_commands(page.read_text(encoding="utf-8")))
+    path = "/meshcat/packbot/visuals/upper/0"
+    assert path in clips
+    times, values = clips[path][".position"]
+    assert times[-1] == pytest.approx(res.t[-1], rel=1e-6)
+    end = _piece_placements(arm, res.q[-1])["upper/0"]
+    np.testing.assert_allclose(values[-1], end[:3, 3], atol=1e-6)
+
+    q = np.array([7.0, 0.4])  # (past a turn)
+
+    async def session(port: int, viewer) -> tuple[set[str], dict]:
+        ws = await websocket_connect(f"ws://127.0.0.1:{port}/")
+        scene = set()
+        while True:
+            try:
+                msg = await asyncio.wait_for(ws.read_message(), 0.5)
+            except asyncio.TimeoutError:
+                break
+            cmd = umsgpack.unpackb(msg)
+            if cmd["type"] == "set_object":
+                scene.add(cmd["path"])
+        await asyncio.get_running_loop().run_in_executor(None, viewer.display, q)
+        while True:
+            pose = umsgpack.unpackb(await asyncio.wait_for(ws.read_message(), 5.0))
+            if pose["path"] == path:
+                ws.close()
+                return scene, pose
+
+    with start_viewer(arm) as viewer:
+        scene, pose = asyncio.run(session(viewer.port, viewer))
+    assert {f"/meshcat/packbot/visuals/{name}" for name in _piece_placements(arm, q)} <= scene
+    matrix = np.array(pose["matrix"]).reshape(4, 4).T
+    np.testing.assert_allclose(matrix, _piece_placements(arm, q)["upper/0"], atol=1e-12)
