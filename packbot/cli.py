@@ -241,6 +241,34 @@ def _cmd_generate_model(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_decompose(args: argparse.Namespace) -> int:
+    from packbot.decompose import decompose_meshes
+
+    out = Path(args.out)
+    if out.exists() and (not out.is_dir() or any(out.iterdir())):
+        raise _UsageError(f"--out {out}: expected a new or empty folder")
+    urdf, report = decompose_meshes(
+        args.urdf,
+        out,
+        package_dirs=args.package_dir or None,
+        excess=args.excess,
+        threshold=args.threshold,
+    )
+    w = max(5, *(len(r.link) + 1 for r in report)) if report else 5
+    head = ("volume [cm3]", "hull", "pieces", "pieces vol", "[s]")
+    print(f"{'link':<{w}} {head[0]:>12} {head[1]:>8} {head[2]:>7} {head[3]:>10} {head[4]:>6}")
+    for r in report:
+        kept = not r.pieces
+        pieces = "hull" if kept else str(len(r.pieces))
+        tight = "" if r.pieces_excess is None else f"{100 * r.pieces_excess:+.1f} %"
+        print(
+            f"{r.link:<{w}} {r.volume * 1e6:12.1f} {100 * r.hull_excess:+7.1f}% {pieces:>7} "
+            f"{tight:>10} {r.seconds:6.1f}"
+        )
+    print(f"wrote {urdf} (load it with load_robot; pass the same --package-dir folders)")
+    return 0
+
+
 def _cmd_generate_srdf(args: argparse.Namespace) -> int:
     from packbot.model import load_robot
     from packbot.srdfgen import generate_srdf, write_srdf
@@ -1326,6 +1354,30 @@ def build_parser() -> argparse.ArgumentParser:
         "--out", default=None, help="write the SRDF to this file (pass it as load_robot(srdf=))"
     )
     p.set_defaults(func=_cmd_generate_srdf)
+
+    p = sub.add_parser(
+        "decompose",
+        help="split an arm's concave collision meshes into convex pieces (CoACD) and write a "
+        "URDF using them to --out",
+    )
+    p.add_argument("--urdf", required=True, help="the arm: a URDF or an arm's name (ur5, panda)")
+    p.add_argument(
+        "--package-dir",
+        action="append",
+        default=[],
+        help="a folder holding the ROS packages of the URDF's package:// meshes (repeatable)",
+    )
+    p.add_argument("--out", required=True, help="a new (or empty) folder to write into")
+    p.add_argument(
+        "--excess",
+        type=float,
+        default=0.25,
+        help="decompose a mesh whose hull adds more than this fraction of its volume (0.25)",
+    )
+    p.add_argument(
+        "--threshold", type=float, default=0.05, help="CoACD's concavity threshold (0.05)"
+    )
+    p.set_defaults(func=_cmd_decompose)
 
     out_help = (
         "output directory ({}); a rerun deletes the files the earlier run listed in its "

@@ -85,6 +85,7 @@ INTERNAL_MODULES = {
     "packbot.collision_records",
     "packbot.continuous_joints",
     "packbot.csv_cells",
+    "packbot.decompose",
     "packbot.dh",
     "packbot.drive",
     "packbot.geometry",

@@ -90,7 +90,7 @@ class ModeSelection(ConstrainedDynamics):
                 if keep and p.stick:
                     continue
                 p.stick = speed <= STICK_SPEED and not keep
-                if not p.stick:
+                if not p.stick and speed > 0.0:  # (re-patched at zero speed: kept)
                     p.slip_dir = ex["vt"] / speed
                 if was != p.stick:
                     events.append(ModeEvent("stick" if p.stick else "slip", p.info))

@@ -82,10 +82,9 @@ class Selection {
         const char was = stick[p];
         if (keep && stick[p]) continue;
         stick[p] = speed <= c.stick_speed && !keep;
-        if (!stick[p]) {
-          if (!(speed > 0.0)) return HAND_BACK;  // (numpy divides by zero there)
+        // a sliding pair re-patched at zero tangential speed (keep) keeps its direction
+        if (!stick[p] && speed > 0.0)
           for (int i = 0; i < 3; ++i) slip_dir[3 * p + i] = vt[i] / speed;
-        }
         if (was != stick[p]) push(stick[p] ? STICK : SLIP, p);
       }
     }
