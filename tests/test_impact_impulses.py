@@ -41,7 +41,7 @@ def _run(robot, k: int, mu: float, e: float, duration: float, monkeypatch=None, 
         def handed(self, contacts, q, v, minv, **kw):
             return 2, v.copy(), False, np.zeros(0, dtype=np.int64), np.zeros((0, 3))
 
-        monkeypatch.setattr(native.NativeRhs, "impact", handed)
+        monkeypatch.setattr(native.NativeRestart, "impact", handed)
     if monkeypatch is not None:
         real = RestartSteps.impulse
 

@@ -164,12 +164,12 @@ def test_a_stop_the_projection_would_pass_joins_the_set(robot, path):
     (not in the set) moved halfway along the move: the stop joins the set and holds the joint.
     On a round the extension made (it hands the round back, status 4) and on one Python made
     (the extension handed it back for its gap clipping, status 1)."""
-    from packbot.contact.native import NativeRhs
+    from packbot.contact.native import NativeRestart
 
     moves = []  # (|dq_j| [rad], call, joint, side)
     calls, statuses = [0], []
     real = normal_steps.RestartSteps._project_round
-    native_round = NativeRhs.project_round
+    native_round = NativeRestart.project_round
 
     def counted(*args, **kwargs):
         out = native_round(*args, **kwargs)
@@ -194,7 +194,7 @@ def test_a_stop_the_projection_would_pass_joins_the_set(robot, path):
     def run(hook):
         with pytest.MonkeyPatch.context() as mp:
             mp.setattr(normal_steps.RestartSteps, "_project_round", hook)
-            mp.setattr(NativeRhs, "project_round", counted)
+            mp.setattr(NativeRestart, "project_round", counted)
             packbot.simulate(
                 robot, start_pose(robot, start), np.zeros(robot.nq), duration, config=cfg
             )
@@ -212,13 +212,13 @@ def test_a_stop_the_projection_would_pass_joins_the_set(robot, path):
         lim = upper if side > 0 else lower
         was = float(lim[j])
         held["stop"] = lim[j] = float(q[j]) + side * 0.5 * move
-        self.native.set_limits(upper, lower)  # (the extension's copy of the stops)
+        self.native.watch.set_limits(upper, lower)  # (the extension's copy of the stops)
         statuses.clear()
         try:
             q1 = real(self, q, v, minv)
         finally:
             lim[j] = was
-            self.native.set_limits(upper, lower)
+            self.native.watch.set_limits(upper, lower)
         held["statuses"] = list(statuses)
         held["q1"], held["in_set"] = float(q1[j]), (j, side) in self.limits
         return q1
@@ -242,16 +242,16 @@ def test_limit_excursions_find_the_hermite_extreme_past_a_stop(robot):
     y0, y1 = np.zeros(2 * n), np.zeros(2 * n)
     y0[n + 2], y1[n + 2] = 1.0, -1.0  # (joint 2 out and back)
     upper[2] = 2e-3
-    rhs.set_limits(upper, lower)
-    (j, side, s), *more = rhs.limit_excursions(y0, y1, 0.01, 1e-9)
+    rhs.watch.set_limits(upper, lower)
+    (j, side, s), *more = rhs.watch.limit_excursions(y0, y1, 0.01, 1e-9)
     assert (j, side, more) == (2, 1, []) and abs(s - 0.5) < 1e-12
     upper[2] = 3e-3
-    rhs.set_limits(upper, lower)
-    assert rhs.limit_excursions(y0, y1, 0.01, 1e-9) == []
+    rhs.watch.set_limits(upper, lower)
+    assert rhs.watch.limit_excursions(y0, y1, 0.01, 1e-9) == []
     y0[n + 2], y1[n + 2] = -1.0, 1.0  # (and back the other way, past a lower stop)
     lower[2] = -2e-3
-    rhs.set_limits(upper, lower)
-    assert [(j, side) for j, side, _ in rhs.limit_excursions(y0, y1, 0.01, 1e-9)] == [(2, -1)]
+    rhs.watch.set_limits(upper, lower)
+    assert [(j, side) for j, side, _ in rhs.watch.limit_excursions(y0, y1, 0.01, 1e-9)] == [(2, -1)]
 
 
 def test_a_long_step_does_not_carry_a_joint_past_its_stop_and_back(robot):

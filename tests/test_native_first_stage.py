@@ -119,6 +119,6 @@ def test_the_first_stage_refuses_a_wrong_shape_and_a_lock_mode(robot) -> None:
     rhs.set_torque(zeros, zeros, zeros)
     with pytest.raises(ValueError):
         rhs.first(np.zeros((7, n)))
-    rhs.set_locks(np.zeros(0, dtype=np.intp))
+    rhs.locks.set(np.zeros(0, dtype=np.intp))
     with pytest.raises(ValueError):
         rhs.first(np.zeros((8, n)))

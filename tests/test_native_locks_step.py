@@ -123,7 +123,7 @@ def test_the_screened_step_ends_keep_every_lock_condition(robot, monkeypatch, ca
 
     def checked(self, y1):
         ok = original(self, y1)
-        end = self._lock_step.rhs.end_locks(y1) if self._lock_step.rhs is not None else None
+        end = self._lock_step.rhs.locks.end(y1) if self._lock_step.rhs is not None else None
         if end is None:
             assert not ok
             return ok
@@ -134,7 +134,7 @@ def test_the_screened_step_ends_keep_every_lock_condition(robot, monkeypatch, ca
             worst["cond"] = max(worst["cond"], abs(g - nat[key]) / (1.0 + abs(g)))
         a, lam = end
         scale = 1.0 + np.abs(a).max() + np.abs(lam).max(initial=0.0)
-        screen = self._lock_step.rhs.end_screen(
+        screen = self._lock_step.rhs.locks.end_screen(
             self.locks.screen_rows(), y1, SCREEN_MARGIN, TORQUE_BAND, ACCEL_BAND
         )
         if nat:  # the extension's smallest condition is conditions_of's
@@ -189,13 +189,13 @@ def test_bad_lock_sets_are_refused(robot):
     rhs = native.NativeRhs(sysm.model)  # all 8 joints
     for bad in ([2, 1], [1, 1], [8], [-1]):
         with pytest.raises(ValueError, match="sorted distinct"):
-            rhs.set_locks(np.array(bad))
+            rhs.locks.set(np.array(bad))
     with pytest.raises(ValueError, match="at most 3"):
-        rhs.set_locks(np.array([0, 1]))  # 6 unlocked: the locks' M^-1 solve, not native
-    rhs.set_locks(np.array([0, 1, 2, 3, 4]))
+        rhs.locks.set(np.array([0, 1]))  # 6 unlocked: the locks' M^-1 solve, not native
+    rhs.locks.set(np.array([0, 1, 2, 3, 4]))
     with pytest.raises(ValueError, match="contact rows"):
         rhs.accel(np.zeros(8), np.zeros(8), np.zeros(8), True)
-    assert rhs.end_locks(np.zeros(16)) is None  # no step yet
+    assert rhs.locks.end(np.zeros(16)) is None  # no step yet
 
 
 def test_the_screen_has_every_kind_of_lock_condition(robot):
@@ -224,18 +224,18 @@ def test_the_screen_has_every_kind_of_lock_condition(robot):
         kinds |= set(rows[:, 0].astype(int).tolist())
         if len(locks.locked_index) >= 2 and n - len(locks.locked_index) > 3:
             continue
-        rhs.set_locks(locks.locked_index)
+        rhs.locks.set(locks.locked_index)
         rhs.set_torque(np.zeros(n), np.zeros(n), np.zeros(n))
         Z = np.zeros((8, 2 * n))  # (k0 = 0: any attempt serves; the screen is at its y1)
         Z[0] = y0
         y1, ay1 = np.empty(2 * n), np.empty(2 * n)
         err = rhs.step(1e-3, Z, np.abs(y0), np.full(2 * n, 1e-8), 1e-6, y1, ay1)
         assert err >= 0.0
-        a, lam = rhs.end_locks(y1)
+        a, lam = rhs.locks.end(y1)
         cond = locks.conditions_of(a, lam)
-        got = rhs.end_screen(rows, y1, 0.0, TORQUE_BAND, ACCEL_BAND)
+        got = rhs.locks.end_screen(rows, y1, 0.0, TORQUE_BAND, ACCEL_BAND)
         assert got == pytest.approx(min(cond.values()), rel=1e-12, abs=1e-12)
-        assert math.isnan(rhs.end_screen(rows, y1 + 1e-9, 0.0, TORQUE_BAND, ACCEL_BAND))
+        assert math.isnan(rhs.locks.end_screen(rows, y1 + 1e-9, 0.0, TORQUE_BAND, ACCEL_BAND))
     assert kinds == {0, 1, 2, 3}
 
 
@@ -293,18 +293,18 @@ def test_the_lock_torques_at_a_sample_are_the_locks_solve(robot, locked):
     rhs = native.NativeRhs(sysm.model)
     rng = np.random.default_rng(7)
     with pytest.raises(ValueError, match="lock mode"):
-        rhs.lock_torques_at(np.zeros(8), np.zeros(8), np.zeros(8))
+        rhs.locks.torques_at(np.zeros(8), np.zeros(8), np.zeros(8))
     locks = JointLocks(8)
     locks.set_held({j: 1e3 for j in locked})  # (held: locked both ways, whatever the sign)
-    rhs.set_locks(locks.locked_index)
+    rhs.locks.set(locks.locked_index)
     for _ in range(5):
         q = robot.pose("drive") + rng.uniform(-0.3, 0.3, 8)
         v, tau = rng.normal(size=8), rng.normal(scale=5.0, size=8)
-        lam = rhs.lock_torques_at(q, v, tau)
+        lam = rhs.locks.torques_at(q, v, tau)
         assert lam is not None and lam.shape == (len(locked),)
         _, want = locks.torques(sysm.aba(q, v, tau), sysm.minv(q))
         scale = 1.0 + max((abs(x) for x in want.values()), default=0.0)
         np.testing.assert_allclose(lam, [want[j] for j in locked], atol=1e-10 * scale)
-    assert rhs.end_locks(np.zeros(16)) is None  # (still no step: nothing was made up)
+    assert rhs.locks.end(np.zeros(16)) is None  # (still no step: nothing was made up)
     with pytest.raises(ValueError, match="nv entries"):
-        rhs.lock_torques_at(np.zeros(7), np.zeros(8), np.zeros(8))
+        rhs.locks.torques_at(np.zeros(7), np.zeros(8), np.zeros(8))

@@ -253,7 +253,7 @@ def test_the_root_findings_native_evaluations_are_the_python_ones(robot, monkeyp
     """Inside a native step, the mode conditions' root finding evaluates them natively
     (NativeRhs.eval_at, the loaded modes and torques): the same forces, rows, smallest
     condition and slides as NormalContacts.evaluate at that state, to rounding. (A contact
-    row's condition alone comes from NativeRhs.row_condition_at: the next test.)"""
+    row's condition alone comes from NativeWatch.row_condition_at: the next test.)"""
     seen, worst = _compare_with_python(monkeypatch, "eval_at", 1e-10)
     cfg = packbot.SimConfig(contact_mode="normal", mu=0.5, locked_joints=WRIST)
     packbot.simulate(robot, robot.pose("drive"), np.zeros(8), 2.0, config=cfg)
@@ -271,7 +271,7 @@ def test_the_root_findings_native_evaluations_are_the_python_ones(robot, monkeyp
 )
 def test_a_rows_native_root_is_the_python_root(robot, monkeypatch, mu, locked, duration):
     """A contact row's crossing inside a native step is located in one native call
-    (NativeRhs.row_root: Brent's iterates on the row's condition at the step's dense output):
+    (NativeWatch.row_root: Brent's iterates on the row's condition at the step's dense output):
     the time packbot.ode.locate_root finds on the same function in Python, to rounding (the
     interpolant is summed in another order): most within 1e-12 s (measured: 0 to 1e-14 s; how
     many are the same float depends on the machine's numpy), 98 % within 1e-9 s, all within

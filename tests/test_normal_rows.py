@@ -509,7 +509,7 @@ def test_the_plans_pairs_decide_sliding_and_staleness_as_the_loop_over_every_pai
     monkeypatch.setattr(ContactRows, "stale_pairs", stale_pairs)
     # every step end asks (the native step end's screen would skip the clear ones: its own
     # agreement with these checks is tests/test_normal_screen.py's)
-    monkeypatch.setattr(native.NativeRhs, "end_check", lambda self, *a: -1)
+    monkeypatch.setattr(native.NativeWatch, "end_check", lambda self, *a: -1)
     cfg = packbot.SimConfig(contact_mode="normal", mu=0.5, locked_joints=WRIST)
     packbot.simulate(robot, robot.pose("drive"), np.zeros(8), 5.0, config=cfg)
     # (the collapse's 5 s: 678 step ends with engaged rows, 381 of them sliding, 87 stale; 46

@@ -1,7 +1,7 @@
 """The contact-normal mode's step-end screen against the Python checks it stands in for.
 
 After a native step, ``NormalLaw.watch`` asks the extension once (``normal_watch.end_code``:
-``NativeRhs.end_check``) which of its checks can find something: the pairs' events, the
+``NativeWatch.end_check``) which of its checks can find something: the pairs' events, the
 modes' conditions, the refresh of a sliding contact's stale patch; only those run. At every
 step end of real runs (the collapse with and without friction, an arm with every joint free),
 each check is run all the same and must agree with the screen: a clear screen only where the
@@ -92,7 +92,7 @@ def test_a_clear_screen_only_where_the_python_checks_find_nothing(
 def test_the_same_run_without_the_screen(monkeypatch, mu) -> None:
     duration = 5.0 if mu > 0.0 else 1.0
     screened = _collapse(mu, duration)
-    monkeypatch.setattr(native.NativeRhs, "end_check", lambda self, *a: -1)
+    monkeypatch.setattr(native.NativeWatch, "end_check", lambda self, *a: -1)
     full = _collapse(mu, duration)
     for k in ("t", "q", "v", "tau", "energy"):
         np.testing.assert_array_equal(getattr(screened, k), getattr(full, k))
@@ -141,15 +141,15 @@ def test_the_screen_answers_only_at_the_last_native_steps_end(monkeypatch) -> No
     active = np.array([k[1] for k in law.active if k[0] == "pair"], dtype=np.int64)
     sw = law.world.sweep(y1[: law.n], reuse=True)
     args = (sw.pairs, sw.distances, active, law.cfg.proximity_tolerance, 1e-4)
-    assert rhs.end_check(y1, *args) >= 0  # the step's end: screened
+    assert rhs.watch.end_check(y1, *args) >= 0  # the step's end: screened
     lay = law.normal._layout()
     with pytest.raises(ValueError, match="one entry per pair"):
         rhs._rhs.set_conditions(lay.offset0, np.append(lay.slide_tol2, 1e-6), 0.0, 0.0, 0.0)
     other = y1.copy()
     other[0] += 1e-9
-    assert rhs.end_check(other, *args) == -1  # not the step's end
+    assert rhs.watch.end_check(other, *args) == -1  # not the step's end
     rhs.accel(y1[: law.n], y1[law.n :], np.zeros(law.n), True)  # another call since
-    assert rhs.end_check(y1, *args) == -1
+    assert rhs.watch.end_check(y1, *args) == -1
     with pytest.raises(ValueError):
         rhs._rhs.end_check(y1, sw.pairs, sw.distances[:-1], active, 0.0, 0.0)
 
@@ -190,11 +190,11 @@ def test_the_screens_inputs_of_a_wrong_size_raise() -> None:
     nv, none = rhs.nv, np.zeros(0, dtype=np.int64)
     for upper, lower in [(np.zeros(nv), np.zeros(nv - 1)), (np.zeros(nv + 1), np.zeros(nv + 1))]:
         with pytest.raises(ValueError, match="nv entries"):
-            rhs.set_limits(upper, lower)
-    rhs.set_limits(np.zeros(0), np.zeros(0))  # (none: no limit screened)
+            rhs.watch.set_limits(upper, lower)
+    rhs.watch.set_limits(np.zeros(0), np.zeros(0))  # (none: no limit screened)
     with pytest.raises(ValueError, match="keys"):  # no layout loaded: no pair
         rhs._rhs.set_keys(np.zeros(3, dtype=np.int64))
     y = np.zeros(2 * nv)
     with pytest.raises(ValueError, match="one length"):
-        rhs.end_check(y, np.zeros(2, dtype=np.int64), np.zeros(1), none, 1e-3, 1e-4)
-    assert rhs.end_check(y, none, np.zeros(0), none, 1e-3, 1e-4) == -1  # no step yet
+        rhs.watch.end_check(y, np.zeros(2, dtype=np.int64), np.zeros(1), none, 1e-3, 1e-4)
+    assert rhs.watch.end_check(y, none, np.zeros(0), none, 1e-3, 1e-4) == -1  # no step yet

@@ -37,7 +37,7 @@ def screen(robot):
     reach = reach_bounds(robot.model, world)
     rhs.set_reach(reach, 0.05, 0.05)
     start, idx = pair_joints(robot.model, world.pairs)
-    rhs.set_pair_joints(start, idx)
+    rhs.watch.set_pair_joints(start, idx)
     k = next(p.index for p in world.pairs if p.joint2 == 0 and p.joint1 > 2)
     nv = robot.model.nv
     v = np.full(nv, 1.0)  # [rad/s], constant over the step: the speed bound is 1 rad/s
@@ -70,7 +70,7 @@ def _run_screen(sc, d, active=(), start_known=True):
         return d(float(y[0]))
 
     pairs = np.array([sc.k], dtype=np.int64)
-    found, evals = sc.rhs.pair_dips(
+    found, evals = sc.rhs.watch.pair_dips(
         Seg(),
         (pairs, np.array([d(0.0)])) if start_known else (pairs[:0], np.zeros(0)),
         (pairs, np.array([d(1.0)])),
@@ -114,11 +114,11 @@ def test_a_pair_that_stays_apart_is_proven_clear(screen):
     def d(s):
         return 1e-6 + screen.slope * min(abs(s - 0.37), 0.2)
 
-    unresolved = screen.rhs.unresolved_dips
+    unresolved = screen.rhs.watch.unresolved_dips
     found, calls = _run_screen(screen, d)
     assert found == []
     assert 0 < len(calls) <= 64
-    assert screen.rhs.unresolved_dips == unresolved  # (proven clear, not given up)
+    assert screen.rhs.watch.unresolved_dips == unresolved  # (proven clear, not given up)
     assert min(d(c) for c in calls) > 0.0
 
 

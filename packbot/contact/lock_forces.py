@@ -80,8 +80,8 @@ class LockReport:
         ``tau()`` [N*m]; where friction or a brake also holds the joint, the lock carries what
         the friction's bound does not (:func:`~packbot.contact.holds.friction_share`: the
         friction torques reported, :meth:`friction`, carry the rest). Zero off the locks. The
-        arithmetic of the law's native steps (:meth:`NativeRhs.lock_torques_at
-        <packbot.contact.native.NativeRhs.lock_torques_at>`) where their lock mode is the
+        arithmetic of the law's native steps (:meth:`NativeLocks.torques_at
+        <packbot.contact.native.NativeLocks.torques_at>`) where their lock mode is the
         locks' current set (the last step's), else the locks' own solve.
         """
         out = np.zeros(len(q))
@@ -93,8 +93,8 @@ class LockReport:
         torque = tau()
         rhs = law._lock_step.rhs  # (the law's native steps' lock mode, where it is loaded)
         lam = None
-        if rhs is not None and rhs.holds_locks(idx):
-            lam = rhs.lock_torques_at(q, v, torque)
+        if rhs is not None and rhs.locks.holds(idx):
+            lam = rhs.locks.torques_at(q, v, torque)
         if lam is None:
             sys = law.sys
             torques = locks.torques(sys.aba(q, v, torque), sys.minv(q))[1]

@@ -59,7 +59,7 @@ class NativeLockStep:
         For a mode whose accelerations are the locks' alone: offered with no joint locked,
         one, or all but at most 3 (:meth:`JointStops.torque_accel
         <packbot.contact.stops.JointStops.torque_accel>`'s ABA, its rank-one correction, or
-        its unlocked block: :meth:`~packbot.contact.native.NativeRhs.set_locks`), and torques
+        its unlocked block: :meth:`~packbot.contact.native.NativeLocks.set`), and torques
         fixed over the step (:meth:`~packbot.drive.Drive.step_torques`).
 
         Args:
@@ -82,7 +82,7 @@ class NativeLockStep:
         torques = self.drive.step_torques(t, y)
         if torques is None:
             return None
-        rhs.set_locks(locks.locked_index)
+        rhs.locks.set(locks.locked_index)
         rhs.hold_torque(*torques)
         return rhs.step
 
@@ -93,7 +93,7 @@ class NativeLockStep:
         y1): every condition of :meth:`JointLocks.conditions_of
         <packbot.contact.locks.JointLocks.conditions_of>` above :data:`SCREEN_MARGIN` of
         its scale (1 + max |a| + max |lambda|), computed in the extension
-        (:meth:`~packbot.contact.native.NativeRhs.end_screen`). False also when there was no
+        (:meth:`~packbot.contact.native.NativeLocks.end_screen`). False also when there was no
         such step with this locked set (the conditions are then evaluated).
 
         Args:
@@ -101,7 +101,7 @@ class NativeLockStep:
             locks: The law's joint locks.
         """
         rhs = self.rhs
-        if rhs is None or not rhs.holds_locks(locks.locked_index):
+        if rhs is None or not rhs.locks.holds(locks.locked_index):
             return False  # (the locks changed since the step: e.g. a clamp after it)
         rows = locks.screen_rows()
-        return rhs.end_screen(rows, y1, SCREEN_MARGIN, TORQUE_BAND, ACCEL_BAND) > 0.0
+        return rhs.locks.end_screen(rows, y1, SCREEN_MARGIN, TORQUE_BAND, ACCEL_BAND) > 0.0

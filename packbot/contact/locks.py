@@ -242,8 +242,8 @@ class JointLocks:
     def screen_rows(self) -> FloatArray:
         """The conditions of :meth:`conditions_of` as rows (kind, index, s, bound).
 
-        For the native step's screen (:meth:`NativeRhs.end_screen
-        <packbot.contact.native.NativeRhs.end_screen>`), in :meth:`conditions_of`'s order:
+        For the native step's screen (:meth:`NativeLocks.end_screen
+        <packbot.contact.native.NativeLocks.end_screen>`), in :meth:`conditions_of`'s order:
         kind 0 a held joint (index: its position in :attr:`locked`; s: the sign of its
         one-sided clamp, or 0; its bound [N*m]); 1 an engaged clamp (its position, s); 2 a free
         clamped joint (the joint, s); 3 a constant condition (the bound: a held joint clamped

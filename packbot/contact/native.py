@@ -87,7 +87,7 @@ def _ints(x: Any) -> NDArray[np.int64]:
 
 @dataclass(frozen=True)
 class NativeModes:
-    """The modes :meth:`NativeRhs.select_modes` selected.
+    """The modes :meth:`NativeRestart.select_modes` selected.
 
     Attributes:
         kept: keep_modes kept the engaged rows given.
@@ -174,6 +174,11 @@ class NativeRhs:
         self._locked_id: Any = None  # the locked joints loaded (set_locks)
         self._screen_id: Any = None  # the lock conditions' rows loaded (set_screen)
         self._row_mode: tuple[tuple[int, ...], bool] = ((), False)  # (set_row_mode's)
+        #: The lock mode (:class:`NativeLocks`), the restarts' and windows' steps
+        #: (:class:`NativeRestart`) and the step's watch (:class:`NativeWatch`).
+        self.locks = NativeLocks(self)
+        self.restart = NativeRestart(self)
+        self.watch = NativeWatch(self)
 
     def load(self, contacts: NormalContacts, plan: Any) -> None:
         """Load the contact set's layout and the modes' plan (only when they changed)."""
@@ -314,81 +319,6 @@ class NativeRhs:
         self._layout_id = None
         self._plan_id = None
 
-    def set_locks(self, locked: NDArray[np.intp]) -> None:
-        """The report's law's modes instead of contact rows: these joints locked (a_j = 0).
-
-        The joints engaged or held (:attr:`JointLocks.locked
-        <packbot.contact.locks.JointLocks.locked>`, sorted): none (ABA), one (ABA and M^-1's
-        rank-one correction) or all but at most 3 (the unlocked joints' block of M, from CRBA
-        and the bias forces): the arithmetic of :meth:`JointStops.torque_accel
-        <packbot.contact.stops.JointStops.torque_accel>`. Loaded only when the array object
-        changed (the locks make a new one at every change of their set).
-
-        Args:
-            locked: The locked joints' indices, sorted.
-
-        Raises:
-            ValueError: Another number of locked joints (the extension refuses it).
-        """
-        if locked is not self._locked_id:
-            self._rhs.set_locks(_ints(locked))
-            self._locked_id = locked
-            self._layout_id = None
-
-    def holds_locks(self, locked: NDArray[np.intp]) -> bool:
-        """Whether ``locked`` (the locks' array, by identity) is the lock set loaded last."""
-        return locked is self._locked_id
-
-    def end_locks(self, y1: FloatArray) -> tuple[FloatArray, FloatArray] | None:
-        """The accelerations and lock torques at the end of the last native step, if at y1.
-
-        The step's FSAL stage is the right-hand side at y1 in the loaded lock mode: its
-        accelerations a [rad/s^2] and lock torques lambda_L [N*m] (M a = tau - h + S_L^T
-        lambda, one per locked joint, in :meth:`set_locks`'s order), or None: the last native
-        call was not a lock-mode step ending at y1.
-        """
-        return self._rhs.end_locks(y1)
-
-    def lock_torques_at(self, q: FloatArray, v: FloatArray, tau: FloatArray) -> FloatArray | None:
-        """The loaded lock mode's lock torques [N*m] at (q, v) under the joint torques tau.
-
-        M a = tau - h + S_L^T lambda (:meth:`set_locks`'s joints, in its order): the
-        arithmetic of the mode's right-hand side, asked at a sample between steps (the last
-        step's end, which :meth:`end_locks` and :meth:`end_screen` read, is kept). None where
-        its closed form does not hold (a singular pivot).
-
-        Args:
-            q: Configuration [rad].
-            v: Velocity [rad/s].
-            tau: Joint torques [N*m] (applied and friction).
-        """
-        out = self._rhs.lock_torques_at(_reals(q), _reals(v), _reals(tau))
-        return None if out is None else np.asarray(out, dtype=np.float64)
-
-    def end_screen(
-        self, rows: FloatArray, y1: FloatArray, margin: float, torque_band: float, accel_band: float
-    ) -> float:
-        """The smallest lock condition at the end of the last native step, less its margin.
-
-        The conditions of :meth:`JointLocks.conditions_of
-        <packbot.contact.locks.JointLocks.conditions_of>` (its :meth:`screen_rows
-        <packbot.contact.locks.JointLocks.screen_rows>`, loaded when the array changed) at
-        the step's FSAL stage, the smallest less ``margin`` times the scale 1 + max |a| +
-        max |lambda|: positive, every condition is clearly kept at y1. NaN when the last native
-        call was not a lock-mode step ending at y1.
-
-        Args:
-            rows: The conditions' rows.
-            y1: The state the step ended at.
-            margin: The share of the scale a condition must clear [-].
-            torque_band: The locks' torque band [N*m].
-            accel_band: The locks' acceleration band [rad/s^2].
-        """
-        if rows is not self._screen_id:
-            self._rhs.set_screen(rows, torque_band, accel_band)
-            self._screen_id = rows
-        return float(self._rhs.end_screen(y1, margin))
-
     def energies(self, q: FloatArray, v: FloatArray) -> FloatArray:
         """Total energies [J] of several states: 0.5 v^T M(q) v plus gravity's potential.
 
@@ -422,147 +352,6 @@ class NativeRhs:
         out = np.array(v, dtype=np.float64)
         removed = self._rhs.neutral_velocity(_reals(q0), _reals(q1), out)
         return out, float(removed)
-
-    def window_step(
-        self, contacts: NormalContacts, y: FloatArray, h: float, **kw: Any
-    ) -> tuple[int, FloatArray | None, float, int, float, tuple[float, float, float] | None]:
-        """One window step with its contact set kept, in one native call.
-
-        The contact set's layout is loaded first, the torques by :meth:`hold_torque`. See
-        :meth:`packbot.contact.timestep.MoreauJeanStepper.step`, whose arithmetic it follows,
-        and the extension's ``ContactRhs.window_step`` for the arguments in ``kw``.
-
-        Returns:
-            (status, x, residual, iterations, rho, energies): status 0 the step's impulses x
-            and the energies (at the start, at the end, the end's kinetic one) [J]; else why
-            the caller takes the step in Python (1 the contact set changes, 2 a bounce, 3 no
-            converged impulses, 4 no Cholesky factor of M^-1, 5 the impulses drive a joint
-            past a stop that is not in the set: v1 and q1 written).
-        """
-        self.load_layout(contacts)
-        status, x, res, it, rho, energies = self._rhs.window_step(y, h, **kw)
-        return int(status), x, float(res), int(it), float(rho), energies
-
-    def project_round(
-        self,
-        contacts: ContactRows,
-        q: FloatArray,
-        v: FloatArray,
-        minv: FloatArray,
-        touch_gap: float,
-        pen_tol: float,
-        res_tol: float,
-    ) -> tuple[int, FloatArray]:
-        """One round of the restart's drift projection, in one native call.
-
-        See :meth:`packbot.contact.normal_steps.RestartSteps.project` and the extension's
-        ``ContactRhs.project_round``. The contact set's layout is loaded first.
-
-        Returns:
-            (status, q1): 0 no gap is negative; 1 a gap is below -``pen_tol`` (the caller's
-            round clips it); 2 Lemke's answer has a residual above ``res_tol`` (the caller's
-            round); 3 the projected configuration q1 [rad]; 4 q1, past a stop of
-            :meth:`set_limits` that is not one of the set's rows (the caller adds it and
-            projects again).
-        """
-        self.load_layout(contacts)
-        out = np.empty(len(q))
-        status = self._rhs.project_round(
-            _reals(q), _reals(v), _reals(minv), touch_gap, pen_tol, res_tol, out
-        )
-        return int(status), out
-
-    def impact(
-        self, contacts: ContactRows, q: FloatArray, v: FloatArray, minv: FloatArray, **kw: Any
-    ) -> tuple[int, FloatArray, bool, NDArray[np.int64], FloatArray]:
-        """The restart's impact, in one native call.
-
-        See :meth:`packbot.contact.normal_steps.RestartSteps.impulse`, whose arithmetic it
-        follows, and the extension's ``ContactRhs.impact`` for the arguments in ``kw``. The
-        contact set's layout is loaded first.
-
-        Returns:
-            (status, v1, bounced, rows, P): 0 no touching row approaches (v unchanged); 1 the
-            velocity after the impact v1 [rad/s], ``bounced`` whether restitution was applied,
-            the touching rows and their impulses P (rows, 3), blocks (t1, t2, n) [N*s,
-            N*m*s]; 2 the caller's own impulse (a frictional answer not taken, an LCP residual
-            too large). Without an impact, no rows.
-        """
-        self.load_layout(contacts)
-        out = np.empty(len(v))
-        got = self._rhs.impact(_reals(q), _reals(v), _reals(minv), out_v=out, **kw)
-        if int(got[0]) != 1:
-            return int(got[0]), out, bool(got[1]), np.zeros(0, dtype=np.int64), np.zeros((0, 3))
-        return 1, out, bool(got[1]), np.asarray(got[2]), np.asarray(got[3])
-
-    def stop_slow(
-        self, contacts: ContactRows, q: FloatArray, v: FloatArray, minv: FloatArray, **kw: Any
-    ) -> tuple[int, FloatArray]:
-        """The restart's stop of the slow slides, in one native call.
-
-        See :meth:`packbot.contact.normal_steps.RestartSteps.stop_slow`, whose arithmetic it
-        follows, and the extension's ``ContactRhs.stop_slow`` (``src/native/stop_slow.hpp``)
-        for the arguments in ``kw``. The contact set's layout is loaded first.
-
-        Returns:
-            (status, v1): 0 the velocity kept; 1 the velocity after the stop v1 [rad/s]; 2 the
-            caller's own step (its least squares).
-        """
-        self.load_layout(contacts)
-        out = np.empty(len(v))
-        status = self._rhs.stop_slow(_reals(q), _reals(v), _reals(minv), out_v=out, **kw)
-        return int(status), out
-
-    def select_modes(
-        self,
-        contacts: ContactRows,
-        q: FloatArray,
-        v: FloatArray,
-        a_free: FloatArray,
-        minv: FloatArray,
-        keep: bool,
-        held: list[int],
-    ) -> NativeModes | None:
-        """A restart's or a re-patch's mode selection, in one native call.
-
-        :meth:`ModeSelection.select_modes <packbot.contact.normal_modes.ModeSelection.
-        select_modes>` (after :meth:`~packbot.contact.normal_modes.ModeSelection.keep_modes`
-        of the engaged rows ``held`` when not empty), whose arithmetic it follows (the
-        extension's ``ContactRhs.select_modes``, ``src/native/modes.hpp``), on the contact
-        set's rows at (q, v); the pairs' modes are read from ``contacts`` and returned, not
-        written there. The contact set's layout is loaded first; the loaded plan is changed.
-
-        Args:
-            contacts: The contact set (its layout, pairs, stick flags and slip directions).
-            q: Configuration [rad].
-            v: Velocity [rad/s].
-            a_free: Unconstrained accelerations [rad/s^2].
-            minv: M^-1 at q.
-            keep: select_modes' ``keep`` (a re-patch inside a mode).
-            held: The engaged rows to keep if they still solve the mode problem (empty: none).
-
-        Returns:
-            The modes selected, or None where the Python selection takes a branch the native
-            one does not (least squares, a singular Delassus matrix, a slide of zero speed).
-        """
-        self.load_layout(contacts)
-        pairs = contacts._pair_list
-        stick = np.array([p.stick for p in pairs], dtype=np.uint8)
-        slip = np.zeros((len(pairs), 3))
-        for i, p in enumerate(pairs):
-            slip[i] = p.slip_dir
-        status, kept, engaged, events, painleve, gave_up = self._rhs.select_modes(
-            _reals(q), _reals(v), _reals(a_free), _reals(minv), keep,
-            np.asarray(held, dtype=np.int64), stick, slip, contacts.mu, TOUCH_GAP, SPEED_BAND,
-            STICK_SPEED, FORCE_BAND, STICK_BAND, BAUMGARTE, RESIDUAL_TOL,
-        )  # fmt: skip
-        self._plan_id = None  # (the selection loaded its own plans)
-        if status != 0:
-            return None
-        return NativeModes(
-            bool(kept), engaged.tolist(), stick.astype(bool), slip, events.tolist(),
-            int(painleve), bool(gave_up),
-        )  # fmt: skip
 
     def set_torque(self, applied: FloatArray, viscous: FloatArray, coulomb_dir: FloatArray) -> None:
         """The torques of the steps to come [N*m]: ``applied + (-viscous * v - coulomb_dir)``."""
@@ -642,53 +431,6 @@ class NativeRhs:
         """
         return self._kept(contacts, y, self._rhs.eval_at(y))
 
-    def row_condition_at(self, y: FloatArray, row: int) -> float | None:
-        """A contact row's mode condition at state y with the loaded modes and torques.
-
-        What :meth:`eval_at` then :meth:`NormalContacts.condition
-        <packbot.contact.normal_dynamics.ConstrainedDynamics.condition>` with the key
-        ``("nrow", row)`` give (the same float: an engaged row's force plus ``FORCE_BAND``, a
-        free row's gap plus ``POINT_TOL``), in one call that builds no evaluation: for the
-        root finding of a row's event inside a native step, which asks for that one value
-        at each point. The contact set's last evaluation is left as it was.
-
-        Args:
-            y: The state, (q, v).
-            row: The contact row.
-
-        Returns:
-            The condition [N or m], or None: the Delassus matrix is singular or the mode
-            conditions' constants are not loaded (the caller evaluates in Python).
-        """
-        g = self._rhs.row_condition_at(y, row)
-        return None if g != g else g
-
-    def row_root(
-        self, seg: DenseSegment, row: int
-    ) -> Callable[[float, float, float, float, float], float] | None:
-        """A contact row's crossing inside a native step, located in one native call.
-
-        ``root(t0, t1, g0, g1, xtol)``: :func:`packbot.ode.locate_root` on the row's condition
-        (:meth:`row_condition_at`) at the step's dense output, Brent's iterates natively (the
-        interpolant summed in the extension's order: the same time to rounding); NaN where a
-        condition cannot be evaluated. None for a segment the extension cannot interpolate
-        (with a motor lag's torques in its state).
-
-        Args:
-            seg: The native step's segment (or a truncation of it).
-            row: The contact row.
-        """
-        Z = seg._Z
-        if Z.shape[1] != 2 * self.nv:
-            return None
-        hermite = isinstance(seg, HermiteSegment)
-        rhs, h, y1 = self._rhs, seg._hz, seg.y1
-
-        def root(t0: float, t1: float, g0: float, g1: float, xtol: float) -> float:
-            return float(rhs.row_root(Z, t0, t1, h, y1, hermite, row, g0, g1, xtol))
-
-        return root
-
     def _kept(self, contacts: NormalContacts, y: FloatArray, got: Any) -> _Eval | None:
         """The extension's evaluation tuple at y as an ``_Eval``, kept by the contact set."""
         if got is None:
@@ -709,9 +451,307 @@ class NativeRhs:
         self._rhs.set_reach(_reals(reach), float(margin), float(max_step))
         self.step_bound: Callable[[FloatArray], float] = self._rhs.step_bound
 
+    def last(self) -> tuple[FloatArray, ...]:
+        """The last call's (a_free, M^-1, lam, gap, v_n, v_t, G, rhs): copies, for tests."""
+        return tuple(self._rhs.last())
+
+
+class NativeLocks:
+    """The report's law's lock mode in the extension (``NativeRhs.locks``).
+
+    The locked joints, the step end's lock torques and conditions, a sample's lock torques.
+    """
+
+    def __init__(self, core: NativeRhs) -> None:
+        self._core = core
+
+    def set(self, locked: NDArray[np.intp]) -> None:
+        """The report's law's modes instead of contact rows: these joints locked (a_j = 0).
+
+        The joints engaged or held (:attr:`JointLocks.locked
+        <packbot.contact.locks.JointLocks.locked>`, sorted): none (ABA), one (ABA and M^-1's
+        rank-one correction) or all but at most 3 (the unlocked joints' block of M, from CRBA
+        and the bias forces): the arithmetic of :meth:`JointStops.torque_accel
+        <packbot.contact.stops.JointStops.torque_accel>`. Loaded only when the array object
+        changed (the locks make a new one at every change of their set).
+
+        Args:
+            locked: The locked joints' indices, sorted.
+
+        Raises:
+            ValueError: Another number of locked joints (the extension refuses it).
+        """
+        if locked is not self._core._locked_id:
+            self._core._rhs.set_locks(_ints(locked))
+            self._core._locked_id = locked
+            self._core._layout_id = None
+
+    def holds(self, locked: NDArray[np.intp]) -> bool:
+        """Whether ``locked`` (the locks' array, by identity) is the lock set loaded last."""
+        return locked is self._core._locked_id
+
+    def end(self, y1: FloatArray) -> tuple[FloatArray, FloatArray] | None:
+        """The accelerations and lock torques at the end of the last native step, if at y1.
+
+        The step's FSAL stage is the right-hand side at y1 in the loaded lock mode: its
+        accelerations a [rad/s^2] and lock torques lambda_L [N*m] (M a = tau - h + S_L^T
+        lambda, one per locked joint, in :meth:`set`'s order), or None: the last native
+        call was not a lock-mode step ending at y1.
+        """
+        return self._core._rhs.end_locks(y1)
+
+    def torques_at(self, q: FloatArray, v: FloatArray, tau: FloatArray) -> FloatArray | None:
+        """The loaded lock mode's lock torques [N*m] at (q, v) under the joint torques tau.
+
+        M a = tau - h + S_L^T lambda (:meth:`set`'s joints, in its order): the
+        arithmetic of the mode's right-hand side, asked at a sample between steps (the last
+        step's end, which :meth:`end` and :meth:`end_screen` read, is kept). None where
+        its closed form does not hold (a singular pivot).
+
+        Args:
+            q: Configuration [rad].
+            v: Velocity [rad/s].
+            tau: Joint torques [N*m] (applied and friction).
+        """
+        out = self._core._rhs.lock_torques_at(_reals(q), _reals(v), _reals(tau))
+        return None if out is None else np.asarray(out, dtype=np.float64)
+
+    def end_screen(
+        self, rows: FloatArray, y1: FloatArray, margin: float, torque_band: float, accel_band: float
+    ) -> float:
+        """The smallest lock condition at the end of the last native step, less its margin.
+
+        The conditions of :meth:`JointLocks.conditions_of
+        <packbot.contact.locks.JointLocks.conditions_of>` (its :meth:`screen_rows
+        <packbot.contact.locks.JointLocks.screen_rows>`, loaded when the array changed) at
+        the step's FSAL stage, the smallest less ``margin`` times the scale 1 + max |a| +
+        max |lambda|: positive, every condition is clearly kept at y1. NaN when the last native
+        call was not a lock-mode step ending at y1.
+
+        Args:
+            rows: The conditions' rows.
+            y1: The state the step ended at.
+            margin: The share of the scale a condition must clear [-].
+            torque_band: The locks' torque band [N*m].
+            accel_band: The locks' acceleration band [rad/s^2].
+        """
+        if rows is not self._core._screen_id:
+            self._core._rhs.set_screen(rows, torque_band, accel_band)
+            self._core._screen_id = rows
+        return float(self._core._rhs.end_screen(y1, margin))
+
+
+class NativeRestart:
+    """A restart's steps and a window's step, in one native call each (``NativeRhs.restart``).
+
+    The drift projection, the impact, the stop of slow slides, the mode selection.
+    """
+
+    def __init__(self, core: NativeRhs) -> None:
+        self._core = core
+
+    def window_step(
+        self, contacts: NormalContacts, y: FloatArray, h: float, **kw: Any
+    ) -> tuple[int, FloatArray | None, float, int, float, tuple[float, float, float] | None]:
+        """One window step with its contact set kept, in one native call.
+
+        The contact set's layout is loaded first, the torques by :meth:`hold_torque`. See
+        :meth:`packbot.contact.timestep.MoreauJeanStepper.step`, whose arithmetic it follows,
+        and the extension's ``ContactRhs.window_step`` for the arguments in ``kw``.
+
+        Returns:
+            (status, x, residual, iterations, rho, energies): status 0 the step's impulses x
+            and the energies (at the start, at the end, the end's kinetic one) [J]; else why
+            the caller takes the step in Python (1 the contact set changes, 2 a bounce, 3 no
+            converged impulses, 4 no Cholesky factor of M^-1, 5 the impulses drive a joint
+            past a stop that is not in the set: v1 and q1 written).
+        """
+        self._core.load_layout(contacts)
+        status, x, res, it, rho, energies = self._core._rhs.window_step(y, h, **kw)
+        return int(status), x, float(res), int(it), float(rho), energies
+
+    def project_round(
+        self,
+        contacts: ContactRows,
+        q: FloatArray,
+        v: FloatArray,
+        minv: FloatArray,
+        touch_gap: float,
+        pen_tol: float,
+        res_tol: float,
+    ) -> tuple[int, FloatArray]:
+        """One round of the restart's drift projection, in one native call.
+
+        See :meth:`packbot.contact.normal_steps.RestartSteps.project` and the extension's
+        ``ContactRhs.project_round``. The contact set's layout is loaded first.
+
+        Returns:
+            (status, q1): 0 no gap is negative; 1 a gap is below -``pen_tol`` (the caller's
+            round clips it); 2 Lemke's answer has a residual above ``res_tol`` (the caller's
+            round); 3 the projected configuration q1 [rad]; 4 q1, past a stop of
+            :meth:`set_limits` that is not one of the set's rows (the caller adds it and
+            projects again).
+        """
+        self._core.load_layout(contacts)
+        out = np.empty(len(q))
+        status = self._core._rhs.project_round(
+            _reals(q), _reals(v), _reals(minv), touch_gap, pen_tol, res_tol, out
+        )
+        return int(status), out
+
+    def impact(
+        self, contacts: ContactRows, q: FloatArray, v: FloatArray, minv: FloatArray, **kw: Any
+    ) -> tuple[int, FloatArray, bool, NDArray[np.int64], FloatArray]:
+        """The restart's impact, in one native call.
+
+        See :meth:`packbot.contact.normal_steps.RestartSteps.impulse`, whose arithmetic it
+        follows, and the extension's ``ContactRhs.impact`` for the arguments in ``kw``. The
+        contact set's layout is loaded first.
+
+        Returns:
+            (status, v1, bounced, rows, P): 0 no touching row approaches (v unchanged); 1 the
+            velocity after the impact v1 [rad/s], ``bounced`` whether restitution was applied,
+            the touching rows and their impulses P (rows, 3), blocks (t1, t2, n) [N*s,
+            N*m*s]; 2 the caller's own impulse (a frictional answer not taken, an LCP residual
+            too large). Without an impact, no rows.
+        """
+        self._core.load_layout(contacts)
+        out = np.empty(len(v))
+        got = self._core._rhs.impact(_reals(q), _reals(v), _reals(minv), out_v=out, **kw)
+        if int(got[0]) != 1:
+            return int(got[0]), out, bool(got[1]), np.zeros(0, dtype=np.int64), np.zeros((0, 3))
+        return 1, out, bool(got[1]), np.asarray(got[2]), np.asarray(got[3])
+
+    def stop_slow(
+        self, contacts: ContactRows, q: FloatArray, v: FloatArray, minv: FloatArray, **kw: Any
+    ) -> tuple[int, FloatArray]:
+        """The restart's stop of the slow slides, in one native call.
+
+        See :meth:`packbot.contact.normal_steps.RestartSteps.stop_slow`, whose arithmetic it
+        follows, and the extension's ``ContactRhs.stop_slow`` (``src/native/stop_slow.hpp``)
+        for the arguments in ``kw``. The contact set's layout is loaded first.
+
+        Returns:
+            (status, v1): 0 the velocity kept; 1 the velocity after the stop v1 [rad/s]; 2 the
+            caller's own step (its least squares).
+        """
+        self._core.load_layout(contacts)
+        out = np.empty(len(v))
+        status = self._core._rhs.stop_slow(_reals(q), _reals(v), _reals(minv), out_v=out, **kw)
+        return int(status), out
+
+    def select_modes(
+        self,
+        contacts: ContactRows,
+        q: FloatArray,
+        v: FloatArray,
+        a_free: FloatArray,
+        minv: FloatArray,
+        keep: bool,
+        held: list[int],
+    ) -> NativeModes | None:
+        """A restart's or a re-patch's mode selection, in one native call.
+
+        :meth:`ModeSelection.select_modes <packbot.contact.normal_modes.ModeSelection.
+        select_modes>` (after :meth:`~packbot.contact.normal_modes.ModeSelection.keep_modes`
+        of the engaged rows ``held`` when not empty), whose arithmetic it follows (the
+        extension's ``ContactRhs.select_modes``, ``src/native/modes.hpp``), on the contact
+        set's rows at (q, v); the pairs' modes are read from ``contacts`` and returned, not
+        written there. The contact set's layout is loaded first; the loaded plan is changed.
+
+        Args:
+            contacts: The contact set (its layout, pairs, stick flags and slip directions).
+            q: Configuration [rad].
+            v: Velocity [rad/s].
+            a_free: Unconstrained accelerations [rad/s^2].
+            minv: M^-1 at q.
+            keep: select_modes' ``keep`` (a re-patch inside a mode).
+            held: The engaged rows to keep if they still solve the mode problem (empty: none).
+
+        Returns:
+            The modes selected, or None where the Python selection takes a branch the native
+            one does not (least squares, a singular Delassus matrix, a slide of zero speed).
+        """
+        self._core.load_layout(contacts)
+        pairs = contacts._pair_list
+        stick = np.array([p.stick for p in pairs], dtype=np.uint8)
+        slip = np.zeros((len(pairs), 3))
+        for i, p in enumerate(pairs):
+            slip[i] = p.slip_dir
+        status, kept, engaged, events, painleve, gave_up = self._core._rhs.select_modes(
+            _reals(q), _reals(v), _reals(a_free), _reals(minv), keep,
+            np.asarray(held, dtype=np.int64), stick, slip, contacts.mu, TOUCH_GAP, SPEED_BAND,
+            STICK_SPEED, FORCE_BAND, STICK_BAND, BAUMGARTE, RESIDUAL_TOL,
+        )  # fmt: skip
+        self._core._plan_id = None  # (the selection loaded its own plans)
+        if status != 0:
+            return None
+        return NativeModes(
+            bool(kept), engaged.tolist(), stick.astype(bool), slip, events.tolist(),
+            int(painleve), bool(gave_up),
+        )  # fmt: skip
+
+
+class NativeWatch:
+    """What the extension watches in and at the end of a native step (``NativeRhs.watch``).
+
+    Contact rows' conditions and roots, joint limits, pairs dipping into contact, the step
+    end's screen.
+    """
+
+    def __init__(self, core: NativeRhs) -> None:
+        self._core = core
+
+    def row_condition_at(self, y: FloatArray, row: int) -> float | None:
+        """A contact row's mode condition at state y with the loaded modes and torques.
+
+        What :meth:`eval_at` then :meth:`NormalContacts.condition
+        <packbot.contact.normal_dynamics.ConstrainedDynamics.condition>` with the key
+        ``("nrow", row)`` give (the same float: an engaged row's force plus ``FORCE_BAND``, a
+        free row's gap plus ``POINT_TOL``), in one call that builds no evaluation: for the
+        root finding of a row's event inside a native step, which asks for that one value
+        at each point. The contact set's last evaluation is left as it was.
+
+        Args:
+            y: The state, (q, v).
+            row: The contact row.
+
+        Returns:
+            The condition [N or m], or None: the Delassus matrix is singular or the mode
+            conditions' constants are not loaded (the caller evaluates in Python).
+        """
+        g = self._core._rhs.row_condition_at(y, row)
+        return None if g != g else g
+
+    def row_root(
+        self, seg: DenseSegment, row: int
+    ) -> Callable[[float, float, float, float, float], float] | None:
+        """A contact row's crossing inside a native step, located in one native call.
+
+        ``root(t0, t1, g0, g1, xtol)``: :func:`packbot.ode.locate_root` on the row's condition
+        (:meth:`row_condition_at`) at the step's dense output, Brent's iterates natively (the
+        interpolant summed in the extension's order: the same time to rounding); NaN where a
+        condition cannot be evaluated. None for a segment the extension cannot interpolate
+        (with a motor lag's torques in its state).
+
+        Args:
+            seg: The native step's segment (or a truncation of it).
+            row: The contact row.
+        """
+        Z = seg._Z
+        if Z.shape[1] != 2 * self._core.nv:
+            return None
+        hermite = isinstance(seg, HermiteSegment)
+        rhs, h, y1 = self._core._rhs, seg._hz, seg.y1
+
+        def root(t0: float, t1: float, g0: float, g1: float, xtol: float) -> float:
+            return float(rhs.row_root(Z, t0, t1, h, y1, hermite, row, g0, g1, xtol))
+
+        return root
+
     def set_limits(self, upper: FloatArray, lower: FloatArray) -> None:
         """The joint limits [rad] :meth:`end_check` screens (empty arrays: none)."""
-        self._rhs.set_limits(_reals(upper), _reals(lower))
+        self._core._rhs.set_limits(_reals(upper), _reals(lower))
 
     def limit_excursions(
         self, y0: FloatArray, y1: FloatArray, h: float, tol: float
@@ -722,11 +762,11 @@ class NativeRhs:
         over ``h`` [s] reaching beyond the limit by more than ``tol`` [rad] at an interior
         extreme: (joint, side (+1 upper, -1 lower), the extreme's fraction of the step).
         """
-        return list(self._rhs.limit_excursions(_reals(y0), _reals(y1), float(h), float(tol)))
+        return list(self._core._rhs.limit_excursions(_reals(y0), _reals(y1), float(h), float(tol)))
 
     def set_pair_joints(self, start: NDArray[np.int64], idx: NDArray[np.int64]) -> None:
         """Each world pair's joints for :meth:`pair_dips` (``pairs.pair_joints``'s CSR)."""
-        self._rhs.set_pair_joints(
+        self._core._rhs.set_pair_joints(
             np.ascontiguousarray(start, np.int64), np.ascontiguousarray(idx, np.int64)
         )
 
@@ -763,7 +803,7 @@ class NativeRhs:
             return distance(int(k), seg(seg.t0 + s * seg.h))
 
         Q = np.ascontiguousarray(seg._coefficients(), dtype=np.float64)
-        found, evals = self._rhs.pair_dips(
+        found, evals = self._core._rhs.pair_dips(
             Q,
             float(seg.h / seg._hz),
             float(seg.h),
@@ -782,7 +822,7 @@ class NativeRhs:
     @property
     def unresolved_dips(self) -> int:
         """Pairs whose :meth:`pair_dips` screen stopped at its query cap (since the build)."""
-        return int(self._rhs.unresolved_dips)
+        return int(self._core._rhs.unresolved_dips)
 
     def end_check(
         self,
@@ -817,11 +857,7 @@ class NativeRhs:
         Each pair's patch goes stale at its own slide (``_Layout.slide_tol2``, loaded with the
         layout by :meth:`load`).
         """
-        return int(self._rhs.end_check(y1, swept, dist, active, near, pen_tol))
-
-    def last(self) -> tuple[FloatArray, ...]:
-        """The last call's (a_free, M^-1, lam, gap, v_n, v_t, G, rhs): copies, for tests."""
-        return tuple(self._rhs.last())
+        return int(self._core._rhs.end_check(y1, swept, dist, active, near, pen_tol))
 
 
 # ---- the hand-off's calls (HandoffContacts: src/native/contact_rhs_clamps.cpp) on a NativeRhs

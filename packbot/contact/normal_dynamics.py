@@ -235,8 +235,8 @@ class ConstrainedDynamics(ContactRows):
         """Whether a row's condition is the row's own force or gap (:meth:`condition`'s rule).
 
         True unless a subclass redefines :meth:`conditions`; the native root finding of a
-        row's event (:meth:`NativeRhs.row_condition_at
-        <packbot.contact.native.NativeRhs.row_condition_at>`) computes that rule.
+        row's event (:meth:`NativeWatch.row_condition_at
+        <packbot.contact.native.NativeWatch.row_condition_at>`) computes that rule.
         """
         return type(self).conditions is _OWN_CONDITIONS
 

@@ -56,7 +56,7 @@ def limit_excursions(
         upper: The joints' upper stops [rad].
         lower: The joints' lower stops [rad].
     """
-    found = native.limit_excursions(seg.y0, seg.y1, seg.h, EXCURSION_TOL)
+    found = native.watch.limit_excursions(seg.y0, seg.y1, seg.h, EXCURSION_TOL)
     out: list[Crossing] = []
     for j, side, s in found:
         lim = float(upper[j] if side > 0 else lower[j])
@@ -98,7 +98,7 @@ def pair_dips(
 
     A fast, grazing pass (the camera head through a flipper's corner within one step) starts
     and ends the step apart: each swept pair is screened over the step by conservative
-    advancement on its distance (:meth:`~packbot.contact.native.NativeRhs.pair_dips`); a query
+    advancement on its distance (:meth:`~packbot.contact.native.NativeWatch.pair_dips`); a query
     on the dense output that finds it touching is an ``impact`` (a pair of the contact set: its
     patch rebuilt there), one that finds a pair of the set leaving from contact below
     -:data:`~packbot.contact.normal_tolerances.PENETRATION_TOL` a ``repatch``, each located
@@ -119,7 +119,7 @@ def pair_dips(
         np.fromiter(start.keys(), np.int64, len(start)),
         np.fromiter(start.values(), float, len(start)),
     )
-    found, _ = native.pair_dips(seg, kept, (sw.pairs, sw.distances), active, margin, screen)
+    found, _ = native.watch.pair_dips(seg, kept, (sw.pairs, sw.distances), active, margin, screen)
     out: list[Crossing] = []
     for p_idx, s, _, level in found:
         t_m = seg.t0 + s * seg.h

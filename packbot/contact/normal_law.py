@@ -87,10 +87,10 @@ class NormalLaw(PatchEvents):
         self.normal.native = self._native  # (the restart's projection and impact)
         self.report = NormalReport(self)  # (its forces at the samples)
         if self.cfg.joint_limits:  # (the step end's screen, the drift projection)
-            self._native.set_limits(system.upper, system.lower)
+            self._native.watch.set_limits(system.upper, system.lower)
             self.normal.stops = (system.upper, system.lower)
         self._native.set_reach(self.reach, self.cfg.margin, self.cfg.max_step)  # (step_bound)
-        self._native.set_pair_joints(*pair_joints(system.model, self.world.pairs))
+        self._native.watch.set_pair_joints(*pair_joints(system.model, self.world.pairs))
         self.window: Window | None = None
         self.triggers.reset()
         self._clear: FloatArray | None = None  # a step end the screen found clear (watch)

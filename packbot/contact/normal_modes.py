@@ -196,7 +196,7 @@ class ModeSelection(ConstrainedDynamics):
         own = type(self).evaluate is _OWN_EVALUATE and type(self).conditions is _OWN_CONDITIONS
         if native is None or self.resting or (held and not own):
             return None
-        out = native.select_modes(self, q, v, a_free, minv, keep, held)
+        out = native.restart.select_modes(self, q, v, a_free, minv, keep, held)
         if out is None:
             return None
         pairs = self._pair_list

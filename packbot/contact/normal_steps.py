@@ -139,7 +139,7 @@ class RestartSteps(ConstrainedDynamics):
             return v
         native = self.native
         if native is not None:
-            status, v1 = native.stop_slow(
+            status, v1 = native.restart.stop_slow(
                 self, q, v, minv, touch_gap=TOUCH_GAP, speed_band=SPEED_BAND,
                 stick_speed=STICK_SPEED, capture_speed=CAPTURE_SPEED,
                 residual_tol=RESIDUAL_TOL, dependent_row=DEPENDENT_ROW,
@@ -324,7 +324,7 @@ class RestartSteps(ConstrainedDynamics):
         """
         native = self.native
         if native is not None:
-            status, q1 = native.project_round(
+            status, q1 = native.restart.project_round(
                 self, q, v, minv, TOUCH_GAP, PENETRATION_TOL, RESIDUAL_TOL
             )
             if status == 0:
@@ -395,7 +395,7 @@ class RestartSteps(ConstrainedDynamics):
         self.impact_rows = None
         native = self.native
         if native is not None:  # (its frictional impact is the compiled conic solver's)
-            status, v1, bounced, rows, P = native.impact(
+            status, v1, bounced, rows, P = native.restart.impact(
                 self, q, v, minv, mu=self.mu, restitution=self.e, zeno=self.zeno_speed,
                 touch_gap=TOUCH_GAP, res_tol=RESIDUAL_TOL, conic_tol=IMPACT_CONIC_TOL,
                 max_iterations=IMPACT_ADMM_ITERATIONS, accept=IMPACT_ADMM_ACCEPT,

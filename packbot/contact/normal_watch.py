@@ -2,7 +2,7 @@
 
 After a native step (:meth:`NormalLaw.step_kernel
 <packbot.contact.normal_law.NormalLaw.step_kernel>`), one call on its last stage's evaluation
-and the end's sweep (:meth:`~packbot.contact.native.NativeRhs.end_check`: :func:`end_code`)
+and the end's sweep (:meth:`~packbot.contact.native.NativeWatch.end_check`: :func:`end_code`)
 says which of the checks of :meth:`NormalLaw.watch <packbot.contact.normal_law.NormalLaw.watch>`
 and ``after_step`` can find something: the limits' (bit 8), the pairs' (an impact, a release,
 a re-patch: 1), the modes' (a negative condition: 2) and the refresh's (a sliding contact's
@@ -43,7 +43,7 @@ FloatArray = NDArray[np.float64]
 
 
 def end_code(law: NormalLaw, y1: FloatArray, sw: SweepResult) -> int:
-    """The step end's screen (:meth:`~packbot.contact.native.NativeRhs.end_check`); -1: none.
+    """The step end's screen (:meth:`~packbot.contact.native.NativeWatch.end_check`); -1: none.
 
     Args:
         law: The law (its contact set, its native right-hand side, its active pairs).
@@ -53,7 +53,7 @@ def end_code(law: NormalLaw, y1: FloatArray, sw: SweepResult) -> int:
     if law.normal.empty:
         return -1
     active = np.array([k[1] for k in law.active if k[0] == "pair"], dtype=np.int64)
-    return law._native.end_check(
+    return law._native.watch.end_check(
         y1,
         sw.pairs,
         sw.distances,

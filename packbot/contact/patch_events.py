@@ -82,9 +82,9 @@ class PatchEvents(PairLaw):
         With ``native`` (the step was the native one, its modes and torques still loaded) the
         root finding evaluates the conditions inside the step in one native call each
         (:meth:`~packbot.contact.native.NativeRhs.eval_at`; a row's condition alone,
-        :meth:`~packbot.contact.native.NativeRhs.row_condition_at`; in Python where it
+        :meth:`~packbot.contact.native.NativeWatch.row_condition_at`; in Python where it
         cannot), and a row's crossing is located in one native call
-        (:meth:`~packbot.contact.native.NativeRhs.row_root`).
+        (:meth:`~packbot.contact.native.NativeWatch.row_root`).
         """
         ev1 = self._contact_eval(contacts, seg.t1, y1)
         if not contacts.violated(ev1):
@@ -95,7 +95,7 @@ class PatchEvents(PairLaw):
             return []
         cond0 = self._contact_conditions(contacts, seg.t0, seg.y0)
         row_at = (
-            native.row_condition_at
+            native.watch.row_condition_at
             if native is not None and contacts.rows_conditions_own()
             else None
         )
@@ -116,7 +116,7 @@ class PatchEvents(PairLaw):
             g0 = cond0[k][1] if k in cond0 else 1.0
             root = None
             if native is not None and row_at is not None and k[0] == "nrow":
-                root = native.row_root(seg, k[1])
+                root = native.watch.row_root(seg, k[1])
             out.append(Crossing(cond1[k][0], ("mode", *k), gn, g0, cond1[k][1], root))
         return out
 

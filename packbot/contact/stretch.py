@@ -4,7 +4,7 @@ Most of the contact-normal mode's steps find nothing to do at their end: no even
 patch, no mode to change. The event loop (:mod:`packbot.integrator`) takes each in Python: the
 step-size control of :meth:`packbot.ode.RK45Stepper.step` around the native Dormand-Prince
 attempt, the collision sweep at the step's end, the step end's screen
-(:meth:`NativeRhs.end_check <packbot.contact.native.NativeRhs.end_check>`), the regular samples
+(:meth:`NativeWatch.end_check <packbot.contact.native.NativeWatch.end_check>`), the regular samples
 due in the step, the crawl rule and the limit stops' release
 (:meth:`NormalLaw.watch <packbot.contact.normal_law.NormalLaw.watch>` and ``after_step``). The
 compiled ``Stretch`` (``src/native/stretch.hpp``, in ``packbot._native``) takes those steps one

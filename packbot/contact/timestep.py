@@ -45,8 +45,8 @@ theta = 1, i.e. symplectic Euler with impulses):
    way is counted (:attr:`StepInfo.removed`, ``Diagnostics.window_energy_removed``): a
    modelling choice of the window, measured in docs/contact.md.
 
-A step is the extension's (:meth:`NativeRhs.window_step
-<packbot.contact.native.NativeRhs.window_step>`, ``src/native/contact_rhs_window.cpp``): the
+A step is the extension's (:meth:`NativeRestart.window_step
+<packbot.contact.native.NativeRestart.window_step>`, ``src/native/contact_rhs_window.cpp``): the
 free velocity, M^-1, the rows, the patch rule, the problem and its impulses by the low-rank
 ADMM (:mod:`packbot.contact.conic`), v1, q1 and the guard's energies, in one call, where the
 torques are fixed over the step and the contact set stays as it is
@@ -332,8 +332,8 @@ class MoreauJeanStepper:
     ) -> tuple[Any, ...] | FloatArray | None:
         """The step's impulses in one native call, or None: the step is Python's.
 
-        The compiled right-hand side's ``window_step`` (:meth:`NativeRhs.window_step
-        <packbot.contact.native.NativeRhs.window_step>`) takes the step's free velocity, M^-1,
+        The compiled right-hand side's ``window_step`` (:meth:`NativeRestart.window_step
+        <packbot.contact.native.NativeRestart.window_step>`) takes the step's free velocity, M^-1,
         rows, problem and impulses with the arithmetic of :meth:`_python_step`, when the torques
         are fixed over the step (a held command or none, no motor lag, no Coulomb direction
         outside the problem's boxes: :meth:`Drive.step_torques`) and the contact set stays as
@@ -394,7 +394,7 @@ class MoreauJeanStepper:
         limits = (self.sys.upper, self.sys.lower) if cfg.joint_limits else (_NONE, _NONE)
         pairs, dist, margin = (_NO_PAIRS, _NONE, 0.0) if sweep is None else sweep
         v_f, v1, q1 = np.empty(n), np.empty(n), np.empty(n)
-        status, x, residual, _, rho, energies = rhs.window_step(
+        status, x, residual, _, rho, energies = rhs.restart.window_step(
             contacts, y, h, swept=pairs, dist=dist, sweep_margin=margin,
             reach=self.reach, active_gap=ACTIVE_GAP, upper=limits[0], lower=limits[1],
             limit_gap=LIMIT_GAP, mu=contacts.mu, restitution=cfg.restitution,
