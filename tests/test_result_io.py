@@ -70,7 +70,8 @@ def test_result_carries_environment_failures_and_payload(rich_run):
     assert res.environment == env
     assert [o.name for o in res.environment.obstacles] == ["floor", "block"]
     assert res.failures == (fail,)
-    assert res.payload == pay
+    # the payload as simulated: its frame named (None: the robot's tool frame)
+    assert pay.frame is None and res.payload == pay.held_in("gripper_tool")
     assert {"failure", "pick", "drop"} <= {e.kind for e in res.events}
     assert res.events_of("impact"), "the run should hit something"
 
