@@ -78,7 +78,6 @@ from packbot.contact.locks import ACCEL_BAND, TORQUE_BAND
 from packbot.contact.normal_contacts import NormalContacts
 from packbot.contact.normal_dynamics import _Eval
 from packbot.contact.normal_modes import ModeEvent
-from packbot.contact.normal_windows import CASCADE_EVENTS, CASCADE_SPAN
 from packbot.contact.patch_events import PatchEvents
 from packbot.contact.stops import HOLD_KICK, RECEDE_SPEED
 from packbot.ode import DenseSegment
@@ -409,8 +408,6 @@ class HandoffLaw(JointClampLaw, PatchEvents):
             HandoffReport`).
         holds_mixed: The friction holds under a handed-off pair (:class:`~packbot.contact.
             handoff_holds.MixedHolds`).
-        given_back: Pairs whose hand-off was given back to the report's law at a cascade (see
-            :meth:`_give_back`), not handed off again until they are released.
     """
 
     def rebuild(self, system: System) -> None:
@@ -425,8 +422,6 @@ class HandoffLaw(JointClampLaw, PatchEvents):
         )
         self.report = HandoffReport(self)
         self.holds_mixed = MixedHolds(self)
-        self.given_back: set[int] = set()
-        self._pile = (-math.inf, 0)  # (the first restart's time [s], restarts since) of a pile
 
     def forces(self) -> ForceReport:
         """The current mode's forces at the samples (its :class:`HandoffReport`)."""
@@ -590,11 +585,6 @@ class HandoffLaw(JointClampLaw, PatchEvents):
         """
         if not (self.mixed_on or any(c.kind == "secondary_intersection" for c in crossings)):
             return super()._handle(t, y, crossings)
-        if self.mixed_on:
-            t0, count = self._pile
-            self._pile = (t0, count + 1) if t - t0 <= CASCADE_SPAN else (t, 1)
-            if self._pile[1] > CASCADE_EVENTS:
-                return self._give_back(t, y)
         mixed, world = self.mixed, self.world
         n = self.n
         q, v = y[:n], y[n : 2 * n].copy()
@@ -619,14 +609,9 @@ class HandoffLaw(JointClampLaw, PatchEvents):
                         logged.append((c.kind, info, d, (), None))
                 elif c.kind == "release":
                     act = self.active.pop(key, None)
-                    self.given_back.discard(p_idx)
                     if act is not None:
                         self.log_event(t, "release", q, v, v, info, d=d)
-                elif (
-                    c.kind == "secondary_intersection"
-                    and p_idx not in self.given_back
-                    and mixed.add_pair(q, p_idx)
-                ):
+                elif c.kind == "secondary_intersection" and mixed.add_pair(q, p_idx):
                     self.active[key] = Active(info, [])  # its clamps are released
                     handed.append((info, d))
                 else:  # an impact (or a secondary intersection without a patch): the law
@@ -689,40 +674,6 @@ class HandoffLaw(JointClampLaw, PatchEvents):
                 continue
             self.log_event(t, me.kind, q, v_new, v_new, me.pair)
         self._release_receding_rows(t, y_new)
-        return y_new
-
-    def _give_back(self, t: float, y: FloatArray) -> FloatArray:
-        """The hand-off given back to the report's law where its restarts pile up at an instant.
-
-        More than ``CASCADE_EVENTS`` restarts of the mixed problem within ``CASCADE_SPAN`` (the
-        contact-normal mode's cascade, which opens a time-stepping window there; the mixed
-        problem has none) is a cycle the mixed problem does not leave (measured: the Panda's
-        free finger on the floor, a Painleve fallback, the finger's slip and release and the
-        clamp rows chosen again, to ``max_events`` at one instant). Its pairs leave it and are the
-        report's law's (each touching one is its impact: clamps, the reset if approaching),
-        not handed off again until released; a warning names them.
-        """
-        n, mixed = self.n, self.mixed
-        q, v = y[:n], y[n : 2 * n].copy()
-        pairs = list(mixed.pairs)
-        for p_idx in pairs:
-            self.active.pop(("pair", p_idx), None)
-            mixed.remove_pair(p_idx)
-            self.given_back.add(p_idx)
-        self.apply_clamps()
-        names = ", ".join(
-            f"{self.world.pairs[p].link1} - {self.world.pairs[p].link2}" for p in pairs
-        )
-        log.warning(
-            "t = %.9g s: the hand-off of %s given back to the report's law (%d restarts "
-            "within %g s)", t, names, self._pile[1], CASCADE_SPAN,
-        )  # fmt: skip
-        self._pile = (-math.inf, 0)
-        for p_idx in pairs:
-            if self.distance(p_idx, y) <= self.cfg.contact_tolerance:
-                v = self.impact(t, q, v, p_idx, "impact")
-        y_new = self.with_v(y, v)
-        self.settle_modes(t, y_new, log_stick=True)
         return y_new
 
     def _stop_creeping_clamps(self, q: FloatArray, v: FloatArray) -> FloatArray:
