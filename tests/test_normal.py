@@ -421,3 +421,23 @@ def test_arm_collapse_frictionless_penetrates_no_pair(robot):
     assert res.events_of("impact")
     world = CollisionWorld(robot)
     assert min(world.all_distances(q).min() for q in res.q) > -1.01 * PENETRATION_TOL
+
+
+def test_a_slide_re_patched_at_zero_speed_keeps_its_direction():
+    """A box at rest on the floor whose pair is marked sliding along +x: the modes selected
+    again within the mode (``keep``, as a re-patch does) at zero tangential speed keep the
+    slide's direction (it was 0 / 0 = NaN: the extension handed the case to the Python
+    selection, which divided)."""
+    robot = box_robot()
+    cfg = packbot.SimConfig(contact_mode="normal", mu=0.5)
+    q = np.array([0.0, HALF_Z, 0.0])
+    sysm = System(robot, q, cfg, Environment(obstacles=(FLOOR,)))
+    nc = NormalContacts.from_config(sysm.model, sysm.data, sysm.world, cfg)
+    assert nc.add_pair(q, 0)
+    pair = nc.pairs[0]
+    pair.stick, pair.slip_dir = False, np.array([1.0, 0.0, 0.0])
+    minv = sysm.minv(q)
+    a_free = minv @ -pin.computeGeneralizedGravity(sysm.model, sysm.data, q)
+    nc.select_modes(q, np.zeros(3), a_free, minv, keep=True)
+    assert not pair.stick
+    np.testing.assert_array_equal(pair.slip_dir, [1.0, 0.0, 0.0])
