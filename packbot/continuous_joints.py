@@ -10,9 +10,10 @@ other joint, body, inertia, frame and limit copied as it was.
 The two models are the same mechanism: the configuration (cos theta, sin theta) is the image of
 theta, and the velocity of either is theta's rate, so the dynamics (mass matrix, bias forces,
 Jacobians, frame placements) agree at every theta (to the last bit: Pinocchio evaluates the
-same sines and cosines; ``tests/test_any_arm.py`` compares them). The state of a fixed-base arm
-of revolute, continuous and prismatic joints then lives in R^nv with dq/dt = v exactly: the
-angle is unwrapped (a joint that turns twice reads 4 pi), as a multi-turn encoder reads it.
+same sines and cosines; ``tests/test_continuous_joints.py`` compares them). The state of a
+fixed-base arm of revolute, continuous and prismatic joints then lives in R^nv with dq/dt = v
+exactly: the angle is unwrapped (a joint that turns twice reads 4 pi), as a multi-turn encoder
+reads it.
 """
 
 from __future__ import annotations

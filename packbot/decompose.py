@@ -38,7 +38,7 @@ from packbot.errors import ConfigurationError, PackbotError, ResourceNotFound
 from packbot.resources import resolve_mesh_uri, search_package_dirs
 from packbot.robots import ROBOTS, robot_files
 from packbot.urdf_check import URDFChecker
-from packbot.validation import finite_number
+from packbot.validation import finite_number, integer
 
 __all__ = ["DEFAULT_EXCESS", "DEFAULT_THRESHOLD", "DecomposedMesh", "decompose_meshes"]
 
@@ -59,7 +59,7 @@ class DecomposedMesh:
     Attributes:
         link: The link it belongs to.
         index: Its position among the link's ``<collision>`` elements.
-        uri: Its ``filename`` as written in the URDF.
+        uri: Its ``filename`` (a relative path made absolute, as in the written copy).
         volume: The mesh's volume [m^3] (scale applied).
         hull_excess: (hull volume - volume) / volume [-].
         pieces: The pieces' STL files written (relative to the output folder); empty: kept as
@@ -156,6 +156,7 @@ def decompose_meshes(
         PackbotError: CoACD is not installed.
         URDFError: The URDF fails :func:`packbot.check_urdf`'s checks.
     """
+    integer("seed", seed, low=0, what="a random seed (an integer >= 0)")
     excess = finite_number("excess", excess, low=0.0, high=10.0)
     threshold = finite_number("threshold", threshold, low=0.01, high=1.0)
     dirs_given = [Path(d) for d in package_dirs or []]
