@@ -31,6 +31,7 @@ This module computes; writing the report (JSON, figures, HTML) is :mod:`packbot.
 
 from __future__ import annotations
 
+import copy
 import dataclasses
 import logging
 import math
@@ -490,6 +491,15 @@ def _check_inputs(
         )
     if duration is not None:
         finite_number("duration", duration, low=0.0, low_open=True, unit="s", what="a time")
+    t_end = scenario.duration if duration is None else float(duration)
+    t_fail = min(f.t for f in scenario.failures)
+    if t_fail >= t_end:
+        raise ConfigurationError(
+            "duration" if duration is not None else "scenario.duration",
+            t_end,
+            f"a duration [s] longer than the first failure's time, {t_fail:g} s (the runs "
+            "would end before the failure)",
+        )
     finite_number("tolerance", tolerance, low=0.0, low_open=True, unit="m", what="a distance")
     if contact_mode is not None and contact_mode not in CONTACT_MODES:
         raise ConfigurationError("contact_mode", contact_mode, CONTACT_MODES)
@@ -513,6 +523,7 @@ def study(
     recovery: StrategySpec = "builtin",
     progress: Callable[[str], None] | None = None,
     step: Callable[[float], None] | None = None,
+    healthy: StudyRun | None = None,
 ) -> StudyResult:
     """Run a failure study of a scenario with ``[[failures]]``: healthy, failed, reconfigured.
 
@@ -540,6 +551,13 @@ def study(
             run (e.g. to enforce a wall-time limit). A :class:`SimulationError` it raises stops
             that run (its status ``"error"``); any other :class:`PackbotError` stops the study
             (it propagates).
+        healthy: The healthy run of this scenario when it was already run (:attr:`StudyResult.
+            healthy` of a study of the same scenario, robot, duration, contact mode and
+            controller that differs only in its failures: the healthy run has none), so it is
+            not simulated again; a study matrix whose axes vary only the failures shares it
+            between its cells. Its metrics are measured again against this study's failure
+            time. It must start at the scenario's initial state and last the study's duration
+            (else a ConfigurationError naming ``healthy``). None: the healthy run is simulated.
 
     Returns:
         The three runs, their metrics, whether recovery is possible, whether the strategy was
@@ -574,8 +592,12 @@ def study(
         step=step,
     )
 
-    say(f"{scenario.name}: healthy run")
-    healthy = _run(setup, "healthy", None)
+    if healthy is None:
+        say(f"{scenario.name}: healthy run")
+        healthy = _run(setup, "healthy", None)
+    else:
+        say(f"{scenario.name}: healthy run (given: not simulated again)")
+        healthy = _given_healthy(healthy, setup)
     task_t = np.zeros(0)
     task_x = np.zeros((0, 3))
     if healthy.result is not None and healthy.status == "ok":
@@ -797,6 +819,30 @@ class _RunSetup:
     make_controller: Callable[[Robot], Controller | None] | None
     make_strategy: Callable[[], RecoveryStrategy]
     step: Callable[[float], None] | None
+
+
+def _given_healthy(run: Any, setup: _RunSetup) -> StudyRun:
+    """A copy of a healthy run given to :func:`study`, checked against its setup, unmeasured."""
+    if not isinstance(run, StudyRun) or run.name != "healthy":
+        raise ConfigurationError(
+            "healthy", run, "None or the StudyRun named 'healthy' of a study of this scenario"
+        )
+    result = run.result
+    if result is not None:
+        q0, v0 = setup.scenario.initial_state(setup.robot)
+        t_end = float(result.t[-1]) if len(result.t) else 0.0
+        start = (np.asarray(result.q[0]), np.asarray(result.v[0])) if len(result.t) else None
+        if start is None or not (np.array_equal(start[0], q0) and np.array_equal(start[1], v0)):
+            raise ConfigurationError(
+                "healthy", "a run from another initial state", "the scenario's initial state"
+            )
+        if run.status == "ok" and not math.isclose(t_end, setup.duration, rel_tol=1e-12):
+            raise ConfigurationError(
+                "healthy", f"a run of {t_end:g} s", f"a run of the study's {setup.duration:g} s"
+            )
+        result = copy.copy(result)
+        result.scenario_text = setup.scenario.source_text
+    return StudyRun(name="healthy", status=run.status, reason=run.reason, result=result)
 
 
 def _run(setup: _RunSetup, name: str, task: tuple[FloatArray, FloatArray] | None) -> StudyRun:

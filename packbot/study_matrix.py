@@ -252,6 +252,31 @@ def load_study_matrix(name_or_path: str | os.PathLike[str]) -> StudyMatrix:
 
 
 # ---------------------------------------------------------------------------------- a cell
+#: The healthy runs of the cells this process studied last, by :func:`_healthy_key`: a cell
+#: whose scenario differs from an earlier one's only in its failures (the healthy run has
+#: none) takes that healthy run (``study(healthy=...)``) instead of simulating it again: a
+#: matrix over the failed joint, its time and its kind simulates one healthy run per process,
+#: not one per cell. The same run either way (a simulation is deterministic, and each run
+#: builds its own robot and collision world).
+_HEALTHY_RUNS: dict[str, Any] = {}
+#: How many of them a process keeps (each holds one run's samples).
+_HEALTHY_KEPT = 4
+
+
+def _healthy_key(run: Run, controller: Any) -> str:
+    """The key of a cell's healthy run in :data:`_HEALTHY_RUNS`.
+
+    What the healthy run depends on: the cell's scenario but its failures, its folder (the
+    arm's relative paths), the controller given in place of the scenario's.
+    """
+    from packbot.control.user_code import describe_spec
+    from packbot.matrix import digest
+
+    scenario = {k: v for k, v in run.scenario.items() if k != "failures"}
+    spec = None if controller is None else describe_spec(controller)
+    return digest({"scenario": scenario, "folder": run.source_path, "controller": spec})
+
+
 @checked_arguments
 def study_cell(
     run: Run,
@@ -296,6 +321,7 @@ def study_cell(
         step(0.0)
 
     scenario = run.build_scenario()
+    key = _healthy_key(run, controller)
     result = study(
         scenario,
         robot=scenario_robot(scenario),
@@ -306,7 +332,11 @@ def study_cell(
         recovery=recovery,
         progress=say,
         step=step,
+        healthy=_HEALTHY_RUNS.get(key),
     )
+    _HEALTHY_RUNS[key] = result.healthy
+    while len(_HEALTHY_RUNS) > _HEALTHY_KEPT:
+        del _HEALTHY_RUNS[next(iter(_HEALTHY_RUNS))]
     with tempfile.TemporaryDirectory(prefix="packbot-study-") as tmp:
         written = write_study(result, tmp, html=options.html)
         files = {

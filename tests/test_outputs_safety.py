@@ -46,6 +46,9 @@ from packbot.viz import write_html
 from packbot.viz.html import screenshot_command
 from packbot.viz.study_report import write_study
 
+#: What it checks is what pages, files and processes show and do, not numbers.
+pytestmark = pytest.mark.nonnumeric
+
 # --------------------------------------------------------------------------- hostile names
 #: Each one marks the page (``data-pwned`` on <body>, an element id ``pwned...``) if it runs.
 HOSTILE = (

@@ -43,11 +43,91 @@ EXAMPLE = "study-frozen-elbows"
 
 
 # --------------------------------------------------------------------------- the example
+#: The runs the example's study simulated, by name (the fixture counts them).
+SIMULATED: dict[str, int] = {}
+
+
 @pytest.fixture(scope="module")
 def studied(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Any]:
+    import importlib
+
+    study_module = importlib.import_module("packbot.study")  # the package's `study` is the function
+    study_matrix_module = importlib.import_module("packbot.study_matrix")
+
     out = tmp_path_factory.mktemp("study-matrix") / "out"
-    report = run_study_matrix(EXAMPLE, out, workers=0)
+    real_run = study_module._run
+
+    def counted(setup: Any, name: str, task: Any) -> Any:
+        SIMULATED[name] = SIMULATED.get(name, 0) + 1
+        return real_run(setup, name, task)
+
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(study_module, "_run", counted)
+        mp.setattr(study_matrix_module, "_HEALTHY_RUNS", {})
+        report = run_study_matrix(EXAMPLE, out, workers=0)
     return out, report
+
+
+def _without_wall_times(value: Any) -> Any:
+    if isinstance(value, dict):
+        return {k: _without_wall_times(v) for k, v in value.items() if "wall" not in k}
+    if isinstance(value, list):
+        return [_without_wall_times(v) for v in value]
+    return value
+
+
+def test_the_cells_share_one_healthy_run(studied: tuple[Path, Any]) -> None:
+    """The four cells vary only the failure: one healthy run is simulated, not four, and the
+    last cell's study (its healthy run given) is the study that simulates its own, to the last
+    digit."""
+    from packbot.scenario import scenario_robot
+    from packbot.study import study
+
+    out, report = studied
+    assert SIMULATED["healthy"] == 1 and SIMULATED["failed"] == 4, SIMULATED
+    run = report.study_matrix.runs()[-1]
+    scenario = run.build_scenario()
+    opts = report.study_matrix.options
+    alone = study(
+        scenario,
+        robot=scenario_robot(scenario),
+        tolerance=opts.tolerance,
+        workspace_samples=opts.workspace_samples,
+        seed=opts.seed,
+    )
+    data = json.loads((out / run.id / "study.json").read_text())
+    data.pop("figures")  # the files write_study adds
+    assert _without_wall_times(data) == _without_wall_times(json.loads(json.dumps(alone.summary())))
+
+
+def test_a_healthy_run_of_another_start_or_length_is_refused(studied: tuple[Path, Any]) -> None:
+    import dataclasses
+
+    from packbot.scenario import scenario_robot
+    from packbot.study import StudyRun, study
+
+    _, report = studied
+    run = report.study_matrix.runs()[0]
+    scenario = run.build_scenario()
+    robot = scenario_robot(scenario)
+    from packbot.study_matrix import _HEALTHY_RUNS, _healthy_key
+
+    assert _healthy_key(run, None) not in _HEALTHY_RUNS  # the fixture's memo was its own
+    with pytest.raises(ConfigurationError, match="before the failure") as exc:
+        study(scenario, robot=robot, duration=0.5)  # the failure is at 0.5 s
+    assert exc.value.field == "duration"
+    shorter = dataclasses.replace(scenario, duration=0.6)
+    healthy = study(shorter, robot=robot, workspace_samples=100).healthy
+    assert healthy.result is not None
+    elsewhere = dataclasses.replace(healthy.result, q=healthy.result.q + 0.1)
+    for bad, why in (
+        (healthy, "study's 2.5 s"),
+        (dataclasses.replace(healthy, result=elsewhere), "initial state"),
+        (StudyRun(name="failed", status="ok"), "named 'healthy'"),
+    ):
+        with pytest.raises(ConfigurationError, match=why) as exc:
+            study(scenario, robot=robot, workspace_samples=100, healthy=bad)
+        assert exc.value.field == "healthy"
 
 
 def test_example_is_a_study_matrix() -> None:
