@@ -21,7 +21,9 @@ from __future__ import annotations
 
 import logging
 import os
+import shutil
 import struct
+import tempfile
 import time
 import xml.etree.ElementTree as ET
 from collections.abc import Sequence
@@ -138,7 +140,9 @@ def decompose_meshes(
         urdf: The arm's URDF file, or a name of :data:`packbot.robots.ROBOTS` (its meshes'
             packages found as :func:`packbot.load_robot` finds them).
         out_dir: The folder to write into (created): ``<urdf's name>`` there and the pieces
-            in its ``meshes/``. Nothing is written elsewhere.
+            in its ``meshes/``. Nothing is written elsewhere, and a run that fails (or is
+            interrupted) leaves the folder as it found it: the pieces are written into a
+            folder of its own first and moved into ``meshes/`` once every mesh is done.
         package_dirs: Folders of the URDF's ``package://`` meshes (and ``ROS_PACKAGE_PATH``).
         excess: Decompose a mesh whose hull is larger than the mesh by more than this fraction
             of its volume [-], in [0, 10].
@@ -181,10 +185,44 @@ def decompose_meshes(
         uri = mesh_el.get("filename", "")
         if "://" not in uri and not Path(uri).is_absolute():
             mesh_el.set("filename", str(here / uri))
+    created = not out.exists()
+    out.mkdir(parents=True, exist_ok=True)
+    # the pieces go to a folder of out's own first and move into place once every mesh is
+    # done: a run that fails (CoACD, a bad mesh, Ctrl-C) leaves out as it found it
+    stage = Path(tempfile.mkdtemp(prefix=".decompose-", dir=out))
+    try:
+        report = _decompose_tree(tree, here, dirs, stage, excess, threshold, seed)
+    except BaseException:
+        shutil.rmtree(stage, ignore_errors=True)
+        if created:
+            shutil.rmtree(out, ignore_errors=True)
+        raise
+    if (stage / MESH_FOLDER).is_dir():
+        (out / MESH_FOLDER).mkdir(exist_ok=True)
+        for piece in sorted((stage / MESH_FOLDER).iterdir()):
+            os.replace(piece, out / MESH_FOLDER / piece.name)
+    shutil.rmtree(stage, ignore_errors=True)
+    written = out / path.name
+    ET.indent(tree)
+    tree.write(written, encoding="utf-8", xml_declaration=True)
+    return written, report
+
+
+def _decompose_tree(
+    tree: ET.ElementTree[ET.Element],
+    here: Path,
+    dirs: Sequence[Path],
+    stage: Path,
+    excess: float,
+    threshold: float,
+    seed: int,
+) -> list[DecomposedMesh]:
+    """Each concave collision mesh of ``tree`` split, its pieces written into ``stage``."""
     coacd = None
     report: list[DecomposedMesh] = []
-    (out / MESH_FOLDER).mkdir(parents=True, exist_ok=True)
-    for link in tree.getroot().iter("link"):
+    root = tree.getroot()
+    assert root is not None  # (a parsed file has its root)
+    for link in root.iter("link"):
         name = link.get("name", "")
         for index, col in enumerate(list(link.iter("collision"))):
             mesh = col.find("geometry/mesh")
@@ -207,7 +245,8 @@ def decompose_meshes(
             files, total = [], 0.0
             for k, (points, _faces) in enumerate(parts):
                 rel = f"{MESH_FOLDER}/{name}_{index}_{k}.stl"
-                total += _write_stl(out / rel, np.asarray(points, dtype=float))
+                (stage / MESH_FOLDER).mkdir(exist_ok=True)
+                total += _write_stl(stage / rel, np.asarray(points, dtype=float))
                 files.append(rel)
             position = list(link).index(col)
             link.remove(col)
@@ -240,7 +279,4 @@ def decompose_meshes(
                 100 * (total / volume - 1),
                 seconds,
             )
-    written = out / path.name
-    ET.indent(tree)
-    tree.write(written, encoding="utf-8", xml_declaration=True)
-    return written, report
+    return report

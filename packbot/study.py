@@ -461,6 +461,28 @@ def _json_number(x: Any) -> Any:
 
 
 # ---------------------------------------------------------------------------------- inputs
+def check_failure_within(scenario: Scenario, duration: float | None, field: str) -> None:
+    """Refuse a study whose runs end before its first failure (nothing to study).
+
+    Args:
+        scenario: The study's scenario (with its failures).
+        duration: The runs' duration [s] (None: the scenario's).
+        field: The field the error names.
+
+    Raises:
+        ConfigurationError: The first failure's time is at or after the runs' end.
+    """
+    t_end = scenario.duration if duration is None else float(duration)
+    t_fail = min((f.t for f in scenario.failures), default=math.inf)
+    if t_fail >= t_end:
+        raise ConfigurationError(
+            field,
+            t_end,
+            f"a duration [s] longer than the first failure's time, {t_fail:g} s (the runs "
+            "would end before the failure)",
+        )
+
+
 def _check_inputs(
     scenario: Scenario | str | Path,
     robot: Robot | None,
@@ -491,15 +513,9 @@ def _check_inputs(
         )
     if duration is not None:
         finite_number("duration", duration, low=0.0, low_open=True, unit="s", what="a time")
-    t_end = scenario.duration if duration is None else float(duration)
-    t_fail = min(f.t for f in scenario.failures)
-    if t_fail >= t_end:
-        raise ConfigurationError(
-            "duration" if duration is not None else "scenario.duration",
-            t_end,
-            f"a duration [s] longer than the first failure's time, {t_fail:g} s (the runs "
-            "would end before the failure)",
-        )
+    check_failure_within(
+        scenario, duration, "duration" if duration is not None else "scenario.duration"
+    )
     finite_number("tolerance", tolerance, low=0.0, low_open=True, unit="m", what="a distance")
     if contact_mode is not None and contact_mode not in CONTACT_MODES:
         raise ConfigurationError("contact_mode", contact_mode, CONTACT_MODES)

@@ -232,12 +232,15 @@ class StudyMatrix:
         """Check every cell before any runs (:func:`packbot.batch.check_runs`, the failure).
 
         Raises:
-            ConfigurationError: A cell's scenario is bad or lacks the varied failure (names the
-                cell and the field).
+            ConfigurationError: A cell's scenario is bad, lacks the varied failure or ends
+                before its first failure (names the cell and the field).
         """
+        from packbot.study import check_failure_within
+
         check_runs(runs)
         for run in runs:
             self.failure_of(run)
+            check_failure_within(run.build_scenario(), None, f"run {run.id}: duration")
 
 
 @checked_arguments

@@ -131,3 +131,43 @@ def test_the_cli_decomposes_and_names_bad_options(tmp_path, capsys) -> None:
     assert main(bad) == 2
     assert "threshold" in capsys.readouterr().err
     assert main(["decompose", "--urdf", str(urdf), "--out", str(tmp_path)]) == 2  # its own folder
+
+
+def test_a_run_that_fails_half_way_leaves_the_folder_as_it_found_it(tmp_path, monkeypatch) -> None:
+    """The first piece written, the second fails (a full disk, Ctrl-C): no piece and no URDF
+    stay in the folder, a folder the call created is removed, a user's file kept."""
+    import packbot.decompose as dec
+
+    cube = np.array([[x, y, z] for x in (0, 0.1) for y in (0, 0.1) for z in (0, 0.1)], float)
+
+    class FakeCoacd:  # two pieces at once (no CoACD run: the failure is what is tested)
+        Mesh = staticmethod(lambda vertices, tris: (vertices, tris))
+
+        @staticmethod
+        def run_coacd(mesh, threshold, seed):
+            return [(cube, None), (cube + 0.2, None)]
+
+    real_write = dec._write_stl
+    written: list[Path] = []
+
+    def write_then_fail(path, points):
+        if written:
+            raise OSError("No space left on device")
+        written.append(path)
+        return real_write(path, points)
+
+    monkeypatch.setattr(dec, "_coacd", lambda: FakeCoacd)
+    monkeypatch.setattr(dec, "_write_stl", write_then_fail)
+    urdf = _write_fork(tmp_path)
+    for out, keep in ((tmp_path / "new", None), (tmp_path / "mine", "notes.txt")):
+        if keep:
+            out.mkdir()
+            (out / keep).write_text("the user's")
+        written.clear()
+        with pytest.raises(OSError, match="No space"):
+            dec.decompose_meshes(urdf, out)
+        assert written and not written[0].exists()  # the first piece was written, then removed
+        if keep is None:
+            assert not out.exists()
+        else:
+            assert [p.name for p in out.iterdir()] == [keep]

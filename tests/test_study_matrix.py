@@ -325,6 +325,7 @@ name = "m"
 base = "frozen_elbow_reach"
 [set]
 duration = 0.6
+"failures.0.t" = 0.3
 [axes]
 "failures.0.joint" = ["elbow1"]
 """
@@ -392,6 +393,12 @@ def test_a_bad_cell_is_refused_before_anything_runs(tmp_path: Path) -> None:
     with pytest.raises(ConfigurationError) as exc:
         run_study_matrix(_matrix(text, tmp_path), out, workers=0)
     assert "failures" in exc.value.field
+    assert not out.exists()
+    # a cell whose runs end (0.6 s) before its failure (1 s)
+    text = _BASE.replace('"failures.0.t" = 0.3', '"failures.0.t" = 1.0') + "[study]\n"
+    with pytest.raises(ConfigurationError, match="before the failure") as exc:
+        run_study_matrix(_matrix(text, tmp_path), out, workers=0)
+    assert exc.value.field.startswith("run ") and exc.value.field.endswith("duration")
     assert not out.exists()
 
 
