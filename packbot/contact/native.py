@@ -90,7 +90,7 @@ class NativeModes:
     """The modes :meth:`NativeRestart.select_modes` selected.
 
     Attributes:
-        kept: keep_modes kept the engaged rows given.
+        kept: The engaged rows given were kept (ModeSelection.repatch_modes).
         engaged: The engaged rows.
         stick: Each pair's stick flag (the contact set's order).
         slip_dir: Each pair's slip direction (pairs, 3), world.
@@ -653,8 +653,9 @@ class NativeRestart:
         """A restart's or a re-patch's mode selection, in one native call.
 
         :meth:`ModeSelection.select_modes <packbot.contact.normal_modes.ModeSelection.
-        select_modes>` (after :meth:`~packbot.contact.normal_modes.ModeSelection.keep_modes`
-        of the engaged rows ``held`` when not empty), whose arithmetic it follows (the
+        select_modes>` (after keeping the engaged rows ``held`` when not empty, as
+        :meth:`~packbot.contact.normal_modes.ModeSelection.repatch_modes` asks), its only
+        implementation, whose arithmetic the Python selection follows (the
         extension's ``ContactRhs.select_modes``, ``src/native/modes.hpp``), on the contact
         set's rows at (q, v); the pairs' modes are read from ``contacts`` and returned, not
         written there. The contact set's layout is loaded first; the loaded plan is changed.

@@ -70,7 +70,7 @@ class NormalContacts(RestartSteps, ModeSelection):
         """Recompute the patches of a sliding contact, correct drift and select the modes again.
 
         The engaged rows before are kept when they still solve the mode problem
-        (:meth:`keep_modes`: one solve instead of the full selection); otherwise
+        (:meth:`repatch_modes`: one solve instead of the full selection); otherwise
         ``select_modes(keep=True)``.
 
         Returns:

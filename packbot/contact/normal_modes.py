@@ -157,20 +157,36 @@ class ModeSelection(ConstrainedDynamics):
         signature: tuple[Any, ...],
         engaged: list[int],
     ) -> None:
-        """The modes after a re-patch: :meth:`keep_modes`, else ``select_modes(keep=True)``.
+        """The modes after a re-patch: the rows engaged before kept, else a new selection.
 
-        In one native call where :meth:`select_modes` would be native (:meth:`_native_modes`).
-        Arguments: see :meth:`keep_modes`.
+        The extension's selection keeps the engaged rows of before the re-patch (``held``)
+        where the rows mean what they meant (``signature``, :meth:`~packbot.contact.
+        normal_set.ContactSet.row_signature`), every one still touches, no sliding pair is
+        slower than :data:`STICK_SPEED` and one solve with them solves the mode problem of
+        :meth:`select_modes` (positive forces, no touching free row accelerating into contact,
+        every mode condition satisfied): sticking pairs stay sticking, sliding pairs take the
+        direction of their sliding velocity. Otherwise, and under a subclass's dynamics, the
+        modes are selected again (``select_modes(keep=True)``), which gives the same modes
+        wherever that problem has one solution.
+
+        Args:
+            q: Configuration [rad].
+            v: Velocity [rad/s].
+            a_free: Unconstrained accelerations [rad/s^2].
+            minv: M^-1 at q.
+            signature: The row signature before the re-patch.
+            engaged: The engaged rows before the re-patch.
         """
-        if engaged and self._keeps_own_rows(signature):
-            if self._native_modes(q, v, a_free, minv, True, engaged) is not None:
-                return
-            if self.keep_modes(q, v, a_free, minv, signature, engaged):
-                return
+        if (
+            engaged
+            and self._keeps_own_rows(signature)
+            and self._native_modes(q, v, a_free, minv, True, engaged) is not None
+        ):
+            return
         self.select_modes(q, v, a_free, minv, keep=True)
 
     def _keeps_own_rows(self, signature: tuple[Any, ...]) -> bool:
-        """Whether :meth:`keep_modes` may keep the engaged rows of before a re-patch."""
+        """Whether the engaged rows of before a re-patch may be kept (:meth:`repatch_modes`)."""
         return (
             type(self).evaluate is _OWN_EVALUATE
             and type(self).violated is _OWN_VIOLATED
@@ -186,11 +202,11 @@ class ModeSelection(ConstrainedDynamics):
         keep: bool,
         held: list[int],
     ) -> list[ModeEvent] | None:
-        """:meth:`select_modes` (after :meth:`keep_modes` of ``held``) in one native call.
+        """:meth:`select_modes` in one native call, first keeping the rows ``held``.
 
-        None where it does not run (no compiled right-hand side, a resting contact set, rows
-        ``held`` to keep under a subclass's dynamics or conditions: keep_modes' violated) or
-        hands back; else the modes are set and the mode changes returned.
+        (:meth:`repatch_modes`.) None where it does not run (no compiled right-hand side, a
+        resting contact set, rows ``held`` to keep under a subclass's dynamics or conditions)
+        or hands back; else the modes are set and the mode changes returned.
         """
         native = self.native
         own = type(self).evaluate is _OWN_EVALUATE and type(self).conditions is _OWN_CONDITIONS
@@ -211,81 +227,6 @@ class ModeSelection(ConstrainedDynamics):
         return [
             ModeEvent(_KINDS[kind], pairs[i].info if i >= 0 else None) for kind, i in out.events
         ]
-
-    def keep_modes(
-        self,
-        q: FloatArray,
-        v: FloatArray,
-        a_free: FloatArray,
-        minv: FloatArray,
-        signature: tuple[Any, ...],
-        engaged: list[int],
-    ) -> bool:
-        """After a re-patch, keep the engaged rows if they still solve the mode problem.
-
-        ``engaged`` are the rows engaged before the re-patch, ``signature`` what the row
-        indices meant then (:meth:`~packbot.contact.normal_set.ContactSet.row_signature`).
-        They are kept (True) when the rows are the same, every one still touches, no sliding
-        pair is slower than :data:`STICK_SPEED` (its direction is decided by the full
-        selection) and one solve with them (:meth:`evaluate`) is a solution of the mode problem
-        of :meth:`select_modes`: positive forces on the engaged rows, no touching free row
-        accelerating into contact (Baumgarte terms included; to :data:`RESIDUAL_TOL`, scaled,
-        as the selection's own solutions), every mode condition satisfied.
-        Sticking pairs stay sticking and sliding pairs take the direction of their sliding
-        velocity, as ``select_modes(keep=True)`` does; where that problem has one solution,
-        the same one. Otherwise (False) the caller selects the modes in full. The contact
-        set's own dynamics only (a subclass's take the full selection).
-
-        Args:
-            q: Configuration [rad].
-            v: Velocity [rad/s].
-            a_free: Unconstrained accelerations [rad/s^2].
-            minv: M^-1 at q.
-            signature: The row signature before the re-patch.
-            engaged: The engaged rows before the re-patch.
-        """
-        if (
-            not engaged
-            or type(self).evaluate is not _OWN_EVALUATE
-            or type(self).violated is not _OWN_VIOLATED
-            or signature != self.row_signature()
-        ):
-            return False
-        Jn, drift, gap, vn, extra = self._problem(q, v)
-        touch = (gap <= TOUCH_GAP) & (np.abs(vn) <= SPEED_BAND)
-        E = np.array(engaged, dtype=np.intp)
-        if not bool(touch[E].all()):
-            return False
-        if self.mu > 0.0:
-            k = 0
-            held = set(engaged)
-            for p, ex in zip(self.pairs.values(), extra, strict=True):
-                K = len(p.local1)
-                mine = [r for r in range(k, k + K) if r in held]
-                touching = bool(touch[k : k + K].any())
-                k += K
-                if p.stick:
-                    if touching and not mine:  # the full selection holds it with zero force
-                        return False
-                    continue
-                speed = _norm(ex["vt"])
-                if speed <= STICK_SPEED:
-                    return False
-                p.slip_dir = ex["vt"] / speed
-        self.engaged = list(engaged)
-        ev = self.evaluate(q, v, a_free, minv)
-        lam = ev.lam[: len(E)]
-        if self.violated(ev) or float(lam.min()) <= 1e-12 * (1.0 + float(np.abs(lam).max())):
-            return False
-        free_rows = touch.copy()
-        free_rows[E] = False
-        free = np.flatnonzero(free_rows)
-        if len(free):
-            w = Jn[free] @ ev.a + drift[free]
-            w += 2.0 * BAUMGARTE * vn[free] + BAUMGARTE**2 * gap[free]
-            if float(w.min()) < -RESIDUAL_TOL * (1.0 + float(np.abs(w).max())):
-                return False
-        return True
 
     def _consistent_directions(
         self,

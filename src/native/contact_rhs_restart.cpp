@@ -230,12 +230,12 @@ nb::tuple ContactRhs::impact(F1 q, F1 v, F2 minv, double mu, double restitution,
 }
 
 // A restart's or a re-patch's mode selection (packbot.contact.normal_modes.ModeSelection:
-// select_modes(keep), after keep_modes(held) when `held`, the engaged rows before a re-patch,
+// select_modes(keep), after keeping the rows `held` when any, the engaged rows before a re-patch,
 // is not empty; modes.hpp) on the rows at (q, v) with the loaded layout, a_free [rad/s^2] and
 // minv (nv x nv, symmetric) given, and the law's constants. The pairs' modes are read from
 // stick_io (one flag per pair) and slip_io ((pairs, 3), world) and, status 0, written back.
 // Returns (status, kept, engaged rows, events, painleve, gave_up): status 0 done, 1 the
-// caller's own selection (nothing written); kept: keep_modes kept `held`; events (k, 2):
+// caller's own selection (nothing written); kept: `held` was kept; events (k, 2):
 // kind (0 stick, 1 slip, 2 painleve) and pair (-1: none); painleve: the Painleve fallbacks
 // taken; gave_up: friction given up for this restart. The loaded plan is left changed.
 nb::tuple ContactRhs::select_modes(F1 q, F1 v, F1 a_free, F2 minv, bool keep, I1 held,

@@ -1,5 +1,6 @@
-// The contact-normal mode's mode selection at a restart, ported from
-// packbot/contact/normal_modes.py (ModeSelection.select_modes, keep_modes and their helpers):
+// The contact-normal mode's mode selection at a restart, after
+// packbot/contact/normal_modes.py (ModeSelection.select_modes and its helpers; keeping the
+// engaged rows at a re-patch, ModeSelection.repatch_modes, exists here only):
 // which touching rows are engaged, which pairs stick or slip and the slip directions, from the
 // acceleration-level mixed LCP (touching normal rows complementary, sticking pairs' tangential
 // rows equalities), the cone check, the slip directions' consistency and the Painleve
@@ -115,9 +116,13 @@ class Selection {
     return st;
   }
 
-  // ModeSelection.keep_modes(q, v, a_free, minv, signature, engaged) on the rows, the caller
-  // having checked the signature: the engaged rows `held` kept (true) or not (false; the
-  // caller then selects with keep). Sliding pairs take their sliding velocity's direction.
+  // The engaged rows `held` of before a re-patch kept (true) or not (false; the caller then
+  // selects with keep), the caller having checked the row signature: kept when every one
+  // still touches, no sliding pair is slower than stick_speed, and one solve with them is a
+  // solution of the mode problem (positive forces on them, no touching free row accelerating
+  // into contact, Baumgarte terms included, to residual_tol scaled; every mode condition
+  // satisfied). Sticking pairs stay sticking; sliding pairs take their sliding velocity's
+  // direction.
   Status keep(const Rows &R, const Consts &c, const double *a_free, const double *Mi,
               const std::vector<int> &held, const Evaluate &evaluate, bool &kept) {
     kept = false;

@@ -216,7 +216,7 @@ class Stretch {
   // step whose only finding is a sliding pair's stale patch), taken here when the caller
   // allows it (set_repatch's constants, then each run's modes): the patches rebuilt at the
   // step's end (the sweep's materials), the drift projection's round and its sweep's check,
-  // the modes kept or selected again (keep_modes, select_modes), the plan loaded, and the
+  // the modes kept or selected again (the rows kept, or select_modes), the plan loaded, and the
   // stepper restarted there (RK45Stepper.reset with its step size and a deferred derivative).
   // A patch of another size changes the layout's shape (ContactRhs::relayout_raw). Where
   // Python's re-patch would take a branch not here (a pair out of tolerance or its patch off
@@ -638,7 +638,7 @@ class Stretch {
     const double removed = st == 0 ? 0.0 : rhs_.neutral_velocity_raw(q, q_new_.data(),
                                                                      v_new_.data());
     v = v_new_.data();
-    // the modes (ModeSelection.repatch_modes: keep_modes of the engaged rows, else select_modes
+    // the modes (ModeSelection.repatch_modes: the engaged rows kept, else select_modes
     // with keep, natively), a_free at the projected q and M^-1 at q
     afree_.resize(nv);
     rhs_.free_accel_raw(q_new_.data(), v, afree_.data());
