@@ -654,8 +654,8 @@ class NativeRestart:
 
         :meth:`ModeSelection.select_modes <packbot.contact.normal_modes.ModeSelection.
         select_modes>` (after keeping the engaged rows ``held`` when not empty, as
-        :meth:`~packbot.contact.normal_modes.ModeSelection.repatch_modes` asks), its only
-        implementation, whose arithmetic the Python selection follows (the
+        :meth:`~packbot.contact.normal_modes.ModeSelection.repatch_modes` asks: that part
+        exists only in the extension), whose arithmetic it follows (the
         extension's ``ContactRhs.select_modes``, ``src/native/modes.hpp``), on the contact
         set's rows at (q, v); the pairs' modes are read from ``contacts`` and returned, not
         written there. The contact set's layout is loaded first; the loaded plan is changed.
