@@ -190,6 +190,7 @@ def decompose_meshes(
     # the pieces go to a folder of out's own first and move into place once every mesh is
     # done: a run that fails (CoACD, a bad mesh, Ctrl-C) leaves out as it found it
     stage = Path(tempfile.mkdtemp(prefix=".decompose-", dir=out))
+    (stage / MESH_FOLDER).mkdir()
     try:
         report = _decompose_tree(tree, here, dirs, stage, excess, threshold, seed)
     except BaseException:
@@ -197,10 +198,11 @@ def decompose_meshes(
         if created:
             shutil.rmtree(out, ignore_errors=True)
         raise
-    if (stage / MESH_FOLDER).is_dir():
+    pieces = sorted((stage / MESH_FOLDER).iterdir())
+    if pieces:
         (out / MESH_FOLDER).mkdir(exist_ok=True)
-        for piece in sorted((stage / MESH_FOLDER).iterdir()):
-            os.replace(piece, out / MESH_FOLDER / piece.name)
+    for piece in pieces:
+        os.replace(piece, out / MESH_FOLDER / piece.name)
     shutil.rmtree(stage, ignore_errors=True)
     written = out / path.name
     ET.indent(tree)
@@ -245,7 +247,6 @@ def _decompose_tree(
             files, total = [], 0.0
             for k, (points, _faces) in enumerate(parts):
                 rel = f"{MESH_FOLDER}/{name}_{index}_{k}.stl"
-                (stage / MESH_FOLDER).mkdir(exist_ok=True)
                 total += _write_stl(stage / rel, np.asarray(points, dtype=float))
                 files.append(rel)
             position = list(link).index(col)
